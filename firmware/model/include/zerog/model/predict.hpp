@@ -1,0 +1,145 @@
+#pragma once
+// The force model: predicts the wrench the payload alone exerts on the F/T sensor.
+// One implementation, templated on the scalar so Ceres autodiff (host) and the firmware (double)
+// evaluate the same code. Formulas: proto/effects.md; paper 000_… eq. 1–5, paper 001_… eq. 5–8.
+//
+// Real-time safe: no allocation, no exceptions, no I/O, bounded time.
+#include <Eigen/Core>
+#include <array>
+#include <cmath>
+
+#include "zerog/model/effects.hpp"
+#include "zerog/model/rotation.hpp"
+
+namespace zerog::model {
+
+template <typename T>
+using Vec3 = Eigen::Matrix<T, 3, 1>;
+template <typename T>
+using Mat3 = Eigen::Matrix<T, 3, 3>;
+
+/// Wrench in the sensor frame: force (N) then torque about the sensor origin (N·m).
+template <typename T>
+using Wrench = Eigen::Matrix<T, 6, 1>;
+
+/// Rig geometry that the model takes as known (from the rig description, proto/log_format.md).
+struct RigGeometry {
+  Eigen::Matrix3d R_sensor_imu = Eigen::Matrix3d::Identity();  ///< IMU axes in the sensor frame
+  Eigen::Vector3d p_sensor_imu_m = Eigen::Vector3d::Zero();    ///< IMU origin in the sensor frame
+};
+
+/// Signals of one sample that do not depend on model parameters.
+struct PoseSignals {
+  Eigen::Matrix3d R_base_sensor = Eigen::Matrix3d::Identity();  ///< nominal sensor attitude in base
+  double t_rel_s = 0.0;        ///< time since the start of the log, s
+  double temperature_C = kTemperatureReferenceC;  ///< sensor temperature, °C
+  std::array<double, 6> joints_rad{};             ///< robot joint angles A1..A6, rad
+};
+
+/// IMU signals of one sample, in the IMU frame. Templated because the IMU time offset makes
+/// them depend on a parameter (they are interpolated at t + tau).
+template <typename T>
+struct ImuSignals {
+  Vec3<T> specific_force_imu = Vec3<T>::Zero();  ///< accelerometer: a − g, m/s²
+  Vec3<T> angular_rate_imu = Vec3<T>::Zero();    ///< gyroscope, rad/s
+  Vec3<T> angular_accel_imu = Vec3<T>::Zero();   ///< derivative of the gyroscope, rad/s²
+};
+
+/// Parameter blocks by effect; entries of effects not in the set may be null.
+template <typename T>
+using ParamPointers = std::array<const T*, kEffectCount>;
+
+inline ParamPointers<double> pointers(const ModelParams& p) {
+  ParamPointers<double> out{};
+  for (Effect e : kAllEffects) out[index(e)] = p.block(e);
+  return out;
+}
+
+/// Gravity vector in the sensor frame (m/s²) given the nominal sensor attitude, the base tilt
+/// (paper 001_… eq. 5: B is W rotated about x_W by alpha, then about y by beta) and the sensor
+/// mounting rotation. Real-time safe.
+template <typename T>
+Vec3<T> gravity_sensor(const EffectSet& effects, const ParamPointers<T>& p,
+                       const Eigen::Matrix3d& R_base_sensor, const Mat3<T>& R_nominal_true) {
+  Vec3<T> g_world(T(0), T(0), T(-kStandardGravity));
+  Vec3<T> g_base = g_world;
+  if (effects.has(Effect::base_tilt)) {
+    const T* tilt = p[index(Effect::base_tilt)];
+    Mat3<T> R_world_base = rot_x(tilt[0]) * rot_y(tilt[1]);
+    g_base = R_world_base.transpose() * g_world;
+  }
+  Vec3<T> g_nominal = R_base_sensor.transpose().cast<T>() * g_base;
+  return R_nominal_true.transpose() * g_nominal;
+}
+
+/// Predicted wrench the payload exerts on the sensor (sensor frame, torque about the sensor
+/// origin), before contact. Effects not in `effects` contribute nothing. Real-time safe.
+template <typename T>
+Wrench<T> predict_wrench(const EffectSet& effects, const ParamPointers<T>& p,
+                         const PoseSignals& pose, const ImuSignals<T>& imu,
+                         const RigGeometry& rig) {
+  // Sensor mounting rotation: the true sensor frame is the nominal one rotated by Exp(r).
+  Mat3<T> R_nominal_true = Mat3<T>::Identity();
+  if (effects.has(Effect::sensor_rotation)) {
+    R_nominal_true = rotation_from_vector(Vec3<T>(p[index(Effect::sensor_rotation)]));
+  }
+  // The IMU is fixed to the flange side, so a sensor rotation also turns the IMU relative to S.
+  const Mat3<T> R_sensor_imu = R_nominal_true.transpose() * rig.R_sensor_imu.cast<T>();
+  const Vec3<T> p_sensor_imu = R_nominal_true.transpose() * rig.p_sensor_imu_m.cast<T>();
+  const Vec3<T> omega = R_sensor_imu * imu.angular_rate_imu;
+  const Vec3<T> omega_dot = R_sensor_imu * imu.angular_accel_imu;
+
+  Wrench<T> w = Wrench<T>::Zero();
+  if (effects.has(Effect::gravity)) {
+    const T* grav = p[index(Effect::gravity)];
+    const T mass = grav[0];
+    const Vec3<T> com(grav[1], grav[2], grav[3]);
+    Vec3<T> force;
+    if (effects.has(Effect::linear_inertia)) {
+      // m (g − a_c) = −m × (specific force at the centre of mass). The accelerometer measures
+      // specific force at the IMU; rigid-body transfer to the centre of mass (lever r).
+      const Vec3<T> r = com - p_sensor_imu;
+      const Vec3<T> f_com = R_sensor_imu * imu.specific_force_imu + omega_dot.cross(r) +
+                            omega.cross(omega.cross(r));
+      force = -mass * f_com;
+    } else {
+      force = mass * gravity_sensor(effects, p, pose.R_base_sensor, R_nominal_true);
+    }
+    Vec3<T> torque = com.cross(force);
+    if (effects.has(Effect::rotational_inertia)) {
+      const T* I = p[index(Effect::rotational_inertia)];
+      Mat3<T> inertia;
+      inertia << I[0], I[3], I[4], I[3], I[1], I[5], I[4], I[5], I[2];
+      // Newton–Euler (000_… eq. 5): the payload needs I ω̇ + ω × I ω from the sensor.
+      torque -= inertia * omega_dot + omega.cross(inertia * omega);
+    }
+    w.template head<3>() = force;
+    w.template tail<3>() = torque;
+  }
+  if (effects.has(Effect::cable)) {
+    const T* c = p[index(Effect::cable)];
+    for (int j = 0; j < 3; ++j) {
+      const double q = pose.joints_rad[kCableJoints[j]];
+      const double cq = std::cos(q), sq = std::sin(q);
+      for (int k = 0; k < 6; ++k) w[k] += c[j * 12 + k] * cq + c[j * 12 + 6 + k] * sq;
+    }
+  }
+  if (effects.has(Effect::crosstalk)) {
+    const T* e = p[index(Effect::crosstalk)];
+    Eigen::Map<const Eigen::Matrix<T, 6, 6, Eigen::RowMajor>> E(e);
+    w += E * w;  // Eigen evaluates the product into a temporary (no aliasing)
+  }
+  if (effects.has(Effect::bias)) {
+    w += Eigen::Map<const Wrench<T>>(p[index(Effect::bias)]);
+  }
+  if (effects.has(Effect::bias_drift)) {
+    w += Eigen::Map<const Wrench<T>>(p[index(Effect::bias_drift)]) * T(pose.t_rel_s);
+  }
+  if (effects.has(Effect::temperature_bias)) {
+    w += Eigen::Map<const Wrench<T>>(p[index(Effect::temperature_bias)]) *
+         T(pose.temperature_C - kTemperatureReferenceC);
+  }
+  return w;
+}
+
+}  // namespace zerog::model

@@ -1,0 +1,62 @@
+#pragma once
+// Rotation helpers templated on the scalar (work with ceres::Jet). Real-time safe.
+#include <Eigen/Core>
+#include <cmath>
+
+namespace zerog::model {
+
+/// Rotation about x by angle a (rad): maps vectors of the rotated frame into the original one.
+template <typename T>
+Eigen::Matrix<T, 3, 3> rot_x(const T& a) {
+  using std::cos, std::sin;
+  Eigen::Matrix<T, 3, 3> R;
+  R << T(1), T(0), T(0), T(0), cos(a), -sin(a), T(0), sin(a), cos(a);
+  return R;
+}
+
+template <typename T>
+Eigen::Matrix<T, 3, 3> rot_y(const T& a) {
+  using std::cos, std::sin;
+  Eigen::Matrix<T, 3, 3> R;
+  R << cos(a), T(0), sin(a), T(0), T(1), T(0), -sin(a), T(0), cos(a);
+  return R;
+}
+
+template <typename T>
+Eigen::Matrix<T, 3, 3> rot_z(const T& a) {
+  using std::cos, std::sin;
+  Eigen::Matrix<T, 3, 3> R;
+  R << cos(a), -sin(a), T(0), sin(a), cos(a), T(0), T(0), T(0), T(1);
+  return R;
+}
+
+template <typename T>
+Eigen::Matrix<T, 3, 3> skew(const Eigen::Matrix<T, 3, 1>& v) {
+  Eigen::Matrix<T, 3, 3> S;
+  S << T(0), -v.z(), v.y(), v.z(), T(0), -v.x(), -v.y(), v.x(), T(0);
+  return S;
+}
+
+/// Rodrigues' formula: rotation matrix of the rotation vector r (axis × angle, rad).
+/// Near zero it uses the series expansion so derivatives stay exact at r = 0.
+template <typename T>
+Eigen::Matrix<T, 3, 3> rotation_from_vector(const Eigen::Matrix<T, 3, 1>& r) {
+  using std::cos, std::sin, std::sqrt;
+  const T theta2 = r.squaredNorm();
+  const Eigen::Matrix<T, 3, 3> K = skew(r);
+  if (theta2 < T(1e-12)) {
+    return Eigen::Matrix<T, 3, 3>::Identity() + K + T(0.5) * K * K;
+  }
+  const T theta = sqrt(theta2);
+  const T a = sin(theta) / theta;
+  const T b = (T(1) - cos(theta)) / theta2;
+  return Eigen::Matrix<T, 3, 3>::Identity() + a * K + b * K * K;
+}
+
+/// KUKA A, B, C angles (rad): rotation about Z by A, then Y' by B, then X'' by C.
+template <typename T>
+Eigen::Matrix<T, 3, 3> rotation_from_kuka_abc(const T& a, const T& b, const T& c) {
+  return rot_z(a) * rot_y(b) * rot_x(c);
+}
+
+}  // namespace zerog::model

@@ -1,0 +1,286 @@
+// zerog fit | compare | diagnose | ladder
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <string>
+
+#include "commands.hpp"
+#include "zerog/ident/compare.hpp"
+#include "zerog/ident/diagnose.hpp"
+#include "zerog/ident/fit.hpp"
+#include "zerog/io/log.hpp"
+#include "zerog/io/model_file.hpp"
+
+namespace zerog::cli {
+namespace {
+
+using model::Effect;
+
+void progress_line(const std::string& s) { std::fprintf(stderr, "%s\n", s.c_str()); }
+
+struct Common {
+  std::string log;
+  bool json = false;
+  bool quiet = false;
+  int threads = 2;
+};
+
+void add_common(CLI::App* c, Common& o) {
+  c->add_option("log", o.log, "Log to read (zerog log format, NAME.csv with NAME.rig.toml)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  c->add_flag("--json", o.json, "Print machine-readable JSON on stdout (schema: proto/json_output.md)");
+  c->add_flag("-q,--quiet", o.quiet, "No progress lines on stderr");
+  c->add_option("--threads", o.threads, "Solver threads")->check(CLI::Range(1, 64));
+}
+
+std::function<void(const std::string&)> progress(const Common& o) {
+  if (o.quiet) return nullptr;
+  return progress_line;
+}
+
+nlohmann::json fit_json(const ident::FitResult& r) {
+  nlohmann::json j;
+  j["usable"] = r.usable;
+  j["termination"] = r.termination;
+  j["iterations"] = r.iterations;
+  j["seconds"] = r.seconds;
+  j["samples"] = r.samples;
+  j["residual_rms"] = r.residual_rms;
+  j["sigma"] = r.sigma;
+  j["bic"] = r.bic;
+  j["warnings"] = nlohmann::json::array();
+  for (const auto& w : r.warnings) j["warnings"].push_back({{"kind", w.kind}, {"message", w.message}});
+  return j;
+}
+
+std::string param_table(const model::ModelParams& p, const std::optional<ident::ParamArray>& std,
+                        const model::ModelParams* truth) {
+  std::string out;
+  char line[256];
+  std::snprintf(line, sizeof line, "%-20s %-10s %14s %12s %-8s%s\n", "effect", "parameter", "value", "std",
+                "unit", truth ? "        truth   (est-truth)/std" : "");
+  out += line;
+  for (Effect e : model::kAllEffects) {
+    if (!p.effects.has(e)) continue;
+    const auto& ei = model::info(e);
+    if (ei.num_params == 0) {
+      std::snprintf(line, sizeof line, "%-20s (no parameters of its own)\n", ei.name);
+      out += line;
+    }
+    for (int i = 0; i < ei.num_params; ++i) {
+      const double v = p.block(e)[i];
+      const double s = std ? (*std)[model::index(e)][i] : std::nan("");
+      std::snprintf(line, sizeof line, "%-20s %-10s %14.6g %12.3g %-8s", i == 0 ? ei.name : "", ei.params[i].name,
+                    v, s, ei.params[i].unit);
+      out += line;
+      if (truth) {
+        const double t = truth->effects.has(e) ? truth->block(e)[i] : 0.0;
+        std::snprintf(line, sizeof line, " %12.6g %10.2f", t, (v - t) / s);
+        out += line;
+      }
+      out += "\n";
+    }
+  }
+  return out;
+}
+
+void run_fit(const Common& c, const std::string& effects, const std::string& out, const std::string& loss,
+             double loss_scale, int max_iter, const std::string& truth_path) {
+  const io::Log log = io::read_log(c.log);
+  const ident::Dataset data = ident::make_dataset(log);
+  ident::FitOptions o;
+  o.effects = io::parse_effect_list(effects);
+  o.loss = loss;
+  o.loss_scale = loss_scale;
+  o.max_iterations = max_iter;
+  o.threads = c.threads;
+  o.progress = progress(c);
+  const ident::FitResult r = ident::fit(data, o);
+  if (!r.usable) throw std::runtime_error("the fit is not usable (" + r.termination + "); nothing written");
+  std::optional<io::ModelFile> truth;
+  if (!truth_path.empty()) truth = io::read_model(truth_path);
+  io::ModelFile m;
+  m.params = r.params;
+  m.std = r.std;
+  m.rig_name = log.rig.name;
+  m.extra["fit"] = fit_json(r);
+  m.extra["fit"]["log"] = c.log;
+  if (!out.empty()) io::write_model(m, out, {c.log, io::rig_path_for(c.log)});
+  if (c.json) {
+    nlohmann::json j = io::to_json(m);
+    j["kind"] = "zerog-fit";
+    j["output"] = out.empty() ? nlohmann::json(nullptr) : nlohmann::json(out);
+    std::cout << j.dump(2) << "\n";
+    return;
+  }
+  std::printf("fitted %s on %zu samples in %.2f s (%d iterations): %s\n",
+              io::effect_list_string(r.params.effects).c_str(), r.samples, r.seconds, r.iterations,
+              r.termination.c_str());
+  std::printf("%s", param_table(r.params, r.std, truth ? &truth->params : nullptr).c_str());
+  std::printf("residual RMS: Fx %.3f  Fy %.3f  Fz %.3f N   Mx %.3f  My %.3f  Mz %.3f N*m\n", r.residual_rms[0],
+              r.residual_rms[1], r.residual_rms[2], r.residual_rms[3], r.residual_rms[4], r.residual_rms[5]);
+  for (const auto& w : r.warnings) std::printf("warning (%s): %s\n", w.kind.c_str(), w.message.c_str());
+  if (!out.empty()) std::printf("wrote %s\n", out.c_str());
+}
+
+void run_compare(const Common& c, const std::string& model_path, const std::string& truth_path, int bins) {
+  const io::Log log = io::read_log(c.log);
+  const ident::Dataset data = ident::make_dataset(log);
+  const io::ModelFile m = io::read_model(model_path);
+  ident::check_signals(m.params.effects, data);
+  const auto res = ident::residuals(m.params, data);
+  const ident::Comparison cmp = ident::compare(res, data, nullptr, bins);
+  std::optional<ident::Comparison> floor;
+  if (!truth_path.empty()) {
+    const io::ModelFile t = io::read_model(truth_path);
+    floor = ident::compare(ident::residuals(t.params, data), data, nullptr, bins);
+  }
+  if (c.json) {
+    nlohmann::json j = ident::to_json(cmp);
+    j["kind"] = "zerog-compare";
+    j["version"] = 1;
+    j["log"] = c.log;
+    j["model"] = model_path;
+    j["effects"] = io::effect_list_string(m.params.effects);
+    j["noise_floor"] = floor ? ident::to_json(floor->all) : nlohmann::json(nullptr);
+    std::cout << j.dump(2) << "\n";
+    return;
+  }
+  std::printf("model %s (%s) against %s, %zu samples (%zu static, %zu moving)\n", model_path.c_str(),
+              io::effect_list_string(m.params.effects).c_str(), c.log.c_str(), cmp.all.count, cmp.stat.count,
+              cmp.moving.count);
+  std::printf("%s", ident::format_comparison(cmp, floor ? &*floor : nullptr).c_str());
+}
+
+}  // namespace
+
+void add_ident_commands(CLI::App& app) {
+  // fit
+  {
+    auto c = std::make_shared<Common>();
+    auto effects = std::make_shared<std::string>(io::effect_list_string(model::kDefaultModel));
+    auto out = std::make_shared<std::string>();
+    auto loss = std::make_shared<std::string>("none");
+    auto loss_scale = std::make_shared<double>(3.0);
+    auto max_iter = std::make_shared<int>(50);
+    auto truth = std::make_shared<std::string>();
+    CLI::App* s = app.add_subcommand("fit", "Fit a model (a list of effects) to a log with Ceres");
+    add_common(s, *c);
+    s->add_option("-e,--effects", *effects, "Comma-separated effects (see proto/effects.md)")
+        ->capture_default_str();
+    s->add_option("-o,--out", *out, "Model file to write (JSON, written atomically)");
+    s->add_option("--loss", *loss, "Robust loss: none, huber, cauchy")
+        ->check(CLI::IsMember({"none", "huber", "cauchy"}))
+        ->capture_default_str();
+    s->add_option("--loss-scale", *loss_scale, "Robust loss scale, in per-axis noise units")->capture_default_str();
+    s->add_option("--max-iterations", *max_iter, "Solver iterations per pass")->capture_default_str();
+    s->add_option("--truth", *truth, "Truth model (from zerog sim) to print beside the estimates");
+    s->callback([=] { run_fit(*c, *effects, *out, *loss, *loss_scale, *max_iter, *truth); });
+  }
+  // compare
+  {
+    auto c = std::make_shared<Common>();
+    auto model_path = std::make_shared<std::string>();
+    auto truth = std::make_shared<std::string>();
+    auto bins = std::make_shared<int>(6);
+    CLI::App* s = app.add_subcommand(
+        "compare", "Measured against predicted per axis: RMS and max error, static/moving, by joint angle");
+    add_common(s, *c);
+    s->add_option("-m,--model", *model_path, "Model file (from zerog fit)")->required()->check(CLI::ExistingFile);
+    s->add_option("--truth", *truth, "Truth model (from zerog sim): also print the noise floor")
+        ->check(CLI::ExistingFile);
+    s->add_option("--bins", *bins, "Joint-angle bins per joint")->check(CLI::Range(1, 100))->capture_default_str();
+    s->callback([=] { run_compare(*c, *model_path, *truth, *bins); });
+  }
+  // diagnose
+  {
+    auto c = std::make_shared<Common>();
+    auto model_path = std::make_shared<std::string>();
+    auto effects = std::make_shared<std::string>();
+    auto block = std::make_shared<double>(60.0);
+    CLI::App* s = app.add_subcommand(
+        "diagnose", "Rank the effects a model lacks by how much they reduce the error on held-out data");
+    add_common(s, *c);
+    s->add_option("-m,--model", *model_path, "Fitted model to diagnose (its effects and start values)")
+        ->check(CLI::ExistingFile);
+    s->add_option("-e,--effects", *effects, "Or: the effects of the model to diagnose");
+    s->add_option("--block", *block, "Length of the held-out time blocks, s (every 4th block is held out)")
+        ->capture_default_str();
+    s->callback([=] {
+      const io::Log log = io::read_log(c->log);
+      const ident::Dataset data = ident::make_dataset(log);
+      ident::DiagnoseOptions o;
+      o.block_s = *block;
+      o.log_path = c->log;
+      o.progress = progress(*c);
+      o.fit.threads = c->threads;
+      std::optional<io::ModelFile> m;
+      if (!model_path->empty()) {
+        m = io::read_model(*model_path);
+        o.fit.effects = m->params.effects;
+        o.fit.initial = &m->params;
+      } else {
+        o.fit.effects = io::parse_effect_list(effects->empty() ? io::effect_list_string(model::kDefaultModel) : *effects);
+      }
+      const ident::Diagnosis d = ident::diagnose(data, o);
+      if (c->json) {
+        std::cout << ident::to_json(d).dump(2) << "\n";
+      } else {
+        std::printf("%s", ident::format_diagnosis(d).c_str());
+      }
+    });
+  }
+  // ladder
+  {
+    auto c = std::make_shared<Common>();
+    auto start = std::make_shared<std::string>(io::effect_list_string(model::kMinimalModel));
+    auto min_gain = std::make_shared<double>(0.02);
+    auto block = std::make_shared<double>(60.0);
+    auto out = std::make_shared<std::string>();
+    auto truth = std::make_shared<std::string>();
+    CLI::App* s = app.add_subcommand(
+        "ladder", "From a minimal model, add the best effect step by step while it pays; print the error at each step");
+    add_common(s, *c);
+    s->add_option("--start", *start, "Effects to start from")->capture_default_str();
+    s->add_option("--min-gain", *min_gain, "Smallest share of held-out error an effect must remove to be added")
+        ->capture_default_str();
+    s->add_option("--block", *block, "Length of the held-out time blocks, s")->capture_default_str();
+    s->add_option("-o,--out", *out, "Write the ladder as JSON (for zerog report)");
+    s->add_option("--truth", *truth, "Truth model (from zerog sim): add the noise floor")->check(CLI::ExistingFile);
+    s->callback([=] {
+      const io::Log log = io::read_log(c->log);
+      const ident::Dataset data = ident::make_dataset(log);
+      ident::LadderOptions o;
+      o.min_gain = *min_gain;
+      o.diagnose.block_s = *block;
+      o.diagnose.log_path = c->log;
+      o.diagnose.progress = progress(*c);
+      o.diagnose.fit.threads = c->threads;
+      o.diagnose.fit.effects = io::parse_effect_list(*start);
+      const auto steps = ident::ladder(data, o);
+      nlohmann::json j = ident::to_json(steps);
+      if (!truth->empty()) {
+        const io::ModelFile t = io::read_model(*truth);
+        const auto mask = ident::heldout_mask(data, *block);
+        const auto floor = ident::compare(ident::residuals(t.params, data), data, &mask);
+        j["noise_floor"] = ident::to_json(floor.all);
+      } else {
+        j["noise_floor"] = nullptr;
+      }
+      if (!out->empty()) io::write_file_atomic(*out, j.dump(2) + "\n", {c->log, io::rig_path_for(c->log)});
+      if (c->json) {
+        std::cout << j.dump(2) << "\n";
+        return;
+      }
+      std::printf("%s", ident::format_ladder(steps).c_str());
+      if (!j["noise_floor"].is_null())
+        std::printf("noise floor (held-out): force %.3f N, torque %.3f N*m\n",
+                    j["noise_floor"]["force_rms"].get<double>(), j["noise_floor"]["torque_rms"].get<double>());
+      if (!out->empty()) std::printf("wrote %s\n", out->c_str());
+    });
+  }
+}
+
+}  // namespace zerog::cli

@@ -1,0 +1,174 @@
+// zerog report: measured vs predicted, residuals, the ladder and the diagnosis as an HTML page.
+// C++ computes everything into a bundle (proto/report_bundle.md); matplotlib draws it
+// (host/report/make_report.py).
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <random>
+#include <string>
+
+#include "commands.hpp"
+#include "zerog/ident/compare.hpp"
+#include "zerog/ident/dataset.hpp"
+#include "zerog/io/log.hpp"
+#include "zerog/io/model_file.hpp"
+
+namespace zerog::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path report_script() {
+  if (const char* env = std::getenv("ZEROG_REPORT_SCRIPT")) return env;
+  // Installed layout first (…/bin/zerog → …/share/zerog), then the source tree of this build.
+  std::error_code ec;
+  const fs::path self = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    const fs::path installed = self.parent_path().parent_path() / "share" / "zerog" / "make_report.py";
+    if (fs::exists(installed)) return installed;
+  }
+  if (fs::exists(ZEROG_REPORT_SCRIPT_BUILD)) return ZEROG_REPORT_SCRIPT_BUILD;
+  return ZEROG_REPORT_SCRIPT_INSTALL;
+}
+
+nlohmann::json read_json(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error(path + ": cannot open");
+  try {
+    return nlohmann::json::parse(in);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw std::runtime_error(path + ": " + e.what());
+  }
+}
+
+struct ReportOptions {
+  std::string log, model, truth, ladder, diagnosis, out = "report", title;
+};
+
+void run_report(const ReportOptions& o) {
+  const io::Log log = io::read_log(o.log);
+  const ident::Dataset data = ident::make_dataset(log);
+  const io::ModelFile m = io::read_model(o.model);
+  ident::check_signals(m.params.effects, data);
+  const auto res = ident::residuals(m.params, data);
+  const ident::Comparison cmp = ident::compare(res, data);
+  std::optional<std::vector<ident::Wrench>> floor_res;
+  nlohmann::json floor_json = nullptr;
+  if (!o.truth.empty()) {
+    const io::ModelFile t = io::read_model(o.truth);
+    floor_res = ident::residuals(t.params, data);
+    floor_json = ident::to_json(ident::compare(*floor_res, data).all);
+  }
+  const auto heldout = ident::heldout_mask(data);
+
+  const fs::path out = fs::absolute(o.out);
+  if (fs::exists(out) && !fs::is_directory(out)) throw std::runtime_error(out.string() + " exists and is not a folder");
+  std::random_device rd;
+  const fs::path bundle = out.parent_path() / (".zerog-bundle-" + std::to_string(rd()));
+  fs::create_directories(bundle);
+  struct Cleanup {
+    fs::path p;
+    ~Cleanup() {
+      std::error_code ec;
+      fs::remove_all(p, ec);
+    }
+  } cleanup{bundle};
+
+  {
+    std::ofstream csv(bundle / "data.csv");
+    csv << "t_s,moving";
+    const char* ax[] = {"Fx", "Fy", "Fz", "Mx", "My", "Mz"};
+    for (auto a : ax) csv << "," << a << "_meas";
+    for (auto a : ax) csv << "," << a << "_pred";
+    if (floor_res)
+      for (auto a : ax) csv << "," << a << "_floor";
+    if (data.columns.joints) {
+      for (int j = 1; j <= 6; ++j) csv << ",q" << j << "_rad";
+      for (int j = 1; j <= 6; ++j) csv << ",qd" << j << "_radps";
+    }
+    if (data.columns.imu) csv << ",omega_norm_radps,omega_dot_norm_radps2,accel_norm_mps2";
+    if (data.columns.temperature) csv << ",temp_C";
+    csv << ",heldout\n";
+    char buf[64];
+    auto put = [&](double v) {
+      std::snprintf(buf, sizeof buf, ",%.7g", v);
+      csv << buf;
+    };
+    for (std::size_t i = 0; i < data.size(); ++i) {
+      std::snprintf(buf, sizeof buf, "%.6f,%d", data.t_s[i], data.moving[i]);
+      csv << buf;
+      for (int k = 0; k < 6; ++k) put(data.measured[i][k]);
+      for (int k = 0; k < 6; ++k) put(data.measured[i][k] - res[i][k]);
+      if (floor_res)
+        for (int k = 0; k < 6; ++k) put(data.measured[i][k] - (*floor_res)[i][k]);
+      if (data.columns.joints) {
+        for (int j = 0; j < 6; ++j) put(data.pose[i].joints_rad[j]);
+        for (int j = 0; j < 6; ++j) put(data.joint_vel_radps[i][j]);
+      }
+      if (data.columns.imu) {
+        const double* r = &data.imu[i * 9];
+        put(Eigen::Map<const Eigen::Vector3d>(r + 3).norm());
+        put(Eigen::Map<const Eigen::Vector3d>(r + 6).norm());
+        put(Eigen::Map<const Eigen::Vector3d>(r).norm() - model::kStandardGravity);
+      }
+      if (data.columns.temperature) put(data.pose[i].temperature_C);
+      csv << "," << int(heldout[i]) << "\n";
+    }
+    if (!csv) throw std::runtime_error((bundle / "data.csv").string() + ": write failed");
+  }
+  nlohmann::json summary;
+  summary["kind"] = "zerog-report-bundle";
+  summary["version"] = 1;
+  summary["title"] = o.title.empty() ? "zerog report: " + fs::path(o.log).filename().string() : o.title;
+  summary["log"] = o.log;
+  summary["model"] = o.model;
+  summary["effects"] = nlohmann::json::array();
+  for (auto e : model::kAllEffects)
+    if (m.params.effects.has(e)) summary["effects"].push_back(model::info(e).name);
+  summary["compare"] = ident::to_json(cmp);
+  summary["ladder"] = o.ladder.empty() ? nlohmann::json(nullptr) : read_json(o.ladder);
+  summary["diagnosis"] = o.diagnosis.empty() ? nlohmann::json(nullptr) : read_json(o.diagnosis);
+  summary["noise_floor"] = floor_json;
+  {
+    std::ofstream js(bundle / "summary.json");
+    js << summary.dump(1) << "\n";
+    if (!js) throw std::runtime_error((bundle / "summary.json").string() + ": write failed");
+  }
+  const std::string python = fs::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
+  const fs::path script = report_script();
+  std::fflush(stdout);
+  const pid_t pid = fork();
+  if (pid == 0) {
+    execlp(python.c_str(), python.c_str(), script.c_str(), bundle.c_str(), out.c_str(), static_cast<char*>(nullptr));
+    std::perror("zerog report: cannot run python3");
+    _exit(127);
+  }
+  int status = 0;
+  waitpid(pid, &status, 0);
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
+    throw std::runtime_error("the report script " + script.string() + " failed; no report written");
+  std::printf("report: %s\n", (out / "index.html").c_str());
+}
+
+}  // namespace
+
+void add_report_command(CLI::App& app) {
+  auto o = std::make_shared<ReportOptions>();
+  CLI::App* s = app.add_subcommand("report", "Write an HTML report: measured vs predicted, residuals, ladder, diagnosis");
+  s->add_option("log", o->log, "Log (zerog log format)")->required()->check(CLI::ExistingFile);
+  s->add_option("-m,--model", o->model, "Model file (from zerog fit)")->required()->check(CLI::ExistingFile);
+  s->add_option("--truth", o->truth, "Truth model (from zerog sim), for the noise floor")->check(CLI::ExistingFile);
+  s->add_option("--ladder", o->ladder, "Ladder JSON (zerog ladder --out)")->check(CLI::ExistingFile);
+  s->add_option("--diagnosis", o->diagnosis, "Diagnosis JSON (zerog diagnose --json)")->check(CLI::ExistingFile);
+  s->add_option("--title", o->title, "Report title");
+  s->add_option("-o,--out", o->out, "Report folder (replaced atomically)")->capture_default_str();
+  s->callback([o] { run_report(*o); });
+}
+
+}  // namespace zerog::cli

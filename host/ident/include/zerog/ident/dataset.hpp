@@ -1,0 +1,67 @@
+#pragma once
+// A log turned into the signals the model needs, laid out for fast repeated evaluation.
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "zerog/io/log.hpp"
+#include "zerog/model/predict.hpp"
+#include "zerog/model/signals.hpp"
+
+namespace zerog::ident {
+
+using Wrench = Eigen::Matrix<double, 6, 1>;
+
+struct Dataset {
+  model::RigGeometry rig;
+  io::Columns columns;
+  double dt_s = 0.012;   ///< mean row period (IMU time shifts interpolate on this grid)
+  std::vector<double> t_s;
+  std::vector<model::PoseSignals> pose;
+  /// n rows of 9: specific force (3), angular rate (3), angular acceleration (3), IMU frame.
+  std::vector<double> imu;
+  std::vector<Wrench> measured;
+  std::vector<std::uint8_t> moving;                 ///< 1 while the sensor moves
+  std::vector<std::array<double, 6>> joint_vel_radps;  ///< from differencing the joint angles
+
+  std::size_t size() const { return t_s.size(); }
+  /// IMU signals of sample i, read at t_i + tau when tau is given (imu_time_offset).
+  template <typename T>
+  model::ImuSignals<T> imu_at(std::size_t i, const T* tau) const {
+    model::ImuSignals<T> s;
+    if (!columns.imu) return s;
+    if (tau == nullptr) {
+      const double* row = &imu[i * 9];
+      for (int k = 0; k < 3; ++k) {
+        s.specific_force_imu[k] = T(row[k]);
+        s.angular_rate_imu[k] = T(row[3 + k]);
+        s.angular_accel_imu[k] = T(row[6 + k]);
+      }
+      return s;
+    }
+    const T index = T(static_cast<double>(i)) + *tau / T(dt_s);
+    const Eigen::Matrix<T, 9, 1> v =
+        model::interpolate_uniform<9>(imu.data(), static_cast<std::ptrdiff_t>(size()), index);
+    s.specific_force_imu = v.template segment<3>(0);
+    s.angular_rate_imu = v.template segment<3>(3);
+    s.angular_accel_imu = v.template segment<3>(6);
+    return s;
+  }
+};
+
+/// Builds the dataset: rotations from quaternions, angular acceleration by central differences
+/// of the gyroscope (model::angular_accel_central), motion flags, joint velocities.
+Dataset make_dataset(const io::Log& log);
+
+/// Predicted wrench of sample i with the given parameters (double evaluation of the model).
+Wrench predict(const model::ModelParams& params, const Dataset& data, std::size_t i);
+
+/// Time-blocked split: blocks of `block_s` seconds; every `every`-th block (offset every−1) is
+/// held out. Returns 1 for held-out samples.
+std::vector<std::uint8_t> heldout_mask(const Dataset& data, double block_s = 60.0, int every = 4);
+
+/// Throws std::runtime_error if the log lacks a signal an effect needs (names both).
+void check_signals(const model::EffectSet& effects, const Dataset& data);
+
+}  // namespace zerog::ident

@@ -1,0 +1,87 @@
+#pragma once
+// Which physical effect is missing? Ranks candidate effects by how much they reduce the error on
+// held-out (time-blocked) data, and climbs the ladder of effects from a minimal model.
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "zerog/ident/compare.hpp"
+#include "zerog/ident/fit.hpp"
+
+namespace zerog::ident {
+
+struct HeldOut {
+  ErrorStats stats;
+  double whitened_mse = 0.0;  ///< mean over held-out samples and axes of (e_k / sigma_k)^2
+};
+
+struct Candidate {
+  model::Effect effect;
+  model::EffectSet effects;  ///< the model with the candidate (and what it builds on)
+  FitResult fit;
+  HeldOut heldout;
+  double gain = 0.0;       ///< fraction of the baseline's held-out whitened MSE removed
+  std::array<double, 6> axis_gain{};  ///< per-axis fraction of held-out MSE removed
+  double delta_bic = 0.0;  ///< BIC(candidate) − BIC(baseline), on the training samples
+};
+
+struct SignalCorrelation {
+  std::string signal;  ///< plain words, e.g. "joint A6 velocity direction (sign)"
+  int axis = 0;
+  double correlation = 0.0;
+};
+
+struct Diagnosis {
+  model::EffectSet model;
+  FitResult baseline;
+  HeldOut baseline_heldout;
+  /// Estimated white-noise share of the baseline held-out MSE, per axis and whitened overall
+  /// (from differences of consecutive residuals: structure is smooth, noise is not).
+  std::array<double, 6> noise_rms{};
+  double structured_fraction = 0.0;  ///< 1 − noise / total of the whitened held-out MSE
+  std::vector<Candidate> candidates;  ///< best first
+  std::vector<SignalCorrelation> correlated;  ///< strongest first
+  enum class Verdict { effect, none, nothing_left } verdict = Verdict::none;
+  std::string text;     ///< plain words
+  std::string command;  ///< the command that adds the effect, if any
+};
+
+struct DiagnoseOptions {
+  double block_s = 60.0;   ///< time-block length for the held-out split
+  int every = 4;           ///< every n-th block is held out
+  FitOptions fit;          ///< effects = the model to diagnose; mask is set internally
+  std::string log_path = "run.csv";  ///< for the suggested command
+  std::function<void(const std::string&)> progress;
+};
+
+/// The effects a model may still add, given the signals in the log.
+std::vector<model::Effect> candidate_effects(const model::EffectSet& model, const Dataset& data);
+
+Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& options);
+
+struct LadderStep {
+  model::EffectSet effects;
+  std::optional<model::Effect> added;
+  HeldOut heldout;
+  double bic = 0.0;
+  double gain = 0.0;
+};
+
+struct LadderOptions {
+  DiagnoseOptions diagnose;
+  double min_gain = 0.02;  ///< an effect pays if it removes at least this share of held-out MSE
+  int max_steps = 10;
+};
+
+/// From `options.diagnose.fit.effects` (default bias + gravity), adds the best effect while it pays.
+std::vector<LadderStep> ladder(const Dataset& data, const LadderOptions& options);
+
+nlohmann::json to_json(const Diagnosis& d);
+nlohmann::json to_json(const std::vector<LadderStep>& steps);
+std::string format_diagnosis(const Diagnosis& d);
+std::string format_ladder(const std::vector<LadderStep>& steps);
+
+}  // namespace zerog::ident

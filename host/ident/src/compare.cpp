@@ -1,0 +1,176 @@
+#include "zerog/ident/compare.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+namespace zerog::ident {
+
+void ErrorAccumulator::add(const Wrench& e) {
+  ++n_;
+  for (int k = 0; k < 6; ++k) {
+    ss_[k] += e[k] * e[k];
+    max_[k] = std::max(max_[k], std::abs(e[k]));
+  }
+}
+
+ErrorStats ErrorAccumulator::stats() const {
+  ErrorStats s;
+  s.count = n_;
+  if (n_ == 0) return s;
+  const double n = static_cast<double>(n_);
+  for (int k = 0; k < 6; ++k) {
+    s.rms[k] = std::sqrt(ss_[k] / n);
+    s.max_abs[k] = max_[k];
+  }
+  s.force_rms = std::sqrt((ss_[0] + ss_[1] + ss_[2]) / (3.0 * n));
+  s.torque_rms = std::sqrt((ss_[3] + ss_[4] + ss_[5]) / (3.0 * n));
+  return s;
+}
+
+std::vector<Wrench> residuals(const model::ModelParams& params, const Dataset& data) {
+  std::vector<Wrench> out(data.size());
+  for (std::size_t i = 0; i < data.size(); ++i) out[i] = data.measured[i] - predict(params, data, i);
+  return out;
+}
+
+Comparison compare(const std::vector<Wrench>& res, const Dataset& data,
+                   const std::vector<std::uint8_t>* mask, int bins) {
+  Comparison c;
+  ErrorAccumulator all, stat, moving;
+  auto use = [&](std::size_t i) { return mask == nullptr || (*mask)[i] != 0; };
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    if (!use(i)) continue;
+    all.add(res[i]);
+    (data.moving[i] ? moving : stat).add(res[i]);
+  }
+  c.all = all.stats();
+  c.stat = stat.stats();
+  c.moving = moving.stats();
+  // Worst segment/axis, relative to the axis' overall RMS scale (forces and torques separately).
+  double worst_ratio = -1.0;
+  if (data.columns.joints) {
+    for (int j = 0; j < 6; ++j) {
+      double lo = 1e300, hi = -1e300;
+      for (std::size_t i = 0; i < data.size(); ++i) {
+        if (!use(i)) continue;
+        lo = std::min(lo, data.pose[i].joints_rad[j]);
+        hi = std::max(hi, data.pose[i].joints_rad[j]);
+      }
+      if (!(hi > lo)) continue;
+      JointBins jb;
+      jb.joint = j;
+      for (int b = 0; b <= bins; ++b) jb.edges_rad.push_back(lo + (hi - lo) * b / bins);
+      std::vector<ErrorAccumulator> acc(bins);
+      for (std::size_t i = 0; i < data.size(); ++i) {
+        if (!use(i)) continue;
+        int b = static_cast<int>((data.pose[i].joints_rad[j] - lo) / (hi - lo) * bins);
+        b = std::clamp(b, 0, bins - 1);
+        acc[b].add(res[i]);
+      }
+      for (auto& a : acc) jb.bins.push_back(a.stats());
+      for (int b = 0; b < bins; ++b) {
+        const ErrorStats& s = jb.bins[b];
+        if (s.count < 20) continue;
+        for (int k = 0; k < 6; ++k) {
+          const double scale = k < 3 ? c.all.force_rms : c.all.torque_rms;
+          if (scale <= 0) continue;
+          const double ratio = s.rms[k] / scale;
+          if (ratio > worst_ratio) {
+            worst_ratio = ratio;
+            c.worst = {k, "joint bin", j, jb.edges_rad[b], jb.edges_rad[b + 1], s.rms[k]};
+          }
+        }
+      }
+      c.joints.push_back(std::move(jb));
+    }
+  }
+  // The worse of static/moving per axis decides the segment of the worst axis.
+  {
+    const int k = c.worst.joint >= 0 ? c.worst.axis : 0;
+    c.worst.axis = k;
+    c.worst.segment = c.moving.rms[k] > c.stat.rms[k] ? "moving" : "static";
+    if (c.worst.joint < 0) c.worst.rms = std::max(c.moving.rms[k], c.stat.rms[k]);
+  }
+  return c;
+}
+
+nlohmann::json to_json(const ErrorStats& s) {
+  return {{"count", s.count}, {"rms", s.rms}, {"max", s.max_abs}, {"force_rms", s.force_rms},
+          {"torque_rms", s.torque_rms}};
+}
+
+nlohmann::json to_json(const Comparison& c) {
+  nlohmann::json j;
+  j["axes"] = kAxisNames;
+  j["units"] = kAxisUnits;
+  j["samples"] = {{"total", c.all.count}, {"static", c.stat.count}, {"moving", c.moving.count}};
+  j["segments"] = {{"all", to_json(c.all)}, {"static", to_json(c.stat)}, {"moving", to_json(c.moving)}};
+  j["joint_bins"] = nlohmann::json::array();
+  for (const auto& jb : c.joints) {
+    nlohmann::json b;
+    b["joint"] = "A" + std::to_string(jb.joint + 1);
+    b["edges_rad"] = jb.edges_rad;
+    b["count"] = nlohmann::json::array();
+    b["rms"] = nlohmann::json::array();
+    for (const auto& s : jb.bins) {
+      b["count"].push_back(s.count);
+      b["rms"].push_back(s.rms);
+    }
+    j["joint_bins"].push_back(b);
+  }
+  nlohmann::json w;
+  w["axis"] = kAxisNames[c.worst.axis];
+  w["segment"] = c.worst.segment;
+  w["rms"] = c.worst.rms;
+  if (c.worst.joint >= 0) {
+    w["joint"] = "A" + std::to_string(c.worst.joint + 1);
+    w["bin_rad"] = {c.worst.lo, c.worst.hi};
+  } else {
+    w["joint"] = nullptr;
+    w["bin_rad"] = nullptr;
+  }
+  j["worst"] = w;
+  return j;
+}
+
+std::string format_comparison(const Comparison& c, const Comparison* floor) {
+  std::ostringstream os;
+  char line[256];
+  std::snprintf(line, sizeof line, "%-8s %8s | %9s %9s | %9s %9s | %9s %9s%s\n", "axis", "unit",
+                "all rms", "max", "static", "max", "moving", "max", floor ? " | floor rms" : "");
+  os << line;
+  for (int k = 0; k < 6; ++k) {
+    std::snprintf(line, sizeof line, "%-8s %8s | %9.3f %9.3f | %9.3f %9.3f | %9.3f %9.3f", kAxisNames[k],
+                  kAxisUnits[k], c.all.rms[k], c.all.max_abs[k], c.stat.rms[k], c.stat.max_abs[k],
+                  c.moving.rms[k], c.moving.max_abs[k]);
+    os << line;
+    if (floor) {
+      std::snprintf(line, sizeof line, " | %9.3f", floor->all.rms[k]);
+      os << line;
+    }
+    os << "\n";
+  }
+  std::snprintf(line, sizeof line,
+                "force RMS %.3f N (static %.3f, moving %.3f); torque RMS %.3f N*m (static %.3f, moving %.3f)\n",
+                c.all.force_rms, c.stat.force_rms, c.moving.force_rms, c.all.torque_rms,
+                c.stat.torque_rms, c.moving.torque_rms);
+  os << line;
+  if (floor) {
+    std::snprintf(line, sizeof line,
+                  "noise floor (true model, true parameters, same signals): force %.3f N, torque %.3f N*m\n",
+                  floor->all.force_rms, floor->all.torque_rms);
+    os << line;
+  }
+  if (c.worst.joint >= 0) {
+    std::snprintf(line, sizeof line,
+                  "worst: %s at A%d in [%.1f, %.1f] deg: RMS %.3f %s (%s segments are worse on this axis)\n",
+                  kAxisNames[c.worst.axis], c.worst.joint + 1, c.worst.lo * 180 / M_PI,
+                  c.worst.hi * 180 / M_PI, c.worst.rms, kAxisUnits[c.worst.axis], c.worst.segment.c_str());
+    os << line;
+  }
+  return os.str();
+}
+
+}  // namespace zerog::ident

@@ -1,0 +1,114 @@
+#include "zerog/ident/dataset.hpp"
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace zerog::ident {
+
+using model::Effect;
+
+Dataset make_dataset(const io::Log& log) {
+  Dataset d;
+  const std::size_t n = log.samples.size();
+  if (n < 3) throw std::runtime_error("log has " + std::to_string(n) + " samples; need at least 3");
+  d.columns = log.columns;
+  d.rig.R_sensor_imu = log.rig.sensor_imu.q.normalized().toRotationMatrix();
+  d.rig.p_sensor_imu_m = log.rig.sensor_imu.p_m;
+  d.dt_s = (log.samples.back().t_s - log.samples.front().t_s) / static_cast<double>(n - 1);
+  d.t_s.resize(n);
+  d.pose.resize(n);
+  d.measured.resize(n);
+  d.imu.assign(n * 9, 0.0);
+  d.moving.assign(n, 0);
+  d.joint_vel_radps.assign(n, {});
+  const double t0 = log.samples.front().t_s;
+  for (std::size_t i = 0; i < n; ++i) {
+    const io::Sample& s = log.samples[i];
+    d.t_s[i] = s.t_s;
+    model::PoseSignals& p = d.pose[i];
+    p.R_base_sensor = s.q_base_sensor.normalized().toRotationMatrix();
+    p.t_rel_s = s.t_s - t0;
+    p.temperature_C = log.columns.temperature ? s.temperature_C : model::kTemperatureReferenceC;
+    p.joints_rad = s.joints_rad;
+    d.measured[i] << s.force_sensor_N, s.torque_sensor_Nm;
+    double* row = &d.imu[i * 9];
+    for (int k = 0; k < 3; ++k) {
+      row[k] = s.specific_force_imu_mps2[k];
+      row[3 + k] = s.angular_rate_imu_radps[k];
+    }
+  }
+  // Angular acceleration: central differences (one-sided at the ends), on the actual row times.
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t a = i == 0 ? 0 : i - 1;
+    const std::size_t b = i + 1 == n ? n - 1 : i + 1;
+    const Eigen::Vector3d wa = Eigen::Map<const Eigen::Vector3d>(&d.imu[a * 9 + 3]);
+    const Eigen::Vector3d wb = Eigen::Map<const Eigen::Vector3d>(&d.imu[b * 9 + 3]);
+    const double half_span = 0.5 * (d.t_s[b] - d.t_s[a]);
+    Eigen::Map<Eigen::Vector3d>(&d.imu[i * 9 + 6]) = model::angular_accel_central(wa, wb, half_span);
+  }
+  // Motion: from the logged pose (always present). Speeds by differencing, dilated by 3 rows.
+  std::vector<std::uint8_t> raw(n, 0);
+  for (std::size_t i = 1; i < n; ++i) {
+    const io::Sample& s0 = log.samples[i - 1];
+    const io::Sample& s1 = log.samples[i];
+    const double dt = s1.t_s - s0.t_s;
+    const double v = (s1.p_base_sensor_m - s0.p_base_sensor_m).norm() / dt;
+    const double w = s0.q_base_sensor.angularDistance(s1.q_base_sensor) / dt;
+    raw[i] = (v > 1e-3 || w > 2e-3) ? 1 : 0;
+    if (log.columns.joints) {
+      for (int j = 0; j < 6; ++j) d.joint_vel_radps[i][j] = (s1.joints_rad[j] - s0.joints_rad[j]) / dt;
+    }
+  }
+  if (n > 1) d.joint_vel_radps[0] = d.joint_vel_radps[1];
+  const std::size_t dilate = 3;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!raw[i]) continue;
+    const std::size_t lo = i >= dilate ? i - dilate : 0;
+    const std::size_t hi = std::min(n - 1, i + dilate);
+    for (std::size_t k = lo; k <= hi; ++k) d.moving[k] = 1;
+  }
+  return d;
+}
+
+Wrench predict(const model::ModelParams& params, const Dataset& data, std::size_t i) {
+  const auto p = model::pointers(params);
+  const double* tau = params.effects.has(Effect::imu_time_offset)
+                          ? params.block(Effect::imu_time_offset)
+                          : nullptr;
+  return model::predict_wrench<double>(params.effects, p, data.pose[i], data.imu_at<double>(i, tau),
+                                       data.rig);
+}
+
+std::vector<std::uint8_t> heldout_mask(const Dataset& data, double block_s, int every) {
+  std::vector<std::uint8_t> mask(data.size(), 0);
+  const double t0 = data.t_s.front();
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    const long block = static_cast<long>(std::floor((data.t_s[i] - t0) / block_s));
+    mask[i] = (block % every) == every - 1 ? 1 : 0;
+  }
+  return mask;
+}
+
+void check_signals(const model::EffectSet& effects, const Dataset& data) {
+  for (Effect e : model::kAllEffects) {
+    if (!effects.has(e)) continue;
+    const auto& ei = model::info(e);
+    const bool needs_imu = e == Effect::linear_inertia || e == Effect::rotational_inertia ||
+                           e == Effect::imu_time_offset;
+    if (needs_imu && !data.columns.imu)
+      throw std::runtime_error(std::string("effect '") + ei.name +
+                               "' needs IMU columns (imu_f*, imu_w*) that the log lacks");
+    if (e == Effect::temperature_bias && !data.columns.temperature)
+      throw std::runtime_error("effect 'temperature_bias' needs the temp_C column that the log lacks");
+    if (e == Effect::cable && !data.columns.joints)
+      throw std::runtime_error("effect 'cable' needs joint angles (q1_rad..q6_rad) that the log lacks");
+    for (const auto& req : ei.requires_effects) {
+      if (req && !effects.has(*req))
+        throw std::runtime_error(std::string("effect '") + ei.name + "' builds on '" +
+                                 model::info(*req).name + "': add it to the model too");
+    }
+  }
+}
+
+}  // namespace zerog::ident

@@ -1,0 +1,306 @@
+#include "zerog/ident/fit.hpp"
+
+#include <ceres/ceres.h>
+
+#include <Eigen/Dense>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <sstream>
+
+namespace zerog::ident {
+namespace {
+
+using model::Effect;
+
+// One residual block per sample: whitened (measured − predicted), six values. Parameter blocks
+// are the active effects with parameters, in `order`.
+struct SampleResidual {
+  const Dataset* data;
+  std::size_t i;
+  model::EffectSet effects;
+  std::array<int, model::kEffectCount> slot;  // effect index → parameter-block slot, −1 if none
+  std::array<double, 6> inv_sigma;
+
+  template <typename T>
+  bool operator()(T const* const* blocks, T* residual) const {
+    model::ParamPointers<T> p{};
+    for (Effect e : model::kAllEffects) {
+      const int s = slot[model::index(e)];
+      p[model::index(e)] = s >= 0 ? blocks[s] : nullptr;
+    }
+    const T* tau = effects.has(Effect::imu_time_offset) ? p[model::index(Effect::imu_time_offset)]
+                                                        : nullptr;
+    const model::ImuSignals<T> imu = data->imu_at<T>(i, tau);
+    const model::Wrench<T> w =
+        model::predict_wrench<T>(effects, p, data->pose[i], imu, data->rig);
+    for (int k = 0; k < 6; ++k) residual[k] = (T(data->measured[i][k]) - w[k]) * inv_sigma[k];
+    return true;
+  }
+};
+
+constexpr int kStride = 8;
+using CostFunction = ceres::DynamicAutoDiffCostFunction<SampleResidual, kStride>;
+
+bool use(const FitOptions& o, std::size_t i) { return o.mask == nullptr || (*o.mask)[i] != 0; }
+
+// Linear least squares for bias and gravity (F = F0 + m g_S, M = M0 + (m c) × g_S): start values.
+void linear_init(const Dataset& data, const FitOptions& o, model::ModelParams& p) {
+  Eigen::Matrix<double, 10, 10> A = Eigen::Matrix<double, 10, 10>::Zero();
+  Eigen::Matrix<double, 10, 1> b = Eigen::Matrix<double, 10, 1>::Zero();
+  const model::EffectSet gravity_only{Effect::gravity};
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    if (!use(o, i)) continue;
+    const Eigen::Vector3d g = data.pose[i].R_base_sensor.transpose() *
+                              Eigen::Vector3d(0, 0, -model::kStandardGravity);
+    // unknowns: F0(3) m(1) M0(3) h(3); rows: F (3), M (3)
+    Eigen::Matrix<double, 6, 10> J = Eigen::Matrix<double, 6, 10>::Zero();
+    J.block<3, 3>(0, 0).setIdentity();
+    J.block<3, 1>(0, 3) = g;
+    J.block<3, 3>(3, 4).setIdentity();
+    J.block<3, 3>(3, 7) = -model::skew<double>(g);  // h × g = −g × h
+    A += J.transpose() * J;
+    b += J.transpose() * data.measured[i];
+  }
+  (void)gravity_only;
+  const Eigen::Matrix<double, 10, 1> x = A.ldlt().solve(b);
+  double* bias = p.block(Effect::bias);
+  for (int k = 0; k < 3; ++k) bias[k] = x[k];
+  for (int k = 0; k < 3; ++k) bias[3 + k] = x[4 + k];
+  double* grav = p.block(Effect::gravity);
+  grav[0] = x[3];
+  for (int k = 0; k < 3; ++k) grav[1 + k] = std::abs(x[3]) > 1e-9 ? x[7 + k] / x[3] : 0.0;
+}
+
+struct Solved {
+  ceres::Solver::Summary summary;
+  std::array<double, 6> rms{};
+  double ssr = 0.0;
+  std::size_t n = 0;
+};
+
+class ProgressCallback : public ceres::IterationCallback {
+ public:
+  explicit ProgressCallback(const std::function<void(const std::string&)>& f) : f_(f) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
+    std::ostringstream os;
+    os << "  iteration " << s.iteration << "  cost " << s.cost << "  step " << s.step_norm;
+    f_(os.str());
+    return ceres::SOLVER_CONTINUE;
+  }
+
+ private:
+  const std::function<void(const std::string&)>& f_;
+};
+
+}  // namespace
+
+std::string param_label(Effect e, int i) {
+  const auto& ei = model::info(e);
+  return std::string(ei.name) + "." + ei.params[i].name + " [" + ei.params[i].unit + "]";
+}
+
+FitResult fit(const Dataset& data, const FitOptions& o) {
+  const auto start = std::chrono::steady_clock::now();
+  check_signals(o.effects, data);
+  if (!o.effects.has(Effect::bias) && !o.effects.has(Effect::gravity) && o.effects.size() == 0)
+    throw std::runtime_error("empty model: give at least one effect");
+
+  FitResult r;
+  r.params.effects = o.effects;
+  if (o.initial) {
+    r.params.values = o.initial->values;
+    // Effects the initial model did not have start from neutral values.
+    for (Effect e : model::kAllEffects) {
+      if (!o.initial->effects.has(e)) r.params.values[model::index(e)].fill(0.0);
+    }
+  }
+  const bool init_linear =
+      o.initial == nullptr || !o.initial->effects.has(Effect::bias) || !o.initial->effects.has(Effect::gravity);
+  if (init_linear) linear_init(data, o, r.params);
+
+  std::array<int, model::kEffectCount> slot;
+  slot.fill(-1);
+  std::vector<Effect> order;
+  for (Effect e : model::kAllEffects) {
+    if (o.effects.has(e) && model::info(e).num_params > 0) {
+      slot[model::index(e)] = static_cast<int>(order.size());
+      order.push_back(e);
+      r.num_params += model::info(e).num_params;
+    }
+  }
+
+  std::array<double, 6> sigma = o.sigma.value_or(std::array<double, 6>{1, 1, 1, 0.1, 0.1, 0.1});
+  const int passes = o.sigma ? 1 : 2;
+  ceres::Problem::Options problem_options;
+  problem_options.cost_function_ownership = ceres::TAKE_OWNERSHIP;
+  problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  std::unique_ptr<ceres::LossFunction> loss;
+  if (o.loss == "huber") {
+    loss = std::make_unique<ceres::HuberLoss>(o.loss_scale);
+  } else if (o.loss == "cauchy") {
+    loss = std::make_unique<ceres::CauchyLoss>(o.loss_scale);
+  } else if (o.loss != "none") {
+    throw std::runtime_error("unknown loss '" + o.loss + "' (none, huber, cauchy)");
+  }
+
+  Solved solved;
+  std::unique_ptr<ceres::Problem> problem;
+  for (int pass = 0; pass < passes; ++pass) {
+    problem = std::make_unique<ceres::Problem>(problem_options);
+    std::array<double, 6> inv_sigma;
+    for (int k = 0; k < 6; ++k) inv_sigma[k] = 1.0 / sigma[k];
+    std::vector<double*> blocks;
+    for (Effect e : order) blocks.push_back(r.params.block(e));
+    for (std::size_t i = 0; i < data.size(); ++i) {
+      if (!use(o, i)) continue;
+      auto* cost = new CostFunction(new SampleResidual{&data, i, o.effects, slot, inv_sigma});
+      for (Effect e : order) cost->AddParameterBlock(model::info(e).num_params);
+      cost->SetNumResiduals(6);
+      problem->AddResidualBlock(cost, loss.get(), blocks);
+    }
+    if (problem->NumResidualBlocks() == 0) throw std::runtime_error("no samples to fit");
+    ceres::Solver::Options so;
+    so.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
+    so.num_threads = o.threads;
+    so.max_num_iterations = o.max_iterations;
+    so.function_tolerance = 1e-10;
+    so.parameter_tolerance = 1e-10;
+    so.logging_type = ceres::SILENT;
+    std::unique_ptr<ProgressCallback> cb;
+    if (o.progress) {
+      o.progress("fit pass " + std::to_string(pass + 1) + "/" + std::to_string(passes) + ": " +
+                 std::to_string(problem->NumResidualBlocks()) + " samples, " +
+                 std::to_string(r.num_params) + " parameters");
+      cb = std::make_unique<ProgressCallback>(o.progress);
+      so.callbacks.push_back(cb.get());
+    }
+    ceres::Solve(so, problem.get(), &solved.summary);
+    r.iterations += static_cast<int>(solved.summary.iterations.size());
+
+    // Per-axis RMS of the (unwhitened) residuals; next pass whitens with them.
+    std::array<double, 6> ss{};
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < data.size(); ++i) {
+      if (!use(o, i)) continue;
+      const Wrench e = data.measured[i] - predict(r.params, data, i);
+      for (int k = 0; k < 6; ++k) ss[k] += e[k] * e[k];
+      ++n;
+    }
+    solved.n = n;
+    solved.ssr = 0.0;
+    for (int k = 0; k < 6; ++k) {
+      solved.rms[k] = std::sqrt(ss[k] / static_cast<double>(n));
+      solved.ssr += ss[k] / (sigma[k] * sigma[k]);
+    }
+    if (pass + 1 < passes) {
+      for (int k = 0; k < 6; ++k) sigma[k] = std::max(solved.rms[k], k < 3 ? 1e-3 : 1e-4);
+    }
+  }
+  r.sigma = sigma;
+  r.residual_rms = solved.rms;
+  r.samples = solved.n;
+  r.usable = solved.summary.IsSolutionUsable();
+  r.termination = solved.summary.message;
+  const double n_res = 6.0 * static_cast<double>(solved.n);
+  r.bic = n_res * std::log(solved.ssr / n_res) + r.num_params * std::log(n_res);
+  if (solved.summary.termination_type == ceres::NO_CONVERGENCE) {
+    r.warnings.push_back({"not_converged", "the solver stopped after " +
+                                               std::to_string(r.iterations) +
+                                               " iterations without converging"});
+  }
+
+  if (o.covariance && r.usable && r.num_params > 0) {
+    // Column-scaled J^T J from Ceres' Jacobian: identifiability (rank, correlations).
+    ceres::CRSMatrix J;
+    double cost = 0.0;
+    problem->Evaluate(ceres::Problem::EvaluateOptions(), &cost, nullptr, nullptr, &J);
+    const int p = J.num_cols;
+    Eigen::MatrixXd JtJ = Eigen::MatrixXd::Zero(p, p);
+    {
+      Eigen::VectorXd row(p);
+      for (int i = 0; i < J.num_rows; ++i) {
+        row.setZero();
+        for (int k = J.rows[i]; k < J.rows[i + 1]; ++k) row[J.cols[k]] = J.values[k];
+        JtJ.selfadjointView<Eigen::Lower>().rankUpdate(row);
+      }
+      JtJ = JtJ.selfadjointView<Eigen::Lower>();
+    }
+    std::vector<std::pair<Effect, int>> names;
+    for (Effect e : order)
+      for (int k = 0; k < model::info(e).num_params; ++k) names.emplace_back(e, k);
+    Eigen::VectorXd d = JtJ.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
+    const Eigen::MatrixXd C = d.asDiagonal() * JtJ * d.asDiagonal();
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(C);
+    const double lmax = eig.eigenvalues().maxCoeff();
+    const double rel_tol = 1e-9;
+    std::vector<bool> deficient(p, false);
+    for (int k = 0; k < p; ++k) {
+      if (eig.eigenvalues()[k] > rel_tol * lmax) continue;
+      std::string who;
+      const Eigen::VectorXd v = eig.eigenvectors().col(k);
+      for (int q = 0; q < p; ++q) {
+        if (std::abs(v[q]) < 0.2) continue;
+        deficient[q] = true;
+        who += (who.empty() ? "" : ", ") + param_label(names[q].first, names[q].second);
+      }
+      r.warnings.push_back({"rank_deficient",
+                            "the data cannot identify a combination of " + who +
+                                ": only their combination is seen (rank deficiency)"});
+    }
+    // Pseudo-inverse restricted to the identifiable directions.
+    Eigen::MatrixXd cov_scaled = Eigen::MatrixXd::Zero(p, p);
+    for (int k = 0; k < p; ++k) {
+      const double l = eig.eigenvalues()[k];
+      if (l <= rel_tol * lmax) continue;
+      cov_scaled += eig.eigenvectors().col(k) * eig.eigenvectors().col(k).transpose() / l;
+    }
+    Eigen::MatrixXd cov = d.asDiagonal() * cov_scaled * d.asDiagonal();
+    // Ceres' own covariance when the problem has full rank (SPARSE_QR); it cross-checks ours.
+    bool any_deficient = false;
+    for (bool b : deficient) any_deficient = any_deficient || b;
+    if (!any_deficient) {
+      ceres::Covariance::Options co;
+      co.num_threads = o.threads;
+      ceres::Covariance covariance(co);
+      std::vector<std::pair<const double*, const double*>> pairs;
+      for (Effect a : order)
+        for (Effect b : order) pairs.emplace_back(r.params.block(a), r.params.block(b));
+      std::vector<const double*> ptrs;
+      for (Effect e : order) ptrs.push_back(r.params.block(e));
+      if (covariance.Compute(pairs, problem.get())) {
+        Eigen::MatrixXd ceres_cov(p, p);
+        covariance.GetCovarianceMatrix(ptrs, ceres_cov.data());
+        cov = ceres_cov.transpose();  // column-major view of the row-major result
+      }
+    }
+    const double s2 = solved.ssr / std::max(1.0, n_res - r.num_params);
+    cov *= s2;
+    ParamArray stds{};
+    for (auto& a : stds) a.fill(std::numeric_limits<double>::quiet_NaN());
+    for (int q = 0; q < p; ++q) {
+      stds[model::index(names[q].first)][names[q].second] =
+          deficient[q] ? std::numeric_limits<double>::quiet_NaN() : std::sqrt(std::max(cov(q, q), 0.0));
+    }
+    r.std = stds;
+    for (int a = 0; a < p; ++a) {
+      for (int b = a + 1; b < p; ++b) {
+        if (deficient[a] || deficient[b]) continue;
+        const double rho = cov(a, b) / std::sqrt(cov(a, a) * cov(b, b));
+        if (std::abs(rho) > 0.99) {
+          std::ostringstream os;
+          os.precision(4);
+          os << param_label(names[a].first, names[a].second) << " and "
+             << param_label(names[b].first, names[b].second) << " are strongly correlated (rho = "
+             << rho << "): the data barely tells them apart; their standard deviations are large";
+          r.warnings.push_back({"correlated", os.str()});
+        }
+      }
+    }
+  }
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return r;
+}
+
+}  // namespace zerog::ident

@@ -1,0 +1,175 @@
+#include "zerog/model/predict.hpp"
+
+#include <ceres/jet.h>
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+
+namespace zerog::model {
+namespace {
+
+ModelParams payload(EffectSet effects) {
+  ModelParams p;
+  p.effects = effects;
+  double* b = p.block(Effect::bias);
+  b[0] = 10, b[1] = -5, b[2] = 3, b[3] = 0.5, b[4] = -0.2, b[5] = 0.1;
+  double* g = p.block(Effect::gravity);
+  g[0] = 100.0, g[1] = 0.03, g[2] = -0.02, g[3] = 0.25;
+  double* I = p.block(Effect::rotational_inertia);
+  I[0] = 4.0, I[1] = 3.0, I[2] = 2.0, I[3] = 0.1, I[4] = -0.05, I[5] = 0.02;
+  return p;
+}
+
+Wrench<double> eval(const ModelParams& p, const PoseSignals& pose, const ImuSignals<double>& imu,
+                    const RigGeometry& rig = {}) {
+  return predict_wrench<double>(p.effects, pointers(p), pose, imu, rig);
+}
+
+TEST(Predict, BiasOnlyIsConstant) {
+  ModelParams p = payload({Effect::bias});
+  PoseSignals pose;
+  pose.R_base_sensor = rot_x(0.7) * rot_y(-0.3);
+  const Wrench<double> w = eval(p, pose, {});
+  for (int k = 0; k < 6; ++k) EXPECT_DOUBLE_EQ(w[k], p.block(Effect::bias)[k]);
+}
+
+TEST(Predict, GravityStaticMatchesHandComputation) {
+  ModelParams p = payload({Effect::gravity});
+  PoseSignals pose;  // sensor axes = base axes: gravity along −z of S
+  const Wrench<double> w = eval(p, pose, {});
+  const Eigen::Vector3d F(0, 0, -100.0 * kStandardGravity);
+  const Eigen::Vector3d c(0.03, -0.02, 0.25);
+  EXPECT_NEAR((w.head<3>() - F).norm(), 0.0, 1e-9);
+  EXPECT_NEAR((w.tail<3>() - c.cross(F)).norm(), 0.0, 1e-9);
+  // Upside down: gravity along +z of S.
+  pose.R_base_sensor = rot_x(M_PI);
+  EXPECT_NEAR(eval(p, pose, {})[2], 100.0 * kStandardGravity, 1e-9);
+}
+
+TEST(Predict, LinearInertiaAtRestEqualsGravityFromPose) {
+  // At rest the accelerometer reads −g in its own frame: both routes must agree, including an
+  // IMU that is rotated and offset from the sensor (lever arm irrelevant at rest).
+  PoseSignals pose;
+  pose.R_base_sensor = rot_z(0.4) * rot_y(1.1) * rot_x(-0.6);
+  RigGeometry rig;
+  rig.R_sensor_imu = rot_z(M_PI / 2) * rot_x(0.1);
+  rig.p_sensor_imu_m = Eigen::Vector3d(0.05, 0.0, -0.04);
+  const Eigen::Vector3d g_S = pose.R_base_sensor.transpose() * Eigen::Vector3d(0, 0, -kStandardGravity);
+  ImuSignals<double> imu;
+  imu.specific_force_imu = -(rig.R_sensor_imu.transpose() * g_S);
+  const Wrench<double> from_pose = eval(payload({Effect::gravity}), pose, imu, rig);
+  const Wrench<double> from_imu = eval(payload({Effect::gravity, Effect::linear_inertia}), pose, imu, rig);
+  EXPECT_NEAR((from_pose - from_imu).norm(), 0.0, 1e-9);
+}
+
+TEST(Predict, LinearInertiaAddsCentripetalTermAtTheCentreOfMass) {
+  // Pure spin about the sensor z axis at rate w, IMU at the sensor origin, no gravity in the
+  // accelerometer (free fall): the centre of mass needs m w² r towards the axis.
+  ModelParams p = payload({Effect::gravity, Effect::linear_inertia});
+  ImuSignals<double> imu;
+  imu.angular_rate_imu = Eigen::Vector3d(0, 0, 2.0);
+  const Wrench<double> w = eval(p, {}, imu);
+  const Eigen::Vector3d r(0.03, -0.02, 0.0);  // c projected off the axis
+  EXPECT_NEAR((w.head<3>() - 100.0 * 4.0 * r).norm(), 0.0, 1e-9);
+}
+
+TEST(Predict, RotationalInertiaIncludesGyroscopicTerm) {
+  ModelParams p = payload({Effect::gravity, Effect::linear_inertia, Effect::rotational_inertia});
+  ModelParams q = payload({Effect::gravity, Effect::linear_inertia});
+  ImuSignals<double> imu;
+  imu.angular_rate_imu = Eigen::Vector3d(0.5, -0.3, 0.8);
+  imu.angular_accel_imu = Eigen::Vector3d(1.0, 2.0, -0.5);
+  const Wrench<double> diff = eval(p, {}, imu) - eval(q, {}, imu);
+  Eigen::Matrix3d I;
+  I << 4.0, 0.1, -0.05, 0.1, 3.0, 0.02, -0.05, 0.02, 2.0;
+  const Eigen::Vector3d w = imu.angular_rate_imu, wd = imu.angular_accel_imu;
+  EXPECT_NEAR((diff.tail<3>() + I * wd + w.cross(I * w)).norm(), 0.0, 1e-12);
+  EXPECT_NEAR(diff.head<3>().norm(), 0.0, 1e-12);
+}
+
+TEST(Predict, BaseTiltTurnsGravityAsPaperEquation5) {
+  ModelParams p = payload({Effect::gravity, Effect::base_tilt});
+  const double alpha = 0.004, beta = -0.003;
+  p.block(Effect::base_tilt)[0] = alpha;
+  p.block(Effect::base_tilt)[1] = beta;
+  // 001_… eq. 7: gravity in B is G (cos a sin b, −sin a, −cos a cos b) with G along −z_W.
+  const double G = 100.0 * kStandardGravity;
+  const Eigen::Vector3d expected(G * std::cos(alpha) * std::sin(beta), -G * std::sin(alpha),
+                                 -G * std::cos(alpha) * std::cos(beta));
+  const Wrench<double> w = eval(p, {}, {});
+  EXPECT_NEAR((w.head<3>() - expected).norm(), 0.0, 1e-9);
+}
+
+TEST(Predict, SensorRotationRotatesGravityIntoTheTrueFrame) {
+  ModelParams p = payload({Effect::gravity, Effect::sensor_rotation});
+  p.block(Effect::sensor_rotation)[0] = 0.01;
+  const Wrench<double> w = eval(p, {}, {});
+  // True S = nominal S rotated by Rx(0.01): gravity in true S is Rx(0.01)^T (0,0,−g).
+  const Eigen::Vector3d expected = rot_x(0.01).transpose() * Eigen::Vector3d(0, 0, -100 * kStandardGravity);
+  EXPECT_NEAR((w.head<3>() - expected).norm(), 0.0, 1e-9);
+}
+
+TEST(Predict, DriftTemperatureCrosstalkAndCable) {
+  ModelParams p = payload({Effect::gravity, Effect::crosstalk, Effect::bias_drift,
+                           Effect::temperature_bias, Effect::cable});
+  p.block(Effect::crosstalk)[0 * 6 + 1] = 0.01;  // Fx picks up 1 % of Fy
+  p.block(Effect::bias_drift)[2] = 0.002;         // Fz drifts 2 mN/s
+  p.block(Effect::temperature_bias)[5] = 0.1;     // Mz: 0.1 N·m/K
+  p.block(Effect::cable)[2 * 12 + 6 + 1] = 3.0;   // A6 sine → Fy, 3 N
+  PoseSignals pose;
+  pose.R_base_sensor = rot_x(M_PI / 2);  // gravity along sensor +y… (R^T (0,0,−g))
+  pose.t_rel_s = 100.0;
+  pose.temperature_C = 30.0;
+  pose.joints_rad[5] = M_PI / 2;
+  const Wrench<double> w = eval(p, pose, {});
+  ModelParams g = payload({Effect::gravity});
+  Wrench<double> base = eval(g, pose, {});
+  base[1] += 3.0;                 // cable acts on the sensor, so it also sees the crosstalk
+  const double fy = base[1];
+  base[0] += 0.01 * fy;
+  base[2] += 0.2;
+  base[5] += 0.5;
+  EXPECT_NEAR((w - base).norm(), 0.0, 1e-9);
+}
+
+TEST(Predict, AutodiffDerivativeOfForceWithRespectToMassIsGravity) {
+  using J = ceres::Jet<double, 1>;
+  ModelParams p = payload({Effect::gravity});
+  std::array<J, kMaxEffectParams> grav{};
+  for (int k = 0; k < 4; ++k) grav[k] = J(p.block(Effect::gravity)[k]);
+  grav[0].v[0] = 1.0;
+  ParamPointers<J> ptr{};
+  ptr[index(Effect::gravity)] = grav.data();
+  PoseSignals pose;
+  pose.R_base_sensor = rot_y(0.5);
+  const Wrench<J> w = predict_wrench<J>(p.effects, ptr, pose, ImuSignals<J>{}, RigGeometry{});
+  const Eigen::Vector3d g = pose.R_base_sensor.transpose() * Eigen::Vector3d(0, 0, -kStandardGravity);
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(w[k].v[0], g[k], 1e-12);
+}
+
+TEST(Rotation, VectorFormulaMatchesEigenAngleAxisAndKukaAbc) {
+  const Eigen::Vector3d r(0.3, -0.2, 0.5);
+  const Eigen::Matrix3d R = rotation_from_vector(r);
+  const Eigen::Matrix3d E = Eigen::AngleAxisd(r.norm(), r.normalized()).toRotationMatrix();
+  EXPECT_NEAR((R - E).norm(), 0.0, 1e-12);
+  const Eigen::Matrix3d K = rotation_from_kuka_abc(0.1, 0.2, 0.3);
+  const Eigen::Matrix3d expected = (Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitZ()) *
+                                    Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitY()) *
+                                    Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitX()))
+                                       .toRotationMatrix();
+  EXPECT_NEAR((K - expected).norm(), 0.0, 1e-12);
+}
+
+TEST(EffectInfo, NamesRoundTripAndParameterCountsFitTheBlocks) {
+  for (Effect e : kAllEffects) {
+    const EffectInfo& i = info(e);
+    EXPECT_EQ(i.id, e);
+    ASSERT_TRUE(effect_from_name(i.name).has_value());
+    EXPECT_EQ(*effect_from_name(i.name), e);
+    EXPECT_LE(i.num_params, kMaxEffectParams);
+  }
+  EXPECT_FALSE(effect_from_name("gravitation").has_value());
+}
+
+}  // namespace
+}  // namespace zerog::model
