@@ -1,0 +1,401 @@
+#!/usr/bin/python3
+"""Tests of host/report/make_report.py: synthesise a bundle, render it, check the output.
+
+Run: /usr/bin/python3 tests/report/test_make_report.py   (registered with ctest as report_script)
+Set ZEROG_REPORT_KEEP=DIR to keep the rendered full report in DIR for a look.
+"""
+
+import json
+import math
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+import unittest
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+SCRIPT = os.path.join(HERE, "..", "..", "host", "report", "make_report.py")
+PYTHON = "/usr/bin/python3"
+AXES = ["Fx", "Fy", "Fz", "Mx", "My", "Mz"]
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+def rms(v):
+    return math.sqrt(sum(x * x for x in v) / len(v)) if v else None
+
+
+def pooled(r3):
+    return math.sqrt(sum(x * x for x in r3) / 3.0)
+
+
+def make_bundle(path, n=1500, floor=True, optional=True, ladder=True, diagnosis=True):
+    """A 100 kg payload rotated by the wrist; the fitted model misses the rotational inertia,
+    so Fy/Mx residuals grow with |omega_dot| while moving. Deterministic (fixed LCG noise)."""
+    os.makedirs(path, exist_ok=True)
+    seed = [12345]
+
+    def noise():
+        seed[0] = (1103515245 * seed[0] + 12345) % (2 ** 31)
+        return (seed[0] / 2 ** 31 - 0.5) * 0.6
+
+    header = ["t_s", "moving"] + [a + "_meas" for a in AXES] + [a + "_pred" for a in AXES]
+    if floor:
+        header += [a + "_floor" for a in AXES]
+    if optional:
+        header += ["q%d_rad" % j for j in range(1, 7)] + ["qd%d_radps" % j for j in range(1, 7)]
+        header += ["omega_norm_radps", "omega_dot_norm_radps2", "accel_norm_mps2", "temp_C",
+                   "heldout"]
+    rows = []
+    res = {"all": [[] for _ in AXES], "static": [[] for _ in AXES],
+           "moving": [[] for _ in AXES]}
+    q5s = []
+    for k in range(n):
+        t = 100.0 + 0.012 * k
+        moving = 1 if (k // 150) % 2 == 1 else 0
+        q = [0.1 * j + 0.3 * math.sin(0.01 * k + j) for j in range(6)]
+        if moving:
+            q[4] = 1.2 * math.sin(0.05 * k)
+            q[5] = 2.0 * math.sin(0.03 * k)
+        qd = [0.0] * 6
+        if moving:
+            qd[4] = 1.2 * 0.05 / 0.012 * math.cos(0.05 * k)
+            qd[5] = 2.0 * 0.03 / 0.012 * math.cos(0.03 * k)
+        w = math.hypot(qd[4], qd[5])
+        wd = (abs(1.2 * (0.05 / 0.012) ** 2 * math.sin(0.05 * k)) if moving else 0.0)
+        true = [-981.0 * math.sin(q[4]) * math.cos(q[5]), -981.0 * math.sin(q[5]),
+                -981.0 * math.cos(q[4]), 40.0 * math.sin(q[5]), 60.0 * math.sin(q[4]), 0.5]
+        missing = [0.0, 0.8 * wd, 0.0, 0.15 * wd, 0.0, 0.02 * wd]
+        truth = [true[i] + missing[i] for i in range(6)]
+        meas = [truth[i] + noise() * (1.0 if i < 3 else 0.05) for i in range(6)]
+        pred = [true[i] + 0.2 for i in range(6)]
+        row = [t, moving] + meas + pred
+        if floor:
+            row += truth
+        if optional:
+            row += q + qd + [w, wd, 0.3 * wd, 25.0 + 0.001 * k, 1 if (k // 100) % 5 == 4 else 0]
+        rows.append(row)
+        for i in range(6):
+            r = meas[i] - pred[i]
+            res["all"][i].append(r)
+            res["moving" if moving else "static"][i].append(r)
+        q5s.append(q[4])
+    with open(os.path.join(path, "data.csv"), "w") as f:
+        f.write(",".join(header) + "\n")
+        for row in rows:
+            f.write(",".join("%.9g" % x for x in row) + "\n")
+
+    def seg(name):
+        if not res[name][0]:
+            return {"rms": [None] * 6, "max": [None] * 6, "force_rms": None, "torque_rms": None}
+        r = [rms(res[name][i]) for i in range(6)]
+        return {"rms": r, "max": [max(abs(x) for x in res[name][i]) for i in range(6)],
+                "force_rms": pooled(r[:3]), "torque_rms": pooled(r[3:])}
+
+    n_mov = len(res["moving"][0])
+    joint_bins = []
+    for j in range(6):
+        edges = [-math.pi + 2 * math.pi * b / 12 for b in range(13)]
+        cnt, rr = [], []
+        for b in range(12):
+            cnt.append(40 if 3 <= b <= 8 else 0)
+            v = 0.5 + (2.0 if j == 4 and b == 5 else 0.1 * b)
+            rr.append([v, 3 * v, v, 0.1 * v, 0.1 * v, 0.02 * v] if cnt[-1] else
+                      [None] * 6)
+        joint_bins.append({"joint": "A%d" % (j + 1), "edges_rad": edges, "count": cnt,
+                           "rms": rr})
+    nf = {"force_rms": 0.1732, "torque_rms": 0.008660, "rms": [0.1732] * 3 + [0.00866] * 3}
+    summary = {
+        "kind": "zerog-report-bundle", "version": 1,
+        "title": "Test report <KR210 & payload>",
+        "log": "logs/sim_payload100.csv", "model": "fits/payload100.model.json",
+        "effects": ["bias", "gravity", "linear_inertia"],
+        "compare": {
+            "axes": AXES, "units": ["N", "N", "N", "N*m", "N*m", "N*m"],
+            "samples": {"total": n, "static": n - n_mov, "moving": n_mov},
+            "segments": {"all": seg("all"), "static": seg("static"), "moving": seg("moving")},
+            "joint_bins": joint_bins,
+            "worst": {"axis": "Fy", "segment": "moving", "joint": "A5",
+                      "bin_rad": [-math.pi / 6, 0.0], "rms": 7.875},
+        },
+        "ladder": None, "diagnosis": None, "noise_floor": nf if floor else None,
+    }
+    if ladder:
+        steps = []
+        names = [None, "gravity", "linear_inertia", "rotational_inertia", "crosstalk"]
+        fr = [412.5, 36.25, 9.125, 0.2125, 0.1875]
+        tr = [61.5, 4.375, 1.625, 0.0125, 0.01125]
+        eff = ["bias"]
+        for k, a in enumerate(names):
+            if a:
+                eff = eff + [a]
+            steps.append({"effects": list(eff), "added": a,
+                          "heldout": {"force_rms": fr[k], "torque_rms": tr[k],
+                                      "rms": [fr[k]] * 3 + [tr[k]] * 3},
+                          "bic": 90000.5 - 20000 * k})
+        summary["ladder"] = {"steps": steps, "noise_floor": nf}
+    if diagnosis:
+        def h(f, t):
+            return {"force_rms": f, "torque_rms": t, "rms": [f] * 3 + [t] * 3}
+        summary["diagnosis"] = {
+            "model": ["bias", "gravity", "linear_inertia"],
+            "baseline": h(9.125, 1.625),
+            "candidates": [
+                {"effect": "imu_time_offset", "heldout": h(8.5, 1.5), "gain": 0.125,
+                 "delta_bic": -310.5},
+                {"effect": "rotational_inertia", "heldout": h(0.2125, 0.0125), "gain": 0.9625,
+                 "delta_bic": -51234.5},
+                {"effect": "cable", "heldout": h(9.2, 1.7), "gain": -0.015, "delta_bic": 42.0},
+            ],
+            "verdict": {"kind": "effect", "effect": "rotational_inertia",
+                        "text": "Residual follows the angular acceleration: add rotational "
+                                "inertia.",
+                        "command": "zerog fit logs/sim_payload100.csv --effects "
+                                   "bias,gravity,linear_inertia,rotational_inertia"},
+            "correlated_signals": [
+                {"signal": "omega_dot_norm_radps2", "axis": "Fy", "correlation": 0.93},
+                {"signal": "A5", "axis": "Mx", "correlation": -0.41},
+                {"signal": "not_a_column", "axis": "Mz", "correlation": 0.2},
+            ],
+        }
+    with open(os.path.join(path, "summary.json"), "w") as f:
+        json.dump(summary, f, indent=1)
+    return summary
+
+
+def run(bundle, out):
+    return subprocess.run([PYTHON, SCRIPT, bundle, out], capture_output=True, text=True,
+                          timeout=300)
+
+
+class ReportTest(unittest.TestCase):
+    def setUp(self):
+        self.tmp = tempfile.mkdtemp(prefix="zerog-report-test-")
+        self.bundle = os.path.join(self.tmp, "bundle")
+        self.out = os.path.join(self.tmp, "out", "report")
+
+    def tearDown(self):
+        shutil.rmtree(self.tmp, ignore_errors=True)
+
+    def assertReportOk(self, p):
+        self.assertEqual(p.returncode, 0, "script failed:\n" + p.stderr)
+        index = os.path.join(self.out, "index.html")
+        self.assertTrue(os.path.isfile(index))
+        with open(index, encoding="utf-8") as f:
+            page = f.read()
+        pngs = re.findall(r'src="([^"]+)"', page)
+        self.assertTrue(pngs, "the page shows no figures")
+        for name in set(pngs):
+            self.assertTrue(name.endswith(".png"), name)
+            self.assertNotIn("/", name, "figures must sit beside index.html")
+            path = os.path.join(self.out, name)
+            self.assertTrue(os.path.isfile(path), "missing figure " + name)
+            self.assertGreater(os.path.getsize(path), 1000, name)
+            with open(path, "rb") as f:
+                self.assertEqual(f.read(8), PNG_MAGIC, name + " is not a PNG")
+        # every PNG written is referenced, and nothing else was left behind
+        on_disk = set(os.listdir(self.out))
+        self.assertEqual(on_disk, set(pngs) | {"index.html"})
+        self.assertEqual(os.listdir(os.path.dirname(self.out)), ["report"],
+                         "temporary folders left beside OUT_DIR")
+        return page, set(pngs)
+
+    def assertFailsCleanly(self, p, *words):
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("make_report: error:", p.stderr)
+        for w in words:
+            self.assertIn(w, p.stderr)
+        self.assertNotIn("Traceback", p.stderr)
+        self.assertFalse(os.path.exists(self.out), "OUT_DIR created on failure")
+        parent = os.path.dirname(self.out)
+        self.assertEqual(os.listdir(parent) if os.path.isdir(parent) else [], [],
+                         "leftovers beside OUT_DIR")
+
+    def test_full_bundle(self):
+        s = make_bundle(self.bundle)
+        p = run(self.bundle, self.out)
+        page, pngs = self.assertReportOk(p)
+        self.assertEqual(pngs, {"timeseries.png", "residual_hist.png", "diagnosis_signals.png",
+                                "residual_vs_signals.png", "joint_bins.png", "ladder.png",
+                                "diagnosis.png"})
+        self.assertEqual(p.stderr, "", "no warnings expected on a consistent bundle")
+        # header, verdict, command (escaped), paths
+        self.assertIn("Test report &lt;KR210 &amp; payload&gt;", page)
+        self.assertIn("logs/sim_payload100.csv", page)
+        self.assertIn("fits/payload100.model.json", page)
+        self.assertIn("linear_inertia", page)
+        self.assertIn(s["diagnosis"]["verdict"]["text"], page)
+        self.assertIn(s["diagnosis"]["verdict"]["command"], page)
+        # key numbers (formatted with 4 significant digits)
+        seg = s["compare"]["segments"]
+        for g in ("all", "static", "moving"):
+            self.assertIn("%.4g" % seg[g]["force_rms"], page)
+            self.assertIn("%.4g" % seg[g]["torque_rms"], page)
+            self.assertIn("%.4g" % seg[g]["rms"][1], page)
+        self.assertIn("%.4g" % seg["all"]["max"][2], page)
+        self.assertIn("0.1732", page)        # noise floor
+        self.assertIn("7.875", page)         # worst bin RMS
+        self.assertIn("412.5", page)         # ladder step 0
+        self.assertIn("0.2125", page)        # ladder step 3 / best candidate
+        self.assertIn("96.2 %", page)        # best gain
+        self.assertIn("-51234.5", page)      # its delta BIC
+        self.assertIn("rotational_inertia", page)
+        self.assertIn("not_a_column", page)  # listed as not plotted
+        self.assertNotIn("Decimated for plotting", page)
+
+    def test_minimal_bundle(self):
+        make_bundle(self.bundle, floor=False, optional=False, ladder=False, diagnosis=False)
+        page, pngs = self.assertReportOk(run(self.bundle, self.out))
+        self.assertEqual(pngs, {"timeseries.png", "residual_hist.png", "joint_bins.png"})
+        self.assertIn("No noise floor", page)
+        self.assertNotIn('id="ladder"', page)
+        self.assertNotIn('id="verdict"', page)
+
+    def test_static_only_with_nulls(self):
+        s = make_bundle(self.bundle, n=300)
+        path = os.path.join(self.bundle, "data.csv")
+        with open(path) as f:
+            lines = f.read().splitlines()
+        h = lines[0].split(",")
+        out = [lines[0]]
+        for k, line in enumerate(lines[1:]):
+            c = line.split(",")
+            for name in ("moving", "omega_norm_radps", "omega_dot_norm_radps2"):
+                c[h.index(name)] = "0"
+            if k == 3:
+                c[h.index("temp_C")] = "nan"   # allowed outside the required columns
+            out.append(",".join(c))
+        with open(path, "w") as f:
+            f.write("\n".join(out) + "\n")
+        s["compare"]["segments"]["moving"] = {"rms": [None] * 6, "max": [None] * 6,
+                                              "force_rms": None, "torque_rms": None}
+        s["compare"]["samples"]["total"] = 301       # mismatch: a warning, not an error
+        s["compare"]["joint_bins"] = []
+        s["compare"]["worst"] = None
+        s["ladder"] = {"steps": [], "noise_floor": None}
+        s["diagnosis"]["candidates"] = []
+        s["diagnosis"]["correlated_signals"] = []
+        s["diagnosis"]["verdict"] = {"kind": "nothing_left", "effect": None,
+                                     "text": "The residual is at the noise floor.",
+                                     "command": None}
+        with open(os.path.join(self.bundle, "summary.json"), "w") as f:
+            json.dump(s, f)
+        p = run(self.bundle, self.out)
+        page, pngs = self.assertReportOk(p)
+        self.assertIn("warning", p.stderr)
+        self.assertIn("301", page)
+        self.assertIn("The residual is at the noise floor.", page)
+        self.assertIn("The ladder has no steps", page)
+        self.assertIn("No joint-angle bins", page)
+        self.assertNotIn("ladder.png", pngs)
+
+    def test_decimation_and_speed(self):
+        make_bundle(self.bundle, n=30000)
+        t0 = time.time()
+        page, pngs = self.assertReportOk(run(self.bundle, self.out))
+        self.assertIn("timeseries_zoom.png", pngs)
+        self.assertIn("Decimated for plotting", page)
+        self.assertIn("30000 samples", page)
+        self.assertLess(time.time() - t0, 60)
+        keep = os.environ.get("ZEROG_REPORT_KEEP")
+        if keep:
+            shutil.rmtree(keep, ignore_errors=True)
+            shutil.copytree(self.out, keep)
+
+    def test_replaces_existing_out_dir(self):
+        make_bundle(self.bundle, ladder=False)
+        os.makedirs(self.out)
+        with open(os.path.join(self.out, "stale.png"), "w") as f:
+            f.write("old")
+        self.assertReportOk(run(self.bundle, self.out))
+        self.assertFalse(os.path.exists(os.path.join(self.out, "stale.png")))
+
+    def test_failure_keeps_existing_out_dir(self):
+        make_bundle(self.bundle)
+        os.makedirs(self.out)
+        with open(os.path.join(self.out, "index.html"), "w") as f:
+            f.write("previous report")
+        with open(os.path.join(self.bundle, "summary.json")) as f:
+            s = json.load(f)
+        s["version"] = 2
+        with open(os.path.join(self.bundle, "summary.json"), "w") as f:
+            json.dump(s, f)
+        p = run(self.bundle, self.out)
+        self.assertNotEqual(p.returncode, 0)
+        with open(os.path.join(self.out, "index.html")) as f:
+            self.assertEqual(f.read(), "previous report")
+        self.assertEqual(os.listdir(os.path.dirname(self.out)), ["report"])
+
+    def test_missing_column(self):
+        make_bundle(self.bundle)
+        path = os.path.join(self.bundle, "data.csv")
+        with open(path) as f:
+            lines = f.read().splitlines()
+        drop = lines[0].split(",").index("Fy_pred")
+        with open(path, "w") as f:
+            for line in lines:
+                cells = line.split(",")
+                del cells[drop]
+                f.write(",".join(cells) + "\n")
+        self.assertFailsCleanly(run(self.bundle, self.out), "data.csv", "Fy_pred", "missing")
+
+    def test_wrong_version(self):
+        make_bundle(self.bundle)
+        path = os.path.join(self.bundle, "summary.json")
+        with open(path) as f:
+            s = json.load(f)
+        s["version"] = 2
+        with open(path, "w") as f:
+            json.dump(s, f)
+        self.assertFailsCleanly(run(self.bundle, self.out), "summary.json", "version", "2")
+
+    def test_missing_file(self):
+        make_bundle(self.bundle)
+        os.remove(os.path.join(self.bundle, "data.csv"))
+        self.assertFailsCleanly(run(self.bundle, self.out), "data.csv", "missing file")
+
+    def test_bad_json(self):
+        make_bundle(self.bundle)
+        with open(os.path.join(self.bundle, "summary.json"), "w") as f:
+            f.write('{"kind": "zerog-report-bundle", "version": 1,,}')
+        self.assertFailsCleanly(run(self.bundle, self.out), "summary.json", "bad JSON", "line 1")
+
+    def test_malformed_key(self):
+        make_bundle(self.bundle)
+        path = os.path.join(self.bundle, "summary.json")
+        with open(path) as f:
+            s = json.load(f)
+        s["compare"]["segments"]["moving"]["rms"] = [1.0, 2.0]
+        with open(path, "w") as f:
+            json.dump(s, f)
+        self.assertFailsCleanly(run(self.bundle, self.out), "summary.json",
+                                "compare.segments.moving.rms", "expected 6")
+
+    def test_bad_cell(self):
+        make_bundle(self.bundle)
+        path = os.path.join(self.bundle, "data.csv")
+        with open(path) as f:
+            lines = f.read().splitlines()
+        cells = lines[5].split(",")
+        cells[3] = "abc"
+        lines[5] = ",".join(cells)
+        with open(path, "w") as f:
+            f.write("\n".join(lines) + "\n")
+        self.assertFailsCleanly(run(self.bundle, self.out), "data.csv", "line 6", "abc")
+
+    def test_refuses_bundle_as_out_dir(self):
+        make_bundle(self.bundle)
+        before = sorted(os.listdir(self.bundle))
+        p = run(self.bundle, self.bundle)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("refusing", p.stderr)
+        self.assertEqual(sorted(os.listdir(self.bundle)), before)
+        p = run(self.bundle, self.tmp)  # OUT_DIR containing the bundle would delete it
+        self.assertNotEqual(p.returncode, 0)
+        self.assertTrue(os.path.isfile(os.path.join(self.bundle, "summary.json")))
+
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)
