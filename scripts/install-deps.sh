@@ -10,6 +10,8 @@ packages=(
   libcli11-dev nlohmann-json3-dev libtomlplusplus-dev
   python3 python3-numpy python3-matplotlib
   clang-format
+  # vcan VM tests
+  qemu-system-x86 busybox-static linux-image-amd64 xz-utils cpio iproute2 can-utils
 )
 export DEBIAN_FRONTEND=noninteractive
 $SUDO apt-get update -qq

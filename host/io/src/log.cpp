@@ -1,0 +1,622 @@
+#include "zerog/io/log.hpp"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <array>
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <string_view>
+#include <system_error>
+#include <utility>
+
+#include "csv_scan.hpp"
+#include "toml_table.hpp"
+
+namespace zerog::io {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string location(const fs::path& file, int line, int column) {
+  std::string out = file.string();
+  if (line > 0) {
+    out += ":" + std::to_string(line);
+    if (column > 0) out += ":" + std::to_string(column);
+  }
+  return out + ": ";
+}
+
+std::string num(double v) {
+  std::string s;
+  detail::append_number(s, v, 0);
+  return s;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Columns of the log CSV (proto/log_format.md), in the order the writer emits them.
+// clang-format off
+enum Col : int {
+  kT,
+  kQ1, kQ2, kQ3, kQ4, kQ5, kQ6,
+  kPx, kPy, kPz,
+  kQw, kQx, kQy, kQz,
+  kImuFx, kImuFy, kImuFz,
+  kImuWx, kImuWy, kImuWz,
+  kFx, kFy, kFz,
+  kMx, kMy, kMz,
+  kTemp,
+  kNumCols
+};
+// clang-format on
+
+constexpr std::array<std::string_view, kNumCols> kColumnNames = {
+    "t_s",          "q1_rad",       "q2_rad",      "q3_rad",      "q4_rad",      "q5_rad",
+    "q6_rad",       "px_m",         "py_m",        "pz_m",        "qw",          "qx",
+    "qy",           "qz",           "imu_fx_mps2", "imu_fy_mps2", "imu_fz_mps2", "imu_wx_radps",
+    "imu_wy_radps", "imu_wz_radps", "Fx_N",        "Fy_N",        "Fz_N",        "Mx_Nm",
+    "My_Nm",        "Mz_Nm",        "temp_C"};
+
+struct Group {
+  int first;
+  int count;
+  bool required;
+};
+
+constexpr std::array<Group, 8> kGroups = {{
+    {kT, 1, true},
+    {kQ1, 6, false},
+    {kPx, 3, true},
+    {kQw, 4, true},
+    {kImuFx, 6, false},
+    {kFx, 3, true},
+    {kMx, 3, true},
+    {kTemp, 1, false},
+}};
+
+std::vector<std::string_view> known_column_names() {
+  return {kColumnNames.begin(), kColumnNames.end()};
+}
+
+constexpr std::string_view kVersionPrefix = "# zerog-log";
+
+void check_version_line(const fs::path& csv, detail::LineCursor& lines) {
+  std::string_view line;
+  const std::string expected =
+      std::string(kVersionPrefix) + " " + std::to_string(kLogFormatVersion);
+  if (!lines.next(line)) {
+    throw InputError(csv, 1, 1, "empty file: the first line must be '" + expected + "'");
+  }
+  if (line.substr(0, kVersionPrefix.size()) != kVersionPrefix) {
+    throw InputError(csv, 1, 1,
+                     "not a zerog log: the first line must be '" + expected + "', found '" +
+                         detail::shorten(line) + "'");
+  }
+  const std::size_t at = line.find_first_not_of(" \t", kVersionPrefix.size());
+  const int column = detail::char_column(line, at == std::string_view::npos ? line.size() : at);
+  const std::string_view rest = detail::trim(line.substr(kVersionPrefix.size()));
+  int version = 0;
+  const auto [ptr, ec] = std::from_chars(rest.data(), rest.data() + rest.size(), version);
+  if (rest.empty() || ec != std::errc() || ptr != rest.data() + rest.size()) {
+    throw InputError(
+        csv, 1, column,
+        "bad version line: expected '" + expected + "', found '" + detail::shorten(line) + "'");
+  }
+  if (version != kLogFormatVersion) {
+    throw InputError(csv, 1, column,
+                     "log format version " + std::to_string(version) +
+                         " is not supported (this zerog reads version " +
+                         std::to_string(kLogFormatVersion) + ")");
+  }
+}
+
+bool is_comment(std::string_view line) { return !line.empty() && line.front() == '#'; }
+
+void fill_sample(const std::array<double, kNumCols>& v, const Columns& columns, Sample& s) {
+  s.t_s = v[kT];
+  if (columns.joints) {
+    for (int i = 0; i < 6; ++i) s.joints_rad[i] = v[kQ1 + i];
+  }
+  s.p_base_sensor_m = {v[kPx], v[kPy], v[kPz]};
+  s.q_base_sensor = Eigen::Quaterniond(v[kQw], v[kQx], v[kQy], v[kQz]).normalized();
+  if (columns.imu) {
+    s.specific_force_imu_mps2 = {v[kImuFx], v[kImuFy], v[kImuFz]};
+    s.angular_rate_imu_radps = {v[kImuWx], v[kImuWy], v[kImuWz]};
+  }
+  s.force_sensor_N = {v[kFx], v[kFy], v[kFz]};
+  s.torque_sensor_Nm = {v[kMx], v[kMy], v[kMz]};
+  if (columns.temperature) s.temperature_C = v[kTemp];
+}
+
+// ---------------------------------------------------------------------------------------------
+// Writing.
+
+// Values of one sample in column order; absent groups are skipped by the writer.
+std::array<double, kNumCols> sample_values(const Sample& s) {
+  std::array<double, kNumCols> v{};
+  v[kT] = s.t_s;
+  for (int i = 0; i < 6; ++i) v[kQ1 + i] = s.joints_rad[i];
+  for (int i = 0; i < 3; ++i) {
+    v[kPx + i] = s.p_base_sensor_m[i];
+    v[kImuFx + i] = s.specific_force_imu_mps2[i];
+    v[kImuWx + i] = s.angular_rate_imu_radps[i];
+    v[kFx + i] = s.force_sensor_N[i];
+    v[kMx + i] = s.torque_sensor_Nm[i];
+  }
+  v[kQw] = s.q_base_sensor.w();
+  v[kQx] = s.q_base_sensor.x();
+  v[kQy] = s.q_base_sensor.y();
+  v[kQz] = s.q_base_sensor.z();
+  v[kTemp] = s.temperature_C;
+  return v;
+}
+
+bool column_written(int c, const Columns& columns) {
+  if (c >= kQ1 && c <= kQ6) return columns.joints;
+  if (c >= kImuFx && c <= kImuWz) return columns.imu;
+  if (c == kTemp) return columns.temperature;
+  return true;
+}
+
+// t_s is written with the shortest text that reads back exactly: at 9 digits a long log at
+// 1–2 kHz would round neighbouring times onto each other (t = 20000 s keeps only 0.1 ms).
+// Everything else gets 9 significant digits, far below any sensor's resolution.
+std::string format_log_csv(const Log& log) {
+  std::string out;
+  out.reserve(64 + log.samples.size() * 16 * kNumCols);
+  out += std::string(kVersionPrefix) + " " + std::to_string(kLogFormatVersion) + "\n";
+  bool first = true;
+  for (int c = 0; c < kNumCols; ++c) {
+    if (!column_written(c, log.columns)) continue;
+    if (!first) out += ',';
+    out += kColumnNames[c];
+    first = false;
+  }
+  out += '\n';
+  double previous_t = 0.0;
+  for (std::size_t i = 0; i < log.samples.size(); ++i) {
+    const auto v = sample_values(log.samples[i]);
+    if (i > 0 && !(v[kT] > previous_t)) {
+      throw std::invalid_argument("write_log: sample " + std::to_string(i) +
+                                  ": t_s = " + num(v[kT]) + " does not increase (previous " +
+                                  num(previous_t) + ")");
+    }
+    previous_t = v[kT];
+    first = true;
+    for (int c = 0; c < kNumCols; ++c) {
+      if (!column_written(c, log.columns)) continue;
+      if (!std::isfinite(v[c])) {
+        throw std::invalid_argument("write_log: sample " + std::to_string(i) + ": " +
+                                    std::string(kColumnNames[c]) + " is not finite");
+      }
+      if (!first) out += ',';
+      detail::append_number(out, v[c], c == kT ? 0 : 9);
+      first = false;
+    }
+    out += '\n';
+  }
+  return out;
+}
+
+std::string toml_string(std::string_view s) {
+  std::string out = "\"";
+  for (char c : s) {
+    const auto u = static_cast<unsigned char>(c);
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += c;
+    } else if (u < 0x20 || u == 0x7F) {
+      char buffer[8];
+      std::snprintf(buffer, sizeof buffer, "\\u%04X", static_cast<unsigned>(u));
+      out += buffer;
+    } else {
+      out += c;
+    }
+  }
+  return out + "\"";
+}
+
+// TOML floats need a '.' or an exponent, else they read back as integers.
+std::string toml_float(double v) {
+  std::string s = num(v);
+  if (s.find_first_of(".eE") == std::string::npos) s += ".0";
+  return s;
+}
+
+void check_rig_finite(const Rig& rig) {
+  const auto finite = [](double v) { return std::isfinite(v); };
+  const bool ok = finite(rig.sample_period_s) && rig.sample_period_s > 0.0 &&
+                  finite(rig.ft_rate_hz) && finite(rig.imu_rate_hz) && finite(rig.floor_z_m) &&
+                  rig.flange_sensor.p_m.allFinite() && rig.flange_sensor.q.coeffs().allFinite() &&
+                  rig.sensor_imu.p_m.allFinite() && rig.sensor_imu.q.coeffs().allFinite();
+  if (!ok) {
+    throw std::invalid_argument("write_rig: rig '" + rig.name +
+                                "' has a non-finite value or sample_period_s <= 0");
+  }
+}
+
+// Rig numbers are few: written exactly (shortest round-trip text).
+std::string format_rig(const Rig& rig) {
+  check_rig_finite(rig);
+  auto transform = [](const char* table, const char* comment, const Transform& t) {
+    const Eigen::Quaterniond q = t.q.normalized();
+    return std::string("\n[") + table + "]  # " + comment + "\np_m = [" + toml_float(t.p_m.x()) +
+           ", " + toml_float(t.p_m.y()) + ", " + toml_float(t.p_m.z()) + "]\nq_wxyz = [" +
+           toml_float(q.w()) + ", " + toml_float(q.x()) + ", " + toml_float(q.y()) + ", " +
+           toml_float(q.z()) + "]\n";
+  };
+  std::string out;
+  out += "# zerog rig (proto/log_format.md)\n";
+  out += "format = \"zerog-rig\"\n";
+  out += "version = " + std::to_string(kLogFormatVersion) + "\n";
+  out += "name = " + toml_string(rig.name) + "\n";
+  out += "robot = " + toml_string(rig.robot) + "\n";
+  out += "sample_period_s = " + toml_float(rig.sample_period_s) + "\n";
+  out += "ft_rate_hz = " + toml_float(rig.ft_rate_hz) + "\n";
+  out += "imu_rate_hz = " + toml_float(rig.imu_rate_hz) + "\n";
+  out += "floor_z_m = " + toml_float(rig.floor_z_m) + "\n";
+  out += transform("flange_sensor", "sensor frame S in the flange frame F", rig.flange_sensor);
+  out += transform("sensor_imu", "IMU frame I in the sensor frame S", rig.sensor_imu);
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Atomic file replacement.
+
+[[noreturn]] void throw_errno(const fs::path& path, const std::string& what, int error) {
+  throw std::runtime_error(path.string() + ": " + what + ": " + std::strerror(error));
+}
+
+fs::path canonical_or_self(const fs::path& p) {
+  std::error_code ec;
+  fs::path c = fs::weakly_canonical(p, ec);
+  return ec ? fs::absolute(p).lexically_normal() : c;
+}
+
+void refuse_inputs(const fs::path& path, const std::vector<fs::path>& inputs) {
+  const fs::path target = canonical_or_self(path);
+  for (const fs::path& input : inputs) {
+    std::error_code ec;
+    const bool same = canonical_or_self(input) == target || fs::equivalent(input, path, ec);
+    if (same) {
+      throw std::runtime_error("refusing to write " + path.string() + ": it is an input (" +
+                               input.string() + "); choose another output name");
+    }
+  }
+}
+
+// A file written under a temporary name beside its target and renamed into place by commit().
+// Until then the destructor removes the temporary, so a failed run leaves nothing behind.
+class PendingFile {
+ public:
+  PendingFile(fs::path target, const std::string& text) : target_(std::move(target)) {
+    fs::path dir = target_.parent_path();
+    if (dir.empty()) dir = ".";
+    std::string name = (dir / ("." + target_.filename().string() + ".tmp-XXXXXX")).string();
+    const int fd = ::mkstemp(name.data());
+    if (fd < 0) throw_errno(target_, "cannot create a temporary file in " + dir.string(), errno);
+    temp_ = name;
+    int error = 0;
+    if (::fchmod(fd, 0644) != 0) error = errno;
+    std::size_t done = 0;
+    while (error == 0 && done < text.size()) {
+      const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
+      if (n < 0) {
+        if (errno == EINTR) continue;
+        error = errno;
+      } else {
+        done += static_cast<std::size_t>(n);
+      }
+    }
+    if (error == 0 && ::fsync(fd) != 0) error = errno;
+    if (::close(fd) != 0 && error == 0) error = errno;
+    if (error != 0) {
+      ::unlink(temp_.c_str());
+      temp_.clear();
+      throw_errno(target_, "cannot write", error);
+    }
+  }
+  PendingFile(const PendingFile&) = delete;
+  PendingFile& operator=(const PendingFile&) = delete;
+  ~PendingFile() {
+    if (!temp_.empty()) ::unlink(temp_.c_str());
+  }
+
+  void commit() {
+    if (::rename(temp_.c_str(), target_.c_str()) != 0) throw_errno(target_, "cannot rename", errno);
+    temp_.clear();
+    fs::path dir = target_.parent_path();
+    if (dir.empty()) dir = ".";
+    // Make the rename durable; some file systems refuse fsync on folders, which is harmless.
+    const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (dfd >= 0) {
+      ::fsync(dfd);
+      ::close(dfd);
+    }
+  }
+
+ private:
+  fs::path target_;
+  std::string temp_;
+};
+
+}  // namespace
+
+// -------------------------------------------------------------------------------------------------
+
+InputError::InputError(fs::path file, int line, int column, const std::string& why)
+    : std::runtime_error(location(file, line, column) + why),
+      file_(std::move(file)),
+      line_(line),
+      column_(column) {}
+
+fs::path rig_path_for(const fs::path& csv) {
+  fs::path rig = csv;
+  rig.replace_extension(".rig.toml");
+  return rig;
+}
+
+Log read_log(const fs::path& csv) {
+  const std::string text = detail::read_whole_file(csv);
+  detail::LineCursor lines(text);
+  check_version_line(csv, lines);
+
+  std::string_view line;
+  bool have_header = false;
+  while (lines.next(line)) {
+    if (!is_comment(line) && !detail::is_blank(line)) {
+      have_header = true;
+      break;
+    }
+  }
+  if (!have_header) {
+    throw InputError(csv, lines.number() + 1, 1,
+                     "no header line (column names) after line " + std::to_string(lines.number()));
+  }
+
+  // Header: map every cell to a known column.
+  const int header_line = lines.number();
+  std::vector<detail::Cell> cells;
+  detail::split_cells(line, ',', cells);
+  std::array<int, kNumCols> cell_of;
+  cell_of.fill(-1);
+  std::vector<int> column_of_cell(cells.size());
+  for (std::size_t i = 0; i < cells.size(); ++i) {
+    const std::string_view name = detail::trim(cells[i].text);
+    const int column = detail::char_column(line, cells[i].offset);
+    int c = 0;
+    while (c < kNumCols && kColumnNames[c] != name) ++c;
+    if (c == kNumCols) {
+      std::string why = name.empty() ? std::string("empty column name in the header")
+                                     : "unknown column '" + detail::shorten(name) + "'";
+      const std::string_view near = detail::closest_name(name, known_column_names());
+      if (!near.empty()) why += " (did you mean '" + std::string(near) + "'?)";
+      throw InputError(csv, header_line, column,
+                       why + "; columns are listed in proto/log_format.md");
+    }
+    if (cell_of[c] >= 0) {
+      throw InputError(csv, header_line, column,
+                       "column '" + std::string(name) + "' appears twice (first at column " +
+                           std::to_string(detail::char_column(line, cells[cell_of[c]].offset)) +
+                           ")");
+    }
+    cell_of[c] = static_cast<int>(i);
+    column_of_cell[i] = c;
+  }
+  for (const Group& g : kGroups) {
+    int present = -1;
+    int missing = -1;
+    for (int c = g.first; c < g.first + g.count; ++c) {
+      if (cell_of[c] >= 0 && present < 0) present = c;
+      if (cell_of[c] < 0 && missing < 0) missing = c;
+    }
+    if (missing < 0) continue;
+    if (g.required) {
+      throw InputError(csv, header_line, 1,
+                       "missing required column '" + std::string(kColumnNames[missing]) + "'");
+    }
+    if (present >= 0) {
+      throw InputError(csv, header_line, detail::char_column(line, cells[cell_of[present]].offset),
+                       "incomplete column group: '" + std::string(kColumnNames[present]) +
+                           "' is present but '" + std::string(kColumnNames[missing]) +
+                           "' is missing (give all of " + std::string(kColumnNames[g.first]) +
+                           " … " + std::string(kColumnNames[g.first + g.count - 1]) + " or none)");
+    }
+  }
+
+  Log log;
+  log.columns.joints = cell_of[kQ1] >= 0;
+  log.columns.imu = cell_of[kImuFx] >= 0;
+  log.columns.temperature = cell_of[kTemp] >= 0;
+  log.samples.reserve(text.size() / (cells.size() * 8 + 1));
+
+  std::array<double, kNumCols> values{};
+  const std::size_t num_cells = cells.size();
+  int previous_line = 0;
+  while (lines.next(line)) {
+    if (is_comment(line) || detail::is_blank(line)) continue;
+    const int n = lines.number();
+    detail::split_cells(line, ',', cells);
+    if (cells.size() > num_cells) {
+      throw InputError(csv, n, detail::char_column(line, cells[num_cells].offset),
+                       "row has " + std::to_string(cells.size()) + " cells but the header has " +
+                           std::to_string(num_cells) + " (extra cell after column '" +
+                           std::string(kColumnNames[column_of_cell[num_cells - 1]]) + "')");
+    }
+    if (cells.size() < num_cells) {
+      throw InputError(csv, n, detail::char_column(line, line.size()),
+                       "row has " + std::to_string(cells.size()) + " cells but the header has " +
+                           std::to_string(num_cells) + " (column '" +
+                           std::string(kColumnNames[column_of_cell[cells.size()]]) +
+                           "' and after are missing)");
+    }
+    for (std::size_t i = 0; i < num_cells; ++i) {
+      const int c = column_of_cell[i];
+      const auto status = detail::parse_number(cells[i].text, values[c]);
+      if (status == detail::NumberStatus::ok) continue;
+      const std::string col = "column '" + std::string(kColumnNames[c]) + "'";
+      const std::string cell = "'" + detail::shorten(detail::trim(cells[i].text)) + "'";
+      std::string why;
+      switch (status) {
+        case detail::NumberStatus::empty:
+          why = "empty cell in " + col;
+          break;
+        case detail::NumberStatus::not_finite:
+          why = "NaN/inf " + cell + " in " + col + " is not allowed";
+          break;
+        case detail::NumberStatus::out_of_range:
+          why = "number " + cell + " in " + col + " is out of range";
+          break;
+        default:
+          why = "not a number: " + cell + " in " + col;
+          break;
+      }
+      throw InputError(csv, n, detail::char_column(line, cells[i].offset), why);
+    }
+    if (!log.samples.empty() && !(values[kT] > log.samples.back().t_s)) {
+      const double before = log.samples.back().t_s;
+      throw InputError(
+          csv, n, detail::char_column(line, cells[cell_of[kT]].offset),
+          std::string("time ") + (values[kT] < before ? "goes backwards" : "stands still") +
+              " at line " + std::to_string(n) + ": t=" + num(values[kT]) + " after " + num(before) +
+              " (line " + std::to_string(previous_line) + "); t_s must increase strictly");
+    }
+    const double norm = std::sqrt(values[kQw] * values[kQw] + values[kQx] * values[kQx] +
+                                  values[kQy] * values[kQy] + values[kQz] * values[kQz]);
+    if (std::abs(norm - 1.0) > 1e-3) {
+      throw InputError(
+          csv, n, detail::char_column(line, cells[cell_of[kQw]].offset),
+          "quaternion (qw, qx, qy, qz) has norm " + num(norm) + ", off from 1 by more than 1e-3");
+    }
+    fill_sample(values, log.columns, log.samples.emplace_back());
+    previous_line = n;
+  }
+  log.rig = read_rig(rig_path_for(csv));
+  return log;
+}
+
+void write_log(const Log& log, const fs::path& csv, const std::vector<fs::path>& inputs) {
+  const fs::path rig = rig_path_for(csv);
+  refuse_inputs(csv, inputs);
+  refuse_inputs(rig, inputs);
+  const std::string csv_text = format_log_csv(log);
+  const std::string rig_text = format_rig(log.rig);
+  PendingFile csv_file(csv, csv_text);
+  PendingFile rig_file(rig, rig_text);
+  // The rig goes first: whoever sees the new samples also sees their rig.
+  rig_file.commit();
+  csv_file.commit();
+}
+
+void write_rig(const Rig& rig, const fs::path& toml, const std::vector<fs::path>& inputs) {
+  write_file_atomic(toml, format_rig(rig), inputs);
+}
+
+void write_file_atomic(const fs::path& path, const std::string& text,
+                       const std::vector<fs::path>& inputs) {
+  refuse_inputs(path, inputs);
+  PendingFile file(path, text);
+  file.commit();
+}
+
+// -------------------------------------------------------------------------------------------------
+// The rig TOML.
+
+namespace detail {
+
+void throw_at(const fs::path& file, const toml::source_region& where, const std::string& why) {
+  int line = static_cast<int>(where.begin.line);
+  int column = static_cast<int>(where.begin.column);
+  if (line <= 0) {
+    line = 1;
+    column = 1;
+  }
+  throw InputError(file, line, column, why);
+}
+
+toml::table parse_toml_file(const fs::path& file) {
+  const std::string text = read_whole_file(file);
+  try {
+    return toml::parse(text, file.string());
+  } catch (const toml::parse_error& e) {
+    throw InputError(file, static_cast<int>(e.source().begin.line),
+                     static_cast<int>(e.source().begin.column),
+                     "TOML syntax: " + std::string(e.description()));
+  }
+}
+
+namespace {
+
+Transform transform_from_toml(const TomlTable& parent, std::string_view key, const fs::path& file) {
+  const toml::table& table = parent.table(key);
+  TomlTable t(table, file, parent.name(key) + ".", {"p_m", "q_wxyz"});
+  Transform out;
+  const auto p = t.numbers("p_m", 3);
+  out.p_m = {p[0], p[1], p[2]};
+  const auto q = t.numbers("q_wxyz", 4);
+  const Eigen::Quaterniond quat(q[0], q[1], q[2], q[3]);
+  if (std::abs(quat.norm() - 1.0) > 1e-3) {
+    throw_at(file, t.require("q_wxyz").source(),
+             "'" + t.name("q_wxyz") + "' has norm " + num(quat.norm()) +
+                 ", off from 1 by more than 1e-3");
+  }
+  out.q = quat.normalized();
+  return out;
+}
+
+}  // namespace
+
+Rig rig_from_toml(const toml::table& table, const fs::path& file, bool embedded,
+                  const std::string& key_prefix, bool* has_period) {
+  const TomlTable t(table, file, key_prefix,
+                    {"format", "version", "name", "robot", "sample_period_s", "ft_rate_hz",
+                     "imu_rate_hz", "floor_z_m", "flange_sensor", "sensor_imu"});
+  if (!embedded || t.find("format") != nullptr) {
+    const std::string format = t.string("format");
+    if (format != "zerog-rig") {
+      throw_at(file, t.require("format").source(),
+               "'" + t.name("format") + "' must be \"zerog-rig\", is \"" + format + "\"");
+    }
+  }
+  if (!embedded || t.find("version") != nullptr) {
+    const std::int64_t version = t.integer("version");
+    if (version != kLogFormatVersion) {
+      throw_at(file, t.require("version").source(),
+               "rig version " + std::to_string(version) +
+                   " is not supported (this zerog reads version " +
+                   std::to_string(kLogFormatVersion) + ")");
+    }
+  }
+  Rig rig;
+  rig.name = t.string("name");
+  rig.robot = t.string("robot");
+  const bool period_given = !embedded || t.find("sample_period_s") != nullptr;
+  if (period_given) rig.sample_period_s = t.number("sample_period_s", 0.0, true);
+  if (has_period != nullptr) *has_period = period_given;
+  rig.ft_rate_hz = t.optional_number("ft_rate_hz", 0.0, 0.0, false);
+  rig.imu_rate_hz = t.optional_number("imu_rate_hz", 0.0, 0.0, false);
+  rig.floor_z_m = t.optional_number("floor_z_m", 0.0, -1e300, false);
+  rig.flange_sensor = transform_from_toml(t, "flange_sensor", file);
+  rig.sensor_imu = transform_from_toml(t, "sensor_imu", file);
+  return rig;
+}
+
+}  // namespace detail
+
+Rig read_rig(const fs::path& toml) {
+  std::error_code ec;
+  if (!fs::exists(toml, ec)) {
+    throw InputError(toml, 0, 0,
+                     "rig file missing (a log NAME.csv needs its rig NAME.rig.toml beside it)");
+  }
+  const toml::table table = detail::parse_toml_file(toml);
+  return detail::rig_from_toml(table, toml, false, "", nullptr);
+}
+
+}  // namespace zerog::io

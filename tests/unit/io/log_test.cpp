@@ -1,0 +1,410 @@
+// The log format (proto/log_format.md): round trip, every read error with its exact position,
+// atomic writing.
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <random>
+
+#include "test_util.hpp"
+#include "zerog/io/log.hpp"
+
+namespace zerog::io {
+namespace {
+
+namespace fs = std::filesystem;
+using test::expect_input_error;
+using test::read_text;
+using test::write_text;
+
+Rig example_rig() {
+  Rig rig;
+  rig.name = "kr210 \"test\" rig";
+  rig.robot = "KR 210 R2700";
+  rig.sample_period_s = 0.012;
+  rig.ft_rate_hz = 1000.0;
+  rig.imu_rate_hz = 2000.0;
+  rig.floor_z_m = -0.675;
+  rig.flange_sensor.p_m = {0.001, -0.002, 0.06};
+  rig.flange_sensor.q =
+      Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized()));
+  rig.sensor_imu.p_m = {0.0, 0.0, -0.03};
+  rig.sensor_imu.q = Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()));
+  return rig;
+}
+
+Log example_log(std::size_t rows, const Columns& columns, double t0 = 1234.5) {
+  std::mt19937 rng(42);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  Log log;
+  log.rig = example_rig();
+  log.columns = columns;
+  for (std::size_t i = 0; i < rows; ++i) {
+    Sample s;
+    s.t_s = t0 + 0.0005 * static_cast<double>(i);  // 2 kHz far from t = 0: needs > 9 digits
+    for (double& q : s.joints_rad) q = 3.0 * u(rng);
+    s.p_base_sensor_m = {2.0 * u(rng), 2.0 * u(rng), 1.0 + u(rng)};
+    s.q_base_sensor = Eigen::Quaterniond(u(rng), u(rng), u(rng), u(rng)).normalized();
+    s.specific_force_imu_mps2 = 20.0 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+    s.angular_rate_imu_radps = 3.0 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+    s.force_sensor_N = 1500.0 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+    s.torque_sensor_Nm = 300.0 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+    s.temperature_C = 25.0 + 10.0 * u(rng);
+    log.samples.push_back(s);
+  }
+  return log;
+}
+
+void expect_near_rel(double a, double b, const char* what, std::size_t row) {
+  EXPECT_NEAR(a, b, 1e-8 * std::max(1.0, std::abs(b))) << what << " row " << row;
+}
+
+void expect_logs_equal(const Log& got, const Log& want) {
+  EXPECT_EQ(got.columns, want.columns);
+  ASSERT_EQ(got.samples.size(), want.samples.size());
+  for (std::size_t i = 0; i < want.samples.size(); ++i) {
+    const Sample& g = got.samples[i];
+    const Sample& w = want.samples[i];
+    EXPECT_EQ(g.t_s, w.t_s) << "t_s must round-trip exactly, row " << i;
+    if (want.columns.joints) {
+      for (int j = 0; j < 6; ++j) expect_near_rel(g.joints_rad[j], w.joints_rad[j], "joint", i);
+    }
+    for (int k = 0; k < 3; ++k) {
+      expect_near_rel(g.p_base_sensor_m[k], w.p_base_sensor_m[k], "p", i);
+      expect_near_rel(g.force_sensor_N[k], w.force_sensor_N[k], "F", i);
+      expect_near_rel(g.torque_sensor_Nm[k], w.torque_sensor_Nm[k], "M", i);
+      if (want.columns.imu) {
+        expect_near_rel(g.specific_force_imu_mps2[k], w.specific_force_imu_mps2[k], "f", i);
+        expect_near_rel(g.angular_rate_imu_radps[k], w.angular_rate_imu_radps[k], "w", i);
+      }
+    }
+    EXPECT_NEAR(g.q_base_sensor.angularDistance(w.q_base_sensor), 0.0, 1e-7) << "row " << i;
+    EXPECT_NEAR(g.q_base_sensor.norm(), 1.0, 1e-12);
+    if (want.columns.temperature) expect_near_rel(g.temperature_C, w.temperature_C, "temp", i);
+  }
+}
+
+void expect_rigs_equal(const Rig& got, const Rig& want) {
+  EXPECT_EQ(got.name, want.name);
+  EXPECT_EQ(got.robot, want.robot);
+  EXPECT_EQ(got.sample_period_s, want.sample_period_s);
+  EXPECT_EQ(got.ft_rate_hz, want.ft_rate_hz);
+  EXPECT_EQ(got.imu_rate_hz, want.imu_rate_hz);
+  EXPECT_EQ(got.floor_z_m, want.floor_z_m);
+  EXPECT_EQ(got.flange_sensor.p_m, want.flange_sensor.p_m);
+  EXPECT_EQ(got.sensor_imu.p_m, want.sensor_imu.p_m);
+  EXPECT_NEAR(got.flange_sensor.q.angularDistance(want.flange_sensor.q), 0.0, 1e-15);
+  EXPECT_NEAR(got.sensor_imu.q.angularDistance(want.sensor_imu.q), 0.0, 1e-15);
+}
+
+std::vector<fs::path> listing(const fs::path& dir) {
+  std::vector<fs::path> out;
+  for (const auto& entry : fs::directory_iterator(dir)) out.push_back(entry.path().filename());
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+using LogTest = test::TempDirTest;
+
+TEST_F(LogTest, RigPathForReplacesTheExtension) {
+  EXPECT_EQ(rig_path_for("a/run.csv"), fs::path("a/run.rig.toml"));
+  EXPECT_EQ(rig_path_for("run"), fs::path("run.rig.toml"));
+}
+
+TEST_F(LogTest, RoundTripWithAllColumns) {
+  const Log log = example_log(500, {true, true, true});
+  write_log(log, path("run.csv"));
+  const std::string text = read_text(path("run.csv"));
+  EXPECT_EQ(text.rfind("# zerog-log 1\nt_s,q1_rad,", 0), 0u) << text.substr(0, 80);
+  const Log back = read_log(path("run.csv"));
+  expect_logs_equal(back, log);
+  expect_rigs_equal(back.rig, log.rig);
+  expect_rigs_equal(read_rig(path("run.rig.toml")), log.rig);
+}
+
+TEST_F(LogTest, RoundTripWithRequiredColumnsOnly) {
+  const Log log = example_log(50, {false, false, false}, 0.0);
+  write_log(log, path("plain.csv"));
+  const std::string text = read_text(path("plain.csv"));
+  EXPECT_EQ(text.rfind("# zerog-log 1\n"
+                       "t_s,px_m,py_m,pz_m,qw,qx,qy,qz,Fx_N,Fy_N,Fz_N,Mx_Nm,My_Nm,Mz_Nm\n",
+                       0),
+            0u);
+  const Log back = read_log(path("plain.csv"));
+  expect_logs_equal(back, log);
+  EXPECT_EQ(back.samples[3].temperature_C, 25.0);  // default when the column is absent
+}
+
+TEST_F(LogTest, WriteLogRejectsNonIncreasingTimeAndNonFiniteValues) {
+  Log log = example_log(5, {false, false, false});
+  log.samples[3].t_s = log.samples[2].t_s;
+  EXPECT_THROW(write_log(log, path("bad.csv")), std::invalid_argument);
+  log = example_log(5, {false, false, false});
+  log.samples[1].force_sensor_N.y() = std::nan("");
+  EXPECT_THROW(write_log(log, path("bad.csv")), std::invalid_argument);
+  EXPECT_TRUE(listing(dir_).empty());
+}
+
+// ---- read errors ----------------------------------------------------------------------------
+
+const std::string kHeader = "t_s,px_m,py_m,pz_m,qw,qx,qy,qz,Fx_N,Fy_N,Fz_N,Mx_Nm,My_Nm,Mz_Nm";
+std::string row(const std::string& t) { return t + ",0.1,0.2,0.3,1,0,0,0,1,2,3,0.1,0.2,0.3"; }
+
+class LogReadErrorTest : public test::TempDirTest {
+ protected:
+  // Line 1 version, 2 comment, 3 header, 4 a good row at t = 0, 5 `bad`.
+  fs::path log_with(const std::string& bad, const std::string& header = kHeader) {
+    const fs::path csv = path("run.csv");
+    write_text(csv, "# zerog-log 1\n# a comment\n" + header + "\n" + row("0") + "\n" + bad + "\n");
+    write_rig(example_rig(), rig_path_for(csv));
+    return csv;
+  }
+  void expect_error(const fs::path& csv, int line, int column, const std::string& part) {
+    expect_input_error([&] { (void)read_log(csv); }, csv, line, column, part);
+  }
+};
+
+TEST_F(LogReadErrorTest, GoodFileReads) {
+  const fs::path csv = log_with("\n# another comment\n\r\n" + row("+0.1") + "\r");
+  const Log log = read_log(csv);
+  ASSERT_EQ(log.samples.size(), 2u);
+  EXPECT_EQ(log.samples[1].t_s, 0.1);
+  EXPECT_EQ(log.samples[1].torque_sensor_Nm.z(), 0.3);
+  EXPECT_EQ(log.columns, (Columns{false, false, false}));
+}
+
+TEST_F(LogReadErrorTest, NonNumericCell) {
+  expect_error(log_with("0.1,0.1,0.2,0.3,1,0,0,0,abc,2,3,0.1,0.2,0.3"), 5, 25,
+               "not a number: 'abc' in column 'Fx_N'");
+  expect_error(log_with("0.1,0.1,0.2,0.3,1,0,0,0,1.5x,2,3,0.1,0.2,0.3"), 5, 25, "'1.5x'");
+}
+
+TEST_F(LogReadErrorTest, EmptyCell) {
+  expect_error(log_with("0.1,0.1,0.2,0.3,1,0,0,0,,2,3,0.1,0.2,0.3"), 5, 25,
+               "empty cell in column 'Fx_N'");
+  expect_error(log_with("0.1,0.1,0.2,0.3,1,0,0,0, ,2,3,0.1,0.2,0.3"), 5, 25, "empty cell");
+}
+
+TEST_F(LogReadErrorTest, NanAndInf) {
+  expect_error(log_with("0.1,0.1,0.2,nan,1,0,0,0,1,2,3,0.1,0.2,0.3"), 5, 13,
+               "NaN/inf 'nan' in column 'pz_m'");
+  expect_error(log_with("0.1,0.1,0.2,0.3,1,0,0,0,1,2,3,0.1,0.2,-inf"), 5, 39,
+               "NaN/inf '-inf' in column 'Mz_Nm'");
+  expect_error(log_with("0.1,0.1,0.2,0.3,1,0,0,0,1,2,1e999,0.1,0.2,0.3"), 5, 29, "out of range");
+}
+
+TEST_F(LogReadErrorTest, WrongNumberOfCells) {
+  expect_error(log_with(row("0.1") + ",7"), 5, 43,
+               "row has 15 cells but the header has 14 (extra cell after column 'Mz_Nm')");
+  expect_error(log_with("0.1,0.1,0.2,0.3,1,0,0,0,1,2,3,0.1,0.2"), 5, 38,
+               "row has 13 cells but the header has 14 (column 'Mz_Nm'");
+  // Columns count characters, not bytes: "µ" is two bytes.
+  expect_error(log_with("0.1,µ"), 5, 6, "row has 2 cells");
+}
+
+TEST_F(LogReadErrorTest, TimeGoesBackwardsOrStandsStill) {
+  expect_error(log_with(row("-0.5")), 5, 1,
+               "time goes backwards at line 5: t=-0.5 after 0 (line 4)");
+  expect_error(log_with(row("0")), 5, 1, "time stands still at line 5: t=0 after 0 (line 4)");
+  // The t_s column need not be the first one.
+  const fs::path csv = path("reordered.csv");
+  write_text(csv,
+             "# zerog-log 1\n"
+             "px_m,py_m,pz_m,qw,qx,qy,qz,Fx_N,Fy_N,Fz_N,Mx_Nm,My_Nm,Mz_Nm,t_s\n"
+             "0.1,0.2,0.3,1,0,0,0,1,2,3,0.1,0.2,0.3,0\n"
+             "0.1,0.2,0.3,1,0,0,0,1,2,3,0.1,0.2,0.3,0\n");
+  write_rig(example_rig(), rig_path_for(csv));
+  expect_error(csv, 4, 39, "time stands still at line 4: t=0 after 0 (line 3)");
+}
+
+TEST_F(LogReadErrorTest, QuaternionNorm) {
+  expect_error(log_with("0.1,0.1,0.2,0.3,1.01,0,0,0,1,2,3,0.1,0.2,0.3"), 5, 17,
+               "quaternion (qw, qx, qy, qz) has norm 1.01");
+  const Log ok = read_log(log_with("0.1,0.1,0.2,0.3,1.0005,0,0,0,1,2,3,0.1,0.2,0.3"));
+  EXPECT_DOUBLE_EQ(ok.samples[1].q_base_sensor.w(), 1.0);  // normalised on read
+}
+
+TEST_F(LogReadErrorTest, HeaderErrors) {
+  expect_error(
+      log_with(row("0.1"), "t_s,px_m,py_m,pz_m,qw,qx,qy,qz,Fx_N,Fy_N,Fz_n,Mx_Nm,My_Nm,Mz_Nm"), 3,
+      42, "unknown column 'Fz_n' (did you mean 'Fz_N'?)");
+  expect_error(log_with(row("0.1"), "t_s,px_m,py_m,pz_m,qw,qx,qy,qz,Fx_N,Fy_N,Fz_N,Mx_Nm,My_Nm"), 3,
+               1, "missing required column 'Mz_Nm'");
+  expect_error(log_with(row("0.1") + ",1", kHeader + ",px_m"), 3, 65,
+               "column 'px_m' appears twice (first at column 5)");
+  expect_error(log_with(row("0.1") + ",1,2", kHeader + ",q1_rad,q2_rad"), 3, 65,
+               "'q1_rad' is present but 'q3_rad' is missing");
+}
+
+TEST_F(LogReadErrorTest, VersionLine) {
+  const fs::path csv = path("v.csv");
+  write_rig(example_rig(), rig_path_for(csv));
+  write_text(csv, "# zerog-log 2\n" + kHeader + "\n");
+  expect_error(csv, 1, 13, "log format version 2 is not supported");
+  write_text(csv, "# zerog-log one\n" + kHeader + "\n");
+  expect_error(csv, 1, 13, "bad version line");
+  write_text(csv, kHeader + "\n" + row("0") + "\n");
+  expect_error(csv, 1, 1, "not a zerog log: the first line must be '# zerog-log 1'");
+  write_text(csv, "");
+  expect_error(csv, 1, 1, "empty file");
+  write_text(csv, "# zerog-log 1\n# only comments\n");
+  expect_error(csv, 3, 1, "no header line");
+}
+
+TEST_F(LogReadErrorTest, MissingFiles) {
+  expect_input_error([&] { (void)read_log(path("none.csv")); }, path("none.csv"), 0, 0,
+                     "cannot open");
+  const fs::path csv = path("lonely.csv");
+  write_text(csv, "# zerog-log 1\n" + kHeader + "\n" + row("0") + "\n");
+  expect_input_error([&] { (void)read_log(csv); }, path("lonely.rig.toml"), 0, 0,
+                     "rig file missing");
+}
+
+// ---- rig errors -----------------------------------------------------------------------------
+
+const std::string kRig =
+    "format = \"zerog-rig\"\n"         // 1
+    "version = 1\n"                    // 2
+    "name = \"test-rig\"\n"            // 3
+    "robot = \"KR 210 R2700\"\n"       // 4
+    "sample_period_s = 0.012\n"        // 5
+    "ft_rate_hz = 1000.0\n"            // 6
+    "\n"                               // 7
+    "[flange_sensor]\n"                // 8
+    "p_m = [0.0, 0.0, 0.06]\n"         // 9
+    "q_wxyz = [1.0, 0.0, 0.0, 0.0]\n"  // 10
+    "\n"                               // 11
+    "[sensor_imu]\n"                   // 12
+    "p_m = [0.0, 0.0, -0.03]\n"        // 13
+    "q_wxyz = [1, 0, 0, 0]\n";         // 14
+
+std::string replace(std::string text, const std::string& from, const std::string& to) {
+  const std::size_t at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  return text.replace(at, from.size(), to);
+}
+
+class RigReadTest : public test::TempDirTest {
+ protected:
+  void expect_error(const std::string& text, int line, int column, const std::string& part) {
+    const fs::path toml = path("r.rig.toml");
+    write_text(toml, text);
+    expect_input_error([&] { (void)read_rig(toml); }, toml, line, column, part);
+  }
+};
+
+TEST_F(RigReadTest, GoodRigWithDefaults) {
+  write_text(path("r.rig.toml"), kRig);
+  const Rig rig = read_rig(path("r.rig.toml"));
+  EXPECT_EQ(rig.name, "test-rig");
+  EXPECT_EQ(rig.sample_period_s, 0.012);
+  EXPECT_EQ(rig.ft_rate_hz, 1000.0);
+  EXPECT_EQ(rig.imu_rate_hz, 0.0);
+  EXPECT_EQ(rig.floor_z_m, 0.0);
+  EXPECT_EQ(rig.flange_sensor.p_m.z(), 0.06);
+  EXPECT_EQ(rig.sensor_imu.q.w(), 1.0);
+}
+
+TEST_F(RigReadTest, Errors) {
+  expect_error(replace(kRig, "ft_rate_hz", "ft_rate_Hz"), 6, 1,
+               "unknown key 'ft_rate_Hz' (did you mean 'ft_rate_hz'?)");
+  expect_error(replace(kRig, "p_m = [0.0, 0.0, 0.06]", "p = [0.0, 0.0, 0.06]"), 9, 1,
+               "unknown key 'flange_sensor.p'");
+  expect_error(replace(kRig, "robot = \"KR 210 R2700\"\n", ""), 1, 1,
+               "missing required key 'robot'");
+  expect_error(replace(kRig, "q_wxyz = [1, 0, 0, 0]\n", ""), 12, 1,
+               "missing required key 'sensor_imu.q_wxyz'");
+  expect_error(replace(kRig, "name = \"test-rig\"", "name = 5"), 3, 8, "'name' must be a string");
+  expect_error(replace(kRig, "sample_period_s = 0.012", "sample_period_s = 0"), 5, 19,
+               "'sample_period_s' must be > 0");
+  expect_error(replace(kRig, "[0.0, 0.0, -0.03]", "[0.0, -0.03]"), 13, 7,
+               "'sensor_imu.p_m' must be a list of 3 numbers");
+  expect_error(replace(kRig, "[1.0, 0.0, 0.0, 0.0]", "[1.1, 0.0, 0.0, 0.0]"), 10, 10,
+               "'flange_sensor.q_wxyz' has norm 1.1");
+  expect_error(replace(kRig, "version = 1", "version = 2"), 2, 11,
+               "rig version 2 is not supported");
+  expect_error(replace(kRig, "\"zerog-rig\"", "\"zerog-log\""), 1, 10, "must be \"zerog-rig\"");
+  expect_error(replace(kRig, "ft_rate_hz = 1000.0", "ft_rate_hz = "), 6, 14, "TOML syntax");
+}
+
+// ---- atomic writing -------------------------------------------------------------------------
+
+using AtomicWriteTest = test::TempDirTest;
+
+TEST_F(AtomicWriteTest, WritesWithMode0644AndLeavesNoTemporaryFile) {
+  const mode_t old_mask = ::umask(0077);
+  write_file_atomic(path("out.txt"), "hello\n");
+  ::umask(old_mask);
+  EXPECT_EQ(read_text(path("out.txt")), "hello\n");
+  struct stat st {};
+  ASSERT_EQ(::stat(path("out.txt").c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0644u);
+  write_file_atomic(path("out.txt"), "again\n");  // replacing a non-input is fine
+  EXPECT_EQ(read_text(path("out.txt")), "again\n");
+  EXPECT_EQ(listing(dir_), std::vector<fs::path>{"out.txt"});
+}
+
+TEST_F(AtomicWriteTest, RefusesToOverwriteAnInput) {
+  fs::create_directory(path("sub"));
+  write_text(path("in.csv"), "precious");
+  fs::create_symlink(path("in.csv"), path("link.csv"));
+  fs::create_hard_link(path("in.csv"), path("hard.csv"));
+  const std::vector<fs::path> inputs = {path("in.csv")};
+  for (const fs::path& target :
+       {path("in.csv"), path("sub/../in.csv"), path("link.csv"), path("hard.csv")}) {
+    EXPECT_THROW(write_file_atomic(target, "oops", inputs), std::runtime_error) << target;
+  }
+  // A relative spelling of the same file is caught too.
+  const fs::path cwd = fs::current_path();
+  fs::current_path(dir_);
+  EXPECT_THROW(write_file_atomic("in.csv", "oops", {path("in.csv")}), std::runtime_error);
+  fs::current_path(cwd);
+  EXPECT_EQ(read_text(path("in.csv")), "precious");
+  EXPECT_EQ(listing(dir_), (std::vector<fs::path>{"hard.csv", "in.csv", "link.csv", "sub"}));
+}
+
+TEST_F(AtomicWriteTest, WriteLogRefusesWhenTheLogOrItsRigIsAnInput) {
+  const Log log = example_log(3, {});
+  write_text(path("in.csv"), "precious");
+  write_text(path("in.rig.toml"), "precious rig");
+  EXPECT_THROW(write_log(log, path("in.csv"), {path("in.csv")}), std::runtime_error);
+  EXPECT_THROW(write_log(log, path("in.csv"), {path("in.rig.toml")}), std::runtime_error);
+  EXPECT_THROW(write_rig(log.rig, path("in.rig.toml"), {path("in.rig.toml")}), std::runtime_error);
+  EXPECT_EQ(read_text(path("in.csv")), "precious");
+  EXPECT_EQ(read_text(path("in.rig.toml")), "precious rig");
+  EXPECT_EQ(listing(dir_), (std::vector<fs::path>{"in.csv", "in.rig.toml"}));
+}
+
+TEST_F(AtomicWriteTest, FailureLeavesNothingBehind) {
+  EXPECT_THROW(write_file_atomic(path("missing/out.txt"), "x"), std::runtime_error);
+  fs::create_directory(path("dir.csv"));  // the target is a folder: the rename fails
+  EXPECT_THROW(write_file_atomic(path("dir.csv"), "x"), std::runtime_error);
+  // write_log: the rig target is a folder, so neither file may appear.
+  fs::create_directory(path("run.rig.toml"));
+  EXPECT_THROW(write_log(example_log(3, {}), path("run.csv")), std::runtime_error);
+  EXPECT_EQ(listing(dir_), (std::vector<fs::path>{"dir.csv", "run.rig.toml"}));
+  EXPECT_TRUE(fs::is_empty(path("dir.csv")));
+}
+
+// ---- speed ------------------------------------------------------------------------------------
+
+TEST_F(LogTest, ReadsAHundredThousandRowsQuickly) {
+  const Log log = example_log(100000, {true, true, true});
+  write_log(log, path("big.csv"));
+  const auto start = std::chrono::steady_clock::now();
+  const Log back = read_log(path("big.csv"));
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  ASSERT_EQ(back.samples.size(), 100000u);
+  EXPECT_EQ(back.samples.back().t_s, log.samples.back().t_s);
+  RecordProperty("read_seconds", std::to_string(seconds));
+  std::printf("read 100000 rows x 27 columns in %.3f s\n", seconds);
+#if defined(__OPTIMIZE__) && !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
+  EXPECT_LT(seconds, 1.0);  // typically ~0.15 s; the bound only holds for optimised builds
+#endif
+}
+
+}  // namespace
+}  // namespace zerog::io
