@@ -87,7 +87,7 @@ std::string param_table(const model::ModelParams& p, const std::optional<ident::
 }
 
 void run_fit(const Common& c, const std::string& effects, const std::string& out, const std::string& loss,
-             double loss_scale, int max_iter, const std::string& truth_path) {
+             double loss_scale, int max_iter, int block_samples, const std::string& truth_path) {
   const io::Log log = io::read_log(c.log);
   const ident::Dataset data = ident::make_dataset(log);
   ident::FitOptions o;
@@ -95,6 +95,7 @@ void run_fit(const Common& c, const std::string& effects, const std::string& out
   o.loss = loss;
   o.loss_scale = loss_scale;
   o.max_iterations = max_iter;
+  o.block_samples = block_samples;
   o.threads = c.threads;
   o.progress = progress(c);
   const ident::FitResult r = ident::fit(data, o);
@@ -166,6 +167,7 @@ void add_ident_commands(CLI::App& app) {
     auto loss_scale = std::make_shared<double>(3.0);
     auto max_iter = std::make_shared<int>(50);
     auto truth = std::make_shared<std::string>();
+    auto block_samples = std::make_shared<int>(8);
     CLI::App* s = app.add_subcommand("fit", "Fit a model (a list of effects) to a log with Ceres");
     add_common(s, *c);
     s->add_option("-e,--effects", *effects, "Comma-separated effects (see proto/effects.md)")
@@ -176,8 +178,12 @@ void add_ident_commands(CLI::App& app) {
         ->capture_default_str();
     s->add_option("--loss-scale", *loss_scale, "Robust loss scale, in per-axis noise units")->capture_default_str();
     s->add_option("--max-iterations", *max_iter, "Solver iterations per pass")->capture_default_str();
+    s->add_option("--block-samples", *block_samples,
+                  "Compare model and measurement on means of this many consecutive samples (1 = each sample)")
+        ->check(CLI::Range(1, 1000))
+        ->capture_default_str();
     s->add_option("--truth", *truth, "Truth model (from zerog sim) to print beside the estimates");
-    s->callback([=] { run_fit(*c, *effects, *out, *loss, *loss_scale, *max_iter, *truth); });
+    s->callback([=] { run_fit(*c, *effects, *out, *loss, *loss_scale, *max_iter, *block_samples, *truth); });
   }
   // compare
   {

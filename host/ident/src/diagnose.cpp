@@ -71,9 +71,13 @@ Baseline fit_baseline(const Dataset& data, const model::EffectSet& effects, cons
     throw std::runtime_error("the fit of the model " + io::effect_list_string(effects) +
                              " is not usable: " + b.fit.termination);
   b.res = residuals(b.fit.params, data);
-  b.heldout = heldout_error(b.res, split.heldout, b.fit.sigma);
+  b.heldout = heldout_error(b.res, split.heldout, b.fit.residual_rms);
   return b;
 }
+
+// Two held-out gains are indistinguishable if they differ by less than half a percentage point
+// or 2 % of the larger.
+bool gains_tie(double a, double b) { return std::abs(a - b) < std::max(0.005, 0.02 * std::max(a, b)); }
 
 std::vector<Candidate> evaluate_candidates(const Dataset& data, const Baseline& base,
                                            const Split& split, const DiagnoseOptions& o) {
@@ -99,7 +103,7 @@ std::vector<Candidate> evaluate_candidates(const Dataset& data, const Baseline& 
     c.fit = fit(data, fo);
     if (!c.fit.usable) continue;
     const auto res = residuals(c.fit.params, data);
-    c.heldout = heldout_error(res, split.heldout, base.fit.sigma);
+    c.heldout = heldout_error(res, split.heldout, base.fit.residual_rms);
     c.gain = 1.0 - c.heldout.whitened_mse / base.heldout.whitened_mse;
     for (int a = 0; a < 6; ++a) {
       const double b2 = base.heldout.stats.rms[a] * base.heldout.stats.rms[a];
@@ -110,6 +114,16 @@ std::vector<Candidate> evaluate_candidates(const Dataset& data, const Baseline& 
     out.push_back(std::move(c));
   }
   std::sort(out.begin(), out.end(), [](const Candidate& a, const Candidate& b) { return a.gain > b.gain; });
+  // Candidates that remove the same error (a general effect can mimic a specific one, e.g.
+  // crosstalk can represent a sensor rotation) are tied; among tied ones the information
+  // criterion decides, so the simpler explanation comes first.
+  for (std::size_t g = 0; g < out.size();) {
+    std::size_t end = g + 1;
+    while (end < out.size() && gains_tie(out[g].gain, out[end].gain)) ++end;
+    std::sort(out.begin() + static_cast<std::ptrdiff_t>(g), out.begin() + static_cast<std::ptrdiff_t>(end),
+              [](const Candidate& a, const Candidate& b) { return a.delta_bic < b.delta_bic; });
+    g = end;
+  }
   return out;
 }
 
@@ -249,7 +263,7 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
   double noise_w = 0.0;
   for (int k = 0; k < 6; ++k) {
     d.noise_rms[k] = std::sqrt(dd[k] / (2.0 * static_cast<double>(nd)));
-    noise_w += (d.noise_rms[k] / base.fit.sigma[k]) * (d.noise_rms[k] / base.fit.sigma[k]);
+    noise_w += (d.noise_rms[k] / base.fit.residual_rms[k]) * (d.noise_rms[k] / base.fit.residual_rms[k]);
   }
   noise_w /= 6.0;
   d.structured_fraction = std::clamp(1.0 - noise_w / base.heldout.whitened_mse, 0.0, 1.0);
@@ -276,9 +290,16 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
        << fmt("%.0f", 100 * c.gain) << "% of the held-out error (force RMS " << fmt("%.3f", h.force_rms)
        << " -> " << fmt("%.3f", ch.force_rms) << " N, torque RMS " << fmt("%.3f", h.torque_rms) << " -> "
        << fmt("%.3f", ch.torque_rms) << " N*m)";
-    if (d.candidates.size() > 1)
+    if (d.candidates.size() > 1 && gains_tie(c.gain, d.candidates[1].gain)) {
+      const Candidate& alt = d.candidates[1];
+      os << "; " << model::info(alt.effect).name << " removes as much ("
+         << fmt("%.0f", 100 * alt.gain) << "%) because it can mimic it, but with "
+         << model::info(alt.effect).num_params << " parameters against " << ei.num_params
+         << ": the information criterion prefers " << ei.name;
+    } else if (d.candidates.size() > 1) {
       os << "; the next best, " << model::info(d.candidates[1].effect).name << ", removes "
          << fmt("%.0f", 100 * d.candidates[1].gain) << "%";
+    }
     os << ". Estimated: " << param_summary(c) << ".";
     d.command = "zerog fit " + o.log_path + " --effects " + io::effect_list_string(c.effects) + " --out fitted.json";
   } else {

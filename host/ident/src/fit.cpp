@@ -14,11 +14,14 @@ namespace {
 
 using model::Effect;
 
-// One residual block per sample: whitened (measured − predicted), six values. Parameter blocks
-// are the active effects with parameters, in `order`.
-struct SampleResidual {
+// One residual block per block of `count` consecutive samples: whitened mean(measured) −
+// mean(predicted), six values. Averaging both sides the same way is exact for the nonlinear
+// model and cuts the noise of differentiated gyro signals (see proto/effects.md). Parameter
+// blocks are the active effects with parameters.
+struct BlockResidual {
   const Dataset* data;
-  std::size_t i;
+  std::size_t first;
+  std::size_t count;
   model::EffectSet effects;
   std::array<int, model::kEffectCount> slot;  // effect index → parameter-block slot, −1 if none
   std::array<double, 6> inv_sigma;
@@ -32,16 +35,40 @@ struct SampleResidual {
     }
     const T* tau = effects.has(Effect::imu_time_offset) ? p[model::index(Effect::imu_time_offset)]
                                                         : nullptr;
-    const model::ImuSignals<T> imu = data->imu_at<T>(i, tau);
-    const model::Wrench<T> w =
-        model::predict_wrench<T>(effects, p, data->pose[i], imu, data->rig);
-    for (int k = 0; k < 6; ++k) residual[k] = (T(data->measured[i][k]) - w[k]) * inv_sigma[k];
+    model::Wrench<T> sum = model::Wrench<T>::Zero();
+    ident::Wrench meas = ident::Wrench::Zero();
+    for (std::size_t i = first; i < first + count; ++i) {
+      const model::ImuSignals<T> imu = data->imu_at<T>(i, tau);
+      sum += model::predict_wrench<T>(effects, p, data->pose[i], imu, data->rig);
+      meas += data->measured[i];
+    }
+    const double inv_n = 1.0 / static_cast<double>(count);
+    for (int k = 0; k < 6; ++k) residual[k] = (T(meas[k] * inv_n) - sum[k] * inv_n) * inv_sigma[k];
     return true;
   }
 };
 
+// Blocks of `m` consecutive used samples, never spanning a gap in the mask (so held-out data
+// never leaks into training); a run's leftover tail shorter than m is not used.
+std::vector<std::pair<std::size_t, std::size_t>> make_blocks(const Dataset& data, const FitOptions& o,
+                                                             int m) {
+  std::vector<std::pair<std::size_t, std::size_t>> blocks;
+  std::size_t run_start = 0;
+  bool in_run = false;
+  auto close = [&](std::size_t end) {
+    for (std::size_t b = run_start; b + m <= end; b += m) blocks.emplace_back(b, m);
+  };
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    const bool u = o.mask == nullptr || (*o.mask)[i] != 0;
+    if (u && !in_run) run_start = i, in_run = true;
+    if (!u && in_run) close(i), in_run = false;
+  }
+  if (in_run) close(data.size());
+  return blocks;
+}
+
 constexpr int kStride = 8;
-using CostFunction = ceres::DynamicAutoDiffCostFunction<SampleResidual, kStride>;
+using CostFunction = ceres::DynamicAutoDiffCostFunction<BlockResidual, kStride>;
 
 bool use(const FitOptions& o, std::size_t i) { return o.mask == nullptr || (*o.mask)[i] != 0; }
 
@@ -77,7 +104,8 @@ struct Solved {
   ceres::Solver::Summary summary;
   std::array<double, 6> rms{};
   double ssr = 0.0;
-  std::size_t n = 0;
+  std::size_t n = 0;   // samples
+  std::size_t nb = 0;  // block residuals
 };
 
 class ProgressCallback : public ceres::IterationCallback {
@@ -132,6 +160,7 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
   }
 
   std::array<double, 6> sigma = o.sigma.value_or(std::array<double, 6>{1, 1, 1, 0.1, 0.1, 0.1});
+  if (o.block_samples < 1) throw std::runtime_error("block_samples must be at least 1");
   const int passes = o.sigma ? 1 : 2;
   ceres::Problem::Options problem_options;
   problem_options.cost_function_ownership = ceres::TAKE_OWNERSHIP;
@@ -145,6 +174,7 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
     throw std::runtime_error("unknown loss '" + o.loss + "' (none, huber, cauchy)");
   }
 
+  const auto blocks_of_samples = make_blocks(data, o, std::max(1, o.block_samples));
   Solved solved;
   std::unique_ptr<ceres::Problem> problem;
   for (int pass = 0; pass < passes; ++pass) {
@@ -153,9 +183,8 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
     for (int k = 0; k < 6; ++k) inv_sigma[k] = 1.0 / sigma[k];
     std::vector<double*> blocks;
     for (Effect e : order) blocks.push_back(r.params.block(e));
-    for (std::size_t i = 0; i < data.size(); ++i) {
-      if (!use(o, i)) continue;
-      auto* cost = new CostFunction(new SampleResidual{&data, i, o.effects, slot, inv_sigma});
+    for (const auto& [first, count] : blocks_of_samples) {
+      auto* cost = new CostFunction(new BlockResidual{&data, first, count, o.effects, slot, inv_sigma});
       for (Effect e : order) cost->AddParameterBlock(model::info(e).num_params);
       cost->SetNumResiduals(6);
       problem->AddResidualBlock(cost, loss.get(), blocks);
@@ -171,7 +200,7 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
     std::unique_ptr<ProgressCallback> cb;
     if (o.progress) {
       o.progress("fit pass " + std::to_string(pass + 1) + "/" + std::to_string(passes) + ": " +
-                 std::to_string(problem->NumResidualBlocks()) + " samples, " +
+                 std::to_string(problem->NumResidualBlocks()) + " blocks of " + std::to_string(o.block_samples) + " samples, " +
                  std::to_string(r.num_params) + " parameters");
       cb = std::make_unique<ProgressCallback>(o.progress);
       so.callbacks.push_back(cb.get());
@@ -179,23 +208,31 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
     ceres::Solve(so, problem.get(), &solved.summary);
     r.iterations += static_cast<int>(solved.summary.iterations.size());
 
-    // Per-axis RMS of the (unwhitened) residuals; next pass whitens with them.
-    std::array<double, 6> ss{};
+    // Per-sample RMS of the residuals (what compare reports), and the block-mean residuals the
+    // fit sees: their RMS whitens the next pass, their whitened sum of squares gives the BIC.
+    std::array<double, 6> ss{}, ss_block{};
     std::size_t n = 0;
-    for (std::size_t i = 0; i < data.size(); ++i) {
-      if (!use(o, i)) continue;
-      const Wrench e = data.measured[i] - predict(r.params, data, i);
-      for (int k = 0; k < 6; ++k) ss[k] += e[k] * e[k];
-      ++n;
+    for (const auto& [first, count] : blocks_of_samples) {
+      Wrench mean = Wrench::Zero();
+      for (std::size_t i = first; i < first + count; ++i) {
+        const Wrench e = data.measured[i] - predict(r.params, data, i);
+        for (int k = 0; k < 6; ++k) ss[k] += e[k] * e[k];
+        mean += e;
+        ++n;
+      }
+      mean /= static_cast<double>(count);
+      for (int k = 0; k < 6; ++k) ss_block[k] += mean[k] * mean[k];
     }
+    const double nb = static_cast<double>(blocks_of_samples.size());
     solved.n = n;
+    solved.nb = blocks_of_samples.size();
     solved.ssr = 0.0;
     for (int k = 0; k < 6; ++k) {
       solved.rms[k] = std::sqrt(ss[k] / static_cast<double>(n));
-      solved.ssr += ss[k] / (sigma[k] * sigma[k]);
+      solved.ssr += ss_block[k] / (sigma[k] * sigma[k]);
     }
     if (pass + 1 < passes) {
-      for (int k = 0; k < 6; ++k) sigma[k] = std::max(solved.rms[k], k < 3 ? 1e-3 : 1e-4);
+      for (int k = 0; k < 6; ++k) sigma[k] = std::max(std::sqrt(ss_block[k] / nb), k < 3 ? 1e-4 : 1e-5);
     }
   }
   r.sigma = sigma;
@@ -203,7 +240,7 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
   r.samples = solved.n;
   r.usable = solved.summary.IsSolutionUsable();
   r.termination = solved.summary.message;
-  const double n_res = 6.0 * static_cast<double>(solved.n);
+  const double n_res = 6.0 * static_cast<double>(solved.nb);
   r.bic = n_res * std::log(solved.ssr / n_res) + r.num_params * std::log(n_res);
   if (solved.summary.termination_type == ceres::NO_CONVERGENCE) {
     r.warnings.push_back({"not_converged", "the solver stopped after " +
@@ -240,8 +277,9 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
       if (eig.eigenvalues()[k] > rel_tol * lmax) continue;
       std::string who;
       const Eigen::VectorXd v = eig.eigenvectors().col(k);
+      const double vmax = v.cwiseAbs().maxCoeff();
       for (int q = 0; q < p; ++q) {
-        if (std::abs(v[q]) < 0.2) continue;
+        if (std::abs(v[q]) < 0.3 * vmax) continue;
         deficient[q] = true;
         who += (who.empty() ? "" : ", ") + param_label(names[q].first, names[q].second);
       }

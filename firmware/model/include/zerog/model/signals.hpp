@@ -9,16 +9,16 @@
 
 namespace zerog::model {
 
-/// Angular acceleration by differencing the gyroscope. `central` (offline) uses
-/// (ω[k+1] − ω[k−1]) / (2 dt): no delay, white gyro noise σ gives σ/(√2 dt). The causal form
-/// (firmware) uses (ω[k] − ω[k−1]) / dt: half a sample of delay, noise σ·√2/dt.
-inline Eigen::Vector3d angular_accel_central(const Eigen::Vector3d& omega_prev,
-                                             const Eigen::Vector3d& omega_next, double dt_s) {
-  return (omega_next - omega_prev) / (2.0 * dt_s);
-}
-inline Eigen::Vector3d angular_accel_causal(const Eigen::Vector3d& omega_prev,
-                                            const Eigen::Vector3d& omega_now, double dt_s) {
-  return (omega_now - omega_prev) / dt_s;
+/// Angular acceleration by central differences of the gyroscope, rows `stride` doubles apart,
+/// `omega` pointing at the centre row. `order` 4: (−ω[+2] + 8ω[+1] − 8ω[−1] + ω[−2]) / (12 dt),
+/// error (dt⁴/30) ω⁽⁵⁾ — negligible for robot motion; white gyro noise σ becomes 0.95 σ/dt.
+/// `order` 2: (ω[+1] − ω[−1]) / (2 dt), error (dt²/6) ω⃛ (0.4 % at 2 Hz and 12 ms), noise
+/// 0.71 σ/dt. Offline (no delay). A causal use in the firmware delays ω̇ by order/2 rows.
+inline Eigen::Vector3d angular_accel_central(const double* omega, std::ptrdiff_t stride, int order,
+                                             double dt_s) {
+  auto w = [&](int j) { return Eigen::Map<const Eigen::Vector3d>(omega + j * stride); };
+  if (order == 4) return (-w(2) + 8.0 * w(1) - 8.0 * w(-1) + w(-2)) / (12.0 * dt_s);
+  return (w(1) - w(-1)) / (2.0 * dt_s);
 }
 
 /// Linear interpolation of a uniformly sampled vector series at a fractional index. `data` holds

@@ -50,8 +50,8 @@ struct Dataset {
   }
 };
 
-/// Builds the dataset: rotations from quaternions, angular acceleration by central differences
-/// of the gyroscope (model::angular_accel_central), motion flags, joint velocities.
+/// Builds the dataset: rotations from quaternions, angular acceleration by 5-point central
+/// differences of the gyroscope (model::angular_accel_central), motion flags, joint velocities.
 Dataset make_dataset(const io::Log& log);
 
 /// Predicted wrench of sample i with the given parameters (double evaluation of the model).

@@ -19,6 +19,9 @@ struct FitOptions {
   std::string loss = "none";  ///< none | huber | cauchy (on residuals whitened per axis)
   double loss_scale = 3.0;    ///< robust-loss scale in units of the per-axis noise
   int max_iterations = 50;
+  /// The fit compares block means of this many consecutive samples (1 = every sample); see
+  /// proto/effects.md, "Angular acceleration and noise".
+  int block_samples = 8;
   int threads = 2;
   bool covariance = true;     ///< compute standard deviations and identifiability
   const std::vector<std::uint8_t>* mask = nullptr;  ///< use sample i only if (*mask)[i] == 1
@@ -41,9 +44,9 @@ struct FitResult {
   int iterations = 0;
   double seconds = 0.0;
   std::size_t samples = 0;
-  std::array<double, 6> sigma{};         ///< per-axis whitening used
-  std::array<double, 6> residual_rms{};  ///< per axis, on the fitted samples
-  double bic = 0.0;                      ///< Bayesian information criterion on the fitted samples
+  std::array<double, 6> sigma{};         ///< per-axis whitening of the block residuals
+  std::array<double, 6> residual_rms{};  ///< per axis, per sample, on the fitted samples
+  double bic = 0.0;                      ///< Bayesian information criterion of the block residuals
   int num_params = 0;
   std::vector<Warning> warnings;
 };

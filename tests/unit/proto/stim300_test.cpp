@@ -1,0 +1,376 @@
+// STIM300 datagrams (proto/stim300.md): CRC known answer, layout and scale known answers, encoder
+// round trips for every identifier, and the stream decoder's resynchronisation and counters.
+#include "zerog/proto/stim300.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <random>
+#include <vector>
+
+#include "alloc_count.hpp"
+
+namespace zerog::proto::stim300 {
+namespace {
+
+using Bytes = std::vector<std::uint8_t>;
+
+Bytes encode(const RawDatagram& raw, bool crlf = false) {
+  std::array<std::uint8_t, kMaxDatagramLength + 2> buf{};
+  const EncodeResult r = encode_datagram(raw, crlf, buf);
+  EXPECT_EQ(r.status, EncodeStatus::ok);
+  return Bytes(buf.begin(), buf.begin() + static_cast<std::ptrdiff_t>(r.size));
+}
+
+RawDatagram random_raw(std::uint8_t identifier, std::mt19937& rng) {
+  std::uniform_int_distribution<std::int32_t> i24(-(1 << 23), (1 << 23) - 1);
+  std::uniform_int_distribution<int> i16(-32768, 32767), u8(0, 255), u16(0, 65535);
+  RawDatagram raw;
+  raw.identifier = identifier;
+  const DatagramContent& c = *find_content(identifier);
+  auto t24 = [&](Triplet24& t) {
+    for (auto& v : t.counts) v = i24(rng);
+  };
+  auto t16 = [&](Triplet16& t) {
+    for (auto& v : t.counts) v = static_cast<std::int16_t>(i16(rng));
+  };
+  t24(raw.rate);
+  if (c.accel) t24(raw.accel);
+  if (c.incl) t24(raw.incl);
+  if (c.aux) raw.aux = i24(rng);
+  if (c.temperature) {
+    t16(raw.rate_temperature);
+    if (c.accel) t16(raw.accel_temperature);
+    if (c.incl) t16(raw.incl_temperature);
+  }
+  raw.counter = static_cast<std::uint8_t>(u8(rng));
+  raw.latency_us = static_cast<std::uint16_t>(u16(rng));
+  return raw;
+}
+
+void expect_same(const RawDatagram& a, const RawDatagram& b) {
+  EXPECT_EQ(a.identifier, b.identifier);
+  EXPECT_EQ(a.rate.counts, b.rate.counts);
+  EXPECT_EQ(a.rate.status, b.rate.status);
+  EXPECT_EQ(a.accel.counts, b.accel.counts);
+  EXPECT_EQ(a.accel.status, b.accel.status);
+  EXPECT_EQ(a.incl.counts, b.incl.counts);
+  EXPECT_EQ(a.incl.status, b.incl.status);
+  EXPECT_EQ(a.aux, b.aux);
+  EXPECT_EQ(a.aux_status, b.aux_status);
+  EXPECT_EQ(a.rate_temperature.counts, b.rate_temperature.counts);
+  EXPECT_EQ(a.accel_temperature.counts, b.accel_temperature.counts);
+  EXPECT_EQ(a.incl_temperature.counts, b.incl_temperature.counts);
+  EXPECT_EQ(a.counter, b.counter);
+  EXPECT_EQ(a.latency_us, b.latency_us);
+}
+
+RawDatagram rai(std::uint8_t counter) {
+  RawDatagram raw;
+  raw.identifier = 0x93;
+  raw.rate.counts = {16384, -16384, 100};
+  raw.accel.counts = {0, 0, 524288};
+  raw.incl.counts = {0, 0, 4194304};
+  raw.counter = counter;
+  raw.latency_us = 500;
+  return raw;
+}
+
+// A stream of datagrams with consecutive counters.
+Bytes stream_of(int count, std::uint8_t first_counter = 0, bool crlf = false) {
+  Bytes out;
+  for (int i = 0; i < count; ++i) {
+    const Bytes d = encode(rai(static_cast<std::uint8_t>(first_counter + i)), crlf);
+    out.insert(out.end(), d.begin(), d.end());
+  }
+  return out;
+}
+
+std::vector<Sample> decode_all(StreamDecoder& decoder, const Bytes& bytes,
+                               std::size_t chunk = 1'000'000) {
+  std::vector<Sample> out;
+  for (std::size_t i = 0; i < bytes.size(); i += chunk) {
+    const std::size_t n = std::min(chunk, bytes.size() - i);
+    decoder.feed(std::span<const std::uint8_t>(bytes.data() + i, n),
+                 [&](const Sample& s) { out.push_back(s); });
+  }
+  return out;
+}
+
+TEST(Stim300Crc, KnownAnswerMpeg2) {
+  const std::string_view check = "123456789";
+  const std::span<const std::uint8_t> bytes(reinterpret_cast<const std::uint8_t*>(check.data()),
+                                            check.size());
+  EXPECT_EQ(crc32_mpeg2(bytes), 0x0376E6E7u);
+  EXPECT_EQ(crc32_mpeg2(bytes.subspan(4), crc32_mpeg2(bytes.first(4))), 0x0376E6E7u);
+  EXPECT_EQ(crc32_mpeg2({}), 0xFFFFFFFFu);
+}
+
+TEST(Stim300Table, IdentifiersLengthsAndDummyBytes) {
+  for (int id = 0x90; id <= 0x9C; ++id)
+    EXPECT_NE(find_content(static_cast<std::uint8_t>(id)), nullptr);
+  for (int id = 0xA5; id <= 0xA7; ++id)
+    EXPECT_NE(find_content(static_cast<std::uint8_t>(id)), nullptr);
+  EXPECT_EQ(find_content(0x8F), nullptr);
+  EXPECT_EQ(find_content(0x9D), nullptr);
+  EXPECT_EQ(find_content(0xA4), nullptr);
+  for (const DatagramContent& c : kDatagramTable) {
+    EXPECT_EQ((datagram_length(c) - 4 + crc_dummy_bytes(c)) % 4, 0u) << int{c.identifier};
+    EXPECT_LE(crc_dummy_bytes(c), 3u);
+    EXPECT_LE(datagram_length(c), kMaxDatagramLength);
+  }
+  EXPECT_EQ(datagram_length(*find_content(0x90)), 18u);  // 1 + 10 + 7
+  EXPECT_EQ(crc_dummy_bytes(*find_content(0x90)), 2u);
+  EXPECT_EQ(datagram_length(*find_content(0x93)), 38u);  // 1 + 3×10 + 7
+  EXPECT_EQ(crc_dummy_bytes(*find_content(0x93)), 2u);
+  EXPECT_EQ(datagram_length(*find_content(0x97)), 59u);  // 1 + 3×10 + 3×7 + 7
+  EXPECT_EQ(crc_dummy_bytes(*find_content(0x97)), 1u);
+  EXPECT_EQ(kMaxDatagramLength, 63u);  // rate, acc, incl, aux, temperatures
+}
+
+TEST(Stim300Datagram, KnownLayoutOf0x93) {
+  // Hand-built: rate X = +1 °/s (0x004000), Y = −1 °/s (0xFFC000), Z = 0x000064; acc Z = 1 g at
+  // ±10 g (0x080000); incl Z = 1 g (0x400000); counter 7; latency 500 µs (0x01F4).
+  std::array<std::uint8_t, 38> d{0x93, 0x00, 0x40, 0x00, 0xFF, 0xC0, 0x00, 0x00, 0x00,
+                                 0x64, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x08,
+                                 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00,
+                                 0x40, 0x00, 0x00, 0x00, 0x07, 0x01, 0xF4};
+  std::array<std::uint8_t, 36> crc_input{};  // 34 bytes + 2 dummy zero bytes
+  std::copy(d.begin(), d.begin() + 34, crc_input.begin());
+  const std::uint32_t crc = crc32_mpeg2(crc_input);
+  d[34] = static_cast<std::uint8_t>(crc >> 24);
+  d[35] = static_cast<std::uint8_t>(crc >> 16);
+  d[36] = static_cast<std::uint8_t>(crc >> 8);
+  d[37] = static_cast<std::uint8_t>(crc);
+
+  RawDatagram raw;
+  ASSERT_EQ(decode_datagram(d, raw), DecodeStatus::ok);
+  EXPECT_EQ(raw.rate.counts, (std::array<std::int32_t, 3>{16384, -16384, 100}));
+  EXPECT_EQ(raw.accel.counts[2], 524288);
+  EXPECT_EQ(raw.incl.counts[2], 4194304);
+  EXPECT_EQ(raw.counter, 7);
+  EXPECT_EQ(raw.latency_us, 500);
+  const Bytes encoded = encode(rai(7));
+  EXPECT_EQ(encoded, Bytes(d.begin(), d.end()));  // the encoder writes the same bytes
+
+  const Sample s = to_sample(raw, Scale{});
+  const double deg = std::numbers::pi / 180.0;
+  EXPECT_DOUBLE_EQ(s.rate_rad_s[0], deg);
+  EXPECT_DOUBLE_EQ(s.rate_rad_s[1], -deg);
+  EXPECT_DOUBLE_EQ(s.accel_m_s2[2], 9.80665);
+  EXPECT_DOUBLE_EQ(s.incl_m_s2[2], 9.80665);
+  EXPECT_DOUBLE_EQ(s.latency_s, 500e-6);
+  EXPECT_TRUE(s.rate_valid && s.accel_valid && s.incl_valid);
+  EXPECT_FALSE(s.aux_valid || s.rate_temperature_valid);
+
+  d[5] ^= 0x01;
+  EXPECT_EQ(decode_datagram(d, raw), DecodeStatus::crc_mismatch);
+  EXPECT_EQ(decode_datagram(std::span(d).first(37), raw), DecodeStatus::too_short);
+  d[0] = 0x42;
+  EXPECT_EQ(decode_datagram(d, raw), DecodeStatus::unknown_identifier);
+}
+
+TEST(Stim300Datagram, ScaleFactors) {
+  EXPECT_DOUBLE_EQ(Scale{AccelRange::g5}.accel_m_s2_per_lsb() * (1 << 20), 9.80665);
+  EXPECT_DOUBLE_EQ(Scale{AccelRange::g10}.accel_m_s2_per_lsb() * (1 << 19), 9.80665);
+  EXPECT_DOUBLE_EQ(Scale{AccelRange::g30}.accel_m_s2_per_lsb() * (1 << 18), 9.80665);
+  EXPECT_DOUBLE_EQ(Scale{AccelRange::g80}.accel_m_s2_per_lsb() * (1 << 16), 9.80665);
+  EXPECT_EQ(rate_counts(std::numbers::pi / 180.0), 16384);
+  EXPECT_EQ(accel_counts(-9.80665, Scale{AccelRange::g30}), -262144);
+  EXPECT_EQ(incl_counts(9.80665 / 2), 2097152);
+  EXPECT_EQ(temperature_counts(25.5), 6528);
+  EXPECT_EQ(rate_counts(1e9), (1 << 23) - 1);  // saturates
+  EXPECT_EQ(rate_counts(-1e9), -(1 << 23));
+  EXPECT_EQ(rate_counts(std::nan("")), 0);
+
+  RawDatagram raw;
+  raw.identifier = 0x97;  // with temperatures
+  raw.rate_temperature.counts = {6528, -256, 0};
+  raw.accel_temperature.counts = {256, 0, 0};
+  raw.incl_temperature.counts = {0, 0, 128};
+  const Sample s = to_sample(raw, Scale{});
+  EXPECT_DOUBLE_EQ(s.rate_temperature_c[0], 25.5);
+  EXPECT_DOUBLE_EQ(s.rate_temperature_c[1], -1.0);
+  EXPECT_DOUBLE_EQ(s.accel_temperature_c[0], 1.0);
+  EXPECT_DOUBLE_EQ(s.incl_temperature_c[2], 0.5);
+  EXPECT_TRUE(s.rate_temperature_valid && s.accel_temperature_valid && s.incl_temperature_valid);
+}
+
+TEST(Stim300Datagram, EncoderRoundTripForEveryIdentifier) {
+  std::mt19937 rng(7);
+  for (const DatagramContent& c : kDatagramTable) {
+    for (int k = 0; k < 20; ++k) {
+      for (bool crlf : {false, true}) {
+        const RawDatagram raw = random_raw(c.identifier, rng);
+        const Bytes bytes = encode(raw, crlf);
+        ASSERT_EQ(bytes.size(), datagram_length(c) + (crlf ? 2 : 0));
+        RawDatagram back;
+        ASSERT_EQ(decode_datagram(bytes, back), DecodeStatus::ok) << int{c.identifier};
+        expect_same(raw, back);
+      }
+    }
+  }
+}
+
+TEST(Stim300Datagram, EncoderErrors) {
+  std::array<std::uint8_t, 80> buf{};
+  RawDatagram raw = rai(0);
+  EXPECT_EQ(encode_datagram(raw, false, std::span(buf).first(37)).status,
+            EncodeStatus::buffer_too_small);
+  EXPECT_EQ(encode_datagram(raw, true, std::span(buf).first(39)).status,
+            EncodeStatus::buffer_too_small);
+  raw.accel.counts[1] = 1 << 23;
+  EXPECT_EQ(encode_datagram(raw, false, buf).status, EncodeStatus::value_out_of_range);
+  raw = rai(0);
+  raw.identifier = 0x01;
+  EXPECT_EQ(encode_datagram(raw, false, buf).status, EncodeStatus::unknown_identifier);
+}
+
+TEST(Stim300Datagram, StatusBytesInvalidateTheirGroupOnly) {
+  RawDatagram raw;
+  raw.identifier = 0xA7;  // everything
+  raw.accel.status = 0x80;
+  raw.incl_temperature.status = 0x01;
+  const Sample s = to_sample(raw, Scale{});
+  EXPECT_TRUE(s.rate_valid);
+  EXPECT_FALSE(s.accel_valid);
+  EXPECT_TRUE(s.incl_valid);
+  EXPECT_TRUE(s.aux_valid);
+  EXPECT_TRUE(s.rate_temperature_valid);
+  EXPECT_TRUE(s.accel_temperature_valid);
+  EXPECT_FALSE(s.incl_temperature_valid);
+}
+
+TEST(Stim300Stream, DecodesAnyChunking) {
+  const Bytes bytes = stream_of(40, 250);  // counter wraps 255 → 0: no gap
+  for (std::size_t chunk : {1u, 3u, 37u, 38u, 39u, 500u, 100000u}) {
+    StreamDecoder decoder;
+    const std::vector<Sample> samples = decode_all(decoder, bytes, chunk);
+    ASSERT_EQ(samples.size(), 40u) << chunk;
+    for (int i = 0; i < 40; ++i) {
+      EXPECT_EQ(samples[i].raw.counter, static_cast<std::uint8_t>(250 + i));
+      EXPECT_EQ(samples[i].missed_before, 0);
+    }
+    EXPECT_EQ(decoder.counters().datagrams, 40u);
+    EXPECT_EQ(decoder.counters().bytes_skipped, 0u);
+    EXPECT_EQ(decoder.counters().counter_gaps, 0u);
+    EXPECT_TRUE(decoder.in_sync());
+  }
+}
+
+TEST(Stim300Stream, PartialDatagramWaitsForTheRest) {
+  const Bytes d = encode(rai(1));
+  StreamDecoder decoder;
+  Sample s;
+  EXPECT_EQ(decoder.push(std::span(d).first(20)), 20u);
+  EXPECT_FALSE(decoder.pop(s));
+  EXPECT_EQ(decoder.push(std::span(d).subspan(20)), d.size() - 20);
+  ASSERT_TRUE(decoder.pop(s));
+  EXPECT_EQ(s.raw.counter, 1);
+  EXPECT_FALSE(decoder.pop(s));
+}
+
+TEST(Stim300Stream, GarbagePrefixIsSkippedAndCounted) {
+  std::mt19937 rng(3);
+  std::uniform_int_distribution<int> byte(0, 255);
+  Bytes bytes(300);
+  for (auto& b : bytes) b = static_cast<std::uint8_t>(byte(rng));
+  bytes[10] = 0x93;  // a false start: right identifier, wrong CRC
+  const Bytes good = stream_of(5, 0);
+  bytes.insert(bytes.end(), good.begin(), good.end());
+  StreamDecoder decoder;
+  const std::vector<Sample> samples = decode_all(decoder, bytes, 17);
+  ASSERT_EQ(samples.size(), 5u);
+  EXPECT_EQ(samples[0].raw.counter, 0);
+  EXPECT_EQ(decoder.counters().bytes_skipped, 300u);
+  EXPECT_EQ(decoder.counters().crc_failures, 0u);  // not in sync yet: just garbage
+  EXPECT_EQ(decoder.counters().sync_losses, 0u);
+}
+
+TEST(Stim300Stream, BadCrcResynchronisesToTheNextGoodDatagram) {
+  Bytes bytes = stream_of(3, 10);  // counters 10, 11, 12
+  bytes[38 + 20] ^= 0x10;          // corrupt the middle datagram
+  StreamDecoder decoder;
+  const std::vector<Sample> samples = decode_all(decoder, bytes, 5);
+  ASSERT_EQ(samples.size(), 2u);
+  EXPECT_EQ(samples[0].raw.counter, 10);
+  EXPECT_EQ(samples[1].raw.counter, 12);
+  EXPECT_EQ(samples[1].missed_before, 1);
+  EXPECT_EQ(decoder.counters().crc_failures, 1u);
+  EXPECT_EQ(decoder.counters().sync_losses, 1u);
+  EXPECT_EQ(decoder.counters().bytes_skipped, 38u);
+  EXPECT_EQ(decoder.counters().counter_gaps, 1u);
+  EXPECT_EQ(decoder.counters().datagrams_missed, 1u);
+}
+
+TEST(Stim300Stream, CounterGapsAreCounted) {
+  StreamDecoder decoder;
+  Bytes bytes;
+  for (int counter : {5, 6, 9, 10, 255, 0, 3}) {  // gaps: 6→9 (2 missed), 10→255 (244), 0→3 (2)
+    const Bytes d = encode(rai(static_cast<std::uint8_t>(counter)));
+    bytes.insert(bytes.end(), d.begin(), d.end());
+  }
+  const std::vector<Sample> samples = decode_all(decoder, bytes);
+  ASSERT_EQ(samples.size(), 7u);
+  EXPECT_EQ(samples[2].missed_before, 2);
+  EXPECT_EQ(samples[4].missed_before, 244);
+  EXPECT_EQ(samples[5].missed_before, 0);
+  EXPECT_EQ(decoder.counters().counter_gaps, 3u);
+  EXPECT_EQ(decoder.counters().datagrams_missed, 2u + 244u + 2u);
+}
+
+TEST(Stim300Stream, CrLfTerminationIsConsumed) {
+  const Bytes bytes = stream_of(10, 0, true);
+  StreamDecoder decoder;
+  EXPECT_EQ(decode_all(decoder, bytes, 1).size(), 10u);
+  EXPECT_EQ(decoder.counters().bytes_skipped, 0u);
+  EXPECT_EQ(decoder.counters().sync_losses, 0u);
+}
+
+TEST(Stim300Stream, StatusBytesFlagSamplesInvalid) {
+  RawDatagram bad = rai(1);
+  bad.rate.status = 0x04;
+  Bytes bytes = encode(rai(0));
+  const Bytes d = encode(bad);
+  bytes.insert(bytes.end(), d.begin(), d.end());
+  StreamDecoder decoder;
+  const std::vector<Sample> samples = decode_all(decoder, bytes);
+  ASSERT_EQ(samples.size(), 2u);
+  EXPECT_TRUE(samples[0].rate_valid);
+  EXPECT_FALSE(samples[1].rate_valid);
+  EXPECT_TRUE(samples[1].accel_valid);
+  EXPECT_EQ(decoder.counters().invalid_samples, 1u);
+}
+
+TEST(Stim300Stream, FixedIdentifierTreatsOthersAsGarbage) {
+  RawDatagram other = rai(0);
+  other.identifier = 0x90;
+  Bytes bytes = encode(other);
+  const Bytes good = stream_of(2, 1);
+  bytes.insert(bytes.end(), good.begin(), good.end());
+  StreamConfig config;
+  config.identifier = 0x93;
+  StreamDecoder decoder(config);
+  const std::vector<Sample> samples = decode_all(decoder, bytes);
+  ASSERT_EQ(samples.size(), 2u);
+  EXPECT_EQ(decoder.counters().bytes_skipped, 18u);
+}
+
+TEST(Stim300Stream, FeedingDoesNotAllocate) {
+  Bytes bytes = stream_of(50, 0, true);
+  bytes[100] ^= 0xFF;
+  StreamDecoder decoder;
+  std::size_t count = 0;
+  const std::size_t before = test::allocation_count();
+  for (std::size_t i = 0; i < bytes.size(); i += 13) {
+    decoder.feed(std::span<const std::uint8_t>(bytes).subspan(
+                     i, std::min<std::size_t>(13, bytes.size() - i)),
+                 [&](const Sample&) { ++count; });
+  }
+  EXPECT_EQ(test::allocation_count(), before);
+  EXPECT_EQ(count, 49u);
+}
+
+}  // namespace
+}  // namespace zerog::proto::stim300
