@@ -1,0 +1,206 @@
+#pragma once
+// The rig simulator: a KR 210 R2700 moving a payload on an ATI Omega191 F/T sensor with a
+// STIM300-like IMU, through a PTP trajectory. The physics is computed here, independently of
+// zerog::model: joint trajectory → analytic flange twist and its derivative (kinematics.hpp) →
+// Newton–Euler for the payload → switchable sensor effects → noise and quantisation.
+//
+// Conventions are those of proto/frames.md, so that zerog::model::predict_wrench with the truth
+// parameters reproduces the noise-free simulated wrench (checked in tests/unit/sim).
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "zerog/io/log.hpp"
+#include "zerog/io/model_file.hpp"
+#include "zerog/model/effects.hpp"
+#include "zerog/sim/design.hpp"
+#include "zerog/sim/trajectory.hpp"
+
+namespace zerog::sim {
+
+/// What the simulator can switch on or off in its truth.
+enum class SimEffect : std::uint8_t {
+  rotational_inertia,  ///< payload inertia tensor (off: point mass); on by default
+  base_tilt,
+  imu_time_offset,
+  bias_drift,
+  temperature_bias,
+  crosstalk,
+  sensor_rotation,
+  cable,
+  imu_lever_arm,    ///< rig geometry, not a model effect: IMU origin off the sensor origin
+  joint6_friction,  ///< outside the model library: Mz follows the sign of the A6 rate
+};
+inline constexpr int kSimEffectCount = 10;
+
+struct SimEffectInfo {
+  SimEffect id;
+  const char* name;
+  std::optional<model::Effect> model_effect;  ///< the model library's effect, if any
+  const char* default_magnitude;              ///< plain words, for --list-effects
+};
+const std::array<SimEffectInfo, kSimEffectCount>& sim_effect_infos();
+const SimEffectInfo& info(SimEffect e);
+std::optional<SimEffect> sim_effect_from_name(std::string_view name);
+
+class SimEffectSet {
+ public:
+  constexpr SimEffectSet() = default;
+  constexpr SimEffectSet(std::initializer_list<SimEffect> effects) {
+    for (SimEffect e : effects) add(e);
+  }
+  constexpr bool has(SimEffect e) const { return (bits_ >> static_cast<int>(e)) & 1u; }
+  constexpr void add(SimEffect e) { bits_ |= 1u << static_cast<int>(e); }
+  constexpr void remove(SimEffect e) { bits_ &= ~(1u << static_cast<int>(e)); }
+  constexpr bool operator==(const SimEffectSet&) const = default;
+
+ private:
+  std::uint32_t bits_ = 0;
+};
+
+/// The default truth: bias, gravity, linear inertia (always) and rotational inertia.
+inline constexpr SimEffectSet kDefaultSimEffects = {SimEffect::rotational_inertia};
+
+/// Applies a list like "base_tilt,cable,-rotational_inertia" to `start`: a name switches an
+/// effect on, "-name" off; "all" and "none" switch all of them. Throws naming an unknown name.
+SimEffectSet parse_sim_effects(const std::string& list, SimEffectSet start = kDefaultSimEffects);
+std::string sim_effect_list_string(const SimEffectSet& effects);
+
+/// Sensor and IMU noise. Defaults: F/T white noise per logged sample; IMU white noise per logged
+/// sample, from STIM300 noise densities averaged over one 12 ms period (σ = N / √T for an
+/// average over T of white noise with density N, IEEE Std 952 Allan variance): gyro ARW
+/// 0.15 °/√h = 4.4e-5 rad/s/√Hz → 4.0e-4 rad/s, accelerometer VRW 0.07 m/s/√h =
+/// 1.2e-3 m/s²/√Hz → 1.1e-2 m/s². Rounded up to 5e-4 rad/s and 0.01 m/s². (Logging a single
+/// raw 2 kHz sample instead, through the STIM300's 262 Hz filter, would give N·√(262·π/2) ≈
+/// 9e-4 rad/s and 0.024 m/s².) With the IMU in the model, σ_acc · m ≈ 1 N is the force noise
+/// floor of a fit, four times the F/T noise.
+struct NoiseConfig {
+  double force_N = 0.25;
+  double torque_Nm = 0.03;
+  double accel_mps2 = 0.01;
+  double gyro_radps = 5e-4;
+  bool quantize = true;  ///< Omega191 resolution (paper 000_… Table 2)
+  static NoiseConfig none() { return {0.0, 0.0, 0.0, 0.0, false}; }
+};
+/// Omega191 resolution: Fx, Fy 3/8 N, Fz 5/8 N, Mx, My 5/96 N·m, Mz 5/144 N·m.
+inline constexpr std::array<double, 6> kOmega191Resolution = {0.375,      0.375,      0.625,
+                                                              5.0 / 96.0, 5.0 / 96.0, 5.0 / 144.0};
+
+/// The payload: mass, centre of mass and inertia tensor about it, in the (true) sensor frame S.
+struct Payload {
+  double mass_kg = 100.0;
+  Eigen::Vector3d com_sensor_m{0.03, -0.02, 0.25};
+  /// Tensor elements [[Ixx, Ixy, Ixz], [Ixy, Iyy, Iyz], [Ixz, Iyz, Izz]] (Ixy = −∫xy dm).
+  Eigen::Matrix3d inertia_com_sensor_kgm2 = Eigen::Matrix3d::Identity();
+};
+/// Solid box 0.6 × 0.4 × 0.3 m of `mass_kg`, its axes turned by the rotation vector
+/// (0.10, −0.15, 0.20) rad against S so that the products of inertia are non-zero.
+Eigen::Matrix3d box_inertia_kgm2(double mass_kg);
+
+/// Sensor temperature: T(t) = T0 + warmup (1 − exp(−t / warmup_tau)) + amplitude sin(2π t /
+/// period).
+struct TemperatureProfile {
+  double base_C = 25.0;
+  double warmup_K = 2.0;
+  double warmup_tau_s = 300.0;
+  double amplitude_K = 3.0;
+  double period_s = 600.0;
+  double at(double t_s) const;
+};
+
+struct SimConfig {
+  std::uint64_t seed = 1;
+  SimEffectSet effects = kDefaultSimEffects;
+  Payload payload;
+  NoiseConfig noise;
+  TemperatureProfile temperature;
+  /// Truth values of every model effect's parameters (all blocks filled, seeded), in the model's
+  /// layout and units. The gravity and rotational_inertia blocks are taken from `payload`.
+  model::ModelParams params;
+  double joint6_friction_Nm = 1.5;  ///< Mz = T tanh(q̇6 / rate)
+  double joint6_friction_rate_radps = 0.02;
+  Eigen::Vector3d imu_lever_arm_m{0.045, -0.030, -0.035};  ///< p_sensor_imu when imu_lever_arm on
+  Eigen::Vector3d imu_mount_rotvec_rad = Eigen::Vector3d::Zero();  ///< R_sensor_imu = Exp(·)
+  Eigen::Vector3d p_flange_sensor_m{0.0, 0.0, 0.06};
+  double floor_z_m = -0.675;
+  double period_s = 0.012;
+  double dwell_s = 2.0;
+  double speed_fraction = 0.3;
+  double duration_limit_s = 0.0;  ///< 0: the whole trajectory
+};
+
+/// A configuration with seeded effect magnitudes (each clearly above the noise):
+///   bias F0 ±(20..60) N, M0 ±(1..5) N·m; base_tilt alpha, beta ±(2..5) mrad;
+///   imu_time_offset tau = 8 ms; bias_drift ±(0.5..2) N and ±(0.05..0.2) N·m per 600 s;
+///   temperature_bias ±(0.3..1) N/K, ±(0.03..0.1) N·m/K; crosstalk gains ±0.5 %, couplings
+///   ±0.3 % (force-from-torque ÷ 0.2 m, torque-from-force × 0.2 m); sensor_rotation random axis,
+///   5..10 mrad; cable ±(0.5..3) N and ±(0.1..0.5) N·m per coefficient.
+SimConfig default_sim_config(std::uint64_t seed);
+
+/// Sets one named value, e.g. "imu_time_offset.tau", "gravity.mass", "noise.force",
+/// "joint6_friction.torque". Throws std::invalid_argument listing the valid keys.
+void set_config_value(SimConfig& config, const std::string& key, double value);
+/// All keys with their current values, for --list-effects.
+std::vector<std::pair<std::string, double>> config_values(const SimConfig& config);
+
+/// Noise-free IMU signals in the IMU frame I, as logged (including the time offset).
+struct ImuTruth {
+  Eigen::Vector3d specific_force_imu_mps2 = Eigen::Vector3d::Zero();
+  Eigen::Vector3d angular_rate_imu_radps = Eigen::Vector3d::Zero();
+  Eigen::Vector3d angular_accel_imu_radps2 = Eigen::Vector3d::Zero();
+};
+
+struct SimStats {
+  std::size_t samples = 0;
+  double duration_s = 0.0;
+  double trajectory_duration_s = 0.0;
+  double lowest_point_z_m = 0.0;  ///< over all samples (see design.hpp: lowest_point_z)
+  std::size_t samples_below_floor = 0;
+  double max_force_N = 0.0;
+  double max_torque_Nm = 0.0;
+};
+
+struct SimOutput {
+  io::Log log;
+  io::ModelFile truth;
+  /// Noise-free analytic angular acceleration in I for each row, delayed like the IMU (not logged).
+  std::vector<Eigen::Vector3d> angular_accel_imu_radps2;
+  SimStats stats;
+};
+
+class RigSimulator {
+ public:
+  /// Throws std::invalid_argument on a bad configuration or path points outside Table 4 ranges.
+  RigSimulator(SimConfig config, std::vector<JointVector> path_points_rad);
+
+  const SimConfig& config() const { return config_; }
+  const PtpTrajectory& trajectory() const { return trajectory_; }
+  io::Rig rig() const;
+  /// The truth as a model file: model effects that are on, their exact values, and extras.
+  io::ModelFile truth() const;
+  /// Model effects of the truth (bias, gravity, linear_inertia and the switched ones).
+  model::EffectSet truth_model_effects() const;
+
+  /// Noise-free logged IMU signals at row time t (the true signals at t − tau).
+  ImuTruth imu_at(double t_s) const;
+  /// Noise-free sensor wrench at t (force N, torque N·m about S, true sensor frame S).
+  Eigen::Matrix<double, 6, 1> wrench_at(double t_s) const;
+
+  /// Runs the whole trajectory (or up to duration_limit_s). `progress` gets the fraction done.
+  SimOutput run(const std::function<void(double)>& progress = {}) const;
+
+ private:
+  SimConfig config_;
+  PtpTrajectory trajectory_;
+  Eigen::Matrix3d R_world_base_;
+  Eigen::Matrix3d R_nominal_true_;  ///< sensor mounting rotation Exp(r)
+  Eigen::Matrix3d R_sensor_imu_;    ///< rig: IMU axes in the nominal sensor frame
+  Eigen::Vector3d p_sensor_imu_m_;  ///< rig: IMU origin in the nominal sensor frame
+};
+
+}  // namespace zerog::sim

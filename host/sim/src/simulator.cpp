@@ -1,0 +1,473 @@
+#include "zerog/sim/simulator.hpp"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <sstream>
+#include <stdexcept>
+
+#include "random.hpp"
+#include "zerog/model/rotation.hpp"
+
+namespace zerog::sim {
+namespace {
+
+using model::Effect;
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+
+const std::array<SimEffectInfo, kSimEffectCount> kSimEffects = {{
+    {SimEffect::rotational_inertia, "rotational_inertia", Effect::rotational_inertia,
+     "on by default; 0.6 x 0.4 x 0.3 m box, tilted (products of inertia non-zero)"},
+    {SimEffect::base_tilt, "base_tilt", Effect::base_tilt, "alpha, beta +-(2..5) mrad"},
+    {SimEffect::imu_time_offset, "imu_time_offset", Effect::imu_time_offset,
+     "IMU lags the F/T by tau = 8 ms"},
+    {SimEffect::bias_drift, "bias_drift", Effect::bias_drift,
+     "+-(0.5..2) N and +-(0.05..0.2) N*m per 10 min, linear"},
+    {SimEffect::temperature_bias, "temperature_bias", Effect::temperature_bias,
+     "+-(0.3..1) N/K, +-(0.03..0.1) N*m/K; T = 25 + 2(1-exp(-t/300)) + 3 sin(2 pi t/600) C"},
+    {SimEffect::crosstalk, "crosstalk", Effect::crosstalk,
+     "gains +-(0.2..0.5) %, couplings +-(0.05..0.3) % (x or / 0.2 m across F and M)"},
+    {SimEffect::sensor_rotation, "sensor_rotation", Effect::sensor_rotation,
+     "random axis, 5..10 mrad"},
+    {SimEffect::cable, "cable", Effect::cable,
+     "per A4..A6 cos/sin coefficient +-(0.5..3) N, +-(0.1..0.5) N*m"},
+    {SimEffect::imu_lever_arm, "imu_lever_arm", std::nullopt,
+     "rig geometry: IMU at (0.045, -0.030, -0.035) m in S (else at the S origin)"},
+    {SimEffect::joint6_friction, "joint6_friction", std::nullopt,
+     "outside the model: Mz += 1.5 N*m * tanh(qd6 / 0.02 rad/s)"},
+}};
+
+std::vector<JointVector> checked_points(std::vector<JointVector> points) {
+  const JointLimits lim = kr210_table4_limits();
+  for (std::size_t k = 0; k < points.size(); ++k)
+    if (!within_limits(points[k], lim))
+      throw std::invalid_argument("path point " + std::to_string(k + 1) +
+                                  " is outside the joint ranges of Table 4");
+  return points;
+}
+
+Eigen::Matrix3d symmetric_upper(const Eigen::Matrix3d& I) {
+  Eigen::Matrix3d S = I;
+  S(1, 0) = S(0, 1);
+  S(2, 0) = S(0, 2);
+  S(2, 1) = S(1, 2);
+  return S;
+}
+
+// A named scalar of the configuration, for --set and --list-effects.
+struct Binding {
+  std::string key;
+  double* value;
+};
+
+std::vector<Binding> bindings(SimConfig& c) {
+  std::vector<Binding> b;
+  for (Effect e : model::kAllEffects) {
+    const auto& ei = model::info(e);
+    if (e == Effect::gravity || e == Effect::rotational_inertia) continue;  // from the payload
+    for (int i = 0; i < ei.num_params; ++i)
+      b.push_back({std::string(ei.name) + "." + ei.params[i].name, c.params.block(e) + i});
+  }
+  b.push_back({"gravity.mass", &c.payload.mass_kg});
+  b.push_back({"gravity.cx", &c.payload.com_sensor_m.x()});
+  b.push_back({"gravity.cy", &c.payload.com_sensor_m.y()});
+  b.push_back({"gravity.cz", &c.payload.com_sensor_m.z()});
+  Eigen::Matrix3d& I = c.payload.inertia_com_sensor_kgm2;
+  b.push_back({"rotational_inertia.Ixx", &I(0, 0)});
+  b.push_back({"rotational_inertia.Iyy", &I(1, 1)});
+  b.push_back({"rotational_inertia.Izz", &I(2, 2)});
+  b.push_back({"rotational_inertia.Ixy", &I(0, 1)});
+  b.push_back({"rotational_inertia.Ixz", &I(0, 2)});
+  b.push_back({"rotational_inertia.Iyz", &I(1, 2)});
+  b.push_back({"noise.force", &c.noise.force_N});
+  b.push_back({"noise.torque", &c.noise.torque_Nm});
+  b.push_back({"noise.accel", &c.noise.accel_mps2});
+  b.push_back({"noise.gyro", &c.noise.gyro_radps});
+  b.push_back({"joint6_friction.torque", &c.joint6_friction_Nm});
+  b.push_back({"joint6_friction.rate", &c.joint6_friction_rate_radps});
+  b.push_back({"imu_lever_arm.x", &c.imu_lever_arm_m.x()});
+  b.push_back({"imu_lever_arm.y", &c.imu_lever_arm_m.y()});
+  b.push_back({"imu_lever_arm.z", &c.imu_lever_arm_m.z()});
+  b.push_back({"imu_mount.rx", &c.imu_mount_rotvec_rad.x()});
+  b.push_back({"imu_mount.ry", &c.imu_mount_rotvec_rad.y()});
+  b.push_back({"imu_mount.rz", &c.imu_mount_rotvec_rad.z()});
+  b.push_back({"temperature.base", &c.temperature.base_C});
+  b.push_back({"temperature.warmup", &c.temperature.warmup_K});
+  b.push_back({"temperature.warmup_tau", &c.temperature.warmup_tau_s});
+  b.push_back({"temperature.amplitude", &c.temperature.amplitude_K});
+  b.push_back({"temperature.period", &c.temperature.period_s});
+  return b;
+}
+
+nlohmann::json vec_json(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+
+}  // namespace
+
+const std::array<SimEffectInfo, kSimEffectCount>& sim_effect_infos() { return kSimEffects; }
+const SimEffectInfo& info(SimEffect e) { return kSimEffects[static_cast<int>(e)]; }
+
+std::optional<SimEffect> sim_effect_from_name(std::string_view name) {
+  for (const auto& i : kSimEffects)
+    if (name == i.name) return i.id;
+  return std::nullopt;
+}
+
+SimEffectSet parse_sim_effects(const std::string& list, SimEffectSet start) {
+  SimEffectSet set = start;
+  std::stringstream ss(list);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    item.erase(0, item.find_first_not_of(" \t"));
+    item.erase(item.find_last_not_of(" \t") + 1);
+    if (item.empty()) continue;
+    if (item == "all" || item == "none") {
+      for (const auto& i : kSimEffects) {
+        if (item == "all") {
+          set.add(i.id);
+        } else {
+          set.remove(i.id);
+        }
+      }
+      continue;
+    }
+    const bool off = item[0] == '-';
+    const std::string name = off ? item.substr(1) : item;
+    const auto e = sim_effect_from_name(name);
+    if (!e) {
+      std::string known;
+      for (const auto& i : kSimEffects) known += std::string(known.empty() ? "" : ", ") + i.name;
+      throw std::invalid_argument("unknown simulator effect '" + name + "' (known: " + known +
+                                  ", all, none; '-name' switches one off)");
+    }
+    if (off) {
+      set.remove(*e);
+    } else {
+      set.add(*e);
+    }
+  }
+  return set;
+}
+
+std::string sim_effect_list_string(const SimEffectSet& effects) {
+  std::string out;
+  for (const auto& i : kSimEffects) {
+    if (!effects.has(i.id)) continue;
+    out += (out.empty() ? "" : ",") + std::string(i.name);
+  }
+  return out;
+}
+
+Eigen::Matrix3d box_inertia_kgm2(double mass_kg) {
+  const double a = 0.6, b = 0.4, h = 0.3;
+  const Eigen::Vector3d diag(mass_kg / 12.0 * (b * b + h * h), mass_kg / 12.0 * (a * a + h * h),
+                             mass_kg / 12.0 * (a * a + b * b));
+  const Eigen::Matrix3d R = model::rotation_from_vector(Eigen::Vector3d(0.10, -0.15, 0.20));
+  const Eigen::Matrix3d I = R * diag.asDiagonal() * R.transpose();
+  return 0.5 * (I + I.transpose());
+}
+
+double TemperatureProfile::at(double t_s) const {
+  return base_C + warmup_K * (1.0 - std::exp(-t_s / warmup_tau_s)) +
+         amplitude_K * std::sin(2.0 * std::numbers::pi * t_s / period_s);
+}
+
+SimConfig default_sim_config(std::uint64_t seed) {
+  SimConfig c;
+  c.seed = seed;
+  c.payload.inertia_com_sensor_kgm2 = box_inertia_kgm2(c.payload.mass_kg);
+  detail::Rng rng(seed, 10);
+  // Every block is drawn, in a fixed order, whether or not its effect is on: switching one
+  // effect does not change the others' values for the same seed.
+  double* bias = c.params.block(Effect::bias);
+  for (int i = 0; i < 3; ++i) bias[i] = rng.signed_uniform(20.0, 60.0);
+  for (int i = 3; i < 6; ++i) bias[i] = rng.signed_uniform(1.0, 5.0);
+  double* tilt = c.params.block(Effect::base_tilt);
+  for (int i = 0; i < 2; ++i) tilt[i] = rng.signed_uniform(0.002, 0.005);
+  c.params.block(Effect::imu_time_offset)[0] = 0.008;
+  double* drift = c.params.block(Effect::bias_drift);
+  for (int i = 0; i < 3; ++i) drift[i] = rng.signed_uniform(0.5, 2.0) / 600.0;
+  for (int i = 3; i < 6; ++i) drift[i] = rng.signed_uniform(0.05, 0.2) / 600.0;
+  double* temp = c.params.block(Effect::temperature_bias);
+  for (int i = 0; i < 3; ++i) temp[i] = rng.signed_uniform(0.3, 1.0);
+  for (int i = 3; i < 6; ++i) temp[i] = rng.signed_uniform(0.03, 0.1);
+  double* E = c.params.block(Effect::crosstalk);
+  constexpr double kCouplingLength_m = 0.2;
+  for (int r = 0; r < 6; ++r) {
+    for (int k = 0; k < 6; ++k) {
+      double x = r == k ? rng.signed_uniform(0.002, 0.005) : rng.signed_uniform(0.0005, 0.003);
+      if (r < 3 && k >= 3) x /= kCouplingLength_m;  // force from torque, 1/m
+      if (r >= 3 && k < 3) x *= kCouplingLength_m;  // torque from force, m
+      E[r * 6 + k] = x;
+    }
+  }
+  Eigen::Vector3d axis(rng.normal(), rng.normal(), rng.normal());
+  axis.normalize();
+  Eigen::Map<Eigen::Vector3d>(c.params.block(Effect::sensor_rotation)) =
+      axis * rng.uniform(0.005, 0.010);
+  double* cable = c.params.block(Effect::cable);
+  for (int i = 0; i < 36; ++i)
+    cable[i] = (i % 6) < 3 ? rng.signed_uniform(0.5, 3.0) : rng.signed_uniform(0.1, 0.5);
+  return c;
+}
+
+void set_config_value(SimConfig& config, const std::string& key, double value) {
+  if (!std::isfinite(value)) throw std::invalid_argument("--set " + key + ": value must be finite");
+  if (key == "noise.quantize") {
+    config.noise.quantize = value != 0.0;
+    return;
+  }
+  for (const Binding& b : bindings(config)) {
+    if (b.key != key) continue;
+    *b.value = value;
+    config.payload.inertia_com_sensor_kgm2 =
+        symmetric_upper(config.payload.inertia_com_sensor_kgm2);
+    return;
+  }
+  std::string known;
+  for (const Binding& b : bindings(config)) {
+    const std::string group = b.key.substr(0, b.key.find('.'));
+    if (known.find(group + ".") == std::string::npos)
+      known += (known.empty() ? "" : ", ") + group + ".*";
+  }
+  throw std::invalid_argument("unknown --set key '" + key + "' (groups: " + known +
+                              ", noise.quantize; --list-effects prints every key)");
+}
+
+std::vector<std::pair<std::string, double>> config_values(const SimConfig& config) {
+  SimConfig copy = config;
+  std::vector<std::pair<std::string, double>> out;
+  for (const Binding& b : bindings(copy)) out.emplace_back(b.key, *b.value);
+  out.emplace_back("noise.quantize", config.noise.quantize ? 1.0 : 0.0);
+  return out;
+}
+
+RigSimulator::RigSimulator(SimConfig config, std::vector<JointVector> path_points_rad)
+    : config_(std::move(config)),
+      trajectory_(checked_points(std::move(path_points_rad)),
+                  kr210_ptp_limits(config_.speed_fraction), config_.dwell_s) {
+  const SimConfig& c = config_;
+  if (!(c.period_s > 0.0)) throw std::invalid_argument("sample period must be positive");
+  if (!(c.payload.mass_kg > 0.0)) throw std::invalid_argument("payload mass must be positive");
+  if (c.duration_limit_s < 0.0) throw std::invalid_argument("duration limit must not be negative");
+  R_world_base_ = Eigen::Matrix3d::Identity();
+  if (c.effects.has(SimEffect::base_tilt)) {
+    const double* tilt = c.params.block(Effect::base_tilt);
+    R_world_base_ = model::rot_x(tilt[0]) * model::rot_y(tilt[1]);
+  }
+  R_nominal_true_ = Eigen::Matrix3d::Identity();
+  if (c.effects.has(SimEffect::sensor_rotation))
+    R_nominal_true_ = model::rotation_from_vector(Eigen::Vector3d(
+        Eigen::Map<const Eigen::Vector3d>(c.params.block(Effect::sensor_rotation))));
+  R_sensor_imu_ = model::rotation_from_vector(c.imu_mount_rotvec_rad);
+  p_sensor_imu_m_ =
+      c.effects.has(SimEffect::imu_lever_arm) ? c.imu_lever_arm_m : Eigen::Vector3d::Zero();
+}
+
+io::Rig RigSimulator::rig() const {
+  io::Rig r;
+  r.name = "kr210-omega191-stim300-sim";
+  r.robot = "KR 210 R2700";
+  r.flange_sensor.p_m = config_.p_flange_sensor_m;
+  r.sensor_imu.p_m = p_sensor_imu_m_;
+  r.sensor_imu.q = Eigen::Quaterniond(R_sensor_imu_).normalized();
+  r.sample_period_s = config_.period_s;
+  // The simulator evaluates the signals only at the row times.
+  r.ft_rate_hz = 1.0 / config_.period_s;
+  r.imu_rate_hz = 1.0 / config_.period_s;
+  r.floor_z_m = config_.floor_z_m;
+  return r;
+}
+
+model::EffectSet RigSimulator::truth_model_effects() const {
+  model::EffectSet set = {Effect::bias, Effect::gravity, Effect::linear_inertia};
+  for (const auto& i : kSimEffects)
+    if (i.model_effect && config_.effects.has(i.id)) set.add(*i.model_effect);
+  return set;
+}
+
+io::ModelFile RigSimulator::truth() const {
+  const SimConfig& c = config_;
+  io::ModelFile m;
+  m.params = c.params;
+  m.params.effects = truth_model_effects();
+  double* grav = m.params.block(Effect::gravity);
+  grav[0] = c.payload.mass_kg;
+  for (int i = 0; i < 3; ++i) grav[1 + i] = c.payload.com_sensor_m[i];
+  double* rot = m.params.block(Effect::rotational_inertia);
+  const Eigen::Matrix3d& I = c.payload.inertia_com_sensor_kgm2;
+  const double elements[6] = {I(0, 0), I(1, 1), I(2, 2), I(0, 1), I(0, 2), I(1, 2)};
+  std::copy(std::begin(elements), std::end(elements), rot);
+  m.rig_name = rig().name;
+
+  nlohmann::json x;
+  x["generator"] = "zerog sim";
+  x["seed"] = c.seed;
+  x["sim_effects"] = sim_effect_list_string(c.effects);
+  x["noise"] = {{"force_N", c.noise.force_N},       {"torque_Nm", c.noise.torque_Nm},
+                {"accel_mps2", c.noise.accel_mps2}, {"gyro_radps", c.noise.gyro_radps},
+                {"quantize", c.noise.quantize},     {"resolution", kOmega191Resolution}};
+  x["outside_model"]["joint6_friction"] = {
+      {"enabled", c.effects.has(SimEffect::joint6_friction)},
+      {"torque_Nm", c.joint6_friction_Nm},
+      {"rate_radps", c.joint6_friction_rate_radps},
+      {"formula", "Mz += torque_Nm * tanh(qd6 / rate_radps), added before crosstalk"}};
+  x["rig_geometry"] = {{"imu_lever_arm_enabled", c.effects.has(SimEffect::imu_lever_arm)},
+                       {"p_sensor_imu_m", vec_json(p_sensor_imu_m_)},
+                       {"imu_mount_rotvec_rad", vec_json(c.imu_mount_rotvec_rad)},
+                       {"p_flange_sensor_m", vec_json(c.p_flange_sensor_m)}};
+  nlohmann::json inertia = nlohmann::json::array();
+  for (int r = 0; r < 3; ++r) inertia.push_back({I(r, 0), I(r, 1), I(r, 2)});
+  x["payload"] = {{"mass_kg", c.payload.mass_kg},
+                  {"com_sensor_m", vec_json(c.payload.com_sensor_m)},
+                  {"inertia_com_sensor_kgm2", inertia},
+                  {"point_mass", !c.effects.has(SimEffect::rotational_inertia)}};
+  x["temperature_profile"] = {{"base_C", c.temperature.base_C},
+                              {"warmup_K", c.temperature.warmup_K},
+                              {"warmup_tau_s", c.temperature.warmup_tau_s},
+                              {"amplitude_K", c.temperature.amplitude_K},
+                              {"period_s", c.temperature.period_s}};
+  x["trajectory"] = {{"period_s", c.period_s},
+                     {"dwell_s", c.dwell_s},
+                     {"speed_fraction", c.speed_fraction},
+                     {"path_points", trajectory_.num_points()},
+                     {"duration_s", trajectory_.duration_s()}};
+  m.extra = x;
+  return m;
+}
+
+ImuTruth RigSimulator::imu_at(double t_s) const {
+  double t = t_s;
+  if (config_.effects.has(SimEffect::imu_time_offset))
+    t -= config_.params.block(Effect::imu_time_offset)[0];
+  const JointState js = trajectory_.at(t);
+  const FlangeMotion fm = flange_motion(js.q_rad, js.qd_radps, js.qdd_radps2);
+  // The IMU is fixed to the flange side: nominal sensor frame, rig pose of the IMU in it.
+  const Eigen::Matrix3d R_base_imu = fm.R_base_flange * R_sensor_imu_;
+  const Eigen::Vector3d lever_base_m =
+      fm.R_base_flange * (config_.p_flange_sensor_m + p_sensor_imu_m_);
+  const Eigen::Vector3d g_base =
+      R_world_base_.transpose() * Eigen::Vector3d(0.0, 0.0, -model::kStandardGravity);
+  ImuTruth out;
+  out.specific_force_imu_mps2 =
+      R_base_imu.transpose() * (fm.acceleration_of(lever_base_m) - g_base);
+  out.angular_rate_imu_radps = R_base_imu.transpose() * fm.omega_base_radps;
+  out.angular_accel_imu_radps2 = R_base_imu.transpose() * fm.omega_dot_base_radps2;
+  return out;
+}
+
+Vec6 RigSimulator::wrench_at(double t_s) const {
+  const SimConfig& c = config_;
+  const JointState js = trajectory_.at(t_s);
+  const FlangeMotion fm = flange_motion(js.q_rad, js.qd_radps, js.qdd_radps2);
+  const Eigen::Matrix3d R_base_sensor = fm.R_base_flange * R_nominal_true_;  // true S
+  const Eigen::Vector3d& com = c.payload.com_sensor_m;
+  const Eigen::Vector3d lever_base_m = fm.R_base_flange * c.p_flange_sensor_m + R_base_sensor * com;
+  const Eigen::Vector3d g_base =
+      R_world_base_.transpose() * Eigen::Vector3d(0.0, 0.0, -model::kStandardGravity);
+  const Eigen::Vector3d g_sensor = R_base_sensor.transpose() * g_base;
+  const Eigen::Vector3d a_com_sensor = R_base_sensor.transpose() * fm.acceleration_of(lever_base_m);
+  const Eigen::Vector3d omega = R_base_sensor.transpose() * fm.omega_base_radps;
+  const Eigen::Vector3d omega_dot = R_base_sensor.transpose() * fm.omega_dot_base_radps2;
+
+  // Newton–Euler for the payload (paper 000_… eq. 1, 4, 5): the sensor holds the payload
+  // against gravity and accelerates it; the payload's reaction is what the sensor reads.
+  Vec6 w;
+  const Eigen::Vector3d force = c.payload.mass_kg * (g_sensor - a_com_sensor);
+  Eigen::Vector3d torque = com.cross(force);
+  if (c.effects.has(SimEffect::rotational_inertia)) {
+    const Eigen::Matrix3d& I = c.payload.inertia_com_sensor_kgm2;
+    torque -= I * omega_dot + omega.cross(I * omega);
+  }
+  w << force, torque;
+  if (c.effects.has(SimEffect::cable)) {
+    const double* k = c.params.block(Effect::cable);
+    for (int j = 0; j < 3; ++j) {
+      const double q = js.q_rad[model::kCableJoints[j]];
+      for (int i = 0; i < 6; ++i)
+        w[i] += k[12 * j + i] * std::cos(q) + k[12 * j + 6 + i] * std::sin(q);
+    }
+  }
+  if (c.effects.has(SimEffect::joint6_friction))
+    w[5] += c.joint6_friction_Nm * std::tanh(js.qd_radps[5] / c.joint6_friction_rate_radps);
+  if (c.effects.has(SimEffect::crosstalk)) {
+    const Eigen::Map<const Eigen::Matrix<double, 6, 6, Eigen::RowMajor>> E(
+        c.params.block(Effect::crosstalk));
+    w = (Eigen::Matrix<double, 6, 6>::Identity() + E) * w;
+  }
+  w += Eigen::Map<const Vec6>(c.params.block(Effect::bias));
+  if (c.effects.has(SimEffect::bias_drift))
+    w += Eigen::Map<const Vec6>(c.params.block(Effect::bias_drift)) * t_s;
+  if (c.effects.has(SimEffect::temperature_bias))
+    w += Eigen::Map<const Vec6>(c.params.block(Effect::temperature_bias)) *
+         (c.temperature.at(t_s) - model::kTemperatureReferenceC);
+  return w;
+}
+
+SimOutput RigSimulator::run(const std::function<void(double)>& progress) const {
+  const SimConfig& c = config_;
+  double t_end = trajectory_.duration_s();
+  if (c.duration_limit_s > 0.0) t_end = std::min(t_end, c.duration_limit_s);
+  const auto n = static_cast<std::size_t>(std::floor(t_end / c.period_s + 1e-9)) + 1;
+
+  SimOutput out;
+  out.log.rig = rig();
+  out.log.columns = {true, true, true};
+  out.log.samples.reserve(n);
+  out.angular_accel_imu_radps2.reserve(n);
+  out.truth = truth();
+  out.stats.samples = n;
+  out.stats.trajectory_duration_s = trajectory_.duration_s();
+  out.stats.lowest_point_z_m = std::numeric_limits<double>::infinity();
+
+  Workspace ws;
+  ws.p_flange_sensor_m = c.p_flange_sensor_m;
+  ws.R_flange_sensor = R_nominal_true_;
+  ws.com_sensor_m = c.payload.com_sensor_m;
+
+  detail::Rng noise(c.seed, 20);
+  const std::size_t report_every = std::max<std::size_t>(n / 20, 1);
+  for (std::size_t k = 0; k < n; ++k) {
+    const double t = static_cast<double>(k) * c.period_s;
+    io::Sample s;
+    s.t_s = t;
+    const JointState js = trajectory_.at(t);
+    s.joints_rad = js.q_rad;
+    // Logged pose: what the controller reports, nominal (no tilt, no mounting error).
+    const FlangePose fp = forward_kinematics(js.q_rad);
+    s.p_base_sensor_m = fp.p_base_flange_m + fp.R_base_flange * c.p_flange_sensor_m;
+    s.q_base_sensor = Eigen::Quaterniond(fp.R_base_flange).normalized();
+    if (s.q_base_sensor.w() < 0.0) s.q_base_sensor.coeffs() *= -1.0;
+
+    Vec6 w = wrench_at(t);
+    out.stats.max_force_N = std::max(out.stats.max_force_N, w.head<3>().norm());
+    out.stats.max_torque_Nm = std::max(out.stats.max_torque_Nm, w.tail<3>().norm());
+    for (int i = 0; i < 6; ++i) {
+      w[i] += (i < 3 ? c.noise.force_N : c.noise.torque_Nm) * noise.normal();
+      if (c.noise.quantize)
+        w[i] = kOmega191Resolution[i] * std::round(w[i] / kOmega191Resolution[i]);
+    }
+    s.force_sensor_N = w.head<3>();
+    s.torque_sensor_Nm = w.tail<3>();
+
+    const ImuTruth imu = imu_at(t);
+    s.specific_force_imu_mps2 = imu.specific_force_imu_mps2;
+    s.angular_rate_imu_radps = imu.angular_rate_imu_radps;
+    for (int i = 0; i < 3; ++i) s.specific_force_imu_mps2[i] += c.noise.accel_mps2 * noise.normal();
+    for (int i = 0; i < 3; ++i) s.angular_rate_imu_radps[i] += c.noise.gyro_radps * noise.normal();
+    s.temperature_C = c.temperature.at(t);
+
+    const double z = lowest_point_z(js.q_rad, ws);
+    out.stats.lowest_point_z_m = std::min(out.stats.lowest_point_z_m, z);
+    if (z < c.floor_z_m) ++out.stats.samples_below_floor;
+
+    out.log.samples.push_back(s);
+    out.angular_accel_imu_radps2.push_back(imu.angular_accel_imu_radps2);
+    if (progress && (k % report_every == 0 || k + 1 == n))
+      progress(static_cast<double>(k + 1) / static_cast<double>(n));
+  }
+  out.stats.duration_s = static_cast<double>(n - 1) * c.period_s;
+  return out;
+}
+
+}  // namespace zerog::sim
