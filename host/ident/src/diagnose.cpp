@@ -35,6 +35,21 @@ HeldOut heldout_error(const std::vector<Wrench>& res, const std::vector<std::uin
   return h;
 }
 
+std::array<double, 6> noise_estimate(const std::vector<Wrench>& res, const std::vector<std::uint8_t>& mask) {
+  constexpr std::size_t kLag = 5;
+  std::array<double, 6> dd{};
+  std::size_t nd = 0;
+  for (std::size_t i = kLag; i < res.size(); ++i) {
+    if (!mask[i] || !mask[i - kLag]) continue;
+    const Wrench diff = res[i] - res[i - kLag];
+    for (int k = 0; k < 6; ++k) dd[k] += diff[k] * diff[k];
+    ++nd;
+  }
+  std::array<double, 6> out{};
+  for (int k = 0; k < 6; ++k) out[k] = std::max(std::sqrt(dd[k] / (2.0 * static_cast<double>(std::max<std::size_t>(nd, 1)))), 1e-9);
+  return out;
+}
+
 struct Split {
   std::vector<std::uint8_t> heldout, train;
 };
@@ -80,7 +95,8 @@ Baseline fit_baseline(const Dataset& data, const model::EffectSet& effects, cons
 bool gains_tie(double a, double b) { return std::abs(a - b) < std::max(0.005, 0.02 * std::max(a, b)); }
 
 std::vector<Candidate> evaluate_candidates(const Dataset& data, const Baseline& base,
-                                           const Split& split, const DiagnoseOptions& o) {
+                                           const Split& split, const DiagnoseOptions& o,
+                                           const std::array<double, 6>& scale) {
   std::vector<Candidate> out;
   const auto effects = candidate_effects(base.fit.params.effects, data);
   int k = 0;
@@ -103,7 +119,7 @@ std::vector<Candidate> evaluate_candidates(const Dataset& data, const Baseline& 
     c.fit = fit(data, fo);
     if (!c.fit.usable) continue;
     const auto res = residuals(c.fit.params, data);
-    c.heldout = heldout_error(res, split.heldout, base.fit.residual_rms);
+    c.heldout = heldout_error(res, split.heldout, scale);
     c.gain = 1.0 - c.heldout.whitened_mse / base.heldout.whitened_mse;
     for (int a = 0; a < 6; ++a) {
       const double b2 = base.heldout.stats.rms[a] * base.heldout.stats.rms[a];
@@ -251,37 +267,37 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
   d.baseline = base.fit;
   d.baseline_heldout = base.heldout;
 
-  // White-noise share: consecutive held-out residuals differ by noise (structure is smooth).
-  std::array<double, 6> dd{};
-  std::size_t nd = 0;
-  for (std::size_t i = 1; i < data.size(); ++i) {
-    if (!split.heldout[i] || !split.heldout[i - 1]) continue;
-    const Wrench diff = base.res[i] - base.res[i - 1];
-    for (int k = 0; k < 6; ++k) dd[k] += diff[k] * diff[k];
-    ++nd;
-  }
-  double noise_w = 0.0;
+  // White noise per axis from differences of held-out residuals 5 rows apart: structure is
+  // smooth over 60 ms, and the 5-point gyro difference makes the noise correlated over 4 rows
+  // (lag 1: −0.12, lag 2: −0.49), so shorter lags would misjudge it. var(r[i] − r[i−5]) = 2σ².
+  d.noise_rms = noise_estimate(base.res, split.heldout);
+  // Everything below in noise-whitened units, so each axis counts by its signal-to-noise.
+  base.heldout = heldout_error(base.res, split.heldout, d.noise_rms);
+  d.baseline_heldout = base.heldout;
+  double total = 0.0, structure = 0.0;
   for (int k = 0; k < 6; ++k) {
-    d.noise_rms[k] = std::sqrt(dd[k] / (2.0 * static_cast<double>(nd)));
-    noise_w += (d.noise_rms[k] / base.fit.residual_rms[k]) * (d.noise_rms[k] / base.fit.residual_rms[k]);
+    const double ratio = std::pow(base.heldout.stats.rms[k] / d.noise_rms[k], 2);
+    total += ratio;
+    structure += std::max(0.0, ratio - 1.0);
   }
-  noise_w /= 6.0;
-  d.structured_fraction = std::clamp(1.0 - noise_w / base.heldout.whitened_mse, 0.0, 1.0);
+  d.structured_fraction = structure / total;
 
   if (o.progress) o.progress("diagnose: trying each candidate effect");
-  d.candidates = evaluate_candidates(data, base, split, o);
+  d.candidates = evaluate_candidates(data, base, split, o, d.noise_rms);
   d.correlated = correlate(data, base.res, split.heldout);
 
   const auto& h = base.heldout.stats;
   std::ostringstream os;
-  if (d.structured_fraction < 0.15 && (d.candidates.empty() || d.candidates[0].gain < 0.05)) {
+  const double explained = d.candidates.empty() || d.structured_fraction <= 0
+                               ? 0.0
+                               : d.candidates[0].gain / d.structured_fraction;
+  if (d.structured_fraction < 0.05 && (d.candidates.empty() || d.candidates[0].gain < 0.02)) {
     d.verdict = Diagnosis::Verdict::nothing_left;
     os << "The residual is at the noise level (held-out force RMS " << fmt("%.3f", h.force_rms)
        << " N, torque RMS " << fmt("%.3f", h.torque_rms) << " N*m; "
        << fmt("%.0f", 100 * d.structured_fraction)
        << "% of it is structured): nothing is missing that the library could add.";
-  } else if (!d.candidates.empty() && d.candidates[0].gain > 0.05 &&
-             d.candidates[0].gain >= 0.6 * d.structured_fraction) {
+  } else if (!d.candidates.empty() && d.candidates[0].gain > 0.02 && explained >= 0.5) {
     const Candidate& c = d.candidates[0];
     d.verdict = Diagnosis::Verdict::effect;
     const auto& ei = model::info(c.effect);
@@ -308,7 +324,8 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
        << fmt("%.0f", 100 * d.structured_fraction) << "% of the held-out error is structured, ";
     if (!d.candidates.empty())
       os << "but the best candidate, " << model::info(d.candidates[0].effect).name << ", removes only "
-         << fmt("%.0f", 100 * std::max(0.0, d.candidates[0].gain)) << "%. ";
+         << fmt("%.0f", 100 * std::max(0.0, d.candidates[0].gain)) << "% (" << fmt("%.0f", 100 * std::max(0.0, explained))
+         << "% of the structure). ";
     else
       os << "and no candidate is left to try. ";
     if (!d.correlated.empty()) {
@@ -333,7 +350,10 @@ std::vector<LadderStep> ladder(const Dataset& data, const LadderOptions& o) {
   Baseline base = fit_baseline(data, effects, split, o.diagnose, nullptr);
   steps.push_back({effects, std::nullopt, base.heldout, base.fit.bic, 0.0});
   for (int s = 0; s < o.max_steps; ++s) {
-    const auto cands = evaluate_candidates(data, base, split, o.diagnose);
+    // Gains are measured against the noise of this step's residuals.
+    const auto scale = noise_estimate(base.res, split.heldout);
+    base.heldout = heldout_error(base.res, split.heldout, scale);
+    const auto cands = evaluate_candidates(data, base, split, o.diagnose, scale);
     if (cands.empty()) break;
     const Candidate& best = cands[0];
     if (best.gain < o.min_gain || best.delta_bic >= 0) break;

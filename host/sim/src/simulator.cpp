@@ -23,9 +23,9 @@ const std::array<SimEffectInfo, kSimEffectCount> kSimEffects = {{
     {SimEffect::imu_time_offset, "imu_time_offset", Effect::imu_time_offset,
      "IMU lags the F/T by tau = 8 ms"},
     {SimEffect::bias_drift, "bias_drift", Effect::bias_drift,
-     "+-(0.5..2) N and +-(0.05..0.2) N*m per 10 min, linear"},
+     "+-(2..5) N and +-(0.2..0.5) N*m per 10 min, linear"},
     {SimEffect::temperature_bias, "temperature_bias", Effect::temperature_bias,
-     "+-(0.3..1) N/K, +-(0.03..0.1) N*m/K; T = 25 + 2(1-exp(-t/300)) + 3 sin(2 pi t/600) C"},
+     "+-(0.5..1.5) N/K, +-(0.05..0.15) N*m/K; T = 25 + 2(1-exp(-t/300)) + 3 sin(2 pi t/600) C"},
     {SimEffect::crosstalk, "crosstalk", Effect::crosstalk,
      "gains +-(0.2..0.5) %, couplings +-(0.05..0.3) % (x or / 0.2 m across F and M)"},
     {SimEffect::sensor_rotation, "sensor_rotation", Effect::sensor_rotation,
@@ -186,11 +186,11 @@ SimConfig default_sim_config(std::uint64_t seed) {
   for (int i = 0; i < 2; ++i) tilt[i] = rng.signed_uniform(0.002, 0.005);
   c.params.block(Effect::imu_time_offset)[0] = 0.008;
   double* drift = c.params.block(Effect::bias_drift);
-  for (int i = 0; i < 3; ++i) drift[i] = rng.signed_uniform(0.5, 2.0) / 600.0;
-  for (int i = 3; i < 6; ++i) drift[i] = rng.signed_uniform(0.05, 0.2) / 600.0;
+  for (int i = 0; i < 3; ++i) drift[i] = rng.signed_uniform(2.0, 5.0) / 600.0;
+  for (int i = 3; i < 6; ++i) drift[i] = rng.signed_uniform(0.2, 0.5) / 600.0;
   double* temp = c.params.block(Effect::temperature_bias);
-  for (int i = 0; i < 3; ++i) temp[i] = rng.signed_uniform(0.3, 1.0);
-  for (int i = 3; i < 6; ++i) temp[i] = rng.signed_uniform(0.03, 0.1);
+  for (int i = 0; i < 3; ++i) temp[i] = rng.signed_uniform(0.5, 1.5);
+  for (int i = 3; i < 6; ++i) temp[i] = rng.signed_uniform(0.05, 0.15);
   double* E = c.params.block(Effect::crosstalk);
   constexpr double kCouplingLength_m = 0.2;
   for (int r = 0; r < 6; ++r) {

@@ -15,7 +15,7 @@ namespace zerog::ident {
 
 struct HeldOut {
   ErrorStats stats;
-  double whitened_mse = 0.0;  ///< mean over held-out samples and axes of (e_k / sigma_k)^2
+  double whitened_mse = 0.0;  ///< mean over held-out samples and axes of (e_k / noise_k)^2
 };
 
 struct Candidate {
@@ -23,7 +23,7 @@ struct Candidate {
   model::EffectSet effects;  ///< the model with the candidate (and what it builds on)
   FitResult fit;
   HeldOut heldout;
-  double gain = 0.0;       ///< fraction of the baseline's held-out whitened MSE removed
+  double gain = 0.0;       ///< fraction of the baseline's held-out noise-whitened MSE removed
   std::array<double, 6> axis_gain{};  ///< per-axis fraction of held-out MSE removed
   double delta_bic = 0.0;  ///< BIC(candidate) − BIC(baseline), on the training samples
 };
@@ -38,10 +38,11 @@ struct Diagnosis {
   model::EffectSet model;
   FitResult baseline;
   HeldOut baseline_heldout;
-  /// Estimated white-noise share of the baseline held-out MSE, per axis and whitened overall
-  /// (from differences of consecutive residuals: structure is smooth, noise is not).
+  /// White noise per axis, estimated from differences of held-out residuals 5 rows apart
+  /// (structure is smooth over 60 ms, noise is not).
   std::array<double, 6> noise_rms{};
-  double structured_fraction = 0.0;  ///< 1 − noise / total of the whitened held-out MSE
+  /// Share of the noise-whitened held-out MSE above the noise: Σ_k max(0, mse_k/σ_k² − 1) / Σ_k mse_k/σ_k².
+  double structured_fraction = 0.0;
   std::vector<Candidate> candidates;  ///< best first
   std::vector<SignalCorrelation> correlated;  ///< strongest first
   enum class Verdict { effect, none, nothing_left } verdict = Verdict::none;

@@ -136,8 +136,8 @@ struct SimConfig {
 
 /// A configuration with seeded effect magnitudes (each clearly above the noise):
 ///   bias F0 ±(20..60) N, M0 ±(1..5) N·m; base_tilt alpha, beta ±(2..5) mrad;
-///   imu_time_offset tau = 8 ms; bias_drift ±(0.5..2) N and ±(0.05..0.2) N·m per 600 s;
-///   temperature_bias ±(0.3..1) N/K, ±(0.03..0.1) N·m/K; crosstalk gains ±0.5 %, couplings
+///   imu_time_offset tau = 8 ms; bias_drift ±(2..5) N and ±(0.2..0.5) N·m per 600 s;
+///   temperature_bias ±(0.5..1.5) N/K, ±(0.05..0.15) N·m/K; crosstalk gains ±0.5 %, couplings
 ///   ±0.3 % (force-from-torque ÷ 0.2 m, torque-from-force × 0.2 m); sensor_rotation random axis,
 ///   5..10 mrad; cable ±(0.5..3) N and ±(0.1..0.5) N·m per coefficient.
 SimConfig default_sim_config(std::uint64_t seed);
