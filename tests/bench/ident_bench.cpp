@@ -1,0 +1,92 @@
+// Speed of identification (figures in the README):
+//  - zerog fit of the full effect list on 100,000 samples (aim: under 2 s on 2 cores);
+//  - zerog diagnose over all candidates on the same log (aim: under 20 s);
+//  - a reference in the same run: one double evaluation of the model over all samples, so the
+//    ratio fit / evaluation is comparable across machines.
+#include <benchmark/benchmark.h>
+
+#include "zerog/ident/diagnose.hpp"
+#include "zerog/ident/fit.hpp"
+#include "zerog/sim/design.hpp"
+#include "zerog/sim/simulator.hpp"
+
+namespace {
+
+using namespace zerog;
+
+const ident::Dataset& dataset() {
+  static const ident::Dataset data = [] {
+    sim::SimConfig cfg = sim::default_sim_config(1);
+    cfg.effects = sim::parse_sim_effects("all,-joint6_friction");
+    sim::DesignOptions d;
+    d.kind = sim::DesignKind::random;
+    d.points = 200;
+    d.workspace.floor_z_m = cfg.floor_z_m;
+    sim::RigSimulator s(cfg, sim::make_design(d).points_rad);
+    io::Log log = s.run().log;
+    if (log.samples.size() > 100000) log.samples.resize(100000);
+    return ident::make_dataset(log);
+  }();
+  return data;
+}
+
+model::EffectSet full_list() {
+  model::EffectSet all;
+  for (auto e : model::kAllEffects) all.add(e);
+  return all;
+}
+
+void BM_ModelEvaluationAllSamples(benchmark::State& state) {
+  const auto& data = dataset();
+  model::ModelParams p;
+  p.effects = full_list();
+  p.block(model::Effect::gravity)[0] = 100.0;
+  for (auto _ : state) {
+    double sum = 0;
+    for (std::size_t i = 0; i < data.size(); ++i) sum += ident::predict(p, data, i)[2];
+    benchmark::DoNotOptimize(sum);
+  }
+  state.counters["samples"] = static_cast<double>(data.size());
+}
+BENCHMARK(BM_ModelEvaluationAllSamples)->Unit(benchmark::kMillisecond);
+
+void BM_FitFullEffectList(benchmark::State& state) {
+  const auto& data = dataset();
+  ident::FitOptions o;
+  o.effects = full_list();
+  o.covariance = state.range(0) != 0;
+  for (auto _ : state) {
+    auto r = ident::fit(data, o);
+    benchmark::DoNotOptimize(r.params);
+    state.counters["iterations"] = r.iterations;
+  }
+  state.counters["samples"] = static_cast<double>(data.size());
+}
+BENCHMARK(BM_FitFullEffectList)->Arg(0)->Arg(1)->ArgName("covariance")->Unit(benchmark::kSecond)->Iterations(1);
+
+void BM_FitDefaultModel(benchmark::State& state) {
+  const auto& data = dataset();
+  ident::FitOptions o;
+  o.effects = model::kDefaultModel;
+  for (auto _ : state) {
+    auto r = ident::fit(data, o);
+    benchmark::DoNotOptimize(r.params);
+  }
+}
+BENCHMARK(BM_FitDefaultModel)->Unit(benchmark::kSecond)->Iterations(1);
+
+void BM_DiagnoseAllCandidates(benchmark::State& state) {
+  const auto& data = dataset();
+  ident::DiagnoseOptions o;
+  o.fit.effects = model::kDefaultModel;
+  for (auto _ : state) {
+    auto d = ident::diagnose(data, o);
+    benchmark::DoNotOptimize(d.candidates);
+    state.counters["candidates"] = static_cast<double>(d.candidates.size());
+  }
+}
+BENCHMARK(BM_DiagnoseAllCandidates)->Unit(benchmark::kSecond)->Iterations(1);
+
+}  // namespace
+
+BENCHMARK_MAIN();
