@@ -1,11 +1,13 @@
 // zerog fit | compare | diagnose | ladder
 #include <cmath>
+#include <filesystem>
 #include <cstdio>
 #include <iostream>
 #include <memory>
 #include <string>
 
 #include "commands.hpp"
+#include "report_script.hpp"
 #include "zerog/ident/compare.hpp"
 #include "zerog/ident/diagnose.hpp"
 #include "zerog/ident/fit.hpp"
@@ -246,6 +248,7 @@ void add_ident_commands(CLI::App& app) {
     auto block = std::make_shared<double>(60.0);
     auto out = std::make_shared<std::string>();
     auto truth = std::make_shared<std::string>();
+    auto plot = std::make_shared<std::string>();
     CLI::App* s = app.add_subcommand(
         "ladder", "From a minimal model, add the best effect step by step while it pays; print the error at each step");
     add_common(s, *c);
@@ -255,6 +258,7 @@ void add_ident_commands(CLI::App& app) {
     s->add_option("--block", *block, "Length of the held-out time blocks, s")->capture_default_str();
     s->add_option("-o,--out", *out, "Write the ladder as JSON (for zerog report)");
     s->add_option("--truth", *truth, "Truth model (from zerog sim): add the noise floor")->check(CLI::ExistingFile);
+    s->add_option("--plot", *plot, "Plot the error at each step into this PNG (matplotlib)");
     s->callback([=] {
       const io::Log log = io::read_log(c->log);
       const ident::Dataset data = ident::make_dataset(log);
@@ -275,7 +279,22 @@ void add_ident_commands(CLI::App& app) {
       } else {
         j["noise_floor"] = nullptr;
       }
-      if (!out->empty()) io::write_file_atomic(*out, j.dump(2) + "\n", {c->log, io::rig_path_for(c->log)});
+      const std::vector<std::filesystem::path> inputs = {c->log, io::rig_path_for(c->log)};
+      if (!out->empty()) io::write_file_atomic(*out, j.dump(2) + "\n", inputs);
+      if (!plot->empty()) {
+        for (const auto& in : inputs)
+          if (std::filesystem::weakly_canonical(in) == std::filesystem::weakly_canonical(*plot))
+            throw std::runtime_error(*plot + " is an input of this run; refusing to overwrite it");
+        const std::string tmp = *plot + ".ladder.json.tmp";
+        io::write_file_atomic(tmp, j.dump() + "\n", inputs);
+        try {
+          run_report_script({"--ladder-plot", tmp, *plot});
+        } catch (...) {
+          std::filesystem::remove(tmp);
+          throw;
+        }
+        std::filesystem::remove(tmp);
+      }
       if (c->json) {
         std::cout << j.dump(2) << "\n";
         return;
@@ -285,6 +304,7 @@ void add_ident_commands(CLI::App& app) {
         std::printf("noise floor (held-out): force %.3f N, torque %.3f N*m\n",
                     j["noise_floor"]["force_rms"].get<double>(), j["noise_floor"]["torque_rms"].get<double>());
       if (!out->empty()) std::printf("wrote %s\n", out->c_str());
+      if (!plot->empty()) std::printf("plotted %s\n", plot->c_str());
     });
   }
 }

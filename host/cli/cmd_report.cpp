@@ -1,9 +1,6 @@
 // zerog report: measured vs predicted, residuals, the ladder and the diagnosis as an HTML page.
 // C++ computes everything into a bundle (proto/report_bundle.md); matplotlib draws it
 // (host/report/make_report.py).
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -14,6 +11,7 @@
 #include <string>
 
 #include "commands.hpp"
+#include "report_script.hpp"
 #include "zerog/ident/compare.hpp"
 #include "zerog/ident/dataset.hpp"
 #include "zerog/io/log.hpp"
@@ -23,19 +21,6 @@ namespace zerog::cli {
 namespace {
 
 namespace fs = std::filesystem;
-
-fs::path report_script() {
-  if (const char* env = std::getenv("ZEROG_REPORT_SCRIPT")) return env;
-  // Installed layout first (…/bin/zerog → …/share/zerog), then the source tree of this build.
-  std::error_code ec;
-  const fs::path self = fs::read_symlink("/proc/self/exe", ec);
-  if (!ec) {
-    const fs::path installed = self.parent_path().parent_path() / "share" / "zerog" / "make_report.py";
-    if (fs::exists(installed)) return installed;
-  }
-  if (fs::exists(ZEROG_REPORT_SCRIPT_BUILD)) return ZEROG_REPORT_SCRIPT_BUILD;
-  return ZEROG_REPORT_SCRIPT_INSTALL;
-}
 
 nlohmann::json read_json(const std::string& path) {
   std::ifstream in(path);
@@ -140,19 +125,7 @@ void run_report(const ReportOptions& o) {
     js << summary.dump(1) << "\n";
     if (!js) throw std::runtime_error((bundle / "summary.json").string() + ": write failed");
   }
-  const std::string python = fs::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
-  const fs::path script = report_script();
-  std::fflush(stdout);
-  const pid_t pid = fork();
-  if (pid == 0) {
-    execlp(python.c_str(), python.c_str(), script.c_str(), bundle.c_str(), out.c_str(), static_cast<char*>(nullptr));
-    std::perror("zerog report: cannot run python3");
-    _exit(127);
-  }
-  int status = 0;
-  waitpid(pid, &status, 0);
-  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
-    throw std::runtime_error("the report script " + script.string() + " failed; no report written");
+  run_report_script({bundle.string(), out.string()});
   std::printf("report: %s\n", (out / "index.html").c_str());
 }
 

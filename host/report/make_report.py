@@ -1210,7 +1210,42 @@ def _inside(child, parent):
     return child == parent or child.startswith(parent.rstrip(os.sep) + os.sep)
 
 
+def ladder_plot(ladder_json, out_png):
+    """`zerog ladder --plot`: only the ladder chart, from the ladder JSON, written atomically."""
+    try:
+        with open(ladder_json, encoding="utf-8") as f:
+            lad = json.load(f)
+    except (OSError, ValueError) as e:
+        print("make_report: error: %s: %s" % (ladder_json, e), file=sys.stderr)
+        return 1
+    if not isinstance(lad, dict) or lad.get("kind") != "zerog-ladder" or not lad.get("steps"):
+        print("make_report: error: %s: not a zerog-ladder document with steps" % ladder_json,
+              file=sys.stderr)
+        return 1
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    import numpy as np
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    lad.setdefault("noise_floor", None)
+    out_png = os.path.abspath(out_png)
+    tmp = tempfile.mkdtemp(prefix=".ladder-plot-", dir=os.path.dirname(out_png))
+    try:
+        figs = Figures.__new__(Figures)  # the ladder chart needs no samples
+        figs.out, figs.s, figs.np, figs.plt = tmp, {"ladder": lad}, np, plt
+        name = figs.ladder()
+        os.replace(os.path.join(tmp, name), out_png)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return 0
+
+
 def main(argv):
+    if argv and argv[0] == "--ladder-plot":
+        if len(argv) != 3:
+            print("usage: make_report.py --ladder-plot LADDER_JSON OUT_PNG", file=sys.stderr)
+            return 2
+        return ladder_plot(argv[1], argv[2])
     ap = argparse.ArgumentParser(
         prog="make_report.py",
         description="Render a zerog report bundle (proto/report_bundle.md) into "
