@@ -1,7 +1,7 @@
 // zerog fit | compare | diagnose | ladder
 #include <cmath>
-#include <filesystem>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <string>
@@ -32,7 +32,8 @@ void add_common(CLI::App* c, Common& o) {
   c->add_option("log", o.log, "Log to read (zerog log format, NAME.csv with NAME.rig.toml)")
       ->required()
       ->check(CLI::ExistingFile);
-  c->add_flag("--json", o.json, "Print machine-readable JSON on stdout (schema: proto/json_output.md)");
+  c->add_flag("--json", o.json,
+              "Print machine-readable JSON on stdout (schema: proto/json_output.md)");
   c->add_flag("-q,--quiet", o.quiet, "No progress lines on stderr");
   c->add_option("--threads", o.threads, "Solver threads")->check(CLI::Range(1, 64));
 }
@@ -53,7 +54,8 @@ nlohmann::json fit_json(const ident::FitResult& r) {
   j["sigma"] = r.sigma;
   j["bic"] = r.bic;
   j["warnings"] = nlohmann::json::array();
-  for (const auto& w : r.warnings) j["warnings"].push_back({{"kind", w.kind}, {"message", w.message}});
+  for (const auto& w : r.warnings)
+    j["warnings"].push_back({{"kind", w.kind}, {"message", w.message}});
   return j;
 }
 
@@ -61,8 +63,8 @@ std::string param_table(const model::ModelParams& p, const std::optional<ident::
                         const model::ModelParams* truth) {
   std::string out;
   char line[256];
-  std::snprintf(line, sizeof line, "%-20s %-10s %14s %12s %-8s%s\n", "effect", "parameter", "value", "std",
-                "unit", truth ? "        truth   (est-truth)/std" : "");
+  std::snprintf(line, sizeof line, "%-20s %-10s %14s %12s %-8s%s\n", "effect", "parameter", "value",
+                "std", "unit", truth ? "        truth   (est-truth)/std" : "");
   out += line;
   for (Effect e : model::kAllEffects) {
     if (!p.effects.has(e)) continue;
@@ -74,8 +76,8 @@ std::string param_table(const model::ModelParams& p, const std::optional<ident::
     for (int i = 0; i < ei.num_params; ++i) {
       const double v = p.block(e)[i];
       const double s = std ? (*std)[model::index(e)][i] : std::nan("");
-      std::snprintf(line, sizeof line, "%-20s %-10s %14.6g %12.3g %-8s", i == 0 ? ei.name : "", ei.params[i].name,
-                    v, s, ei.params[i].unit);
+      std::snprintf(line, sizeof line, "%-20s %-10s %14.6g %12.3g %-8s", i == 0 ? ei.name : "",
+                    ei.params[i].name, v, s, ei.params[i].unit);
       out += line;
       if (truth) {
         const double t = truth->effects.has(e) ? truth->block(e)[i] : 0.0;
@@ -88,8 +90,9 @@ std::string param_table(const model::ModelParams& p, const std::optional<ident::
   return out;
 }
 
-void run_fit(const Common& c, const std::string& effects, const std::string& out, const std::string& loss,
-             double loss_scale, int max_iter, int block_samples, const std::string& truth_path) {
+void run_fit(const Common& c, const std::string& effects, const std::string& out,
+             const std::string& loss, double loss_scale, int max_iter, int block_samples,
+             const std::string& truth_path) {
   const io::Log log = io::read_log(c.log);
   const ident::Dataset data = ident::make_dataset(log);
   ident::FitOptions o;
@@ -101,7 +104,8 @@ void run_fit(const Common& c, const std::string& effects, const std::string& out
   o.threads = c.threads;
   o.progress = progress(c);
   const ident::FitResult r = ident::fit(data, o);
-  if (!r.usable) throw std::runtime_error("the fit is not usable (" + r.termination + "); nothing written");
+  if (!r.usable)
+    throw std::runtime_error("the fit is not usable (" + r.termination + "); nothing written");
   std::optional<io::ModelFile> truth;
   if (!truth_path.empty()) truth = io::read_model(truth_path);
   io::ModelFile m;
@@ -122,13 +126,16 @@ void run_fit(const Common& c, const std::string& effects, const std::string& out
               io::effect_list_string(r.params.effects).c_str(), r.samples, r.seconds, r.iterations,
               r.termination.c_str());
   std::printf("%s", param_table(r.params, r.std, truth ? &truth->params : nullptr).c_str());
-  std::printf("residual RMS: Fx %.3f  Fy %.3f  Fz %.3f N   Mx %.3f  My %.3f  Mz %.3f N*m\n", r.residual_rms[0],
-              r.residual_rms[1], r.residual_rms[2], r.residual_rms[3], r.residual_rms[4], r.residual_rms[5]);
-  for (const auto& w : r.warnings) std::printf("warning (%s): %s\n", w.kind.c_str(), w.message.c_str());
+  std::printf("residual RMS: Fx %.3f  Fy %.3f  Fz %.3f N   Mx %.3f  My %.3f  Mz %.3f N*m\n",
+              r.residual_rms[0], r.residual_rms[1], r.residual_rms[2], r.residual_rms[3],
+              r.residual_rms[4], r.residual_rms[5]);
+  for (const auto& w : r.warnings)
+    std::printf("warning (%s): %s\n", w.kind.c_str(), w.message.c_str());
   if (!out.empty()) std::printf("wrote %s\n", out.c_str());
 }
 
-void run_compare(const Common& c, const std::string& model_path, const std::string& truth_path, int bins) {
+void run_compare(const Common& c, const std::string& model_path, const std::string& truth_path,
+                 int bins) {
   const io::Log log = io::read_log(c.log);
   const ident::Dataset data = ident::make_dataset(log);
   const io::ModelFile m = io::read_model(model_path);
@@ -151,9 +158,9 @@ void run_compare(const Common& c, const std::string& model_path, const std::stri
     std::cout << j.dump(2) << "\n";
     return;
   }
-  std::printf("model %s (%s) against %s, %zu samples (%zu static, %zu moving)\n", model_path.c_str(),
-              io::effect_list_string(m.params.effects).c_str(), c.log.c_str(), cmp.all.count, cmp.stat.count,
-              cmp.moving.count);
+  std::printf("model %s (%s) against %s, %zu samples (%zu static, %zu moving)\n",
+              model_path.c_str(), io::effect_list_string(m.params.effects).c_str(), c.log.c_str(),
+              cmp.all.count, cmp.stat.count, cmp.moving.count);
   std::printf("%s", ident::format_comparison(cmp, floor ? &*floor : nullptr).c_str());
 }
 
@@ -178,14 +185,19 @@ void add_ident_commands(CLI::App& app) {
     s->add_option("--loss", *loss, "Robust loss: none, huber, cauchy")
         ->check(CLI::IsMember({"none", "huber", "cauchy"}))
         ->capture_default_str();
-    s->add_option("--loss-scale", *loss_scale, "Robust loss scale, in per-axis noise units")->capture_default_str();
-    s->add_option("--max-iterations", *max_iter, "Solver iterations per pass")->capture_default_str();
+    s->add_option("--loss-scale", *loss_scale, "Robust loss scale, in per-axis noise units")
+        ->capture_default_str();
+    s->add_option("--max-iterations", *max_iter, "Solver iterations per pass")
+        ->capture_default_str();
     s->add_option("--block-samples", *block_samples,
-                  "Compare model and measurement on means of this many consecutive samples (1 = each sample)")
+                  "Compare model and measurement on means of this many consecutive samples (1 = "
+                  "each sample)")
         ->check(CLI::Range(1, 1000))
         ->capture_default_str();
     s->add_option("--truth", *truth, "Truth model (from zerog sim) to print beside the estimates");
-    s->callback([=] { run_fit(*c, *effects, *out, *loss, *loss_scale, *max_iter, *block_samples, *truth); });
+    s->callback([=] {
+      run_fit(*c, *effects, *out, *loss, *loss_scale, *max_iter, *block_samples, *truth);
+    });
   }
   // compare
   {
@@ -194,12 +206,17 @@ void add_ident_commands(CLI::App& app) {
     auto truth = std::make_shared<std::string>();
     auto bins = std::make_shared<int>(6);
     CLI::App* s = app.add_subcommand(
-        "compare", "Measured against predicted per axis: RMS and max error, static/moving, by joint angle");
+        "compare",
+        "Measured against predicted per axis: RMS and max error, static/moving, by joint angle");
     add_common(s, *c);
-    s->add_option("-m,--model", *model_path, "Model file (from zerog fit)")->required()->check(CLI::ExistingFile);
+    s->add_option("-m,--model", *model_path, "Model file (from zerog fit)")
+        ->required()
+        ->check(CLI::ExistingFile);
     s->add_option("--truth", *truth, "Truth model (from zerog sim): also print the noise floor")
         ->check(CLI::ExistingFile);
-    s->add_option("--bins", *bins, "Joint-angle bins per joint")->check(CLI::Range(1, 100))->capture_default_str();
+    s->add_option("--bins", *bins, "Joint-angle bins per joint")
+        ->check(CLI::Range(1, 100))
+        ->capture_default_str();
     s->callback([=] { run_compare(*c, *model_path, *truth, *bins); });
   }
   // diagnose
@@ -209,12 +226,15 @@ void add_ident_commands(CLI::App& app) {
     auto effects = std::make_shared<std::string>();
     auto block = std::make_shared<double>(60.0);
     CLI::App* s = app.add_subcommand(
-        "diagnose", "Rank the effects a model lacks by how much they reduce the error on held-out data");
+        "diagnose",
+        "Rank the effects a model lacks by how much they reduce the error on held-out data");
     add_common(s, *c);
-    s->add_option("-m,--model", *model_path, "Fitted model to diagnose (its effects and start values)")
+    s->add_option("-m,--model", *model_path,
+                  "Fitted model to diagnose (its effects and start values)")
         ->check(CLI::ExistingFile);
     s->add_option("-e,--effects", *effects, "Or: the effects of the model to diagnose");
-    s->add_option("--block", *block, "Length of the held-out time blocks, s (every 4th block is held out)")
+    s->add_option("--block", *block,
+                  "Length of the held-out time blocks, s (every 4th block is held out)")
         ->capture_default_str();
     s->callback([=] {
       const io::Log log = io::read_log(c->log);
@@ -230,7 +250,8 @@ void add_ident_commands(CLI::App& app) {
         o.fit.effects = m->params.effects;
         o.fit.initial = &m->params;
       } else {
-        o.fit.effects = io::parse_effect_list(effects->empty() ? io::effect_list_string(model::kDefaultModel) : *effects);
+        o.fit.effects = io::parse_effect_list(
+            effects->empty() ? io::effect_list_string(model::kDefaultModel) : *effects);
       }
       const ident::Diagnosis d = ident::diagnose(data, o);
       if (c->json) {
@@ -249,15 +270,19 @@ void add_ident_commands(CLI::App& app) {
     auto out = std::make_shared<std::string>();
     auto truth = std::make_shared<std::string>();
     auto plot = std::make_shared<std::string>();
-    CLI::App* s = app.add_subcommand(
-        "ladder", "From a minimal model, add the best effect step by step while it pays; print the error at each step");
+    CLI::App* s = app.add_subcommand("ladder",
+                                     "From a minimal model, add the best effect step by step while "
+                                     "it pays; print the error at each step");
     add_common(s, *c);
     s->add_option("--start", *start, "Effects to start from")->capture_default_str();
-    s->add_option("--min-gain", *min_gain, "Smallest share of held-out error an effect must remove to be added")
+    s->add_option("--min-gain", *min_gain,
+                  "Smallest share of held-out error an effect must remove to be added")
         ->capture_default_str();
-    s->add_option("--block", *block, "Length of the held-out time blocks, s")->capture_default_str();
+    s->add_option("--block", *block, "Length of the held-out time blocks, s")
+        ->capture_default_str();
     s->add_option("-o,--out", *out, "Write the ladder as JSON (for zerog report)");
-    s->add_option("--truth", *truth, "Truth model (from zerog sim): add the noise floor")->check(CLI::ExistingFile);
+    s->add_option("--truth", *truth, "Truth model (from zerog sim): add the noise floor")
+        ->check(CLI::ExistingFile);
     s->add_option("--plot", *plot, "Plot the error at each step into this PNG (matplotlib)");
     s->callback([=] {
       const io::Log log = io::read_log(c->log);
@@ -302,7 +327,8 @@ void add_ident_commands(CLI::App& app) {
       std::printf("%s", ident::format_ladder(steps).c_str());
       if (!j["noise_floor"].is_null())
         std::printf("noise floor (held-out): force %.3f N, torque %.3f N*m\n",
-                    j["noise_floor"]["force_rms"].get<double>(), j["noise_floor"]["torque_rms"].get<double>());
+                    j["noise_floor"]["force_rms"].get<double>(),
+                    j["noise_floor"]["torque_rms"].get<double>());
       if (!out->empty()) std::printf("wrote %s\n", out->c_str());
       if (!plot->empty()) std::printf("plotted %s\n", plot->c_str());
     });

@@ -53,7 +53,8 @@ void run_report(const ReportOptions& o) {
   const auto heldout = ident::heldout_mask(data);
 
   const fs::path out = fs::absolute(o.out);
-  if (fs::exists(out) && !fs::is_directory(out)) throw std::runtime_error(out.string() + " exists and is not a folder");
+  if (fs::exists(out) && !fs::is_directory(out))
+    throw std::runtime_error(out.string() + " exists and is not a folder");
   std::random_device rd;
   const fs::path bundle = out.parent_path() / (".zerog-bundle-" + std::to_string(rd()));
   fs::create_directories(bundle);
@@ -110,7 +111,8 @@ void run_report(const ReportOptions& o) {
   nlohmann::json summary;
   summary["kind"] = "zerog-report-bundle";
   summary["version"] = 1;
-  summary["title"] = o.title.empty() ? "zerog report: " + fs::path(o.log).filename().string() : o.title;
+  summary["title"] =
+      o.title.empty() ? "zerog report: " + fs::path(o.log).filename().string() : o.title;
   summary["log"] = o.log;
   summary["model"] = o.model;
   summary["effects"] = nlohmann::json::array();
@@ -133,12 +135,18 @@ void run_report(const ReportOptions& o) {
 
 void add_report_command(CLI::App& app) {
   auto o = std::make_shared<ReportOptions>();
-  CLI::App* s = app.add_subcommand("report", "Write an HTML report: measured vs predicted, residuals, ladder, diagnosis");
+  CLI::App* s = app.add_subcommand(
+      "report", "Write an HTML report: measured vs predicted, residuals, ladder, diagnosis");
   s->add_option("log", o->log, "Log (zerog log format)")->required()->check(CLI::ExistingFile);
-  s->add_option("-m,--model", o->model, "Model file (from zerog fit)")->required()->check(CLI::ExistingFile);
-  s->add_option("--truth", o->truth, "Truth model (from zerog sim), for the noise floor")->check(CLI::ExistingFile);
-  s->add_option("--ladder", o->ladder, "Ladder JSON (zerog ladder --out)")->check(CLI::ExistingFile);
-  s->add_option("--diagnosis", o->diagnosis, "Diagnosis JSON (zerog diagnose --json)")->check(CLI::ExistingFile);
+  s->add_option("-m,--model", o->model, "Model file (from zerog fit)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  s->add_option("--truth", o->truth, "Truth model (from zerog sim), for the noise floor")
+      ->check(CLI::ExistingFile);
+  s->add_option("--ladder", o->ladder, "Ladder JSON (zerog ladder --out)")
+      ->check(CLI::ExistingFile);
+  s->add_option("--diagnosis", o->diagnosis, "Diagnosis JSON (zerog diagnose --json)")
+      ->check(CLI::ExistingFile);
   s->add_option("--title", o->title, "Report title");
   s->add_option("-o,--out", o->out, "Report folder (replaced atomically)")->capture_default_str();
   s->callback([o] { run_report(*o); });

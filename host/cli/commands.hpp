@@ -4,10 +4,10 @@
 
 namespace zerog::cli {
 
-void add_import_command(CLI::App& app);    // cmd_import.cpp
-void add_design_command(CLI::App& app);    // cmd_design.cpp
-void add_sim_command(CLI::App& app);       // cmd_sim.cpp
-void add_ident_commands(CLI::App& app);    // cmd_ident.cpp: fit, compare, diagnose, ladder
-void add_report_command(CLI::App& app);    // cmd_report.cpp
+void add_import_command(CLI::App& app);  // cmd_import.cpp
+void add_design_command(CLI::App& app);  // cmd_design.cpp
+void add_sim_command(CLI::App& app);     // cmd_sim.cpp
+void add_ident_commands(CLI::App& app);  // cmd_ident.cpp: fit, compare, diagnose, ladder
+void add_report_command(CLI::App& app);  // cmd_report.cpp
 
 }  // namespace zerog::cli

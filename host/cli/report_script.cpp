@@ -19,7 +19,8 @@ fs::path report_script() {
   std::error_code ec;
   const fs::path self = fs::read_symlink("/proc/self/exe", ec);
   if (!ec) {
-    const fs::path installed = self.parent_path().parent_path() / "share" / "zerog" / "make_report.py";
+    const fs::path installed =
+        self.parent_path().parent_path() / "share" / "zerog" / "make_report.py";
     if (fs::exists(installed)) return installed;
   }
   if (fs::exists(ZEROG_REPORT_SCRIPT_BUILD)) return ZEROG_REPORT_SCRIPT_BUILD;

@@ -62,7 +62,12 @@ void BM_FitFullEffectList(benchmark::State& state) {
   }
   state.counters["samples"] = static_cast<double>(data.size());
 }
-BENCHMARK(BM_FitFullEffectList)->Arg(0)->Arg(1)->ArgName("covariance")->Unit(benchmark::kSecond)->Iterations(1);
+BENCHMARK(BM_FitFullEffectList)
+    ->Arg(0)
+    ->Arg(1)
+    ->ArgName("covariance")
+    ->Unit(benchmark::kSecond)
+    ->Iterations(1);
 
 void BM_FitDefaultModel(benchmark::State& state) {
   const auto& data = dataset();

@@ -33,17 +33,21 @@ std::string slurp(const fs::path& p) {
 class Cli : public ::testing::Test {
  protected:
   // One folder per process: ctest runs each test in its own process, possibly in parallel.
-  static fs::path dir() { return fs::temp_directory_path() / ("zerog_cli_test_" + std::to_string(getpid())); }
+  static fs::path dir() {
+    return fs::temp_directory_path() / ("zerog_cli_test_" + std::to_string(getpid()));
+  }
   static void TearDownTestSuite() { fs::remove_all(dir()); }
   static void SetUpTestSuite() {
     fs::remove_all(dir());
     fs::create_directories(dir());
-    const Result r = run("sim --kind random --points 24 --seed 5 --effects cable --out " + (dir() / "run.csv").string());
+    const Result r = run("sim --kind random --points 24 --seed 5 --effects cable --out " +
+                         (dir() / "run.csv").string());
     ASSERT_EQ(r.status, 0) << r.err;
   }
   static Result run(const std::string& args) {
     const fs::path out = dir() / "stdout.txt", err = dir() / "stderr.txt";
-    const std::string cmd = std::string(ZEROG_EXE) + " " + args + " >" + out.string() + " 2>" + err.string();
+    const std::string cmd =
+        std::string(ZEROG_EXE) + " " + args + " >" + out.string() + " 2>" + err.string();
     const int rc = std::system(cmd.c_str());
     return {WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, slurp(out), slurp(err)};
   }
@@ -51,7 +55,8 @@ class Cli : public ::testing::Test {
 };
 
 TEST_F(Cli, EverySubcommandHasHelp) {
-  for (const char* sub : {"import", "design", "sim", "fit", "compare", "diagnose", "ladder", "report"}) {
+  for (const char* sub :
+       {"import", "design", "sim", "fit", "compare", "diagnose", "ladder", "report"}) {
     const Result r = run(std::string(sub) + " --help");
     EXPECT_EQ(r.status, 0) << sub;
     EXPECT_THAT(r.out, HasSubstr(sub)) << sub;
@@ -83,7 +88,8 @@ TEST_F(Cli, FitCompareDiagnoseLadderPrintJsonOfTheDocumentedKinds) {
   EXPECT_EQ(j["kind"], "zerog-diagnosis");
   EXPECT_EQ(j["verdict"]["kind"], "effect");
   EXPECT_EQ(j["verdict"]["effect"], "cable");
-  EXPECT_THAT(j["verdict"]["command"].get<std::string>(), HasSubstr("--effects bias,gravity,linear_inertia,rotational_inertia,cable"));
+  EXPECT_THAT(j["verdict"]["command"].get<std::string>(),
+              HasSubstr("--effects bias,gravity,linear_inertia,rotational_inertia,cable"));
 
   r = run("ladder " + log() + " --block 20 --json -q");
   ASSERT_EQ(r.status, 0) << r.err;
@@ -112,13 +118,15 @@ TEST_F(Cli, AFailedFitWritesNothing) {
   EXPECT_NE(r.status, 0);
   EXPECT_THAT(r.err, HasSubstr("'imu_time_offset' builds on 'linear_inertia'"));
   EXPECT_FALSE(fs::exists(model));
-  for (const auto& e : fs::directory_iterator(dir())) EXPECT_THAT(e.path().filename().string(), ::testing::Not(HasSubstr(".tmp")));
+  for (const auto& e : fs::directory_iterator(dir()))
+    EXPECT_THAT(e.path().filename().string(), ::testing::Not(HasSubstr(".tmp")));
 }
 
 TEST_F(Cli, ABadCellIsReportedWithFileLineAndColumn) {
   // Copy the log and its rig, break one cell on data line 7, keep the rest.
   const fs::path bad = dir() / "bad.csv";
-  fs::copy_file(dir() / "run.rig.toml", dir() / "bad.rig.toml", fs::copy_options::overwrite_existing);
+  fs::copy_file(dir() / "run.rig.toml", dir() / "bad.rig.toml",
+                fs::copy_options::overwrite_existing);
   std::istringstream in(slurp(log()));
   std::ofstream out(bad);
   std::string line;

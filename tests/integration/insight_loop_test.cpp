@@ -82,19 +82,21 @@ TEST_P(HiddenEffect, DiagnoseRanksItFirstAndAddingItReachesTheNoiseFloor) {
   // Without it, force or torque error lies clearly outside that band (the effect is really
   // there, so falling within 1.2 × the floor is the effect's doing).
   const auto before = heldout_stats(d.baseline.params, run.data);
-  EXPECT_GT(std::max(before.force_rms / floor.force_rms, before.torque_rms / floor.torque_rms), 1.25)
+  EXPECT_GT(std::max(before.force_rms / floor.force_rms, before.torque_rms / floor.torque_rms),
+            1.25)
       << "force " << before.force_rms << " torque " << before.torque_rms;
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Library, HiddenEffect,
-    ::testing::Values(HiddenCase{"cable", Effect::cable},
-                      HiddenCase{"temperature_bias", Effect::temperature_bias},
-                      HiddenCase{"bias_drift", Effect::bias_drift},
-                      HiddenCase{"sensor_rotation", Effect::sensor_rotation},
-                      HiddenCase{"imu_time_offset", Effect::imu_time_offset},
-                      HiddenCase{"crosstalk", Effect::crosstalk}),
-    [](const auto& param_info) { return std::string(param_info.param.sim_effect); });
+INSTANTIATE_TEST_SUITE_P(Library, HiddenEffect,
+                         ::testing::Values(HiddenCase{"cable", Effect::cable},
+                                           HiddenCase{"temperature_bias", Effect::temperature_bias},
+                                           HiddenCase{"bias_drift", Effect::bias_drift},
+                                           HiddenCase{"sensor_rotation", Effect::sensor_rotation},
+                                           HiddenCase{"imu_time_offset", Effect::imu_time_offset},
+                                           HiddenCase{"crosstalk", Effect::crosstalk}),
+                         [](const auto& param_info) {
+                           return std::string(param_info.param.sim_effect);
+                         });
 
 TEST(OutsideLibrary, Joint6FrictionIsNotBlamedOnALibraryEffect) {
   const SimRun run = simulate("joint6_friction", 11);
@@ -103,7 +105,8 @@ TEST(OutsideLibrary, Joint6FrictionIsNotBlamedOnALibraryEffect) {
   const ident::Diagnosis d = ident::diagnose(run.data, o);
   EXPECT_EQ(d.verdict, ident::Diagnosis::Verdict::none) << ident::format_diagnosis(d);
   ASSERT_FALSE(d.correlated.empty());
-  EXPECT_NE(d.correlated[0].signal.find("A6 velocity"), std::string::npos) << d.correlated[0].signal;
+  EXPECT_NE(d.correlated[0].signal.find("A6 velocity"), std::string::npos)
+      << d.correlated[0].signal;
   EXPECT_EQ(d.correlated[0].axis, 5);  // Mz
   EXPECT_NE(d.text.find("No library effect"), std::string::npos);
 }
@@ -123,8 +126,8 @@ TEST(CleanRun, EveryParameterWithinThreeSigmaOfTruth) {
       const double est = fit.params.block(e)[i], t = truth.block(e)[i];
       const double s = (*fit.std)[model::index(e)][i];
       ASSERT_TRUE(std::isfinite(s)) << ident::param_label(e, i);
-      EXPECT_LE(std::abs(est - t), 3 * s) << ident::param_label(e, i) << " est " << est << " truth " << t
-                                         << " std " << s;
+      EXPECT_LE(std::abs(est - t), 3 * s)
+          << ident::param_label(e, i) << " est " << est << " truth " << t << " std " << s;
       ++checked;
     }
   }

@@ -31,7 +31,8 @@ ErrorStats ErrorAccumulator::stats() const {
 
 std::vector<Wrench> residuals(const model::ModelParams& params, const Dataset& data) {
   std::vector<Wrench> out(data.size());
-  for (std::size_t i = 0; i < data.size(); ++i) out[i] = data.measured[i] - predict(params, data, i);
+  for (std::size_t i = 0; i < data.size(); ++i)
+    out[i] = data.measured[i] - predict(params, data, i);
   return out;
 }
 
@@ -97,7 +98,10 @@ Comparison compare(const std::vector<Wrench>& res, const Dataset& data,
 }
 
 nlohmann::json to_json(const ErrorStats& s) {
-  return {{"count", s.count}, {"rms", s.rms}, {"max", s.max_abs}, {"force_rms", s.force_rms},
+  return {{"count", s.count},
+          {"rms", s.rms},
+          {"max", s.max_abs},
+          {"force_rms", s.force_rms},
           {"torque_rms", s.torque_rms}};
 }
 
@@ -106,7 +110,8 @@ nlohmann::json to_json(const Comparison& c) {
   j["axes"] = kAxisNames;
   j["units"] = kAxisUnits;
   j["samples"] = {{"total", c.all.count}, {"static", c.stat.count}, {"moving", c.moving.count}};
-  j["segments"] = {{"all", to_json(c.all)}, {"static", to_json(c.stat)}, {"moving", to_json(c.moving)}};
+  j["segments"] = {
+      {"all", to_json(c.all)}, {"static", to_json(c.stat)}, {"moving", to_json(c.moving)}};
   j["joint_bins"] = nlohmann::json::array();
   for (const auto& jb : c.joints) {
     nlohmann::json b;
@@ -142,9 +147,9 @@ std::string format_comparison(const Comparison& c, const Comparison* floor) {
                 "all rms", "max", "static", "max", "moving", "max", floor ? " | floor rms" : "");
   os << line;
   for (int k = 0; k < 6; ++k) {
-    std::snprintf(line, sizeof line, "%-8s %8s | %9.3f %9.3f | %9.3f %9.3f | %9.3f %9.3f", kAxisNames[k],
-                  kAxisUnits[k], c.all.rms[k], c.all.max_abs[k], c.stat.rms[k], c.stat.max_abs[k],
-                  c.moving.rms[k], c.moving.max_abs[k]);
+    std::snprintf(line, sizeof line, "%-8s %8s | %9.3f %9.3f | %9.3f %9.3f | %9.3f %9.3f",
+                  kAxisNames[k], kAxisUnits[k], c.all.rms[k], c.all.max_abs[k], c.stat.rms[k],
+                  c.stat.max_abs[k], c.moving.rms[k], c.moving.max_abs[k]);
     os << line;
     if (floor) {
       std::snprintf(line, sizeof line, " | %9.3f", floor->all.rms[k]);
@@ -153,21 +158,24 @@ std::string format_comparison(const Comparison& c, const Comparison* floor) {
     os << "\n";
   }
   std::snprintf(line, sizeof line,
-                "force RMS %.3f N (static %.3f, moving %.3f); torque RMS %.3f N*m (static %.3f, moving %.3f)\n",
+                "force RMS %.3f N (static %.3f, moving %.3f); torque RMS %.3f N*m (static %.3f, "
+                "moving %.3f)\n",
                 c.all.force_rms, c.stat.force_rms, c.moving.force_rms, c.all.torque_rms,
                 c.stat.torque_rms, c.moving.torque_rms);
   os << line;
   if (floor) {
-    std::snprintf(line, sizeof line,
-                  "noise floor (true model, true parameters, same signals): force %.3f N, torque %.3f N*m\n",
-                  floor->all.force_rms, floor->all.torque_rms);
+    std::snprintf(
+        line, sizeof line,
+        "noise floor (true model, true parameters, same signals): force %.3f N, torque %.3f N*m\n",
+        floor->all.force_rms, floor->all.torque_rms);
     os << line;
   }
   if (c.worst.joint >= 0) {
-    std::snprintf(line, sizeof line,
-                  "worst: %s at A%d in [%.1f, %.1f] deg: RMS %.3f %s (%s segments are worse on this axis)\n",
-                  kAxisNames[c.worst.axis], c.worst.joint + 1, c.worst.lo * 180 / M_PI,
-                  c.worst.hi * 180 / M_PI, c.worst.rms, kAxisUnits[c.worst.axis], c.worst.segment.c_str());
+    std::snprintf(
+        line, sizeof line,
+        "worst: %s at A%d in [%.1f, %.1f] deg: RMS %.3f %s (%s segments are worse on this axis)\n",
+        kAxisNames[c.worst.axis], c.worst.joint + 1, c.worst.lo * 180 / M_PI,
+        c.worst.hi * 180 / M_PI, c.worst.rms, kAxisUnits[c.worst.axis], c.worst.segment.c_str());
     os << line;
   }
   return os.str();

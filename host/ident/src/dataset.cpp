@@ -55,7 +55,8 @@ Dataset make_dataset(const io::Log& log) {
     const double w = s0.q_base_sensor.angularDistance(s1.q_base_sensor) / dt;
     raw[i] = (v > 1e-3 || w > 2e-3) ? 1 : 0;
     if (log.columns.joints) {
-      for (int j = 0; j < 6; ++j) d.joint_vel_radps[i][j] = (s1.joints_rad[j] - s0.joints_rad[j]) / dt;
+      for (int j = 0; j < 6; ++j)
+        d.joint_vel_radps[i][j] = (s1.joints_rad[j] - s0.joints_rad[j]) / dt;
     }
   }
   if (n > 1) d.joint_vel_radps[0] = d.joint_vel_radps[1];
@@ -71,9 +72,8 @@ Dataset make_dataset(const io::Log& log) {
 
 Wrench predict(const model::ModelParams& params, const Dataset& data, std::size_t i) {
   const auto p = model::pointers(params);
-  const double* tau = params.effects.has(Effect::imu_time_offset)
-                          ? params.block(Effect::imu_time_offset)
-                          : nullptr;
+  const double* tau =
+      params.effects.has(Effect::imu_time_offset) ? params.block(Effect::imu_time_offset) : nullptr;
   return model::predict_wrench<double>(params.effects, p, data.pose[i], data.imu_at<double>(i, tau),
                                        data.rig);
 }
@@ -98,9 +98,11 @@ void check_signals(const model::EffectSet& effects, const Dataset& data) {
       throw std::runtime_error(std::string("effect '") + ei.name +
                                "' needs IMU columns (imu_f*, imu_w*) that the log lacks");
     if (e == Effect::temperature_bias && !data.columns.temperature)
-      throw std::runtime_error("effect 'temperature_bias' needs the temp_C column that the log lacks");
+      throw std::runtime_error(
+          "effect 'temperature_bias' needs the temp_C column that the log lacks");
     if (e == Effect::cable && !data.columns.joints)
-      throw std::runtime_error("effect 'cable' needs joint angles (q1_rad..q6_rad) that the log lacks");
+      throw std::runtime_error(
+          "effect 'cable' needs joint angles (q1_rad..q6_rad) that the log lacks");
     for (const auto& req : ei.requires_effects) {
       if (req && !effects.has(*req))
         throw std::runtime_error(std::string("effect '") + ei.name + "' builds on '" +

@@ -35,7 +35,8 @@ HeldOut heldout_error(const std::vector<Wrench>& res, const std::vector<std::uin
   return h;
 }
 
-std::array<double, 6> noise_estimate(const std::vector<Wrench>& res, const std::vector<std::uint8_t>& mask) {
+std::array<double, 6> noise_estimate(const std::vector<Wrench>& res,
+                                     const std::vector<std::uint8_t>& mask) {
   constexpr std::size_t kLag = 5;
   std::array<double, 6> dd{};
   std::size_t nd = 0;
@@ -46,7 +47,9 @@ std::array<double, 6> noise_estimate(const std::vector<Wrench>& res, const std::
     ++nd;
   }
   std::array<double, 6> out{};
-  for (int k = 0; k < 6; ++k) out[k] = std::max(std::sqrt(dd[k] / (2.0 * static_cast<double>(std::max<std::size_t>(nd, 1)))), 1e-9);
+  for (int k = 0; k < 6; ++k)
+    out[k] = std::max(std::sqrt(dd[k] / (2.0 * static_cast<double>(std::max<std::size_t>(nd, 1)))),
+                      1e-9);
   return out;
 }
 
@@ -92,7 +95,9 @@ Baseline fit_baseline(const Dataset& data, const model::EffectSet& effects, cons
 
 // Two held-out gains are indistinguishable if they differ by less than half a percentage point
 // or 2 % of the larger.
-bool gains_tie(double a, double b) { return std::abs(a - b) < std::max(0.005, 0.02 * std::max(a, b)); }
+bool gains_tie(double a, double b) {
+  return std::abs(a - b) < std::max(0.005, 0.02 * std::max(a, b));
+}
 
 std::vector<Candidate> evaluate_candidates(const Dataset& data, const Baseline& base,
                                            const Split& split, const DiagnoseOptions& o,
@@ -129,14 +134,16 @@ std::vector<Candidate> evaluate_candidates(const Dataset& data, const Baseline& 
     c.delta_bic = c.fit.bic - base.fit.bic;
     out.push_back(std::move(c));
   }
-  std::sort(out.begin(), out.end(), [](const Candidate& a, const Candidate& b) { return a.gain > b.gain; });
+  std::sort(out.begin(), out.end(),
+            [](const Candidate& a, const Candidate& b) { return a.gain > b.gain; });
   // Candidates that remove the same error (a general effect can mimic a specific one, e.g.
   // crosstalk can represent a sensor rotation) are tied; among tied ones the information
   // criterion decides, so the simpler explanation comes first.
   for (std::size_t g = 0; g < out.size();) {
     std::size_t end = g + 1;
     while (end < out.size() && gains_tie(out[g].gain, out[end].gain)) ++end;
-    std::sort(out.begin() + static_cast<std::ptrdiff_t>(g), out.begin() + static_cast<std::ptrdiff_t>(end),
+    std::sort(out.begin() + static_cast<std::ptrdiff_t>(g),
+              out.begin() + static_cast<std::ptrdiff_t>(end),
               [](const Candidate& a, const Candidate& b) { return a.delta_bic < b.delta_bic; });
     g = end;
   }
@@ -163,8 +170,10 @@ std::vector<Feature> features(const Dataset& data) {
   if (data.columns.joints) {
     for (int j = 0; j < 6; ++j) {
       const std::string a = "joint A" + std::to_string(j + 1);
-      add(a + " angle (sine)", [&, j](std::size_t i) { return std::sin(data.pose[i].joints_rad[j]); });
-      add(a + " angle (cosine)", [&, j](std::size_t i) { return std::cos(data.pose[i].joints_rad[j]); });
+      add(a + " angle (sine)",
+          [&, j](std::size_t i) { return std::sin(data.pose[i].joints_rad[j]); });
+      add(a + " angle (cosine)",
+          [&, j](std::size_t i) { return std::cos(data.pose[i].joints_rad[j]); });
       add(a + " velocity", [&, j](std::size_t i) { return data.joint_vel_radps[i][j]; });
       add(a + " velocity direction (sign)", [&, j](std::size_t i) {
         const double v = data.joint_vel_radps[i][j];
@@ -175,10 +184,12 @@ std::vector<Feature> features(const Dataset& data) {
   if (data.columns.imu) {
     const char* ax = "xyz";
     for (int k = 0; k < 3; ++k) {
-      add(std::string("angular rate about IMU ") + ax[k], [&, k](std::size_t i) { return data.imu[i * 9 + 3 + k]; });
+      add(std::string("angular rate about IMU ") + ax[k],
+          [&, k](std::size_t i) { return data.imu[i * 9 + 3 + k]; });
       add(std::string("angular acceleration about IMU ") + ax[k],
           [&, k](std::size_t i) { return data.imu[i * 9 + 6 + k]; });
-      add(std::string("specific force along IMU ") + ax[k], [&, k](std::size_t i) { return data.imu[i * 9 + k]; });
+      add(std::string("specific force along IMU ") + ax[k],
+          [&, k](std::size_t i) { return data.imu[i * 9 + k]; });
     }
     add("squared angular rate", [&](std::size_t i) {
       return Eigen::Map<const Eigen::Vector3d>(&data.imu[i * 9 + 3]).squaredNorm();
@@ -233,8 +244,8 @@ std::string param_summary(const Candidate& c) {
   std::sort(idx.begin(), idx.end(), [&](int a, int b) { return std::abs(v[a]) > std::abs(v[b]); });
   for (int q = 0; q < std::min(ei.num_params, 6); ++q) {
     const int i = idx[q];
-    s += (s.empty() ? "" : ", ") + std::string(ei.params[i].name) + " = " + fmt("%.4g", v[i]) + " " +
-         ei.params[i].unit;
+    s += (s.empty() ? "" : ", ") + std::string(ei.params[i].name) + " = " + fmt("%.4g", v[i]) +
+         " " + ei.params[i].unit;
   }
   if (ei.num_params > 6) s += ", … (" + std::to_string(ei.num_params) + " parameters)";
   return s;
@@ -262,7 +273,8 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
   Diagnosis d;
   d.model = o.fit.effects;
   const Split split = make_split(data, o);
-  if (o.progress) o.progress("diagnose: fitting " + io::effect_list_string(d.model) + " on the training blocks");
+  if (o.progress)
+    o.progress("diagnose: fitting " + io::effect_list_string(d.model) + " on the training blocks");
   Baseline base = fit_baseline(data, d.model, split, o, o.fit.initial);
   d.baseline = base.fit;
   d.baseline_heldout = base.heldout;
@@ -303,9 +315,9 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
     const auto& ei = model::info(c.effect);
     const auto& ch = c.heldout.stats;
     os << "Missing effect: " << ei.name << " (" << ei.summary << "). Adding it removes "
-       << fmt("%.0f", 100 * c.gain) << "% of the held-out error (force RMS " << fmt("%.3f", h.force_rms)
-       << " -> " << fmt("%.3f", ch.force_rms) << " N, torque RMS " << fmt("%.3f", h.torque_rms) << " -> "
-       << fmt("%.3f", ch.torque_rms) << " N*m)";
+       << fmt("%.0f", 100 * c.gain) << "% of the held-out error (force RMS "
+       << fmt("%.3f", h.force_rms) << " -> " << fmt("%.3f", ch.force_rms) << " N, torque RMS "
+       << fmt("%.3f", h.torque_rms) << " -> " << fmt("%.3f", ch.torque_rms) << " N*m)";
     if (d.candidates.size() > 1 && gains_tie(c.gain, d.candidates[1].gain)) {
       const Candidate& alt = d.candidates[1];
       os << "; " << model::info(alt.effect).name << " removes as much ("
@@ -317,23 +329,24 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
          << fmt("%.0f", 100 * d.candidates[1].gain) << "%";
     }
     os << ". Estimated: " << param_summary(c) << ".";
-    d.command = "zerog fit " + o.log_path + " --effects " + io::effect_list_string(c.effects) + " --out fitted.json";
+    d.command = "zerog fit " + o.log_path + " --effects " + io::effect_list_string(c.effects) +
+                " --out fitted.json";
   } else {
     d.verdict = Diagnosis::Verdict::none;
     os << "No library effect explains the remaining structure: "
        << fmt("%.0f", 100 * d.structured_fraction) << "% of the held-out error is structured, ";
     if (!d.candidates.empty())
-      os << "but the best candidate, " << model::info(d.candidates[0].effect).name << ", removes only "
-         << fmt("%.0f", 100 * std::max(0.0, d.candidates[0].gain)) << "% (" << fmt("%.0f", 100 * std::max(0.0, explained))
-         << "% of the structure). ";
+      os << "but the best candidate, " << model::info(d.candidates[0].effect).name
+         << ", removes only " << fmt("%.0f", 100 * std::max(0.0, d.candidates[0].gain)) << "% ("
+         << fmt("%.0f", 100 * std::max(0.0, explained)) << "% of the structure). ";
     else
       os << "and no candidate is left to try. ";
     if (!d.correlated.empty()) {
       os << "The residual correlates with: ";
       for (std::size_t q = 0; q < std::min<std::size_t>(3, d.correlated.size()); ++q) {
         const auto& s = d.correlated[q];
-        os << (q ? "; " : "") << s.signal << " on " << kAxisNames[s.axis] << " (rho = "
-           << fmt("%.2f", s.correlation) << ")";
+        os << (q ? "; " : "") << s.signal << " on " << kAxisNames[s.axis]
+           << " (rho = " << fmt("%.2f", s.correlation) << ")";
       }
       os << ". Look for a physical cause tied to " << d.correlated[0].signal << ".";
     }
@@ -345,8 +358,10 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
 std::vector<LadderStep> ladder(const Dataset& data, const LadderOptions& o) {
   std::vector<LadderStep> steps;
   const Split split = make_split(data, o.diagnose);
-  model::EffectSet effects = o.diagnose.fit.effects.size() ? o.diagnose.fit.effects : model::kMinimalModel;
-  if (o.diagnose.progress) o.diagnose.progress("ladder: step 0, " + io::effect_list_string(effects));
+  model::EffectSet effects =
+      o.diagnose.fit.effects.size() ? o.diagnose.fit.effects : model::kMinimalModel;
+  if (o.diagnose.progress)
+    o.diagnose.progress("ladder: step 0, " + io::effect_list_string(effects));
   Baseline base = fit_baseline(data, effects, split, o.diagnose, nullptr);
   steps.push_back({effects, std::nullopt, base.heldout, base.fit.bic, 0.0});
   for (int s = 0; s < o.max_steps; ++s) {
@@ -359,7 +374,8 @@ std::vector<LadderStep> ladder(const Dataset& data, const LadderOptions& o) {
     if (best.gain < o.min_gain || best.delta_bic >= 0) break;
     effects = best.effects;
     if (o.diagnose.progress)
-      o.diagnose.progress("ladder: step " + std::to_string(s + 1) + ", adds " + model::info(best.effect).name);
+      o.diagnose.progress("ladder: step " + std::to_string(s + 1) + ", adds " +
+                          model::info(best.effect).name);
     // Refit so the next step's whitening matches the new model.
     base = fit_baseline(data, effects, split, o.diagnose, &best.fit.params);
     steps.push_back({effects, best.effect, base.heldout, base.fit.bic, best.gain});
@@ -369,8 +385,11 @@ std::vector<LadderStep> ladder(const Dataset& data, const LadderOptions& o) {
 
 namespace {
 nlohmann::json heldout_json(const HeldOut& h) {
-  return {{"force_rms", h.stats.force_rms}, {"torque_rms", h.stats.torque_rms}, {"rms", h.stats.rms},
-          {"max", h.stats.max_abs}, {"count", h.stats.count}};
+  return {{"force_rms", h.stats.force_rms},
+          {"torque_rms", h.stats.torque_rms},
+          {"rms", h.stats.rms},
+          {"max", h.stats.max_abs},
+          {"count", h.stats.count}};
 }
 nlohmann::json names(const model::EffectSet& s) {
   nlohmann::json a = nlohmann::json::array();
@@ -403,15 +422,17 @@ nlohmann::json to_json(const Diagnosis& d) {
     j["candidates"].push_back(cj);
   }
   const char* kinds[] = {"effect", "none", "nothing_left"};
-  j["verdict"] = {{"kind", kinds[static_cast<int>(d.verdict)]},
-                  {"effect", d.verdict == Diagnosis::Verdict::effect
-                                 ? nlohmann::json(model::info(d.candidates[0].effect).name)
-                                 : nlohmann::json(nullptr)},
-                  {"text", d.text},
-                  {"command", d.command.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.command)}};
+  j["verdict"] = {
+      {"kind", kinds[static_cast<int>(d.verdict)]},
+      {"effect", d.verdict == Diagnosis::Verdict::effect
+                     ? nlohmann::json(model::info(d.candidates[0].effect).name)
+                     : nlohmann::json(nullptr)},
+      {"text", d.text},
+      {"command", d.command.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.command)}};
   j["correlated_signals"] = nlohmann::json::array();
   for (const auto& s : d.correlated)
-    j["correlated_signals"].push_back({{"signal", s.signal}, {"axis", kAxisNames[s.axis]}, {"correlation", s.correlation}});
+    j["correlated_signals"].push_back(
+        {{"signal", s.signal}, {"axis", kAxisNames[s.axis]}, {"correlation", s.correlation}});
   return j;
 }
 
@@ -421,11 +442,12 @@ nlohmann::json to_json(const std::vector<LadderStep>& steps) {
   j["version"] = 1;
   j["steps"] = nlohmann::json::array();
   for (const auto& s : steps) {
-    j["steps"].push_back({{"effects", names(s.effects)},
-                          {"added", s.added ? nlohmann::json(model::info(*s.added).name) : nlohmann::json(nullptr)},
-                          {"heldout", heldout_json(s.heldout)},
-                          {"bic", s.bic},
-                          {"gain", s.gain}});
+    j["steps"].push_back(
+        {{"effects", names(s.effects)},
+         {"added", s.added ? nlohmann::json(model::info(*s.added).name) : nlohmann::json(nullptr)},
+         {"heldout", heldout_json(s.heldout)},
+         {"bic", s.bic},
+         {"gain", s.gain}});
   }
   return j;
 }
@@ -433,17 +455,20 @@ nlohmann::json to_json(const std::vector<LadderStep>& steps) {
 std::string format_diagnosis(const Diagnosis& d) {
   std::ostringstream os;
   os << "model: " << io::effect_list_string(d.model) << "\n";
-  os << "held-out error: force RMS " << fmt("%.3f", d.baseline_heldout.stats.force_rms) << " N, torque RMS "
-     << fmt("%.3f", d.baseline_heldout.stats.torque_rms) << " N*m; white-noise estimate force "
+  os << "held-out error: force RMS " << fmt("%.3f", d.baseline_heldout.stats.force_rms)
+     << " N, torque RMS " << fmt("%.3f", d.baseline_heldout.stats.torque_rms)
+     << " N*m; white-noise estimate force "
      << fmt("%.3f", std::sqrt((d.noise_rms[0] * d.noise_rms[0] + d.noise_rms[1] * d.noise_rms[1] +
-                               d.noise_rms[2] * d.noise_rms[2]) / 3))
+                               d.noise_rms[2] * d.noise_rms[2]) /
+                              3))
      << " N, torque "
      << fmt("%.3f", std::sqrt((d.noise_rms[3] * d.noise_rms[3] + d.noise_rms[4] * d.noise_rms[4] +
-                               d.noise_rms[5] * d.noise_rms[5]) / 3))
+                               d.noise_rms[5] * d.noise_rms[5]) /
+                              3))
      << " N*m (" << fmt("%.0f", 100 * d.structured_fraction) << "% structured)\n\n";
   char line[200];
-  std::snprintf(line, sizeof line, "%-4s %-20s %8s %11s %12s %10s  %s\n", "rank", "effect", "gain", "force rms",
-                "torque rms", "dBIC", "per-axis gain Fx Fy Fz Mx My Mz");
+  std::snprintf(line, sizeof line, "%-4s %-20s %8s %11s %12s %10s  %s\n", "rank", "effect", "gain",
+                "force rms", "torque rms", "dBIC", "per-axis gain Fx Fy Fz Mx My Mz");
   os << line;
   int r = 0;
   for (const auto& c : d.candidates) {
@@ -457,7 +482,8 @@ std::string format_diagnosis(const Diagnosis& d) {
   if (!d.correlated.empty()) {
     os << "\nresidual correlates with (held-out):\n";
     for (const auto& s : d.correlated)
-      os << "  " << fmt("%+.2f", s.correlation) << "  " << kAxisNames[s.axis] << " ~ " << s.signal << "\n";
+      os << "  " << fmt("%+.2f", s.correlation) << "  " << kAxisNames[s.axis] << " ~ " << s.signal
+         << "\n";
   }
   os << "\n" << d.text << "\n";
   if (!d.command.empty()) os << "add it:  " << d.command << "\n";
@@ -467,7 +493,8 @@ std::string format_diagnosis(const Diagnosis& d) {
 std::string format_ladder(const std::vector<LadderStep>& steps) {
   std::ostringstream os;
   char line[200];
-  std::snprintf(line, sizeof line, "%-4s %-20s %12s %14s %8s\n", "step", "added", "force rms", "torque rms", "gain");
+  std::snprintf(line, sizeof line, "%-4s %-20s %12s %14s %8s\n", "step", "added", "force rms",
+                "torque rms", "gain");
   os << line;
   int k = 0;
   for (const auto& s : steps) {

@@ -33,8 +33,8 @@ struct BlockResidual {
       const int s = slot[model::index(e)];
       p[model::index(e)] = s >= 0 ? blocks[s] : nullptr;
     }
-    const T* tau = effects.has(Effect::imu_time_offset) ? p[model::index(Effect::imu_time_offset)]
-                                                        : nullptr;
+    const T* tau =
+        effects.has(Effect::imu_time_offset) ? p[model::index(Effect::imu_time_offset)] : nullptr;
     model::Wrench<T> sum = model::Wrench<T>::Zero();
     ident::Wrench meas = ident::Wrench::Zero();
     for (std::size_t i = first; i < first + count; ++i) {
@@ -50,8 +50,8 @@ struct BlockResidual {
 
 // Blocks of `m` consecutive used samples, never spanning a gap in the mask (so held-out data
 // never leaks into training); a run's leftover tail shorter than m is not used.
-std::vector<std::pair<std::size_t, std::size_t>> make_blocks(const Dataset& data, const FitOptions& o,
-                                                             int m) {
+std::vector<std::pair<std::size_t, std::size_t>> make_blocks(const Dataset& data,
+                                                             const FitOptions& o, int m) {
   std::vector<std::pair<std::size_t, std::size_t>> blocks;
   std::size_t run_start = 0;
   bool in_run = false;
@@ -79,8 +79,8 @@ void linear_init(const Dataset& data, const FitOptions& o, model::ModelParams& p
   const model::EffectSet gravity_only{Effect::gravity};
   for (std::size_t i = 0; i < data.size(); ++i) {
     if (!use(o, i)) continue;
-    const Eigen::Vector3d g = data.pose[i].R_base_sensor.transpose() *
-                              Eigen::Vector3d(0, 0, -model::kStandardGravity);
+    const Eigen::Vector3d g =
+        data.pose[i].R_base_sensor.transpose() * Eigen::Vector3d(0, 0, -model::kStandardGravity);
     // unknowns: F0(3) m(1) M0(3) h(3); rows: F (3), M (3)
     Eigen::Matrix<double, 6, 10> J = Eigen::Matrix<double, 6, 10>::Zero();
     J.block<3, 3>(0, 0).setIdentity();
@@ -144,8 +144,8 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
       if (!o.initial->effects.has(e)) r.params.values[model::index(e)].fill(0.0);
     }
   }
-  const bool init_linear =
-      o.initial == nullptr || !o.initial->effects.has(Effect::bias) || !o.initial->effects.has(Effect::gravity);
+  const bool init_linear = o.initial == nullptr || !o.initial->effects.has(Effect::bias) ||
+                           !o.initial->effects.has(Effect::gravity);
   if (init_linear) linear_init(data, o, r.params);
 
   std::array<int, model::kEffectCount> slot;
@@ -184,7 +184,8 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
     std::vector<double*> blocks;
     for (Effect e : order) blocks.push_back(r.params.block(e));
     for (const auto& [first, count] : blocks_of_samples) {
-      auto* cost = new CostFunction(new BlockResidual{&data, first, count, o.effects, slot, inv_sigma});
+      auto* cost =
+          new CostFunction(new BlockResidual{&data, first, count, o.effects, slot, inv_sigma});
       for (Effect e : order) cost->AddParameterBlock(model::info(e).num_params);
       cost->SetNumResiduals(6);
       problem->AddResidualBlock(cost, loss.get(), blocks);
@@ -200,8 +201,9 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
     std::unique_ptr<ProgressCallback> cb;
     if (o.progress) {
       o.progress("fit pass " + std::to_string(pass + 1) + "/" + std::to_string(passes) + ": " +
-                 std::to_string(problem->NumResidualBlocks()) + " blocks of " + std::to_string(o.block_samples) + " samples, " +
-                 std::to_string(r.num_params) + " parameters");
+                 std::to_string(problem->NumResidualBlocks()) + " blocks of " +
+                 std::to_string(o.block_samples) + " samples, " + std::to_string(r.num_params) +
+                 " parameters");
       cb = std::make_unique<ProgressCallback>(o.progress);
       so.callbacks.push_back(cb.get());
     }
@@ -232,7 +234,8 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
       solved.ssr += ss_block[k] / (sigma[k] * sigma[k]);
     }
     if (pass + 1 < passes) {
-      for (int k = 0; k < 6; ++k) sigma[k] = std::max(std::sqrt(ss_block[k] / nb), k < 3 ? 1e-4 : 1e-5);
+      for (int k = 0; k < 6; ++k)
+        sigma[k] = std::max(std::sqrt(ss_block[k] / nb), k < 3 ? 1e-4 : 1e-5);
     }
   }
   r.sigma = sigma;
@@ -283,9 +286,9 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
         deficient[q] = true;
         who += (who.empty() ? "" : ", ") + param_label(names[q].first, names[q].second);
       }
-      r.warnings.push_back({"rank_deficient",
-                            "the data cannot identify a combination of " + who +
-                                ": only their combination is seen (rank deficiency)"});
+      r.warnings.push_back(
+          {"rank_deficient", "the data cannot identify a combination of " + who +
+                                 ": only their combination is seen (rank deficiency)"});
     }
     // Pseudo-inverse restricted to the identifiable directions.
     Eigen::MatrixXd cov_scaled = Eigen::MatrixXd::Zero(p, p);
@@ -319,7 +322,8 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
     for (auto& a : stds) a.fill(std::numeric_limits<double>::quiet_NaN());
     for (int q = 0; q < p; ++q) {
       stds[model::index(names[q].first)][names[q].second] =
-          deficient[q] ? std::numeric_limits<double>::quiet_NaN() : std::sqrt(std::max(cov(q, q), 0.0));
+          deficient[q] ? std::numeric_limits<double>::quiet_NaN()
+                       : std::sqrt(std::max(cov(q, q), 0.0));
     }
     r.std = stds;
     for (int a = 0; a < p; ++a) {
@@ -330,8 +334,9 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
           std::ostringstream os;
           os.precision(4);
           os << param_label(names[a].first, names[a].second) << " and "
-             << param_label(names[b].first, names[b].second) << " are strongly correlated (rho = "
-             << rho << "): the data barely tells them apart; their standard deviations are large";
+             << param_label(names[b].first, names[b].second)
+             << " are strongly correlated (rho = " << rho
+             << "): the data barely tells them apart; their standard deviations are large";
           r.warnings.push_back({"correlated", os.str()});
         }
       }

@@ -45,11 +45,12 @@ ModelFile model_from_json(const nlohmann::json& j, const std::string& source) {
   if (!j.contains("version") || !j["version"].is_number_integer())
     fail("key 'version' missing or not an integer");
   if (j["version"].get<int>() != kModelFormatVersion)
-    fail("version " + std::to_string(j["version"].get<int>()) + " is not supported (this zerog reads " +
-         std::to_string(kModelFormatVersion) + ")");
+    fail("version " + std::to_string(j["version"].get<int>()) +
+         " is not supported (this zerog reads " + std::to_string(kModelFormatVersion) + ")");
   ModelFile m;
   m.rig_name = j.value("rig", "");
-  if (!j.contains("effects") || !j["effects"].is_array()) fail("key 'effects' missing or not a list");
+  if (!j.contains("effects") || !j["effects"].is_array())
+    fail("key 'effects' missing or not a list");
   bool any_std = false;
   std::array<std::array<double, model::kMaxEffectParams>, model::kEffectCount> stds{};
   for (const auto& name : j["effects"]) {
@@ -60,13 +61,15 @@ ModelFile model_from_json(const nlohmann::json& j, const std::string& source) {
     const auto& ei = info(*e);
     if (ei.num_params == 0) continue;
     const auto params = j.contains("parameters") ? j["parameters"] : nlohmann::json::object();
-    if (!params.contains(ei.name)) fail("parameters of effect '" + std::string(ei.name) + "' missing");
+    if (!params.contains(ei.name))
+      fail("parameters of effect '" + std::string(ei.name) + "' missing");
     const auto& block = params[ei.name];
     for (int i = 0; i < ei.num_params; ++i) {
       const std::string key = std::string("parameters.") + ei.name + "." + ei.params[i].name;
       if (!block.contains(ei.params[i].name)) fail("key '" + key + "' missing");
       const auto& p = block[ei.params[i].name];
-      if (!p.contains("value") || !p["value"].is_number()) fail("key '" + key + ".value' missing or not a number");
+      if (!p.contains("value") || !p["value"].is_number())
+        fail("key '" + key + ".value' missing or not a number");
       m.params.block(*e)[i] = p["value"].get<double>();
       if (p.contains("std") && p["std"].is_number()) {
         stds[model::index(*e)][i] = p["std"].get<double>();
@@ -105,7 +108,8 @@ model::EffectSet parse_effect_list(const std::string& list) {
     auto e = model::effect_from_name(item);
     if (!e) {
       std::string known;
-      for (Effect k : model::kAllEffects) known += std::string(known.empty() ? "" : ", ") + info(k).name;
+      for (Effect k : model::kAllEffects)
+        known += std::string(known.empty() ? "" : ", ") + info(k).name;
       throw std::runtime_error("unknown effect '" + item + "' (known: " + known + ")");
     }
     set.add(*e);

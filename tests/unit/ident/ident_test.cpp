@@ -41,12 +41,14 @@ io::Log model_log(std::size_t n, double noise, bool temperature) {
     io::Sample s;
     s.t_s = 0.012 * static_cast<double>(i);
     const double a = 0.3 * s.t_s, c = 0.17 * s.t_s;
-    const Eigen::Matrix3d R = model::rot_z(a) * model::rot_y(std::sin(c) * 1.5) * model::rot_x(0.7 * std::cos(a));
+    const Eigen::Matrix3d R =
+        model::rot_z(a) * model::rot_y(std::sin(c) * 1.5) * model::rot_x(0.7 * std::cos(a));
     s.q_base_sensor = Eigen::Quaterniond(R);
     s.joints_rad = {a, -1.2, 1.0, c, 0.5, a};
     model::PoseSignals pose;
     pose.R_base_sensor = R;
-    const auto w = model::predict_wrench<double>(truth.effects, model::pointers(truth), pose, {}, {});
+    const auto w =
+        model::predict_wrench<double>(truth.effects, model::pointers(truth), pose, {}, {});
     for (int k = 0; k < 3; ++k) {
       s.force_sensor_N[k] = w[k] + noise * gauss();
       s.torque_sensor_Nm[k] = w[3 + k] + 0.1 * noise * gauss();
@@ -114,7 +116,8 @@ TEST(Fit, WarnsWhenTheDataCannotSeparateParameters) {
   const FitResult r = fit(d, o);
   ASSERT_TRUE(r.usable);
   bool named = false;
-  for (const auto& w : r.warnings) named = named || w.message.find("base_tilt.alpha") != std::string::npos;
+  for (const auto& w : r.warnings)
+    named = named || w.message.find("base_tilt.alpha") != std::string::npos;
   EXPECT_TRUE(named);
 }
 

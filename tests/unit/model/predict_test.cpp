@@ -54,11 +54,13 @@ TEST(Predict, LinearInertiaAtRestEqualsGravityFromPose) {
   RigGeometry rig;
   rig.R_sensor_imu = rot_z(M_PI / 2) * rot_x(0.1);
   rig.p_sensor_imu_m = Eigen::Vector3d(0.05, 0.0, -0.04);
-  const Eigen::Vector3d g_S = pose.R_base_sensor.transpose() * Eigen::Vector3d(0, 0, -kStandardGravity);
+  const Eigen::Vector3d g_S =
+      pose.R_base_sensor.transpose() * Eigen::Vector3d(0, 0, -kStandardGravity);
   ImuSignals<double> imu;
   imu.specific_force_imu = -(rig.R_sensor_imu.transpose() * g_S);
   const Wrench<double> from_pose = eval(payload({Effect::gravity}), pose, imu, rig);
-  const Wrench<double> from_imu = eval(payload({Effect::gravity, Effect::linear_inertia}), pose, imu, rig);
+  const Wrench<double> from_imu =
+      eval(payload({Effect::gravity, Effect::linear_inertia}), pose, imu, rig);
   EXPECT_NEAR((from_pose - from_imu).norm(), 0.0, 1e-9);
 }
 
@@ -105,7 +107,8 @@ TEST(Predict, SensorRotationRotatesGravityIntoTheTrueFrame) {
   p.block(Effect::sensor_rotation)[0] = 0.01;
   const Wrench<double> w = eval(p, {}, {});
   // True S = nominal S rotated by Rx(0.01): gravity in true S is Rx(0.01)^T (0,0,−g).
-  const Eigen::Vector3d expected = rot_x(0.01).transpose() * Eigen::Vector3d(0, 0, -100 * kStandardGravity);
+  const Eigen::Vector3d expected =
+      rot_x(0.01).transpose() * Eigen::Vector3d(0, 0, -100 * kStandardGravity);
   EXPECT_NEAR((w.head<3>() - expected).norm(), 0.0, 1e-9);
 }
 
@@ -113,9 +116,9 @@ TEST(Predict, DriftTemperatureCrosstalkAndCable) {
   ModelParams p = payload({Effect::gravity, Effect::crosstalk, Effect::bias_drift,
                            Effect::temperature_bias, Effect::cable});
   p.block(Effect::crosstalk)[0 * 6 + 1] = 0.01;  // Fx picks up 1 % of Fy
-  p.block(Effect::bias_drift)[2] = 0.002;         // Fz drifts 2 mN/s
-  p.block(Effect::temperature_bias)[5] = 0.1;     // Mz: 0.1 N·m/K
-  p.block(Effect::cable)[2 * 12 + 6 + 1] = 3.0;   // A6 sine → Fy, 3 N
+  p.block(Effect::bias_drift)[2] = 0.002;        // Fz drifts 2 mN/s
+  p.block(Effect::temperature_bias)[5] = 0.1;    // Mz: 0.1 N·m/K
+  p.block(Effect::cable)[2 * 12 + 6 + 1] = 3.0;  // A6 sine → Fy, 3 N
   PoseSignals pose;
   pose.R_base_sensor = rot_x(M_PI / 2);  // gravity along sensor +y… (R^T (0,0,−g))
   pose.t_rel_s = 100.0;
@@ -124,7 +127,7 @@ TEST(Predict, DriftTemperatureCrosstalkAndCable) {
   const Wrench<double> w = eval(p, pose, {});
   ModelParams g = payload({Effect::gravity});
   Wrench<double> base = eval(g, pose, {});
-  base[1] += 3.0;                 // cable acts on the sensor, so it also sees the crosstalk
+  base[1] += 3.0;  // cable acts on the sensor, so it also sees the crosstalk
   const double fy = base[1];
   base[0] += 0.01 * fy;
   base[2] += 0.2;
@@ -143,7 +146,8 @@ TEST(Predict, AutodiffDerivativeOfForceWithRespectToMassIsGravity) {
   PoseSignals pose;
   pose.R_base_sensor = rot_y(0.5);
   const Wrench<J> w = predict_wrench<J>(p.effects, ptr, pose, ImuSignals<J>{}, RigGeometry{});
-  const Eigen::Vector3d g = pose.R_base_sensor.transpose() * Eigen::Vector3d(0, 0, -kStandardGravity);
+  const Eigen::Vector3d g =
+      pose.R_base_sensor.transpose() * Eigen::Vector3d(0, 0, -kStandardGravity);
   for (int k = 0; k < 3; ++k) EXPECT_NEAR(w[k].v[0], g[k], 1e-12);
 }
 

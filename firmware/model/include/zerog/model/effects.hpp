@@ -73,11 +73,17 @@ class EffectSet {
 };
 
 /// All effects, in declaration order (for iteration).
-inline constexpr std::array<Effect, kEffectCount> kAllEffects = {
-    Effect::bias,          Effect::gravity,          Effect::base_tilt,
-    Effect::linear_inertia, Effect::rotational_inertia, Effect::imu_time_offset,
-    Effect::bias_drift,    Effect::temperature_bias, Effect::crosstalk,
-    Effect::sensor_rotation, Effect::cable};
+inline constexpr std::array<Effect, kEffectCount> kAllEffects = {Effect::bias,
+                                                                 Effect::gravity,
+                                                                 Effect::base_tilt,
+                                                                 Effect::linear_inertia,
+                                                                 Effect::rotational_inertia,
+                                                                 Effect::imu_time_offset,
+                                                                 Effect::bias_drift,
+                                                                 Effect::temperature_bias,
+                                                                 Effect::crosstalk,
+                                                                 Effect::sensor_rotation,
+                                                                 Effect::cable};
 
 /// The paper's analytic model (000_… eq. 1–5): bias, gravity, linear and rotational inertia.
 inline constexpr EffectSet kDefaultModel = {Effect::bias, Effect::gravity, Effect::linear_inertia,

@@ -31,7 +31,7 @@ struct RigGeometry {
 /// Signals of one sample that do not depend on model parameters.
 struct PoseSignals {
   Eigen::Matrix3d R_base_sensor = Eigen::Matrix3d::Identity();  ///< nominal sensor attitude in base
-  double t_rel_s = 0.0;        ///< time since the start of the log, s
+  double t_rel_s = 0.0;                           ///< time since the start of the log, s
   double temperature_C = kTemperatureReferenceC;  ///< sensor temperature, °C
   std::array<double, 6> joints_rad{};             ///< robot joint angles A1..A6, rad
 };
@@ -99,8 +99,8 @@ Wrench<T> predict_wrench(const EffectSet& effects, const ParamPointers<T>& p,
       // m (g − a_c) = −m × (specific force at the centre of mass). The accelerometer measures
       // specific force at the IMU; rigid-body transfer to the centre of mass (lever r).
       const Vec3<T> r = com - p_sensor_imu;
-      const Vec3<T> f_com = R_sensor_imu * imu.specific_force_imu + omega_dot.cross(r) +
-                            omega.cross(omega.cross(r));
+      const Vec3<T> f_com =
+          R_sensor_imu * imu.specific_force_imu + omega_dot.cross(r) + omega.cross(omega.cross(r));
       force = -mass * f_com;
     } else {
       force = mass * gravity_sensor(effects, p, pose.R_base_sensor, R_nominal_true);

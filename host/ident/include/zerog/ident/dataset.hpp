@@ -16,13 +16,13 @@ using Wrench = Eigen::Matrix<double, 6, 1>;
 struct Dataset {
   model::RigGeometry rig;
   io::Columns columns;
-  double dt_s = 0.012;   ///< mean row period (IMU time shifts interpolate on this grid)
+  double dt_s = 0.012;  ///< mean row period (IMU time shifts interpolate on this grid)
   std::vector<double> t_s;
   std::vector<model::PoseSignals> pose;
   /// n rows of 9: specific force (3), angular rate (3), angular acceleration (3), IMU frame.
   std::vector<double> imu;
   std::vector<Wrench> measured;
-  std::vector<std::uint8_t> moving;                 ///< 1 while the sensor moves
+  std::vector<std::uint8_t> moving;                    ///< 1 while the sensor moves
   std::vector<std::array<double, 6>> joint_vel_radps;  ///< from differencing the joint angles
 
   std::size_t size() const { return t_s.size(); }

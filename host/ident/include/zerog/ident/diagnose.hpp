@@ -23,9 +23,9 @@ struct Candidate {
   model::EffectSet effects;  ///< the model with the candidate (and what it builds on)
   FitResult fit;
   HeldOut heldout;
-  double gain = 0.0;       ///< fraction of the baseline's held-out noise-whitened MSE removed
+  double gain = 0.0;  ///< fraction of the baseline's held-out noise-whitened MSE removed
   std::array<double, 6> axis_gain{};  ///< per-axis fraction of held-out MSE removed
-  double delta_bic = 0.0;  ///< BIC(candidate) − BIC(baseline), on the training samples
+  double delta_bic = 0.0;             ///< BIC(candidate) − BIC(baseline), on the training samples
 };
 
 struct SignalCorrelation {
@@ -41,9 +41,10 @@ struct Diagnosis {
   /// White noise per axis, estimated from differences of held-out residuals 5 rows apart
   /// (structure is smooth over 60 ms, noise is not).
   std::array<double, 6> noise_rms{};
-  /// Share of the noise-whitened held-out MSE above the noise: Σ_k max(0, mse_k/σ_k² − 1) / Σ_k mse_k/σ_k².
+  /// Share of the noise-whitened held-out MSE above the noise: Σ_k max(0, mse_k/σ_k² − 1) / Σ_k
+  /// mse_k/σ_k².
   double structured_fraction = 0.0;
-  std::vector<Candidate> candidates;  ///< best first
+  std::vector<Candidate> candidates;          ///< best first
   std::vector<SignalCorrelation> correlated;  ///< strongest first
   enum class Verdict { effect, none, nothing_left } verdict = Verdict::none;
   std::string text;     ///< plain words
@@ -51,9 +52,9 @@ struct Diagnosis {
 };
 
 struct DiagnoseOptions {
-  double block_s = 60.0;   ///< time-block length for the held-out split
-  int every = 4;           ///< every n-th block is held out
-  FitOptions fit;          ///< effects = the model to diagnose; mask is set internally
+  double block_s = 60.0;             ///< time-block length for the held-out split
+  int every = 4;                     ///< every n-th block is held out
+  FitOptions fit;                    ///< effects = the model to diagnose; mask is set internally
   std::string log_path = "run.csv";  ///< for the suggested command
   std::function<void(const std::string&)> progress;
 };
@@ -77,7 +78,8 @@ struct LadderOptions {
   int max_steps = 10;
 };
 
-/// From `options.diagnose.fit.effects` (default bias + gravity), adds the best effect while it pays.
+/// From `options.diagnose.fit.effects` (default bias + gravity), adds the best effect while it
+/// pays.
 std::vector<LadderStep> ladder(const Dataset& data, const LadderOptions& options);
 
 nlohmann::json to_json(const Diagnosis& d);

@@ -23,7 +23,7 @@ struct FitOptions {
   /// proto/effects.md, "Angular acceleration and noise".
   int block_samples = 8;
   int threads = 2;
-  bool covariance = true;     ///< compute standard deviations and identifiability
+  bool covariance = true;  ///< compute standard deviations and identifiability
   const std::vector<std::uint8_t>* mask = nullptr;  ///< use sample i only if (*mask)[i] == 1
   const model::ModelParams* initial = nullptr;      ///< start values (others: linear init)
   /// Per-axis noise for whitening; if absent, estimated (two passes).
