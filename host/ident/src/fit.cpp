@@ -5,8 +5,11 @@
 #include <Eigen/Dense>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 namespace zerog::ident {
@@ -16,37 +19,148 @@ using model::Effect;
 
 // One residual block per block of `count` consecutive samples: whitened mean(measured) −
 // mean(predicted), six values. Averaging both sides the same way is exact for the nonlinear
-// model and cuts the noise of differentiated gyro signals (see proto/effects.md). Parameter
-// blocks are the active effects with parameters.
-struct BlockResidual {
-  const Dataset* data;
-  std::size_t first;
-  std::size_t count;
-  model::EffectSet effects;
-  std::array<int, model::kEffectCount> slot;  // effect index → parameter-block slot, −1 if none
-  std::array<double, 6> inv_sigma;
+// model and cuts the noise of differentiated gyro signals (see proto/effects.md).
+//
+// Derivatives by automatic differentiation in two stages, through the model's own two stages
+// (model::payload_wrench, model::sensor_output): the nonlinear payload stage with a Jet of
+// kCoreDim derivatives, then the sensor stage with a Jet over its own parameters plus the six
+// payload-wrench components, and the chain rule between them: one pass over the model code
+// instead of re-running all of it for every chunk of parameters.
+// The sensor-stage Jet is as wide as the model needs (payload wrench 6, cable 36, crosstalk 36,
+// bias, drift, temperature 6 each: at most 96), chosen from a few instantiations.
+constexpr int kCoreDim = 16;  // gravity 4, base_tilt 2, rotational_inertia 6, tau 1, rotation 3
+using CoreJet = ceres::Jet<double, kCoreDim>;
 
-  template <typename T>
-  bool operator()(T const* const* blocks, T* residual) const {
-    model::ParamPointers<T> p{};
-    for (Effect e : model::kAllEffects) {
-      const int s = slot[model::index(e)];
-      p[model::index(e)] = s >= 0 ? blocks[s] : nullptr;
+template <int kSensorDim>
+class BlockCost : public ceres::CostFunction {
+  using SensorJet = ceres::Jet<double, kSensorDim>;
+
+ public:
+  BlockCost(const Dataset* data, std::size_t first, std::size_t count, model::EffectSet effects,
+            std::vector<Effect> order, std::array<double, 6> inv_sigma)
+      : data_(data),
+        first_(first),
+        count_(count),
+        effects_(effects),
+        order_(std::move(order)),
+        inv_sigma_(inv_sigma) {
+    set_num_residuals(6);
+    int core = 0, sensor = 6;
+    for (Effect e : order_) {
+      const int n = model::info(e).num_params;
+      mutable_parameter_block_sizes()->push_back(n);
+      int& next = model::is_payload_effect(e) ? core : sensor;
+      offset_[model::index(e)] = next;
+      next += n;
     }
-    const T* tau =
-        effects.has(Effect::imu_time_offset) ? p[model::index(Effect::imu_time_offset)] : nullptr;
-    model::Wrench<T> sum = model::Wrench<T>::Zero();
+  }
+
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    // Parameters as Jets with a unit derivative in their own slot (storage for the active
+    // blocks only: a Jet is zeroed on construction).
+    std::array<CoreJet, kCoreDim> core;
+    std::array<SensorJet, kSensorDim> sensor;
+    model::ParamPointers<CoreJet> pc{};
+    model::ParamPointers<SensorJet> ps{};
+    for (std::size_t b = 0; b < order_.size(); ++b) {
+      const Effect e = order_[b];
+      const int idx = model::index(e), off = offset_[idx];
+      const int n = model::info(e).num_params;
+      if (model::is_payload_effect(e)) {
+        for (int i = 0; i < n; ++i) core[off + i] = CoreJet(parameters[b][i], off + i);
+        pc[idx] = &core[off];
+      } else {
+        for (int i = 0; i < n; ++i) sensor[off + i] = SensorJet(parameters[b][i], off + i);
+        ps[idx] = &sensor[off];
+      }
+    }
+    // Stage 1 per sample; stage 2 once, on the block means of its inputs (exact: stage 2 is
+    // affine in them). Only residuals wanted: plain doubles.
+    const double inv_n = 1.0 / static_cast<double>(count_);
+    model::SensorInputs mean_in;
+    mean_in.temperature_C = 0.0;
     ident::Wrench meas = ident::Wrench::Zero();
-    for (std::size_t i = first; i < first + count; ++i) {
-      const model::ImuSignals<T> imu = data->imu_at<T>(i, tau);
-      sum += model::predict_wrench<T>(effects, p, data->pose[i], imu, data->rig);
-      meas += data->measured[i];
+    for (std::size_t i = first_; i < first_ + count_; ++i) {
+      const model::SensorInputs in = model::sensor_inputs(data_->pose[i]);
+      mean_in.t_rel_s += in.t_rel_s * inv_n;
+      mean_in.temperature_C += in.temperature_C * inv_n;
+      for (int k = 0; k < 6; ++k) mean_in.cable_features[k] += in.cable_features[k] * inv_n;
+      meas += data_->measured[i] * inv_n;
     }
-    const double inv_n = 1.0 / static_cast<double>(count);
-    for (int k = 0; k < 6; ++k) residual[k] = (T(meas[k] * inv_n) - sum[k] * inv_n) * inv_sigma[k];
+    ident::Wrench pred;
+    if (jacobians == nullptr) {
+      model::ParamPointers<double> p{};
+      for (std::size_t b = 0; b < order_.size(); ++b) p[model::index(order_[b])] = parameters[b];
+      const double* tau = effects_.has(Effect::imu_time_offset)
+                              ? p[model::index(Effect::imu_time_offset)]
+                              : nullptr;
+      ident::Wrench w1 = ident::Wrench::Zero();
+      for (std::size_t i = first_; i < first_ + count_; ++i) {
+        w1 += model::payload_wrench<double>(effects_, p, data_->pose[i],
+                                            data_->imu_at<double>(i, tau), data_->rig) *
+              inv_n;
+      }
+      pred = model::sensor_output<double>(effects_, p, mean_in, w1);
+      for (int r = 0; r < 6; ++r) residuals[r] = (meas[r] - pred[r]) * inv_sigma_[r];
+      return true;
+    }
+    const CoreJet* tau =
+        effects_.has(Effect::imu_time_offset) ? pc[model::index(Effect::imu_time_offset)] : nullptr;
+    model::Wrench<CoreJet> w1 = model::Wrench<CoreJet>::Zero();
+    for (std::size_t i = first_; i < first_ + count_; ++i) {
+      w1 += model::payload_wrench<CoreJet>(effects_, pc, data_->pose[i],
+                                           data_->imu_at<CoreJet>(i, tau), data_->rig) *
+            CoreJet(inv_n);
+    }
+    model::Wrench<SensorJet> w1s;
+    for (int k = 0; k < 6; ++k) w1s[k] = SensorJet(w1[k].a, k);
+    const model::Wrench<SensorJet> out =
+        model::sensor_output<SensorJet>(effects_, ps, mean_in, w1s);
+    Eigen::Matrix<double, 6, kCoreDim> d_core = Eigen::Matrix<double, 6, kCoreDim>::Zero();
+    Eigen::Matrix<double, 6, kSensorDim> d_sensor;
+    for (int r = 0; r < 6; ++r) {
+      pred[r] = out[r].a;
+      d_sensor.row(r) = out[r].v.transpose();
+      // Chain rule: d out / d core = sum_k d out / d w1_k * d w1_k / d core.
+      for (int k = 0; k < 6; ++k) d_core.row(r) += out[r].v[k] * w1[k].v.transpose();
+    }
+    for (int r = 0; r < 6; ++r) residuals[r] = (meas[r] - pred[r]) * inv_sigma_[r];
+    for (std::size_t b = 0; b < order_.size(); ++b) {
+      if (jacobians[b] == nullptr) continue;
+      const Effect e = order_[b];
+      const int n = model::info(e).num_params, off = offset_[model::index(e)];
+      const bool is_core = model::is_payload_effect(e);
+      for (int r = 0; r < 6; ++r) {
+        const double scale = -inv_sigma_[r];
+        for (int i = 0; i < n; ++i)
+          jacobians[b][r * n + i] = scale * (is_core ? d_core(r, off + i) : d_sensor(r, off + i));
+      }
+    }
     return true;
   }
+
+ private:
+  const Dataset* data_;
+  std::size_t first_, count_;
+  model::EffectSet effects_;
+  std::vector<Effect> order_;
+  std::array<double, 6> inv_sigma_;
+  std::array<int, model::kEffectCount> offset_{};
 };
+
+/// The narrowest BlockCost whose sensor-stage Jet holds the model's sensor-stage parameters.
+ceres::CostFunction* make_block_cost(const Dataset* data, std::size_t first, std::size_t count,
+                                     model::EffectSet effects, const std::vector<Effect>& order,
+                                     std::array<double, 6> inv_sigma) {
+  int sensor_dim = 6;
+  for (Effect e : order)
+    if (!model::is_payload_effect(e)) sensor_dim += model::info(e).num_params;
+  if (sensor_dim <= 12) return new BlockCost<12>(data, first, count, effects, order, inv_sigma);
+  if (sensor_dim <= 24) return new BlockCost<24>(data, first, count, effects, order, inv_sigma);
+  if (sensor_dim <= 48) return new BlockCost<48>(data, first, count, effects, order, inv_sigma);
+  return new BlockCost<96>(data, first, count, effects, order, inv_sigma);
+}
 
 // Blocks of `m` consecutive used samples, never spanning a gap in the mask (so held-out data
 // never leaks into training); a run's leftover tail shorter than m is not used.
@@ -66,9 +180,6 @@ std::vector<std::pair<std::size_t, std::size_t>> make_blocks(const Dataset& data
   if (in_run) close(data.size());
   return blocks;
 }
-
-constexpr int kStride = 8;
-using CostFunction = ceres::DynamicAutoDiffCostFunction<BlockResidual, kStride>;
 
 bool use(const FitOptions& o, std::size_t i) { return o.mask == nullptr || (*o.mask)[i] != 0; }
 
@@ -122,6 +233,42 @@ class ProgressCallback : public ceres::IterationCallback {
   const std::function<void(const std::string&)>& f_;
 };
 
+// Per-axis noise of block-mean residuals from pairs of consecutive blocks that both lie in a
+// dwell: var(mean_b+1 − mean_b) = 2 σ². Empty if there are fewer than 20 such pairs.
+std::optional<std::array<double, 6>> static_noise_of_block_means(
+    const Dataset& data, const model::ModelParams& params,
+    const std::vector<std::pair<std::size_t, std::size_t>>& blocks) {
+  auto block_mean = [&](std::size_t first, std::size_t count, bool& all_static) {
+    Wrench mean = Wrench::Zero();
+    all_static = true;
+    for (std::size_t i = first; i < first + count; ++i) {
+      mean += data.measured[i] - predict(params, data, i);
+      all_static = all_static && !data.moving[i];
+    }
+    return Wrench(mean / static_cast<double>(count));
+  };
+  std::array<double, 6> ss{};
+  std::size_t pairs = 0;
+  bool prev_static = false;
+  Wrench prev = Wrench::Zero();
+  std::size_t prev_end = 0;
+  for (const auto& [first, count] : blocks) {
+    bool is_static = false;
+    const Wrench m = block_mean(first, count, is_static);
+    if (is_static && prev_static && prev_end == first) {
+      const Wrench d = m - prev;
+      for (int k = 0; k < 6; ++k) ss[k] += d[k] * d[k];
+      ++pairs;
+    }
+    prev = m, prev_static = is_static, prev_end = first + count;
+  }
+  if (pairs < 20) return std::nullopt;
+  std::array<double, 6> sigma{};
+  for (int k = 0; k < 6; ++k)
+    sigma[k] = std::max(std::sqrt(ss[k] / (2.0 * static_cast<double>(pairs))), k < 3 ? 1e-4 : 1e-5);
+  return sigma;
+}
+
 }  // namespace
 
 std::string param_label(Effect e, int i) {
@@ -148,12 +295,9 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
                            !o.initial->effects.has(Effect::gravity);
   if (init_linear) linear_init(data, o, r.params);
 
-  std::array<int, model::kEffectCount> slot;
-  slot.fill(-1);
   std::vector<Effect> order;
   for (Effect e : model::kAllEffects) {
     if (o.effects.has(e) && model::info(e).num_params > 0) {
-      slot[model::index(e)] = static_cast<int>(order.size());
       order.push_back(e);
       r.num_params += model::info(e).num_params;
     }
@@ -161,7 +305,19 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
 
   std::array<double, 6> sigma = o.sigma.value_or(std::array<double, 6>{1, 1, 1, 0.1, 0.1, 0.1});
   if (o.block_samples < 1) throw std::runtime_error("block_samples must be at least 1");
-  const int passes = o.sigma ? 1 : 2;
+  // Whitening: per-axis noise of the block residuals. Estimated before solving from the
+  // scatter of consecutive block means inside dwells (there the residual of any model is a
+  // constant plus noise), so one solve suffices; without dwells, a second pass reweights.
+  const auto blocks_of_samples = make_blocks(data, o, std::max(1, o.block_samples));
+  int passes = 1;
+  if (!o.sigma) {
+    const auto est = static_noise_of_block_means(data, r.params, blocks_of_samples);
+    if (est) {
+      sigma = *est;
+    } else {
+      passes = 2;
+    }
+  }
   ceres::Problem::Options problem_options;
   problem_options.cost_function_ownership = ceres::TAKE_OWNERSHIP;
   problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
@@ -174,7 +330,6 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
     throw std::runtime_error("unknown loss '" + o.loss + "' (none, huber, cauchy)");
   }
 
-  const auto blocks_of_samples = make_blocks(data, o, std::max(1, o.block_samples));
   Solved solved;
   std::unique_ptr<ceres::Problem> problem;
   for (int pass = 0; pass < passes; ++pass) {
@@ -184,11 +339,8 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
     std::vector<double*> blocks;
     for (Effect e : order) blocks.push_back(r.params.block(e));
     for (const auto& [first, count] : blocks_of_samples) {
-      auto* cost =
-          new CostFunction(new BlockResidual{&data, first, count, o.effects, slot, inv_sigma});
-      for (Effect e : order) cost->AddParameterBlock(model::info(e).num_params);
-      cost->SetNumResiduals(6);
-      problem->AddResidualBlock(cost, loss.get(), blocks);
+      problem->AddResidualBlock(make_block_cost(&data, first, count, o.effects, order, inv_sigma),
+                                loss.get(), blocks);
     }
     if (problem->NumResidualBlocks() == 0) throw std::runtime_error("no samples to fit");
     ceres::Solver::Options so;
@@ -208,6 +360,8 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
       so.callbacks.push_back(cb.get());
     }
     ceres::Solve(so, problem.get(), &solved.summary);
+    if (std::getenv("ZEROG_CERES_REPORT"))
+      std::fprintf(stderr, "%s\n", solved.summary.FullReport().c_str());
     r.iterations += static_cast<int>(solved.summary.iterations.size());
 
     // Per-sample RMS of the residuals (what compare reports), and the block-mean residuals the

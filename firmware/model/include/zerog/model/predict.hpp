@@ -72,12 +72,16 @@ Vec3<T> gravity_sensor(const EffectSet& effects, const ParamPointers<T>& p,
   return R_nominal_true.transpose() * g_nominal;
 }
 
-/// Predicted wrench the payload exerts on the sensor (sensor frame, torque about the sensor
-/// origin), before contact. Effects not in `effects` contribute nothing. Real-time safe.
+/// Stage 1 of the model: the wrench the payload's gravity and inertia exert on the sensor
+/// (sensor frame, torque about the sensor origin). Nonlinear in its parameters (gravity,
+/// base_tilt, rotational_inertia, sensor_rotation; imu_time_offset through `imu`).
+/// Real-time safe.
 template <typename T>
-Wrench<T> predict_wrench(const EffectSet& effects, const ParamPointers<T>& p,
+Wrench<T> payload_wrench(const EffectSet& effects, const ParamPointers<T>& p,
                          const PoseSignals& pose, const ImuSignals<T>& imu,
                          const RigGeometry& rig) {
+  Wrench<T> w = Wrench<T>::Zero();
+  if (!effects.has(Effect::gravity)) return w;
   // Sensor mounting rotation: the true sensor frame is the nominal one rotated by Exp(r).
   Mat3<T> R_nominal_true = Mat3<T>::Identity();
   if (effects.has(Effect::sensor_rotation)) {
@@ -89,38 +93,63 @@ Wrench<T> predict_wrench(const EffectSet& effects, const ParamPointers<T>& p,
   const Vec3<T> omega = R_sensor_imu * imu.angular_rate_imu;
   const Vec3<T> omega_dot = R_sensor_imu * imu.angular_accel_imu;
 
-  Wrench<T> w = Wrench<T>::Zero();
-  if (effects.has(Effect::gravity)) {
-    const T* grav = p[index(Effect::gravity)];
-    const T mass = grav[0];
-    const Vec3<T> com(grav[1], grav[2], grav[3]);
-    Vec3<T> force;
-    if (effects.has(Effect::linear_inertia)) {
-      // m (g − a_c) = −m × (specific force at the centre of mass). The accelerometer measures
-      // specific force at the IMU; rigid-body transfer to the centre of mass (lever r).
-      const Vec3<T> r = com - p_sensor_imu;
-      const Vec3<T> f_com =
-          R_sensor_imu * imu.specific_force_imu + omega_dot.cross(r) + omega.cross(omega.cross(r));
-      force = -mass * f_com;
-    } else {
-      force = mass * gravity_sensor(effects, p, pose.R_base_sensor, R_nominal_true);
-    }
-    Vec3<T> torque = com.cross(force);
-    if (effects.has(Effect::rotational_inertia)) {
-      const T* I = p[index(Effect::rotational_inertia)];
-      Mat3<T> inertia;
-      inertia << I[0], I[3], I[4], I[3], I[1], I[5], I[4], I[5], I[2];
-      // Newton–Euler (000_… eq. 5): the payload needs I ω̇ + ω × I ω from the sensor.
-      torque -= inertia * omega_dot + omega.cross(inertia * omega);
-    }
-    w.template head<3>() = force;
-    w.template tail<3>() = torque;
+  const T* grav = p[index(Effect::gravity)];
+  const T mass = grav[0];
+  const Vec3<T> com(grav[1], grav[2], grav[3]);
+  Vec3<T> force;
+  if (effects.has(Effect::linear_inertia)) {
+    // m (g − a_c) = −m × (specific force at the centre of mass). The accelerometer measures
+    // specific force at the IMU; rigid-body transfer to the centre of mass (lever r).
+    const Vec3<T> r = com - p_sensor_imu;
+    const Vec3<T> f_com =
+        R_sensor_imu * imu.specific_force_imu + omega_dot.cross(r) + omega.cross(omega.cross(r));
+    force = -mass * f_com;
+  } else {
+    force = mass * gravity_sensor(effects, p, pose.R_base_sensor, R_nominal_true);
   }
+  Vec3<T> torque = com.cross(force);
+  if (effects.has(Effect::rotational_inertia)) {
+    const T* I = p[index(Effect::rotational_inertia)];
+    Mat3<T> inertia;
+    inertia << I[0], I[3], I[4], I[3], I[1], I[5], I[4], I[5], I[2];
+    // Newton–Euler (000_… eq. 5): the payload needs I ω̇ + ω × I ω from the sensor.
+    torque -= inertia * omega_dot + omega.cross(inertia * omega);
+  }
+  w.template head<3>() = force;
+  w.template tail<3>() = torque;
+  return w;
+}
+
+/// Per-sample inputs of stage 2. Stage 2 is affine in them for fixed parameters, so the mean of
+/// stage 2 over samples equals stage 2 of their mean (the host fit uses that).
+struct SensorInputs {
+  double t_rel_s = 0.0;                           ///< time since the start of the log, s
+  double temperature_C = kTemperatureReferenceC;  ///< sensor temperature, °C
+  std::array<double, 6> cable_features{};         ///< cos, sin of A4, A5, A6 (kCableJoints)
+};
+
+inline SensorInputs sensor_inputs(const PoseSignals& pose) {
+  SensorInputs in;
+  in.t_rel_s = pose.t_rel_s;
+  in.temperature_C = pose.temperature_C;
+  for (int j = 0; j < 3; ++j) {
+    in.cable_features[2 * j] = std::cos(pose.joints_rad[kCableJoints[j]]);
+    in.cable_features[2 * j + 1] = std::sin(pose.joints_rad[kCableJoints[j]]);
+  }
+  return in;
+}
+
+/// Stage 2 of the model: what the sensor reports for a payload wrench: plus the cable's wrench
+/// (a load too), through the crosstalk, plus the zero terms (bias, drift, temperature).
+/// Real-time safe.
+template <typename T>
+Wrench<T> sensor_output(const EffectSet& effects, const ParamPointers<T>& p, const SensorInputs& in,
+                        const Wrench<T>& payload) {
+  Wrench<T> w = payload;
   if (effects.has(Effect::cable)) {
     const T* c = p[index(Effect::cable)];
     for (int j = 0; j < 3; ++j) {
-      const double q = pose.joints_rad[kCableJoints[j]];
-      const double cq = std::cos(q), sq = std::sin(q);
+      const double cq = in.cable_features[2 * j], sq = in.cable_features[2 * j + 1];
       for (int k = 0; k < 6; ++k) w[k] += c[j * 12 + k] * cq + c[j * 12 + 6 + k] * sq;
     }
   }
@@ -133,13 +162,31 @@ Wrench<T> predict_wrench(const EffectSet& effects, const ParamPointers<T>& p,
     w += Eigen::Map<const Wrench<T>>(p[index(Effect::bias)]);
   }
   if (effects.has(Effect::bias_drift)) {
-    w += Eigen::Map<const Wrench<T>>(p[index(Effect::bias_drift)]) * T(pose.t_rel_s);
+    w += Eigen::Map<const Wrench<T>>(p[index(Effect::bias_drift)]) * T(in.t_rel_s);
   }
   if (effects.has(Effect::temperature_bias)) {
     w += Eigen::Map<const Wrench<T>>(p[index(Effect::temperature_bias)]) *
-         T(pose.temperature_C - kTemperatureReferenceC);
+         T(in.temperature_C - kTemperatureReferenceC);
   }
   return w;
+}
+
+/// Effects whose parameters enter stage 1 (payload_wrench); the others enter stage 2.
+inline constexpr bool is_payload_effect(Effect e) {
+  return e == Effect::gravity || e == Effect::base_tilt || e == Effect::linear_inertia ||
+         e == Effect::rotational_inertia || e == Effect::imu_time_offset ||
+         e == Effect::sensor_rotation;
+}
+
+/// Predicted wrench the payload exerts on the sensor (sensor frame, torque about the sensor
+/// origin), before contact: stage 1 then stage 2. Effects not in `effects` contribute nothing.
+/// Real-time safe.
+template <typename T>
+Wrench<T> predict_wrench(const EffectSet& effects, const ParamPointers<T>& p,
+                         const PoseSignals& pose, const ImuSignals<T>& imu,
+                         const RigGeometry& rig) {
+  return sensor_output<T>(effects, p, sensor_inputs(pose),
+                          payload_wrench<T>(effects, p, pose, imu, rig));
 }
 
 }  // namespace zerog::model
