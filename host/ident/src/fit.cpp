@@ -433,16 +433,22 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
     for (int k = 0; k < p; ++k) {
       if (eig.eigenvalues()[k] > rel_tol * lmax) continue;
       std::string who;
+      int count = 0;
       const Eigen::VectorXd v = eig.eigenvectors().col(k);
       const double vmax = v.cwiseAbs().maxCoeff();
       for (int q = 0; q < p; ++q) {
         if (std::abs(v[q]) < 0.3 * vmax) continue;
         deficient[q] = true;
+        ++count;
         who += (who.empty() ? "" : ", ") + param_label(names[q].first, names[q].second);
       }
       r.warnings.push_back(
-          {"rank_deficient", "the data cannot identify a combination of " + who +
-                                 ": only their combination is seen (rank deficiency)"});
+          {"rank_deficient",
+           count == 1 ? "the data cannot identify " + who +
+                            ": it does not change the prediction on this log (rank deficiency)"
+                      : "the data cannot identify " + who +
+                            " separately: only a combination of them changes the prediction "
+                            "(rank deficiency)"});
     }
     // Pseudo-inverse restricted to the identifiable directions.
     Eigen::MatrixXd cov_scaled = Eigen::MatrixXd::Zero(p, p);
