@@ -152,4 +152,19 @@ std::string shorten(std::string_view text, std::size_t max) {
   return std::string(text.substr(0, cut)) + "…";
 }
 
+std::string number_error(NumberStatus status, std::string_view cell_text, std::string_view column) {
+  const std::string col = "column '" + std::string(column) + "'";
+  const std::string cell = "'" + shorten(trim(cell_text)) + "'";
+  switch (status) {
+    case NumberStatus::empty:
+      return "empty cell in " + col;
+    case NumberStatus::not_finite:
+      return "NaN/inf " + cell + " in " + col + " is not allowed";
+    case NumberStatus::out_of_range:
+      return "number " + cell + " in " + col + " is out of range";
+    default:
+      return "not a number: " + cell + " in " + col;
+  }
+}
+
 }  // namespace zerog::io::detail

@@ -61,4 +61,7 @@ std::string_view closest_name(std::string_view name, const std::vector<std::stri
 /// `text` shortened to at most `max` characters for messages.
 std::string shorten(std::string_view text, std::size_t max = 40);
 
+/// The message for a cell that did not parse (status != ok), naming the cell and its column.
+std::string number_error(NumberStatus status, std::string_view cell_text, std::string_view column);
+
 }  // namespace zerog::io::detail

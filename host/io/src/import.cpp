@@ -527,23 +527,7 @@ Series read_series(FileSpec& spec, const fs::path& mapping) {
       const detail::Cell& cell = cells[spec.refs[j].cell];
       const auto status = detail::parse_number(unquote(cell.text), raw[j], spec.decimal);
       if (status == detail::NumberStatus::ok) continue;
-      const std::string col = "column '" + spec.refs[j].name + "'";
-      const std::string text_of_cell = "'" + detail::shorten(detail::trim(cell.text)) + "'";
-      std::string why;
-      switch (status) {
-        case detail::NumberStatus::empty:
-          why = "empty cell in " + col;
-          break;
-        case detail::NumberStatus::not_finite:
-          why = "NaN/inf " + text_of_cell + " in " + col + " is not allowed";
-          break;
-        case detail::NumberStatus::out_of_range:
-          why = "number " + text_of_cell + " in " + col + " is out of range";
-          break;
-        default:
-          why = "not a number: " + text_of_cell + " in " + col;
-          break;
-      }
+      const std::string why = detail::number_error(status, unquote(cell.text), spec.refs[j].name);
       throw InputError(spec.path, n, detail::char_column(line, cell.offset), why);
     }
     const double t = raw[0] * spec.time_scale + spec.time_offset_s;

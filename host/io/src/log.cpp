@@ -460,23 +460,7 @@ Log read_log(const fs::path& csv) {
       const int c = column_of_cell[i];
       const auto status = detail::parse_number(cells[i].text, values[c]);
       if (status == detail::NumberStatus::ok) continue;
-      const std::string col = "column '" + std::string(kColumnNames[c]) + "'";
-      const std::string cell = "'" + detail::shorten(detail::trim(cells[i].text)) + "'";
-      std::string why;
-      switch (status) {
-        case detail::NumberStatus::empty:
-          why = "empty cell in " + col;
-          break;
-        case detail::NumberStatus::not_finite:
-          why = "NaN/inf " + cell + " in " + col + " is not allowed";
-          break;
-        case detail::NumberStatus::out_of_range:
-          why = "number " + cell + " in " + col + " is out of range";
-          break;
-        default:
-          why = "not a number: " + cell + " in " + col;
-          break;
-      }
+      const std::string why = detail::number_error(status, cells[i].text, kColumnNames[c]);
       throw InputError(csv, n, detail::char_column(line, cells[i].offset), why);
     }
     if (!log.samples.empty() && !(values[kT] > log.samples.back().t_s)) {
