@@ -1,0 +1,79 @@
+#pragma once
+// From contact wrench to robot motion, with the limits that keep a person next to 100 kg safe:
+// deadband and force limit on the contact wrench, speed, acceleration and workspace limits on
+// the virtual body, and the per-cycle relative correction of the sensor pose (RSI moves only by
+// position corrections). SI units; the RSI border converts to mm and degrees.
+// Real-time safe: no allocation, no exceptions.
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cstdint>
+
+#include "zerog/control/virtual_body.hpp"
+
+namespace zerog::control {
+
+struct MotionLimits {
+  double force_deadband_N = 2.0;       ///< contact forces below this count as no contact
+  double torque_deadband_Nm = 0.3;     ///< likewise for torques
+  double max_contact_force_N = 400.0;  ///< above this: fault (someone or something collided)
+  double max_contact_torque_Nm = 80.0;
+  double max_speed_mps = 0.25;  ///< of the centre of mass
+  double max_angular_speed_radps = 0.6;
+  double max_accel_mps2 = 1.5;  ///< commanded change of velocity per second
+  double max_angular_accel_radps2 = 3.0;
+  Eigen::Vector3d workspace_min_m{-0.5, -1.5, 0.3};  ///< box for the centre of mass, world
+  Eigen::Vector3d workspace_max_m{2.5, 1.5, 2.2};
+};
+
+/// What the limits did in one cycle (bits), reported in the cycle status and telemetry.
+enum LimitFlags : std::uint32_t {
+  kLimitNone = 0,
+  kForceOverLimit = 1u << 0,   ///< fault condition: contact force above max_contact_force_N
+  kTorqueOverLimit = 1u << 1,  ///< fault condition
+  kSpeedLimited = 1u << 2,
+  kAngularSpeedLimited = 1u << 3,
+  kAccelLimited = 1u << 4,
+  kAngularAccelLimited = 1u << 5,
+  kWorkspaceLimited = 1u << 6,
+};
+
+/// Deadband without a jump at its edge: the vector shrinks by the deadband along its own
+/// direction (|x| ≤ d → 0, else x (|x| − d)/|x|).
+Eigen::Vector3d deadband(const Eigen::Vector3d& x, double d);
+
+/// A relative correction of the sensor pose over one cycle, in the world (robot base) frame:
+/// translation (m) and rotation vector (rad) such that R_new = Exp(rotation) R_old.
+struct PoseCorrection {
+  Eigen::Vector3d translation_m = Eigen::Vector3d::Zero();
+  Eigen::Vector3d rotation_rad = Eigen::Vector3d::Zero();
+};
+
+/// The zero-g motion generator: contact wrench at the sensor → virtual body → correction.
+class ZeroGMotion {
+ public:
+  /// `p_sensor_com_m`: the virtual centre of mass in the sensor frame (it may differ from the
+  /// real payload's); the body's axes start aligned with the sensor's.
+  ZeroGMotion(const BodyParams& body, const MotionLimits& limits,
+              const Eigen::Vector3d& p_sensor_com_m);
+
+  /// Starts from the sensor's current pose (world frame), at rest.
+  void reset(const Eigen::Vector3d& p_world_sensor_m, const Eigen::Quaterniond& q_world_sensor);
+
+  /// One cycle. `force_sensor_N`, `torque_sensor_Nm`: contact wrench in the sensor frame, torque
+  /// about the sensor origin. Returns the limit flags; `out` gets the sensor pose correction.
+  /// A force/torque over its limit leaves the body untouched and returns a zero correction.
+  std::uint32_t step(const Eigen::Vector3d& force_sensor_N, const Eigen::Vector3d& torque_sensor_Nm,
+                     double dt_s, PoseCorrection& out);
+
+  const VirtualBody& body() const { return body_; }
+  /// Sensor pose implied by the body, world frame.
+  Eigen::Vector3d sensor_position_world() const;
+  Eigen::Quaterniond sensor_attitude_world() const;
+
+ private:
+  VirtualBody body_;
+  MotionLimits limits_;
+  Eigen::Vector3d p_sensor_com_m_;
+};
+
+}  // namespace zerog::control

@@ -1,0 +1,120 @@
+#include "zerog/control/motion.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace zerog::control {
+namespace {
+
+// Scales v down to at most `max` in norm; sets `flag` in `flags` if it did.
+Eigen::Vector3d clamp_norm(const Eigen::Vector3d& v, double max, std::uint32_t flag,
+                           std::uint32_t& flags) {
+  const double n = v.norm();
+  if (n <= max) return v;
+  flags |= flag;
+  return v * (max / n);
+}
+
+Eigen::Vector3d rotation_vector(const Eigen::Quaterniond& q) {
+  const Eigen::AngleAxisd aa(q.w() < 0 ? Eigen::Quaterniond(-q.coeffs()) : q);
+  return aa.axis() * aa.angle();
+}
+
+}  // namespace
+
+Eigen::Vector3d deadband(const Eigen::Vector3d& x, double d) {
+  const double n = x.norm();
+  if (n <= d) return Eigen::Vector3d::Zero();
+  return x * ((n - d) / n);
+}
+
+ZeroGMotion::ZeroGMotion(const BodyParams& body, const MotionLimits& limits,
+                         const Eigen::Vector3d& p_sensor_com_m)
+    : body_(body), limits_(limits), p_sensor_com_m_(p_sensor_com_m) {}
+
+void ZeroGMotion::reset(const Eigen::Vector3d& p_world_sensor_m,
+                        const Eigen::Quaterniond& q_world_sensor) {
+  BodyState s;
+  s.q_world_body = q_world_sensor.normalized();
+  s.p_world_m = p_world_sensor_m + s.q_world_body * p_sensor_com_m_;
+  body_.reset(s);
+}
+
+Eigen::Vector3d ZeroGMotion::sensor_position_world() const {
+  const BodyState& s = body_.state();
+  return s.p_world_m - s.q_world_body * p_sensor_com_m_;
+}
+
+Eigen::Quaterniond ZeroGMotion::sensor_attitude_world() const { return body_.state().q_world_body; }
+
+std::uint32_t ZeroGMotion::step(const Eigen::Vector3d& force_sensor_N,
+                                const Eigen::Vector3d& torque_sensor_Nm, double dt_s,
+                                PoseCorrection& out) {
+  out = PoseCorrection{};
+  std::uint32_t flags = kLimitNone;
+  if (force_sensor_N.norm() > limits_.max_contact_force_N) flags |= kForceOverLimit;
+  if (torque_sensor_Nm.norm() > limits_.max_contact_torque_Nm) flags |= kTorqueOverLimit;
+  if (flags) return flags;
+
+  // The contact wrench (measured − predicted) is the person's push on the payload as the sensor
+  // passes it on: sensor frame, torque about the sensor origin. It drives the virtual body.
+  // Deadbands act on the wrench at the virtual centre of mass, where it drives translation and
+  // rotation: deadbanding the torque about the sensor origin would turn a push through the
+  // centre of mass into a spurious torque.
+  const Eigen::Quaterniond R = body_.state().q_world_body;
+  const Eigen::Vector3d M_com_raw =
+      torque_about(torque_sensor_Nm, force_sensor_N, Eigen::Vector3d::Zero(), p_sensor_com_m_);
+  const Eigen::Vector3d F_world = R * deadband(force_sensor_N, limits_.force_deadband_N);
+  const Eigen::Vector3d M_com_sensor = deadband(M_com_raw, limits_.torque_deadband_Nm);
+  const Eigen::Vector3d M_world = R * M_com_sensor;
+
+  const Eigen::Vector3d p_sensor_before = sensor_position_world();
+  const Eigen::Quaterniond q_before = sensor_attitude_world();
+  const BodyState body_before = body_.state();
+  const Eigen::Vector3d v_before = body_before.v_world_mps;
+  const Eigen::Vector3d w_before = body_.omega_world();
+  body_.step(F_world, M_world, dt_s);
+
+  // Limits act on the body's state, so the simulated object itself obeys them (and its
+  // momentum records that it was held back).
+  BodyState s = body_.state();
+  const Eigen::Vector3d dv =
+      clamp_norm(s.v_world_mps - v_before, limits_.max_accel_mps2 * dt_s, kAccelLimited, flags);
+  s.v_world_mps = clamp_norm(v_before + dv, limits_.max_speed_mps, kSpeedLimited, flags);
+  const Eigen::Matrix3d Rw = s.q_world_body.toRotationMatrix();
+  const Eigen::Matrix3d I_world = Rw * body_.params().inertia_body_kgm2 * Rw.transpose();
+  Eigen::Vector3d w_after = I_world.inverse() * s.L_world_kgm2ps;
+  const Eigen::Vector3d dw = clamp_norm(w_after - w_before, limits_.max_angular_accel_radps2 * dt_s,
+                                        kAngularAccelLimited, flags);
+  w_after = clamp_norm(w_before + dw, limits_.max_angular_speed_radps, kAngularSpeedLimited, flags);
+  s.L_world_kgm2ps = I_world * w_after;
+  // Over the cycle the body moved with the limited velocities (trapezoid rule), not the free ones.
+  if (flags & (kAccelLimited | kSpeedLimited)) {
+    s.p_world_m = body_before.p_world_m + 0.5 * (v_before + s.v_world_mps) * dt_s;
+  }
+  if (flags & (kAngularAccelLimited | kAngularSpeedLimited)) {
+    const Eigen::Vector3d turn = 0.5 * (w_before + w_after) * dt_s;
+    const double angle = turn.norm();
+    const Eigen::Quaterniond dq = angle > 0
+                                      ? Eigen::Quaterniond(Eigen::AngleAxisd(angle, turn / angle))
+                                      : Eigen::Quaterniond::Identity();
+    s.q_world_body = (dq * body_before.q_world_body).normalized();
+  }
+  // Workspace: a centre of mass leaving the box is put back on its face and stops moving out.
+  for (int k = 0; k < 3; ++k) {
+    if (s.p_world_m[k] < limits_.workspace_min_m[k] ||
+        s.p_world_m[k] > limits_.workspace_max_m[k]) {
+      s.p_world_m[k] =
+          std::clamp(s.p_world_m[k], limits_.workspace_min_m[k], limits_.workspace_max_m[k]);
+      s.v_world_mps[k] = 0.0;
+      flags |= kWorkspaceLimited;
+    }
+  }
+  if (flags != kLimitNone) body_.reset(s);
+
+  out.translation_m = sensor_position_world() - p_sensor_before;
+  out.rotation_rad = rotation_vector(sensor_attitude_world() * q_before.conjugate());
+  return flags;
+}
+
+}  // namespace zerog::control
