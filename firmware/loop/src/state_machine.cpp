@@ -1,0 +1,96 @@
+#include "zerog/loop/state_machine.hpp"
+
+namespace zerog::loop {
+
+const char* state_name(State s) {
+  switch (s) {
+    case State::idle:
+      return "idle";
+    case State::collecting:
+      return "collecting";
+    case State::zero_g:
+      return "zero_g";
+    case State::fault:
+      return "fault";
+  }
+  return "?";
+}
+
+const char* fault_name(Fault f) {
+  switch (f) {
+    case Fault::none:
+      return "none";
+    case Fault::ft_stale:
+      return "ft_stale";
+    case Fault::ft_critical:
+      return "ft_critical";
+    case Fault::imu_stale:
+      return "imu_stale";
+    case Fault::robot_late:
+      return "robot_late";
+    case Fault::contact_over_limit:
+      return "contact_over_limit";
+    case Fault::model_invalid:
+      return "model_invalid";
+  }
+  return "?";
+}
+
+const char* command_name(Command c) {
+  switch (c) {
+    case Command::enable_zero_g:
+      return "enable_zero_g";
+    case Command::start_collection:
+      return "start_collection";
+    case Command::stop:
+      return "stop";
+    case Command::reset_fault:
+      return "reset_fault";
+  }
+  return "?";
+}
+
+bool StateMachine::command(Command c, std::uint64_t cycle) {
+  State to = state_;
+  switch (c) {
+    case Command::enable_zero_g:
+      if (state_ != State::idle) return false;
+      to = State::zero_g;
+      break;
+    case Command::start_collection:
+      if (state_ != State::idle) return false;
+      to = State::collecting;
+      break;
+    case Command::stop:
+      if (state_ != State::collecting && state_ != State::zero_g) return false;
+      to = State::idle;
+      break;
+    case Command::reset_fault:
+      if (state_ != State::fault) return false;
+      to = State::idle;
+      fault_ = Fault::none;
+      break;
+  }
+  record({cycle, state_, to, c, Fault::none, false});
+  state_ = to;
+  return true;
+}
+
+void StateMachine::raise(Fault f, std::uint64_t cycle) {
+  if (state_ == State::fault || f == Fault::none) return;
+  record({cycle, state_, State::fault, Command::stop, f, true});
+  state_ = State::fault;
+  fault_ = f;
+}
+
+void StateMachine::record(const Transition& t) {
+  log_[total_ % kLogCapacity] = t;
+  ++total_;
+}
+
+const Transition& StateMachine::log_at(std::size_t i) const {
+  const std::size_t first = total_ < kLogCapacity ? 0 : total_ % kLogCapacity;
+  return log_[(first + i) % kLogCapacity];
+}
+
+}  // namespace zerog::loop
