@@ -1,0 +1,133 @@
+#include "zerog/io/can_decode.hpp"
+
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+#include "zerog/io/log.hpp"
+#include "zerog/proto/candump.hpp"
+
+namespace zerog::io {
+
+namespace nc = proto::netcanoem;
+
+namespace {
+
+// Follows the recorded start-up read-out passively: a matrix-row request (opcode 0x2 with one
+// byte) announces the row of the next three responses 0x2, 0x3, 0x4.
+struct CalibrationTracker {
+  std::uint8_t base_id;
+  nc::Calibration cal;
+  int row = -1;
+  std::array<std::array<bool, 3>, nc::kGaugeCount> seen{};
+  bool units = false;
+
+  void feed(const proto::CanFrame& f) {
+    if (nc::base_id_of(f.id) != base_id) return;
+    const auto op = nc::opcode_of(f.id);
+    if (op == static_cast<std::uint8_t>(nc::Opcode::matrix_sg01) && f.len == 1) {
+      row = f.data[0] < nc::kGaugeCount ? f.data[0] : -1;
+      return;
+    }
+    if (op >= 0x2 && op <= 0x4 && f.len == nc::kMatrixPartLength && row >= 0) {
+      std::array<double, 2> c{};
+      const int part = op - 0x2;
+      if (nc::decode_matrix_part(f, base_id, part, c) == nc::DecodeStatus::ok) {
+        cal.matrix[row][2 * part] = c[0];
+        cal.matrix[row][2 * part + 1] = c[1];
+        seen[row][part] = true;
+      }
+      return;
+    }
+    if (op == static_cast<std::uint8_t>(nc::Opcode::counts) && f.len == nc::kCountsLength) {
+      if (nc::decode_counts(f, base_id, cal.counts_per_force, cal.counts_per_torque) ==
+          nc::DecodeStatus::ok)
+        cal.counts_from_device = true;
+      return;
+    }
+    if (op == static_cast<std::uint8_t>(nc::Opcode::units) && f.len == nc::kUnitsLength) {
+      units = nc::decode_units(f, base_id, cal.force_unit, cal.torque_unit) == nc::DecodeStatus::ok;
+    }
+  }
+  bool complete() const {
+    for (const auto& r : seen)
+      for (bool b : r)
+        if (!b) return false;
+    return units;
+  }
+};
+
+}  // namespace
+
+CanDecodeResult decode_netcanoem_log(const std::filesystem::path& candump,
+                                     const CanDecodeOptions& o) {
+  std::ifstream in(candump);
+  if (!in) throw InputError(candump, 0, 0, "cannot open");
+  std::vector<proto::CandumpRecord> records;
+  proto::CandumpError error;
+  if (!proto::parse_candump(in, proto::CanFilter{}, records, error))
+    throw InputError(candump, error.line, error.column, error.reason);
+
+  CanDecodeResult r;
+  r.records = records.size();
+  CalibrationTracker tracker{o.base_id, {}, -1, {}, false};
+  for (const auto& rec : records) tracker.feed(rec.frame);
+  if (o.calibration) {
+    r.calibration = *o.calibration;
+  } else if (tracker.complete()) {
+    r.calibration = tracker.cal;
+    r.calibration_from_log = true;
+  } else {
+    throw std::runtime_error(
+        candump.string() + ": the log holds no complete calibration read-out of board 0x" +
+        [&] {
+          char b[8];
+          std::snprintf(b, sizeof b, "%02X", o.base_id);
+          return std::string(b);
+        }() +
+        " (matrix rows 0x2-0x4 and units 0x8): record the sensor's start-up, or give "
+        "--calibration");
+  }
+  if (!nc::newton_per_force_unit(r.calibration.force_unit) ||
+      !nc::newton_metre_per_torque_unit(r.calibration.torque_unit))
+    throw std::runtime_error(candump.string() + ": unknown force/torque unit codes " +
+                             std::to_string(r.calibration.force_unit) + "/" +
+                             std::to_string(r.calibration.torque_unit));
+
+  nc::SampleAssembler assembler(o.base_id);
+  for (const auto& rec : records) {
+    if (nc::base_id_of(rec.frame.id) != o.base_id) {
+      ++r.other_traffic;
+      continue;
+    }
+    nc::GaugeSample g;
+    if (assembler.feed(rec.frame, g) != nc::FeedResult::sample) continue;
+    if (!g.usable()) {
+      ++r.unusable;
+      continue;
+    }
+    const auto w = nc::gauges_to_wrench_si(r.calibration, g.gauges, o.bias_gauges);
+    r.samples.push_back({static_cast<double>(rec.timestamp_ns) * 1e-9, *w, g.status});
+  }
+  r.counters = assembler.counters();
+  return r;
+}
+
+void write_ft_recording(const CanDecodeResult& r, const std::filesystem::path& out,
+                        const std::vector<std::filesystem::path>& inputs) {
+  std::ostringstream os;
+  os << "# zerog-ft 1: F/T samples decoded from CAN by zerog decode-can (sensor frame, N and "
+        "N*m)\n";
+  os << "t_s,Fx_N,Fy_N,Fz_N,Mx_Nm,My_Nm,Mz_Nm,status\n";
+  char line[256];
+  for (const auto& s : r.samples) {
+    std::snprintf(line, sizeof line, "%.6f,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%u\n", s.t_s, s.wrench[0],
+                  s.wrench[1], s.wrench[2], s.wrench[3], s.wrench[4], s.wrench[5],
+                  static_cast<unsigned>(s.status));
+    os << line;
+  }
+  write_file_atomic(out, os.str(), inputs);
+}
+
+}  // namespace zerog::io
