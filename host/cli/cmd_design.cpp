@@ -5,6 +5,7 @@
 #include <memory>
 #include <numbers>
 #include <string>
+#include <vector>
 
 #include "commands.hpp"
 #include "zerog/sim/design.hpp"
@@ -25,6 +26,10 @@ struct DesignArgs {
   double dwell_s = 2.0;
   double period_s = 0.012;
   bool compare = false;
+  std::string attitudes;
+  // Forearm along +y_B, 35° below horizontal: reaches all 15 attitudes of 001_… Appendix C with
+  // |A5| ≤ 101° (a scan of A1..A3 in 5° steps; from home, 5, 7 and 15 need |A5| > 120°).
+  std::vector<double> arm_deg = {-90.0, -80.0, 125.0};
 };
 
 sim::DesignOptions options_for(const DesignArgs& a, sim::DesignKind kind) {
@@ -67,7 +72,47 @@ void print_figures(const sim::Design& d, const sim::Workspace& ws, const DesignA
       std::floor(traj.duration_s() / a.period_s) + 1.0, a.period_s);
 }
 
+// Static poses from sensor attitudes (e.g. calib/poses/001_appendix_c_attitudes.csv) by the
+// wrist's inverse kinematics, A1..A3 held at --arm.
+void run_attitude_design(const DesignArgs& a) {
+  if (a.out.empty()) throw std::invalid_argument("--out is required");
+  constexpr double kDeg = std::numbers::pi / 180.0;
+  sim::AttitudeDesignOptions o;
+  for (int j = 0; j < 3; ++j) o.arm_rad[j] = a.arm_deg[j] * kDeg;
+  o.workspace.floor_z_m = a.floor_z_m;
+  o.workspace.clearance_m = a.clearance_m;
+  const auto rotvecs = sim::read_attitudes(a.attitudes);
+  const sim::AttitudeDesign ad = sim::design_from_attitudes(rotvecs, o);
+  std::printf("arm A1..A3 = %.1f, %.1f, %.1f deg; %zu attitudes from %s (R_base_sensor = Exp(r))\n",
+              a.arm_deg[0], a.arm_deg[1], a.arm_deg[2], rotvecs.size(), a.attitudes.c_str());
+  std::printf("  %3s  %7s %7s %7s   %7s %7s %7s  (deg)\n", "#", "A4", "A5", "A6", "rx", "ry", "rz");
+  for (std::size_t k = 0; k < ad.design.points_rad.size(); ++k) {
+    const sim::JointVector& q = ad.design.points_rad[k];
+    const Eigen::Vector3d& r = rotvecs[static_cast<std::size_t>(ad.attitude_index[k])];
+    std::printf("  %3d  %7.1f %7.1f %7.1f   %7.4f %7.4f %7.4f\n", ad.attitude_index[k] + 1,
+                q[3] / kDeg, q[4] / kDeg, q[5] / kDeg, r.x(), r.y(), r.z());
+  }
+  for (const auto& [index, why] : ad.unreachable)
+    std::printf("  %3d  cannot be reached: %s\n", index + 1, why.c_str());
+  if (ad.design.points_rad.empty())
+    throw std::runtime_error("no attitude can be reached from this arm pose; try another --arm");
+  sim::write_design(ad.design, a.out, {a.attitudes});
+  const sim::PtpTrajectory traj(ad.design.points_rad, sim::kr210_ptp_limits(a.speed_fraction),
+                                a.dwell_s);
+  const sim::DesignMetrics m = sim::design_metrics(ad.design.points_rad, o.workspace, a.levels);
+  std::printf(
+      "%zu of %zu attitudes reached; conditioning cond2(A*D) = %.3g (bias + gravity); run %.1f s "
+      "at %.0f %% speed with %.1f s dwells\n",
+      ad.design.points_rad.size(), rotvecs.size(), m.condition_number, traj.duration_s(),
+      100.0 * a.speed_fraction, a.dwell_s);
+  std::printf("wrote %s\n", a.out.c_str());
+}
+
 void run_design(const DesignArgs& a) {
+  if (!a.attitudes.empty()) {
+    run_attitude_design(a);
+    return;
+  }
   if (a.compare) {
     for (sim::DesignKind k :
          {sim::DesignKind::oa, sim::DesignKind::random, sim::DesignKind::sobol}) {
@@ -123,8 +168,21 @@ void add_design_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--period", args->period_s, "sample period for the sample-count estimate, s")
       ->capture_default_str();
-  cmd->add_flag("--compare", args->compare,
-                "print the figures of all three kinds (same --points and --seed), write nothing");
+  auto* compare = cmd->add_flag(
+      "--compare", args->compare,
+      "print the figures of all three kinds (same --points and --seed), write nothing");
+  cmd->add_option("--attitudes", args->attitudes,
+                  "static poses from sensor attitudes instead: CSV of rotation vectors rx_rad, "
+                  "ry_rad, rz_rad of the sensor frame in the base frame (e.g. "
+                  "calib/poses/001_appendix_c_attitudes.csv); A4..A6 by the wrist's inverse "
+                  "kinematics, A1..A3 at --arm")
+      ->check(CLI::ExistingFile)
+      ->excludes(compare);
+  cmd->add_option("--arm", args->arm_deg,
+                  "with --attitudes: A1,A2,A3 held for every pose, degrees (as on the pendant)")
+      ->expected(3)
+      ->delimiter(',')
+      ->capture_default_str();
   cmd->callback([args]() { run_design(*args); });
 }
 

@@ -134,6 +134,86 @@ void run_fit(const Common& c, const std::string& effects, const std::string& out
   if (!out.empty()) std::printf("wrote %s\n", out.c_str());
 }
 
+// `zerog fit --tool-change`: re-identify the payload (gravity: mass, centre of mass) on the
+// static samples of a log with the rest of a previous fit frozen (paper 001_… §3.2, Appendix A).
+void run_tool_change(const Common& c, const std::string& base_path, const std::string& out,
+                     const std::string& loss, double loss_scale, int max_iter, int block_samples,
+                     const std::string& truth_path) {
+  if (base_path.empty())
+    throw std::invalid_argument(
+        "--tool-change needs --base: the previous fit whose sensor model "
+        "(bias and other effects) stays frozen");
+  const io::Log log = io::read_log(c.log);
+  const ident::Dataset data = ident::make_dataset(log);
+  const io::ModelFile base = io::read_model(base_path);
+  ident::ToolChangeOptions o;
+  o.loss = loss;
+  o.loss_scale = loss_scale;
+  o.max_iterations = max_iter;
+  o.block_samples = block_samples;
+  o.threads = c.threads;
+  o.progress = progress(c);
+  const ident::ToolChangeResult tc = ident::fit_tool_change(data, base.params, o);
+  const ident::FitResult& r = tc.fit;
+  if (!r.usable)
+    throw std::runtime_error("the fit is not usable (" + r.termination + "); nothing written");
+  std::optional<io::ModelFile> truth;
+  if (!truth_path.empty()) truth = io::read_model(truth_path);
+  io::ModelFile m;
+  m.params = r.params;
+  // Frozen effects carry the base fit's values and so its standard deviations.
+  m.std = r.std;
+  if (m.std && base.std) {
+    for (Effect e : model::kAllEffects)
+      if (tc.frozen.has(e)) (*m.std)[model::index(e)] = (*base.std)[model::index(e)];
+  }
+  m.rig_name = log.rig.name;
+  m.extra["fit"] = fit_json(r);
+  m.extra["fit"]["log"] = c.log;
+  m.extra["fit"]["tool_change"] = {{"base", base_path},
+                                   {"frozen", io::effect_list_string(tc.frozen)},
+                                   {"static_samples", tc.static_samples},
+                                   {"dwells", tc.dwells},
+                                   {"gravity_spread_deg", tc.spread_deg}};
+  if (!out.empty()) io::write_model(m, out, {c.log, io::rig_path_for(c.log), base_path});
+  if (c.json) {
+    nlohmann::json j = io::to_json(m);
+    j["kind"] = "zerog-fit";
+    j["output"] = out.empty() ? nlohmann::json(nullptr) : nlohmann::json(out);
+    std::cout << j.dump(2) << "\n";
+    return;
+  }
+  std::printf(
+      "tool change: %zu of %zu samples static (%zu dwells), %zu fitted; frozen from %s: %s\n",
+      tc.static_samples, data.size(), tc.dwells, r.samples, base_path.c_str(),
+      io::effect_list_string(tc.frozen).c_str());
+  std::printf("gravity directions in the sensor frame spread %.1f deg\n", tc.spread_deg);
+  std::printf("fitted gravity in %.2f s (%d iterations): %s\n", r.seconds, r.iterations,
+              r.termination.c_str());
+  const double* g = r.params.block(Effect::gravity);
+  const double* tg = truth ? truth->params.block(Effect::gravity) : nullptr;
+  auto sd = [&](int k) {
+    return r.std ? (*r.std)[model::index(Effect::gravity)][k] : std::nan("");
+  };
+  std::printf("  mass %12.4f +- %.4f kg", g[0], sd(0));
+  if (tg) std::printf("   truth %.4f kg, error %+.3f %%", tg[0], 100.0 * (g[0] - tg[0]) / tg[0]);
+  std::printf("\n");
+  for (int k = 1; k < 4; ++k) {
+    std::printf("  c%c   %12.3f +- %.3f mm", "xyz"[k - 1], 1000.0 * g[k], 1000.0 * sd(k));
+    if (tg)
+      std::printf("   truth %.3f mm, error %+.3f mm", 1000.0 * tg[k], 1000.0 * (g[k] - tg[k]));
+    std::printf("\n");
+  }
+  std::printf(
+      "residual RMS (static samples): Fx %.3f  Fy %.3f  Fz %.3f N   Mx %.3f  My %.3f  Mz %.3f "
+      "N*m\n",
+      r.residual_rms[0], r.residual_rms[1], r.residual_rms[2], r.residual_rms[3], r.residual_rms[4],
+      r.residual_rms[5]);
+  for (const auto& w : r.warnings)
+    std::printf("warning (%s): %s\n", w.kind.c_str(), w.message.c_str());
+  if (!out.empty()) std::printf("wrote %s\n", out.c_str());
+}
+
 void run_compare(const Common& c, const std::string& model_path, const std::string& truth_path,
                  int bins) {
   const io::Log log = io::read_log(c.log);
@@ -177,10 +257,20 @@ void add_ident_commands(CLI::App& app) {
     auto max_iter = std::make_shared<int>(50);
     auto truth = std::make_shared<std::string>();
     auto block_samples = std::make_shared<int>(8);
+    auto tool_change = std::make_shared<bool>(false);
+    auto base = std::make_shared<std::string>();
     CLI::App* s = app.add_subcommand("fit", "Fit a model (a list of effects) to a log with Ceres");
     add_common(s, *c);
-    s->add_option("-e,--effects", *effects, "Comma-separated effects (see proto/effects.md)")
-        ->capture_default_str();
+    auto* effects_opt =
+        s->add_option("-e,--effects", *effects, "Comma-separated effects (see proto/effects.md)")
+            ->capture_default_str();
+    s->add_flag("--tool-change", *tool_change,
+                "After an end-effector change: fit only the payload (gravity: mass, centre of "
+                "mass) on the static samples of LOG, every other effect of --base held at its "
+                "values (paper 001 section 3.2)")
+        ->excludes(effects_opt);
+    s->add_option("--base", *base, "With --tool-change: the previous fit (model file) to keep")
+        ->check(CLI::ExistingFile);
     s->add_option("-o,--out", *out, "Model file to write (JSON, written atomically)");
     s->add_option("--loss", *loss, "Robust loss: none, huber, cauchy")
         ->check(CLI::IsMember({"none", "huber", "cauchy"}))
@@ -196,6 +286,11 @@ void add_ident_commands(CLI::App& app) {
         ->capture_default_str();
     s->add_option("--truth", *truth, "Truth model (from zerog sim) to print beside the estimates");
     s->callback([=] {
+      if (*tool_change) {
+        run_tool_change(*c, *base, *out, *loss, *loss_scale, *max_iter, *block_samples, *truth);
+        return;
+      }
+      if (!base->empty()) throw std::invalid_argument("--base is for --tool-change");
       run_fit(*c, *effects, *out, *loss, *loss_scale, *max_iter, *block_samples, *truth);
     });
   }

@@ -3,12 +3,15 @@
 #include <ceres/ceres.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <iomanip>
 #include <limits>
 #include <memory>
+#include <numbers>
 #include <optional>
 #include <sstream>
 
@@ -291,17 +294,29 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
       if (!o.initial->effects.has(e)) r.params.values[model::index(e)].fill(0.0);
     }
   }
+  auto is_frozen = [&](Effect e) { return o.frozen.has(e) && o.effects.has(e); };
+  for (Effect e : model::kAllEffects) {
+    if (is_frozen(e) && (o.initial == nullptr || !o.initial->effects.has(e)))
+      throw std::runtime_error(std::string("frozen effect '") + model::info(e).name +
+                               "' needs its values from the initial model");
+  }
   const bool init_linear = o.initial == nullptr || !o.initial->effects.has(Effect::bias) ||
                            !o.initial->effects.has(Effect::gravity);
-  if (init_linear) linear_init(data, o, r.params);
+  if (init_linear) {
+    linear_init(data, o, r.params);
+    for (Effect e : {Effect::bias, Effect::gravity})  // frozen values stay as given
+      if (is_frozen(e)) r.params.values[model::index(e)] = o.initial->values[model::index(e)];
+  }
 
   std::vector<Effect> order;
   for (Effect e : model::kAllEffects) {
     if (o.effects.has(e) && model::info(e).num_params > 0) {
       order.push_back(e);
-      r.num_params += model::info(e).num_params;
+      if (!is_frozen(e)) r.num_params += model::info(e).num_params;
     }
   }
+  if (r.num_params == 0 && !order.empty())
+    throw std::runtime_error("every effect of the model is frozen: nothing to fit");
 
   std::array<double, 6> sigma = o.sigma.value_or(std::array<double, 6>{1, 1, 1, 0.1, 0.1, 0.1});
   if (o.block_samples < 1) throw std::runtime_error("block_samples must be at least 1");
@@ -343,6 +358,8 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
                                 loss.get(), blocks);
     }
     if (problem->NumResidualBlocks() == 0) throw std::runtime_error("no samples to fit");
+    for (Effect e : order)
+      if (is_frozen(e)) problem->SetParameterBlockConstant(r.params.block(e));
     ceres::Solver::Options so;
     so.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
     so.num_threads = o.threads;
@@ -407,9 +424,15 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
 
   if (o.covariance && r.usable && r.num_params > 0) {
     // Column-scaled J^T J from Ceres' Jacobian: identifiability (rank, correlations).
+    // Free blocks only: frozen ones are not estimated and have no covariance.
+    std::vector<Effect> free_order;
+    for (Effect e : order)
+      if (!is_frozen(e)) free_order.push_back(e);
+    ceres::Problem::EvaluateOptions eval_options;
+    for (Effect e : free_order) eval_options.parameter_blocks.push_back(r.params.block(e));
     ceres::CRSMatrix J;
     double cost = 0.0;
-    problem->Evaluate(ceres::Problem::EvaluateOptions(), &cost, nullptr, nullptr, &J);
+    problem->Evaluate(eval_options, &cost, nullptr, nullptr, &J);
     const int p = J.num_cols;
     Eigen::MatrixXd JtJ = Eigen::MatrixXd::Zero(p, p);
     {
@@ -422,7 +445,7 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
       JtJ = JtJ.selfadjointView<Eigen::Lower>();
     }
     std::vector<std::pair<Effect, int>> names;
-    for (Effect e : order)
+    for (Effect e : free_order)
       for (int k = 0; k < model::info(e).num_params; ++k) names.emplace_back(e, k);
     Eigen::VectorXd d = JtJ.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
     const Eigen::MatrixXd C = d.asDiagonal() * JtJ * d.asDiagonal();
@@ -466,10 +489,10 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
       co.num_threads = o.threads;
       ceres::Covariance covariance(co);
       std::vector<std::pair<const double*, const double*>> pairs;
-      for (Effect a : order)
-        for (Effect b : order) pairs.emplace_back(r.params.block(a), r.params.block(b));
+      for (Effect a : free_order)
+        for (Effect b : free_order) pairs.emplace_back(r.params.block(a), r.params.block(b));
       std::vector<const double*> ptrs;
-      for (Effect e : order) ptrs.push_back(r.params.block(e));
+      for (Effect e : free_order) ptrs.push_back(r.params.block(e));
       if (covariance.Compute(pairs, problem.get())) {
         Eigen::MatrixXd ceres_cov(p, p);
         covariance.GetCovarianceMatrix(ptrs, ceres_cov.data());
@@ -504,6 +527,92 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
   }
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return r;
+}
+
+std::vector<std::uint8_t> static_mask(const Dataset& data) {
+  std::vector<std::uint8_t> mask(data.size(), 0);
+  for (std::size_t i = 0; i < data.size(); ++i) mask[i] = data.moving[i] ? 0 : 1;
+  return mask;
+}
+
+ToolChangeResult fit_tool_change(const Dataset& data, const model::ModelParams& base,
+                                 const ToolChangeOptions& opt) {
+  if (!base.effects.has(Effect::gravity))
+    throw std::runtime_error("the base model has no 'gravity' effect to re-identify");
+  ToolChangeResult out;
+  out.frozen = base.effects;
+  out.frozen.remove(Effect::gravity);
+  const std::vector<std::uint8_t> mask = static_mask(data);
+  // Static samples, dwells (runs long enough for one block) and the spread of gravity in S.
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  std::size_t run = 0;
+  for (std::size_t i = 0; i <= data.size(); ++i) {
+    if (i < data.size() && mask[i]) {
+      ++run;
+      ++out.static_samples;
+      const Eigen::Vector3d u = data.pose[i].R_base_sensor.transpose() * Eigen::Vector3d(0, 0, -1);
+      scatter += u * u.transpose();
+      continue;
+    }
+    if (run >= static_cast<std::size_t>(std::max(1, opt.block_samples))) ++out.dwells;
+    run = 0;
+  }
+  if (out.static_samples == 0)
+    throw std::runtime_error(
+        "the log has no static samples (dwells): a tool change is fitted on "
+        "static poses only");
+  scatter /= static_cast<double>(out.static_samples);
+  const double lmax = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter).eigenvalues()[2];
+  out.spread_deg =
+      std::asin(std::sqrt(std::clamp(1.0 - lmax, 0.0, 1.0))) * 180.0 / std::numbers::pi;
+
+  FitOptions fo;
+  fo.effects = base.effects;
+  fo.frozen = out.frozen;
+  fo.initial = &base;
+  fo.mask = &mask;
+  fo.block_samples = opt.block_samples;
+  fo.max_iterations = opt.max_iterations;
+  fo.threads = opt.threads;
+  fo.loss = opt.loss;
+  fo.loss_scale = opt.loss_scale;
+  fo.progress = opt.progress;
+  out.fit = fit(data, fo);
+
+  auto& warnings = out.fit.warnings;
+  std::ostringstream os;
+  os.precision(3);
+  if (out.spread_deg < opt.min_spread_deg) {
+    os << "the " << out.dwells << " static poses hold gravity within " << std::fixed
+       << std::setprecision(1) << out.spread_deg
+       << " deg of one direction in the sensor frame: the centre of mass along that direction "
+          "cannot be told (use attitudes that tilt the sensor differently, e.g. "
+          "calib/poses/001_appendix_c_attitudes.csv)";
+    warnings.push_back({"poses_alike", os.str()});
+  }
+  if (out.fit.usable && out.fit.std) {
+    const double* g = out.fit.params.block(Effect::gravity);
+    const auto& sd = (*out.fit.std)[model::index(Effect::gravity)];
+    std::string who;
+    if (!(sd[0] <= opt.max_rel_std_mass * std::abs(g[0]))) who = param_label(Effect::gravity, 0);
+    for (int k = 1; k < 4; ++k)
+      if (!(sd[k] <= opt.max_std_com_m))
+        who += (who.empty() ? "" : ", ") + param_label(Effect::gravity, k);
+    if (!who.empty()) {
+      os.str("");
+      os << std::defaultfloat << std::setprecision(3);
+      os << "the static poses identify " << who << " poorly (std above "
+         << 100.0 * opt.max_rel_std_mass << " % of the mass or " << 1000.0 * opt.max_std_com_m
+         << " mm, or not at all): add attitudes that tilt the sensor differently";
+      warnings.push_back({"poorly_identified", os.str()});
+    }
+  }
+  if (base.effects.has(Effect::rotational_inertia)) {
+    warnings.push_back({"kept_inertia",
+                        "rotational_inertia keeps the base model's values (the old tool's): "
+                        "static poses cannot identify it; fit a moving run to update it"});
+  }
+  return out;
 }
 
 }  // namespace zerog::ident

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <fstream>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 
@@ -90,12 +91,15 @@ const char* design_kind_name(DesignKind kind) {
       return "random";
     case DesignKind::sobol:
       return "sobol";
+    case DesignKind::attitudes:
+      return "attitudes";
   }
   return "?";
 }
 
 std::optional<DesignKind> design_kind_from_name(std::string_view name) {
-  for (DesignKind k : {DesignKind::oa, DesignKind::random, DesignKind::sobol})
+  for (DesignKind k :
+       {DesignKind::oa, DesignKind::random, DesignKind::sobol, DesignKind::attitudes})
     if (name == design_kind_name(k)) return k;
   return std::nullopt;
 }
@@ -154,6 +158,9 @@ Design make_design(const DesignOptions& opt) {
   d.kind = opt.kind;
   d.seed = opt.seed;
   d.levels = opt.levels;
+  if (opt.kind == DesignKind::attitudes)
+    throw std::invalid_argument(
+        "attitudes: designs from attitudes come from design_from_attitudes");
   const JointLimits& lim = opt.workspace.limits;
   auto consider = [&](const JointVector& q) {
     ++d.candidates;
@@ -284,6 +291,128 @@ DesignMetrics design_metrics(const std::vector<JointVector>& points, const Works
   m.condition_number =
       smin > 1e-12 * sv(0) ? sv(0) / smin : std::numeric_limits<double>::infinity();
   return m;
+}
+
+std::vector<Eigen::Vector3d> read_attitudes(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in) throw io::InputError(path, 0, 0, "cannot open attitude file");
+  std::string line;
+  int line_no = 0;
+  std::array<int, 3> col{-1, -1, -1};  // cell index of rx_rad, ry_rad, rz_rad
+  std::size_t num_cells = 0;
+  std::vector<Eigen::Vector3d> out;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line.empty() || line[0] == '#') continue;
+    std::vector<std::string> cells;
+    std::vector<int> columns;
+    std::size_t start = 0;
+    while (true) {
+      const std::size_t comma = line.find(',', start);
+      columns.push_back(static_cast<int>(start) + 1);
+      cells.push_back(line.substr(start, comma == std::string::npos ? comma : comma - start));
+      if (comma == std::string::npos) break;
+      start = comma + 1;
+    }
+    if (num_cells == 0) {
+      constexpr const char* kNames[3] = {"rx_rad", "ry_rad", "rz_rad"};
+      for (int k = 0; k < 3; ++k) {
+        for (std::size_t c = 0; c < cells.size(); ++c)
+          if (cells[c] == kNames[k]) col[k] = static_cast<int>(c);
+        if (col[k] < 0)
+          throw io::InputError(path, line_no, 1,
+                               std::string("the header must name the columns rx_rad, ry_rad, "
+                                           "rz_rad (rotation vector, rad); '") +
+                                   kNames[k] + "' is missing");
+      }
+      num_cells = cells.size();
+      continue;
+    }
+    if (cells.size() != num_cells)
+      throw io::InputError(path, line_no, 1,
+                           "expected " + std::to_string(num_cells) + " columns, found " +
+                               std::to_string(cells.size()));
+    Eigen::Vector3d r;
+    for (int k = 0; k < 3; ++k) {
+      const std::string& cell_text = cells[static_cast<std::size_t>(col[k])];
+      std::istringstream cell(cell_text);
+      cell.imbue(std::locale::classic());
+      double x = 0.0;
+      if (!(cell >> x) || !(cell >> std::ws).eof() || !std::isfinite(x))
+        throw io::InputError(path, line_no, columns[static_cast<std::size_t>(col[k])],
+                             "not a finite number: '" + cell_text + "'");
+      r[k] = x;
+    }
+    out.push_back(r);
+  }
+  if (num_cells == 0) throw io::InputError(path, line_no, 0, "no header line");
+  if (out.empty()) throw io::InputError(path, line_no, 0, "no attitudes");
+  return out;
+}
+
+AttitudeDesign design_from_attitudes(const std::vector<Eigen::Vector3d>& rotvecs,
+                                     const AttitudeDesignOptions& opt) {
+  const Workspace& ws = opt.workspace;
+  JointVector previous = {opt.arm_rad[0], opt.arm_rad[1], opt.arm_rad[2], 0.0, 0.0, 0.0};
+  for (int j = 0; j < 3; ++j)
+    if (!(previous[j] >= ws.limits.lower_rad[j] && previous[j] <= ws.limits.upper_rad[j]))
+      throw std::invalid_argument("arm pose: A" + std::to_string(j + 1) +
+                                  " is outside its joint range");
+  AttitudeDesign out;
+  out.design.kind = DesignKind::attitudes;
+  out.design.seed = 0;
+  constexpr double kTwoPi = 2.0 * 3.141592653589793;
+  for (std::size_t a = 0; a < rotvecs.size(); ++a) {
+    ++out.design.candidates;
+    const Eigen::Matrix3d R_base_flange =
+        model::rotation_from_vector(rotvecs[a]) * ws.R_flange_sensor.transpose();
+    const auto solutions = wrist_inverse_kinematics(previous, R_base_flange);
+    std::optional<JointVector> best;
+    double best_move = std::numeric_limits<double>::infinity();
+    bool any_in_range = false;
+    double lowest = -std::numeric_limits<double>::infinity();
+    for (const JointVector& sol : solutions) {
+      for (int k4 = -1; k4 <= 1; ++k4) {
+        for (int k6 = -1; k6 <= 1; ++k6) {
+          JointVector q = sol;
+          q[3] += k4 * kTwoPi;
+          q[5] += k6 * kTwoPi;
+          if (!within_limits(q, ws.limits)) continue;
+          any_in_range = true;
+          const double z = lowest_point_z(q, ws);
+          lowest = std::max(lowest, z);
+          if (z < ws.floor_z_m + ws.clearance_m) continue;
+          double move = 0.0;
+          for (int j = 0; j < 6; ++j) move = std::max(move, std::abs(q[j] - previous[j]));
+          if (move < best_move) best_move = move, best = q;
+        }
+      }
+    }
+    if (!best) {
+      ++out.design.rejected;
+      char why[160];
+      if (any_in_range) {
+        std::snprintf(why, sizeof why,
+                      "below the floor: lowest point z %.3f m < floor %.3f m + clearance %.3f m",
+                      lowest, ws.floor_z_m, ws.clearance_m);
+      } else {
+        const double kDeg = 180.0 / 3.141592653589793;
+        std::snprintf(
+            why, sizeof why,
+            "outside the joint ranges: the wrist needs |A5| = %.1f deg (range %+.0f..%+.0f "
+            "deg) from this arm pose",
+            std::abs(solutions[0][4]) * kDeg, ws.limits.lower_rad[4] * kDeg,
+            ws.limits.upper_rad[4] * kDeg);
+      }
+      out.unreachable.emplace_back(static_cast<int>(a), why);
+      continue;
+    }
+    out.design.points_rad.push_back(*best);
+    out.attitude_index.push_back(static_cast<int>(a));
+    previous = *best;
+  }
+  return out;
 }
 
 void write_design(const Design& design, const std::filesystem::path& path,

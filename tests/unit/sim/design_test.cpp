@@ -4,8 +4,10 @@
 #include <filesystem>
 #include <fstream>
 #include <set>
+#include <string>
 
 #include "zerog/io/log.hpp"
+#include "zerog/model/rotation.hpp"
 #include "zerog/sim/design.hpp"
 
 namespace zerog::sim {
@@ -145,6 +147,76 @@ TEST(Design, CsvRoundTrip) {
     EXPECT_EQ(e.line(), 3);
     EXPECT_EQ(e.column(), 7);
   }
+  fs::remove_all(dir);
+}
+
+TEST(Design, AppendixCAttitudesByWristInverseKinematics) {
+  const auto attitudes =
+      read_attitudes(std::string(ZEROG_SOURCE_DIR) + "/calib/poses/001_appendix_c_attitudes.csv");
+  ASSERT_EQ(attitudes.size(), 15u);
+  EXPECT_EQ(attitudes[0], Eigen::Vector3d(2.0592, 0.6381, -0.0558));
+  EXPECT_EQ(attitudes[14], Eigen::Vector3d(-0.8525, -2.4366, 0.7001));
+  constexpr double kDeg = 3.141592653589793 / 180.0;
+  AttitudeDesignOptions o;
+  o.arm_rad = {-90 * kDeg, -80 * kDeg, 125 * kDeg};  // zerog design's default --arm
+  o.workspace.R_flange_sensor = model::rot_z(0.3);   // a sensor turned on the flange
+  const AttitudeDesign d = design_from_attitudes(attitudes, o);
+  ASSERT_EQ(d.design.points_rad.size(), 15u);
+  EXPECT_TRUE(d.unreachable.empty());
+  EXPECT_EQ(d.design.kind, DesignKind::attitudes);
+  for (std::size_t k = 0; k < 15; ++k) {
+    const JointVector& q = d.design.points_rad[k];
+    EXPECT_TRUE(is_feasible(q, o.workspace));
+    for (int j = 0; j < 3; ++j) EXPECT_EQ(q[j], o.arm_rad[j]);
+    // Forward kinematics of the solution reproduces the attitude R_base_sensor = Exp(r).
+    const Eigen::Matrix3d R_base_sensor =
+        forward_kinematics(q).R_base_flange * o.workspace.R_flange_sensor;
+    const Eigen::Matrix3d R_wanted =
+        model::rotation_from_vector(attitudes[static_cast<std::size_t>(d.attitude_index[k])]);
+    EXPECT_LT((R_base_sensor - R_wanted).cwiseAbs().maxCoeff(), 1e-9) << "attitude " << k + 1;
+  }
+  // From home (forearm horizontal along +x), three attitudes would need |A5| > 120°.
+  o.arm_rad = {0.0, -90 * kDeg, 90 * kDeg};
+  o.workspace.R_flange_sensor.setIdentity();
+  const AttitudeDesign home = design_from_attitudes(attitudes, o);
+  EXPECT_EQ(home.design.points_rad.size(), 12u);
+  ASSERT_EQ(home.unreachable.size(), 3u);
+  EXPECT_EQ(home.unreachable[0].first, 4);
+  EXPECT_EQ(home.unreachable[1].first, 6);
+  EXPECT_EQ(home.unreachable[2].first, 14);
+  EXPECT_NE(home.unreachable[0].second.find("joint ranges"), std::string::npos);
+  EXPECT_EQ(home.design.rejected, 3);
+  o.arm_rad[1] = 0.0;  // A2 outside its range
+  EXPECT_THROW(design_from_attitudes(attitudes, o), std::invalid_argument);
+  EXPECT_THROW(make_design({DesignKind::attitudes, 10, 11, 1, {}}), std::invalid_argument);
+}
+
+TEST(Design, AttitudeCsvErrorsNameLineAndColumn) {
+  const fs::path dir = fs::temp_directory_path() / "zerog_sim_attitude_test";
+  fs::create_directories(dir);
+  {
+    std::ofstream f(dir / "a.csv");
+    f << "# note\nrx_rad,ry_rad,rz_rad\n0.1,0.2,0.3\r\n\n0,0,1e\n";
+  }
+  try {
+    read_attitudes(dir / "a.csv");
+    FAIL() << "expected an InputError";
+  } catch (const io::InputError& e) {
+    EXPECT_EQ(e.line(), 5);
+    EXPECT_EQ(e.column(), 5);
+  }
+  {
+    std::ofstream f(dir / "b.csv");
+    f << "number,rx,ry,rz\n1,0,0,0\n";
+  }
+  EXPECT_THROW(read_attitudes(dir / "b.csv"), io::InputError);
+  {
+    std::ofstream f(dir / "c.csv");
+    f << "rz_rad,number,rx_rad,ry_rad\n0.3,1,0.1,0.2\n";  // columns by name, any order
+  }
+  const auto c = read_attitudes(dir / "c.csv");
+  ASSERT_EQ(c.size(), 1u);
+  EXPECT_EQ(c[0], Eigen::Vector3d(0.1, 0.2, 0.3));
   fs::remove_all(dir);
 }
 

@@ -103,6 +103,55 @@ TEST(Kinematics, AnalyticTwistMatchesFiniteDifferences) {
   }
 }
 
+TEST(Kinematics, WristInverseKinematicsReproducesTheOrientation) {
+  std::mt19937 gen(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const JointLimits lim = kr210_table4_limits();
+  for (int trial = 0; trial < 200; ++trial) {
+    JointVector q{};
+    for (int j = 0; j < 6; ++j)
+      q[j] = 0.5 * (lim.lower_rad[j] + lim.upper_rad[j]) +
+             0.5 * u(gen) * (lim.upper_rad[j] - lim.lower_rad[j]);
+    const Eigen::Matrix3d R = forward_kinematics(q).R_base_flange;
+    const auto solutions = wrist_inverse_kinematics(q, R);
+    EXPECT_GE(solutions[0][4], 0.0);
+    EXPECT_LE(solutions[1][4], 0.0);
+    bool found_q = false;
+    for (const JointVector& s : solutions) {
+      for (int j = 0; j < 3; ++j) EXPECT_EQ(s[j], q[j]);  // the arm stays
+      EXPECT_LT((forward_kinematics(s).R_base_flange - R).cwiseAbs().maxCoeff(), 1e-9);
+      bool same = true;
+      for (int j = 3; j < 6; ++j)
+        same = same && std::abs(std::remainder(s[j] - q[j], 2 * std::numbers::pi)) < 1e-9;
+      found_q = found_q || same;
+    }
+    EXPECT_TRUE(found_q) << "trial " << trial;  // one of the two is the pose we started from
+  }
+}
+
+TEST(Kinematics, WristInverseKinematicsAtTheSingularity) {
+  JointVector q = kr210_home();
+  q[3] = 30 * kDeg;
+  q[4] = 0.0;  // A4 and A6 turn about the same axis: only their sum is determined
+  q[5] = -70 * kDeg;
+  const Eigen::Matrix3d R = forward_kinematics(q).R_base_flange;
+  JointVector reference = q;
+  reference[3] = 10 * kDeg;  // A4 is kept from the reference
+  const auto solutions = wrist_inverse_kinematics(reference, R);
+  for (const JointVector& s : solutions) {
+    EXPECT_NEAR(s[3], 10 * kDeg, 1e-12);
+    EXPECT_NEAR(s[4], 0.0, 1e-12);
+    EXPECT_NEAR(s[5], -50 * kDeg, 1e-9);  // A4 + A6 unchanged
+    EXPECT_LT((forward_kinematics(s).R_base_flange - R).cwiseAbs().maxCoeff(), 1e-9);
+  }
+  for (double a5 : {1e-11, 1e-8, 1e-5}) {  // close to it: still exact
+    q[4] = a5;
+    const Eigen::Matrix3d Rn = forward_kinematics(q).R_base_flange;
+    for (const JointVector& s : wrist_inverse_kinematics(q, Rn))
+      EXPECT_LT((forward_kinematics(s).R_base_flange - Rn).cwiseAbs().maxCoeff(), 1e-9) << a5;
+  }
+}
+
 TEST(Trajectory, ProfileDerivativesAndLimits) {
   const PtpLimits lim = kr210_ptp_limits(0.3);
   const JointLimits range = kr210_table4_limits();

@@ -2,6 +2,7 @@
 // Identification of the model parameters with Ceres (Levenberg–Marquardt, autodiff through the
 // one templated model of firmware/model).
 #include <array>
+#include <cstdint>
 #include <functional>
 #include <optional>
 #include <string>
@@ -26,6 +27,11 @@ struct FitOptions {
   bool covariance = true;  ///< compute standard deviations and identifiability
   const std::vector<std::uint8_t>* mask = nullptr;  ///< use sample i only if (*mask)[i] == 1
   const model::ModelParams* initial = nullptr;      ///< start values (others: linear init)
+  /// Effects of `effects` whose parameter blocks are held constant at their `initial` values
+  /// (Ceres SetParameterBlockConstant), e.g. the sensor's zero-point model after a tool change.
+  /// `initial` must then hold every frozen effect. Standard deviations, correlations, the rank
+  /// check and the BIC cover the free parameters only; frozen ones get no std (NaN).
+  model::EffectSet frozen;
   /// Per-axis noise for whitening; if absent, estimated (two passes).
   std::optional<std::array<double, 6>> sigma;
   std::function<void(const std::string&)> progress;  ///< progress lines (may be empty)
@@ -47,13 +53,56 @@ struct FitResult {
   std::array<double, 6> sigma{};         ///< per-axis whitening of the block residuals
   std::array<double, 6> residual_rms{};  ///< per axis, per sample, on the fitted samples
   double bic = 0.0;                      ///< Bayesian information criterion of the block residuals
-  int num_params = 0;
+  int num_params = 0;                    ///< free (fitted) parameters
   std::vector<Warning> warnings;
 };
 
 /// Fits the effects in `options.effects` to `data`. Accepts the solution only if Ceres reports
 /// it usable; otherwise `usable` is false and `termination` says why.
 FitResult fit(const Dataset& data, const FitOptions& options);
+
+/// 1 for the static samples of `data` (Dataset::moving == 0), 0 while the sensor moves.
+std::vector<std::uint8_t> static_mask(const Dataset& data);
+
+/// Tool change (paper 001_… §3.2, Appendix A): a new end-effector on a sensor whose zero-point
+/// model is known. Only the payload's mass and centre of mass (the `gravity` block) are fitted,
+/// from the static samples (dwells) of a run through a handful of attitudes; every other effect
+/// of the base model keeps its values (FitOptions::frozen). The paper solves eq. 13–14 as two
+/// linear least-squares problems on the zero-corrected output; here the same model is fitted in
+/// one Ceres problem on block means of the dwell samples, with the frozen model in place of the
+/// paper's f_zero.
+struct ToolChangeOptions {
+  int block_samples = 8;  ///< block means of this many consecutive static samples
+  int max_iterations = 50;
+  int threads = 2;
+  std::string loss = "none";
+  double loss_scale = 3.0;
+  /// Warn ("poses_alike") when the gravity directions in S spread less than this: the angle
+  /// asin √(1 − λmax) with λmax the largest eigenvalue of their mean outer product (0 if they
+  /// are all parallel, about 55° if they are spread evenly over the sphere), degrees.
+  double min_spread_deg = 10.0;
+  /// Warn ("poorly_identified") when std(mass) / mass or a std of cx, cy, cz exceeds these.
+  double max_rel_std_mass = 0.005;
+  double max_std_com_m = 0.001;
+  std::function<void(const std::string&)> progress;
+};
+
+struct ToolChangeResult {
+  FitResult fit;                   ///< the whole model: base values, gravity re-fitted
+  std::size_t static_samples = 0;  ///< samples with moving == 0 (of data.size())
+  std::size_t dwells = 0;          ///< runs of consecutive static samples
+  double spread_deg = 0.0;         ///< spread of the gravity directions in S (see options)
+  model::EffectSet frozen;         ///< the base model's effects held constant
+};
+
+/// Re-identifies `gravity` (mass, cx, cy, cz) on the static samples of `data` with every other
+/// effect of `base` frozen. `base` must contain `gravity` (its values are the start values).
+/// Warnings (in fit.warnings) besides the fit's own: "poses_alike", "poorly_identified", and
+/// "kept_inertia" when the base model's rotational_inertia (the old tool's) is carried over, which
+/// static poses cannot update. Throws std::runtime_error when there are no static samples or the
+/// base model lacks gravity.
+ToolChangeResult fit_tool_change(const Dataset& data, const model::ModelParams& base,
+                                 const ToolChangeOptions& options);
 
 /// Name of a parameter for messages: "gravity.mass [kg]".
 std::string param_label(model::Effect e, int i);

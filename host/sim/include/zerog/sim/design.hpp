@@ -15,7 +15,9 @@
 
 namespace zerog::sim {
 
-enum class DesignKind { oa, random, sobol };
+/// attitudes: from a list of sensor attitudes by wrist inverse kinematics (design_from_attitudes;
+/// make_design refuses it).
+enum class DesignKind { oa, random, sobol, attitudes };
 const char* design_kind_name(DesignKind kind);
 std::optional<DesignKind> design_kind_from_name(std::string_view name);
 
@@ -96,6 +98,36 @@ struct DesignMetrics {
 };
 DesignMetrics design_metrics(const std::vector<JointVector>& points_rad, const Workspace& ws,
                              int levels = 11);
+
+/// Attitudes for a static identification run (e.g. a tool change, paper 001_… §4.2, Appendix C):
+/// rotation vectors r (rad) of the F/T sensor frame S in the robot base frame B,
+/// R_base_sensor = Exp(r). CSV: `#` comment lines, a header naming the columns `rx_rad`,
+/// `ry_rad`, `rz_rad` (other columns, e.g. `number`, are ignored), one attitude per row
+/// (calib/poses/README.md). Throws io::InputError naming file, line and column.
+std::vector<Eigen::Vector3d> read_attitudes(const std::filesystem::path& path);
+
+struct AttitudeDesignOptions {
+  /// A1..A3 held for every point (rad): the forearm pose the wrist turns from. Default: home,
+  /// A2 = −90°, A3 = +90° (forearm horizontal, wrist centre 1.78 m above the base).
+  std::array<double, 3> arm_rad = {0.0, -1.5707963267948966, 1.5707963267948966};
+  Workspace workspace;  ///< joint ranges, floor, and the sensor's mounting R_flange_sensor
+};
+
+struct AttitudeDesign {
+  Design design;                    ///< kind attitudes: one point per reachable attitude, in order
+  std::vector<int> attitude_index;  ///< for each point, the 0-based index of its attitude
+  /// For each attitude that cannot be reached: its index and why (joint range or floor).
+  std::vector<std::pair<int, std::string>> unreachable;
+};
+
+/// Path points that give the sensor the requested attitudes R_base_sensor = Exp(r): A1..A3 fixed
+/// at `arm_rad`, A4..A6 by wrist_inverse_kinematics for R_base_flange = R_base_sensor ·
+/// R_flange_sensorᵀ. Of the solutions (wrist flip, A4/A6 ± 2π) within the joint ranges and above
+/// the floor, the one nearest the previous point (largest joint move smallest) is taken; the
+/// first point is compared with the arm pose and a straight wrist. Throws std::invalid_argument
+/// if the arm pose is outside the joint ranges.
+AttitudeDesign design_from_attitudes(const std::vector<Eigen::Vector3d>& rotvecs_base_sensor,
+                                     const AttitudeDesignOptions& options);
 
 /// Design CSV (proto/design_format.md). Written atomically; refuses to overwrite `inputs`.
 void write_design(const Design& design, const std::filesystem::path& path,

@@ -90,4 +90,18 @@ FlangeMotion flange_motion(const JointVector& q_rad, const JointVector& qd_radps
                            const JointVector& qdd_radps2,
                            const std::array<DhLink, 6>& dh = kKr210Dh);
 
+/// Inverse kinematics of the spherical wrist: the joint angles A4..A6 that turn the flange to
+/// `R_base_flange` while A1..A3 stay at `q_arm_rad[0..2]` (only the orientation is solved: the
+/// flange position follows from the arm pose). With R_3 the orientation of DH frame 3 (from
+/// A1..A3) and θ_i = sign_i q_i + offset_i, the wrist of the KR 210 (α4 = +π/2, α5 = −π/2,
+/// a4 = a5 = d5 = 0) gives R_3ᵀ R_base_flange Rx(α6)ᵀ = Rz(θ4) Ry(−θ5) Rz(θ6), a ZYZ Euler
+/// decomposition (Siciliano et al., Robotics, §2.12.2, eq. 2.74–2.75 with a sign on θ5).
+/// Returns the two solutions (the wrist flip): [0] with A5 ≥ 0, [1] with A5 ≤ 0, each a full
+/// joint vector (A1..A3 copied, A4 and A6 in (−π, π]). At the wrist singularity (|sin θ5| below
+/// 1e-12) only A4 ± A6 is determined: A4 keeps `q_arm_rad[3]` and both solutions are equal.
+/// Joint limits are not checked. Not real-time code, but allocation-free.
+std::array<JointVector, 2> wrist_inverse_kinematics(const JointVector& q_arm_rad,
+                                                    const Eigen::Matrix3d& R_base_flange,
+                                                    const std::array<DhLink, 6>& dh = kKr210Dh);
+
 }  // namespace zerog::sim
