@@ -9,5 +9,7 @@ void add_design_command(CLI::App& app);  // cmd_design.cpp
 void add_sim_command(CLI::App& app);     // cmd_sim.cpp
 void add_ident_commands(CLI::App& app);  // cmd_ident.cpp: fit, compare, diagnose, ladder
 void add_report_command(CLI::App& app);  // cmd_report.cpp
+void add_learn_commands(CLI::App& app);  // cmd_learn.cpp: train, results
+void add_export_command(CLI::App& app);  // cmd_export.cpp
 
 }  // namespace zerog::cli

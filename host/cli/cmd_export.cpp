@@ -1,0 +1,203 @@
+// `zerog export`: the deployed-model file for the cabinet PC (proto/deploy_format.md): physics
+// effects and parameters, the rig, and optionally the residual network, float and quantised.
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "commands.hpp"
+#include "zerog/ident/dataset.hpp"
+#include "zerog/infer/deploy_file.hpp"
+#include "zerog/infer/inference.hpp"
+#include "zerog/infer/quantise.hpp"
+#include "zerog/io/log.hpp"
+#include "zerog/io/model_file.hpp"
+#include "zerog/learn/network_file.hpp"
+#include "zerog/learn/predict.hpp"
+#include "zerog/learn/signals.hpp"
+
+namespace zerog::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct ExportArgs {
+  std::string model, network, rig, out, calibration;
+  int weight_bits = 16;
+  double input_clip = 8.0;
+  bool quiet = false;
+};
+
+infer::RigDescription rig_description(const io::Rig& r) {
+  infer::RigDescription d;
+  d.name = r.name;
+  d.robot = r.robot;
+  d.p_flange_sensor_m = r.flange_sensor.p_m;
+  d.q_flange_sensor = r.flange_sensor.q.normalized();
+  d.p_sensor_imu_m = r.sensor_imu.p_m;
+  d.q_sensor_imu = r.sensor_imu.q.normalized();
+  d.sample_period_s = r.sample_period_s;
+  return d;
+}
+
+// The residual network was trained on the residual of one physics model: deploying it on top of
+// another would add a correction for errors that model does not make.
+void check_same_physics(const model::ModelParams& deployed, const model::ModelParams& trained,
+                        const std::string& network_path) {
+  if (deployed.effects != trained.effects)
+    throw std::runtime_error(network_path +
+                             ": the network corrects the physics model with effects '" +
+                             io::effect_list_string(trained.effects) + "', --model has '" +
+                             io::effect_list_string(deployed.effects) + "'");
+  for (model::Effect e : model::kAllEffects) {
+    if (!deployed.effects.has(e)) continue;
+    const model::EffectInfo& info = model::info(e);
+    for (int k = 0; k < info.num_params; ++k) {
+      const double a = deployed.block(e)[k], b = trained.block(e)[k];
+      if (std::abs(a - b) > 1e-9 * std::max({1.0, std::abs(a), std::abs(b)}))
+        throw std::runtime_error(network_path + ": the network was trained on the residual of " +
+                                 "another fit (" + info.name + "." + info.params[k].name + " " +
+                                 std::to_string(b) + " there, " + std::to_string(a) +
+                                 " in --model); retrain it on this model or export that one");
+    }
+  }
+}
+
+void run_export(const ExportArgs& a) {
+  const io::ModelFile fit = io::read_model(a.model);
+  const io::Rig rig = io::read_rig(a.rig);
+  if (!fit.rig_name.empty() && fit.rig_name != rig.name)
+    throw std::runtime_error(a.model + ": fitted on rig '" + fit.rig_name + "', but " + a.rig +
+                             " describes rig '" + rig.name + "'");
+  infer::DeployedModel m;
+  m.rig = rig_description(rig);
+  m.physics = fit.params;
+  nlohmann::json provenance = {{"model", fs::path(a.model).filename().string()},
+                               {"rig_file", fs::path(a.rig).filename().string()},
+                               {"zerog", "0.1.0"}};
+  std::vector<fs::path> inputs = {a.model, a.rig};
+  learn::NetworkFile net;
+  std::optional<io::Log> calib_log;
+  std::optional<ident::Dataset> calib_data;
+  if (!a.network.empty()) {
+    net = learn::read_network(a.network);
+    inputs.emplace_back(a.network);
+    if (net.kind != learn::NetworkKind::residual)
+      throw std::runtime_error(a.network + ": a '" + learn::kind_name(net.kind) +
+                               "' network predicts the whole wrench; zerog export deploys "
+                               "'residual' networks on top of the physics model");
+    if (net.physics) check_same_physics(fit.params, net.physics->params, a.network);
+    infer::QuantiseOptions q;
+    q.weight_bits = a.weight_bits;
+    q.input_clip = a.input_clip;
+    std::vector<double> rows;
+    if (!a.calibration.empty()) {
+      calib_log = io::read_log(a.calibration);
+      calib_data = ident::make_dataset(*calib_log);
+      learn::check_feature_signals(net.inputs, *calib_data);
+      std::vector<std::size_t> idx;
+      const std::size_t n = calib_data->size(), step = std::max<std::size_t>(1, n / 20000);
+      for (std::size_t i = 0; i < n; i += step) idx.push_back(i);
+      rows = learn::feature_rows(*calib_data, *calib_log, net.inputs, idx);
+      q.calibration_inputs = rows;
+      inputs.emplace_back(a.calibration);
+      provenance["calibration"] = fs::path(a.calibration).filename().string();
+    }
+    m.network = infer::make_deployed_network(net.inputs, net.output_axes, net.shape,
+                                             net.normalisation, net.params, q);
+    provenance["network"] = fs::path(a.network).filename().string();
+  }
+  m.provenance_json = provenance.dump();
+  const std::string bytes = infer::serialise_deployed_model(m);
+  // Check what we are about to write loads, on this rig, before it replaces anything.
+  const infer::LoadResult check = infer::load_deployed_model(bytes, m.rig, a.out);
+  if (!check.ok())
+    throw std::runtime_error("internal: the exported file does not load: " + check.message);
+  io::write_file_atomic(a.out, bytes, inputs);
+  if (a.quiet) return;
+  std::fprintf(stderr, "zerog export: %s (%zu bytes, CRC-32 %s) for rig '%s'\n", a.out.c_str(),
+               bytes.size(), bytes.substr(bytes.find("crc32=") + 6, 8).c_str(), rig.name.c_str());
+  std::fprintf(stderr, "  physics: %s\n", io::effect_list_string(m.physics.effects).c_str());
+  if (!m.network) {
+    std::fprintf(stderr, "  network: none (physics only)\n");
+    return;
+  }
+  std::string shape;
+  for (int w : m.network->shape.width) shape += (shape.empty() ? "" : "-") + std::to_string(w);
+  std::fprintf(stderr,
+               "  network: %s, %d-bit weights (per-output-channel scales), int16 activations\n",
+               shape.c_str(), a.weight_bits);
+  if (calib_data) {
+    infer::Inference inf;
+    if (const std::string why = inf.configure(*check.model); !why.empty())
+      throw std::runtime_error("internal: " + why);
+    double max_f = 0.0, max_m = 0.0;
+    std::size_t saturated = 0;
+    for (std::size_t i = 0; i < calib_data->size(); ++i) {
+      const model::FeatureSignals s = learn::feature_signals(*calib_data, *calib_log, i);
+      infer::Wrench q, f;
+      if (inf.residual_quantised(s, q).code != infer::StatusCode::ok) ++saturated;
+      inf.residual_reference(s, f);
+      const infer::Wrench d = (q - f).cwiseAbs();
+      max_f = std::max(max_f, d.head<3>().maxCoeff());
+      max_m = std::max(max_m, d.tail<3>().maxCoeff());
+    }
+    std::fprintf(stderr,
+                 "  quantised vs float on %zu calibration samples: max %.2g N, %.2g N*m "
+                 "(%zu samples saturated)\n",
+                 calib_data->size(), max_f, max_m, saturated);
+    // The firmware's float path must reproduce the host's prediction (same physics, features
+    // and forward pass); a difference means the deployed model would not be the trained one.
+    std::vector<model::FeatureSignals> signals(calib_data->size());
+    for (std::size_t i = 0; i < signals.size(); ++i)
+      signals[i] = learn::feature_signals(*calib_data, *calib_log, i);
+    std::vector<infer::Wrench> firmware(signals.size());
+    infer::evaluate_sequence(inf, infer::Path::float_reference, signals, firmware);
+    const std::vector<ident::Wrench> host = learn::predictions(net, *calib_data, *calib_log);
+    double worst = 0.0;
+    for (std::size_t i = 0; i < host.size(); ++i)
+      worst = std::max(worst, (firmware[i] - host[i]).cwiseAbs().maxCoeff());
+    std::fprintf(stderr, "  firmware float path vs zerog train's prediction: max %.2g\n", worst);
+    if (!(worst < 1e-6))
+      throw std::runtime_error(
+          "the deployed float path differs from the trained model's "
+          "prediction by " +
+          std::to_string(worst) + " on " + a.calibration);
+  }
+}
+
+}  // namespace
+
+void add_export_command(CLI::App& app) {
+  auto a = std::make_shared<ExportArgs>();
+  CLI::App* s = app.add_subcommand(
+      "export", "Write the deployed-model file for the cabinet PC (proto/deploy_format.md)");
+  s->add_option("--model", a->model, "Fitted model (zerog fit)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  s->add_option("--network", a->network, "Residual network (zerog train --kind residual)")
+      ->check(CLI::ExistingFile);
+  s->add_option("--rig", a->rig, "Rig description (.rig.toml) the model was fitted for")
+      ->required()
+      ->check(CLI::ExistingFile);
+  s->add_option("--out", a->out, "Deployed-model file to write (atomically), e.g. deploy.zgm")
+      ->required();
+  s->add_option("--calibration", a->calibration,
+                "A log whose samples calibrate the activation ranges and measure the "
+                "quantisation error (optional)")
+      ->check(CLI::ExistingFile);
+  s->add_option("--weight-bits", a->weight_bits, "Weight precision: 16 (default) or 8")
+      ->check(CLI::IsMember({8, 16}))
+      ->capture_default_str();
+  s->add_option("--input-clip", a->input_clip,
+                "Normalised inputs saturate beyond this many standard deviations")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  s->add_flag("-q,--quiet", a->quiet, "No summary on stderr");
+  s->callback([a] { run_export(*a); });
+}
+
+}  // namespace zerog::cli

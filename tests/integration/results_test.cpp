@@ -1,0 +1,45 @@
+// Acceptance of the learned residual (the results table, zerog::learn::run_results): on a
+// simulated KR210/100 kg run whose truth holds joint6_friction (outside the physics library) and
+// cable, physics + residual network (float) beats physics only and both paper methods on
+// held-out RMS, force and torque. Training budgets are cut (the table itself uses the defaults)
+// to keep the test near a minute.
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "zerog/learn/results.hpp"
+
+namespace zerog {
+namespace {
+
+TEST(Results, PhysicsPlusResidualBeatsPhysicsAndBothPaperMethodsOnHeldOutData) {
+  learn::ResultsOptions o;
+  o.seed = 42;
+  o.max_iterations = 40;
+  o.max_train_samples = 2500;
+  o.adam_iterations = 5000;
+  const learn::Results r = learn::run_results(o);
+  const std::string table = learn::format_markdown(r);
+  const auto& res = r.method("residual");
+  const auto& phys = r.method("physics");
+  for (const char* other : {"physics", "paper-bp", "paper-zp"}) {
+    const auto& m = r.method(other);
+    ASSERT_TRUE(m.available) << other;
+    EXPECT_LT(res.all.force_rms, m.all.force_rms) << other << "\n" << table;
+    EXPECT_LT(res.all.torque_rms, m.all.torque_rms) << other << "\n" << table;
+  }
+  // The friction is a torque: the network removes most of what physics leaves above the floor.
+  const auto& floor = r.method("noise-floor");
+  EXPECT_LT(res.all.torque_rms - floor.all.torque_rms,
+            0.3 * (phys.all.torque_rms - floor.all.torque_rms))
+      << table;
+  // The ladder reaches the cable (the physics model can fit it) and the quantised column is
+  // marked, whether or not the firmware inference is linked yet.
+  EXPECT_NE(r.physics_effects.find("cable"), std::string::npos) << r.physics_effects;
+  EXPECT_NE(table.find("quantised"), std::string::npos);
+  EXPECT_NE(table.find("000_… Table 5"), std::string::npos);
+  EXPECT_NE(table.find("001_… Table 4"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace zerog

@@ -1,0 +1,146 @@
+// The real-time evaluator: no allocation in the cycle, status instead of exceptions, physics
+// equal to model::predict_wrench, never half-configured, and the host sequence helper.
+#include "zerog/infer/inference.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "alloc_count.hpp"
+#include "infer_fixtures.hpp"
+
+namespace zerog::infer {
+namespace {
+
+using model::Activation;
+using model::Feature;
+
+DeployedModel model_with(Activation act, int weight_bits) {
+  const auto data = test::random_samples(2000, 5);
+  DeployedModel m;
+  m.rig = test::demo_rig();
+  m.physics = test::demo_physics();
+  m.network = test::make_network(test::feature_range(Feature::sin_q1, Feature::time), {64, 64}, act,
+                                 data, 1.0, 9, weight_bits);
+  return m;
+}
+
+TEST(Inference, EvaluateDoesNotAllocate) {
+  for (Activation act : {Activation::tanh, Activation::sigmoid, Activation::leaky_relu}) {
+    for (int bits : {8, 16}) {
+      Inference inf;
+      ASSERT_EQ(inf.configure(model_with(act, bits)), "");
+      const auto samples = test::random_samples(500, 1);
+      Wrench w;
+      const std::size_t before = test::allocation_count();
+      for (const auto& s : samples) {
+        inf.evaluate(s, w);
+        inf.evaluate_reference(s, w);
+        inf.evaluate_physics(s, w);
+        inf.residual_quantised(s, w);
+      }
+      EXPECT_EQ(test::allocation_count() - before, 0u) << model::activation_name(act) << bits;
+    }
+  }
+  // The counter works: configure allocates.
+  const std::size_t before = test::allocation_count();
+  Inference inf;
+  ASSERT_EQ(inf.configure(model_with(Activation::tanh, 16)), "");
+  EXPECT_GT(test::allocation_count() - before, 0u);
+}
+
+TEST(Inference, PhysicsIsModelPredictWrench) {
+  Inference inf;
+  const DeployedModel m = model_with(Activation::tanh, 16);
+  ASSERT_EQ(inf.configure(m), "");
+  std::mt19937_64 rng(4);
+  for (int i = 0; i < 100; ++i) {
+    const model::FeatureSignals s = test::random_signals(rng);
+    model::PoseSignals pose;
+    pose.R_base_sensor =
+        Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(s.R_base_sensor.data());
+    pose.t_rel_s = s.t_s;
+    pose.temperature_C = s.temperature_C;
+    pose.joints_rad = s.joints_rad;
+    model::ImuSignals<double> imu;
+    imu.specific_force_imu = Eigen::Vector3d(s.imu[0], s.imu[1], s.imu[2]);
+    imu.angular_rate_imu = Eigen::Vector3d(s.imu[3], s.imu[4], s.imu[5]);
+    imu.angular_accel_imu = Eigen::Vector3d(s.imu[6], s.imu[7], s.imu[8]);
+    const Wrench expected = model::predict_wrench<double>(
+        m.physics.effects, model::pointers(m.physics), pose, imu, m.rig.geometry());
+    Wrench physics, full, residual;
+    ASSERT_TRUE(inf.evaluate_physics(s, physics).written());
+    EXPECT_EQ(physics, expected);
+    ASSERT_TRUE(inf.evaluate(s, full).written());
+    ASSERT_TRUE(inf.residual_quantised(s, residual).written());
+    EXPECT_LT((full - (expected + residual)).cwiseAbs().maxCoeff(), 1e-9);
+  }
+}
+
+TEST(Inference, StatusInsteadOfExceptions) {
+  Inference inf;
+  model::FeatureSignals s;
+  Wrench w = Wrench::Constant(7.0);
+  EXPECT_EQ(inf.evaluate(s, w).code, StatusCode::not_configured);
+  EXPECT_EQ(w, Wrench::Constant(7.0));  // not written
+  ASSERT_EQ(inf.configure(model_with(Activation::tanh, 16)), "");
+  s.temperature_C = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(inf.evaluate(s, w).code, StatusCode::non_finite);
+  EXPECT_EQ(w, Wrench::Constant(7.0));
+  std::mt19937_64 rng(8);
+  s = test::random_signals(rng);
+  EXPECT_EQ(inf.evaluate(s, w).code, StatusCode::ok);
+  s.t_s = 1e6;  // far outside the training range: the input saturates, the output is still given
+  const Status st = inf.evaluate(s, w);
+  EXPECT_EQ(st.code, StatusCode::saturated);
+  EXPECT_GE(st.clipped_values, 1);
+  EXPECT_TRUE(st.written());
+  EXPECT_STREQ(status_name(st.code), "saturated");
+}
+
+TEST(Inference, NeverHalfConfigured) {
+  Inference inf;
+  const DeployedModel good = model_with(Activation::tanh, 16);
+  ASSERT_EQ(inf.configure(good), "");
+  DeployedModel bad = good;
+  bad.network->quantised.layers[1].weights.pop_back();
+  const std::string why = inf.configure(bad);
+  EXPECT_NE(why.find("quantised weights"), std::string::npos) << why;
+  ASSERT_TRUE(inf.configured());
+  EXPECT_EQ(inf.model().network->quantised.layers[1].weights.size(),
+            good.network->quantised.layers[1].weights.size());
+  std::mt19937_64 rng(9);
+  Wrench w;
+  EXPECT_TRUE(inf.evaluate(test::random_signals(rng), w).written());
+}
+
+TEST(Inference, SequenceMatchesPerSampleAndShiftsTheImuForTheTimeOffset) {
+  DeployedModel m = model_with(Activation::leaky_relu, 16);
+  std::vector<model::FeatureSignals> samples = test::random_samples(50, 12);
+  for (std::size_t i = 0; i < samples.size(); ++i) samples[i].t_s = 0.012 * static_cast<double>(i);
+  Inference inf;
+  ASSERT_EQ(inf.configure(m), "");
+  std::vector<Wrench> out(samples.size());
+  evaluate_sequence(inf, Path::quantised, samples, out);
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    Wrench w;
+    inf.evaluate(samples[i], w);
+    EXPECT_EQ(out[i], w);
+  }
+  // With tau = one row, the physics of sample i reads the IMU of sample i + 1.
+  m.physics.effects.add(model::Effect::imu_time_offset);
+  m.physics.block(model::Effect::imu_time_offset)[0] = 0.012;
+  ASSERT_EQ(inf.configure(m), "");
+  evaluate_sequence(inf, Path::physics_only, samples, out);
+  for (std::size_t i = 0; i + 1 < samples.size(); ++i) {
+    model::FeatureSignals shifted = samples[i];
+    shifted.imu = samples[i + 1].imu;
+    Wrench w;
+    inf.evaluate_physics(shifted, w);
+    EXPECT_LT((out[i] - w).cwiseAbs().maxCoeff(), 1e-9) << i;
+  }
+}
+
+}  // namespace
+}  // namespace zerog::infer
