@@ -1,0 +1,113 @@
+#pragma once
+// A force/torque sensor as the loop sees it. Real: NetcanoemSensor (ATI NETCANOEM over CAN);
+// fake: FakeFtSensor (scripted results, below).
+#include <array>
+#include <cstddef>
+#include <cstdint>
+
+namespace zerog::rtio {
+
+enum class FtSampleStatus : std::uint8_t {
+  ok,
+  warning,    ///< non-critical status bits (e.g. the sensor's CAN bus error bit): usable
+  critical,   ///< a critical status bit: the sample must not be used
+  saturated,  ///< a gauge at its rail: the sample must not be used
+};
+const char* ft_sample_status_name(FtSampleStatus status);
+
+/// One F/T sample. Fixed size, trivially copyable.
+struct FtSample {
+  /// Fx, Fy, Fz in N and Tx, Ty, Tz in N·m, in the sensor frame, bias subtracted. Computed even
+  /// when !valid (for diagnosis); never use it then.
+  std::array<double, 6> wrench_si{};
+  std::array<std::int16_t, 6> gauges{};  ///< raw strain gauge counts SG0..SG5
+  std::uint16_t status_word = 0;         ///< the sensor's raw status word
+  FtSampleStatus status = FtSampleStatus::ok;
+  std::uint8_t saturated_mask = 0;  ///< bit i: gauge i saturated
+  bool valid = false;               ///< status is ok or warning
+  /// Receive time of the frame that completed the sample, CLOCK_REALTIME ns (0: unknown).
+  std::int64_t timestamp_ns = 0;
+  std::uint64_t sequence = 0;  ///< +1 per sample returned by this device, from 1
+};
+
+enum class FtStartStatus : std::uint8_t {
+  ok,
+  bad_config,      ///< e.g. base id or calibration index out of range
+  no_response,     ///< a start-up request got no answer after all retries (silent sensor)
+  readout_failed,  ///< the calibration readout failed (echo mismatch, wrong length, …)
+  unknown_units,   ///< the calibration's force or torque unit code is unknown
+  io_error,        ///< the bus failed
+};
+const char* ft_start_status_name(FtStartStatus status);
+
+enum class FtReadStatus : std::uint8_t {
+  sample,       ///< `out` holds a new sample; check out.valid before using it
+  timeout,      ///< no complete response in time (counted)
+  not_started,  ///< start() has not succeeded
+  tx_failed,    ///< the request could not be sent (TX queue full; counted)
+  io_error,     ///< the bus failed (counted)
+};
+const char* ft_read_status_name(FtReadStatus status);
+
+/// Everything a device counts. All counts since start-up (bus counters since the bus opened).
+struct FtCounters {
+  std::uint64_t requests = 0;            ///< sample requests sent
+  std::uint64_t samples = 0;             ///< samples returned (any status)
+  std::uint64_t samples_warning = 0;     ///< … with non-critical status bits
+  std::uint64_t samples_critical = 0;    ///< … with a critical status bit (invalid)
+  std::uint64_t samples_saturated = 0;   ///< … with a saturated gauge (invalid)
+  std::uint64_t timeouts = 0;            ///< requests without a complete response in time
+  std::uint64_t stale_frames = 0;        ///< frames already queued when a request went out
+  std::uint64_t stray_frames = 0;        ///< other frames of the board's id range
+  std::uint64_t wrong_length = 0;        ///< sample frames of the wrong length
+  std::uint64_t out_of_order = 0;        ///< second half without a first half
+  std::uint64_t dropped_incomplete = 0;  ///< first half replaced before its second half came
+  std::uint64_t error_frames = 0;        ///< bus error frames seen (classes: on the bus)
+  std::uint64_t kernel_drops = 0;        ///< frames the kernel dropped (SO_RXQ_OVFL)
+  std::uint64_t bad_length = 0;          ///< reads that were not one classic CAN frame
+  std::uint64_t tx_would_block = 0;      ///< requests refused by a full TX queue
+  std::uint64_t io_errors = 0;           ///< failed bus reads/writes
+};
+
+class FtSensor {
+ public:
+  virtual ~FtSensor() = default;
+  /// Start-up: reads the device's calibration etc. Blocks (bounded by timeouts × retries); not
+  /// real-time safe. May be called again to recover.
+  virtual FtStartStatus start() = 0;
+  /// Gets one sample. Real-time safe: no allocation, no exceptions, no locks; returns within the
+  /// device's configured sample timeout.
+  virtual FtReadStatus read_sample(FtSample& out) = 0;
+  /// A snapshot of the counters (call from the thread that reads samples).
+  virtual FtCounters counters() const = 0;
+};
+
+/// Scripted FtSensor for tests: queue results with push(); read_sample returns them in order,
+/// then `timeout` when the script is empty. Counts like a real device.
+class FakeFtSensor final : public FtSensor {
+ public:
+  static constexpr std::size_t kScriptCapacity = 64;
+
+  void set_start_status(FtStartStatus status) { start_status_ = status; }
+  /// Appends a result; false when the script is full.
+  bool push(FtReadStatus status, const FtSample& sample = {});
+
+  FtStartStatus start() override;
+  FtReadStatus read_sample(FtSample& out) override;
+  FtCounters counters() const override { return counters_; }
+
+ private:
+  struct Step {
+    FtReadStatus status = FtReadStatus::timeout;
+    FtSample sample;
+  };
+  std::array<Step, kScriptCapacity> script_{};
+  std::size_t head_ = 0;
+  std::size_t count_ = 0;
+  FtStartStatus start_status_ = FtStartStatus::ok;
+  bool started_ = false;
+  std::uint64_t sequence_ = 0;
+  FtCounters counters_;
+};
+
+}  // namespace zerog::rtio

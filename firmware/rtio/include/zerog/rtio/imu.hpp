@@ -1,0 +1,97 @@
+#pragma once
+// An IMU as the loop sees it. Real: Stim300Imu (Sensonor STIM300 on a serial port); fake:
+// FakeImu (scripted results, below).
+#include <array>
+#include <cstddef>
+#include <cstdint>
+
+namespace zerog::rtio {
+
+/// One IMU sample in SI units, in the IMU's axes. Fixed size, trivially copyable.
+struct ImuSample {
+  std::array<double, 3> rate_rad_s{};
+  std::array<double, 3> accel_m_s2{};  ///< specific force, as the accelerometers measure it
+  std::array<double, 3> incl_m_s2{};   ///< specific force along the inclinometer axes
+  bool rate_valid = false;             ///< false: group absent or its status byte set
+  bool accel_valid = false;
+  bool incl_valid = false;
+  std::uint8_t rate_status = 0;  ///< raw status bytes (any bit set: group invalid)
+  std::uint8_t accel_status = 0;
+  std::uint8_t incl_status = 0;
+  std::uint8_t counter = 0;        ///< the device's datagram counter
+  std::uint8_t missed_before = 0;  ///< datagrams lost right before this one (counter gap)
+  double latency_s = 0.0;          ///< sampling → start of transmission, as the device reports
+  /// CLOCK_MONOTONIC ns when the bytes completing this sample were read (0: unknown).
+  std::int64_t receive_time_ns = 0;
+  std::uint64_t sequence = 0;  ///< +1 per sample returned by this device, from 1
+};
+
+enum class ImuStartStatus : std::uint8_t {
+  ok,
+  open_failed,  ///< no such tty, permission, busy
+  bad_config,   ///< not a tty, unsupported baud rate, termios refused
+};
+const char* imu_start_status_name(ImuStartStatus status);
+
+enum class ImuReadStatus : std::uint8_t {
+  sample,        ///< `out` holds a new sample; check the *_valid flags
+  timeout,       ///< no complete datagram in time (counted)
+  disconnected,  ///< the device hung up (unplugged); call start() again outside the cycle
+  io_error,      ///< a read error (counted)
+  not_started,
+};
+const char* imu_read_status_name(ImuReadStatus status);
+
+struct ImuCounters {
+  std::uint64_t samples = 0;          ///< good datagrams returned
+  std::uint64_t invalid_samples = 0;  ///< … with any status bit set
+  std::uint64_t bytes_read = 0;
+  std::uint64_t bytes_skipped = 0;     ///< garbage skipped while (re)synchronising
+  std::uint64_t crc_failures = 0;      ///< bad CRC where a datagram was due
+  std::uint64_t sync_losses = 0;       ///< in sync, then not a good datagram
+  std::uint64_t counter_gaps = 0;      ///< times the counter jumped
+  std::uint64_t datagrams_missed = 0;  ///< sum of the jumps
+  std::uint64_t timeouts = 0;
+  std::uint64_t disconnects = 0;
+  std::uint64_t io_errors = 0;
+};
+
+class Imu {
+ public:
+  virtual ~Imu() = default;
+  /// Opens the device. Not real-time safe. Call again to recover after `disconnected`.
+  virtual ImuStartStatus start() = 0;
+  /// The next sample, waiting at most the device's configured read timeout. Real-time safe: no
+  /// allocation, no exceptions, no locks.
+  virtual ImuReadStatus read_sample(ImuSample& out) = 0;
+  /// A snapshot of the counters (call from the thread that reads samples).
+  virtual ImuCounters counters() const = 0;
+};
+
+/// Scripted Imu for tests: read_sample returns the pushed results in order, then `timeout`.
+class FakeImu final : public Imu {
+ public:
+  static constexpr std::size_t kScriptCapacity = 64;
+
+  void set_start_status(ImuStartStatus status) { start_status_ = status; }
+  bool push(ImuReadStatus status, const ImuSample& sample = {});
+
+  ImuStartStatus start() override;
+  ImuReadStatus read_sample(ImuSample& out) override;
+  ImuCounters counters() const override { return counters_; }
+
+ private:
+  struct Step {
+    ImuReadStatus status = ImuReadStatus::timeout;
+    ImuSample sample;
+  };
+  std::array<Step, kScriptCapacity> script_{};
+  std::size_t head_ = 0;
+  std::size_t count_ = 0;
+  ImuStartStatus start_status_ = ImuStartStatus::ok;
+  bool started_ = false;
+  std::uint64_t sequence_ = 0;
+  ImuCounters counters_;
+};
+
+}  // namespace zerog::rtio

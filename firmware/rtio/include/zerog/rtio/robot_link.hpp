@@ -1,0 +1,101 @@
+#pragma once
+// The robot controller as the loop sees it: one message per interpolation cycle in, one reply
+// with the same IPOC out. Real: RsiEndpoint (KUKA RSI-like XML over UDP, rsi_endpoint.hpp);
+// fake: FakeRobotLink (below). Message and correction types are the codec's (proto/rsi.md).
+#include <array>
+#include <cstddef>
+#include <cstdint>
+
+#include "zerog/proto/rsi.hpp"
+
+namespace zerog::rtio {
+
+enum class RobotStartStatus : std::uint8_t {
+  ok,
+  bad_config,     ///< unparsable address, bad sensor type
+  socket_failed,  ///< socket() or a socket option failed
+  bind_failed,    ///< address in use, not a local address
+};
+const char* robot_start_status_name(RobotStartStatus status);
+
+enum class RobotReceiveStatus : std::uint8_t {
+  message,    ///< `out` holds a parsed message from the robot
+  timeout,    ///< no message from the robot in time (foreign datagrams are waited past)
+  malformed,  ///< a datagram from the robot the codec rejected (counted; see last_parse())
+  io_error,   ///< recv failed (counted)
+  not_started,
+};
+const char* robot_receive_status_name(RobotReceiveStatus status);
+
+enum class RobotReplyStatus : std::uint8_t {
+  ok,
+  no_peer,         ///< nothing has been received from the robot yet
+  bad_correction,  ///< not finite, or the reply did not fit (counted; nothing sent)
+  would_block,     ///< the socket's send buffer is full (counted)
+  io_error,        ///< sendto failed (counted)
+  not_started,
+};
+const char* robot_reply_status_name(RobotReplyStatus status);
+
+inline constexpr std::size_t kParseStatusCount =
+    static_cast<std::size_t>(proto::rsi::ParseStatus::bad_number) + 1;
+
+struct RobotLinkCounters {
+  std::uint64_t datagrams = 0;  ///< everything received
+  std::uint64_t messages = 0;   ///< from the robot and parsed
+  std::uint64_t foreign = 0;    ///< from another address or port: ignored
+  std::uint64_t malformed = 0;  ///< from the robot but rejected by the parser
+  std::array<std::uint64_t, kParseStatusCount> malformed_by_status{};  ///< by rsi::ParseStatus
+  std::uint64_t timeouts = 0;
+  std::uint64_t io_errors = 0;
+  std::uint64_t replies = 0;
+  std::uint64_t reply_would_block = 0;
+  std::uint64_t reply_errors = 0;     ///< sendto failures other than would-block
+  std::uint64_t bad_corrections = 0;  ///< replies refused by the formatter
+};
+
+class RobotLink {
+ public:
+  virtual ~RobotLink() = default;
+  /// Not real-time safe.
+  virtual RobotStartStatus start() = 0;
+  /// Waits up to the configured receive timeout for the robot's next message. Real-time safe.
+  virtual RobotReceiveStatus receive(proto::rsi::RobotMessage& out) = 0;
+  /// Answers the robot (the sender of the last message) with `correction` and `ipoc`.
+  /// Real-time safe.
+  virtual RobotReplyStatus reply(const proto::rsi::Correction& correction, std::uint64_t ipoc) = 0;
+  virtual const RobotLinkCounters& counters() const = 0;
+};
+
+/// Scripted RobotLink for tests: receive() returns pushed messages in order, then timeout;
+/// replies are recorded.
+class FakeRobotLink final : public RobotLink {
+ public:
+  static constexpr std::size_t kCapacity = 64;
+  struct Reply {
+    proto::rsi::Correction correction;
+    std::uint64_t ipoc = 0;
+  };
+
+  bool push(const proto::rsi::RobotMessage& message);
+  std::size_t reply_count() const { return reply_count_; }
+  /// The i-th reply of the last kCapacity.
+  const Reply& reply_at(std::size_t i) const { return replies_[i % kCapacity]; }
+
+  RobotStartStatus start() override;
+  RobotReceiveStatus receive(proto::rsi::RobotMessage& out) override;
+  RobotReplyStatus reply(const proto::rsi::Correction& correction, std::uint64_t ipoc) override;
+  const RobotLinkCounters& counters() const override { return counters_; }
+
+ private:
+  std::array<proto::rsi::RobotMessage, kCapacity> script_{};
+  std::size_t head_ = 0;
+  std::size_t count_ = 0;
+  std::array<Reply, kCapacity> replies_{};
+  std::size_t reply_count_ = 0;
+  bool started_ = false;
+  bool have_peer_ = false;
+  RobotLinkCounters counters_;
+};
+
+}  // namespace zerog::rtio

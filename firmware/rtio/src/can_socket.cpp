@@ -1,0 +1,249 @@
+#include "zerog/rtio/can_socket.hpp"
+
+#include <fcntl.h>
+#include <linux/can.h>
+#include <linux/can/error.h>
+#include <linux/can/raw.h>
+#include <net/if.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <sys/uio.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <ctime>
+
+#include "wait.hpp"
+
+namespace zerog::rtio {
+
+static_assert(sizeof(can_frame) == CAN_MTU, "struct can_frame is the classic CAN MTU");
+static_assert(CAN_ERR_TX_TIMEOUT == 1u << static_cast<int>(CanErrorClass::tx_timeout));
+static_assert(CAN_ERR_BUSOFF == 1u << static_cast<int>(CanErrorClass::bus_off));
+static_assert(CAN_ERR_RESTARTED == 1u << static_cast<int>(CanErrorClass::restarted));
+static_assert(proto::kCanErrorFlag == CAN_ERR_FLAG && proto::kCanExtendedFlag == CAN_EFF_FLAG &&
+              proto::kCanRemoteFlag == CAN_RTR_FLAG);
+
+const char* can_error_class_name(CanErrorClass error_class) {
+  switch (error_class) {
+    case CanErrorClass::tx_timeout:
+      return "tx_timeout";
+    case CanErrorClass::lost_arbitration:
+      return "lost_arbitration";
+    case CanErrorClass::controller:
+      return "controller";
+    case CanErrorClass::protocol:
+      return "protocol";
+    case CanErrorClass::transceiver:
+      return "transceiver";
+    case CanErrorClass::no_ack:
+      return "no_ack";
+    case CanErrorClass::bus_off:
+      return "bus_off";
+    case CanErrorClass::bus_error:
+      return "bus_error";
+    case CanErrorClass::restarted:
+      return "restarted";
+    case CanErrorClass::error_counters:
+      return "error_counters";
+  }
+  return "?";
+}
+
+void count_error_frame(const proto::CanFrame& frame, CanBusCounters& counters) {
+  ++counters.error_frames;
+  const std::uint32_t classes = frame.id & kCanErrorClassMask;
+  for (std::size_t i = 0; i < kCanErrorClassCount; ++i) {
+    if ((classes & (1u << i)) != 0) ++counters.error_classes[i];
+  }
+}
+
+const char* can_open_status_name(CanOpenStatus status) {
+  switch (status) {
+    case CanOpenStatus::ok:
+      return "ok";
+    case CanOpenStatus::bad_argument:
+      return "bad_argument";
+    case CanOpenStatus::no_such_interface:
+      return "no_such_interface";
+    case CanOpenStatus::socket_failed:
+      return "socket_failed";
+    case CanOpenStatus::option_failed:
+      return "option_failed";
+    case CanOpenStatus::bind_failed:
+      return "bind_failed";
+  }
+  return "?";
+}
+
+CanSocket::~CanSocket() { close(); }
+
+void CanSocket::close() {
+  if (fd_ >= 0) ::close(fd_);
+  fd_ = -1;
+}
+
+CanOpenResult CanSocket::open(std::string_view interface, const CanSocketConfig& config) {
+  close();
+  if (interface.empty() || interface.size() >= IFNAMSIZ || config.filter_count > kMaxCanFilters) {
+    return {CanOpenStatus::bad_argument, EINVAL, "arguments"};
+  }
+  char name[IFNAMSIZ] = {};
+  std::memcpy(name, interface.data(), interface.size());
+
+  auto fail = [this](CanOpenStatus status, const char* what) {
+    const CanOpenResult result{status, errno, what};
+    close();
+    return result;
+  };
+
+  fd_ = ::socket(PF_CAN, SOCK_RAW | SOCK_NONBLOCK | SOCK_CLOEXEC, CAN_RAW);
+  if (fd_ < 0) return fail(CanOpenStatus::socket_failed, "socket(PF_CAN, SOCK_RAW, CAN_RAW)");
+  // Looked up after socket(): without CAN in the kernel, that failure is the telling one.
+  const unsigned ifindex = ::if_nametoindex(name);
+  if (ifindex == 0) return fail(CanOpenStatus::no_such_interface, "if_nametoindex");
+
+  can_filter filters[kMaxCanFilters] = {};
+  for (std::size_t i = 0; i < config.filter_count; ++i) {
+    // CAN_ERR_FLAG in a mask makes the kernel file the filter under error frames
+    // (af_can.c, can_rcv_list_find), so it would never pass a data frame. Data filters do not
+    // see error frames anyway (those come through CAN_RAW_ERR_FILTER): drop the flag.
+    filters[i].can_id = config.filters[i].id & ~CAN_ERR_FLAG;
+    filters[i].can_mask = config.filters[i].mask & ~CAN_ERR_FLAG;
+  }
+  if (::setsockopt(fd_, SOL_CAN_RAW, CAN_RAW_FILTER, config.filter_count > 0 ? filters : nullptr,
+                   static_cast<socklen_t>(config.filter_count * sizeof(can_filter))) != 0) {
+    return fail(CanOpenStatus::option_failed, "CAN_RAW_FILTER");
+  }
+  const can_err_mask_t error_mask = config.error_mask & CAN_ERR_MASK;
+  if (::setsockopt(fd_, SOL_CAN_RAW, CAN_RAW_ERR_FILTER, &error_mask, sizeof error_mask) != 0) {
+    return fail(CanOpenStatus::option_failed, "CAN_RAW_ERR_FILTER");
+  }
+  // CAN_RAW_RECV_OWN_MSGS is left off on purpose (see the header).
+  const int on = 1;
+  if (::setsockopt(fd_, SOL_SOCKET, SO_RXQ_OVFL, &on, sizeof on) != 0) {
+    return fail(CanOpenStatus::option_failed, "SO_RXQ_OVFL");
+  }
+  if (config.timestamps && ::setsockopt(fd_, SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on) != 0) {
+    return fail(CanOpenStatus::option_failed, "SO_TIMESTAMPNS");
+  }
+  receive_buffer_capped_ = false;
+  if (config.receive_buffer_bytes > 0) {
+    // As candump -r: SO_RCVBUFFORCE first (needs CAP_NET_ADMIN, ignores rmem_max), else
+    // SO_RCVBUF, which rmem_max caps. The kernel doubles the value for its bookkeeping.
+    const int wanted = config.receive_buffer_bytes;
+    if (::setsockopt(fd_, SOL_SOCKET, SO_RCVBUFFORCE, &wanted, sizeof wanted) != 0 &&
+        ::setsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &wanted, sizeof wanted) != 0) {
+      return fail(CanOpenStatus::option_failed, "SO_RCVBUF");
+    }
+  }
+  socklen_t length = sizeof receive_buffer_bytes_;
+  ::getsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &receive_buffer_bytes_, &length);
+  receive_buffer_capped_ =
+      config.receive_buffer_bytes > 0 && receive_buffer_bytes_ / 2 < config.receive_buffer_bytes;
+
+  sockaddr_can address{};
+  address.can_family = AF_CAN;
+  address.can_ifindex = static_cast<int>(ifindex);
+  if (::bind(fd_, reinterpret_cast<const sockaddr*>(&address), sizeof address) != 0) {
+    return fail(CanOpenStatus::bind_failed, "bind");
+  }
+  last_overflow_count_ = 0;
+  return {};
+}
+
+CanReadStatus CanSocket::read(CanRxFrame& out, std::chrono::nanoseconds timeout) {
+  if (fd_ < 0) return CanReadStatus::not_open;
+  const std::int64_t deadline = detail::monotonic_ns() + timeout.count();
+  can_frame frame{};
+  // Room for SO_TIMESTAMPNS (or SO_TIMESTAMP) and SO_RXQ_OVFL, as in candump.
+  alignas(cmsghdr) char control[CMSG_SPACE(sizeof(timespec)) + CMSG_SPACE(sizeof(std::uint32_t))];
+  iovec iov{&frame, sizeof frame};
+  msghdr message{};
+  while (true) {
+    message.msg_iov = &iov;
+    message.msg_iovlen = 1;
+    message.msg_control = control;
+    message.msg_controllen = sizeof control;
+    message.msg_flags = 0;
+    const ssize_t n = ::recvmsg(fd_, &message, MSG_DONTWAIT);
+    if (n >= 0) {
+      out.timestamp_ns = 0;
+      if ((message.msg_flags & MSG_CTRUNC) != 0) ++counters_.control_truncated;
+      for (cmsghdr* c = CMSG_FIRSTHDR(&message); c != nullptr; c = CMSG_NXTHDR(&message, c)) {
+        if (c->cmsg_level != SOL_SOCKET) continue;
+        if (c->cmsg_type == SO_TIMESTAMPNS) {
+          timespec ts{};
+          std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
+          out.timestamp_ns = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+        } else if (c->cmsg_type == SO_RXQ_OVFL) {
+          std::uint32_t total = 0;
+          std::memcpy(&total, CMSG_DATA(c), sizeof total);
+          counters_.kernel_drops += static_cast<std::uint32_t>(total - last_overflow_count_);
+          last_overflow_count_ = total;
+        }
+      }
+      // Exactly one classic frame (candump's check); CAN FD is not enabled on this socket.
+      if (n != static_cast<ssize_t>(sizeof frame) || frame.len > CAN_MAX_DLEN) {
+        ++counters_.bad_length;
+        return CanReadStatus::bad_length;
+      }
+      out.frame.id = frame.can_id;
+      out.frame.len = frame.len;
+      std::memcpy(out.frame.data.data(), frame.data, proto::kCanMaxDataLength);
+      if ((frame.can_id & CAN_ERR_FLAG) != 0) {
+        count_error_frame(out.frame, counters_);
+        return CanReadStatus::error_frame;
+      }
+      ++counters_.frames_received;
+      return CanReadStatus::frame;
+    }
+    if (errno == EINTR) continue;
+    if (errno != EAGAIN && errno != EWOULDBLOCK) {
+      last_errno_ = errno;
+      ++counters_.io_errors;
+      return CanReadStatus::io_error;
+    }
+    const std::int64_t left = deadline - detail::monotonic_ns();
+    if (left <= 0) {
+      return CanReadStatus::timeout;
+    }
+    const int revents = detail::wait_fd(fd_, POLLIN, left);
+    if (revents < 0) {
+      last_errno_ = errno;
+      ++counters_.io_errors;
+      return CanReadStatus::io_error;
+    }
+    if (revents == 0) {
+      return CanReadStatus::timeout;
+    }
+    // Readable (or an error the next recvmsg reports): go round once more.
+  }
+}
+
+CanWriteStatus CanSocket::write(const proto::CanFrame& frame) {
+  if (fd_ < 0) return CanWriteStatus::not_open;
+  if (frame.len > proto::kCanMaxDataLength) return CanWriteStatus::bad_frame;
+  can_frame raw{};
+  raw.can_id = frame.id;
+  raw.len = frame.len;
+  std::memcpy(raw.data, frame.data.data(), frame.len);
+  while (true) {
+    const ssize_t n = ::write(fd_, &raw, sizeof raw);
+    if (n == static_cast<ssize_t>(sizeof raw)) {
+      ++counters_.frames_sent;
+      return CanWriteStatus::ok;
+    }
+    if (n < 0 && errno == EINTR) continue;
+    last_errno_ = n < 0 ? errno : EIO;
+    if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == ENOBUFS)) {
+      ++counters_.tx_would_block;
+      return CanWriteStatus::would_block;
+    }
+    ++counters_.tx_errors;
+    return CanWriteStatus::io_error;
+  }
+}
+
+}  // namespace zerog::rtio

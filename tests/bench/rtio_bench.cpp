@@ -1,0 +1,141 @@
+// RSI round trip on loopback UDP: datagram in → parsed (RsiEndpoint::receive) → reply out
+// (RsiEndpoint::reply), against a bare UDP echo (recvfrom → sendto of the same bytes) measured
+// the same way in the same run. A client socket plays the robot; the server runs in a thread.
+// Reported per benchmark: p50, p99, p99.9 and max round trip in µs; the RSI benchmark also
+// reports its ratio to the echo at the median and the 99.9th percentile. Speed is measured,
+// never asserted (tests/bench/CMakeLists.txt).
+#include <benchmark/benchmark.h>
+#include <poll.h>
+#include <sys/socket.h>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <thread>
+#include <vector>
+
+#include "udp.hpp"
+#include "zerog/rtio/rsi_endpoint.hpp"
+
+namespace {
+
+using namespace std::chrono_literals;
+using zerog::rtio::test::UdpPeer;
+
+constexpr std::int64_t kRoundTrips = 20'000;
+
+struct Percentiles {
+  double p50_us = 0, p99_us = 0, p999_us = 0, max_us = 0;
+};
+Percentiles g_echo;  // from BM_BareUdpEcho, for the ratio in BM_RsiEndpointRoundTrip
+
+Percentiles percentiles(std::vector<double>& us) {
+  std::sort(us.begin(), us.end());
+  auto at = [&](double q) {
+    return us[std::min(us.size() - 1,
+                       static_cast<std::size_t>(q * static_cast<double>(us.size())))];
+  };
+  return {at(0.5), at(0.99), at(0.999), us.back()};
+}
+
+void report(benchmark::State& state, const Percentiles& p) {
+  state.counters["p50_us"] = p.p50_us;
+  state.counters["p99_us"] = p.p99_us;
+  state.counters["p999_us"] = p.p999_us;
+  state.counters["max_us"] = p.max_us;
+}
+
+// Sends one robot message per iteration and waits for the answer; returns the round trips (µs).
+std::vector<double> run_client(benchmark::State& state, std::uint16_t server_port) {
+  UdpPeer robot("127.0.0.1", 0);
+  std::vector<double> round_trips_us;
+  round_trips_us.reserve(static_cast<std::size_t>(kRoundTrips));
+  std::array<char, 1024> out{};
+  std::array<char, 1024> in{};
+  std::uint64_t ipoc = 1;
+  for (auto _ : state) {
+    const std::string_view message = zerog::rtio::test::robot_message(out, ipoc++);
+    const auto start = std::chrono::steady_clock::now();
+    robot.send_to(server_port, message);
+    const long n = robot.receive(in, 1000);
+    const auto stop = std::chrono::steady_clock::now();
+    if (n <= 0) {
+      state.SkipWithError("no reply within 1 s");
+      break;
+    }
+    round_trips_us.push_back(std::chrono::duration<double, std::micro>(stop - start).count());
+  }
+  return round_trips_us;
+}
+
+void BM_BareUdpEcho(benchmark::State& state) {
+  UdpPeer server("127.0.0.1", 0);
+  std::atomic<bool> stop{false};
+  std::thread echo([&] {
+    std::array<char, 4096> buffer{};
+    while (!stop.load(std::memory_order_relaxed)) {
+      pollfd pfd{server.fd(), POLLIN, 0};
+      if (::poll(&pfd, 1, 20) != 1) continue;
+      sockaddr_in from{};
+      socklen_t length = sizeof from;
+      const ssize_t n = ::recvfrom(server.fd(), buffer.data(), buffer.size(), 0,
+                                   reinterpret_cast<sockaddr*>(&from), &length);
+      if (n > 0) {
+        ::sendto(server.fd(), buffer.data(), static_cast<std::size_t>(n), 0,
+                 reinterpret_cast<sockaddr*>(&from), length);
+      }
+    }
+  });
+  std::vector<double> us = run_client(state, server.port());
+  stop.store(true);
+  echo.join();
+  if (us.empty()) return;
+  g_echo = percentiles(us);
+  report(state, g_echo);
+}
+
+void BM_RsiEndpointRoundTrip(benchmark::State& state) {
+  zerog::rtio::RsiEndpointConfig config;
+  config.bind_port = 0;
+  config.robot_port = 0;  // any port of 127.0.0.1: the client binds after the server
+  config.receive_timeout = 20ms;
+  zerog::rtio::RsiEndpoint endpoint(config);
+  if (endpoint.start() != zerog::rtio::RobotStartStatus::ok) {
+    state.SkipWithError("RsiEndpoint::start failed");
+    return;
+  }
+  std::atomic<bool> stop{false};
+  std::thread server([&] {
+    zerog::proto::rsi::RobotMessage message;
+    const auto correction = zerog::proto::rsi::correction_from_si({1e-4, -2e-4, 0}, {0, 0, 1e-3});
+    while (!stop.load(std::memory_order_relaxed)) {
+      if (endpoint.receive(message) == zerog::rtio::RobotReceiveStatus::message) {
+        endpoint.reply(correction, message.ipoc);
+      }
+    }
+  });
+  std::vector<double> us = run_client(state, endpoint.local_port());
+  stop.store(true);
+  server.join();
+  if (us.empty()) return;
+  const Percentiles p = percentiles(us);
+  report(state, p);
+  if (g_echo.p50_us > 0) {
+    state.counters["ratio_p50"] = p.p50_us / g_echo.p50_us;
+    state.counters["ratio_p999"] = p.p999_us / g_echo.p999_us;
+  }
+  state.counters["malformed"] = static_cast<double>(endpoint.counters().malformed);
+}
+
+// Registered in this order: the echo runs first, so the RSI run can report its ratio.
+BENCHMARK(BM_BareUdpEcho)->Iterations(kRoundTrips)->Unit(benchmark::kMicrosecond)->UseRealTime();
+BENCHMARK(BM_RsiEndpointRoundTrip)
+    ->Iterations(kRoundTrips)
+    ->Unit(benchmark::kMicrosecond)
+    ->UseRealTime();
+
+}  // namespace
+
+BENCHMARK_MAIN();

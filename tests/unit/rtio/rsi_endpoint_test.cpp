@@ -1,0 +1,193 @@
+// RsiEndpoint on real loopback UDP: a client socket plays the robot; every datagram is answered
+// with its IPOC, foreign senders are ignored and counted, malformed datagrams are counted.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <string_view>
+
+#include "udp.hpp"
+#include "zerog/rtio/rsi_endpoint.hpp"
+
+namespace zerog::rtio {
+namespace {
+
+namespace rsi = proto::rsi;
+using namespace std::chrono_literals;
+
+class RsiEndpointTest : public ::testing::Test {
+ protected:
+  void SetUp() override { ASSERT_TRUE(robot_.ok()); }
+
+  RsiEndpointConfig config() const {
+    RsiEndpointConfig c;
+    c.bind_port = 0;  // any free port
+    c.robot_address = "127.0.0.1";
+    c.robot_port = robot_.port();
+    c.receive_timeout = 500ms;
+    return c;
+  }
+
+  // The robot sends a message with `ipoc` and expects the reply with the same IPOC.
+  void exchange(RsiEndpoint& endpoint, std::uint64_t ipoc) {
+    std::array<char, 1024> buffer{};
+    ASSERT_TRUE(robot_.send_to(endpoint.local_port(), test::robot_message(buffer, ipoc)));
+    rsi::RobotMessage m;
+    ASSERT_EQ(endpoint.receive(m), RobotReceiveStatus::message);
+    EXPECT_EQ(m.ipoc, ipoc);
+    EXPECT_DOUBLE_EQ(m.actual_pose.x_mm, 445.5);
+    EXPECT_DOUBLE_EQ(m.joints_deg[5], -12.25);
+    ASSERT_EQ(endpoint.reply(rsi::correction_from_si({1e-4, 0, -2e-4}, {0, 0, 0}), m.ipoc),
+              RobotReplyStatus::ok);
+    std::uint16_t from_port = 0;
+    const long n = robot_.receive(buffer, 1000, &from_port);
+    ASSERT_GT(n, 0) << "no reply";
+    const std::string_view reply(buffer.data(), static_cast<std::size_t>(n));
+    EXPECT_EQ(test::reply_ipoc(reply), static_cast<long long>(ipoc)) << reply;
+    EXPECT_EQ(reply.substr(0, 17), "<Sen Type=\"zerog\"");
+    EXPECT_NE(reply.find("X=\"0.1000\""), std::string_view::npos) << reply;
+    EXPECT_EQ(from_port, endpoint.local_port());
+  }
+
+  test::UdpPeer robot_;
+};
+
+TEST_F(RsiEndpointTest, DefaultsToLoopback) {
+  const RsiEndpointConfig c;
+  EXPECT_EQ(c.bind_address, "127.0.0.1");
+  EXPECT_EQ(c.robot_address, "127.0.0.1");
+}
+
+TEST_F(RsiEndpointTest, EveryDatagramIsAnsweredWithItsIpoc) {
+  RsiEndpoint endpoint(config());
+  ASSERT_EQ(endpoint.start(), RobotStartStatus::ok);
+  ASSERT_NE(endpoint.local_port(), 0);
+  for (std::uint64_t ipoc = 4208157; ipoc < 4208157 + 200; ++ipoc) exchange(endpoint, ipoc);
+  EXPECT_EQ(endpoint.counters().messages, 200u);
+  EXPECT_EQ(endpoint.counters().replies, 200u);
+  EXPECT_EQ(endpoint.counters().foreign, 0u);
+  EXPECT_EQ(endpoint.counters().malformed, 0u);
+}
+
+TEST_F(RsiEndpointTest, ForeignSendersAreIgnoredAndCounted) {
+  RsiEndpoint endpoint(config());
+  ASSERT_EQ(endpoint.start(), RobotStartStatus::ok);
+  test::UdpPeer other_port("127.0.0.1");  // right address, wrong port
+  test::UdpPeer other_host("127.0.0.2");  // another address (all of 127/8 is loopback)
+  ASSERT_TRUE(other_port.ok());
+  ASSERT_TRUE(other_host.ok());
+  std::array<char, 1024> buffer{};
+  ASSERT_TRUE(other_port.send_to(endpoint.local_port(), test::robot_message(buffer, 1)));
+  ASSERT_TRUE(other_host.send_to(endpoint.local_port(), test::robot_message(buffer, 2)));
+  exchange(endpoint, 3);  // the robot's message is the one taken and answered
+  EXPECT_EQ(endpoint.counters().foreign, 2u);
+  EXPECT_EQ(endpoint.counters().datagrams, 3u);
+  EXPECT_EQ(other_port.receive(buffer, 50), -1);  // no reply to strangers
+  EXPECT_EQ(other_host.receive(buffer, 50), -1);
+
+  ASSERT_TRUE(other_host.send_to(endpoint.local_port(), test::robot_message(buffer, 4)));
+  rsi::RobotMessage m;
+  EXPECT_EQ(endpoint.receive(m), RobotReceiveStatus::timeout);  // only foreign traffic
+  EXPECT_EQ(endpoint.counters().foreign, 3u);
+}
+
+TEST_F(RsiEndpointTest, AnySourcePortOfTheRobotWhenUnset) {
+  RsiEndpointConfig c = config();
+  c.robot_port = 0;
+  RsiEndpoint endpoint(c);
+  ASSERT_EQ(endpoint.start(), RobotStartStatus::ok);
+  exchange(endpoint, 11);
+  test::UdpPeer other_port("127.0.0.1");
+  std::array<char, 1024> buffer{};
+  ASSERT_TRUE(other_port.send_to(endpoint.local_port(), test::robot_message(buffer, 12)));
+  rsi::RobotMessage m;
+  EXPECT_EQ(endpoint.receive(m), RobotReceiveStatus::message);
+  EXPECT_EQ(endpoint.counters().foreign, 0u);
+}
+
+TEST_F(RsiEndpointTest, MalformedDatagramsAreCountedAndNeverStopTheEndpoint) {
+  RsiEndpoint endpoint(config());
+  ASSERT_EQ(endpoint.start(), RobotStartStatus::ok);
+  rsi::RobotMessage m;
+
+  ASSERT_TRUE(robot_.send_to(endpoint.local_port(), "<Rob Type=\"KUKA\"><RIst X=\"1\""));
+  EXPECT_EQ(endpoint.receive(m), RobotReceiveStatus::malformed);
+  EXPECT_EQ(endpoint.last_parse().status, rsi::ParseStatus::truncated);
+
+  ASSERT_TRUE(robot_.send_to(endpoint.local_port(), "<Sen/>"));
+  EXPECT_EQ(endpoint.receive(m), RobotReceiveStatus::malformed);
+  EXPECT_EQ(endpoint.last_parse().status, rsi::ParseStatus::wrong_root);
+
+  const std::string huge(6000, ' ');  // larger than rsi::kMaxMessageBytes
+  ASSERT_TRUE(robot_.send_to(endpoint.local_port(), huge));
+  EXPECT_EQ(endpoint.receive(m), RobotReceiveStatus::malformed);
+  EXPECT_EQ(endpoint.last_parse().status, rsi::ParseStatus::too_long);
+
+  ASSERT_TRUE(robot_.send_to(endpoint.local_port(), ""));  // empty datagram
+  EXPECT_EQ(endpoint.receive(m), RobotReceiveStatus::malformed);
+
+  exchange(endpoint, 99);  // still working
+  const RobotLinkCounters& c = endpoint.counters();
+  EXPECT_EQ(c.malformed, 4u);
+  EXPECT_EQ(c.malformed_by_status[static_cast<int>(rsi::ParseStatus::truncated)], 2u);
+  EXPECT_EQ(c.malformed_by_status[static_cast<int>(rsi::ParseStatus::wrong_root)], 1u);
+  EXPECT_EQ(c.malformed_by_status[static_cast<int>(rsi::ParseStatus::too_long)], 1u);
+  EXPECT_EQ(c.messages, 1u);
+  EXPECT_EQ(c.replies, 1u);
+}
+
+TEST_F(RsiEndpointTest, TimeoutNoPeerAndBadCorrection) {
+  RsiEndpointConfig c = config();
+  c.receive_timeout = 20ms;
+  RsiEndpoint endpoint(c);
+  rsi::RobotMessage m;
+  EXPECT_EQ(endpoint.receive(m), RobotReceiveStatus::not_started);
+  ASSERT_EQ(endpoint.start(), RobotStartStatus::ok);
+  const auto before = std::chrono::steady_clock::now();
+  EXPECT_EQ(endpoint.receive(m), RobotReceiveStatus::timeout);
+  EXPECT_GE(std::chrono::steady_clock::now() - before, 15ms);
+  EXPECT_EQ(endpoint.counters().timeouts, 1u);
+  EXPECT_EQ(endpoint.reply({}, 1), RobotReplyStatus::no_peer);
+
+  exchange(endpoint, 5);
+  rsi::Correction nan;
+  nan.x_mm = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(endpoint.reply(nan, 6), RobotReplyStatus::bad_correction);  // never sent
+  EXPECT_EQ(endpoint.counters().bad_corrections, 1u);
+  std::array<char, 256> buffer{};
+  EXPECT_EQ(robot_.receive(buffer, 50), -1);
+}
+
+TEST_F(RsiEndpointTest, BadConfigurationIsRefused) {
+  RsiEndpointConfig c = config();
+  c.robot_address = "robot.local";  // addresses only, no name lookup
+  EXPECT_EQ(RsiEndpoint(c).start(), RobotStartStatus::bad_config);
+  c = config();
+  c.sensor_type = "bad type";
+  EXPECT_EQ(RsiEndpoint(c).start(), RobotStartStatus::bad_config);
+  c = config();
+  c.bind_address = "192.0.2.1";  // TEST-NET: not an address of this host
+  EXPECT_EQ(RsiEndpoint(c).start(), RobotStartStatus::bind_failed);
+}
+
+TEST(FakeRobotLink, RecordsReplies) {
+  FakeRobotLink fake;
+  rsi::RobotMessage m;
+  EXPECT_EQ(fake.receive(m), RobotReceiveStatus::not_started);
+  ASSERT_EQ(fake.start(), RobotStartStatus::ok);
+  EXPECT_EQ(fake.reply({}, 1), RobotReplyStatus::no_peer);
+  m.ipoc = 42;
+  fake.push(m);
+  rsi::RobotMessage got;
+  ASSERT_EQ(fake.receive(got), RobotReceiveStatus::message);
+  EXPECT_EQ(fake.reply({}, got.ipoc), RobotReplyStatus::ok);
+  ASSERT_EQ(fake.reply_count(), 1u);
+  EXPECT_EQ(fake.reply_at(0).ipoc, 42u);
+  EXPECT_EQ(fake.receive(got), RobotReceiveStatus::timeout);
+}
+
+}  // namespace
+}  // namespace zerog::rtio
