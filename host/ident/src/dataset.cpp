@@ -78,12 +78,13 @@ Wrench predict(const model::ModelParams& params, const Dataset& data, std::size_
                                        data.rig);
 }
 
-std::vector<std::uint8_t> heldout_mask(const Dataset& data, double block_s, int every) {
+std::vector<std::uint8_t> heldout_mask(const Dataset& data, double block_s, int every, int offset) {
+  if (offset < 0) offset = every - 1;
   std::vector<std::uint8_t> mask(data.size(), 0);
   const double t0 = data.t_s.front();
   for (std::size_t i = 0; i < data.size(); ++i) {
     const long block = static_cast<long>(std::floor((data.t_s[i] - t0) / block_s));
-    mask[i] = (block % every) == every - 1 ? 1 : 0;
+    mask[i] = (block % every) == offset ? 1 : 0;
   }
   return mask;
 }

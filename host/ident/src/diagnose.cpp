@@ -59,10 +59,16 @@ struct Split {
 
 Split make_split(const Dataset& data, const DiagnoseOptions& o) {
   Split s;
-  s.heldout = heldout_mask(data, o.block_s, o.every);
+  s.heldout = heldout_mask(data, o.block_s, o.every, o.heldout_offset);
   s.train = invert(s.heldout);
-  std::size_t nh = std::count(s.heldout.begin(), s.heldout.end(), 1);
-  if (nh < 100 || nh + 100 > data.size())
+  if (o.exclude) {
+    for (std::size_t i = 0; i < data.size(); ++i) {
+      if ((*o.exclude)[i]) s.heldout[i] = 0, s.train[i] = 0;
+    }
+  }
+  const std::size_t nh = std::count(s.heldout.begin(), s.heldout.end(), 1);
+  const std::size_t nt = std::count(s.train.begin(), s.train.end(), 1);
+  if (nh < 100 || nt < 100)
     throw std::runtime_error("log too short for a time-blocked held-out split (" +
                              std::to_string(data.size()) + " samples, blocks of " +
                              std::to_string(o.block_s) + " s): record longer or use --block");

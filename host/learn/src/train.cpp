@@ -275,7 +275,7 @@ NetworkFile train_residual(const ident::Dataset& data, const io::Log& log, const
   std::vector<Feature> inputs = o.inputs;
   if (inputs.empty()) {
     say(o, "residual: choosing inputs from the diagnosis of the physics model");
-    inputs = inputs_from_diagnosis(data, physics, o.threads, &signals, 0.2, o.progress);
+    inputs = inputs_from_diagnosis(data, physics, o.threads, &signals, 0.2, o.progress, o.usable);
   }
   check_feature_signals(inputs, data);
   say(o, "residual: inputs " + feature_list_string(inputs));
@@ -368,8 +368,18 @@ NetworkFile train_residual(const ident::Dataset& data, const io::Log& log, const
 std::vector<Feature> inputs_from_diagnosis(const ident::Dataset& data, const io::ModelFile& physics,
                                            int threads, std::vector<std::string>* signals,
                                            double min_correlation,
-                                           std::function<void(const std::string&)> progress) {
+                                           std::function<void(const std::string&)> progress,
+                                           const std::vector<std::uint8_t>* usable) {
   ident::DiagnoseOptions o;
+  // Samples outside `usable` (a test set) are neither fitted nor correlated; the diagnosis then
+  // validates on another block of each four than the default test blocks.
+  std::vector<std::uint8_t> exclude;
+  if (usable) {
+    exclude.resize(usable->size());
+    for (std::size_t i = 0; i < usable->size(); ++i) exclude[i] = (*usable)[i] ? 0 : 1;
+    o.exclude = &exclude;
+    o.heldout_offset = 1;
+  }
   o.fit.effects = physics.params.effects;
   o.fit.initial = &physics.params;
   o.fit.threads = threads;

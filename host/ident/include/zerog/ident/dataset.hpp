@@ -57,9 +57,10 @@ Dataset make_dataset(const io::Log& log);
 /// Predicted wrench of sample i with the given parameters (double evaluation of the model).
 Wrench predict(const model::ModelParams& params, const Dataset& data, std::size_t i);
 
-/// Time-blocked split: blocks of `block_s` seconds; every `every`-th block (offset every−1) is
-/// held out. Returns 1 for held-out samples.
-std::vector<std::uint8_t> heldout_mask(const Dataset& data, double block_s = 60.0, int every = 4);
+/// Time-blocked split: blocks of `block_s` seconds; block k is held out when k mod `every` ==
+/// `offset` (default every − 1). Returns 1 for held-out samples.
+std::vector<std::uint8_t> heldout_mask(const Dataset& data, double block_s = 60.0, int every = 4,
+                                       int offset = -1);
 
 /// Throws std::runtime_error if the log lacks a signal an effect needs (names both).
 void check_signals(const model::EffectSet& effects, const Dataset& data);

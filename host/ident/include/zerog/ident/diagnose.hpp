@@ -52,8 +52,11 @@ struct Diagnosis {
 };
 
 struct DiagnoseOptions {
-  double block_s = 60.0;             ///< time-block length for the held-out split
-  int every = 4;                     ///< every n-th block is held out
+  double block_s = 60.0;    ///< time-block length for the held-out split
+  int every = 4;            ///< every n-th block is held out
+  int heldout_offset = -1;  ///< which block of each `every` is held out (default the last)
+  /// Samples neither fitted nor scored (e.g. a final test set kept for a later comparison).
+  const std::vector<std::uint8_t>* exclude = nullptr;
   FitOptions fit;                    ///< effects = the model to diagnose; mask is set internally
   std::string log_path = "run.csv";  ///< for the suggested command
   std::function<void(const std::string&)> progress;

@@ -43,11 +43,13 @@ NetworkFile train(const ident::Dataset& data, const io::Log& log, const TrainOpt
 
 /// The residual network's default inputs: ident::diagnose on the physics model, its correlated
 /// signals (|ρ| ≥ min_correlation, strongest first, at least the first) mapped to features.
-/// `signals` (optional) receives the signal names used.
+/// `signals` (optional) receives the signal names used. Only samples with (*usable)[i] == 1 are
+/// fitted or correlated (all if null), so a test set stays unseen.
 std::vector<model::Feature> inputs_from_diagnosis(
     const ident::Dataset& data, const io::ModelFile& physics, int threads,
     std::vector<std::string>* signals = nullptr, double min_correlation = 0.2,
-    std::function<void(const std::string&)> progress = {});
+    std::function<void(const std::string&)> progress = {},
+    const std::vector<std::uint8_t>* usable = nullptr);
 
 /// 000_… §4.3 (Figure 12): validation MSE of paper-bp for each hidden-layer size, `repeats`
 /// trainings each (seeds seed, seed+1, …); mean and each value.
