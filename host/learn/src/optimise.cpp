@@ -154,9 +154,8 @@ class NetworkCost final : public ceres::CostFunction {
           const std::size_t r = i * k + o;
           residuals[r] = (y[o].a - set_.y[r]) / s;
           double* row = jac + r * static_cast<std::size_t>(np);
-          // A sigmoid pushed far into saturation (|x| > 709) gives inf/inf = NaN in the Jet's
-          // derivative, whose true value is ~e^−|x| ≈ 0 (model::activate computes 1 / (1 +
-          // e^−x)); take it as 0, so one wild trial step cannot end the training.
+          // Guard: a non-finite derivative (model::activate is written to avoid them) is taken
+          // as 0, so one wild trial step cannot end the training.
           for (int c = 0; c < np; ++c) row[c] = std::isfinite(y[o].v[c]) ? y[o].v[c] / s : 0.0;
         }
       }

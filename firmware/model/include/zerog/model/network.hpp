@@ -28,7 +28,13 @@ T activate(Activation a, const T& x) {
   using std::exp, std::tanh;
   switch (a) {
     case Activation::sigmoid:
-      return T(1) / (T(1) + exp(-x));
+      // Two branches so neither exponential overflows (a plain 1 / (1 + e^−x) gives inf/inf =
+      // NaN derivatives under autodiff for x < −709).
+      if (x >= T(0)) return T(1) / (T(1) + exp(-x));
+      {
+        const T e = exp(x);
+        return e / (T(1) + e);
+      }
     case Activation::leaky_relu:
       return x > T(0) ? x : T(0.01) * x;
     case Activation::tanh:
