@@ -17,6 +17,7 @@
 #include "zerog/io/model_file.hpp"
 #include "zerog/learn/network_file.hpp"
 #include "zerog/learn/predict.hpp"
+#include "zerog/learn/quantised.hpp"
 #include "zerog/learn/signals.hpp"
 
 namespace zerog::cli {
@@ -30,18 +31,6 @@ struct ExportArgs {
   double input_clip = 8.0;
   bool quiet = false;
 };
-
-infer::RigDescription rig_description(const io::Rig& r) {
-  infer::RigDescription d;
-  d.name = r.name;
-  d.robot = r.robot;
-  d.p_flange_sensor_m = r.flange_sensor.p_m;
-  d.q_flange_sensor = r.flange_sensor.q.normalized();
-  d.p_sensor_imu_m = r.sensor_imu.p_m;
-  d.q_sensor_imu = r.sensor_imu.q.normalized();
-  d.sample_period_s = r.sample_period_s;
-  return d;
-}
 
 // The residual network was trained on the residual of one physics model: deploying it on top of
 // another would add a correction for errors that model does not make.
@@ -73,7 +62,7 @@ void run_export(const ExportArgs& a) {
     throw std::runtime_error(a.model + ": fitted on rig '" + fit.rig_name + "', but " + a.rig +
                              " describes rig '" + rig.name + "'");
   infer::DeployedModel m;
-  m.rig = rig_description(rig);
+  m.rig = learn::rig_description(rig);
   m.physics = fit.params;
   nlohmann::json provenance = {{"model", fs::path(a.model).filename().string()},
                                {"rig_file", fs::path(a.rig).filename().string()},
@@ -93,21 +82,14 @@ void run_export(const ExportArgs& a) {
     infer::QuantiseOptions q;
     q.weight_bits = a.weight_bits;
     q.input_clip = a.input_clip;
-    std::vector<double> rows;
     if (!a.calibration.empty()) {
       calib_log = io::read_log(a.calibration);
       calib_data = ident::make_dataset(*calib_log);
-      learn::check_feature_signals(net.inputs, *calib_data);
-      std::vector<std::size_t> idx;
-      const std::size_t n = calib_data->size(), step = std::max<std::size_t>(1, n / 20000);
-      for (std::size_t i = 0; i < n; i += step) idx.push_back(i);
-      rows = learn::feature_rows(*calib_data, *calib_log, net.inputs, idx);
-      q.calibration_inputs = rows;
       inputs.emplace_back(a.calibration);
       provenance["calibration"] = fs::path(a.calibration).filename().string();
     }
-    m.network = infer::make_deployed_network(net.inputs, net.output_axes, net.shape,
-                                             net.normalisation, net.params, q);
+    m.network = learn::deploy_network(net, q, calib_data ? &*calib_data : nullptr,
+                                      calib_log ? &*calib_log : nullptr);
     provenance["network"] = fs::path(a.network).filename().string();
   }
   m.provenance_json = provenance.dump();

@@ -20,14 +20,24 @@ TEST(Results, PhysicsPlusResidualBeatsPhysicsAndBothPaperMethodsOnHeldOutData) {
   o.adam_iterations = 5000;
   const learn::Results r = learn::run_results(o);
   const std::string table = learn::format_markdown(r);
-  const auto& res = r.method("residual");
   const auto& phys = r.method("physics");
-  for (const char* other : {"physics", "paper-bp", "paper-zp"}) {
-    const auto& m = r.method(other);
-    ASSERT_TRUE(m.available) << other;
-    EXPECT_LT(res.all.force_rms, m.all.force_rms) << other << "\n" << table;
-    EXPECT_LT(res.all.torque_rms, m.all.torque_rms) << other << "\n" << table;
+  // The firmware's quantised inference, not only the float reference, beats the others.
+  for (const char* mine : {"residual", "residual-quantised"}) {
+    const auto& res = r.method(mine);
+    ASSERT_TRUE(res.available) << mine << ": " << res.note;
+    for (const char* other : {"physics", "paper-bp", "paper-zp"}) {
+      const auto& m = r.method(other);
+      ASSERT_TRUE(m.available) << other;
+      EXPECT_LT(res.all.force_rms, m.all.force_rms) << mine << " vs " << other << "\n" << table;
+      EXPECT_LT(res.all.torque_rms, m.all.torque_rms) << mine << " vs " << other << "\n" << table;
+    }
   }
+  // Quantised against float on the held-out data: within 0.1 N and 0.01 N*m (the issue's
+  // bound); zerog::infer's own tests hold 1/8 of an Omega191 count on random inputs.
+  EXPECT_GE(r.quantised_vs_float_max_N, 0.0);
+  EXPECT_LE(r.quantised_vs_float_max_N, 0.1);
+  EXPECT_LE(r.quantised_vs_float_max_Nm, 0.01);
+  const auto& res = r.method("residual-quantised");
   // The friction is a torque: the network removes most of what physics leaves above the floor.
   const auto& floor = r.method("noise-floor");
   EXPECT_LT(res.all.torque_rms - floor.all.torque_rms,

@@ -42,6 +42,9 @@ struct Results {
   double duration_s = 0.0;
   std::size_t heldout_static = 0, heldout_moving = 0;
   std::string physics_effects;  ///< the ladder's model
+  /// Largest |quantised − float| prediction over the held-out samples, force axes (N) and torque
+  /// axes (N·m); negative when the quantised inference is not available.
+  double quantised_vs_float_max_N = -1.0, quantised_vs_float_max_Nm = -1.0;
   std::string residual_inputs;
   std::vector<MethodResult> methods;
   nlohmann::json details = nlohmann::json::object();  ///< ladder, tool load, training summaries
