@@ -4,12 +4,13 @@
 
 namespace zerog::cli {
 
-void add_import_command(CLI::App& app);  // cmd_import.cpp
-void add_design_command(CLI::App& app);  // cmd_design.cpp
-void add_sim_command(CLI::App& app);     // cmd_sim.cpp
-void add_ident_commands(CLI::App& app);  // cmd_ident.cpp: fit, compare, diagnose, ladder
-void add_report_command(CLI::App& app);  // cmd_report.cpp
-void add_learn_commands(CLI::App& app);  // cmd_learn.cpp: train, results
-void add_export_command(CLI::App& app);  // cmd_export.cpp
+void add_import_command(CLI::App& app);      // cmd_import.cpp
+void add_design_command(CLI::App& app);      // cmd_design.cpp
+void add_sim_command(CLI::App& app);         // cmd_sim.cpp
+void add_ident_commands(CLI::App& app);      // cmd_ident.cpp: fit, compare, diagnose, ladder
+void add_report_command(CLI::App& app);      // cmd_report.cpp
+void add_decode_can_command(CLI::App& app);  // cmd_decode_can.cpp
+void add_learn_commands(CLI::App& app);      // cmd_learn.cpp: train, results
+void add_export_command(CLI::App& app);      // cmd_export.cpp
 
 }  // namespace zerog::cli

@@ -14,6 +14,7 @@ int main(int argc, char** argv) {
   zerog::cli::add_sim_command(app);
   zerog::cli::add_ident_commands(app);
   zerog::cli::add_report_command(app);
+  zerog::cli::add_decode_can_command(app);
   zerog::cli::add_learn_commands(app);
   zerog::cli::add_export_command(app);
   try {

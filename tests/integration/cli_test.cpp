@@ -55,8 +55,8 @@ class Cli : public ::testing::Test {
 };
 
 TEST_F(Cli, EverySubcommandHasHelp) {
-  for (const char* sub :
-       {"import", "design", "sim", "fit", "compare", "diagnose", "ladder", "report"}) {
+  for (const char* sub : {"import", "design", "sim", "fit", "compare", "diagnose", "ladder",
+                          "report", "train", "results", "export", "decode-can"}) {
     const Result r = run(std::string(sub) + " --help");
     EXPECT_EQ(r.status, 0) << sub;
     EXPECT_THAT(r.out, HasSubstr(sub)) << sub;

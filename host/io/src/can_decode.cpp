@@ -86,8 +86,8 @@ CanDecodeResult decode_netcanoem_log(const std::filesystem::path& candump,
           std::snprintf(b, sizeof b, "%02X", o.base_id);
           return std::string(b);
         }() +
-        " (matrix rows 0x2-0x4 and units 0x8): record the sensor's start-up, or give "
-        "--calibration");
+        " (matrix rows 0x2-0x4 and units 0x8): record the bus from before the sensor's start-up "
+        "(zerog-rt reads the calibration at every start)");
   }
   if (!nc::newton_per_force_unit(r.calibration.force_unit) ||
       !nc::newton_metre_per_torque_unit(r.calibration.torque_unit))
