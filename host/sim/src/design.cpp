@@ -18,6 +18,19 @@
 namespace zerog::sim {
 namespace {
 
+// Splits one CSV line at commas into cells and their 1-based starting columns.
+void split_cells(const std::string& line, std::vector<std::string>& cells,
+                 std::vector<int>& columns) {
+  std::size_t start = 0;
+  while (true) {
+    const std::size_t comma = line.find(',', start);
+    columns.push_back(static_cast<int>(start) + 1);
+    cells.push_back(line.substr(start, comma == std::string::npos ? comma : comma - start));
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+  }
+}
+
 constexpr const char* kDesignMagic = "# zerog-design 1";
 constexpr const char* kJointNames[6] = {"q1_rad", "q2_rad", "q3_rad", "q4_rad", "q5_rad", "q6_rad"};
 
@@ -307,14 +320,7 @@ std::vector<Eigen::Vector3d> read_attitudes(const std::filesystem::path& path) {
     if (line.empty() || line[0] == '#') continue;
     std::vector<std::string> cells;
     std::vector<int> columns;
-    std::size_t start = 0;
-    while (true) {
-      const std::size_t comma = line.find(',', start);
-      columns.push_back(static_cast<int>(start) + 1);
-      cells.push_back(line.substr(start, comma == std::string::npos ? comma : comma - start));
-      if (comma == std::string::npos) break;
-      start = comma + 1;
-    }
+    split_cells(line, cells, columns);
     if (num_cells == 0) {
       constexpr const char* kNames[3] = {"rx_rad", "ry_rad", "rz_rad"};
       for (int k = 0; k < 3; ++k) {
@@ -448,14 +454,7 @@ std::vector<JointVector> read_design(const std::filesystem::path& path) {
     if (line.empty() || line[0] == '#') continue;
     std::vector<std::string> cells;
     std::vector<int> columns;
-    std::size_t start = 0;
-    while (true) {
-      const std::size_t comma = line.find(',', start);
-      columns.push_back(static_cast<int>(start) + 1);
-      cells.push_back(line.substr(start, comma == std::string::npos ? comma : comma - start));
-      if (comma == std::string::npos) break;
-      start = comma + 1;
-    }
+    split_cells(line, cells, columns);
     if (cells.size() != 6)
       throw io::InputError(path, line_no, 1,
                            "expected 6 columns, found " + std::to_string(cells.size()));
