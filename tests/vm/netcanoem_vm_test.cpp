@@ -363,11 +363,11 @@ TEST_F(NetcanoemVm, SampleReadDoesNotAllocateOnTheRealSocket) {
   FtSample s;
   ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);  // warm-up
   int samples = 0;
-  const std::size_t before = test::allocation_count();
+  const std::size_t before = zerog::test::allocation_count();
   for (int i = 0; i < 200; ++i) {
     if (sensor.read_sample(s) == FtReadStatus::sample) ++samples;
   }
-  EXPECT_EQ(test::allocation_count(), before);
+  EXPECT_EQ(zerog::test::allocation_count(), before);
   EXPECT_EQ(samples, 200);
 }
 

@@ -33,21 +33,22 @@ TEST(Inference, EvaluateDoesNotAllocate) {
       ASSERT_EQ(inf.configure(model_with(act, bits)), "");
       const auto samples = test::random_samples(500, 1);
       Wrench w;
-      const std::size_t before = test::allocation_count();
+      const std::size_t before = zerog::test::allocation_count();
       for (const auto& s : samples) {
         inf.evaluate(s, w);
         inf.evaluate_reference(s, w);
         inf.evaluate_physics(s, w);
         inf.residual_quantised(s, w);
       }
-      EXPECT_EQ(test::allocation_count() - before, 0u) << model::activation_name(act) << bits;
+      EXPECT_EQ(zerog::test::allocation_count() - before, 0u)
+          << model::activation_name(act) << bits;
     }
   }
   // The counter works: configure allocates.
-  const std::size_t before = test::allocation_count();
+  const std::size_t before = zerog::test::allocation_count();
   Inference inf;
   ASSERT_EQ(inf.configure(model_with(Activation::tanh, 16)), "");
-  EXPECT_GT(test::allocation_count() - before, 0u);
+  EXPECT_GT(zerog::test::allocation_count() - before, 0u);
 }
 
 TEST(Inference, PhysicsIsModelPredictWrench) {

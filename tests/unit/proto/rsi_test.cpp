@@ -17,27 +17,6 @@
 
 #include "alloc_count.hpp"
 
-// Counting replacement of the global allocation functions for the whole proto_test binary.
-// GCC pairs the inlined free() below with the `new` expressions that reach it and warns
-// (-Wmismatched-new-delete); the pairing is right, since these replacements own both sides.
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-namespace {
-std::atomic<std::size_t> g_allocations{0};
-}
-void* operator new(std::size_t size) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-#pragma GCC diagnostic pop
-
-namespace zerog::proto {
-std::size_t test::allocation_count() { return g_allocations.load(std::memory_order_relaxed); }
-}  // namespace zerog::proto
-
 namespace zerog::proto::rsi {
 namespace {
 
@@ -310,7 +289,7 @@ TEST(RsiUnits, ConvertOnlyAtTheBorder) {
 TEST(RsiRealTime, ParseAndFormatDoNotAllocate) {
   RobotMessage m;
   std::array<char, 512> buf{};
-  const std::size_t before = test::allocation_count();
+  const std::size_t before = zerog::test::allocation_count();
   std::size_t bytes = 0;
   for (int i = 0; i < 100; ++i) {
     const ParseResult r = parse_robot_message(kMessage, m);
@@ -320,7 +299,7 @@ TEST(RsiRealTime, ParseAndFormatDoNotAllocate) {
     RobotMessage bad;
     (void)parse_robot_message(std::string_view(kMessage).substr(0, 100), bad);
   }
-  EXPECT_EQ(test::allocation_count(), before);
+  EXPECT_EQ(zerog::test::allocation_count(), before);
   EXPECT_GT(bytes, 0u);
 }
 

@@ -362,13 +362,13 @@ TEST(Stim300Stream, FeedingDoesNotAllocate) {
   bytes[100] ^= 0xFF;
   StreamDecoder decoder;
   std::size_t count = 0;
-  const std::size_t before = test::allocation_count();
+  const std::size_t before = zerog::test::allocation_count();
   for (std::size_t i = 0; i < bytes.size(); i += 13) {
     decoder.feed(std::span<const std::uint8_t>(bytes).subspan(
                      i, std::min<std::size_t>(13, bytes.size() - i)),
                  [&](const Sample&) { ++count; });
   }
-  EXPECT_EQ(test::allocation_count(), before);
+  EXPECT_EQ(zerog::test::allocation_count(), before);
   EXPECT_EQ(count, 49u);
 }
 

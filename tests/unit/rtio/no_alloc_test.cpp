@@ -55,7 +55,7 @@ TEST(NoAllocation, NetcanoemSensorReadSample) {
   short_b.id = netcanoem::can_id(board.state.base_id, netcanoem::Opcode::sample_b);
   short_b.len = 2;
 
-  const std::size_t before = test::allocation_count();
+  const std::size_t before = zerog::test::allocation_count();
   FtSample s;
   std::uint64_t samples = 0;
   for (int i = 0; i < 2000; ++i) {
@@ -67,7 +67,7 @@ TEST(NoAllocation, NetcanoemSensorReadSample) {
     if (sensor.read_sample(s) == FtReadStatus::sample) ++samples;
   }
   const FtCounters counters = sensor.counters();
-  EXPECT_EQ(test::allocation_count(), before);
+  EXPECT_EQ(zerog::test::allocation_count(), before);
   EXPECT_GT(samples, 1500u);
   EXPECT_GT(counters.timeouts, 0u);
   EXPECT_GT(counters.stray_frames, 0u);
@@ -86,7 +86,7 @@ TEST(NoAllocation, Stim300ImuReadSampleOnAPty) {
   std::array<std::uint8_t, stim300::kMaxDatagramLength + 2> buffer{};
   stim300::RawDatagram raw;
   raw.identifier = 0x93;
-  const std::size_t before = test::allocation_count();
+  const std::size_t before = zerog::test::allocation_count();
   ImuSample s;
   int samples = 0;
   for (int i = 0; i < 500; ++i) {
@@ -98,7 +98,7 @@ TEST(NoAllocation, Stim300ImuReadSampleOnAPty) {
     pty.write(std::span(buffer).first(r.size));
     if (imu.read_sample(s) == ImuReadStatus::sample && s.counter == raw.counter) ++samples;
   }
-  EXPECT_EQ(test::allocation_count(), before);
+  EXPECT_EQ(zerog::test::allocation_count(), before);
   EXPECT_EQ(samples, 500);
   EXPECT_GT(imu.counters().bytes_skipped, 0u);
 }
@@ -119,7 +119,7 @@ TEST(NoAllocation, RsiEndpointReceiveAndReply) {
   std::array<char, 1024> in{};
   proto::rsi::RobotMessage m;
   int answered = 0;
-  const std::size_t before = test::allocation_count();
+  const std::size_t before = zerog::test::allocation_count();
   for (std::uint64_t ipoc = 1; ipoc <= 500; ++ipoc) {
     if (ipoc % 10 == 0) stranger.send_to(endpoint.local_port(), "<Rob/>");
     if (ipoc % 25 == 0) robot.send_to(endpoint.local_port(), "<Rob><RIst");
@@ -135,7 +135,7 @@ TEST(NoAllocation, RsiEndpointReceiveAndReply) {
       ++answered;
     }
   }
-  EXPECT_EQ(test::allocation_count(), before);
+  EXPECT_EQ(zerog::test::allocation_count(), before);
   EXPECT_EQ(answered, 500);
   EXPECT_EQ(endpoint.counters().foreign, 50u);
   EXPECT_EQ(endpoint.counters().malformed, 20u);
@@ -149,7 +149,7 @@ TEST(NoAllocation, HandoverPrimitives) {
   static SpscRing<Sample, 256> ring;
   static LatestValue<Sample> box;
   Sample s;
-  const std::size_t before = test::allocation_count();
+  const std::size_t before = zerog::test::allocation_count();
   for (std::uint64_t i = 0; i < 1000; ++i) {
     s.seq = i;
     ring.try_push(s);
@@ -157,16 +157,16 @@ TEST(NoAllocation, HandoverPrimitives) {
     ring.try_pop(s);
     box.read(s);
   }
-  EXPECT_EQ(test::allocation_count(), before);
+  EXPECT_EQ(zerog::test::allocation_count(), before);
 }
 
 void* volatile g_sink = nullptr;
 
 TEST(NoAllocation, TheCounterSeesAllocations) {
-  const std::size_t before = test::allocation_count();
+  const std::size_t before = zerog::test::allocation_count();
   g_sink = ::operator new(64);  // a direct call: not elidable like a new-expression
   ::operator delete(g_sink);
-  EXPECT_EQ(test::allocation_count(), before + 1);
+  EXPECT_EQ(zerog::test::allocation_count(), before + 1);
 }
 
 }  // namespace

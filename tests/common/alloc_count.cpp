@@ -1,5 +1,5 @@
-// Counting replacement of the global allocation functions for the whole rtio_test binary (the
-// pattern of tests/unit/proto/rsi_test.cpp), covering the array, nothrow and aligned forms too.
+// Counting replacement of the global allocation functions for a whole test binary, covering the
+// array, nothrow and aligned forms too.
 #include "alloc_count.hpp"
 
 #include <atomic>
@@ -57,6 +57,6 @@ void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::fre
 void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
 #pragma GCC diagnostic pop
 
-namespace zerog::rtio::test {
+namespace zerog::test {
 std::size_t allocation_count() { return g_allocations.load(std::memory_order_relaxed); }
-}  // namespace zerog::rtio::test
+}  // namespace zerog::test
