@@ -190,7 +190,6 @@ bool use(const FitOptions& o, std::size_t i) { return o.mask == nullptr || (*o.m
 void linear_init(const Dataset& data, const FitOptions& o, model::ModelParams& p) {
   Eigen::Matrix<double, 10, 10> A = Eigen::Matrix<double, 10, 10>::Zero();
   Eigen::Matrix<double, 10, 1> b = Eigen::Matrix<double, 10, 1>::Zero();
-  const model::EffectSet gravity_only{Effect::gravity};
   for (std::size_t i = 0; i < data.size(); ++i) {
     if (!use(o, i)) continue;
     const Eigen::Vector3d g =
@@ -204,7 +203,6 @@ void linear_init(const Dataset& data, const FitOptions& o, model::ModelParams& p
     A += J.transpose() * J;
     b += J.transpose() * data.measured[i];
   }
-  (void)gravity_only;
   const Eigen::Matrix<double, 10, 1> x = A.ldlt().solve(b);
   double* bias = p.block(Effect::bias);
   for (int k = 0; k < 3; ++k) bias[k] = x[k];
