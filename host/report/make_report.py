@@ -1229,6 +1229,10 @@ def ladder_plot(ladder_json, out_png):
     import matplotlib.pyplot as plt
     lad.setdefault("noise_floor", None)
     out_png = os.path.abspath(out_png)
+    if os.path.exists(out_png) and not os.path.isfile(out_png):
+        print("make_report: error: %s: exists and is not a regular file; refusing to replace it"
+              % out_png, file=sys.stderr)
+        return 1
     tmp = tempfile.mkdtemp(prefix=".ladder-plot-", dir=os.path.dirname(out_png))
     try:
         figs = Figures.__new__(Figures)  # the ladder chart needs no samples

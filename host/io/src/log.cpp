@@ -296,6 +296,21 @@ void refuse_inputs(const fs::path& path, const std::vector<fs::path>& inputs) {
 class PendingFile {
  public:
   PendingFile(fs::path target, const std::string& text) : target_(std::move(target)) {
+    // Renaming onto a device, FIFO or folder would replace it (an --out /dev/null once turned
+    // this machine's /dev/null into a regular file): only regular files are ever replaced.
+    std::error_code ec;
+    const fs::file_status st = fs::status(target_, ec);
+    if (!ec && fs::exists(st) && !fs::is_regular_file(st)) {
+      throw std::runtime_error("refusing to write " + target_.string() +
+                               ": it exists and is not a regular file (" +
+                               (fs::is_directory(st)        ? "a folder"
+                                : fs::is_character_file(st) ? "a character device"
+                                : fs::is_block_file(st)     ? "a block device"
+                                : fs::is_fifo(st)           ? "a FIFO"
+                                : fs::is_socket(st)         ? "a socket"
+                                                            : "not a file") +
+                               ")");
+    }
     fs::path dir = target_.parent_path();
     if (dir.empty()) dir = ".";
     std::string name = (dir / ("." + target_.filename().string() + ".tmp-XXXXXX")).string();

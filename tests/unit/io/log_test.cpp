@@ -346,6 +346,24 @@ TEST_F(AtomicWriteTest, WritesWithMode0644AndLeavesNoTemporaryFile) {
   EXPECT_EQ(listing(dir_), std::vector<fs::path>{"out.txt"});
 }
 
+TEST_F(AtomicWriteTest, NeverReplacesADeviceFifoOrFolder) {
+  // A FIFO stands in for /dev/null (a rename onto a device node would destroy it; never test that
+  // on the real one).
+  ASSERT_EQ(::mkfifo(path("fifo").c_str(), 0644), 0);
+  fs::create_directory(path("folder"));
+  for (const char* name : {"fifo", "folder"}) {
+    try {
+      write_file_atomic(path(name), "x");
+      ADD_FAILURE() << name << " was replaced";
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find("not a regular file"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_TRUE(fs::is_fifo(path("fifo")));
+  EXPECT_TRUE(fs::is_directory(path("folder")));
+  EXPECT_EQ(listing(dir_), (std::vector<fs::path>{"fifo", "folder"}));  // no temporary left
+}
+
 TEST_F(AtomicWriteTest, RefusesToOverwriteAnInput) {
   fs::create_directory(path("sub"));
   write_text(path("in.csv"), "precious");
