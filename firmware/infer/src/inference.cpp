@@ -225,20 +225,10 @@ Status Inference::evaluate(Path path, const model::FeatureSignals& s,
   const auto p = model::pointers(model_.physics);
   Wrench w =
       model::predict_wrench<double>(model_.physics.effects, p, pose_of(s), physics_imu, geometry_);
-  Status st;
-  if (path != Path::physics_only && model_.network) {
-    const DeployedNetwork& net = *model_.network;
-    model::compute_features(s, net.features, features_.data());
-    for (std::size_t k = 0; k < net.features.size(); ++k)
-      if (!std::isfinite(features_[k])) return {StatusCode::non_finite, 0};
-    if (path == Path::quantised) {
-      st = network_quantised(features_.data(), y_.data());
-    } else {
-      model::network_forward<double>(net.shape, net.normalisation, net.params.data(),
-                                     features_.data(), y_.data(), ref_a_.data(), ref_b_.data());
-    }
-    for (std::size_t k = 0; k < net.output_axes.size(); ++k) w[net.output_axes[k]] += y_[k];
-  }
+  Wrench r;
+  const Status st = residual(path, s, r);
+  if (st.code == StatusCode::non_finite) return st;
+  w += r;
   if (!finite(w)) return {StatusCode::non_finite, st.clipped_values};
   out = w;
   return st;
@@ -255,34 +245,31 @@ Status Inference::evaluate_physics(const model::FeatureSignals& s, Wrench& out) 
 }
 
 Status Inference::residual_quantised(const model::FeatureSignals& s, Wrench& out) noexcept {
-  if (!configured_) return {StatusCode::not_configured, 0};
-  if (!model_.network) {
-    out.setZero();
-    return {};
-  }
-  const DeployedNetwork& net = *model_.network;
-  model::compute_features(s, net.features, features_.data());
-  const Status st = network_quantised(features_.data(), y_.data());
-  out.setZero();
-  for (std::size_t k = 0; k < net.output_axes.size(); ++k) out[net.output_axes[k]] = y_[k];
-  if (!finite(out)) return {StatusCode::non_finite, st.clipped_values};
-  return st;
+  return residual(Path::quantised, s, out);
 }
 
 Status Inference::residual_reference(const model::FeatureSignals& s, Wrench& out) noexcept {
+  return residual(Path::float_reference, s, out);
+}
+
+Status Inference::residual(Path path, const model::FeatureSignals& s, Wrench& out) noexcept {
   if (!configured_) return {StatusCode::not_configured, 0};
-  if (!model_.network) {
-    out.setZero();
-    return {};
-  }
+  out.setZero();
+  if (!model_.network || path == Path::physics_only) return {};
   const DeployedNetwork& net = *model_.network;
   model::compute_features(s, net.features, features_.data());
-  model::network_forward<double>(net.shape, net.normalisation, net.params.data(), features_.data(),
-                                 y_.data(), ref_a_.data(), ref_b_.data());
-  out.setZero();
+  for (std::size_t k = 0; k < net.features.size(); ++k)
+    if (!std::isfinite(features_[k])) return {StatusCode::non_finite, 0};
+  Status st{};
+  if (path == Path::quantised) {
+    st = network_quantised(features_.data(), y_.data());
+  } else {
+    model::network_forward<double>(net.shape, net.normalisation, net.params.data(),
+                                   features_.data(), y_.data(), ref_a_.data(), ref_b_.data());
+  }
   for (std::size_t k = 0; k < net.output_axes.size(); ++k) out[net.output_axes[k]] = y_[k];
-  if (!finite(out)) return {StatusCode::non_finite, 0};
-  return {};
+  if (!finite(out)) return {StatusCode::non_finite, st.clipped_values};
+  return st;
 }
 
 std::size_t evaluate_sequence(Inference& inference, Path path,

@@ -74,6 +74,8 @@ class Inference {
   double imu_time_offset_s() const;
 
  private:
+  /// The network's part of the wrench along `path` (zero for physics_only or no network).
+  Status residual(Path path, const model::FeatureSignals& s, Wrench& out) noexcept;
   struct Layer {
     int inputs = 0, outputs = 0;
     model::Activation activation = model::Activation::identity;
