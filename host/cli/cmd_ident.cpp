@@ -90,6 +90,33 @@ std::string param_table(const model::ModelParams& p, const std::optional<ident::
   return out;
 }
 
+// A usable fit as a model file; an unusable one is refused, so nothing gets written.
+io::ModelFile fitted_model_file(const ident::FitResult& r, const io::Log& log,
+                                const std::string& log_path) {
+  if (!r.usable)
+    throw std::runtime_error("the fit is not usable (" + r.termination + "); nothing written");
+  io::ModelFile m;
+  m.params = r.params;
+  m.std = r.std;
+  m.rig_name = log.rig.name;
+  m.extra["fit"] = fit_json(r);
+  m.extra["fit"]["log"] = log_path;
+  return m;
+}
+
+// Writes the model (if `out` is given, never over `inputs`) and, with --json, prints it.
+// Returns true when JSON was printed (then nothing else goes to stdout).
+bool write_fitted_model(const Common& c, const io::ModelFile& m, const std::string& out,
+                        const std::vector<std::filesystem::path>& inputs) {
+  if (!out.empty()) io::write_model(m, out, inputs);
+  if (!c.json) return false;
+  nlohmann::json j = io::to_json(m);
+  j["kind"] = "zerog-fit";
+  j["output"] = out.empty() ? nlohmann::json(nullptr) : nlohmann::json(out);
+  std::cout << j.dump(2) << "\n";
+  return true;
+}
+
 void run_fit(const Common& c, const std::string& effects, const std::string& out,
              const std::string& loss, double loss_scale, int max_iter, int block_samples,
              const std::string& truth_path) {
@@ -104,24 +131,10 @@ void run_fit(const Common& c, const std::string& effects, const std::string& out
   o.threads = c.threads;
   o.progress = progress(c);
   const ident::FitResult r = ident::fit(data, o);
-  if (!r.usable)
-    throw std::runtime_error("the fit is not usable (" + r.termination + "); nothing written");
+  const io::ModelFile m = fitted_model_file(r, log, c.log);
   std::optional<io::ModelFile> truth;
   if (!truth_path.empty()) truth = io::read_model(truth_path);
-  io::ModelFile m;
-  m.params = r.params;
-  m.std = r.std;
-  m.rig_name = log.rig.name;
-  m.extra["fit"] = fit_json(r);
-  m.extra["fit"]["log"] = c.log;
-  if (!out.empty()) io::write_model(m, out, {c.log, io::rig_path_for(c.log)});
-  if (c.json) {
-    nlohmann::json j = io::to_json(m);
-    j["kind"] = "zerog-fit";
-    j["output"] = out.empty() ? nlohmann::json(nullptr) : nlohmann::json(out);
-    std::cout << j.dump(2) << "\n";
-    return;
-  }
+  if (write_fitted_model(c, m, out, {c.log, io::rig_path_for(c.log)})) return;
   std::printf("fitted %s on %zu samples in %.2f s (%d iterations): %s\n",
               io::effect_list_string(r.params.effects).c_str(), r.samples, r.seconds, r.iterations,
               r.termination.c_str());
@@ -155,34 +168,20 @@ void run_tool_change(const Common& c, const std::string& base_path, const std::s
   o.progress = progress(c);
   const ident::ToolChangeResult tc = ident::fit_tool_change(data, base.params, o);
   const ident::FitResult& r = tc.fit;
-  if (!r.usable)
-    throw std::runtime_error("the fit is not usable (" + r.termination + "); nothing written");
+  io::ModelFile m = fitted_model_file(r, log, c.log);
   std::optional<io::ModelFile> truth;
   if (!truth_path.empty()) truth = io::read_model(truth_path);
-  io::ModelFile m;
-  m.params = r.params;
   // Frozen effects carry the base fit's values and so its standard deviations.
-  m.std = r.std;
   if (m.std && base.std) {
     for (Effect e : model::kAllEffects)
       if (tc.frozen.has(e)) (*m.std)[model::index(e)] = (*base.std)[model::index(e)];
   }
-  m.rig_name = log.rig.name;
-  m.extra["fit"] = fit_json(r);
-  m.extra["fit"]["log"] = c.log;
   m.extra["fit"]["tool_change"] = {{"base", base_path},
                                    {"frozen", io::effect_list_string(tc.frozen)},
                                    {"static_samples", tc.static_samples},
                                    {"dwells", tc.dwells},
                                    {"gravity_spread_deg", tc.spread_deg}};
-  if (!out.empty()) io::write_model(m, out, {c.log, io::rig_path_for(c.log), base_path});
-  if (c.json) {
-    nlohmann::json j = io::to_json(m);
-    j["kind"] = "zerog-fit";
-    j["output"] = out.empty() ? nlohmann::json(nullptr) : nlohmann::json(out);
-    std::cout << j.dump(2) << "\n";
-    return;
-  }
+  if (write_fitted_model(c, m, out, {c.log, io::rig_path_for(c.log), base_path})) return;
   std::printf(
       "tool change: %zu of %zu samples static (%zu dwells), %zu fitted; frozen from %s: %s\n",
       tc.static_samples, data.size(), tc.dwells, r.samples, base_path.c_str(),
