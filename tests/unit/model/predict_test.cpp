@@ -164,6 +164,22 @@ TEST(Rotation, VectorFormulaMatchesEigenAngleAxisAndKukaAbc) {
   EXPECT_NEAR((K - expected).norm(), 0.0, 1e-12);
 }
 
+TEST(Rotation, KukaAbcRoundTripsIncludingGimbalLock) {
+  const double cases[][3] = {{0.1, 0.2, 0.3}, {-3.0, 1.4, 2.9}, {2.0, -0.7, -3.1}, {0, 0, 0}};
+  for (const auto& c : cases) {
+    const Eigen::Vector3d abc = kuka_abc_from_rotation(rotation_from_kuka_abc(c[0], c[1], c[2]));
+    EXPECT_NEAR(abc[0], c[0], 1e-12);
+    EXPECT_NEAR(abc[1], c[1], 1e-12);
+    EXPECT_NEAR(abc[2], c[2], 1e-12);
+  }
+  // At B = ±90° the angles are not unique, but the rotation is reproduced.
+  for (double b : {1.5707963267948966, -1.5707963267948966}) {
+    const Eigen::Matrix3d R = rotation_from_kuka_abc(0.4, b, -0.3);
+    const Eigen::Vector3d abc = kuka_abc_from_rotation(R);
+    EXPECT_NEAR((rotation_from_kuka_abc(abc[0], abc[1], abc[2]) - R).norm(), 0.0, 1e-9);
+  }
+}
+
 TEST(EffectInfo, NamesRoundTripAndParameterCountsFitTheBlocks) {
   for (Effect e : kAllEffects) {
     const EffectInfo& i = info(e);

@@ -1,6 +1,7 @@
 #pragma once
 // Rotation helpers templated on the scalar (work with ceres::Jet). Real-time safe.
 #include <Eigen/Core>
+#include <algorithm>
 #include <cmath>
 
 namespace zerog::model {
@@ -57,6 +58,19 @@ Eigen::Matrix<T, 3, 3> rotation_from_vector(const Eigen::Matrix<T, 3, 1>& r) {
 template <typename T>
 Eigen::Matrix<T, 3, 3> rotation_from_kuka_abc(const T& a, const T& b, const T& c) {
   return rot_z(a) * rot_y(b) * rot_x(c);
+}
+
+/// The inverse of rotation_from_kuka_abc (double only): A, B, C in rad with B in [−π/2, π/2]
+/// and A, C in (−π, π]. At B = ±π/2 (gimbal lock) only A ∓ C is determined: C is set to 0.
+inline Eigen::Vector3d kuka_abc_from_rotation(const Eigen::Matrix3d& R) {
+  const double sb = std::clamp(-R(2, 0), -1.0, 1.0);
+  const double b = std::asin(sb);
+  if (std::abs(sb) > 1.0 - 1e-12) {
+    // R = Rz(A) Ry(±π/2) Rx(C) depends on A ∓ C only: R(0,1) = sin(C)sb cos(A) − cos(C) sin(A)
+    // = −sin(A ∓ C), R(1,1) = cos(A ∓ C).
+    return {std::atan2(-R(0, 1), R(1, 1)), b, 0.0};
+  }
+  return {std::atan2(R(1, 0), R(0, 0)), b, std::atan2(R(2, 1), R(2, 2))};
 }
 
 }  // namespace zerog::model
