@@ -24,6 +24,8 @@ const char* fault_name(Fault f) {
       return "ft_stale";
     case Fault::ft_critical:
       return "ft_critical";
+    case Fault::ft_saturated:
+      return "ft_saturated";
     case Fault::imu_stale:
       return "imu_stale";
     case Fault::robot_late:

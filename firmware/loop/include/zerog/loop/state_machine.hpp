@@ -18,6 +18,7 @@ enum class Fault : std::uint8_t {
   none,
   ft_stale,            ///< no valid F/T sample for too many cycles
   ft_critical,         ///< the F/T sensor reported a critical status bit
+  ft_saturated,        ///< the F/T sensor's gauges stayed saturated
   imu_stale,           ///< no valid IMU sample for too many cycles
   robot_late,          ///< robot datagrams late or missing for too many cycles
   contact_over_limit,  ///< contact force or torque above its limit

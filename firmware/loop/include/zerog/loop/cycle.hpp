@@ -1,0 +1,253 @@
+#pragma once
+// One cycle of zerog-rt, without I/O (proto/loop.md). The program (firmware/rt) hands it the
+// sensor samples that arrived since the last cycle and the robot's datagram; the cycle predicts
+// the payload's wrench, takes the contact wrench (measured − predicted), runs the state machine,
+// the watchdogs and the zero-g motion, and returns the reply for the robot. Every robot message
+// gets a reply with its IPOC (a zero correction unless zero-g or collection is running).
+//
+// Time alignment: each cycle's row holds the mean of the F/T and IMU samples that arrived during
+// the cycle (the log format's row, proto/log_format.md). The angular acceleration is the central
+// difference of the gyroscope rows (model::angular_accel_central), so the model is evaluated on
+// the row `delay_rows()` cycles back (2 for the 5-point stencil, 1 for the 3-point one): the
+// contact wrench is that many cycles late and less noisy (proto/loop.md, "Noise and delay").
+//
+// Life cycle (STYLE.md habit 3): construct and configure() at start-up (may allocate, may fail
+// with a message); add_*/robot_* and step() every cycle: no allocation, no exceptions, no locks.
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <array>
+#include <atomic>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+#include "zerog/control/motion.hpp"
+#include "zerog/infer/inference.hpp"
+#include "zerog/loop/black_box.hpp"
+#include "zerog/loop/state_machine.hpp"
+#include "zerog/proto/rsi.hpp"
+#include "zerog/rtio/ft_sensor.hpp"
+#include "zerog/rtio/imu.hpp"
+
+namespace zerog::loop {
+
+/// Watchdog thresholds, in cycles (proto/loop.md, "Watchdogs"). A count of consecutive bad cycles
+/// below the threshold holds (the last good value is reused and the cycle is flagged); reaching
+/// it raises the fault, and from then on every reply is a zero correction.
+struct WatchdogConfig {
+  int ft_fault_cycles = 5;     ///< cycles in a row without a valid F/T sample
+  int imu_fault_cycles = 5;    ///< cycles in a row without a valid IMU sample (rate and accel)
+  int robot_fault_cycles = 3;  ///< robot cycles lost in a row (timeout, malformed, IPOC gap)
+  int robot_late_cycles = 3;   ///< messages in a row whose Delay grew (our replies came late)
+  int model_fault_cycles = 1;  ///< cycles in a row the model could not be evaluated
+};
+
+/// A joint-space path for collection mode (e.g. a `zerog design` path as a PTP trajectory).
+/// at() must be real-time safe.
+class JointPath {
+ public:
+  virtual ~JointPath() = default;
+  virtual double duration_s() const = 0;
+  /// Joint angles A1..A6 (rad) at t seconds after the start of the path (clamped to the ends).
+  virtual std::array<double, 6> at(double t_s) const = 0;
+};
+
+struct CycleConfig {
+  double period_s = 0.012;      ///< nominal robot cycle (RSI: 0.004 or 0.012)
+  double ipoc_unit_s = 0.001;   ///< IPOC counts milliseconds (KUKA)
+  int angular_accel_order = 4;  ///< 4: 5-point central difference (delay 2 rows); 2: 3-point (1)
+  double temperature_C = 25.0;  ///< sensor temperature fed to the model (no sensor on the rig)
+  WatchdogConfig watchdog;
+  control::BodyParams body;      ///< the virtual body
+  control::MotionLimits limits;  ///< deadbands, force limit, speed/accel/workspace limits
+  Eigen::Vector3d p_sensor_com_m{0.0, 0.0, 0.0};  ///< virtual centre of mass, sensor frame
+  /// Collection mode: the largest axis correction per cycle (rad): a path that would need more
+  /// is followed late (never jumps). The approach to the path's first point runs at most at
+  /// approach_speed_radps per axis with approach_accel_radps2.
+  double max_axis_step_rad = 0.01;
+  double approach_speed_radps = 0.2;
+  double approach_accel_radps2 = 0.5;
+};
+
+/// Why a robot cycle was lost (robot_lost()).
+enum class RobotLoss : std::uint8_t { timeout, malformed };
+
+/// Bits of CycleRecord::flags.
+enum CycleFlags : std::uint32_t {
+  kFtHeld = 1u << 0,          ///< no valid F/T sample this cycle: the last one was reused
+  kImuHeld = 1u << 1,         ///< likewise for the IMU
+  kNotReady = 1u << 2,        ///< fewer rows than the model needs: no contact wrench yet
+  kModelSaturated = 1u << 3,  ///< the network clipped inputs or activations
+  kIpocGap = 1u << 4,         ///< IPOC jumped by more than one period (datagrams lost)
+  kIpocStale = 1u << 5,       ///< IPOC not newer than the last one (duplicate or reordered)
+  kRobotDelayGrew = 1u << 6,  ///< the robot's Delay counter grew
+  kCommandRefused = 1u << 7,  ///< a command this cycle was not allowed in the state
+  kCollectionDone = 1u << 8,  ///< collection reached the end of its path (back to idle)
+  kFtWarning = 1u << 9,       ///< F/T samples with non-critical status bits were used
+};
+
+/// Everything one cycle did: the black box, the recorder and telemetry take it. Fixed size.
+struct CycleRecord {
+  std::uint64_t cycle = 0;  ///< robot messages handled, from 1
+  std::uint64_t ipoc = 0;
+  double t_s = 0.0;   ///< robot time since the first message (IPOC based)
+  double dt_s = 0.0;  ///< time step used for the virtual body
+  State state = State::idle;
+  Fault fault = Fault::none;
+  std::uint32_t flags = 0;        ///< CycleFlags
+  std::uint32_t limit_flags = 0;  ///< control::LimitFlags
+  infer::StatusCode model_status = infer::StatusCode::not_configured;
+  // This cycle's row (what is recorded in the log format).
+  std::array<double, 6> joints_rad{};
+  Eigen::Vector3d p_base_sensor_m = Eigen::Vector3d::Zero();  ///< from RIst (TCP = sensor frame)
+  Eigen::Quaterniond q_base_sensor = Eigen::Quaterniond::Identity();
+  std::array<double, 6> wrench_measured{};     ///< mean F/T of the cycle, sensor frame, N / N·m
+  std::array<double, 3> specific_force_imu{};  ///< mean IMU, IMU frame, m/s²
+  std::array<double, 3> rate_imu{};            ///< mean gyro, IMU frame, rad/s
+  std::uint16_t ft_samples = 0;                ///< valid F/T samples averaged
+  std::uint16_t imu_samples = 0;               ///< valid IMU samples averaged
+  // The model, evaluated on the row delay_rows() back (t_eval_s).
+  double t_eval_s = 0.0;
+  std::array<double, 6> wrench_at_eval{};  ///< measured, that row
+  std::array<double, 6> predicted{};       ///< model prediction, that row
+  std::array<double, 6> contact{};         ///< measured − predicted (sensor frame, about S)
+  // The reply.
+  bool axis_reply = false;       ///< AKorr (collection) instead of RKorr
+  proto::rsi::Correction rkorr;  ///< mm, degrees
+  std::array<double, 6> akorr_deg{};
+  // The virtual body after the step (world = robot base frame).
+  control::BodyState body;
+  std::int64_t compute_ns = 0;  ///< filled in by the program (time of step())
+};
+
+/// What to send back. Always the IPOC of the message just handled.
+struct CycleReply {
+  bool axis = false;             ///< true: AKorr (collection mode); false: RKorr
+  proto::rsi::Correction rkorr;  ///< mm, degrees (zero unless zero-g)
+  std::array<double, 6> akorr_deg{};
+  std::uint64_t ipoc = 0;
+};
+
+struct CycleCounters {
+  std::uint64_t messages = 0;
+  std::uint64_t robot_timeouts = 0;
+  std::uint64_t robot_malformed = 0;
+  std::uint64_t ipoc_gaps = 0;       ///< messages after a gap
+  std::uint64_t datagrams_lost = 0;  ///< sum of the gaps (in periods)
+  std::uint64_t ipoc_stale = 0;      ///< duplicates and reordered messages
+  std::uint64_t ft_samples = 0;      ///< valid F/T samples used
+  std::uint64_t ft_invalid = 0;      ///< F/T samples not used (critical, saturated)
+  std::uint64_t ft_held_cycles = 0;
+  std::uint64_t imu_samples = 0;
+  std::uint64_t imu_invalid = 0;
+  std::uint64_t imu_held_cycles = 0;
+  std::uint64_t sample_overflow = 0;  ///< samples beyond one cycle's accumulator (not averaged)
+  std::uint64_t model_saturated = 0;
+  std::uint64_t commands_refused = 0;
+};
+
+class Cycle {
+ public:
+  /// The black box: at 4 ms, the last second; at 12 ms, the last three.
+  static constexpr std::size_t kBlackBoxCycles = 256;
+  using Box = BlackBox<CycleRecord, kBlackBoxCycles>;
+
+  /// Start-up: validates the configuration and takes the model (Inference::configure). Returns
+  /// "" on success, else what is wrong (naming the setting). Not real-time safe.
+  std::string configure(const CycleConfig& config, infer::DeployedModel model);
+  const CycleConfig& config() const { return config_; }
+  /// Rows between the newest row and the one the model is evaluated on.
+  int delay_rows() const { return config_.angular_accel_order / 2; }
+
+  /// Collection mode follows this path (not owned; must outlive the cycle). Not real-time safe
+  /// to change while collecting: set it in idle.
+  void set_collection_path(const JointPath* path) { path_ = path; }
+
+  // --- every cycle (real-time safe) ---------------------------------------------------------
+  /// A sample that arrived since the last cycle (valid or not: invalid ones count toward the
+  /// watchdog's reason).
+  void add_ft(const rtio::FtSample& s) noexcept;
+  void add_imu(const rtio::ImuSample& s) noexcept;
+  /// A command (Modbus, CLI), applied at the start of the next step(). Returns false if one is
+  /// already pending.
+  bool request(Command c) noexcept;
+  /// No robot message this time (receive timeout or a malformed datagram from the robot).
+  /// Counts toward the robot watchdog. Nothing is sent.
+  void robot_lost(RobotLoss why) noexcept;
+  /// One robot message: runs the cycle and fills `reply` (always, with message.ipoc).
+  void step(const proto::rsi::RobotMessage& message, CycleReply& reply) noexcept;
+
+  /// The record of the last step() (or robot_lost()).
+  const CycleRecord& last() const { return record_; }
+  CycleRecord& last_mutable() { return record_; }
+  const StateMachine& state_machine() const { return sm_; }
+  const Box& black_box() const { return box_; }
+  /// After a fault has been dumped: let the black box record again (outside the cycle).
+  void release_black_box() { box_.release(); }
+  const CycleCounters& counters() const { return counters_; }
+  const control::ZeroGMotion& motion() const { return motion_; }
+  const infer::Inference& inference() const { return inference_; }
+
+ private:
+  static constexpr int kHistory = 8;      ///< rows kept (≥ 2 × delay + 1)
+  static constexpr int kMaxWindow = 256;  ///< samples averaged per cycle at most
+
+  struct Row {
+    model::FeatureSignals signals;  ///< imu[6..8] (angular acceleration) filled when centred
+    std::array<double, 6> wrench{};
+    double t_s = 0.0;
+  };
+  struct Window {  // sums of the samples that arrived this cycle
+    std::array<double, 6> ft_sum{};
+    int ft_n = 0, ft_critical = 0, ft_saturated = 0, ft_warning = 0;
+    std::array<double, 6> imu_sum{};
+    int imu_n = 0;
+  };
+
+  void apply_command(std::uint64_t cycle, const Row& now, bool ready,
+                     std::uint32_t& flags) noexcept;
+  void raise(Fault f) noexcept;
+  bool evaluate(std::uint32_t& flags) noexcept;
+  void run_zero_g(double dt, CycleReply& reply) noexcept;
+  void run_collection(const Row& now, double dt, std::uint32_t& flags, CycleReply& reply) noexcept;
+
+  CycleConfig config_;
+  infer::Inference inference_;
+  bool configured_ = false;
+  bool use_network_ = false;
+  StateMachine sm_;
+  control::ZeroGMotion motion_{control::BodyParams{}, control::MotionLimits{},
+                               Eigen::Vector3d::Zero()};
+  const JointPath* path_ = nullptr;
+  Box box_;
+  CycleRecord record_;
+  CycleCounters counters_;
+  Window window_;
+
+  std::array<Row, kHistory> rows_{};
+  std::uint64_t rows_total_ = 0;
+  std::array<double, 6> last_wrench_{};
+  std::array<double, 6> last_imu_{};  ///< specific force (3), rate (3)
+  bool have_ft_ = false, have_imu_ = false;
+
+  std::uint64_t cycle_ = 0;
+  bool have_ipoc_ = false;
+  std::uint64_t first_ipoc_ = 0, last_ipoc_ = 0;
+  std::uint64_t last_delay_ = 0;
+  bool have_delay_ = false;
+  int robot_lost_run_ = 0, robot_late_run_ = 0;
+  int ft_bad_run_ = 0, imu_bad_run_ = 0, model_bad_run_ = 0;
+  Fault ft_bad_reason_ = Fault::ft_stale;
+
+  std::atomic<std::uint8_t> pending_{0};  ///< 0: none, else 1 + Command
+
+  bool freeze_pending_ = false;
+
+  // Collection mode: approach the path's start, then follow it.
+  bool collection_on_path_ = false;
+  double collection_t_s_ = 0.0;
+  std::array<double, 6> collection_cmd_rad_{};  ///< joints commanded so far (start + Σ AKorr)
+  std::array<double, 6> collection_v_radps_{};  ///< approach speed per axis
+};
+
+}  // namespace zerog::loop

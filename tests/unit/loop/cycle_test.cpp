@@ -1,0 +1,442 @@
+// zerog::loop::Cycle without I/O: time alignment, zero-g motion from a push, watchdogs (hold,
+// then fault with zero correction, at the documented cycle), IPOC handling, collection mode and
+// the allocation-free cycle.
+#include "zerog/loop/cycle.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+
+#include "alloc_count.hpp"
+
+namespace zerog::loop {
+namespace {
+
+constexpr double kMass = 100.0;
+constexpr double kPeriod = 0.012;
+
+infer::DeployedModel payload_model() {
+  infer::DeployedModel m;
+  m.rig.name = "test-rig";
+  m.rig.robot = "KR 210 R2700";
+  m.rig.sample_period_s = kPeriod;
+  m.physics.effects = model::kDefaultModel;
+  double* bias = m.physics.block(model::Effect::bias);
+  const double b[6] = {12.0, -7.0, 30.0, 1.5, -0.5, 0.25};
+  for (int k = 0; k < 6; ++k) bias[k] = b[k];
+  double* g = m.physics.block(model::Effect::gravity);
+  g[0] = kMass;
+  g[1] = 0.03;
+  g[2] = -0.02;
+  g[3] = 0.25;
+  double* I = m.physics.block(model::Effect::rotational_inertia);
+  I[0] = 4.0;
+  I[1] = 5.0;
+  I[2] = 6.0;
+  return m;
+}
+
+CycleConfig test_config() {
+  CycleConfig c;
+  c.period_s = kPeriod;
+  c.body.mass_kg = kMass;
+  c.body.inertia_body_kgm2 = Eigen::Vector3d(4.0, 5.0, 6.0).asDiagonal();
+  c.p_sensor_com_m = Eigen::Vector3d(0.03, -0.02, 0.25);
+  return c;
+}
+
+/// A static robot at a fixed pose; the payload wrench as the model predicts it (so contact is
+/// exactly what the test adds).
+class StaticRig {
+ public:
+  StaticRig() {
+    EXPECT_EQ(truth_.configure(payload_model()), "");
+    message_.actual_pose = {1500.0, 200.0, 1200.0, 10.0, 20.0, -30.0};
+    message_.joints_deg = {5.0, -80.0, 95.0, 10.0, 40.0, -20.0};
+    message_.has_delay = true;
+    message_.ipoc = 1'000'000;
+    const proto::rsi::PoseSi pose = proto::rsi::to_si(message_.actual_pose);
+    R_ = model::rotation_from_kuka_abc(pose.abc_rad[0], pose.abc_rad[1], pose.abc_rad[2]);
+    model::FeatureSignals s;
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) s.R_base_sensor[3 * r + c] = R_(r, c);
+    }
+    const Eigen::Vector3d f_imu = R_.transpose() * Eigen::Vector3d(0, 0, model::kStandardGravity);
+    for (int k = 0; k < 3; ++k) s.imu[k] = f_imu[k];
+    infer::Wrench w;
+    EXPECT_TRUE(truth_.evaluate_physics(s, w).written());
+    for (int k = 0; k < 6; ++k) payload_[k] = w[k];
+    imu_.rate_valid = imu_.accel_valid = true;
+    for (int k = 0; k < 3; ++k) imu_.accel_m_s2[k] = f_imu[k];
+  }
+
+  /// Feeds `n_ft` F/T samples (payload + contact, sensor frame) and `n_imu` IMU samples, then
+  /// one robot message; returns the reply.
+  CycleReply cycle(Cycle& c, const Eigen::Matrix<double, 6, 1>& contact, int n_ft = 4,
+                   int n_imu = 24) {
+    rtio::FtSample ft;
+    ft.valid = true;
+    for (int k = 0; k < 6; ++k) ft.wrench_si[k] = payload_[k] + contact[k];
+    for (int i = 0; i < n_ft; ++i) c.add_ft(ft);
+    for (int i = 0; i < n_imu; ++i) c.add_imu(imu_);
+    CycleReply reply;
+    c.step(message_, reply);
+    message_.ipoc += 12;
+    return reply;
+  }
+  CycleReply quiet(Cycle& c, int n_ft = 4, int n_imu = 24) {
+    return cycle(c, Eigen::Matrix<double, 6, 1>::Zero(), n_ft, n_imu);
+  }
+
+  proto::rsi::RobotMessage& message() { return message_; }
+  const Eigen::Matrix3d& R() const { return R_; }
+
+ private:
+  infer::Inference truth_;
+  proto::rsi::RobotMessage message_;
+  Eigen::Matrix3d R_;
+  std::array<double, 6> payload_{};
+  rtio::ImuSample imu_;
+};
+
+/// A push through the virtual centre of mass (sensor frame; torque about the sensor origin).
+Eigen::Matrix<double, 6, 1> force(double fx, double fy, double fz) {
+  const Eigen::Vector3d F(fx, fy, fz);
+  Eigen::Matrix<double, 6, 1> w;
+  w << F, test_config().p_sensor_com_m.cross(F);
+  return w;
+}
+
+void start_zero_g(Cycle& c, StaticRig& rig) {
+  for (int i = 0; i < 6; ++i) rig.quiet(c);
+  ASSERT_TRUE(c.request(Command::enable_zero_g));
+  rig.quiet(c);
+  ASSERT_EQ(c.state_machine().state(), State::zero_g);
+}
+
+TEST(Cycle, ConfigureNamesWhatIsWrong) {
+  Cycle c;
+  CycleConfig bad = test_config();
+  bad.angular_accel_order = 3;
+  EXPECT_NE(c.configure(bad, payload_model()).find("angular_accel_order"), std::string::npos);
+  bad = test_config();
+  bad.body.inertia_body_kgm2(0, 1) = 1.0;
+  EXPECT_NE(c.configure(bad, payload_model()).find("inertia"), std::string::npos);
+  bad = test_config();
+  bad.watchdog.ft_fault_cycles = 0;
+  EXPECT_NE(c.configure(bad, payload_model()).find("watchdog"), std::string::npos);
+  EXPECT_EQ(c.configure(test_config(), payload_model()), "");
+}
+
+TEST(Cycle, IdleAnswersEveryMessageWithItsIpocAndNoCorrectionAndSeesNoContact) {
+  Cycle c;
+  ASSERT_EQ(c.configure(test_config(), payload_model()), "");
+  StaticRig rig;
+  for (int i = 0; i < 20; ++i) {
+    const std::uint64_t ipoc = rig.message().ipoc;
+    const CycleReply r = rig.quiet(c);
+    EXPECT_EQ(r.ipoc, ipoc);
+    EXPECT_FALSE(r.axis);
+    EXPECT_EQ(r.rkorr.x_mm, 0.0);
+    EXPECT_EQ(r.rkorr.c_deg, 0.0);
+  }
+  EXPECT_EQ(c.state_machine().state(), State::idle);
+  // With the true model the contact is zero (to rounding) once the rows are there.
+  for (int k = 0; k < 6; ++k) EXPECT_NEAR(c.last().contact[k], 0.0, 1e-9);
+  EXPECT_EQ(c.last().flags & kNotReady, 0u);
+}
+
+TEST(Cycle, EnableIsRefusedUntilTheModelHasItsRows) {
+  Cycle c;
+  ASSERT_EQ(c.configure(test_config(), payload_model()), "");
+  StaticRig rig;
+  rig.quiet(c);
+  ASSERT_TRUE(c.request(Command::enable_zero_g));
+  rig.quiet(c);  // two rows: the 5-point stencil needs five
+  EXPECT_EQ(c.state_machine().state(), State::idle);
+  EXPECT_NE(c.last().flags & kCommandRefused, 0u);
+  EXPECT_EQ(c.counters().commands_refused, 1u);
+  for (int i = 0; i < 3; ++i) rig.quiet(c);
+  ASSERT_TRUE(c.request(Command::enable_zero_g));
+  rig.quiet(c);
+  EXPECT_EQ(c.state_machine().state(), State::zero_g);
+}
+
+TEST(Cycle, PushOfImpulseJGivesVelocityJOverMAndTheCorrectionsAddUpToTheMotion) {
+  Cycle c;
+  ASSERT_EQ(c.configure(test_config(), payload_model()), "");
+  StaticRig rig;
+  start_zero_g(c, rig);
+  const Eigen::Vector3d p0 = c.motion().sensor_position_world();
+  // 50 N along sensor x for 40 cycles; the deadband (2 N) takes its share.
+  const int n_push = 40;
+  Eigen::Vector3d sum_mm = Eigen::Vector3d::Zero();
+  for (int i = 0; i < n_push; ++i) {
+    const CycleReply r = rig.cycle(c, force(50.0, 0.0, 0.0));
+    sum_mm += Eigen::Vector3d(r.rkorr.x_mm, r.rkorr.y_mm, r.rkorr.z_mm);
+  }
+  for (int i = 0; i < 30; ++i) {
+    const CycleReply r = rig.quiet(c);
+    sum_mm += Eigen::Vector3d(r.rkorr.x_mm, r.rkorr.y_mm, r.rkorr.z_mm);
+  }
+  ASSERT_EQ(c.state_machine().state(), State::zero_g);
+  const Eigen::Vector3d J_world = rig.R() * Eigen::Vector3d(48.0 * n_push * kPeriod, 0, 0);
+  const Eigen::Vector3d v = c.motion().body().state().v_world_mps;
+  EXPECT_NEAR((v - J_world / kMass).norm(), 0.0, 1e-9 * J_world.norm());
+  // The robot was told to move exactly as the virtual sensor pose moved (RSI: 0.1 µm steps).
+  const Eigen::Vector3d moved_mm = (c.motion().sensor_position_world() - p0) * 1000.0;
+  EXPECT_NEAR((sum_mm - moved_mm).norm(), 0.0, 70 * 0.5e-4 * std::sqrt(3.0));
+  EXPECT_GT(moved_mm.norm(), 10.0);
+}
+
+TEST(Cycle, AnOffCentrePushTurnsTheBodyAndTheCorrectionCarriesTheRotation) {
+  Cycle c;
+  ASSERT_EQ(c.configure(test_config(), payload_model()), "");
+  StaticRig rig;
+  start_zero_g(c, rig);
+  // A pure torque of 10 N·m about sensor z for 20 cycles.
+  Eigen::Matrix<double, 6, 1> torque = Eigen::Matrix<double, 6, 1>::Zero();
+  torque[5] = 10.0;
+  double c_sum = 0.0, a_sum = 0.0, b_sum = 0.0;
+  for (int i = 0; i < 20; ++i) {
+    const CycleReply r = rig.cycle(c, torque);
+    a_sum += r.rkorr.a_deg;
+    b_sum += r.rkorr.b_deg;
+    c_sum += r.rkorr.c_deg;
+  }
+  const Eigen::Vector3d L = c.motion().body().state().L_world_kgm2ps;
+  // Angular impulse about the virtual centre of mass: the torque minus its deadband, in world.
+  const Eigen::Vector3d expected = rig.R() * Eigen::Vector3d(0, 0, (10.0 - 0.3) * 18 * kPeriod);
+  EXPECT_NEAR((L - expected).norm(), 0.0, 0.02 * expected.norm());
+  EXPECT_GT(std::abs(a_sum) + std::abs(b_sum) + std::abs(c_sum), 0.1);
+}
+
+TEST(Cycle, StepDoesNotAllocate) {
+  Cycle c;
+  ASSERT_EQ(c.configure(test_config(), payload_model()), "");
+  StaticRig rig;
+  start_zero_g(c, rig);
+  const std::size_t before = zerog::test::allocation_count();
+  for (int i = 0; i < 200; ++i) rig.cycle(c, force(i < 50 ? 30.0 : 0.0, 5.0, 0.0));
+  for (int i = 0; i < 10; ++i) rig.cycle(c, force(0, 0, 0), 0, 24);  // hold, then fault
+  c.robot_lost(RobotLoss::timeout);
+  EXPECT_EQ(zerog::test::allocation_count() - before, 0u);
+  EXPECT_EQ(c.state_machine().fault(), Fault::ft_stale);
+}
+
+// Watchdogs: consecutive bad cycles below the threshold hold; the threshold raises the fault and
+// from that very cycle on the reply is a zero correction.
+void expect_hold_then_fault(Cycle& c, StaticRig& rig, int threshold, Fault fault,
+                            const std::function<CycleReply()>& bad_cycle, std::uint32_t held_flag) {
+  for (int i = 1; i < threshold; ++i) {
+    const CycleReply r = bad_cycle();
+    EXPECT_EQ(c.state_machine().state(), State::zero_g) << "cycle " << i;
+    EXPECT_NE(c.last().flags & held_flag, 0u) << "cycle " << i;
+    (void)r;
+  }
+  const std::uint64_t ipoc = rig.message().ipoc;
+  const CycleReply r = bad_cycle();
+  EXPECT_EQ(c.state_machine().state(), State::fault);
+  EXPECT_EQ(c.state_machine().fault(), fault);
+  EXPECT_EQ(r.ipoc, ipoc);
+  EXPECT_EQ(r.rkorr.x_mm, 0.0);
+  EXPECT_EQ(r.rkorr.y_mm, 0.0);
+  EXPECT_EQ(r.rkorr.a_deg, 0.0);
+  // The black box holds the cycles up to the fault, the fault cycle last, and stays frozen.
+  ASSERT_TRUE(c.black_box().frozen());
+  EXPECT_EQ(c.black_box().at(c.black_box().size() - 1).fault, fault);
+  for (int i = 0; i < 5; ++i) {
+    const CycleReply later = rig.cycle(c, force(40.0, 0.0, 0.0));
+    EXPECT_EQ(later.rkorr.x_mm, 0.0);
+  }
+  EXPECT_EQ(c.black_box().at(c.black_box().size() - 1).fault, fault);
+}
+
+class Watchdog : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ASSERT_EQ(c.configure(test_config(), payload_model()), "");
+    start_zero_g(c, rig);
+    // Moving, so that a zero correction is a real change.
+    for (int i = 0; i < 10; ++i) rig.cycle(c, force(30.0, 0.0, 0.0));
+    ASSERT_NE(rig.quiet(c).rkorr.x_mm, 0.0);
+  }
+  Cycle c;
+  StaticRig rig;
+};
+
+TEST_F(Watchdog, SilentFtSensorHoldsThenFaults) {
+  expect_hold_then_fault(
+      c, rig, c.config().watchdog.ft_fault_cycles, Fault::ft_stale,
+      [&] { return rig.quiet(c, 0, 24); }, kFtHeld);
+}
+
+TEST_F(Watchdog, CriticalStatusHoldsThenFaultsNamingIt) {
+  expect_hold_then_fault(
+      c, rig, c.config().watchdog.ft_fault_cycles, Fault::ft_critical,
+      [&] {
+        rtio::FtSample bad;
+        bad.status = rtio::FtSampleStatus::critical;
+        bad.valid = false;
+        c.add_ft(bad);
+        return rig.quiet(c, 0, 24);
+      },
+      kFtHeld);
+}
+
+TEST_F(Watchdog, SaturatedGaugesHoldThenFault) {
+  expect_hold_then_fault(
+      c, rig, c.config().watchdog.ft_fault_cycles, Fault::ft_saturated,
+      [&] {
+        rtio::FtSample bad;
+        bad.status = rtio::FtSampleStatus::saturated;
+        c.add_ft(bad);
+        return rig.quiet(c, 0, 24);
+      },
+      kFtHeld);
+}
+
+TEST_F(Watchdog, GarbledImuHoldsThenFaults) {
+  expect_hold_then_fault(
+      c, rig, c.config().watchdog.imu_fault_cycles, Fault::imu_stale,
+      [&] {
+        rtio::ImuSample bad;  // status bytes set: groups invalid
+        c.add_imu(bad);
+        return rig.quiet(c, 4, 0);
+      },
+      kImuHeld);
+}
+
+TEST_F(Watchdog, LostRobotCyclesFaultAtTheThresholdAndTheNextMessageGetsZero) {
+  const int n = c.config().watchdog.robot_fault_cycles;
+  for (int i = 1; i < n; ++i) {
+    c.robot_lost(i % 2 ? RobotLoss::timeout : RobotLoss::malformed);
+    EXPECT_EQ(c.state_machine().state(), State::zero_g);
+  }
+  c.robot_lost(RobotLoss::malformed);
+  EXPECT_EQ(c.state_machine().fault(), Fault::robot_late);
+  EXPECT_TRUE(c.black_box().frozen());
+  rig.message().ipoc += 12 * n;
+  const std::uint64_t ipoc = rig.message().ipoc;
+  const CycleReply r = rig.quiet(c);
+  EXPECT_EQ(r.ipoc, ipoc);
+  EXPECT_EQ(r.rkorr.x_mm, 0.0);
+  EXPECT_EQ(c.counters().robot_timeouts + c.counters().robot_malformed,
+            static_cast<std::uint64_t>(n));
+}
+
+TEST_F(Watchdog, AnIpocGapBelowTheThresholdIsCountedAndStepsTheBodyByTheElapsedTime) {
+  rig.message().ipoc += 12;  // one datagram lost
+  rig.quiet(c);
+  EXPECT_EQ(c.state_machine().state(), State::zero_g);
+  EXPECT_NE(c.last().flags & kIpocGap, 0u);
+  EXPECT_DOUBLE_EQ(c.last().dt_s, 2 * kPeriod);
+  EXPECT_EQ(c.counters().datagrams_lost, 1u);
+  rig.message().ipoc += 12 * c.config().watchdog.robot_fault_cycles;
+  rig.quiet(c);
+  EXPECT_EQ(c.state_machine().fault(), Fault::robot_late);
+}
+
+TEST_F(Watchdog, GrowingRobotDelayMeansOurRepliesAreLateAndFaults) {
+  for (int i = 1; i < c.config().watchdog.robot_late_cycles; ++i) {
+    ++rig.message().delay;
+    rig.quiet(c);
+    EXPECT_EQ(c.state_machine().state(), State::zero_g);
+    EXPECT_NE(c.last().flags & kRobotDelayGrew, 0u);
+  }
+  ++rig.message().delay;
+  EXPECT_EQ(rig.quiet(c).rkorr.x_mm, 0.0);
+  EXPECT_EQ(c.state_machine().fault(), Fault::robot_late);
+}
+
+TEST_F(Watchdog, DuplicateAndReorderedDatagramsAreAnsweredWithZeroAndChangeNothing) {
+  rig.message().ipoc -= 12;  // the previous datagram again
+  const Eigen::Vector3d v = c.motion().body().state().v_world_mps;
+  const CycleReply r = rig.quiet(c);
+  EXPECT_EQ(r.ipoc, rig.message().ipoc - 12);
+  EXPECT_EQ(r.rkorr.x_mm, 0.0);
+  EXPECT_NE(c.last().flags & kIpocStale, 0u);
+  EXPECT_EQ(c.counters().ipoc_stale, 1u);
+  EXPECT_EQ(c.motion().body().state().v_world_mps, v);
+  EXPECT_NE(rig.quiet(c).rkorr.x_mm, 0.0);  // the next new one moves again
+  EXPECT_EQ(c.state_machine().state(), State::zero_g);
+}
+
+TEST_F(Watchdog, ContactAboveTheLimitFaultsAtOnce) {
+  const CycleReply r = rig.cycle(c, force(0.0, 500.0, 0.0));
+  (void)r;
+  // The contact is evaluated two rows back: the fault comes when the push reaches that row.
+  rig.cycle(c, force(0.0, 500.0, 0.0));
+  const CycleReply r3 = rig.cycle(c, force(0.0, 500.0, 0.0));
+  EXPECT_EQ(c.state_machine().fault(), Fault::contact_over_limit);
+  EXPECT_EQ(r3.rkorr.x_mm, 0.0);
+}
+
+TEST_F(Watchdog, ResetReturnsToIdleOnlyFromFault) {
+  ASSERT_TRUE(c.request(Command::reset_fault));
+  rig.quiet(c);
+  EXPECT_NE(c.last().flags & kCommandRefused, 0u);
+  for (int i = 0; i < c.config().watchdog.ft_fault_cycles; ++i) rig.quiet(c, 0, 24);
+  ASSERT_EQ(c.state_machine().state(), State::fault);
+  ASSERT_TRUE(c.request(Command::reset_fault));
+  rig.quiet(c);
+  EXPECT_EQ(c.state_machine().state(), State::idle);
+}
+
+class RampPath final : public JointPath {
+ public:
+  RampPath(std::array<double, 6> start, double delta, double duration)
+      : start_(start), delta_(delta), duration_(duration) {}
+  double duration_s() const override { return duration_; }
+  std::array<double, 6> at(double t) const override {
+    std::array<double, 6> q = start_;
+    q[0] += delta_ * std::clamp(t / duration_, 0.0, 1.0);
+    return q;
+  }
+
+ private:
+  std::array<double, 6> start_;
+  double delta_, duration_;
+};
+
+TEST(Cycle, CollectionApproachesThePathThenFollowsItWithAxisCorrectionsAndStops) {
+  Cycle c;
+  ASSERT_EQ(c.configure(test_config(), payload_model()), "");
+  StaticRig rig;
+  const std::array<double, 6> now = proto::rsi::joints_to_rad(rig.message().joints_deg);
+  std::array<double, 6> start = now;
+  start[1] += 0.05;  // the path starts 0.05 rad away on A2
+  RampPath path(start, 0.2, 2.0);
+  ASSERT_TRUE(c.request(Command::start_collection));
+  rig.quiet(c);
+  EXPECT_NE(c.last().flags & kCommandRefused, 0u);  // no path yet
+  c.set_collection_path(&path);
+  ASSERT_TRUE(c.request(Command::start_collection));
+  std::array<double, 6> sum_deg{};
+  int cycles = 0;
+  bool done = false;
+  for (; cycles < 2000 && !done; ++cycles) {
+    const CycleReply r = rig.quiet(c);
+    if (c.state_machine().state() == State::collecting || (c.last().flags & kCollectionDone)) {
+      EXPECT_TRUE(r.axis);
+      for (int k = 0; k < 6; ++k) {
+        sum_deg[k] += r.akorr_deg[k];
+        EXPECT_LE(std::abs(r.akorr_deg[k]), c.config().max_axis_step_rad / proto::rsi::kRadPerDeg);
+      }
+    }
+    done = (c.last().flags & kCollectionDone) != 0;
+  }
+  ASSERT_TRUE(done);
+  EXPECT_EQ(c.state_machine().state(), State::idle);
+  EXPECT_NEAR(sum_deg[0] * proto::rsi::kRadPerDeg, 0.2, 1e-9);
+  EXPECT_NEAR(sum_deg[1] * proto::rsi::kRadPerDeg, 0.05, 1e-6);
+  for (int k = 2; k < 6; ++k) EXPECT_NEAR(sum_deg[k], 0.0, 1e-12);
+  // Approach of 0.05 rad at ≤ 0.2 rad/s and the 2 s path: a bit over 2.25 s in all.
+  EXPECT_GT(cycles * kPeriod, 2.25);
+  EXPECT_LT(cycles * kPeriod, 3.0);
+}
+
+}  // namespace
+}  // namespace zerog::loop
