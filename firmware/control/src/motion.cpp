@@ -28,6 +28,39 @@ Eigen::Vector3d deadband(const Eigen::Vector3d& x, double d) {
   return x * ((n - d) / n);
 }
 
+Eigen::Vector3d ContactGate::step(const Eigen::Vector3d& x, double dt_s, double open, double close,
+                                  int confirm) {
+  if (open <= 0.0) return x;
+  const double n = x.norm();
+  if (open_) {
+    run_ = n < close ? run_ + 1 : 0;
+    if (run_ >= confirm) reset();
+    return x;
+  }
+  if (n <= open) {
+    run_ = 0;
+    pending_impulse_.setZero();
+    return Eigen::Vector3d::Zero();
+  }
+  ++run_;
+  if (run_ < confirm) {
+    pending_impulse_ += x * dt_s;
+    return Eigen::Vector3d::Zero();
+  }
+  // Confirmed: this cycle carries its own input plus the impulse held back while confirming.
+  const Eigen::Vector3d out = x + pending_impulse_ / dt_s;
+  open_ = true;
+  run_ = 0;
+  pending_impulse_.setZero();
+  return out;
+}
+
+void ContactGate::reset() {
+  open_ = false;
+  run_ = 0;
+  pending_impulse_.setZero();
+}
+
 ZeroGMotion::ZeroGMotion(const BodyParams& body, const MotionLimits& limits,
                          const Eigen::Vector3d& p_sensor_com_m)
     : body_(body), limits_(limits), p_sensor_com_m_(p_sensor_com_m) {}
@@ -38,6 +71,8 @@ void ZeroGMotion::reset(const Eigen::Vector3d& p_world_sensor_m,
   s.q_world_body = q_world_sensor.normalized();
   s.p_world_m = p_world_sensor_m + s.q_world_body * p_sensor_com_m_;
   body_.reset(s);
+  force_gate_.reset();
+  torque_gate_.reset();
 }
 
 Eigen::Vector3d ZeroGMotion::sensor_position_world() const {
@@ -58,14 +93,19 @@ std::uint32_t ZeroGMotion::step(const Eigen::Vector3d& force_sensor_N,
 
   // The contact wrench (measured − predicted) is the person's push on the payload as the sensor
   // passes it on: sensor frame, torque about the sensor origin. It drives the virtual body.
-  // Deadbands act on the wrench at the virtual centre of mass, where it drives translation and
-  // rotation: deadbanding the torque about the sensor origin would turn a push through the
-  // centre of mass into a spurious torque.
+  // The contact gates act on the wrench at the virtual centre of mass, where it drives
+  // translation and rotation: gating the torque about the sensor origin would turn a push
+  // through the centre of mass into a spurious torque.
   const Eigen::Quaterniond R = body_.state().q_world_body;
   const Eigen::Vector3d M_com_raw =
       torque_about(torque_sensor_Nm, force_sensor_N, Eigen::Vector3d::Zero(), p_sensor_com_m_);
-  const Eigen::Vector3d F_world = R * deadband(force_sensor_N, limits_.force_deadband_N);
-  const Eigen::Vector3d M_com_sensor = deadband(M_com_raw, limits_.torque_deadband_Nm);
+  const double release = limits_.contact_release_fraction;
+  const int confirm = limits_.contact_confirm_cycles;
+  const Eigen::Vector3d F_world =
+      R * force_gate_.step(force_sensor_N, dt_s, limits_.force_deadband_N,
+                           release * limits_.force_deadband_N, confirm);
+  const Eigen::Vector3d M_com_sensor = torque_gate_.step(
+      M_com_raw, dt_s, limits_.torque_deadband_Nm, release * limits_.torque_deadband_Nm, confirm);
   const Eigen::Vector3d M_world = R * M_com_sensor;
 
   const Eigen::Vector3d p_sensor_before = sensor_position_world();

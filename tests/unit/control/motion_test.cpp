@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 namespace zerog::control {
 namespace {
 
@@ -27,6 +29,40 @@ TEST(Deadband, ZeroInsideContinuousAtTheEdge) {
   EXPECT_EQ(deadband(Eigen::Vector3d(1, 1, 0), 2.0).norm(), 0.0);
   EXPECT_NEAR(deadband(Eigen::Vector3d(3, 0, 0), 2.0).x(), 1.0, 1e-15);
   EXPECT_NEAR(deadband(Eigen::Vector3d(2.0 + 1e-9, 0, 0), 2.0).norm(), 1e-9, 1e-12);
+}
+
+TEST(ContactGate, KeepsTheWholeImpulseOfAPushAndPassesNoNoise) {
+  ContactGate g;
+  const double dt = 0.012;
+  // Confirming cycles pass nothing, the opening cycle releases their impulse.
+  EXPECT_EQ(g.step(Eigen::Vector3d(10, 0, 0), dt, 2.0, 1.0, 3).norm(), 0.0);
+  EXPECT_EQ(g.step(Eigen::Vector3d(10, 0, 0), dt, 2.0, 1.0, 3).norm(), 0.0);
+  EXPECT_FALSE(g.is_open());
+  EXPECT_NEAR(g.step(Eigen::Vector3d(10, 0, 0), dt, 2.0, 1.0, 3).x(), 30.0, 1e-12);
+  EXPECT_TRUE(g.is_open());
+  // Open: passes through, including values below the threshold, until it closes.
+  EXPECT_NEAR(g.step(Eigen::Vector3d(1.5, 0, 0), dt, 2.0, 1.0, 3).x(), 1.5, 1e-15);
+  for (int i = 0; i < 3; ++i) g.step(Eigen::Vector3d(0.5, 0, 0), dt, 2.0, 1.0, 3);
+  EXPECT_FALSE(g.is_open());
+  // A spike above the threshold that does not last passes nothing and is forgotten.
+  EXPECT_EQ(g.step(Eigen::Vector3d(0, 5, 0), dt, 2.0, 1.0, 3).norm(), 0.0);
+  EXPECT_EQ(g.step(Eigen::Vector3d(0, 0.1, 0), dt, 2.0, 1.0, 3).norm(), 0.0);
+  EXPECT_EQ(g.step(Eigen::Vector3d(0, 5, 0), dt, 2.0, 1.0, 3).norm(), 0.0);
+  EXPECT_EQ(g.step(Eigen::Vector3d(0, 5, 0), dt, 2.0, 1.0, 3).norm(), 0.0);
+  EXPECT_NEAR(g.step(Eigen::Vector3d(0, 5, 0), dt, 2.0, 1.0, 3).y(), 15.0, 1e-12);
+  // Impulse of a half-sine push of 40 N over 0.5 s: all of it but the edges below 2 N.
+  ContactGate h;
+  double J = 0.0, J_true = 0.0;
+  for (int i = 0; i < 100; ++i) {
+    const double t = (i + 0.5) * dt;
+    const double F = t < 0.5 ? 40.0 * std::sin(3.141592653589793 * t / 0.5) : 0.0;
+    J_true += F * dt;
+    J += h.step(Eigen::Vector3d(F, 0, 0), dt, 2.0, 1.0, 3).x() * dt;
+  }
+  EXPECT_NEAR(J / J_true, 1.0, 0.003);
+  // Disabled with a zero threshold.
+  ContactGate off;
+  EXPECT_EQ(off.step(Eigen::Vector3d(0.1, 0, 0), dt, 0.0, 0.0, 3).x(), 0.1);
 }
 
 TEST(ZeroGMotion, PushThroughTheCentreOfMassTranslatesOnly) {
