@@ -1,11 +1,11 @@
-// NetcanoemSensor on real SocketCAN (vcan0, inside the qemu VM of run_in_vm.sh): an emulated ATI
-// board answers on its own raw socket in a thread, using the codec's response encoders with a
-// known calibration matrix and gauge values. Checked: start-up and calibration readout, SI
-// wrenches (computed independently here), error frames counted by class, a silent sensor, a
-// critical status bit, stray frames, wrong-length frames, kernel filtering, timestamps, the
-// SO_RXQ_OVFL drop counter, and no allocation per sample on the real socket.
-// Natively (this host's kernel has no CAN) it skips; in the VM (ZEROG_IN_VM=1) a missing
-// interface is a failure.
+// NetcanoemSensor on real SocketCAN (vcan0, inside the qemu VM of run_in_vm.sh): the emulated ATI
+// board (zerog::emu::AtiBoard::serve) answers on its own raw socket in a thread, using the
+// codec's response encoders with a known calibration matrix and gauge values. Checked: start-up and
+// calibration readout, SI wrenches (computed independently here), error frames counted by class, a
+// silent sensor, a critical status bit, stray frames, wrong-length frames, kernel filtering,
+// timestamps, the SO_RXQ_OVFL drop counter, a slow board (response delay), set wrenches reproduced
+// to the gauge quantisation, and no allocation per sample on the real socket. Natively (this host's
+// kernel has no CAN) it skips; in the VM (ZEROG_IN_VM=1) a missing interface is a failure.
 #include <gtest/gtest.h>
 
 #include <net/if.h>
@@ -19,12 +19,12 @@
 #include <cstdlib>
 #include <cstring>
 #include <memory>
-#include <mutex>
 #include <string>
 #include <thread>
 
 #include "alloc_count.hpp"
 #include "netcanoem_board.hpp"
+#include "zerog/emu/ati_board.hpp"
 #include "zerog/rtio/can_socket.hpp"
 #include "zerog/rtio/netcanoem_sensor.hpp"
 
@@ -33,7 +33,7 @@ namespace {
 
 namespace netcanoem = proto::netcanoem;
 using namespace std::chrono_literals;
-using test::BoardState;
+constexpr std::array<std::int16_t, 6> kGauges{1200, -800, 2500, 640, -1800, 90};
 
 std::string can_iface() {
   const char* env = std::getenv("ZEROG_CAN_IFACE");
@@ -51,15 +51,18 @@ std::int64_t realtime_ns() {
   return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
 }
 
-// The board: its own raw socket on the interface, answering in a thread until destroyed.
+// The board: emu::AtiBoard serving its own raw socket on the interface in a thread until
+// destroyed. Its setters are thread-safe: tests change gauges, status and quirks between
+// requests.
 class EmulatedBoard {
  public:
-  explicit EmulatedBoard(const std::string& iface) {
-    CanSocketConfig config;
-    config.filters[0] = netcanoem::filter_for(state_.base_id);
-    config.error_mask = 0;
-    opened_ = socket_.open(iface, config);
-    if (opened_.ok()) thread_ = std::thread([this] { run(); });
+  EmulatedBoard(const std::string& iface, const emu::AtiBoardConfig& config) : board_(config) {
+    board_.set_gauges(kGauges);
+    CanSocketConfig socket_config;
+    socket_config.filters[0] = netcanoem::filter_for(config.base_id);
+    socket_config.error_mask = 0;
+    opened_ = socket_.open(iface, socket_config);
+    if (opened_.ok()) thread_ = std::thread([this] { board_.serve(socket_, stop_); });
   }
   ~EmulatedBoard() {
     stop_.store(true);
@@ -69,40 +72,14 @@ class EmulatedBoard {
   EmulatedBoard& operator=(const EmulatedBoard&) = delete;
 
   const CanOpenResult& opened() const { return opened_; }
-  /// Changes the board's state (gauges, status, misbehaviour) between requests.
-  template <typename F>
-  void with_state(F&& f) {
-    std::lock_guard lock(mutex_);
-    f(state_);
-  }
-  BoardState state() {
-    std::lock_guard lock(mutex_);
-    return state_;
-  }
-  std::uint64_t requests() const { return requests_.load(); }
+  emu::AtiBoard& board() { return board_; }
+  const emu::AtiBoardConfig& config() const { return board_.config(); }
 
  private:
-  void run() {
-    CanRxFrame rx;
-    std::array<proto::CanFrame, test::kMaxBoardFrames> out{};
-    while (!stop_.load()) {
-      if (socket_.read(rx, 20ms) != CanReadStatus::frame) continue;
-      std::size_t n = 0;
-      {
-        std::lock_guard lock(mutex_);
-        n = test::board_respond(state_, rx.frame, out);
-      }
-      ++requests_;
-      for (std::size_t i = 0; i < n; ++i) socket_.write(out[i]);
-    }
-  }
-
+  emu::AtiBoard board_;
   CanSocket socket_;
   CanOpenResult opened_;
-  std::mutex mutex_;
-  BoardState state_;
   std::atomic<bool> stop_{false};
-  std::atomic<std::uint64_t> requests_{0};
   std::thread thread_;
 };
 
@@ -119,19 +96,27 @@ class NetcanoemVm : public ::testing::Test {
                    << "' on this kernel (it has no vcan support); run this test through "
                       "tests/vm/run_in_vm.sh, e.g. ctest -L vm";
     }
-    board_ = std::make_unique<EmulatedBoard>(iface_);
-    ASSERT_TRUE(board_->opened().ok()) << "board socket: " << board_->opened().what;
+    start_board({});
+    if (HasFatalFailure()) return;
     const CanOpenResult r =
-        socket_.open(iface_, NetcanoemSensor::socket_config(board_->state().base_id));
+        socket_.open(iface_, NetcanoemSensor::socket_config(board_->config().base_id));
     ASSERT_TRUE(r.ok()) << can_open_status_name(r.status) << " " << r.what << ": "
                         << std::strerror(r.error_number);
-    config_.base_id = board_->state().base_id;
+    config_.base_id = board_->config().base_id;
     config_.calibration_index = 3;
     // Generous for TCG emulation on a busy host; the board answers in microseconds.
     config_.sample_timeout = 100ms;
     config_.startup_timeout = 300ms;
     config_.bias_gauges = {12.0, -3.0, 0.0, 7.5, -1.0, 2.0};
   }
+
+  // (Re)starts the board with `config` (the board's configuration is fixed while it serves).
+  void start_board(const emu::AtiBoardConfig& config) {
+    board_.reset();
+    board_ = std::make_unique<EmulatedBoard>(iface_, config);
+    ASSERT_TRUE(board_->opened().ok()) << "board socket: " << board_->opened().what;
+  }
+  emu::AtiBoard& board() { return board_->board(); }
 
   // A raw socket for frames that come from neither the board nor the sensor.
   CanSocket& injector() {
@@ -156,15 +141,14 @@ class NetcanoemVm : public ::testing::Test {
 };
 
 TEST_F(NetcanoemVm, StartsUpReadsTheCalibrationAndConvertsSamples) {
-  board_->with_state([](BoardState& b) {
-    b.counts_per_force = 1'000'000;
-    b.counts_per_torque = 1000;  // N·mm-ish counts, N·m unit
-    b.force_unit = 2;
-    b.torque_unit = 3;
-  });
+  emu::AtiBoardConfig board_config;
+  board_config.counts_per_force = 1'000'000;
+  board_config.counts_per_torque = 1000;  // N·mm-ish counts, N·m unit
+  board_config.force_unit = 2;
+  board_config.torque_unit = 3;
+  start_board(board_config);
   NetcanoemSensor sensor(socket_, config_);
   ASSERT_EQ(sensor.start(), FtStartStatus::ok) << "retries " << sensor.startup_retries();
-  const BoardState b0 = board_->state();
   const netcanoem::Calibration& cal = sensor.calibration();
   EXPECT_EQ(cal.active_calibration, 3);
   EXPECT_STREQ(cal.serial_number.data(), "FT42007A");
@@ -172,7 +156,9 @@ TEST_F(NetcanoemVm, StartsUpReadsTheCalibrationAndConvertsSamples) {
   EXPECT_TRUE(cal.counts_from_device);
   EXPECT_EQ(cal.counts_per_torque, 1000u);
   for (int r = 0; r < 6; ++r)
-    for (int c = 0; c < 6; ++c) EXPECT_EQ(cal.matrix[r][c], b0.matrix[r][c]) << r << "," << c;
+    for (int c = 0; c < 6; ++c) {
+      EXPECT_EQ(cal.matrix[r][c], board_config.matrix[r][c]) << r << "," << c;
+    }
   // Root in the VM: SO_RCVBUFFORCE gets the whole 256 frames' worth (doubled by the kernel).
   EXPECT_GE(socket_.receive_buffer_bytes(), 2 * 256 * 1024);
   EXPECT_FALSE(socket_.receive_buffer_capped());
@@ -180,22 +166,21 @@ TEST_F(NetcanoemVm, StartsUpReadsTheCalibrationAndConvertsSamples) {
   FtSample s;
   std::int64_t last_timestamp = 0;
   for (int k = 0; k < 50; ++k) {
-    board_->with_state([k](BoardState& b) {
-      b.gauges = {static_cast<std::int16_t>(100 * k - 2500),
-                  800,
-                  static_cast<std::int16_t>(-37 * k),
-                  4000,
-                  -1200,
-                  static_cast<std::int16_t>(k)};
-    });
+    const std::array<std::int16_t, 6> gauges{static_cast<std::int16_t>(100 * k - 2500),
+                                             800,
+                                             static_cast<std::int16_t>(-37 * k),
+                                             4000,
+                                             -1200,
+                                             static_cast<std::int16_t>(k)};
+    board().set_gauges(gauges);
     const std::int64_t before = realtime_ns();
     ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample) << k;
     const std::int64_t after = realtime_ns();
-    const BoardState b = board_->state();
-    EXPECT_EQ(s.gauges, b.gauges);
+    EXPECT_EQ(s.gauges, gauges);
     EXPECT_TRUE(s.valid);
     EXPECT_EQ(s.status, FtSampleStatus::ok);
-    expect_wrench(s.wrench_si, test::expected_wrench_si(b, config_.bias_gauges, 1.0, 1.0));
+    expect_wrench(s.wrench_si,
+                  test::expected_wrench_si(board_config, gauges, config_.bias_gauges, 1.0, 1.0));
     // Kernel receive timestamp (SO_TIMESTAMPNS), between request and return.
     EXPECT_GE(s.timestamp_ns, before);
     EXPECT_LE(s.timestamp_ns, after);
@@ -211,14 +196,17 @@ TEST_F(NetcanoemVm, StartsUpReadsTheCalibrationAndConvertsSamples) {
 }
 
 TEST_F(NetcanoemVm, FirmwareBefore37UsesTheDefaultCounts) {
-  board_->with_state([](BoardState& b) { b.firmware = {3, 5, 0}; });
+  emu::AtiBoardConfig board_config;
+  board_config.firmware = {3, 5, 0};
+  start_board(board_config);
   NetcanoemSensor sensor(socket_, config_);
   ASSERT_EQ(sensor.start(), FtStartStatus::ok);
   EXPECT_FALSE(sensor.calibration().counts_from_device);
   EXPECT_EQ(sensor.calibration().counts_per_force, netcanoem::kDefaultCounts);
   FtSample s;
   ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
-  expect_wrench(s.wrench_si, test::expected_wrench_si(board_->state(), config_.bias_gauges, 1, 1));
+  expect_wrench(s.wrench_si,
+                test::expected_wrench_si(board_config, kGauges, config_.bias_gauges, 1, 1));
 }
 
 TEST_F(NetcanoemVm, ErrorFramesAreCountedByClass) {
@@ -231,10 +219,10 @@ TEST_F(NetcanoemVm, ErrorFramesAreCountedByClass) {
   controller.id = proto::kCanErrorFlag | 0x004u | 0x080u;  // CAN_ERR_CRTL | CAN_ERR_BUSERROR
   controller.len = 8;
   controller.data[1] = 0x04;  // CAN_ERR_CRTL_RX_WARNING
-  board_->with_state([&](BoardState& b) {
-    b.before_sample = {bus_off, controller, controller};
-    b.before_sample_count = 3;
-  });
+  emu::AtiBoardQuirks quirks;
+  quirks.before_sample = {bus_off, controller, controller};
+  quirks.before_sample_count = 3;
+  board().set_quirks(quirks);
   FtSample s;
   ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
   EXPECT_TRUE(s.valid);  // error frames are counted, the sample still comes
@@ -250,17 +238,17 @@ TEST_F(NetcanoemVm, ErrorFramesAreCountedByClass) {
 TEST_F(NetcanoemVm, SilentSensorTimesOutAndIsCounted) {
   NetcanoemSensor sensor(socket_, config_);
   ASSERT_EQ(sensor.start(), FtStartStatus::ok);
-  board_->with_state([](BoardState& b) { b.silent = true; });
+  board().set_fault(emu::FtFault::silent);
   FtSample s;
   const auto before = std::chrono::steady_clock::now();
   EXPECT_EQ(sensor.read_sample(s), FtReadStatus::timeout);
   EXPECT_GE(std::chrono::steady_clock::now() - before, 90ms);
   EXPECT_EQ(sensor.read_sample(s), FtReadStatus::timeout);
   EXPECT_EQ(sensor.counters().timeouts, 2u);
-  board_->with_state([](BoardState& b) { b.silent = false; });
+  board().set_fault(emu::FtFault::none);
   EXPECT_EQ(sensor.read_sample(s), FtReadStatus::sample);  // recovers by itself
 
-  board_->with_state([](BoardState& b) { b.silent = true; });
+  board().set_fault(emu::FtFault::silent);
   NetcanoemConfig c = config_;
   c.startup_timeout = 50ms;
   c.startup_attempts = 2;
@@ -272,14 +260,14 @@ TEST_F(NetcanoemVm, SilentSensorTimesOutAndIsCounted) {
 TEST_F(NetcanoemVm, CriticalStatusBitMakesTheSampleInvalid) {
   NetcanoemSensor sensor(socket_, config_);
   ASSERT_EQ(sensor.start(), FtStartStatus::ok);
-  board_->with_state([](BoardState& b) { b.status = (1u << 11) | netcanoem::kStatusAnyError; });
+  board().set_status_word((1u << 11) | netcanoem::kStatusAnyError);
   FtSample s;
   ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
   EXPECT_FALSE(s.valid);
   EXPECT_EQ(s.status, FtSampleStatus::critical);
   EXPECT_EQ(s.status_word, (1u << 11) | netcanoem::kStatusAnyError);
 
-  board_->with_state([](BoardState& b) { b.status = netcanoem::kStatusCanBusError; });
+  board().set_status_word(netcanoem::kStatusCanBusError);
   ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
   EXPECT_TRUE(s.valid);
   EXPECT_EQ(s.status, FtSampleStatus::warning);
@@ -290,7 +278,7 @@ TEST_F(NetcanoemVm, CriticalStatusBitMakesTheSampleInvalid) {
 TEST_F(NetcanoemVm, StrayAndWrongLengthFramesAreCountedAndSkipped) {
   NetcanoemSensor sensor(socket_, config_);
   ASSERT_EQ(sensor.start(), FtStartStatus::ok);
-  const std::uint8_t base = board_->state().base_id;
+  const std::uint8_t base = board_->config().base_id;
   proto::CanFrame stray;  // the board's serial-number id in the middle of the sample stream
   stray.id = netcanoem::can_id(base, netcanoem::Opcode::serial_number);
   stray.len = 8;
@@ -300,20 +288,20 @@ TEST_F(NetcanoemVm, StrayAndWrongLengthFramesAreCountedAndSkipped) {
   proto::CanFrame long_b;  // a second half with 8 bytes instead of 6
   long_b.id = netcanoem::can_id(base, netcanoem::Opcode::sample_b);
   long_b.len = 8;
-  board_->with_state([&](BoardState& b) {
-    b.before_sample = {stray, short_a, long_b};
-    b.before_sample_count = 3;
-  });
+  emu::AtiBoardQuirks quirks;
+  quirks.before_sample = {stray, short_a, long_b};
+  quirks.before_sample_count = 3;
+  board().set_quirks(quirks);
   FtSample s;
   ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
   EXPECT_TRUE(s.valid);
-  EXPECT_EQ(s.gauges, board_->state().gauges);
+  EXPECT_EQ(s.gauges, kGauges);
   const FtCounters c = sensor.counters();
   EXPECT_EQ(c.stray_frames, 1u);
   EXPECT_EQ(c.wrong_length, 2u);
 
   // Frames of other ids never reach the sensor's socket: the kernel filter drops them.
-  board_->with_state([](BoardState& b) { b.before_sample_count = 0; });
+  board().set_quirks({});
   proto::CanFrame other;
   other.id = netcanoem::can_id(static_cast<std::uint8_t>(base + 1), netcanoem::Opcode::sample_a);
   other.len = 8;
@@ -355,6 +343,45 @@ TEST_F(NetcanoemVm, KernelDropsAreCountedFromSoRxqOvfl) {
   EXPECT_GT(c.kernel_drops, 0u);
   EXPECT_EQ(c.frames_received + c.kernel_drops, static_cast<std::uint64_t>(kSent + 1));
   EXPECT_EQ(c.control_truncated, 0u);
+}
+
+TEST_F(NetcanoemVm, SetWrenchIsReproducedAndASlowBoardIsCounted) {
+  emu::AtiBoardConfig board_config;
+  board_config.counts_per_torque = 10'000;  // a wider torque range than the default
+  board_config.gauge_bias = {12, -3, 0, 8, -1, 2};
+  start_board(board_config);
+  NetcanoemConfig c = config_;
+  for (int j = 0; j < 6; ++j) c.bias_gauges[j] = board_config.gauge_bias[j];
+  NetcanoemSensor sensor(socket_, c);
+  ASSERT_EQ(sensor.start(), FtStartStatus::ok);
+  // Half a count on each gauge, in the worst sign combination.
+  const std::array<double, 6> resolution = board().count_resolution_si();
+  const std::array<double, 6> wrench{10.0, -20.0, 150.0, 0.5, -0.25, 0.1};
+  board().set_wrench(wrench);
+  FtSample s;
+  ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
+  EXPECT_TRUE(s.valid);
+  for (int i = 0; i < 6; ++i) EXPECT_NEAR(s.wrench_si[i], wrench[i], 0.5 * resolution[i]) << i;
+
+  // Slow, within the sensor's timeout (100 ms here): late but answered.
+  board().set_response_delay(30ms);
+  auto before = std::chrono::steady_clock::now();
+  ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
+  EXPECT_GE(std::chrono::steady_clock::now() - before, 30ms);
+  // Slower than the timeout: a timeout, and the late pair is drained as stale next time.
+  board().set_response_delay(150ms);
+  before = std::chrono::steady_clock::now();
+  EXPECT_EQ(sensor.read_sample(s), FtReadStatus::timeout);
+  EXPECT_GE(std::chrono::steady_clock::now() - before, 90ms);
+  std::this_thread::sleep_for(150ms);  // the late answer arrives meanwhile
+  board().set_response_delay(0ms);
+  ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
+  EXPECT_EQ(sensor.counters().timeouts, 1u);
+  EXPECT_EQ(sensor.counters().stale_frames, 2u);
+  const emu::AtiBoard::Counters bc = board().counters();
+  EXPECT_EQ(bc.sample_requests, 4u);
+  EXPECT_EQ(bc.samples_sent, 4u);
+  EXPECT_EQ(bc.tx_failed, 0u);
 }
 
 TEST_F(NetcanoemVm, SampleReadDoesNotAllocateOnTheRealSocket) {

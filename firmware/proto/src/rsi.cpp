@@ -66,6 +66,7 @@ class Parser {
   explicit Parser(std::string_view s) : s_(s) {}
 
   ParseResult parse(RobotMessage& out);
+  ParseResult parse(Reply& out);
 
  private:
   bool fail(ParseStatus status, std::size_t at, const char* reason) {
@@ -97,6 +98,13 @@ class Parser {
   bool delay(std::uint64_t& value);
   bool skip_element(std::string_view element_name, int depth);
   bool reject_markup();
+  // The document walk shared by both message kinds: prolog, root `root` (its attributes are
+  // ignored), the children, the end. For each child, on_element(name, offset) returns
+  // kElementRead (it read the element), kElementSkip (skip it) or kElementFailed (result_ is set).
+  // on_end(end_offset) checks what is required. Writes nothing to the caller on failure.
+  template <typename OnElement, typename OnEnd>
+  ParseResult document(std::string_view root, const char* root_reason, OnElement&& on_element,
+                       OnEnd&& on_end);
 
   std::string_view s_;
   std::size_t pos_ = 0;
@@ -310,50 +318,40 @@ bool Parser::skip_element(std::string_view element_name, int depth) {
   return true;
 }
 
-ParseResult Parser::parse(RobotMessage& out) {
+enum ElementAction { kElementFailed, kElementRead, kElementSkip };
+
+template <typename OnElement, typename OnEnd>
+ParseResult Parser::document(std::string_view root_name, const char* root_reason,
+                             OnElement&& on_element, OnEnd&& on_end) {
   if (s_.size() > kMaxMessageBytes) {
     fail(ParseStatus::too_long, kMaxMessageBytes, "message longer than kMaxMessageBytes");
     return result_;
   }
-  RobotMessage msg;
   auto run = [&]() -> bool {
     if (!prolog()) return false;
     if (at_end()) return truncated();
-    if (peek() != '<') return fail(ParseStatus::syntax, pos_, "expected '<Rob'");
+    if (peek() != '<') return fail(ParseStatus::syntax, pos_, "expected '<' and the root element");
     if (!reject_markup()) return false;
     ++pos_;
     std::string_view root;
     const std::size_t root_offset = pos_;
     if (!name(root)) return false;
-    if (root != "Rob") return fail(ParseStatus::wrong_root, root_offset, "root element is not Rob");
+    if (root != root_name) return fail(ParseStatus::wrong_root, root_offset, root_reason);
     bool self_closing = false;
     auto ignore = [](std::string_view, std::string_view, std::size_t, std::size_t) { return true; };
     if (!attributes(self_closing, ignore)) return false;
 
-    enum : unsigned { kRIst = 1, kAIPos = 2, kDelay = 4, kIpoc = 8 };
-    unsigned seen = 0;
-    auto once = [&](unsigned bit, std::size_t at) {
-      if (seen & bit) return fail(ParseStatus::duplicate_element, at, "element given twice");
-      seen |= bit;
-      return true;
-    };
-    static constexpr std::array<std::string_view, 6> kPoseNames{"X", "Y", "Z", "A", "B", "C"};
-    static constexpr std::array<std::string_view, 6> kAxisNames{"A1", "A2", "A3", "A4", "A5", "A6"};
-    const std::array<double*, 6> pose{&msg.actual_pose.x_mm,  &msg.actual_pose.y_mm,
-                                      &msg.actual_pose.z_mm,  &msg.actual_pose.a_deg,
-                                      &msg.actual_pose.b_deg, &msg.actual_pose.c_deg};
-    const std::array<double*, 6> axes{&msg.joints_deg[0], &msg.joints_deg[1], &msg.joints_deg[2],
-                                      &msg.joints_deg[3], &msg.joints_deg[4], &msg.joints_deg[5]};
     std::size_t end_offset = self_closing ? pos_ - 2 : pos_;  // "/>" of <Rob/>, or "</Rob>"
     while (!self_closing) {
       skip_space();
       if (at_end()) return truncated();
       if (peek() != '<') {
-        return fail(ParseStatus::unexpected_content, pos_, "text inside <Rob> is not accepted");
+        return fail(ParseStatus::unexpected_content, pos_,
+                    "text inside the root element is not accepted");
       }
       if (peek(1) == '/') {
         end_offset = pos_;
-        if (!end_tag("Rob")) return false;
+        if (!end_tag(root_name)) return false;
         break;
       }
       if (!reject_markup()) return false;
@@ -361,35 +359,106 @@ ParseResult Parser::parse(RobotMessage& out) {
       ++pos_;
       std::string_view element;
       if (!name(element)) return false;
-      bool ok = true;
-      if (element == "RIst") {
-        ok = once(kRIst, element_offset) && numeric_element(element, kPoseNames, pose);
-      } else if (element == "AIPos") {
-        ok = once(kAIPos, element_offset) && numeric_element(element, kAxisNames, axes);
-      } else if (element == "Delay") {
-        ok = once(kDelay, element_offset) && delay(msg.delay);
-      } else if (element == "IPOC") {
-        ok = once(kIpoc, element_offset) && ipoc(msg.ipoc);
-      } else {
-        ok = skip_element(element, 1);
-      }
-      if (!ok) return false;
+      const ElementAction action = on_element(element, element_offset);
+      if (action == kElementFailed) return false;
+      if (action == kElementSkip && !skip_element(element, 1)) return false;
     }
     skip_space();
     if (!at_end()) {
-      return fail(ParseStatus::unexpected_content, pos_, "content after the end of <Rob>");
+      return fail(ParseStatus::unexpected_content, pos_, "content after the end of the root");
     }
+    return on_end(end_offset);
+  };
+  if (run()) result_ = ParseResult{};
+  return result_;
+}
+
+constexpr std::array<std::string_view, 6> kPoseNames{"X", "Y", "Z", "A", "B", "C"};
+constexpr std::array<std::string_view, 6> kAxisNames{"A1", "A2", "A3", "A4", "A5", "A6"};
+
+std::array<double*, 6> pose_targets(double& x, double& y, double& z, double& a, double& b,
+                                    double& c) {
+  return {&x, &y, &z, &a, &b, &c};
+}
+std::array<double*, 6> axis_targets(std::array<double, 6>& axes) {
+  return {&axes[0], &axes[1], &axes[2], &axes[3], &axes[4], &axes[5]};
+}
+
+ParseResult Parser::parse(RobotMessage& out) {
+  RobotMessage msg;
+  enum : unsigned { kRIst = 1, kAIPos = 2, kDelay = 4, kIpoc = 8 };
+  unsigned seen = 0;
+  auto once = [&](unsigned bit, std::size_t at) {
+    if (seen & bit) return fail(ParseStatus::duplicate_element, at, "element given twice");
+    seen |= bit;
+    return true;
+  };
+  const std::array<double*, 6> pose =
+      pose_targets(msg.actual_pose.x_mm, msg.actual_pose.y_mm, msg.actual_pose.z_mm,
+                   msg.actual_pose.a_deg, msg.actual_pose.b_deg, msg.actual_pose.c_deg);
+  const std::array<double*, 6> axes = axis_targets(msg.joints_deg);
+  auto on_element = [&](std::string_view element, std::size_t at) {
+    bool ok = true;
+    if (element == "RIst") {
+      ok = once(kRIst, at) && numeric_element(element, kPoseNames, pose);
+    } else if (element == "AIPos") {
+      ok = once(kAIPos, at) && numeric_element(element, kAxisNames, axes);
+    } else if (element == "Delay") {
+      ok = once(kDelay, at) && delay(msg.delay);
+    } else if (element == "IPOC") {
+      ok = once(kIpoc, at) && ipoc(msg.ipoc);
+    } else {
+      return kElementSkip;
+    }
+    return ok ? kElementRead : kElementFailed;
+  };
+  auto on_end = [&](std::size_t end_offset) {
     if (!(seen & kRIst)) return fail(ParseStatus::missing_element, end_offset, "RIst missing");
     if (!(seen & kAIPos)) return fail(ParseStatus::missing_element, end_offset, "AIPos missing");
     if (!(seen & kIpoc)) return fail(ParseStatus::missing_element, end_offset, "IPOC missing");
     msg.has_delay = (seen & kDelay) != 0;
     return true;
   };
-  if (run()) {
-    out = msg;
-    result_ = ParseResult{};
-  }
-  return result_;
+  const ParseResult r = document("Rob", "root element is not Rob", on_element, on_end);
+  if (r.ok()) out = msg;
+  return r;
+}
+
+ParseResult Parser::parse(Reply& out) {
+  Reply reply;
+  enum : unsigned { kRKorr = 1, kAKorr = 2, kIpoc = 4 };
+  unsigned seen = 0;
+  auto once = [&](unsigned bit, std::size_t at) {
+    if (seen & bit) return fail(ParseStatus::duplicate_element, at, "element given twice");
+    seen |= bit;
+    return true;
+  };
+  const std::array<double*, 6> rkorr =
+      pose_targets(reply.rkorr.x_mm, reply.rkorr.y_mm, reply.rkorr.z_mm, reply.rkorr.a_deg,
+                   reply.rkorr.b_deg, reply.rkorr.c_deg);
+  const std::array<double*, 6> akorr = axis_targets(reply.akorr_deg);
+  auto on_element = [&](std::string_view element, std::size_t at) {
+    bool ok = true;
+    if (element == "RKorr") {
+      ok = once(kRKorr, at) && numeric_element(element, kPoseNames, rkorr);
+    } else if (element == "AKorr") {
+      ok = once(kAKorr, at) && numeric_element(element, kAxisNames, akorr);
+    } else if (element == "IPOC") {
+      ok = once(kIpoc, at) && ipoc(reply.ipoc);
+    } else {
+      return kElementSkip;
+    }
+    return ok ? kElementRead : kElementFailed;
+  };
+  auto on_end = [&](std::size_t end_offset) {
+    if (!(seen & kIpoc)) return fail(ParseStatus::missing_element, end_offset, "IPOC missing");
+    reply.has_rkorr = (seen & kRKorr) != 0;
+    reply.has_akorr = (seen & kAKorr) != 0;
+    return true;
+  };
+  const ParseResult r = document("Sen", "root element is not Sen", on_element, on_end);
+  if (r.ok()) out = reply;
+  return r;
 }
 
 // Bounded writer into the caller's buffer.
@@ -431,28 +500,78 @@ ParseResult parse_robot_message(std::string_view message, RobotMessage& out) {
   return Parser(message).parse(out);
 }
 
-FormatResult format_reply(const Correction& correction, std::uint64_t ipoc, std::span<char> out,
-                          std::string_view sensor_type) {
-  if (sensor_type.empty() || sensor_type.size() > kMaxNameLength) {
-    return {FormatStatus::bad_sensor_type, 0};
+namespace {
+
+bool valid_type(std::string_view type) {
+  if (type.empty() || type.size() > kMaxNameLength) return false;
+  for (char c : type) {
+    if (!is_name_char(c)) return false;
   }
-  for (char c : sensor_type) {
-    if (!is_name_char(c)) return {FormatStatus::bad_sensor_type, 0};
-  }
-  const std::array<double, 6> values{correction.x_mm,  correction.y_mm,  correction.z_mm,
-                                     correction.a_deg, correction.b_deg, correction.c_deg};
+  return true;
+}
+
+bool all_finite(std::span<const double> values) {
   for (double v : values) {
-    if (!std::isfinite(v)) return {FormatStatus::not_finite, 0};
+    if (!std::isfinite(v)) return false;
   }
-  static constexpr std::array<std::string_view, 6> kOpen{"<RKorr X=\"", "\" Y=\"", "\" Z=\"",
-                                                         "\" A=\"",     "\" B=\"", "\" C=\""};
+  return true;
+}
+
+// <element N0="v0" N1="v1" .../> with kReplyDecimals digits.
+bool numeric_element(Writer& w, std::string_view element, std::span<const std::string_view> names,
+                     std::span<const double> values) {
+  bool ok = w.text("<") && w.text(element);
+  for (std::size_t i = 0; ok && i < names.size(); ++i) {
+    ok = w.text(" ") && w.text(names[i]) && w.text("=\"") && w.fixed(values[i]) && w.text("\"");
+  }
+  return ok && w.text("/>");
+}
+
+bool ipoc_element(Writer& w, std::uint64_t ipoc) {
+  return w.text("<IPOC>") && w.integer(ipoc) && w.text("</IPOC>");
+}
+
+FormatResult sensor_reply(std::string_view element, std::span<const std::string_view> names,
+                          std::span<const double> values, std::uint64_t ipoc, std::span<char> out,
+                          std::string_view sensor_type) {
+  if (!valid_type(sensor_type)) return {FormatStatus::bad_sensor_type, 0};
+  if (!all_finite(values)) return {FormatStatus::not_finite, 0};
   Writer w(out);
-  bool ok = w.text("<Sen Type=\"") && w.text(sensor_type) && w.text("\">");
-  for (std::size_t i = 0; ok && i < values.size(); ++i) ok = w.text(kOpen[i]) && w.fixed(values[i]);
-  ok = ok && w.text("\"/><IPOC>") && w.integer(ipoc) && w.text("</IPOC></Sen>");
+  const bool ok = w.text("<Sen Type=\"") && w.text(sensor_type) && w.text("\">") &&
+                  numeric_element(w, element, names, values) && ipoc_element(w, ipoc) &&
+                  w.text("</Sen>");
   if (!ok) return {FormatStatus::buffer_too_small, 0};
   return {FormatStatus::ok, w.size()};
 }
+
+}  // namespace
+
+FormatResult format_reply(const Correction& correction, std::uint64_t ipoc, std::span<char> out,
+                          std::string_view sensor_type) {
+  const std::array<double, 6> values{correction.x_mm,  correction.y_mm,  correction.z_mm,
+                                     correction.a_deg, correction.b_deg, correction.c_deg};
+  return sensor_reply("RKorr", kPoseNames, values, ipoc, out, sensor_type);
+}
+
+FormatResult format_axis_reply(const std::array<double, 6>& akorr_deg, std::uint64_t ipoc,
+                               std::span<char> out, std::string_view sensor_type) {
+  return sensor_reply("AKorr", kAxisNames, akorr_deg, ipoc, out, sensor_type);
+}
+
+FormatResult format_robot_message(const RobotMessage& m, std::span<char> out) {
+  const CartesianPose& p = m.actual_pose;
+  const std::array<double, 6> pose{p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg};
+  if (!all_finite(pose) || !all_finite(m.joints_deg)) return {FormatStatus::not_finite, 0};
+  Writer w(out);
+  bool ok = w.text("<Rob Type=\"KUKA\">") && numeric_element(w, "RIst", kPoseNames, pose) &&
+            numeric_element(w, "AIPos", kAxisNames, m.joints_deg);
+  if (ok && m.has_delay) ok = w.text("<Delay D=\"") && w.integer(m.delay) && w.text("\"/>");
+  ok = ok && ipoc_element(w, m.ipoc) && w.text("</Rob>");
+  if (!ok) return {FormatStatus::buffer_too_small, 0};
+  return {FormatStatus::ok, w.size()};
+}
+
+ParseResult parse_reply(std::string_view message, Reply& out) { return Parser(message).parse(out); }
 
 PoseSi to_si(const CartesianPose& pose) {
   return {{pose.x_mm * 1e-3, pose.y_mm * 1e-3, pose.z_mm * 1e-3},

@@ -264,6 +264,8 @@ RigSimulator::RigSimulator(SimConfig config, std::vector<JointVector> path_point
       c.effects.has(SimEffect::imu_lever_arm) ? c.imu_lever_arm_m : Eigen::Vector3d::Zero();
 }
 
+RigSimulator::RigSimulator(SimConfig config) : RigSimulator(std::move(config), {kr210_home()}) {}
+
 io::Rig RigSimulator::rig() const {
   io::Rig r;
   r.name = "kr210-omega191-stim300-sim";
@@ -336,12 +338,13 @@ io::ModelFile RigSimulator::truth() const {
   return m;
 }
 
-ImuTruth RigSimulator::imu_at(double t_s) const {
-  double t = t_s;
-  if (config_.effects.has(SimEffect::imu_time_offset))
-    t -= config_.params.block(Effect::imu_time_offset)[0];
-  const JointState js = trajectory_.at(t);
-  const FlangeMotion fm = flange_motion(js.q_rad, js.qd_radps, js.qdd_radps2);
+double RigSimulator::imu_delay_s() const {
+  return config_.effects.has(SimEffect::imu_time_offset)
+             ? config_.params.block(Effect::imu_time_offset)[0]
+             : 0.0;
+}
+
+ImuTruth RigSimulator::imu_of(const FlangeMotion& fm) const {
   // The IMU is fixed to the flange side: nominal sensor frame, rig pose of the IMU in it.
   const Eigen::Matrix3d R_base_imu = fm.R_base_flange * R_sensor_imu_;
   const Eigen::Vector3d lever_base_m =
@@ -356,10 +359,10 @@ ImuTruth RigSimulator::imu_at(double t_s) const {
   return out;
 }
 
-Vec6 RigSimulator::wrench_at(double t_s) const {
+Vec6 RigSimulator::wrench_of(const JointState& js, const FlangeMotion& fm, double t_s,
+                             std::span<const ExternalWrench> pushes,
+                             Measurement* kinematics) const {
   const SimConfig& c = config_;
-  const JointState js = trajectory_.at(t_s);
-  const FlangeMotion fm = flange_motion(js.q_rad, js.qd_radps, js.qdd_radps2);
   const Eigen::Matrix3d R_base_sensor = fm.R_base_flange * R_nominal_true_;  // true S
   const Eigen::Vector3d& com = c.payload.com_sensor_m;
   const Eigen::Vector3d lever_base_m = fm.R_base_flange * c.p_flange_sensor_m + R_base_sensor * com;
@@ -369,6 +372,11 @@ Vec6 RigSimulator::wrench_at(double t_s) const {
   const Eigen::Vector3d a_com_sensor = R_base_sensor.transpose() * fm.acceleration_of(lever_base_m);
   const Eigen::Vector3d omega = R_base_sensor.transpose() * fm.omega_base_radps;
   const Eigen::Vector3d omega_dot = R_base_sensor.transpose() * fm.omega_dot_base_radps2;
+  if (kinematics != nullptr) {
+    kinematics->R_base_sensor = R_base_sensor;
+    kinematics->p_base_sensor_m = fm.p_base_flange_m + fm.R_base_flange * c.p_flange_sensor_m;
+    kinematics->v_com_base_mps = fm.velocity_of(lever_base_m);
+  }
 
   // Newton–Euler for the payload (paper 000_… eq. 1, 4, 5): the sensor holds the payload
   // against gravity and accelerates it; the payload's reaction is what the sensor reads.
@@ -380,6 +388,13 @@ Vec6 RigSimulator::wrench_at(double t_s) const {
     torque -= I * omega_dot + omega.cross(I * omega);
   }
   w << force, torque;
+  // A push on the payload is carried to the sensor through the payload like its weight.
+  for (const ExternalWrench& push : pushes) {
+    const Eigen::Vector3d force_sensor = R_base_sensor.transpose() * push.force_base_N;
+    w.head<3>() += force_sensor;
+    w.tail<3>() +=
+        push.point_sensor_m.cross(force_sensor) + R_base_sensor.transpose() * push.torque_base_Nm;
+  }
   if (c.effects.has(SimEffect::cable)) {
     const double* k = c.params.block(Effect::cable);
     for (int j = 0; j < 3; ++j) {
@@ -402,6 +417,31 @@ Vec6 RigSimulator::wrench_at(double t_s) const {
     w += Eigen::Map<const Vec6>(c.params.block(Effect::temperature_bias)) *
          (c.temperature.at(t_s) - model::kTemperatureReferenceC);
   return w;
+}
+
+Measurement RigSimulator::measure(const JointState& js, const JointState& js_imu, double t_s,
+                                  std::span<const ExternalWrench> pushes) const {
+  Measurement m;
+  m.flange = flange_motion(js.q_rad, js.qd_radps, js.qdd_radps2);
+  m.wrench_sensor = wrench_of(js, m.flange, t_s, pushes, &m);
+  m.imu = &js_imu == &js ? imu_of(m.flange)
+                         : imu_of(flange_motion(js_imu.q_rad, js_imu.qd_radps, js_imu.qdd_radps2));
+  return m;
+}
+
+Measurement RigSimulator::measure(const JointState& js, double t_s,
+                                  std::span<const ExternalWrench> pushes) const {
+  return measure(js, js, t_s, pushes);
+}
+
+ImuTruth RigSimulator::imu_at(double t_s) const {
+  const JointState js = trajectory_.at(t_s - imu_delay_s());
+  return imu_of(flange_motion(js.q_rad, js.qd_radps, js.qdd_radps2));
+}
+
+Vec6 RigSimulator::wrench_at(double t_s) const {
+  const JointState js = trajectory_.at(t_s);
+  return wrench_of(js, flange_motion(js.q_rad, js.qd_radps, js.qdd_radps2), t_s, {}, nullptr);
 }
 
 SimOutput RigSimulator::run(const std::function<void(double)>& progress) const {
@@ -439,7 +479,8 @@ SimOutput RigSimulator::run(const std::function<void(double)>& progress) const {
     s.q_base_sensor = Eigen::Quaterniond(fp.R_base_flange).normalized();
     if (s.q_base_sensor.w() < 0.0) s.q_base_sensor.coeffs() *= -1.0;
 
-    Vec6 w = wrench_at(t);
+    const Measurement m = measure(js, trajectory_.at(t - imu_delay_s()), t);
+    Vec6 w = m.wrench_sensor;
     out.stats.max_force_N = std::max(out.stats.max_force_N, w.head<3>().norm());
     out.stats.max_torque_Nm = std::max(out.stats.max_torque_Nm, w.tail<3>().norm());
     for (int i = 0; i < 6; ++i) {
@@ -450,7 +491,7 @@ SimOutput RigSimulator::run(const std::function<void(double)>& progress) const {
     s.force_sensor_N = w.head<3>();
     s.torque_sensor_Nm = w.tail<3>();
 
-    const ImuTruth imu = imu_at(t);
+    const ImuTruth& imu = m.imu;
     s.specific_force_imu_mps2 = imu.specific_force_imu_mps2;
     s.angular_rate_imu_radps = imu.angular_rate_imu_radps;
     for (int i = 0; i < 3; ++i) s.specific_force_imu_mps2[i] += c.noise.accel_mps2 * noise.normal();

@@ -1,12 +1,15 @@
-// NetcanoemSensor on a FakeCanBus with an emulated board: start-up, conversion to SI, status
-// classification and every counted drop. The same device on real SocketCAN: tests/vm/.
+// NetcanoemSensor on a FakeCanBus with the emulated board (zerog::emu::AtiBoard): start-up,
+// conversion to SI, status classification and every counted drop. The same device on real
+// SocketCAN: tests/vm/.
 #include <gtest/gtest.h>
 
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <memory>
 
 #include "netcanoem_board.hpp"
+#include "zerog/emu/ati_board.hpp"
 #include "zerog/rtio/can_socket.hpp"
 #include "zerog/rtio/fake_can_bus.hpp"
 #include "zerog/rtio/netcanoem_sensor.hpp"
@@ -14,30 +17,32 @@
 namespace zerog::rtio {
 namespace {
 
-using test::BoardState;
 namespace netcanoem = proto::netcanoem;
 
 constexpr double kNewtonPerLbf = 4.4482216152605;
 constexpr double kNewtonMetrePerLbfIn = 4.4482216152605 * 0.0254;
-
-class BoardResponder final : public CanResponder {
- public:
-  void on_write(const proto::CanFrame& frame, FakeCanBus& bus) override {
-    std::array<proto::CanFrame, test::kMaxBoardFrames> frames{};
-    const std::size_t n = test::board_respond(board, frame, frames);
-    for (std::size_t i = 0; i < n; ++i)
-      bus.inject(CanRxFrame{frames[i], 1000 + static_cast<std::int64_t>(i)});
-  }
-  BoardState board;
-};
+/// The gauges the board reports unless a test sets others.
+constexpr std::array<std::int16_t, 6> kGauges{1200, -800, 2500, 640, -1800, 90};
 
 class NetcanoemSensorTest : public ::testing::Test {
  protected:
-  NetcanoemSensorTest() { bus_.set_responder(&responder_); }
+  /// The board, made from board_config_ on first use (change board_config_ before that). Its
+  /// answers are queued on bus_ with receive times 1000, 1001, … per answer.
+  emu::AtiBoard& board() {
+    if (!board_) {
+      board_ = std::make_unique<emu::AtiBoard>(board_config_);
+      board_->set_gauges(kGauges);
+      responder_ = std::make_unique<emu::AtiBoardResponder>(*board_, 1000);
+      bus_.set_responder(responder_.get());
+    }
+    return *board_;
+  }
+  void set_quirks(const emu::AtiBoardQuirks& quirks) { board().set_quirks(quirks); }
 
-  NetcanoemConfig config() const {
+  NetcanoemConfig config() {
+    board();
     NetcanoemConfig c;
-    c.base_id = responder_.board.base_id;
+    c.base_id = board_config_.base_id;
     return c;
   }
 
@@ -55,7 +60,9 @@ class NetcanoemSensorTest : public ::testing::Test {
   }
 
   FakeCanBus bus_;
-  BoardResponder responder_;
+  emu::AtiBoardConfig board_config_;
+  std::unique_ptr<emu::AtiBoard> board_;
+  std::unique_ptr<emu::AtiBoardResponder> responder_;
 };
 
 TEST_F(NetcanoemSensorTest, StartUpReadsTheCalibration) {
@@ -70,8 +77,7 @@ TEST_F(NetcanoemSensorTest, StartUpReadsTheCalibration) {
   EXPECT_EQ(cal.firmware.build, 1201);
   EXPECT_STREQ(cal.serial_number.data(), "FT42007A");
   for (int r = 0; r < 6; ++r)
-    for (int col = 0; col < 6; ++col)
-      EXPECT_EQ(cal.matrix[r][col], responder_.board.matrix[r][col]);
+    for (int col = 0; col < 6; ++col) EXPECT_EQ(cal.matrix[r][col], board_config_.matrix[r][col]);
   EXPECT_TRUE(cal.counts_from_device);
   EXPECT_EQ(cal.counts_per_force, 1'000'000u);
   EXPECT_EQ(cal.force_unit, 2);
@@ -82,8 +88,8 @@ TEST_F(NetcanoemSensorTest, StartUpReadsTheCalibration) {
 }
 
 TEST_F(NetcanoemSensorTest, FirmwareBefore37UsesTheDefaultCounts) {
-  responder_.board.firmware = {3, 6, 7};
-  responder_.board.counts_per_force = 123;  // must not be used (and is never asked for)
+  board_config_.firmware = {3, 6, 7};
+  board_config_.counts_per_force = 123;  // must not be used (and is never asked for)
   NetcanoemSensor sensor(bus_, config());
   ASSERT_EQ(sensor.start(), FtStartStatus::ok);
   EXPECT_FALSE(sensor.calibration().counts_from_device);
@@ -93,11 +99,10 @@ TEST_F(NetcanoemSensorTest, FirmwareBefore37UsesTheDefaultCounts) {
 }
 
 TEST_F(NetcanoemSensorTest, SampleBecomesAnSiWrench) {
-  BoardState& b = responder_.board;
-  b.counts_per_force = 1'000'000;
-  b.counts_per_torque = 1000;
-  b.force_unit = 1;   // lbf
-  b.torque_unit = 1;  // lbf·in
+  board_config_.counts_per_force = 1'000'000;
+  board_config_.counts_per_torque = 1000;
+  board_config_.force_unit = 1;   // lbf
+  board_config_.torque_unit = 1;  // lbf·in
   NetcanoemConfig c = config();
   c.bias_gauges = {10.0, -4.0, 0.5, 0.0, 20.0, -7.25};
   NetcanoemSensor sensor(bus_, c);
@@ -107,17 +112,19 @@ TEST_F(NetcanoemSensorTest, SampleBecomesAnSiWrench) {
   ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
   EXPECT_TRUE(s.valid);
   EXPECT_EQ(s.status, FtSampleStatus::ok);
-  EXPECT_EQ(s.gauges, b.gauges);
+  EXPECT_EQ(s.gauges, kGauges);
   EXPECT_EQ(s.sequence, 1u);
   EXPECT_EQ(s.timestamp_ns, 1001);  // of the second (completing) frame
-  expect_wrench(s.wrench_si,
-                test::expected_wrench_si(b, c.bias_gauges, kNewtonPerLbf, kNewtonMetrePerLbfIn));
+  expect_wrench(s.wrench_si, test::expected_wrench_si(board_config_, kGauges, c.bias_gauges,
+                                                      kNewtonPerLbf, kNewtonMetrePerLbfIn));
 
-  b.gauges = {-30000, 15000, 0, 1, -1, 32000};
+  const std::array<std::int16_t, 6> gauges{-30000, 15000, 0, 1, -1, 32000};
+  board().set_gauges(gauges);
   ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
   EXPECT_EQ(s.sequence, 2u);
-  expect_wrench(s.wrench_si,
-                test::expected_wrench_si(b, c.bias_gauges, kNewtonPerLbf, kNewtonMetrePerLbfIn));
+  EXPECT_EQ(s.gauges, gauges);
+  expect_wrench(s.wrench_si, test::expected_wrench_si(board_config_, gauges, c.bias_gauges,
+                                                      kNewtonPerLbf, kNewtonMetrePerLbfIn));
   const FtCounters counters = sensor.counters();
   EXPECT_EQ(counters.requests, 2u);
   EXPECT_EQ(counters.samples, 2u);
@@ -129,19 +136,22 @@ TEST_F(NetcanoemSensorTest, StatusClassification) {
   ASSERT_EQ(sensor.start(), FtStartStatus::ok);
   FtSample s;
 
-  responder_.board.status = netcanoem::kStatusCanBusError | netcanoem::kStatusAnyError;
+  const std::uint16_t bus_error = netcanoem::kStatusCanBusError | netcanoem::kStatusAnyError;
+  board().set_status_word(bus_error);
   ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
   EXPECT_EQ(s.status, FtSampleStatus::warning);  // bus error: warn, keep using it
   EXPECT_TRUE(s.valid);
-  EXPECT_EQ(s.status_word, responder_.board.status);
+  EXPECT_EQ(s.status_word, bus_error);
 
-  responder_.board.status = (1u << 3) | netcanoem::kStatusAnyError;  // a critical bit
+  board().set_status_word((1u << 3) | netcanoem::kStatusAnyError);  // a critical bit
   ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
   EXPECT_EQ(s.status, FtSampleStatus::critical);
   EXPECT_FALSE(s.valid);
 
-  responder_.board.status = 0;
-  responder_.board.gauges[4] = -32768;  // rail
+  board().set_status_word(0);
+  std::array<std::int16_t, 6> railed = kGauges;
+  railed[4] = -32768;  // rail
+  board().set_gauges(railed);
   ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
   EXPECT_EQ(s.status, FtSampleStatus::saturated);
   EXPECT_EQ(s.saturated_mask, 1u << 4);
@@ -155,21 +165,23 @@ TEST_F(NetcanoemSensorTest, StatusClassification) {
 }
 
 TEST_F(NetcanoemSensorTest, StrayWrongLengthAndErrorFramesAreCountedAndWaitedPast) {
-  BoardState& b = responder_.board;
   NetcanoemSensor sensor(bus_, config());
   ASSERT_EQ(sensor.start(), FtStartStatus::ok);
+  const std::uint8_t base = board_config_.base_id;
 
   proto::CanFrame stray;  // another opcode of the board
-  stray.id = netcanoem::can_id(b.base_id, netcanoem::Opcode::serial_number);
+  stray.id = netcanoem::can_id(base, netcanoem::Opcode::serial_number);
   stray.len = 8;
   proto::CanFrame short_a;  // a 0x0 response cut to 5 bytes
-  short_a.id = netcanoem::can_id(b.base_id, netcanoem::Opcode::sample_a);
+  short_a.id = netcanoem::can_id(base, netcanoem::Opcode::sample_a);
   short_a.len = 5;
   proto::CanFrame error;  // bus error frame: no ACK + bus error
   error.id = proto::kCanErrorFlag | 0x020u | 0x080u;
   error.len = 8;
-  b.before_sample = {stray, short_a, error, stray};
-  b.before_sample_count = 4;
+  emu::AtiBoardQuirks quirks;
+  quirks.before_sample = {stray, short_a, error, stray};
+  quirks.before_sample_count = 4;
+  set_quirks(quirks);
 
   FtSample s;
   ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
@@ -186,7 +198,7 @@ TEST_F(NetcanoemSensorTest, StrayWrongLengthAndErrorFramesAreCountedAndWaitedPas
 TEST_F(NetcanoemSensorTest, SilentSensorTimesOutAndIsCounted) {
   NetcanoemSensor sensor(bus_, config());
   ASSERT_EQ(sensor.start(), FtStartStatus::ok);
-  responder_.board.silent = true;
+  board().set_fault(emu::FtFault::silent);
   FtSample s;
   s.sequence = 77;
   EXPECT_EQ(sensor.read_sample(s), FtReadStatus::timeout);
@@ -194,30 +206,31 @@ TEST_F(NetcanoemSensorTest, SilentSensorTimesOutAndIsCounted) {
   EXPECT_EQ(s.sequence, 77u);  // untouched
   EXPECT_EQ(sensor.counters().timeouts, 2u);
   EXPECT_EQ(sensor.counters().requests, 2u);
-  responder_.board.silent = false;
+  board().set_fault(emu::FtFault::none);
   EXPECT_EQ(sensor.read_sample(s), FtReadStatus::sample);
 }
 
 TEST_F(NetcanoemSensorTest, HalfResponseTimesOutAndLateFramesAreDrainedAsStale) {
-  BoardState& b = responder_.board;
   NetcanoemSensor sensor(bus_, config());
   ASSERT_EQ(sensor.start(), FtStartStatus::ok);
   // Only the first half arrives: the sample is incomplete when the wait ends.
-  const auto frames = netcanoem::encode_sample(b.base_id, b.gauges, 0).value();
-  b.before_sample[0] = frames[0];
-  b.before_sample_count = 1;
-  b.no_sample_response = true;
+  const auto frames = netcanoem::encode_sample(board_config_.base_id, kGauges, 0).value();
+  emu::AtiBoardQuirks quirks;
+  quirks.before_sample[0] = frames[0];
+  quirks.before_sample_count = 1;
+  quirks.no_sample_response = true;
+  set_quirks(quirks);
   FtSample s;
   EXPECT_EQ(sensor.read_sample(s), FtReadStatus::timeout);
   // Its second half comes late, with a whole old pair: drained before the next request.
   bus_.inject(frames[1]);
   bus_.inject(frames[0]);
   bus_.inject(frames[1]);
-  b.before_sample_count = 0;
-  b.no_sample_response = false;
-  b.gauges = {1, 2, 3, 4, 5, 6};
+  set_quirks({});
+  const std::array<std::int16_t, 6> fresh{1, 2, 3, 4, 5, 6};
+  board().set_gauges(fresh);
   ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
-  EXPECT_EQ(s.gauges, b.gauges);  // the fresh answer, not the stale pair
+  EXPECT_EQ(s.gauges, fresh);  // the fresh answer, not the stale pair
   EXPECT_EQ(sensor.counters().stale_frames, 3u);
   EXPECT_EQ(sensor.counters().timeouts, 1u);
 }
@@ -243,7 +256,9 @@ TEST_F(NetcanoemSensorTest, NotStartedBeforeStart) {
 }
 
 TEST_F(NetcanoemSensorTest, StartUpRetriesEachRequest) {
-  responder_.board.ignore_requests = 2;
+  emu::AtiBoardQuirks quirks;
+  quirks.ignore_requests = 2;
+  set_quirks(quirks);
   NetcanoemConfig c = config();
   c.startup_attempts = 3;
   NetcanoemSensor sensor(bus_, c);
@@ -252,7 +267,7 @@ TEST_F(NetcanoemSensorTest, StartUpRetriesEachRequest) {
 }
 
 TEST_F(NetcanoemSensorTest, SilentSensorFailsStartUpAfterTheAttempts) {
-  responder_.board.silent = true;
+  board().set_fault(emu::FtFault::silent);
   NetcanoemConfig c = config();
   c.startup_attempts = 3;
   NetcanoemSensor sensor(bus_, c);
@@ -262,14 +277,16 @@ TEST_F(NetcanoemSensorTest, SilentSensorFailsStartUpAfterTheAttempts) {
 }
 
 TEST_F(NetcanoemSensorTest, EchoMismatchFailsStartUp) {
-  responder_.board.wrong_echo = true;
+  emu::AtiBoardQuirks quirks;
+  quirks.wrong_echo = true;
+  set_quirks(quirks);
   NetcanoemSensor sensor(bus_, config());
   EXPECT_EQ(sensor.start(), FtStartStatus::readout_failed);
   EXPECT_EQ(sensor.readout_error(), netcanoem::ReadoutError::echo_mismatch);
 }
 
 TEST_F(NetcanoemSensorTest, UnknownUnitsFailStartUp) {
-  responder_.board.torque_unit = 42;
+  board_config_.torque_unit = 42;
   NetcanoemSensor sensor(bus_, config());
   EXPECT_EQ(sensor.start(), FtStartStatus::unknown_units);
 }

@@ -53,11 +53,11 @@ enum class ParseStatus : std::uint8_t {
   truncated,           ///< input ends inside the message
   syntax,              ///< malformed XML (in the subset we accept)
   unsupported,         ///< comment, CDATA, DTD, processing instruction after the start
-  wrong_root,          ///< root element is not <Rob>
+  wrong_root,          ///< root element is not <Rob> (<Sen> for parse_reply)
   unexpected_content,  ///< text where only elements may be, or content after </Rob>
   too_deep,            ///< nesting beyond kMaxDepth
-  duplicate_element,   ///< RIst, AIPos, Delay or IPOC twice
-  missing_element,     ///< RIst, AIPos or IPOC absent
+  duplicate_element,   ///< RIst, AIPos, Delay or IPOC twice (RKorr, AKorr, IPOC in a reply)
+  missing_element,     ///< RIst, AIPos or IPOC absent (IPOC in a reply)
   missing_attribute,   ///< e.g. RIst without Z
   unknown_attribute,   ///< an attribute our elements do not have
   duplicate_attribute,
@@ -96,6 +96,34 @@ inline constexpr int kReplyDecimals = 4;  ///< digits after the point in RKorr (
 /// Writes the reply into `out` (no NUL terminator); never writes past `out`.
 FormatResult format_reply(const Correction& correction, std::uint64_t ipoc, std::span<char> out,
                           std::string_view sensor_type = "zerog");
+
+/// An axis-correction reply, for zerog-rt's calibration-collection mode:
+/// `<Sen Type=".."><AKorr A1=".." … A6=".."/><IPOC>..</IPOC></Sen>`, degrees, kReplyDecimals
+/// digits. Same statuses and bounds as format_reply.
+FormatResult format_axis_reply(const std::array<double, 6>& akorr_deg, std::uint64_t ipoc,
+                               std::span<char> out, std::string_view sensor_type = "zerog");
+
+// --- The controller side (the robot emulator, host/emu; tests) --------------------------------
+
+/// Writes `<Rob Type="KUKA"><RIst X.. C../><AIPos A1..A6/><Delay D=".."/><IPOC>n</IPOC></Rob>`
+/// (Delay only when m.has_delay), numbers with kReplyDecimals digits: parse_robot_message reads
+/// it back to within half a unit of the last digit. `not_finite` for a NaN or infinite value,
+/// `buffer_too_small` if it does not fit; never writes past `out`.
+FormatResult format_robot_message(const RobotMessage& m, std::span<char> out);
+
+/// A reply as the controller reads it: `<Sen Type="..">` with RKorr X..C and/or AKorr A1..A6
+/// (each at most once, both optional) and the IPOC (required); other elements are skipped. Same
+/// syntax subset, bounds and error reporting as parse_robot_message.
+struct Reply {
+  bool has_rkorr = false;
+  Correction rkorr;  ///< mm, degrees (valid if has_rkorr)
+  bool has_akorr = false;
+  std::array<double, 6> akorr_deg{};  ///< A1..A6, degrees (valid if has_akorr)
+  std::uint64_t ipoc = 0;
+};
+
+/// Parses one reply. `out` is written only when the result is ok.
+ParseResult parse_reply(std::string_view message, Reply& out);
 
 // --- Border unit conversions -----------------------------------------------------------------
 

@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <functional>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -155,6 +156,29 @@ struct ImuTruth {
   Eigen::Vector3d angular_accel_imu_radps2 = Eigen::Vector3d::Zero();
 };
 
+/// An external wrench on the payload (a person's push): a force in the robot base frame B applied
+/// at a point of the payload given in the (true) sensor frame S, plus an optional pure torque in
+/// B. The sensor carries it through the payload: the reading gains F_S = R_BSᵀ F and
+/// M_S = p × F_S + R_BSᵀ M (torque about the S origin), before the sensor's crosstalk.
+struct ExternalWrench {
+  Eigen::Vector3d force_base_N = Eigen::Vector3d::Zero();
+  Eigen::Vector3d point_sensor_m = Eigen::Vector3d::Zero();
+  Eigen::Vector3d torque_base_Nm = Eigen::Vector3d::Zero();
+};
+
+/// What the sensors on the flange read for one joint state, noise-free, with every switched truth
+/// effect, and the kinematics they came from.
+struct Measurement {
+  /// Force (N) and torque about the S origin (N·m) in the true sensor frame S, as the sensor
+  /// reads it (bias, drift, temperature, cable, friction and crosstalk included).
+  Eigen::Matrix<double, 6, 1> wrench_sensor = Eigen::Matrix<double, 6, 1>::Zero();
+  ImuTruth imu;         ///< IMU frame I, of the joint state given for the IMU
+  FlangeMotion flange;  ///< of the joint state given for the wrench, base axes
+  Eigen::Matrix3d R_base_sensor = Eigen::Matrix3d::Identity();  ///< true S in B
+  Eigen::Vector3d p_base_sensor_m = Eigen::Vector3d::Zero();    ///< S origin in B
+  Eigen::Vector3d v_com_base_mps = Eigen::Vector3d::Zero();     ///< payload centre of mass, B
+};
+
 struct SimStats {
   std::size_t samples = 0;
   double duration_s = 0.0;
@@ -177,6 +201,8 @@ class RigSimulator {
  public:
   /// Throws std::invalid_argument on a bad configuration or path points outside Table 4 ranges.
   RigSimulator(SimConfig config, std::vector<JointVector> path_points_rad);
+  /// For a motion given from outside (measure()): the trajectory is a single dwell at home.
+  explicit RigSimulator(SimConfig config);
 
   const SimConfig& config() const { return config_; }
   const PtpTrajectory& trajectory() const { return trajectory_; }
@@ -186,15 +212,35 @@ class RigSimulator {
   /// Model effects of the truth (bias, gravity, linear_inertia and the switched ones).
   model::EffectSet truth_model_effects() const;
 
-  /// Noise-free logged IMU signals at row time t (the true signals at t − tau).
+  /// The physics for any joint state (the one implementation: wrench_at, imu_at and run use it).
+  /// `js` at time `t_s` (the time drives bias_drift and temperature_bias) gives the wrench, with
+  /// the external wrenches `pushes` added; `js_imu` gives the IMU signals. With imu_time_offset
+  /// on, the IMU reports the motion of tau earlier: pass the joint state of t_s − tau as `js_imu`
+  /// (only the caller knows an arbitrary motion's past); otherwise pass `js` again.
+  /// Not real-time code, but allocation-free.
+  Measurement measure(const JointState& js, const JointState& js_imu, double t_s,
+                      std::span<const ExternalWrench> pushes = {}) const;
+  /// measure(js, js, t_s, pushes).
+  Measurement measure(const JointState& js, double t_s,
+                      std::span<const ExternalWrench> pushes = {}) const;
+  /// The IMU's time offset tau (s) when imu_time_offset is on, else 0.
+  double imu_delay_s() const;
+
+  /// Noise-free logged IMU signals at row time t of the trajectory (the true signals at t − tau).
   ImuTruth imu_at(double t_s) const;
-  /// Noise-free sensor wrench at t (force N, torque N·m about S, true sensor frame S).
+  /// Noise-free sensor wrench at t of the trajectory (force N, torque N·m about S, true sensor
+  /// frame S).
   Eigen::Matrix<double, 6, 1> wrench_at(double t_s) const;
 
   /// Runs the whole trajectory (or up to duration_limit_s). `progress` gets the fraction done.
   SimOutput run(const std::function<void(double)>& progress = {}) const;
 
  private:
+  Eigen::Matrix<double, 6, 1> wrench_of(const JointState& js, const FlangeMotion& fm, double t_s,
+                                        std::span<const ExternalWrench> pushes,
+                                        Measurement* kinematics) const;
+  ImuTruth imu_of(const FlangeMotion& fm) const;
+
   SimConfig config_;
   PtpTrajectory trajectory_;
   Eigen::Matrix3d R_world_base_;

@@ -1,0 +1,182 @@
+#pragma once
+// The rig as zerog-rt sees it (proto/emulator.md): the robot controller sending RSI datagrams
+// over real UDP every cycle and applying the replies, the payload's physics at the physics rate
+// feeding the F/T board and the IMU emulators, scripted pushes and injected faults; a truth row
+// per robot cycle and a summary.
+//
+// Threads: run() steps the physics in a thread of its own, against the monotonic clock (late
+// steps are caught up in batches; the worst lag is reported), and runs the robot loop in the
+// calling thread on its own clock, whatever the other side does. The devices are optional (the
+// caller serves the F/T board on its CAN bus and owns the pty): without them the robot loop and
+// the physics run alone, as in the unit tests. Emulator code, not real-time code.
+#include <netinet/in.h>
+
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "zerog/emu/physics.hpp"
+#include "zerog/emu/robot.hpp"
+#include "zerog/emu/scenario.hpp"
+#include "zerog/io/log.hpp"
+#include "zerog/io/model_file.hpp"
+#include "zerog/sim/simulator.hpp"
+
+namespace zerog::emu {
+
+class AtiBoard;
+class Stim300Emulator;
+
+/// "a.b.c.d:port" (IPv4). Throws std::invalid_argument naming `what` and the text.
+sockaddr_in parse_endpoint(const std::string& text, const std::string& what);
+
+struct RigEmulatorOptions {
+  std::string robot_bind = "127.0.0.1:49153";  ///< the controller's socket (port 0: any)
+  std::string rt_address = "127.0.0.1:49152";  ///< where zerog-rt listens
+  double duration_s = 20.0;                    ///< run length; 0: until stopped
+  std::string imu_link;  ///< the IMU's symlink, to re-plug after imu_unplug (may be empty)
+  std::uint64_t first_ipoc = 1'000'000;
+};
+
+enum class ReplyStatus : std::uint8_t {
+  none,        ///< no reply for this cycle (yet)
+  ok,          ///< right IPOC, within the cycle: applied
+  late,        ///< right IPOC after the cycle ended: counted, not applied
+  wrong_ipoc,  ///< only replies with another IPOC came in this cycle
+};
+const char* reply_status_name(ReplyStatus status);
+
+enum class CorrectionKind : std::uint8_t { none, rkorr, akorr, both };
+
+/// One row of truth.csv: the state when the cycle's datagram was made (all in B, SI).
+struct CycleRecord {
+  double t_s = 0.0;  ///< cycle start, s since the run started
+  std::uint64_t ipoc = 0;
+  bool sent = false;  ///< a well-formed datagram for this cycle went out
+  ReplyStatus reply = ReplyStatus::none;
+  sim::JointVector q_rad{};
+  TcpMotion tcp;
+  Eigen::Vector3d v_com_base_mps = Eigen::Vector3d::Zero();
+  Eigen::Vector3d push_force_base_N = Eigen::Vector3d::Zero();
+  Eigen::Vector3d push_torque_com_base_Nm = Eigen::Vector3d::Zero();
+  CorrectionKind correction_kind = CorrectionKind::none;
+  /// As received: RKorr X, Y, Z (mm), A, B, C (deg); or AKorr A1..A6 (deg) when only AKorr came.
+  std::array<double, 6> correction{};
+  std::uint64_t delay = 0;  ///< the Delay D sent in this cycle's datagram
+};
+
+/// The rig zerog-rt runs on in this emulation (io::Rig, the `.rig.toml` of `--write-rig`): the
+/// simulator's geometry, named kEmulatorRigName, one row per RSI cycle, IMU at 2 kHz.
+inline constexpr const char* kEmulatorRigName = "kr210-omega191-stim300-emu";
+io::Rig emulator_rig(const Scenario& scenario, const sim::RigSimulator& simulator);
+/// The truth model file (io::ModelFile, the format `zerog export` reads) for emulator_rig().
+io::ModelFile emulator_truth(const Scenario& scenario, const sim::RigSimulator& simulator);
+
+/// The header line of truth.csv (no newline).
+std::string truth_csv_header();
+
+class RigEmulator {
+ public:
+  /// `ft` and `imu` may be null (no devices). Throws std::invalid_argument for bad options or a
+  /// scenario the robot or the physics refuse.
+  RigEmulator(const Scenario& scenario, const RigEmulatorOptions& options, AtiBoard* ft = nullptr,
+              Stim300Emulator* imu = nullptr);
+  ~RigEmulator();
+  RigEmulator(const RigEmulator&) = delete;
+  RigEmulator& operator=(const RigEmulator&) = delete;
+
+  /// Opens and binds the controller's sockets (the main one and the one robot_foreign sends
+  /// from). Throws std::runtime_error naming the address and the reason.
+  void bind();
+  /// The bound port of the main socket (after bind()).
+  std::uint16_t robot_port() const;
+
+  /// Runs until the duration has passed or `stop` is set. Call once, after bind().
+  void run(const std::atomic<bool>& stop);
+
+  const std::vector<CycleRecord>& cycles() const { return records_; }
+  std::string truth_csv() const;
+  nlohmann::json summary() const;
+  const RobotEmulator& robot() const { return robot_; }
+  const PayloadPhysics& physics() const { return physics_; }
+
+ private:
+  struct ScheduledSend {
+    std::chrono::steady_clock::time_point at;
+    std::string bytes;
+    bool foreign = false;  // from the second socket
+  };
+  struct FaultState {
+    bool active = false, done = false;
+    double applied_start_s = -1.0, applied_end_s = -1.0;
+    std::int64_t first_cycle = -1, last_cycle = -1;
+    std::uint64_t cycles_hit = 0;  // robot faults: cycles it changed
+    std::string note;              // e.g. "no device"
+  };
+  void physics_loop(const std::atomic<bool>& stop);
+  void physics_step(std::uint64_t k);
+  void device_faults(double t_s);
+  void start_cycle(std::uint64_t n);
+  void handle_datagram(std::uint64_t n, const char* data, std::size_t size);
+  void receive_pending(std::uint64_t n);
+  void send_due(std::chrono::steady_clock::time_point now);
+  std::chrono::steady_clock::time_point cycle_start(std::uint64_t n) const;
+
+  Scenario scenario_;
+  RigEmulatorOptions options_;
+  AtiBoard* ft_;
+  Stim300Emulator* imu_;
+  sockaddr_in bind_addr_{};
+  sockaddr_in rt_addr_{};
+  int fd_ = -1;
+  int foreign_fd_ = -1;
+  std::uint16_t robot_port_ = 0;
+
+  mutable std::mutex robot_mutex_;  // the robot is shared by the physics and the robot loop
+  RobotEmulator robot_;
+  PayloadPhysics physics_;  // stepped by the physics thread only (evaluate() is const)
+  std::chrono::steady_clock::time_point t0_{};
+  std::uint64_t cycle_ms_ = 12;
+  std::uint64_t cycles_total_ = 0;  // 0: until stopped
+  std::atomic<bool> robot_done_{false};
+
+  // Robot loop state.
+  std::vector<CycleRecord> records_;
+  std::vector<ScheduledSend> sends_;
+  std::uint64_t delay_count_ = 0;
+  bool any_ok_ = false;
+  std::vector<FaultState> faults_;  // per scenario fault; robot faults: robot loop, devices:
+                                    // physics thread (read after it is joined)
+  std::int64_t reorder_held_ = -1;  // cycle whose datagram is held for after the next one
+  std::string held_bytes_;
+
+  struct Counts {
+    std::uint64_t datagrams_sent = 0;  ///< every datagram that went out (malformed included)
+    std::uint64_t good_sent = 0;
+    std::uint64_t malformed_sent = 0;
+    std::uint64_t duplicates_sent = 0;
+    std::uint64_t foreign_sent = 0;
+    std::uint64_t send_errors = 0;
+    std::uint64_t reply_datagrams = 0;
+    std::uint64_t ok = 0, late = 0, wrong_ipoc = 0, malformed = 0, duplicate = 0;
+    std::uint64_t from_elsewhere = 0;   ///< replies from an address other than rt_address
+    std::uint64_t foreign_replies = 0;  ///< replies to the foreign socket
+    std::uint64_t before_first_ok = 0;
+    std::int64_t first_ok_cycle = -1;
+    std::uint64_t clamped_cycles = 0, near_singular_cycles = 0;
+  } counts_;
+
+  // Physics thread state (read after join).
+  double worst_lag_s_ = 0.0;
+  std::uint64_t late_batches_ = 0;
+  std::uint64_t largest_batch_ = 0;
+  std::uint64_t imu_samples_ = 0;
+  std::uint64_t imu_dropped_ = 0;
+};
+
+}  // namespace zerog::emu

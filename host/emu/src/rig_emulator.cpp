@@ -1,0 +1,725 @@
+#include "zerog/emu/rig_emulator.hpp"
+
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <exception>
+#include <stdexcept>
+#include <thread>
+#include <tuple>
+
+#include "zerog/emu/ati_board.hpp"
+#include "zerog/emu/stim300_emulator.hpp"
+#include "zerog/proto/rsi.hpp"
+
+namespace zerog::emu {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+namespace rsi = proto::rsi;
+
+constexpr double kImuRateHz = 2000.0;  // STIM300 normal mode (proto/stim300.md)
+/// robot_foreign's datagrams carry this much more in their IPOC than the real one.
+constexpr std::uint64_t kForeignIpocOffset = 500'000'000;
+
+RobotConfig robot_config(const Scenario& s) {
+  RobotConfig c;
+  c.physics_rate_hz = s.robot.physics_rate_hz;
+  c.servo_bandwidth_hz = s.robot.servo_bandwidth_hz;
+  c.start_joints_rad = s.robot.start_joints_rad;
+  c.p_flange_tcp_m = s.sim.p_flange_sensor_m;
+  return c;
+}
+
+std::string errno_text(int e) { return std::strerror(e); }
+
+std::string address_text(const sockaddr_in& a) {
+  char ip[INET_ADDRSTRLEN] = {};
+  ::inet_ntop(AF_INET, &a.sin_addr, ip, sizeof ip);
+  return std::string(ip) + ":" + std::to_string(ntohs(a.sin_port));
+}
+
+void append(std::string& out, double v) {
+  char buf[32];
+  const int n = std::snprintf(buf, sizeof buf, "%.10g", v == 0.0 ? 0.0 : v);
+  out.append(buf, static_cast<std::size_t>(n));
+}
+
+nlohmann::json vec(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+
+const char* correction_kind_name(CorrectionKind k) {
+  switch (k) {
+    case CorrectionKind::none:
+      return "none";
+    case CorrectionKind::rkorr:
+      return "rkorr";
+    case CorrectionKind::akorr:
+      return "akorr";
+    case CorrectionKind::both:
+      return "both";
+  }
+  return "?";
+}
+
+// A datagram the controller's parser-side would reject, four kinds in turn (proto/emulator.md).
+std::string malformed(const std::string& good, std::uint64_t n) {
+  switch (n % 4) {
+    case 0:
+      return good.substr(0, good.size() / 2);  // truncated
+    case 1: {
+      std::string s = good;  // a number that is not one
+      const std::size_t at = s.find("X=\"");
+      if (at != std::string::npos) s.insert(at + 3, "x");
+      return s;
+    }
+    case 2: {
+      std::string s = good;  // wrong root element
+      s.replace(1, 3, "Bot");
+      return s;
+    }
+    default:
+      return std::string(64, '\xff');  // not XML at all
+  }
+}
+
+}  // namespace
+
+sockaddr_in parse_endpoint(const std::string& text, const std::string& what) {
+  const std::size_t colon = text.rfind(':');
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  unsigned port = 0;
+  const bool ok = colon != std::string::npos && colon > 0 &&
+                  ::inet_pton(AF_INET, text.substr(0, colon).c_str(), &a.sin_addr) == 1 && [&] {
+                    const char* first = text.data() + colon + 1;
+                    const char* last = text.data() + text.size();
+                    const auto [ptr, ec] = std::from_chars(first, last, port);
+                    return first != last && ec == std::errc{} && ptr == last && port <= 65535;
+                  }();
+  if (!ok)
+    throw std::invalid_argument(what + ": '" + text +
+                                "' is not an IPv4 address and port like 127.0.0.1:49152");
+  a.sin_port = htons(static_cast<std::uint16_t>(port));
+  return a;
+}
+
+const char* reply_status_name(ReplyStatus status) {
+  switch (status) {
+    case ReplyStatus::none:
+      return "none";
+    case ReplyStatus::ok:
+      return "ok";
+    case ReplyStatus::late:
+      return "late";
+    case ReplyStatus::wrong_ipoc:
+      return "wrong_ipoc";
+  }
+  return "?";
+}
+
+io::Rig emulator_rig(const Scenario& scenario, const sim::RigSimulator& simulator) {
+  io::Rig rig = simulator.rig();
+  rig.name = kEmulatorRigName;
+  rig.sample_period_s = scenario.cycle_s();
+  rig.ft_rate_hz = 0.0;  // as fast as zerog-rt asks: the board answers each request
+  rig.imu_rate_hz = kImuRateHz;
+  return rig;
+}
+
+io::ModelFile emulator_truth(const Scenario& scenario, const sim::RigSimulator& simulator) {
+  io::ModelFile m = simulator.truth();
+  m.rig_name = kEmulatorRigName;
+  m.extra["generator"] = "zerog-emu";
+  m.extra["scenario"] = scenario.source.string();
+  m.extra.erase("trajectory");  // the emulator's motion comes from zerog-rt, not a path
+  return m;
+}
+
+std::string truth_csv_header() {
+  return "t_s,ipoc,reply,q1_rad,q2_rad,q3_rad,q4_rad,q5_rad,q6_rad,"
+         "tcp_x_m,tcp_y_m,tcp_z_m,tcp_qw,tcp_qx,tcp_qy,tcp_qz,"
+         "tcp_vx_mps,tcp_vy_mps,tcp_vz_mps,tcp_wx_radps,tcp_wy_radps,tcp_wz_radps,"
+         "com_vx_mps,com_vy_mps,com_vz_mps,push_fx_N,push_fy_N,push_fz_N,"
+         "push_mx_Nm,push_my_Nm,push_mz_Nm,correction,corr_1,corr_2,corr_3,corr_4,corr_5,corr_6,"
+         "delay";
+}
+
+RigEmulator::RigEmulator(const Scenario& scenario, const RigEmulatorOptions& options, AtiBoard* ft,
+                         Stim300Emulator* imu)
+    : scenario_(scenario),
+      options_(options),
+      ft_(ft),
+      imu_(imu),
+      robot_(robot_config(scenario)),
+      physics_(scenario.sim, scenario.pushes, scenario.robot.physics_rate_hz) {
+  bind_addr_ = parse_endpoint(options_.robot_bind, "--robot-bind");
+  rt_addr_ = parse_endpoint(options_.rt_address, "--rt-address");
+  if (rt_addr_.sin_port == 0) throw std::invalid_argument("--rt-address: port 0 is not a port");
+  if (!(std::isfinite(options_.duration_s) && options_.duration_s >= 0.0))
+    throw std::invalid_argument("duration must be >= 0 s");
+  cycle_ms_ = static_cast<std::uint64_t>(scenario_.robot.cycle_ms);
+  cycles_total_ =
+      static_cast<std::uint64_t>(std::llround(options_.duration_s / scenario_.cycle_s()));
+  if (options_.duration_s > 0.0 && cycles_total_ == 0) cycles_total_ = 1;
+  faults_.resize(scenario_.faults.size());
+  for (std::size_t i = 0; i < faults_.size(); ++i) {
+    const Fault& f = scenario_.faults[i];
+    if (!info(f.kind).robot) {
+      const bool ft_fault = f.kind == FaultKind::ft_silent || f.kind == FaultKind::ft_slow ||
+                            f.kind == FaultKind::ft_critical || f.kind == FaultKind::ft_saturated;
+      if ((ft_fault && ft_ == nullptr) || (!ft_fault && imu_ == nullptr))
+        faults_[i].note = "not injected: no device";
+      continue;
+    }
+    std::tie(faults_[i].first_cycle, faults_[i].last_cycle) =
+        robot_fault_cycles(f, scenario_.cycle_s());
+  }
+  if (cycles_total_ > 0) records_.reserve(cycles_total_);
+}
+
+RigEmulator::~RigEmulator() {
+  if (fd_ >= 0) ::close(fd_);
+  if (foreign_fd_ >= 0) ::close(foreign_fd_);
+}
+
+void RigEmulator::bind() {
+  auto open_bound = [](sockaddr_in address, const std::string& what) {
+    const int fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
+    if (fd < 0) throw std::runtime_error(what + ": socket: " + errno_text(errno));
+    if (::bind(fd, reinterpret_cast<const sockaddr*>(&address), sizeof address) != 0) {
+      const int e = errno;
+      ::close(fd);
+      throw std::runtime_error(what + ": cannot bind " + address_text(address) + ": " +
+                               errno_text(e));
+    }
+    return fd;
+  };
+  fd_ = open_bound(bind_addr_, "--robot-bind");
+  sockaddr_in local{};
+  socklen_t length = sizeof local;
+  ::getsockname(fd_, reinterpret_cast<sockaddr*>(&local), &length);
+  robot_port_ = ntohs(local.sin_port);
+  sockaddr_in other = bind_addr_;
+  other.sin_port = 0;
+  foreign_fd_ = open_bound(other, "robot_foreign socket");
+}
+
+std::uint16_t RigEmulator::robot_port() const { return robot_port_; }
+
+Clock::time_point RigEmulator::cycle_start(std::uint64_t n) const {
+  return t0_ + std::chrono::milliseconds(cycle_ms_ * n);
+}
+
+// --- Physics thread ------------------------------------------------------------------------
+
+void RigEmulator::physics_step(std::uint64_t k) {
+  sim::JointState js;
+  {
+    const std::lock_guard<std::mutex> lock(robot_mutex_);
+    if (k > 0) robot_.step();
+    js = robot_.actual();
+  }
+  const PhysicsSample s = physics_.step(js);
+  if (ft_ != nullptr) ft_->set_wrench(s.wrench_sensor_noisy);
+  const double rate = physics_.physics_rate_hz();
+  const auto imu_due =
+      static_cast<std::uint64_t>(std::floor(static_cast<double>(k + 1) * kImuRateHz / rate + 1e-9));
+  while (imu_samples_ < imu_due) {
+    ++imu_samples_;
+    if (imu_ == nullptr) continue;
+    ImuTruthSample truth;
+    truth.rate_imu_radps = s.truth.imu.angular_rate_imu_radps;
+    truth.specific_force_imu_mps2 = s.truth.imu.specific_force_imu_mps2;
+    if (!imu_->write_sample(truth)) ++imu_dropped_;
+  }
+}
+
+void RigEmulator::device_faults(double t_s) {
+  for (std::size_t i = 0; i < faults_.size(); ++i) {
+    const Fault& f = scenario_.faults[i];
+    FaultState& st = faults_[i];
+    if (info(f.kind).robot || st.done || !st.note.empty()) continue;
+    const bool ends = f.duration_s > 0.0;
+    if (!st.active && t_s >= f.start_s) {
+      st.active = true;
+      st.applied_start_s = t_s;
+      switch (f.kind) {
+        case FaultKind::ft_silent:
+          ft_->set_fault(FtFault::silent);
+          break;
+        case FaultKind::ft_slow:
+          ft_->set_response_delay(
+              std::chrono::microseconds(std::llround(f.response_delay_ms * 1e3)));
+          break;
+        case FaultKind::ft_critical:
+          ft_->set_fault(FtFault::critical);
+          break;
+        case FaultKind::ft_saturated:
+          ft_->set_fault(FtFault::saturated);
+          break;
+        case FaultKind::imu_garbage:
+          imu_->set_fault(ImuFault::garbage);
+          break;
+        case FaultKind::imu_crc:
+          imu_->set_fault(ImuFault::crc_errors);
+          break;
+        case FaultKind::imu_gaps:
+          imu_->set_fault(ImuFault::counter_gaps);
+          break;
+        case FaultKind::imu_silent:
+          imu_->set_fault(ImuFault::silent);
+          break;
+        case FaultKind::imu_unplug:
+          imu_->unplug();
+          break;
+        default:
+          break;
+      }
+    }
+    if (st.active && ends && t_s >= f.start_s + f.duration_s) {
+      st.active = false;
+      st.done = true;
+      st.applied_end_s = t_s;
+      switch (f.kind) {
+        case FaultKind::ft_silent:
+        case FaultKind::ft_critical:
+        case FaultKind::ft_saturated:
+          ft_->set_fault(FtFault::none);
+          break;
+        case FaultKind::ft_slow:
+          ft_->set_response_delay(std::chrono::microseconds(0));
+          break;
+        case FaultKind::imu_unplug: {
+          const std::string error = imu_->open(options_.imu_link);
+          if (!error.empty()) st.note = "re-plug failed: " + error;
+          break;
+        }
+        default:
+          imu_->set_fault(ImuFault::none);
+          break;
+      }
+    }
+  }
+}
+
+void RigEmulator::physics_loop(const std::atomic<bool>& stop) {
+  const double h = 1.0 / physics_.physics_rate_hz();
+  auto step_time = [&](std::uint64_t k) {
+    return t0_ + std::chrono::duration_cast<Clock::duration>(
+                     std::chrono::duration<double>(static_cast<double>(k) * h));
+  };
+  std::uint64_t k = 1;
+  while (!stop.load() && !robot_done_.load()) {
+    const Clock::time_point now = Clock::now();
+    if (now < step_time(k)) {
+      std::this_thread::sleep_until(step_time(k));
+      continue;
+    }
+    const double lag = std::chrono::duration<double>(now - step_time(k)).count();
+    worst_lag_s_ = std::max(worst_lag_s_, lag);
+    const auto due = static_cast<std::uint64_t>(
+        std::floor(std::chrono::duration<double>(now - t0_).count() / h));
+    const std::uint64_t batch = due - k + 1;
+    if (batch > 1) ++late_batches_;
+    largest_batch_ = std::max(largest_batch_, batch);
+    for (; k <= due; ++k) physics_step(k);
+    device_faults(static_cast<double>(due) * h);
+  }
+}
+
+// --- Robot loop ------------------------------------------------------------------------------
+
+void RigEmulator::send_due(Clock::time_point now) {
+  for (std::size_t i = 0; i < sends_.size();) {
+    if (sends_[i].at > now) {
+      ++i;
+      continue;
+    }
+    const ScheduledSend& s = sends_[i];
+    const int fd = s.foreign ? foreign_fd_ : fd_;
+    const ssize_t n = ::sendto(fd, s.bytes.data(), s.bytes.size(), 0,
+                               reinterpret_cast<const sockaddr*>(&rt_addr_), sizeof rt_addr_);
+    if (n != static_cast<ssize_t>(s.bytes.size())) ++counts_.send_errors;
+    ++counts_.datagrams_sent;
+    sends_.erase(sends_.begin() + static_cast<std::ptrdiff_t>(i));
+  }
+}
+
+void RigEmulator::handle_datagram(std::uint64_t n, const char* data, std::size_t size) {
+  ++counts_.reply_datagrams;
+  rsi::Reply reply;
+  const bool parsed = rsi::parse_reply(std::string_view(data, size), reply).ok();
+  std::int64_t idx = -1;
+  if (parsed && reply.ipoc >= options_.first_ipoc &&
+      (reply.ipoc - options_.first_ipoc) % cycle_ms_ == 0) {
+    const std::uint64_t k = (reply.ipoc - options_.first_ipoc) / cycle_ms_;
+    if (k < records_.size() && records_[k].sent) idx = static_cast<std::int64_t>(k);
+  }
+  const bool good =
+      parsed && idx == static_cast<std::int64_t>(n) && records_[n].reply != ReplyStatus::ok;
+  if (!any_ok_ && !good) ++counts_.before_first_ok;
+  if (!parsed) {
+    ++counts_.malformed;
+    return;
+  }
+  if (good) {
+    CycleRecord& r = records_[n];
+    r.reply = ReplyStatus::ok;
+    ++counts_.ok;
+    if (!any_ok_) counts_.first_ok_cycle = static_cast<std::int64_t>(n);
+    any_ok_ = true;
+    bool clamped = false, singular = false;
+    {
+      const std::lock_guard<std::mutex> lock(robot_mutex_);
+      if (reply.has_rkorr) {
+        const CorrectionOutcome o = robot_.apply_rkorr(reply.rkorr);
+        clamped = o.clamped;
+        singular = o.near_singular;
+      }
+      if (reply.has_akorr) clamped = robot_.apply_akorr(reply.akorr_deg).clamped || clamped;
+    }
+    counts_.clamped_cycles += clamped;
+    counts_.near_singular_cycles += singular;
+    if (reply.has_rkorr) {
+      const rsi::Correction& c = reply.rkorr;
+      r.correction = {c.x_mm, c.y_mm, c.z_mm, c.a_deg, c.b_deg, c.c_deg};
+      r.correction_kind = reply.has_akorr ? CorrectionKind::both : CorrectionKind::rkorr;
+    } else if (reply.has_akorr) {
+      r.correction = reply.akorr_deg;
+      r.correction_kind = CorrectionKind::akorr;
+    }
+    return;
+  }
+  if (idx == static_cast<std::int64_t>(n)) {
+    ++counts_.duplicate;  // a second reply to this cycle
+  } else if (idx >= 0 && idx < static_cast<std::int64_t>(n)) {
+    ++counts_.late;
+    CycleRecord& r = records_[static_cast<std::size_t>(idx)];
+    if (r.reply != ReplyStatus::ok) r.reply = ReplyStatus::late;
+  } else {
+    ++counts_.wrong_ipoc;
+    if (n < records_.size() && records_[n].reply == ReplyStatus::none)
+      records_[n].reply = ReplyStatus::wrong_ipoc;
+  }
+}
+
+void RigEmulator::receive_pending(std::uint64_t n) {
+  std::array<char, rsi::kMaxMessageBytes + 1> buf;
+  while (true) {
+    sockaddr_in from{};
+    socklen_t length = sizeof from;
+    const ssize_t got =
+        ::recvfrom(fd_, buf.data(), buf.size(), 0, reinterpret_cast<sockaddr*>(&from), &length);
+    if (got < 0) break;
+    if (from.sin_addr.s_addr != rt_addr_.sin_addr.s_addr || from.sin_port != rt_addr_.sin_port) {
+      ++counts_.from_elsewhere;
+      continue;
+    }
+    handle_datagram(n, buf.data(), static_cast<std::size_t>(got));
+  }
+  while (::recv(foreign_fd_, buf.data(), buf.size(), 0) >= 0) ++counts_.foreign_replies;
+}
+
+void RigEmulator::start_cycle(std::uint64_t n) {
+  const double t_s = static_cast<double>(n) * scenario_.cycle_s();
+  CycleRecord r;
+  r.t_s = t_s;
+  r.ipoc = options_.first_ipoc + n * cycle_ms_;
+  r.delay = delay_count_;
+  rsi::RobotMessage msg;
+  sim::JointState js;
+  {
+    const std::lock_guard<std::mutex> lock(robot_mutex_);
+    msg = robot_.message(r.ipoc, delay_count_);
+    js = robot_.actual();
+    r.tcp = robot_.actual_tcp();
+  }
+  r.q_rad = js.q_rad;
+  const PhysicsSample p = physics_.evaluate(js, js, t_s);
+  r.v_com_base_mps = p.truth.v_com_base_mps;
+  r.push_force_base_N = p.push_force_base_N;
+  r.push_torque_com_base_Nm = p.push_torque_com_base_Nm;
+
+  std::array<char, rsi::kMaxMessageBytes> buf;
+  const rsi::FormatResult f = rsi::format_robot_message(msg, buf);
+  const std::string bytes(buf.data(), f.status == rsi::FormatStatus::ok ? f.size : 0);
+
+  // The robot fault active in this cycle, if any (they do not overlap: scenario validation).
+  const Fault* fault = nullptr;
+  std::size_t fault_index = 0;
+  for (std::size_t i = 0; i < faults_.size(); ++i) {
+    const FaultState& st = faults_[i];
+    if (st.first_cycle < 0 || static_cast<std::int64_t>(n) < st.first_cycle ||
+        static_cast<std::int64_t>(n) > st.last_cycle)
+      continue;
+    fault = &scenario_.faults[i];
+    fault_index = i;
+  }
+  const Clock::time_point at = cycle_start(n);
+  auto send = [&](std::string b, Clock::time_point when, bool foreign) {
+    sends_.push_back({when, std::move(b), foreign});
+  };
+  bool hit = fault != nullptr;
+  r.sent = !bytes.empty();
+  if (fault == nullptr) {
+    send(bytes, at, false);
+  } else {
+    switch (fault->kind) {
+      case FaultKind::robot_drop:
+        r.sent = false;
+        break;
+      case FaultKind::robot_malformed:
+        send(malformed(bytes, n), at, false);
+        ++counts_.malformed_sent;
+        r.sent = false;
+        break;
+      case FaultKind::robot_late:
+        send(bytes, at + std::chrono::microseconds(std::llround(fault->delay_ms * 1e3)), false);
+        break;
+      case FaultKind::robot_duplicate:
+        send(bytes, at, false);
+        send(bytes, at, false);
+        ++counts_.duplicates_sent;
+        break;
+      case FaultKind::robot_reorder:
+        if ((static_cast<std::int64_t>(n) - faults_[fault_index].first_cycle) % 2 == 0) {
+          held_bytes_ = bytes;  // sent after the next cycle's datagram
+          reorder_held_ = static_cast<std::int64_t>(n);
+        } else {
+          send(bytes, at, false);
+          hit = false;
+        }
+        break;
+      case FaultKind::robot_foreign: {
+        send(bytes, at, false);
+        rsi::RobotMessage other = msg;
+        other.ipoc += kForeignIpocOffset;
+        const rsi::FormatResult g = rsi::format_robot_message(other, buf);
+        send(std::string(buf.data(), g.size), at, true);
+        ++counts_.foreign_sent;
+        break;
+      }
+      default:
+        send(bytes, at, false);
+        break;
+    }
+  }
+  if (hit) {
+    FaultState& st = faults_[fault_index];
+    ++st.cycles_hit;
+    if (st.applied_start_s < 0.0) st.applied_start_s = t_s;
+    st.applied_end_s = t_s + scenario_.cycle_s();
+  }
+  records_.push_back(r);
+  counts_.good_sent += r.sent;
+  send_due(Clock::now());
+  if (reorder_held_ >= 0 && reorder_held_ < static_cast<std::int64_t>(n)) {
+    sends_.push_back({Clock::now(), held_bytes_, false});
+    reorder_held_ = -1;
+    send_due(Clock::now());
+  }
+}
+
+void RigEmulator::run(const std::atomic<bool>& stop) {
+  if (fd_ < 0) throw std::logic_error("RigEmulator::run before bind()");
+  t0_ = Clock::now();
+  physics_step(0);
+  device_faults(0.0);
+  std::exception_ptr physics_error;
+  std::thread physics([&] {
+    try {
+      physics_loop(stop);
+    } catch (...) {
+      physics_error = std::current_exception();
+    }
+  });
+
+  // Serves the socket until `deadline`: replies go to cycle `window` (−1: before the first).
+  auto serve_until = [&](Clock::time_point deadline, std::int64_t window) {
+    while (true) {
+      Clock::time_point now = Clock::now();
+      send_due(now);
+      if (now >= deadline) return;
+      Clock::time_point next = deadline;
+      for (const ScheduledSend& s : sends_) next = std::min(next, s.at);
+      const auto wait = std::chrono::duration_cast<std::chrono::nanoseconds>(next - now);
+      timespec ts{static_cast<time_t>(wait.count() / 1'000'000'000),
+                  static_cast<long>(wait.count() % 1'000'000'000)};
+      std::array<pollfd, 2> fds{{{fd_, POLLIN, 0}, {foreign_fd_, POLLIN, 0}}};
+      if (::ppoll(fds.data(), fds.size(), &ts, nullptr) > 0) {
+        if (window >= 0) {
+          receive_pending(static_cast<std::uint64_t>(window));
+        } else {
+          std::array<char, 64> sink;
+          while (::recv(fd_, sink.data(), sink.size(), 0) >= 0) ++counts_.wrong_ipoc;
+          while (::recv(foreign_fd_, sink.data(), sink.size(), 0) >= 0) ++counts_.foreign_replies;
+        }
+      }
+    }
+  };
+  auto finish_cycle = [&](std::uint64_t n) {
+    if (records_[n].reply != ReplyStatus::ok) ++delay_count_;
+  };
+
+  std::uint64_t n = 0;
+  for (; !stop.load() && (cycles_total_ == 0 || n < cycles_total_) && !physics_error; ++n) {
+    serve_until(cycle_start(n), static_cast<std::int64_t>(n) - 1);
+    if (n > 0) finish_cycle(n - 1);
+    start_cycle(n);
+  }
+  if (n > 0) {
+    serve_until(stop.load() ? Clock::now() : cycle_start(n), static_cast<std::int64_t>(n) - 1);
+    finish_cycle(n - 1);
+  }
+  sends_.clear();  // a held or late datagram due after the run: never sent
+  robot_done_ = true;
+  physics.join();
+  if (physics_error) std::rethrow_exception(physics_error);
+}
+
+// --- Outputs ---------------------------------------------------------------------------------
+
+std::string RigEmulator::truth_csv() const {
+  std::string out = truth_csv_header() + "\n";
+  out.reserve(records_.size() * 420 + out.size());
+  for (const CycleRecord& r : records_) {
+    append(out, r.t_s);
+    out += ',' + std::to_string(r.ipoc) + ',' + reply_status_name(r.reply);
+    for (double q : r.q_rad) out += ',', append(out, q);
+    for (int i = 0; i < 3; ++i) out += ',', append(out, r.tcp.pose.p_base_tcp_m[i]);
+    Eigen::Quaterniond q(r.tcp.pose.R_base_tcp);
+    q.normalize();
+    if (q.w() < 0.0) q.coeffs() *= -1.0;
+    for (double v : {q.w(), q.x(), q.y(), q.z()}) out += ',', append(out, v);
+    for (const Eigen::Vector3d* v :
+         {&r.tcp.v_tcp_base_mps, &r.tcp.omega_base_radps, &r.v_com_base_mps, &r.push_force_base_N,
+          &r.push_torque_com_base_Nm})
+      for (int i = 0; i < 3; ++i) out += ',', append(out, (*v)[i]);
+    out += ',';
+    out += correction_kind_name(r.correction_kind);
+    for (double c : r.correction) out += ',', append(out, c);
+    out += ',' + std::to_string(r.delay) + '\n';
+  }
+  return out;
+}
+
+nlohmann::json RigEmulator::summary() const {
+  using nlohmann::json;
+  std::uint64_t missing = 0, cycles_ok = 0, cycles_late = 0, not_sent = 0;
+  for (const CycleRecord& r : records_) {
+    if (!r.sent) ++not_sent;
+    if (r.reply == ReplyStatus::ok) ++cycles_ok;
+    if (r.reply == ReplyStatus::late) ++cycles_late;
+    if (r.sent && r.reply != ReplyStatus::ok && r.reply != ReplyStatus::late) ++missing;
+  }
+  json s;
+  s["format"] = "zerog-emu-summary";
+  s["version"] = 1;
+  s["scenario"] = scenario_.source.string();
+  s["cycle_s"] = scenario_.cycle_s();
+  s["cycles"] = records_.size();
+  s["duration_s"] = static_cast<double>(records_.size()) * scenario_.cycle_s();
+  s["first_ipoc"] = options_.first_ipoc;
+  s["datagrams"] = {
+      {"sent", counts_.datagrams_sent},      {"good", counts_.good_sent},
+      {"malformed", counts_.malformed_sent}, {"duplicated", counts_.duplicates_sent},
+      {"foreign", counts_.foreign_sent},     {"cycles_without_good_datagram", not_sent},
+      {"send_errors", counts_.send_errors}};
+  s["replies"] = {{"datagrams", counts_.reply_datagrams},
+                  {"ok", counts_.ok},
+                  {"late", counts_.late},
+                  {"missing", missing},
+                  {"wrong_ipoc", counts_.wrong_ipoc},
+                  {"malformed", counts_.malformed},
+                  {"duplicate", counts_.duplicate},
+                  {"from_elsewhere", counts_.from_elsewhere},
+                  {"to_foreign_socket", counts_.foreign_replies},
+                  {"cycles_ok", cycles_ok},
+                  {"cycles_late", cycles_late},
+                  {"before_first_ok", counts_.before_first_ok},
+                  {"first_ok_cycle", counts_.first_ok_cycle}};
+  s["robot"] = {{"delay", delay_count_},
+                {"rkorr_applied", robot_.counters().rkorr_applied},
+                {"akorr_applied", robot_.counters().akorr_applied},
+                {"clamped_cycles", counts_.clamped_cycles},
+                {"near_singular_cycles", counts_.near_singular_cycles},
+                {"servo_bandwidth_hz", scenario_.robot.servo_bandwidth_hz}};
+  json pushes = json::array();
+  for (std::size_t k = 0; k < scenario_.pushes.size(); ++k) {
+    const Push& p = scenario_.pushes[k];
+    const PushIntegral& in = physics_.push_integrals()[k];
+    json j = {{"start_s", p.start_s},
+              {"duration_s", p.duration_s},
+              {"profile", push_profile_name(p.profile)},
+              {"force_world_N", vec(p.force_world_N)},
+              {"torque_world_Nm", vec(p.torque_world_Nm)},
+              {"impulse_N_s", vec(p.impulse_N_s())},
+              {"torque_impulse_Nms", vec(p.torque_impulse_Nms())},
+              {"integrated_impulse_N_s", vec(in.impulse_N_s)},
+              {"integrated_angular_impulse_com_Nms", vec(in.angular_impulse_com_Nms)}};
+    j["point_sensor_m"] = p.point_sensor_m ? vec(*p.point_sensor_m) : json("centre_of_mass");
+    pushes.push_back(j);
+  }
+  s["pushes"] = pushes;
+  json faults = json::array();
+  for (std::size_t i = 0; i < faults_.size(); ++i) {
+    const Fault& f = scenario_.faults[i];
+    const FaultState& st = faults_[i];
+    json j = {{"kind", info(f.kind).name}, {"start_s", f.start_s}};
+    if (info(f.kind).robot) {
+      j["cycles"] = f.cycles;
+      j["first_cycle"] = st.first_cycle;
+      j["last_cycle"] = st.last_cycle;
+      j["cycles_affected"] = st.cycles_hit;
+      if (f.kind == FaultKind::robot_late) j["delay_ms"] = f.delay_ms;
+    } else {
+      j["duration_s"] = f.duration_s;
+      if (f.kind == FaultKind::ft_slow) j["response_delay_ms"] = f.response_delay_ms;
+      const double c = scenario_.cycle_s();
+      if (st.applied_start_s >= 0.0)
+        j["first_cycle"] = static_cast<std::int64_t>(std::floor(st.applied_start_s / c + 1e-9));
+      if (st.applied_end_s >= 0.0)
+        j["last_cycle"] = static_cast<std::int64_t>(std::floor(st.applied_end_s / c + 1e-9));
+    }
+    j["applied_start_s"] = st.applied_start_s >= 0.0 ? json(st.applied_start_s) : json(nullptr);
+    j["applied_end_s"] = st.applied_end_s >= 0.0 ? json(st.applied_end_s) : json(nullptr);
+    if (!st.note.empty()) j["note"] = st.note;
+    faults.push_back(j);
+  }
+  s["faults"] = faults;
+  s["physics"] = {{"rate_hz", physics_.physics_rate_hz()}, {"steps", physics_.steps()},
+                  {"worst_lag_s", worst_lag_s_},           {"late_batches", late_batches_},
+                  {"largest_batch", largest_batch_},       {"imu_samples", imu_samples_}};
+  json devices = json::object();
+  if (ft_ != nullptr) {
+    const AtiBoard::Counters c = ft_->counters();
+    devices["ft"] = {{"requests", c.requests},
+                     {"sample_requests", c.sample_requests},
+                     {"samples_sent", c.samples_sent},
+                     {"ignored", c.ignored},
+                     {"saturated_samples", c.saturated_samples},
+                     {"critical_samples", c.critical_samples},
+                     {"other_frames", c.other_frames},
+                     {"tx_failed", c.tx_failed}};
+  }
+  if (imu_ != nullptr) {
+    const Stim300Emulator::Counters c = imu_->counters();
+    devices["imu"] = {
+        {"written", c.written}, {"dropped", c.dropped}, {"garbage_bytes", c.garbage_bytes},
+        {"bad_crc", c.bad_crc}, {"skipped", c.skipped}, {"write_failures", imu_dropped_}};
+  }
+  s["devices"] = devices;
+  return s;
+}
+
+}  // namespace zerog::emu

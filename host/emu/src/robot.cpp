@@ -1,0 +1,197 @@
+#include "zerog/emu/robot.hpp"
+
+#include <Eigen/Geometry>
+#include <Eigen/SVD>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <numbers>
+#include <stdexcept>
+#include <string>
+
+#include "zerog/model/rotation.hpp"
+
+namespace zerog::emu {
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+std::string text(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
+
+}  // namespace
+
+sim::JointLimits emulator_joint_limits() {
+  return {
+      {-185.0 * kDeg, -140.0 * kDeg, -120.0 * kDeg, -350.0 * kDeg, -125.0 * kDeg, -350.0 * kDeg},
+      {185.0 * kDeg, -5.0 * kDeg, 168.0 * kDeg, 350.0 * kDeg, 125.0 * kDeg, 350.0 * kDeg}};
+}
+
+sim::JointVector default_start_joints() {
+  return {0.0, -90.0 * kDeg, 90.0 * kDeg, 0.0, 45.0 * kDeg, 0.0};
+}
+
+RobotEmulator::RobotEmulator(const RobotConfig& config)
+    : config_(config), limits_(emulator_joint_limits()) {
+  const RobotConfig& c = config_;
+  if (!(std::isfinite(c.physics_rate_hz) && c.physics_rate_hz > 0.0))
+    throw std::invalid_argument("physics rate must be positive, is " + text(c.physics_rate_hz));
+  if (!(std::isfinite(c.servo_bandwidth_hz) && c.servo_bandwidth_hz > 0.0 &&
+        c.servo_bandwidth_hz <= c.physics_rate_hz / 10.0))
+    throw std::invalid_argument("servo bandwidth must be in (0, physics rate / 10], is " +
+                                text(c.servo_bandwidth_hz) + " Hz");
+  if (!c.p_flange_tcp_m.allFinite()) throw std::invalid_argument("TCP offset must be finite");
+  if (!(c.singular_threshold > 0.0 && c.max_damping >= 0.0 && c.ik_iterations >= 1))
+    throw std::invalid_argument("damped least squares settings out of range");
+  for (int i = 0; i < 6; ++i) {
+    const double q = c.start_joints_rad[i];
+    if (!(std::isfinite(q) && q >= limits_.lower_rad[i] && q <= limits_.upper_rad[i]))
+      throw std::invalid_argument("start joint A" + std::to_string(i + 1) + " = " + text(q / kDeg) +
+                                  " deg is outside its range [" +
+                                  text(limits_.lower_rad[i] / kDeg) + ", " +
+                                  text(limits_.upper_rad[i] / kDeg) + "] deg");
+  }
+  omega_radps_ = 2.0 * std::numbers::pi * c.servo_bandwidth_hz;
+  h_s_ = 1.0 / c.physics_rate_hz;
+  // x = (q − q_cmd, q̇), ẋ = A x with A = [[0, 1], [−ω², −2ω]] (a double pole at −ω):
+  // e^{Ah} = e^{−ωh} [[1 + ωh, h], [−ω² h, 1 − ωh]].
+  const double w = omega_radps_, h = h_s_, e = std::exp(-w * h);
+  phi_ << e * (1.0 + w * h), e * h, -e * w * w * h, e * (1.0 - w * h);
+  q_cmd_rad_ = c.start_joints_rad;
+  actual_.q_rad = c.start_joints_rad;
+}
+
+TcpPose RobotEmulator::tcp_pose(const sim::JointVector& q_rad) const {
+  const sim::FlangePose fp = sim::forward_kinematics(q_rad);
+  return {fp.R_base_flange, fp.p_base_flange_m + fp.R_base_flange * config_.p_flange_tcp_m};
+}
+
+TcpMotion RobotEmulator::actual_tcp() const {
+  const sim::FlangeMotion fm =
+      sim::flange_motion(actual_.q_rad, actual_.qd_radps, actual_.qdd_radps2);
+  TcpMotion m;
+  const Eigen::Vector3d lever_base_m = fm.R_base_flange * config_.p_flange_tcp_m;
+  m.pose = {fm.R_base_flange, fm.p_base_flange_m + lever_base_m};
+  m.v_tcp_base_mps = fm.velocity_of(lever_base_m);
+  m.omega_base_radps = fm.omega_base_radps;
+  return m;
+}
+
+Eigen::Matrix<double, 6, 6> RobotEmulator::jacobian(const sim::JointVector& q_rad) const {
+  // Column i is the TCP twist for a unit rate of joint i alone.
+  Eigen::Matrix<double, 6, 6> J;
+  const sim::JointVector zero{};
+  for (int i = 0; i < 6; ++i) {
+    sim::JointVector qd{};
+    qd[i] = 1.0;
+    const sim::FlangeMotion fm = sim::flange_motion(q_rad, qd, zero);
+    J.block<3, 1>(0, i) = fm.velocity_of(fm.R_base_flange * config_.p_flange_tcp_m);
+    J.block<3, 1>(3, i) = fm.omega_base_radps;
+  }
+  return J;
+}
+
+CorrectionOutcome RobotEmulator::clamp_command() {
+  CorrectionOutcome out;
+  for (int i = 0; i < 6; ++i) {
+    const double q = std::clamp(q_cmd_rad_[i], limits_.lower_rad[i], limits_.upper_rad[i]);
+    if (q != q_cmd_rad_[i]) out.clamped = true;
+    q_cmd_rad_[i] = q;
+  }
+  if (out.clamped) ++counters_.clamped_commands;
+  return out;
+}
+
+CorrectionOutcome RobotEmulator::apply_rkorr(const proto::rsi::Correction& correction) {
+  const proto::rsi::PoseSi si =
+      proto::rsi::to_si({correction.x_mm, correction.y_mm, correction.z_mm, correction.a_deg,
+                         correction.b_deg, correction.c_deg});
+  const TcpPose old_pose = tcp_pose(q_cmd_rad_);
+  const Eigen::Vector3d p_target =
+      old_pose.p_base_tcp_m + Eigen::Map<const Eigen::Vector3d>(si.position_m.data());
+  const Eigen::Matrix3d R_target =
+      model::rotation_from_kuka_abc(si.abc_rad[0], si.abc_rad[1], si.abc_rad[2]) *
+      old_pose.R_base_tcp;
+
+  // Damped least squares with damping only near a singularity (Chiaverini, "Singularity-robust
+  // task-priority redundancy resolution", IEEE T-RA 13(3), 1997, eq. 12–13):
+  // Δq = Σ σᵢ / (σᵢ² + λ²) vᵢ uᵢᵀ e, λ² = λ_max² (1 − (σ_min / ε)²) for σ_min < ε, else 0.
+  // Newton steps from q_cmd: the first is the plain Jacobian step, the next remove its
+  // second-order error.
+  CorrectionOutcome out;
+  out.sigma_min = std::numeric_limits<double>::infinity();
+  sim::JointVector q = q_cmd_rad_;
+  for (int k = 0; k < config_.ik_iterations; ++k) {
+    const TcpPose now = tcp_pose(q);
+    Eigen::Matrix<double, 6, 1> e;
+    e.head<3>() = p_target - now.p_base_tcp_m;
+    const Eigen::AngleAxisd rotation(R_target * now.R_base_tcp.transpose());
+    e.tail<3>() = rotation.angle() * rotation.axis();
+    if (e.norm() < 1e-13) break;
+    const Eigen::JacobiSVD<Eigen::Matrix<double, 6, 6>> svd(
+        jacobian(q), Eigen::ComputeFullU | Eigen::ComputeFullV);
+    const auto& sigma = svd.singularValues();
+    const double sigma_min = sigma[5];
+    out.sigma_min = std::min(out.sigma_min, sigma_min);
+    double lambda2 = 0.0;
+    if (sigma_min < config_.singular_threshold) {
+      const double r = sigma_min / config_.singular_threshold;
+      lambda2 = config_.max_damping * config_.max_damping * (1.0 - r * r);
+      out.near_singular = true;
+    }
+    const Eigen::Matrix<double, 6, 1> ue = svd.matrixU().transpose() * e;
+    Eigen::Matrix<double, 6, 1> scaled;
+    for (int i = 0; i < 6; ++i) {
+      const double d = sigma[i] * sigma[i] + lambda2;
+      scaled[i] = d > 0.0 ? sigma[i] / d * ue[i] : 0.0;
+    }
+    const Eigen::Matrix<double, 6, 1> dq = svd.matrixV() * scaled;
+    for (int i = 0; i < 6; ++i) q[i] += dq[i];
+  }
+  q_cmd_rad_ = q;
+  const CorrectionOutcome clamped = clamp_command();
+  out.clamped = clamped.clamped;
+  if (out.near_singular) ++counters_.near_singular_cycles;
+  ++counters_.rkorr_applied;
+  return out;
+}
+
+CorrectionOutcome RobotEmulator::apply_akorr(const std::array<double, 6>& akorr_deg) {
+  const std::array<double, 6> rad = proto::rsi::joints_to_rad(akorr_deg);
+  for (int i = 0; i < 6; ++i) q_cmd_rad_[i] += rad[i];
+  ++counters_.akorr_applied;
+  return clamp_command();
+}
+
+void RobotEmulator::step() {
+  const double w2 = omega_radps_ * omega_radps_;
+  for (int i = 0; i < 6; ++i) {
+    const Eigen::Vector2d x(actual_.q_rad[i] - q_cmd_rad_[i], actual_.qd_radps[i]);
+    const Eigen::Vector2d next = phi_ * x;
+    actual_.q_rad[i] = q_cmd_rad_[i] + next[0];
+    actual_.qd_radps[i] = next[1];
+    actual_.qdd_radps2[i] = -w2 * next[0] - 2.0 * omega_radps_ * next[1];
+  }
+  ++counters_.servo_steps;
+}
+
+proto::rsi::RobotMessage RobotEmulator::message(std::uint64_t ipoc, std::uint64_t delay) const {
+  const TcpPose pose = tcp_pose(actual_.q_rad);
+  const Eigen::Vector3d abc = model::kuka_abc_from_rotation(pose.R_base_tcp);
+  const proto::rsi::Correction c = proto::rsi::correction_from_si(
+      {pose.p_base_tcp_m.x(), pose.p_base_tcp_m.y(), pose.p_base_tcp_m.z()},
+      {abc.x(), abc.y(), abc.z()});
+  proto::rsi::RobotMessage m;
+  m.actual_pose = {c.x_mm, c.y_mm, c.z_mm, c.a_deg, c.b_deg, c.c_deg};
+  for (int i = 0; i < 6; ++i) m.joints_deg[i] = actual_.q_rad[i] / proto::rsi::kRadPerDeg;
+  m.has_delay = true;
+  m.delay = delay;
+  m.ipoc = ipoc;
+  return m;
+}
+
+}  // namespace zerog::emu

@@ -1,0 +1,4 @@
+# zerog::emu (helper emurobot): the robot controller emulator (with an end-to-end run of the robot
+# loop against a UDP responder), the payload physics with pushes, the scenario file.
+zerog_add_test(emu_test SOURCES emu/robot_test.cpp emu/physics_test.cpp emu/scenario_test.cpp
+               LIBS zerog::emu zerog::model)
