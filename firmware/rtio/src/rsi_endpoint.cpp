@@ -129,8 +129,18 @@ RobotReceiveStatus RsiEndpoint::receive(rsi::RobotMessage& out) {
 RobotReplyStatus RsiEndpoint::reply(const rsi::Correction& correction, std::uint64_t ipoc) {
   if (fd_ < 0) return RobotReplyStatus::not_started;
   if (!have_peer_) return RobotReplyStatus::no_peer;
-  const rsi::FormatResult formatted =
-      rsi::format_reply(correction, ipoc, tx_, {sensor_type_.data(), sensor_type_length_});
+  return send(rsi::format_reply(correction, ipoc, tx_, {sensor_type_.data(), sensor_type_length_}));
+}
+
+RobotReplyStatus RsiEndpoint::reply_axes(const std::array<double, 6>& akorr_deg,
+                                         std::uint64_t ipoc) {
+  if (fd_ < 0) return RobotReplyStatus::not_started;
+  if (!have_peer_) return RobotReplyStatus::no_peer;
+  return send(
+      rsi::format_axis_reply(akorr_deg, ipoc, tx_, {sensor_type_.data(), sensor_type_length_}));
+}
+
+RobotReplyStatus RsiEndpoint::send(const rsi::FormatResult& formatted) {
   if (formatted.status != rsi::FormatStatus::ok) {
     ++counters_.bad_corrections;
     return RobotReplyStatus::bad_correction;

@@ -164,43 +164,12 @@ bool column_written(int c, const Columns& columns) {
   return true;
 }
 
-// t_s is written with the shortest text that reads back exactly: at 9 digits a long log at
-// 1–2 kHz would round neighbouring times onto each other (t = 20000 s keeps only 0.1 ms).
-// Everything else gets 9 significant digits, far below any sensor's resolution.
 std::string format_log_csv(const Log& log) {
   std::string out;
   out.reserve(64 + log.samples.size() * 16 * kNumCols);
-  out += std::string(kVersionPrefix) + " " + std::to_string(kLogFormatVersion) + "\n";
-  bool first = true;
-  for (int c = 0; c < kNumCols; ++c) {
-    if (!column_written(c, log.columns)) continue;
-    if (!first) out += ',';
-    out += kColumnNames[c];
-    first = false;
-  }
-  out += '\n';
-  double previous_t = 0.0;
-  for (std::size_t i = 0; i < log.samples.size(); ++i) {
-    const auto v = sample_values(log.samples[i]);
-    if (i > 0 && !(v[kT] > previous_t)) {
-      throw std::invalid_argument("write_log: sample " + std::to_string(i) +
-                                  ": t_s = " + num(v[kT]) + " does not increase (previous " +
-                                  num(previous_t) + ")");
-    }
-    previous_t = v[kT];
-    first = true;
-    for (int c = 0; c < kNumCols; ++c) {
-      if (!column_written(c, log.columns)) continue;
-      if (!std::isfinite(v[c])) {
-        throw std::invalid_argument("write_log: sample " + std::to_string(i) + ": " +
-                                    std::string(kColumnNames[c]) + " is not finite");
-      }
-      if (!first) out += ',';
-      detail::append_number(out, v[c], c == kT ? 0 : 9);
-      first = false;
-    }
-    out += '\n';
-  }
+  LogCsvWriter writer(log.columns);
+  writer.append_header(out);
+  for (const Sample& sample : log.samples) writer.append_row(sample, out);
   return out;
 }
 
@@ -364,6 +333,46 @@ class PendingFile {
 }  // namespace
 
 // -------------------------------------------------------------------------------------------------
+
+void LogCsvWriter::append_header(std::string& out) const {
+  out += std::string(kVersionPrefix) + " " + std::to_string(kLogFormatVersion) + "\n";
+  bool first = true;
+  for (int c = 0; c < kNumCols; ++c) {
+    if (!column_written(c, columns_)) continue;
+    if (!first) out += ',';
+    out += kColumnNames[c];
+    first = false;
+  }
+  out += '\n';
+}
+
+// t_s is written with the shortest text that reads back exactly: at 9 digits a long log at
+// 1–2 kHz would round neighbouring times onto each other (t = 20000 s keeps only 0.1 ms).
+// Everything else gets 9 significant digits, far below any sensor's resolution.
+void LogCsvWriter::append_row(const Sample& sample, std::string& out) {
+  const auto v = sample_values(sample);
+  const std::size_t i = rows_;
+  if (i > 0 && !(v[kT] > previous_t_)) {
+    throw std::invalid_argument("write_log: sample " + std::to_string(i) + ": t_s = " + num(v[kT]) +
+                                " does not increase (previous " + num(previous_t_) + ")");
+  }
+  for (int c = 0; c < kNumCols; ++c) {
+    if (column_written(c, columns_) && !std::isfinite(v[c])) {
+      throw std::invalid_argument("write_log: sample " + std::to_string(i) + ": " +
+                                  std::string(kColumnNames[c]) + " is not finite");
+    }
+  }
+  bool first = true;
+  for (int c = 0; c < kNumCols; ++c) {
+    if (!column_written(c, columns_)) continue;
+    if (!first) out += ',';
+    detail::append_number(out, v[c], c == kT ? 0 : 9);
+    first = false;
+  }
+  out += '\n';
+  previous_t_ = v[kT];
+  ++rows_;
+}
 
 InputError::InputError(fs::path file, int line, int column, const std::string& why)
     : std::runtime_error(location(file, line, column) + why),

@@ -9,6 +9,7 @@
 #include <string>
 #include <string_view>
 
+#include "alloc_count.hpp"
 #include "udp.hpp"
 #include "zerog/rtio/rsi_endpoint.hpp"
 
@@ -161,6 +162,40 @@ TEST_F(RsiEndpointTest, TimeoutNoPeerAndBadCorrection) {
   EXPECT_EQ(robot_.receive(buffer, 50), -1);
 }
 
+TEST_F(RsiEndpointTest, AxisRepliesCarryAKorrInDegreesAndTheIpoc) {
+  RsiEndpoint endpoint(config());
+  const std::array<double, 6> akorr{0.01, -0.02, 0.0, 0.5, -0.125, 0.00005};
+  EXPECT_EQ(endpoint.reply_axes(akorr, 1), RobotReplyStatus::not_started);
+  ASSERT_EQ(endpoint.start(), RobotStartStatus::ok);
+  EXPECT_EQ(endpoint.reply_axes(akorr, 1), RobotReplyStatus::no_peer);
+  std::array<char, 1024> buffer{};
+  for (std::uint64_t ipoc = 700; ipoc < 720; ++ipoc) {
+    ASSERT_TRUE(robot_.send_to(endpoint.local_port(), test::robot_message(buffer, ipoc)));
+    rsi::RobotMessage m;
+    ASSERT_EQ(endpoint.receive(m), RobotReceiveStatus::message);
+    const std::size_t before = zerog::test::allocation_count();
+    const RobotReplyStatus status = endpoint.reply_axes(akorr, m.ipoc);
+    EXPECT_EQ(zerog::test::allocation_count() - before, 0u);
+    ASSERT_EQ(status, RobotReplyStatus::ok);
+    const long n = robot_.receive(buffer, 1000);
+    ASSERT_GT(n, 0) << "no reply";
+    const std::string_view text(buffer.data(), static_cast<std::size_t>(n));
+    rsi::Reply reply;
+    ASSERT_TRUE(rsi::parse_reply(text, reply).ok()) << text;
+    EXPECT_EQ(reply.ipoc, ipoc);
+    EXPECT_TRUE(reply.has_akorr);
+    EXPECT_FALSE(reply.has_rkorr);
+    for (int k = 0; k < 6; ++k) EXPECT_NEAR(reply.akorr_deg[k], akorr[k], 0.5e-4) << text;
+    EXPECT_EQ(text.substr(0, 17), "<Sen Type=\"zerog\"");
+  }
+  EXPECT_EQ(endpoint.counters().replies, 20u);
+  std::array<double, 6> bad = akorr;
+  bad[3] = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(endpoint.reply_axes(bad, 721), RobotReplyStatus::bad_correction);  // never sent
+  EXPECT_EQ(endpoint.counters().bad_corrections, 1u);
+  EXPECT_EQ(robot_.receive(buffer, 50), -1);
+}
+
 TEST_F(RsiEndpointTest, BadConfigurationIsRefused) {
   RsiEndpointConfig c = config();
   c.robot_address = "robot.local";  // addresses only, no name lookup
@@ -187,6 +222,18 @@ TEST(FakeRobotLink, RecordsReplies) {
   ASSERT_EQ(fake.reply_count(), 1u);
   EXPECT_EQ(fake.reply_at(0).ipoc, 42u);
   EXPECT_EQ(fake.receive(got), RobotReceiveStatus::timeout);
+  EXPECT_FALSE(fake.reply_at(0).axis);
+  const std::array<double, 6> akorr{0.1, 0, 0, 0, 0, -0.2};
+  EXPECT_EQ(fake.reply_axes(akorr, 43), RobotReplyStatus::ok);
+  ASSERT_EQ(fake.reply_count(), 2u);
+  EXPECT_TRUE(fake.reply_at(1).axis);
+  EXPECT_EQ(fake.reply_at(1).ipoc, 43u);
+  EXPECT_EQ(fake.reply_at(1).akorr_deg, akorr);
+  std::array<double, 6> nan = akorr;
+  nan[0] = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(fake.reply_axes(nan, 44), RobotReplyStatus::bad_correction);
+  EXPECT_EQ(fake.reply_count(), 2u);
+  EXPECT_EQ(fake.counters().bad_corrections, 1u);
 }
 
 }  // namespace

@@ -64,17 +64,23 @@ class RobotLink {
   /// Answers the robot (the sender of the last message) with `correction` and `ipoc`.
   /// Real-time safe.
   virtual RobotReplyStatus reply(const proto::rsi::Correction& correction, std::uint64_t ipoc) = 0;
+  /// Answers with axis corrections A1..A6 in degrees (<AKorr>, zerog-rt's collection mode)
+  /// and `ipoc`. Same statuses and counters as reply(). Real-time safe.
+  virtual RobotReplyStatus reply_axes(const std::array<double, 6>& akorr_deg,
+                                      std::uint64_t ipoc) = 0;
   virtual const RobotLinkCounters& counters() const = 0;
 };
 
 /// Scripted RobotLink for tests: receive() returns pushed messages in order, then timeout;
-/// replies are recorded.
+/// replies (RKorr and AKorr) are recorded in the order they were given.
 class FakeRobotLink final : public RobotLink {
  public:
   static constexpr std::size_t kCapacity = 64;
   struct Reply {
-    proto::rsi::Correction correction;
+    proto::rsi::Correction correction;  ///< valid if !axis
     std::uint64_t ipoc = 0;
+    bool axis = false;                  ///< reply_axes(): akorr_deg holds the correction
+    std::array<double, 6> akorr_deg{};  ///< valid if axis
   };
 
   bool push(const proto::rsi::RobotMessage& message);
@@ -85,9 +91,11 @@ class FakeRobotLink final : public RobotLink {
   RobotStartStatus start() override;
   RobotReceiveStatus receive(proto::rsi::RobotMessage& out) override;
   RobotReplyStatus reply(const proto::rsi::Correction& correction, std::uint64_t ipoc) override;
+  RobotReplyStatus reply_axes(const std::array<double, 6>& akorr_deg, std::uint64_t ipoc) override;
   const RobotLinkCounters& counters() const override { return counters_; }
 
  private:
+  RobotReplyStatus record(const Reply& reply, const double* values);
   std::array<proto::rsi::RobotMessage, kCapacity> script_{};
   std::size_t head_ = 0;
   std::size_t count_ = 0;

@@ -47,6 +47,8 @@ class RsiEndpoint final : public RobotLink {
   RobotReceiveStatus receive(proto::rsi::RobotMessage& out) override;
   /// Formats into the preallocated buffer and sends it to the last robot sender. Real-time safe.
   RobotReplyStatus reply(const proto::rsi::Correction& correction, std::uint64_t ipoc) override;
+  /// <Sen><AKorr A1..A6/><IPOC/></Sen> (rsi::format_axis_reply), degrees. Real-time safe.
+  RobotReplyStatus reply_axes(const std::array<double, 6>& akorr_deg, std::uint64_t ipoc) override;
   const RobotLinkCounters& counters() const override { return counters_; }
 
   /// The bound port (useful with bind_port 0).
@@ -56,6 +58,7 @@ class RsiEndpoint final : public RobotLink {
   int last_errno() const { return last_errno_; }
 
  private:
+  RobotReplyStatus send(const proto::rsi::FormatResult& formatted);
   RsiEndpointConfig config_;
   int fd_ = -1;
   std::uint16_t local_port_ = 0;

@@ -90,6 +90,26 @@ void write_log(const Log& log, const std::filesystem::path& csv,
 void write_rig(const Rig& rig, const std::filesystem::path& toml,
                const std::vector<std::filesystem::path>& inputs = {});
 
+/// Streaming writer of the log CSV, for recorders that write rows as they come (zerog-rt):
+/// exactly the text write_log produces (version line, header, then one row per sample, same
+/// number formatting). The caller owns the file; write the rig with write_rig.
+class LogCsvWriter {
+ public:
+  explicit LogCsvWriter(const Columns& columns) : columns_(columns) {}
+  /// Appends the version line and the header line to `out`.
+  void append_header(std::string& out) const;
+  /// Appends one row to `out`. Throws std::invalid_argument (naming the row and the column) for
+  /// a non-finite value or a t_s that does not increase; `out` is unchanged then.
+  void append_row(const Sample& sample, std::string& out);
+  /// Rows appended so far.
+  std::size_t rows() const { return rows_; }
+
+ private:
+  Columns columns_;
+  std::size_t rows_ = 0;
+  double previous_t_ = 0.0;
+};
+
 /// Writes `text` to `path` atomically (temporary file in the same folder, fsync, rename; mode
 /// 0644). Refuses (std::runtime_error) if `path` is one of `inputs` (same file after resolving
 /// symbolic links, `..` and hard links) — inputs are never overwritten. On failure no temporary

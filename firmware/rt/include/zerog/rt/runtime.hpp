@@ -1,0 +1,234 @@
+#pragma once
+// zerog-rt's threads around one loop::Cycle (proto/rt_config.md, "Threads"):
+//
+//   F/T thread     FtSensor::read_sample paced at rate_hz (clock_nanosleep, absolute) → ring
+//   IMU thread     Imu::read_sample → ring; on `disconnected` re-opens every 100 ms
+//   cycle thread   cycle_once(): RobotLink::receive → drain both rings into the cycle → step →
+//                  reply / reply_axes → compute time → record ring; timeout/malformed → robot_lost
+//   recorder       record ring → Recorder (cycles.csv, the log); dumps the frozen black box
+//   main thread    commands (request), supervise() (--enable-zero-g, --collect), status_line()
+//
+// Devices are not owned: main starts them (they may block) and hands them over; tests pass
+// fakes, or none and feed the rings through ft_ring()/imu_ring(). cycle_once() is the cycle
+// thread's whole loop body: real-time safe (no allocation, no locks, no exceptions; proved by
+// tests/unit/rt/cycle_once_test.cpp).
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "zerog/loop/cycle.hpp"
+#include "zerog/rt/config.hpp"
+#include "zerog/rt/latency.hpp"
+#include "zerog/rt/realtime.hpp"
+#include "zerog/rt/recorder.hpp"
+#include "zerog/rtio/ft_sensor.hpp"
+#include "zerog/rtio/imu.hpp"
+#include "zerog/rtio/latest_value.hpp"
+#include "zerog/rtio/robot_link.hpp"
+#include "zerog/rtio/spsc_ring.hpp"
+
+namespace zerog::rt {
+
+struct RuntimeOptions {
+  double ft_rate_hz = 500.0;
+  /// Off by default here (tests); zerog-rt takes the configuration's [realtime].
+  RealtimeSection realtime{false, 0, -1};
+  bool auto_enable_zero_g = false;  ///< --enable-zero-g
+  bool auto_collect = false;        ///< --collect: start collecting as soon as the cycle is ready
+  RecorderOptions recorder;
+  std::chrono::milliseconds imu_reopen_interval{100};
+};
+
+struct RuntimeDevices {
+  rtio::RobotLink* robot = nullptr;  ///< required, started
+  rtio::FtSensor* ft = nullptr;      ///< started; null: no F/T thread (tests feed ft_ring())
+  rtio::Imu* imu = nullptr;          ///< started; null: no IMU thread
+};
+
+/// Published by the cycle thread after every cycle (LatestValue), read by the main thread.
+struct CycleStatus {
+  std::uint64_t cycle = 0;  ///< robot messages handled
+  loop::State state = loop::State::idle;
+  loop::Fault fault = loop::Fault::none;
+  std::uint32_t flags = 0;  ///< of the last record
+  bool ready = false;       ///< last record without kNotReady, kFtHeld, kImuHeld
+  std::int64_t compute_ns = 0;
+  std::uint64_t transitions = 0;  ///< state-machine transitions so far
+  loop::Transition last_transition;
+  std::uint64_t collections_done = 0;
+  std::uint64_t robot_lost = 0;  ///< timeouts + malformed + receive errors
+  std::uint64_t commands_refused = 0;
+};
+
+/// Published by the recorder thread once a second.
+struct RecorderStatus {
+  std::uint64_t records = 0;
+  std::int64_t compute_p99_ns = 0;  ///< over the records of the last second
+  std::uint64_t black_boxes = 0;
+};
+
+/// Counted by the cycle thread (read after stop()).
+struct CycleThreadCounters {
+  std::uint64_t receive_timeouts = 0;
+  std::uint64_t receive_malformed = 0;
+  std::uint64_t receive_errors = 0;  ///< io_error, not_started
+  std::uint64_t replies_ok = 0;
+  std::uint64_t replies_failed = 0;  ///< any other RobotReplyStatus
+  std::uint64_t axis_replies = 0;
+  std::uint64_t samples_discarded = 0;  ///< drained on a lost robot cycle (not averaged)
+  std::uint64_t black_box_releases = 0;
+};
+
+struct SensorThreadCounters {
+  std::uint64_t ft_reads = 0;
+  std::uint64_t ft_overruns = 0;  ///< pacing fell behind by more than a period (resynchronised)
+  std::uint64_t imu_reads = 0;
+  std::uint64_t imu_disconnects = 0;
+  std::uint64_t imu_reopen_attempts = 0;
+  std::uint64_t imu_reopens = 0;
+};
+
+/// What supervise() has to say: stdout lines (the documented announcements) and stderr lines.
+struct SupervisorEvents {
+  std::vector<std::string> out;
+  std::vector<std::string> err;
+};
+
+/// One line of `--commands stdin` (proto/rt_config.md): `enable`, `stop`, `reset`, `collect`,
+/// `quit`, surrounding blanks ignored.
+struct CommandLine {
+  enum class Kind : std::uint8_t { none, command, quit, unknown } kind = Kind::none;
+  loop::Command command = loop::Command::stop;  ///< valid if kind == command
+};
+CommandLine parse_command_line(std::string_view line);
+
+/// A CycleRecord as the record ring holds it: copying fixed-size Eigen members cannot throw, but
+/// Eigen does not say so (noexcept), which SpscRing requires.
+struct RecordSlot {
+  loop::CycleRecord record;
+  RecordSlot() noexcept {}
+  RecordSlot(const RecordSlot&) = default;
+  RecordSlot& operator=(const RecordSlot& other) noexcept {
+    record = other.record;
+    return *this;
+  }
+};
+
+class Runtime {
+ public:
+  using FtRing = rtio::SpscRing<rtio::FtSample, 256>;     // 0.5 s at 500 Hz
+  using ImuRing = rtio::SpscRing<rtio::ImuSample, 1024>;  // 0.5 s at 2 kHz
+  using RecordRing = rtio::SpscRing<RecordSlot, 4096>;    // 16 s at 4 ms
+
+  Runtime(RuntimeOptions options, RuntimeDevices devices);
+  ~Runtime();  ///< stop()
+  Runtime(const Runtime&) = delete;
+  Runtime& operator=(const Runtime&) = delete;
+
+  /// Start-up: the loop's configuration and model; `path` for collection mode (not owned).
+  /// "" or what is wrong.
+  std::string configure(const loop::CycleConfig& config, infer::DeployedModel model,
+                        const loop::JointPath* path = nullptr);
+
+  /// Opens the recorder, locks memory (if configured), starts the threads. "" or why not;
+  /// `warnings` gets the real-time set-up warnings (one line each).
+  std::string start(std::vector<std::string>& warnings);
+
+  /// The cycle thread's loop body: one robot cycle (or one lost one). Real-time safe.
+  void cycle_once() noexcept;
+
+  /// A command for the next cycle (any thread). False if one is already pending.
+  bool request(loop::Command c) noexcept { return cycle_.request(c); }
+
+  /// Main thread, every few ms: --enable-zero-g and --collect requests, announcements.
+  SupervisorEvents supervise();
+  /// True once a --collect path has been followed to its end.
+  bool collection_finished() const { return collection_finished_; }
+  /// The once-a-second status line (main thread).
+  std::string status_line();
+
+  /// Stops the threads in order (cycle, sensors, recorder: it drains and renames its files).
+  /// Idempotent. Returns the recorder's error, if any ("" otherwise).
+  std::string stop();
+
+  /// The run's summary as JSON text (after stop(); proto/rt_config.md, "Summary").
+  std::string summary_json() const;
+  /// Black-box dumps written so far (after stop()).
+  const std::vector<std::filesystem::path>& black_box_paths() const { return black_box_paths_; }
+
+  // Test hooks. The rings' producer side is the sensor thread's; use them only without one.
+  FtRing& ft_ring() { return *ft_ring_; }
+  ImuRing& imu_ring() { return *imu_ring_; }
+  RecordRing& record_ring() { return *record_ring_; }
+  const loop::Cycle& cycle() const { return cycle_; }
+  const CycleThreadCounters& cycle_thread_counters() const { return cycle_counters_; }
+  const LatencyHistogram& compute_histogram() const { return compute_ns_; }
+  const Recorder* recorder() const { return recorder_.get(); }
+
+ private:
+  void cycle_loop();
+  void ft_loop();
+  void imu_loop();
+  void recorder_loop();
+  void discard_samples() noexcept;
+  void after_cycle() noexcept;
+
+  RuntimeOptions options_;
+  RuntimeDevices devices_;
+  loop::Cycle cycle_;
+  const loop::JointPath* path_ = nullptr;
+
+  std::unique_ptr<FtRing> ft_ring_;
+  std::unique_ptr<ImuRing> imu_ring_;
+  std::unique_ptr<RecordRing> record_ring_;
+
+  // Cycle thread.
+  proto::rsi::RobotMessage message_;
+  loop::CycleReply reply_;
+  rtio::FtSample ft_sample_;
+  rtio::ImuSample imu_sample_;
+  RecordSlot slot_;
+  CycleThreadCounters cycle_counters_;
+  LatencyHistogram compute_ns_;
+  LatencyHistogram reply_ns_;  ///< receive returned → reply sent
+  std::uint64_t collections_done_ = 0;
+  rtio::LatestValue<CycleStatus> cycle_status_;
+
+  // Black-box handover: 0 recording, 1 frozen (cycle → recorder), 2 dumped (recorder → cycle).
+  std::atomic<std::uint8_t> box_state_{0};
+
+  // Sensor threads.
+  SensorThreadCounters sensor_counters_;
+
+  // Recorder thread.
+  std::unique_ptr<Recorder> recorder_;
+  std::unique_ptr<RecordSlot> popped_;
+  std::vector<std::int64_t> compute_window_;
+  rtio::LatestValue<RecorderStatus> recorder_status_;
+  std::vector<std::filesystem::path> black_box_paths_;
+  std::string recorder_error_;
+  bool recording_failed_ = false;
+
+  // Main thread.
+  bool auto_done_ = false;
+  bool auto_gave_up_ = false;
+  std::uint64_t requested_at_ = 0;
+  bool requested_ = false;
+  std::uint64_t transitions_seen_ = 0;
+  std::uint64_t collections_seen_ = 0;
+  std::uint64_t refused_seen_ = 0;
+  bool collection_finished_ = false;
+  CycleStatus last_status_;
+  RecorderStatus last_recorder_status_;
+
+  std::atomic<bool> stop_cycle_{false}, stop_sensors_{false}, stop_recorder_{false};
+  Thread cycle_thread_, ft_thread_, imu_thread_, recorder_thread_;
+  bool started_ = false, stopped_ = false;
+};
+
+}  // namespace zerog::rt

@@ -1,0 +1,600 @@
+#include "zerog/rt/runtime.hpp"
+
+#include <time.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+namespace zerog::rt {
+
+namespace {
+
+std::int64_t monotonic_ns() noexcept {
+  timespec ts{};
+  ::clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+void sleep_ns(std::int64_t ns) noexcept {
+  timespec ts{};
+  ts.tv_sec = static_cast<time_t>(ns / 1'000'000'000);
+  ts.tv_nsec = static_cast<long>(ns % 1'000'000'000);
+  while (::clock_nanosleep(CLOCK_MONOTONIC, 0, &ts, &ts) == EINTR) {
+  }
+}
+
+constexpr std::uint32_t kNotReadyFlags = loop::kNotReady | loop::kFtHeld | loop::kImuHeld;
+
+// Names of rsi::ParseStatus, in enum order (RobotLinkCounters::malformed_by_status).
+constexpr const char* kParseStatusNames[] = {"ok",
+                                             "too_long",
+                                             "truncated",
+                                             "syntax",
+                                             "unsupported",
+                                             "wrong_root",
+                                             "unexpected_content",
+                                             "too_deep",
+                                             "duplicate_element",
+                                             "missing_element",
+                                             "missing_attribute",
+                                             "unknown_attribute",
+                                             "duplicate_attribute",
+                                             "bad_number"};
+static_assert(std::size(kParseStatusNames) == rtio::kParseStatusCount,
+              "a ParseStatus was added: name it here");
+
+std::string transition_text(const loop::Transition& t) {
+  return std::string(loop::state_name(t.from)) + " -> " + loop::state_name(t.to) + " (" +
+         (t.by_fault ? std::string("fault ") + loop::fault_name(t.fault)
+                     : std::string(loop::command_name(t.command))) +
+         ")";
+}
+
+nlohmann::json latency_json(const LatencyHistogram& h) {
+  return {{"count", h.count()},
+          {"median", h.quantile(0.5)},
+          {"p99", h.quantile(0.99)},
+          {"p99_9", h.quantile(0.999)},
+          {"max", h.max()}};
+}
+
+template <typename Ring>
+nlohmann::json ring_json(const Ring& r) {
+  return {{"capacity", Ring::capacity()},
+          {"pushed", r.pushed()},
+          {"popped", r.popped()},
+          {"dropped", r.dropped()}};
+}
+
+}  // namespace
+
+CommandLine parse_command_line(std::string_view line) {
+  const auto blank = [](char c) { return c == ' ' || c == '\t' || c == '\r'; };
+  while (!line.empty() && blank(line.back())) line.remove_suffix(1);
+  while (!line.empty() && blank(line.front())) line.remove_prefix(1);
+  CommandLine out;
+  if (line.empty()) return out;
+  out.kind = CommandLine::Kind::command;
+  if (line == "enable") {
+    out.command = loop::Command::enable_zero_g;
+  } else if (line == "stop") {
+    out.command = loop::Command::stop;
+  } else if (line == "reset") {
+    out.command = loop::Command::reset_fault;
+  } else if (line == "collect") {
+    out.command = loop::Command::start_collection;
+  } else if (line == "quit") {
+    out.kind = CommandLine::Kind::quit;
+  } else {
+    out.kind = CommandLine::Kind::unknown;
+  }
+  return out;
+}
+
+Runtime::Runtime(RuntimeOptions options, RuntimeDevices devices)
+    : options_(std::move(options)),
+      devices_(devices),
+      ft_ring_(std::make_unique<FtRing>()),
+      imu_ring_(std::make_unique<ImuRing>()),
+      record_ring_(std::make_unique<RecordRing>()),
+      popped_(std::make_unique<RecordSlot>()) {
+  compute_window_.reserve(4096);
+}
+
+Runtime::~Runtime() { stop(); }
+
+std::string Runtime::configure(const loop::CycleConfig& config, infer::DeployedModel model,
+                               const loop::JointPath* path) {
+  if (devices_.robot == nullptr) return "no robot link";
+  if (std::string why = cycle_.configure(config, std::move(model)); !why.empty()) return why;
+  path_ = path;
+  cycle_.set_collection_path(path);
+  return {};
+}
+
+std::string Runtime::start(std::vector<std::string>& warnings) {
+  if (started_) return "already started";
+  try {
+    recorder_ = std::make_unique<Recorder>(options_.recorder);
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  if (options_.realtime.lock_memory) {
+    if (std::string w = lock_memory(); !w.empty()) warnings.push_back(std::move(w));
+  }
+  const int priority = options_.realtime.priority;
+  const int sensor_priority = priority > 1 ? priority - 1 : priority;
+  std::vector<std::string> refused;
+  int sched_error = 0;
+  auto launch = [&](Thread& thread, const char* name, void (Runtime::*body)(), int prio,
+                    int cpu) -> std::string {
+    ThreadSetup setup;
+    std::string error = thread.start(
+        name, [this, body] { (this->*body)(); }, prio, cpu, setup);
+    if (!error.empty()) return error;
+    if (setup.sched_error != 0) {
+      refused.emplace_back(name);
+      sched_error = setup.sched_error;
+    }
+    if (setup.affinity_error != 0) {
+      warnings.push_back(affinity_warning(name, cpu, setup.affinity_error));
+    }
+    return {};
+  };
+  started_ = true;
+  std::string error = launch(recorder_thread_, "recorder", &Runtime::recorder_loop, 0, -1);
+  if (error.empty() && devices_.imu != nullptr)
+    error = launch(imu_thread_, "imu", &Runtime::imu_loop, sensor_priority, -1);
+  if (error.empty() && devices_.ft != nullptr)
+    error = launch(ft_thread_, "ft", &Runtime::ft_loop, sensor_priority, -1);
+  if (error.empty())
+    error = launch(cycle_thread_, "cycle", &Runtime::cycle_loop, priority, options_.realtime.cpu);
+  if (!refused.empty()) {
+    std::string names;
+    for (const std::string& n : refused) names += (names.empty() ? "" : ", ") + n;
+    warnings.push_back(sched_warning("the " + names + " threads", priority, sched_error));
+  }
+  if (!error.empty()) stop();
+  return error;
+}
+
+// --- cycle thread ---------------------------------------------------------------------------
+
+void Runtime::cycle_loop() {
+  prefault_stack();
+  while (!stop_cycle_.load(std::memory_order_relaxed)) cycle_once();
+}
+
+void Runtime::discard_samples() noexcept {
+  while (ft_ring_->try_pop(ft_sample_)) ++cycle_counters_.samples_discarded;
+  while (imu_ring_->try_pop(imu_sample_)) ++cycle_counters_.samples_discarded;
+}
+
+void Runtime::cycle_once() noexcept {
+  rtio::RobotLink& robot = *devices_.robot;
+  const rtio::RobotReceiveStatus received = robot.receive(message_);
+  if (received != rtio::RobotReceiveStatus::message) {
+    switch (received) {
+      case rtio::RobotReceiveStatus::timeout:
+        ++cycle_counters_.receive_timeouts;
+        cycle_.robot_lost(loop::RobotLoss::timeout);
+        break;
+      case rtio::RobotReceiveStatus::malformed:
+        ++cycle_counters_.receive_malformed;
+        cycle_.robot_lost(loop::RobotLoss::malformed);
+        break;
+      default:  // io_error, not_started: nothing came; do not spin
+        ++cycle_counters_.receive_errors;
+        cycle_.robot_lost(loop::RobotLoss::timeout);
+        sleep_ns(1'000'000);
+        break;
+    }
+    // Samples of a lost cycle would make the next row a mean over a longer, older window.
+    discard_samples();
+    after_cycle();
+    return;
+  }
+  const std::int64_t t_received = monotonic_ns();
+  while (ft_ring_->try_pop(ft_sample_)) cycle_.add_ft(ft_sample_);
+  while (imu_ring_->try_pop(imu_sample_)) cycle_.add_imu(imu_sample_);
+
+  const std::int64_t t0 = monotonic_ns();
+  cycle_.step(message_, reply_);
+  const std::int64_t t1 = monotonic_ns();
+  const rtio::RobotReplyStatus sent = reply_.axis ? robot.reply_axes(reply_.akorr_deg, reply_.ipoc)
+                                                  : robot.reply(reply_.rkorr, reply_.ipoc);
+  const std::int64_t t2 = monotonic_ns();
+  if (sent == rtio::RobotReplyStatus::ok) {
+    ++cycle_counters_.replies_ok;
+  } else {
+    ++cycle_counters_.replies_failed;
+  }
+  if (reply_.axis) ++cycle_counters_.axis_replies;
+
+  loop::CycleRecord& record = cycle_.last_mutable();
+  record.compute_ns = t1 - t0;
+  compute_ns_.add(t1 - t0);
+  reply_ns_.add(t2 - t_received);
+  if ((record.flags & loop::kCollectionDone) != 0) ++collections_done_;
+  slot_.record = record;
+  record_ring_->try_push(slot_);  // a full ring drops the record (counted by the ring)
+  after_cycle();
+}
+
+void Runtime::after_cycle() noexcept {
+  // Black box: publish a freshly frozen box to the recorder; release it once dumped and the
+  // fault has been reset.
+  const std::uint8_t box = box_state_.load(std::memory_order_acquire);
+  if (box == 0 && cycle_.black_box().frozen()) {
+    box_state_.store(1, std::memory_order_release);
+  } else if (box == 2 && cycle_.state_machine().state() != loop::State::fault) {
+    cycle_.release_black_box();
+    ++cycle_counters_.black_box_releases;
+    box_state_.store(0, std::memory_order_release);
+  }
+
+  const loop::CycleRecord& r = cycle_.last();
+  const loop::StateMachine& sm = cycle_.state_machine();
+  CycleStatus s;
+  s.cycle = r.cycle;
+  s.state = sm.state();
+  s.fault = sm.fault();
+  s.flags = r.flags;
+  s.ready = r.cycle > 0 && (r.flags & kNotReadyFlags) == 0;
+  s.compute_ns = r.compute_ns;
+  s.transitions = sm.total_transitions();
+  if (sm.log_size() > 0) s.last_transition = sm.log_at(sm.log_size() - 1);
+  s.collections_done = collections_done_;
+  s.robot_lost = cycle_counters_.receive_timeouts + cycle_counters_.receive_malformed +
+                 cycle_counters_.receive_errors;
+  s.commands_refused = cycle_.counters().commands_refused;
+  cycle_status_.publish(s);
+}
+
+// --- sensor threads -------------------------------------------------------------------------
+
+void Runtime::ft_loop() {
+  prefault_stack();
+  rtio::FtSensor& ft = *devices_.ft;
+  const auto period_ns = static_cast<std::int64_t>(1e9 / options_.ft_rate_hz + 0.5);
+  std::int64_t next = monotonic_ns();
+  rtio::FtSample sample;
+  while (!stop_sensors_.load(std::memory_order_relaxed)) {
+    const rtio::FtReadStatus st = ft.read_sample(sample);
+    ++sensor_counters_.ft_reads;
+    if (st == rtio::FtReadStatus::sample) ft_ring_->try_push(sample);  // full: counted drop
+    next += period_ns;
+    const std::int64_t now = monotonic_ns();
+    if (next < now - period_ns) {  // fell behind by more than a period: start afresh
+      ++sensor_counters_.ft_overruns;
+      next = now;
+    }
+    timespec ts{};
+    ts.tv_sec = static_cast<time_t>(next / 1'000'000'000);
+    ts.tv_nsec = static_cast<long>(next % 1'000'000'000);
+    while (::clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
+    }
+  }
+}
+
+void Runtime::imu_loop() {
+  prefault_stack();
+  rtio::Imu& imu = *devices_.imu;
+  rtio::ImuSample sample;
+  const std::int64_t reopen_ns =
+      std::chrono::duration_cast<std::chrono::nanoseconds>(options_.imu_reopen_interval).count();
+  while (!stop_sensors_.load(std::memory_order_relaxed)) {
+    const rtio::ImuReadStatus st = imu.read_sample(sample);
+    ++sensor_counters_.imu_reads;
+    switch (st) {
+      case rtio::ImuReadStatus::sample:
+        imu_ring_->try_push(sample);
+        break;
+      case rtio::ImuReadStatus::disconnected:
+        ++sensor_counters_.imu_disconnects;
+        while (!stop_sensors_.load(std::memory_order_relaxed)) {
+          sleep_ns(reopen_ns);
+          ++sensor_counters_.imu_reopen_attempts;
+          if (imu.start() == rtio::ImuStartStatus::ok) {
+            ++sensor_counters_.imu_reopens;
+            break;
+          }
+        }
+        break;
+      case rtio::ImuReadStatus::timeout:
+        break;
+      default:  // io_error, not_started: do not spin
+        sleep_ns(1'000'000);
+        break;
+    }
+  }
+}
+
+// --- recorder thread ------------------------------------------------------------------------
+
+void Runtime::recorder_loop() {
+  std::int64_t next_status = monotonic_ns() + 1'000'000'000;
+  auto publish = [&] {
+    RecorderStatus s;
+    s.records = recorder_->counters().records;
+    s.black_boxes = black_box_paths_.size();
+    if (!compute_window_.empty()) {
+      const auto k =
+          static_cast<std::ptrdiff_t>(0.99 * static_cast<double>(compute_window_.size() - 1));
+      std::nth_element(compute_window_.begin(), compute_window_.begin() + k, compute_window_.end());
+      s.compute_p99_ns = compute_window_[static_cast<std::size_t>(k)];
+    }
+    compute_window_.clear();
+    recorder_status_.publish(s);
+  };
+  while (true) {
+    const bool stopping = stop_recorder_.load(std::memory_order_acquire);
+    int taken = 0;
+    while (taken < 4096 && record_ring_->try_pop(*popped_)) {
+      ++taken;
+      compute_window_.push_back(popped_->record.compute_ns);
+      if (recording_failed_) continue;
+      try {
+        recorder_->add(popped_->record);
+      } catch (const std::exception& e) {
+        recording_failed_ = true;
+        recorder_error_ = std::string("recording stopped: ") + e.what();
+        std::fprintf(stderr, "zerog-rt: %s\n", recorder_error_.c_str());
+      }
+    }
+    if (box_state_.load(std::memory_order_acquire) == 1) {
+      // The box is frozen: the cycle thread does not write it until we hand it back.
+      try {
+        const std::filesystem::path path = recorder_->dump_black_box(cycle_.black_box());
+        black_box_paths_.push_back(path);
+        const loop::Cycle::Box& box = cycle_.black_box();
+        std::fprintf(
+            stderr, "zerog-rt: black box (%zu cycles, fault %s at cycle %llu) written to %s\n",
+            box.size(), box.size() > 0 ? loop::fault_name(box.at(box.size() - 1).fault) : "none",
+            static_cast<unsigned long long>(box.size() > 0 ? box.at(box.size() - 1).cycle : 0),
+            path.c_str());
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "zerog-rt: cannot write the black box: %s\n", e.what());
+      }
+      box_state_.store(2, std::memory_order_release);
+    }
+    const std::int64_t now = monotonic_ns();
+    if (now >= next_status) {
+      publish();
+      next_status = now + 1'000'000'000;
+    }
+    if (stopping && record_ring_->size_approx() == 0) break;
+    if (taken == 0) sleep_ns(2'000'000);
+  }
+  publish();
+  if (!recording_failed_) {
+    try {
+      recorder_->finish();
+    } catch (const std::exception& e) {
+      recorder_error_ = std::string("cannot finish the recording: ") + e.what();
+    }
+  }
+}
+
+// --- main thread ----------------------------------------------------------------------------
+
+SupervisorEvents Runtime::supervise() {
+  SupervisorEvents ev;
+  CycleStatus s;
+  if (cycle_status_.read(s) == rtio::LatestRead::empty) return ev;
+  last_status_ = s;
+  if (s.transitions != transitions_seen_) {
+    if (s.transitions > transitions_seen_ + 1) {
+      ev.err.push_back("zerog-rt: " + std::to_string(s.transitions - transitions_seen_ - 1) +
+                       " more state transitions (in the summary)");
+    }
+    ev.err.push_back("zerog-rt: cycle " + std::to_string(s.last_transition.cycle) + ": " +
+                     transition_text(s.last_transition));
+    transitions_seen_ = s.transitions;
+  }
+  const bool automatic = options_.auto_enable_zero_g || options_.auto_collect;
+  if (automatic && !auto_done_ && !auto_gave_up_) {
+    const loop::State target =
+        options_.auto_enable_zero_g ? loop::State::zero_g : loop::State::collecting;
+    if (s.state == target) {
+      const std::uint64_t at = s.last_transition.to == target ? s.last_transition.cycle : s.cycle;
+      ev.out.push_back(std::string("zerog-rt: ") +
+                       (options_.auto_enable_zero_g ? "zero-g enabled" : "collection started") +
+                       " at cycle " + std::to_string(at));
+      auto_done_ = true;
+    } else if (s.state == loop::State::fault) {
+      ev.err.push_back(std::string("zerog-rt: ") +
+                       (options_.auto_enable_zero_g ? "--enable-zero-g" : "--collect") +
+                       " gave up: fault " + loop::fault_name(s.fault) + " before it started");
+      auto_gave_up_ = true;
+    } else if (s.state == loop::State::idle && s.ready &&
+               (!requested_ || s.cycle > requested_at_)) {
+      if (cycle_.request(options_.auto_enable_zero_g ? loop::Command::enable_zero_g
+                                                     : loop::Command::start_collection)) {
+        requested_ = true;
+        requested_at_ = s.cycle;
+      }
+    }
+  }
+  if (s.commands_refused != refused_seen_) {
+    refused_seen_ = s.commands_refused;
+    ev.err.push_back(std::string("zerog-rt: command refused in state ") +
+                     loop::state_name(s.state) + " (proto/states.md)");
+  }
+  if (s.collections_done != collections_seen_) {
+    collections_seen_ = s.collections_done;
+    ev.out.push_back("zerog-rt: collection finished at cycle " + std::to_string(s.cycle));
+    if (options_.auto_collect) collection_finished_ = true;
+  }
+  return ev;
+}
+
+std::string Runtime::status_line() {
+  CycleStatus s = last_status_;
+  cycle_status_.read(s);
+  RecorderStatus r = last_recorder_status_;
+  recorder_status_.read(r);
+  last_recorder_status_ = r;
+  char buffer[256];
+  std::snprintf(
+      buffer, sizeof buffer,
+      "zerog-rt: state %s, fault %s, cycles %llu, robot lost %llu, compute p99 %.1f us, "
+      "records %llu (dropped %llu)",
+      loop::state_name(s.state), loop::fault_name(s.fault),
+      static_cast<unsigned long long>(s.cycle), static_cast<unsigned long long>(s.robot_lost),
+      static_cast<double>(r.compute_p99_ns) * 1e-3, static_cast<unsigned long long>(r.records),
+      static_cast<unsigned long long>(record_ring_->dropped()));
+  return buffer;
+}
+
+std::string Runtime::stop() {
+  if (stopped_ || !started_) {
+    stopped_ = stopped_ || !started_;
+    return recorder_error_;
+  }
+  stop_cycle_.store(true, std::memory_order_relaxed);
+  cycle_thread_.join();
+  stop_sensors_.store(true, std::memory_order_relaxed);
+  ft_thread_.join();
+  imu_thread_.join();
+  stop_recorder_.store(true, std::memory_order_release);
+  recorder_thread_.join();
+  stopped_ = true;
+  return recorder_error_;
+}
+
+// --- summary --------------------------------------------------------------------------------
+
+std::string Runtime::summary_json() const {
+  using nlohmann::json;
+  const loop::CycleCounters& c = cycle_.counters();
+  json cycles = {{"messages", c.messages},
+                 {"robot_timeouts", c.robot_timeouts},
+                 {"robot_malformed", c.robot_malformed},
+                 {"ipoc_gaps", c.ipoc_gaps},
+                 {"datagrams_lost", c.datagrams_lost},
+                 {"ipoc_stale", c.ipoc_stale},
+                 {"ft_samples", c.ft_samples},
+                 {"ft_invalid", c.ft_invalid},
+                 {"ft_held_cycles", c.ft_held_cycles},
+                 {"imu_samples", c.imu_samples},
+                 {"imu_invalid", c.imu_invalid},
+                 {"imu_held_cycles", c.imu_held_cycles},
+                 {"sample_overflow", c.sample_overflow},
+                 {"model_saturated", c.model_saturated},
+                 {"commands_refused", c.commands_refused}};
+  const CycleThreadCounters& t = cycle_counters_;
+  json cycle_thread = {
+      {"receive_timeouts", t.receive_timeouts},   {"receive_malformed", t.receive_malformed},
+      {"receive_errors", t.receive_errors},       {"replies_ok", t.replies_ok},
+      {"replies_failed", t.replies_failed},       {"axis_replies", t.axis_replies},
+      {"samples_discarded", t.samples_discarded}, {"black_box_releases", t.black_box_releases}};
+  json devices = json::object();
+  {
+    const rtio::RobotLinkCounters& r = devices_.robot->counters();
+    json by_status = json::object();
+    for (std::size_t i = 0; i < rtio::kParseStatusCount; ++i) {
+      if (r.malformed_by_status[i] != 0) by_status[kParseStatusNames[i]] = r.malformed_by_status[i];
+    }
+    devices["robot"] = {{"datagrams", r.datagrams},
+                        {"messages", r.messages},
+                        {"foreign", r.foreign},
+                        {"malformed", r.malformed},
+                        {"malformed_by_status", by_status},
+                        {"timeouts", r.timeouts},
+                        {"io_errors", r.io_errors},
+                        {"replies", r.replies},
+                        {"reply_would_block", r.reply_would_block},
+                        {"reply_errors", r.reply_errors},
+                        {"bad_corrections", r.bad_corrections}};
+  }
+  if (devices_.ft != nullptr) {
+    const rtio::FtCounters f = devices_.ft->counters();
+    devices["ft"] = {{"requests", f.requests},
+                     {"samples", f.samples},
+                     {"samples_warning", f.samples_warning},
+                     {"samples_critical", f.samples_critical},
+                     {"samples_saturated", f.samples_saturated},
+                     {"timeouts", f.timeouts},
+                     {"stale_frames", f.stale_frames},
+                     {"stray_frames", f.stray_frames},
+                     {"wrong_length", f.wrong_length},
+                     {"out_of_order", f.out_of_order},
+                     {"dropped_incomplete", f.dropped_incomplete},
+                     {"error_frames", f.error_frames},
+                     {"kernel_drops", f.kernel_drops},
+                     {"bad_length", f.bad_length},
+                     {"tx_would_block", f.tx_would_block},
+                     {"io_errors", f.io_errors},
+                     {"thread_reads", sensor_counters_.ft_reads},
+                     {"thread_overruns", sensor_counters_.ft_overruns}};
+  }
+  if (devices_.imu != nullptr) {
+    const rtio::ImuCounters i = devices_.imu->counters();
+    devices["imu"] = {{"samples", i.samples},
+                      {"invalid_samples", i.invalid_samples},
+                      {"bytes_read", i.bytes_read},
+                      {"bytes_skipped", i.bytes_skipped},
+                      {"crc_failures", i.crc_failures},
+                      {"sync_losses", i.sync_losses},
+                      {"counter_gaps", i.counter_gaps},
+                      {"datagrams_missed", i.datagrams_missed},
+                      {"timeouts", i.timeouts},
+                      {"disconnects", i.disconnects},
+                      {"io_errors", i.io_errors},
+                      {"thread_reads", sensor_counters_.imu_reads},
+                      {"thread_disconnects", sensor_counters_.imu_disconnects},
+                      {"reopen_attempts", sensor_counters_.imu_reopen_attempts},
+                      {"reopens", sensor_counters_.imu_reopens}};
+  }
+  json rings = {{"ft", ring_json(*ft_ring_)},
+                {"imu", ring_json(*imu_ring_)},
+                {"records", ring_json(*record_ring_)}};
+  const loop::StateMachine& sm = cycle_.state_machine();
+  json transitions = json::array();
+  for (std::size_t i = 0; i < sm.log_size(); ++i) {
+    const loop::Transition& tr = sm.log_at(i);
+    json j = {
+        {"cycle", tr.cycle}, {"from", loop::state_name(tr.from)}, {"to", loop::state_name(tr.to)}};
+    if (tr.by_fault) {
+      j["fault"] = loop::fault_name(tr.fault);
+    } else {
+      j["command"] = loop::command_name(tr.command);
+    }
+    transitions.push_back(j);
+  }
+  json boxes = json::array();
+  for (const auto& p : black_box_paths_) boxes.push_back(p.string());
+  json recording = nullptr;
+  if (recorder_ != nullptr && recorder_->recording()) {
+    const RecorderCounters& rc = recorder_->counters();
+    recording = {{"log", recorder_->log_path().string()},
+                 {"cycles", recorder_->cycles_path().string()},
+                 {"records", rc.records},
+                 {"log_rows", rc.log_rows},
+                 {"skipped_stale", rc.skipped_stale},
+                 {"skipped_no_samples", rc.skipped_no_samples},
+                 {"rejected", rc.rejected},
+                 {"records_dropped", record_ring_->dropped()},
+                 {"error", recorder_error_}};
+  }
+  json out = {{"format", "zerog-rt-summary"},
+              {"version", 1},
+              {"state", loop::state_name(sm.state())},
+              {"fault", loop::fault_name(sm.fault())},
+              {"cycles", cycles},
+              {"cycle_thread", cycle_thread},
+              {"devices", devices},
+              {"rings", rings},
+              {"transitions", transitions},
+              {"transitions_total", sm.total_transitions()},
+              {"compute_ns", latency_json(compute_ns_)},
+              {"reply_latency_ns", latency_json(reply_ns_)},
+              {"black_box_dumps", boxes},
+              {"recording", recording}};
+  return out.dump(1) + "\n";
+}
+
+}  // namespace zerog::rt

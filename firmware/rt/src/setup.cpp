@@ -1,0 +1,100 @@
+#include "zerog/rt/setup.hpp"
+
+#include <unistd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <stdexcept>
+#include <system_error>
+
+#include "zerog/infer/deploy_file.hpp"
+#include "zerog/sim/design.hpp"
+
+namespace zerog::rt {
+
+namespace fs = std::filesystem;
+
+infer::RigDescription running_rig(const io::Rig& rig, double cycle_period_s) {
+  infer::RigDescription out;
+  out.name = rig.name;
+  out.robot = rig.robot;
+  out.p_flange_sensor_m = rig.flange_sensor.p_m;
+  out.q_flange_sensor = rig.flange_sensor.q;
+  out.p_sensor_imu_m = rig.sensor_imu.p_m;
+  out.q_sensor_imu = rig.sensor_imu.q;
+  out.sample_period_s = cycle_period_s;
+  return out;
+}
+
+namespace {
+
+// A missing or unreadable file named by the configuration: say which key names it and why.
+void check_input(const fs::path& path, const char* key, const fs::path& config) {
+  std::error_code ec;
+  const fs::file_status st = fs::status(path, ec);
+  std::string why;
+  if (ec || !fs::exists(st)) {
+    why = ec && ec != std::errc::no_such_file_or_directory ? ec.message() : "no such file";
+  } else if (!fs::is_regular_file(st)) {
+    why = "not a regular file";
+  } else if (::access(path.c_str(), R_OK) != 0) {
+    why = std::error_code(errno, std::generic_category()).message();
+  }
+  if (!why.empty()) {
+    throw std::runtime_error(path.string() + ": " + why + " (" + key + " in " + config.string() +
+                             ")");
+  }
+}
+
+}  // namespace
+
+Setup load_setup(const RtConfig& config) {
+  Setup s;
+  s.config = config;
+  check_input(config.rig_file, "[rig] file", config.file);
+  check_input(config.model_file, "[model] file", config.file);
+  try {
+    s.rig = io::read_rig(config.rig_file);
+  } catch (const io::InputError& e) {
+    throw std::runtime_error(std::string("[rig] file: ") + e.what());
+  }
+  const double period_s = config.robot.cycle_s();
+  s.rig.sample_period_s = period_s;
+  infer::LoadResult loaded =
+      infer::load_deployed_model_file(config.model_file, running_rig(s.rig, period_s));
+  if (!loaded.ok()) {
+    std::string why = loaded.message;
+    if (loaded.error == infer::LoadError::wrong_rig &&
+        why.find("sample period") != std::string::npos) {
+      why +=
+          " (the model's rows are robot cycles: a model fitted at one row period runs only "
+          "with an RSI cycle of that period; [robot] cycle_ms = " +
+          std::to_string(config.robot.cycle_ms) + " in " + config.file.string() + ")";
+    } else if (loaded.error == infer::LoadError::wrong_rig) {
+      why += " (running rig: " + config.rig_file.string() + ")";
+    }
+    throw std::runtime_error("[model] file: " + why);
+  }
+  s.model = std::move(*loaded.model);
+  s.cycle = cycle_config(config);
+  // The loop's own checks, on a scratch cycle (configure takes the model).
+  auto scratch = std::make_unique<loop::Cycle>();
+  if (std::string why = scratch->configure(s.cycle, s.model); !why.empty()) {
+    throw std::runtime_error(config.file.string() + ": the loop refuses the configuration: " + why);
+  }
+  return s;
+}
+
+PtpJointPath::PtpJointPath(std::vector<sim::JointVector> points_rad, double speed_fraction,
+                           double dwell_s)
+    : trajectory_(std::move(points_rad), sim::kr210_ptp_limits(speed_fraction), dwell_s) {}
+
+std::unique_ptr<PtpJointPath> load_collection_path(const fs::path& design,
+                                                   const CollectionSection& settings) {
+  std::vector<sim::JointVector> points = sim::read_design(design);
+  if (points.empty()) throw std::runtime_error(design.string() + ": the design has no points");
+  return std::make_unique<PtpJointPath>(std::move(points), settings.speed_fraction,
+                                        settings.dwell_s);
+}
+
+}  // namespace zerog::rt

@@ -1,0 +1,288 @@
+// zerog-rt's configuration: the sample file passes (read, model and rig loaded, and the program's
+// --check-config exits 0 against a model and rig made here); each kind of error names the file,
+// the dotted key, line:column and why; start-up failures exit 2 naming the file.
+#include "zerog/rt/config.hpp"
+
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <string>
+
+#include "rt_fixtures.hpp"
+#include "zerog/rt/setup.hpp"
+#include "zerog/sim/design.hpp"
+
+namespace zerog::rt {
+namespace {
+
+namespace fs = std::filesystem;
+
+const fs::path kSample = fs::path(ZEROG_SOURCE_DIR) / "firmware/rt/zerog-rt.sample.toml";
+
+std::string sample_text() { return test::read_text(kSample); }
+
+/// 1-based line of the first line of `text` that starts with `prefix`.
+int line_of(const std::string& text, const std::string& prefix) {
+  int line = 1;
+  std::size_t at = 0;
+  while (at < text.size()) {
+    if (text.compare(at, prefix.size(), prefix) == 0) return line;
+    at = text.find('\n', at);
+    if (at == std::string::npos) break;
+    ++at;
+    ++line;
+  }
+  return -1;
+}
+
+/// The sample with the line starting `old_start` replaced by `replacement` (which may be "").
+std::string with_line(std::string text, const std::string& old_start,
+                      const std::string& replacement) {
+  const int line = line_of(text, old_start);
+  EXPECT_GT(line, 0) << old_start;
+  std::size_t at = 0;
+  for (int i = 1; i < line; ++i) at = text.find('\n', at) + 1;
+  const std::size_t end = text.find('\n', at);
+  text.replace(at, end - at, replacement);
+  return text;
+}
+
+struct Expected {
+  std::string key;
+  int line;
+  int column;
+  std::string why;
+};
+
+void expect_error(const std::string& text, const Expected& e) {
+  const fs::path file = "/etc/zerog/zerog-rt.toml";
+  try {
+    parse_config(text, file);
+    ADD_FAILURE() << "no error; expected one at " << e.key;
+  } catch (const ConfigError& error) {
+    const std::string what = error.what();
+    EXPECT_EQ(error.file(), file);
+    EXPECT_EQ(error.key(), e.key) << what;
+    EXPECT_EQ(error.line(), e.line) << what;
+    if (e.column > 0) {
+      EXPECT_EQ(error.column(), e.column) << what;
+    }
+    EXPECT_NE(what.find(e.why), std::string::npos) << what;
+    EXPECT_EQ(what.rfind(file.string() + ":" + std::to_string(e.line) + ":", 0), 0u) << what;
+    EXPECT_NE(what.find(e.key), std::string::npos) << what;
+  }
+}
+
+TEST(RtConfig, TheSampleReadsWithItsValuesAndRelativePathsFromItsFolder) {
+  const RtConfig c = parse_config(sample_text(), "/etc/zerog/zerog-rt.toml");
+  EXPECT_EQ(c.model_file, fs::path("/etc/zerog/deploy.zgm"));
+  EXPECT_EQ(c.rig_file, fs::path("/etc/zerog/rig.rig.toml"));
+  EXPECT_EQ(c.robot.cycle_ms, 12);
+  EXPECT_EQ(c.robot.address, "192.168.1.10");
+  EXPECT_DOUBLE_EQ(c.robot.receive_timeout_ms, 18.0);
+  EXPECT_EQ(c.ft.base_id, 0x20);
+  EXPECT_EQ(c.imu.identifier, 0x93);
+  EXPECT_DOUBLE_EQ(c.body.inertia_body_kgm2(2, 2), 6.0);
+  EXPECT_DOUBLE_EQ(c.com_sensor_m.z(), 0.25);
+  EXPECT_DOUBLE_EQ(c.limits.workspace_max_m.z(), 2.2);
+  EXPECT_EQ(c.watchdog.ft_fault_cycles, 5);
+  EXPECT_EQ(c.limits.contact_confirm_cycles, 3);
+  EXPECT_DOUBLE_EQ(c.limits.contact_release_fraction, 0.5);
+  EXPECT_EQ(c.realtime.priority, 80);
+  EXPECT_FALSE(c.record_dir.has_value());
+  const loop::CycleConfig cc = cycle_config(c);
+  EXPECT_DOUBLE_EQ(cc.period_s, 0.012);
+  EXPECT_EQ(cc.angular_accel_order, 4);
+}
+
+TEST(RtConfig, DefaultsApplyToOptionalKeys) {
+  const std::string minimal =
+      "[model]\nfile = \"m.zgm\"\n[rig]\nfile = \"r.rig.toml\"\n[robot]\ncycle_ms = 4\n"
+      "[ft]\ninterface = \"vcan0\"\n[imu]\ndevice = \"/dev/pts/3\"\n"
+      "[body]\nmass_kg = 60\ninertia_kgm2 = [[2, 0, 0], [0, 2, 0], [0, 0, 2]]\n";
+  const RtConfig c = parse_config(minimal, "rt.toml");
+  EXPECT_DOUBLE_EQ(c.robot.receive_timeout_ms, 6.0);  // 1.5 cycles
+  EXPECT_EQ(c.robot.bind_address, "127.0.0.1");
+  EXPECT_EQ(c.robot.bind_port, 49152);
+  EXPECT_DOUBLE_EQ(c.ft.rate_hz, 500.0);
+  EXPECT_EQ(c.imu.baud, 921600u);
+  EXPECT_EQ(c.angular_accel_order, 4);
+  EXPECT_TRUE(c.realtime.lock_memory);
+  EXPECT_EQ(c.realtime.priority, 80);
+  EXPECT_EQ(c.realtime.cpu, -1);
+  EXPECT_DOUBLE_EQ(c.limits.max_contact_force_N, control::MotionLimits{}.max_contact_force_N);
+  EXPECT_EQ(c.watchdog.robot_fault_cycles, loop::WatchdogConfig{}.robot_fault_cycles);
+}
+
+TEST(RtConfig, EachErrorNamesFileKeyPositionAndWhy) {
+  const std::string s = sample_text();
+  // Unknown key (a typo), with the suggestion.
+  expect_error(with_line(s, "cycle_ms = 12", "cylce_ms = 12"),
+               {"robot.cylce_ms", line_of(s, "cycle_ms = 12"), 1,
+                "unknown key (did you mean 'robot.cycle_ms'?)"});
+  // Unknown table.
+  expect_error(with_line(s, "# [record]", "[recorder]"),
+               {"recorder", line_of(s, "# [record]"), 2, "unknown key"});
+  // Wrong type.
+  expect_error(with_line(s, "cycle_ms = 12", "cycle_ms = \"12\""),
+               {"robot.cycle_ms", line_of(s, "cycle_ms = 12"), 12, "must be an integer"});
+  expect_error(
+      with_line(s, "lock_memory = true", "lock_memory = 1"),
+      {"realtime.lock_memory", line_of(s, "lock_memory = true"), 15, "must be true or false"});
+  // Out of range.
+  expect_error(with_line(s, "cycle_ms = 12", "cycle_ms = 8"),
+               {"robot.cycle_ms", line_of(s, "cycle_ms = 12"), 12, "must be 4 or 12"});
+  expect_error(with_line(s, "rate_hz = 500.0", "rate_hz = -5.0"),
+               {"ft.rate_hz", line_of(s, "rate_hz = 500.0"), 11, "must be in (0, 2000], is -5"});
+  expect_error(with_line(s, "base_id = 32", "base_id = 200"),
+               {"ft.base_id", line_of(s, "base_id = 32"), 11, "must be in 0..127, is 200"});
+  expect_error(with_line(s, "priority = 80", "priority = 120"),
+               {"realtime.priority", line_of(s, "priority = 80"), 12, "must be in 0..99"});
+  expect_error(with_line(s, "angular_accel_order = 4", "angular_accel_order = 3"),
+               {"filter.angular_accel_order", line_of(s, "angular_accel_order = 4"), 23,
+                "must be 4 (5-point"});
+  expect_error(with_line(s, "baud = 921600", "baud = 100000"),
+               {"imu.baud", line_of(s, "baud = 921600"), 8, "standard serial rate"});
+  expect_error(with_line(s, "address = \"192.168.1.10\"", "address = \"robot.local\""),
+               {"robot.address", line_of(s, "address = \"192.168.1.10\""), 11, "IPv4 address"});
+  expect_error(with_line(s, "contact_confirm_cycles = 3", "contact_confirm_cycles = 0"),
+               {"limits.contact_confirm_cycles", line_of(s, "contact_confirm_cycles = 3"), 26,
+                "must be in 1..100, is 0"});
+  expect_error(with_line(s, "max_speed_mps = 0.25", "max_speed_mps = 0"),
+               {"limits.max_speed_mps", line_of(s, "max_speed_mps = 0.25"), 17, "must be > 0"});
+  expect_error(with_line(s, "workspace_max_m", "workspace_max_m = [2.5, 1.5, 0.2]"),
+               {"limits.workspace_max_m", line_of(s, "workspace_max_m"), 19,
+                "workspace_min_m must be below workspace_max_m on every axis (z"});
+  // A matrix of the wrong shape, and one that is no inertia.
+  expect_error(with_line(s, "                [0.0, 0.0, 6.0]]", "                [0.0, 0.0]]"),
+               {"body.inertia_kgm2[2]", line_of(s, "                [0.0, 0.0, 6.0]]"), 17,
+                "must be a row of 3 numbers"});
+  expect_error(
+      with_line(s, "inertia_kgm2 = [[4.0", "inertia_kgm2 = [[-4.0, 0.0, 0.0],"),
+      {"body.inertia_kgm2", line_of(s, "inertia_kgm2 = [[4.0"), 16, "must be positive definite"});
+  // A missing required key names its table's position; a missing table the file's start.
+  expect_error(with_line(s, "mass_kg = 100.0", ""),
+               {"body.mass_kg", line_of(s, "[body]"), 1, "missing required key in [body]"});
+  std::string no_imu = s;
+  for (const char* line : {"[imu]", "device = ", "baud = ", "identifier = ", "accel_range_g = "})
+    no_imu = with_line(no_imu, line, "");
+  expect_error(no_imu, {"imu.device", 1, 1, "missing: the file has no [imu] table"});
+  // TOML syntax.
+  expect_error(with_line(s, "port = 0", "port = = 0"),
+               {"", line_of(s, "port = 0"), 0, "TOML syntax"});
+}
+
+// --- the program ---------------------------------------------------------------------------
+
+struct ProgramRun {
+  int code;
+  std::string out, err;
+};
+
+ProgramRun run_rt(const fs::path& dir, const std::string& args) {
+  const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
+  const std::string command = std::string(ZEROG_RT_EXE) + " " + args + " > " + out.string() +
+                              " 2> " + err.string() + " < /dev/null";
+  const int status = std::system(command.c_str());
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, test::read_text(out), test::read_text(err)};
+}
+
+TEST(ZerogRt, TheSampleConfigurationPassesCheckConfigAgainstAGeneratedModelAndRig) {
+  test::TempDir dir;
+  test::write_text(dir.path() / "zerog-rt.toml", sample_text());
+  test::write_model_and_rig(dir.path());
+  const rt::Setup setup = load_setup(read_config(dir.path() / "zerog-rt.toml"));
+  EXPECT_EQ(setup.rig.name, test::test_rig().name);
+  EXPECT_DOUBLE_EQ(setup.rig.sample_period_s, 0.012);
+  const ProgramRun r =
+      run_rt(dir.path(), "--config " + (dir.path() / "zerog-rt.toml").string() + " --check-config");
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find(": OK: model"), std::string::npos) << r.out;
+
+  // With a design for --collect (zerog design's format): its PTP path is checked too.
+  sim::DesignOptions options;
+  options.kind = sim::DesignKind::random;
+  options.points = 5;
+  sim::write_design(sim::make_design(options), dir.path() / "design.csv");
+  const ProgramRun c =
+      run_rt(dir.path(), "--config " + (dir.path() / "zerog-rt.toml").string() +
+                             " --check-config --collect " + (dir.path() / "design.csv").string());
+  EXPECT_EQ(c.code, 0) << c.err;
+  EXPECT_NE(c.out.find("(5 points, "), std::string::npos) << c.out;
+  test::write_text(dir.path() / "bad.csv", "# zerog-design 1\nq1_rad,q2_rad\n");
+  const ProgramRun bad =
+      run_rt(dir.path(), "--config " + (dir.path() / "zerog-rt.toml").string() +
+                             " --check-config --collect " + (dir.path() / "bad.csv").string());
+  EXPECT_EQ(bad.code, 1);
+  EXPECT_NE(bad.err.find("bad.csv:2:"), std::string::npos) << bad.err;
+}
+
+TEST(ZerogRt, AMissingModelFailsCheckConfigWithOneAndStartUpWithTwoNamingThePath) {
+  test::TempDir dir;
+  test::write_text(dir.path() / "zerog-rt.toml", sample_text());
+  test::write_model_and_rig(dir.path());
+  fs::remove(dir.path() / "deploy.zgm");
+  const std::string config = "--config " + (dir.path() / "zerog-rt.toml").string();
+  ProgramRun r = run_rt(dir.path(), config + " --check-config");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find((dir.path() / "deploy.zgm").string() + ": no such file ([model] file in"),
+            std::string::npos)
+      << r.err;
+  r = run_rt(dir.path(), config + " --duration 1");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find((dir.path() / "deploy.zgm").string()), std::string::npos) << r.err;
+  // A configuration error, likewise: the file, the key, the position.
+  test::write_text(dir.path() / "zerog-rt.toml",
+                   with_line(sample_text(), "cycle_ms", "cycle_ms = 5"));
+  r = run_rt(dir.path(), config + " --check-config");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("zerog-rt.toml:" + std::to_string(line_of(sample_text(), "cycle_ms")) +
+                       ":12: robot.cycle_ms: must be 4 or 12"),
+            std::string::npos)
+      << r.err;
+}
+
+TEST(ZerogRt, StartUpFailsWithTwoWhenTheFtSensorCannotBeOpened) {
+  test::TempDir dir;
+  test::write_text(dir.path() / "zerog-rt.toml",
+                   with_line(sample_text(), "interface = ", "interface = \"zerogcan9\""));
+  test::write_model_and_rig(dir.path());
+  const ProgramRun r =
+      run_rt(dir.path(), "--config " + (dir.path() / "zerog-rt.toml").string() + " --duration 1");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("zerog-rt: F/T sensor: cannot open CAN interface 'zerogcan9'"),
+            std::string::npos)
+      << r.err;
+}
+
+TEST(ZerogRt, AModelFittedAtTwelveMillisecondRowsIsRefusedAtAFourMillisecondCycle) {
+  test::TempDir dir;
+  test::write_text(dir.path() / "zerog-rt.toml",
+                   with_line(with_line(sample_text(), "cycle_ms", "cycle_ms = 4"),
+                             "receive_timeout_ms", "receive_timeout_ms = 6.0"));
+  test::write_model_and_rig(dir.path());
+  try {
+    load_setup(read_config(dir.path() / "zerog-rt.toml"));
+    ADD_FAILURE() << "accepted";
+  } catch (const std::runtime_error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("wrong rig"), std::string::npos) << what;
+    EXPECT_NE(what.find("sample period"), std::string::npos) << what;
+    EXPECT_NE(what.find("cycle_ms = 4"), std::string::npos) << what;
+  }
+  // Another rig (the IMU moved) is refused naming the running rig's file.
+  io::Rig moved = test::test_rig();
+  moved.sensor_imu.p_m.z() += 0.002;
+  test::write_text(dir.path() / "zerog-rt.toml", sample_text());
+  io::write_rig(moved, dir.path() / "rig.rig.toml");
+  try {
+    load_setup(read_config(dir.path() / "zerog-rt.toml"));
+    ADD_FAILURE() << "accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("rig.rig.toml"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace zerog::rt
