@@ -116,11 +116,15 @@ void Cycle::robot_lost(RobotLoss why) noexcept {
   if ((s == State::zero_g || s == State::collecting) &&
       robot_lost_run_ >= config_.watchdog.robot_fault_cycles) {
     raise(Fault::robot_late);
-    box_.push(record_);  // the last good cycle's record is already in; mark the loss time
-    if (freeze_pending_) {
-      box_.freeze();
-      freeze_pending_ = false;
-    }
+  }
+  // The black box keeps the loss too: the last cycle's record, marked lost, with the state now.
+  record_.flags = kRobotLost;
+  record_.state = sm_.state();
+  record_.fault = sm_.fault();
+  box_.push(record_);
+  if (freeze_pending_) {
+    box_.freeze();
+    freeze_pending_ = false;
   }
 }
 
@@ -359,7 +363,10 @@ void Cycle::step(const proto::rsi::RobotMessage& m, CycleReply& reply) noexcept 
                        : window_.ft_saturated > 0 ? Fault::ft_saturated
                                                   : Fault::ft_stale;
     }
-    if (++ft_bad_run_ >= config_.watchdog.ft_fault_cycles) raise(ft_bad_reason_);
+    // Before the first valid sample the cycle is only not ready (zero-g cannot be enabled);
+    // invalid samples (critical, saturated) count from the start.
+    const bool counts = have_ft_ || ft_bad_reason_ != Fault::ft_stale;
+    if (counts && ++ft_bad_run_ >= config_.watchdog.ft_fault_cycles) raise(ft_bad_reason_);
   }
   if (window_.imu_n > 0) {
     for (int k = 0; k < 6; ++k) last_imu_[k] = window_.imu_sum[k] / window_.imu_n;
@@ -369,7 +376,7 @@ void Cycle::step(const proto::rsi::RobotMessage& m, CycleReply& reply) noexcept 
   } else {
     flags |= kImuHeld;
     ++counters_.imu_held_cycles;
-    if (++imu_bad_run_ >= config_.watchdog.imu_fault_cycles) raise(Fault::imu_stale);
+    if (have_imu_ && ++imu_bad_run_ >= config_.watchdog.imu_fault_cycles) raise(Fault::imu_stale);
   }
   record_.ft_samples = static_cast<std::uint16_t>(window_.ft_n);
   record_.imu_samples = static_cast<std::uint16_t>(window_.imu_n);

@@ -148,6 +148,23 @@ TEST(Cycle, IdleAnswersEveryMessageWithItsIpocAndNoCorrectionAndSeesNoContact) {
   EXPECT_EQ(c.last().flags & kNotReady, 0u);
 }
 
+TEST(Cycle, SensorsThatHaveNotStartedYetMeanNotReadyNotAFault) {
+  Cycle c;
+  ASSERT_EQ(c.configure(test_config(), payload_model()), "");
+  StaticRig rig;
+  // The robot's datagrams come before the sensors' first samples (start-up order).
+  for (int i = 0; i < 20; ++i) rig.quiet(c, 0, 0);
+  EXPECT_EQ(c.state_machine().state(), State::idle);
+  EXPECT_NE(c.last().flags & kNotReady, 0u);
+  ASSERT_TRUE(c.request(Command::enable_zero_g));
+  rig.quiet(c, 0, 0);
+  EXPECT_EQ(c.state_machine().state(), State::idle);  // refused
+  // Once they have started, the watchdogs count.
+  for (int i = 0; i < 6; ++i) rig.quiet(c);
+  for (int i = 0; i < c.config().watchdog.imu_fault_cycles; ++i) rig.quiet(c, 4, 0);
+  EXPECT_EQ(c.state_machine().fault(), Fault::imu_stale);
+}
+
 TEST(Cycle, EnableIsRefusedUntilTheModelHasItsRows) {
   Cycle c;
   ASSERT_EQ(c.configure(test_config(), payload_model()), "");
@@ -320,6 +337,9 @@ TEST_F(Watchdog, LostRobotCyclesFaultAtTheThresholdAndTheNextMessageGetsZero) {
   c.robot_lost(RobotLoss::malformed);
   EXPECT_EQ(c.state_machine().fault(), Fault::robot_late);
   EXPECT_TRUE(c.black_box().frozen());
+  const CycleRecord& last = c.black_box().at(c.black_box().size() - 1);
+  EXPECT_EQ(last.fault, Fault::robot_late);
+  EXPECT_NE(last.flags & kRobotLost, 0u);
   rig.message().ipoc += 12 * n;
   const std::uint64_t ipoc = rig.message().ipoc;
   const CycleReply r = rig.quiet(c);

@@ -84,6 +84,7 @@ enum CycleFlags : std::uint32_t {
   kCommandRefused = 1u << 7,  ///< a command this cycle was not allowed in the state
   kCollectionDone = 1u << 8,  ///< collection reached the end of its path (back to idle)
   kFtWarning = 1u << 9,       ///< F/T samples with non-critical status bits were used
+  kRobotLost = 1u << 10,      ///< a lost robot cycle (robot_lost()): no message, no reply
 };
 
 /// Everything one cycle did: the black box, the recorder and telemetry take it. Fixed size.
