@@ -164,6 +164,9 @@ std::string Runtime::start(std::vector<std::string>& warnings) {
 
 void Runtime::cycle_loop() {
   prefault_stack();
+  // Whatever piled up while the program started is old: the first cycle starts from now.
+  devices_.robot->discard_queued();
+  discard_samples();
   while (!stop_cycle_.load(std::memory_order_relaxed)) cycle_once();
 }
 
@@ -508,7 +511,8 @@ std::string Runtime::summary_json() const {
                         {"replies", r.replies},
                         {"reply_would_block", r.reply_would_block},
                         {"reply_errors", r.reply_errors},
-                        {"bad_corrections", r.bad_corrections}};
+                        {"bad_corrections", r.bad_corrections},
+                        {"discarded_at_start", r.discarded}};
   }
   if (devices_.ft != nullptr) {
     const rtio::FtCounters f = devices_.ft->counters();

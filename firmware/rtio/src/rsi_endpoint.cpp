@@ -68,6 +68,22 @@ RobotStartStatus RsiEndpoint::start() {
   return RobotStartStatus::ok;
 }
 
+std::size_t RsiEndpoint::discard_queued() {
+  if (fd_ < 0) return 0;
+  std::size_t n = 0;
+  while (true) {
+    const ssize_t r = ::recv(fd_, rx_.data(), rx_.size(), MSG_DONTWAIT | MSG_TRUNC);
+    if (r >= 0) {
+      ++n;
+      continue;
+    }
+    if (errno == EINTR) continue;
+    break;
+  }
+  counters_.discarded += n;
+  return n;
+}
+
 RobotReceiveStatus RsiEndpoint::receive(rsi::RobotMessage& out) {
   if (fd_ < 0) return RobotReceiveStatus::not_started;
   const std::int64_t deadline = detail::monotonic_ns() + config_.receive_timeout.count();

@@ -2,6 +2,9 @@
 // with its IPOC, foreign senders are ignored and counted, malformed datagrams are counted.
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <thread>
+
 #include <array>
 #include <chrono>
 #include <cstdint>
@@ -71,6 +74,20 @@ TEST_F(RsiEndpointTest, EveryDatagramIsAnsweredWithItsIpoc) {
   EXPECT_EQ(endpoint.counters().replies, 200u);
   EXPECT_EQ(endpoint.counters().foreign, 0u);
   EXPECT_EQ(endpoint.counters().malformed, 0u);
+}
+
+TEST_F(RsiEndpointTest, DatagramsQueuedBeforeTheCycleStartsAreDiscardedAndCounted) {
+  RsiEndpoint endpoint(config());
+  ASSERT_EQ(endpoint.start(), RobotStartStatus::ok);
+  std::array<char, 1024> buffer{};
+  for (std::uint64_t ipoc = 1; ipoc <= 5; ++ipoc)
+    ASSERT_TRUE(robot_.send_to(endpoint.local_port(), test::robot_message(buffer, ipoc)));
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  EXPECT_EQ(endpoint.discard_queued(), 5u);
+  EXPECT_EQ(endpoint.counters().discarded, 5u);
+  EXPECT_EQ(endpoint.counters().messages, 0u);
+  exchange(endpoint, 6);  // the next one is the first handled
+  EXPECT_EQ(endpoint.counters().messages, 1u);
 }
 
 TEST_F(RsiEndpointTest, ForeignSendersAreIgnoredAndCounted) {

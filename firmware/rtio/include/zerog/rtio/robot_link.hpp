@@ -52,6 +52,7 @@ struct RobotLinkCounters {
   std::uint64_t reply_would_block = 0;
   std::uint64_t reply_errors = 0;     ///< sendto failures other than would-block
   std::uint64_t bad_corrections = 0;  ///< replies refused by the formatter
+  std::uint64_t discarded = 0;        ///< queued datagrams dropped by discard_queued()
 };
 
 class RobotLink {
@@ -69,6 +70,10 @@ class RobotLink {
   virtual RobotReplyStatus reply_axes(const std::array<double, 6>& akorr_deg,
                                       std::uint64_t ipoc) = 0;
   virtual const RobotLinkCounters& counters() const = 0;
+  /// Drops every datagram already queued (e.g. those that piled up while the program started:
+  /// answering them now would be late and pointless). Returns how many; counted as `discarded`.
+  /// Not real-time safe in general; call before the cycle starts.
+  virtual std::size_t discard_queued() { return 0; }
 };
 
 /// Scripted RobotLink for tests: receive() returns pushed messages in order, then timeout;

@@ -50,6 +50,7 @@ class RsiEndpoint final : public RobotLink {
   /// <Sen><AKorr A1..A6/><IPOC/></Sen> (rsi::format_axis_reply), degrees. Real-time safe.
   RobotReplyStatus reply_axes(const std::array<double, 6>& akorr_deg, std::uint64_t ipoc) override;
   const RobotLinkCounters& counters() const override { return counters_; }
+  std::size_t discard_queued() override;
 
   /// The bound port (useful with bind_port 0).
   std::uint16_t local_port() const { return local_port_; }
