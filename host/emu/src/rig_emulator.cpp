@@ -36,6 +36,7 @@ RobotConfig robot_config(const Scenario& s) {
   RobotConfig c;
   c.physics_rate_hz = s.robot.physics_rate_hz;
   c.servo_bandwidth_hz = s.robot.servo_bandwidth_hz;
+  c.interpolation_s = s.cycle_s();
   c.start_joints_rad = s.robot.start_joints_rad;
   c.p_flange_tcp_m = s.sim.p_flange_sensor_m;
   return c;
@@ -378,18 +379,10 @@ void RigEmulator::handle_datagram(std::uint64_t n, const char* data, std::size_t
     ++counts_.ok;
     if (!any_ok_) counts_.first_ok_cycle = static_cast<std::int64_t>(n);
     any_ok_ = true;
-    bool clamped = false, singular = false;
-    {
-      const std::lock_guard<std::mutex> lock(robot_mutex_);
-      if (reply.has_rkorr) {
-        const CorrectionOutcome o = robot_.apply_rkorr(reply.rkorr);
-        clamped = o.clamped;
-        singular = o.near_singular;
-      }
-      if (reply.has_akorr) clamped = robot_.apply_akorr(reply.akorr_deg).clamped || clamped;
-    }
-    counts_.clamped_cycles += clamped;
-    counts_.near_singular_cycles += singular;
+    // Like the controller's interpolator, the correction takes effect at the next cycle's
+    // tick, whenever in this cycle it arrived (apply_pending): the arrival jitter of the
+    // replies must not shake the robot.
+    pending_ = reply;
     if (reply.has_rkorr) {
       const rsi::Correction& c = reply.rkorr;
       r.correction = {c.x_mm, c.y_mm, c.z_mm, c.a_deg, c.b_deg, c.c_deg};
@@ -411,6 +404,24 @@ void RigEmulator::handle_datagram(std::uint64_t n, const char* data, std::size_t
     if (n < records_.size() && records_[n].reply == ReplyStatus::none)
       records_[n].reply = ReplyStatus::wrong_ipoc;
   }
+}
+
+void RigEmulator::apply_pending() {
+  if (!pending_) return;
+  const rsi::Reply reply = *pending_;
+  pending_.reset();
+  bool clamped = false, singular = false;
+  {
+    const std::lock_guard<std::mutex> lock(robot_mutex_);
+    if (reply.has_rkorr) {
+      const CorrectionOutcome o = robot_.apply_rkorr(reply.rkorr);
+      clamped = o.clamped;
+      singular = o.near_singular;
+    }
+    if (reply.has_akorr) clamped = robot_.apply_akorr(reply.akorr_deg).clamped || clamped;
+  }
+  counts_.clamped_cycles += clamped;
+  counts_.near_singular_cycles += singular;
 }
 
 void RigEmulator::receive_pending(std::uint64_t n) {
@@ -569,6 +580,7 @@ void RigEmulator::run(const std::atomic<bool>& stop) {
   };
   auto finish_cycle = [&](std::uint64_t n) {
     if (records_[n].reply != ReplyStatus::ok) ++delay_count_;
+    apply_pending();
   };
 
   std::uint64_t n = 0;

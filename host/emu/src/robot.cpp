@@ -62,6 +62,7 @@ RobotEmulator::RobotEmulator(const RobotConfig& config)
   const double w = omega_radps_, h = h_s_, e = std::exp(-w * h);
   phi_ << e * (1.0 + w * h), e * h, -e * w * w * h, e * (1.0 - w * h);
   q_cmd_rad_ = c.start_joints_rad;
+  q_setpoint_rad_ = c.start_joints_rad;
   actual_.q_rad = c.start_joints_rad;
 }
 
@@ -103,6 +104,14 @@ CorrectionOutcome RobotEmulator::clamp_command() {
     q_cmd_rad_[i] = q;
   }
   if (out.clamped) ++counters_.clamped_commands;
+  // The interpolator reaches the new command in one interpolation time, at constant speed.
+  for (int i = 0; i < 6; ++i) {
+    if (config_.interpolation_s > 0.0) {
+      setpoint_rate_[i] = (q_cmd_rad_[i] - q_setpoint_rad_[i]) / config_.interpolation_s;
+    } else {
+      q_setpoint_rad_[i] = q_cmd_rad_[i];
+    }
+  }
   return out;
 }
 
@@ -170,9 +179,14 @@ CorrectionOutcome RobotEmulator::apply_akorr(const std::array<double, 6>& akorr_
 void RobotEmulator::step() {
   const double w2 = omega_radps_ * omega_radps_;
   for (int i = 0; i < 6; ++i) {
-    const Eigen::Vector2d x(actual_.q_rad[i] - q_cmd_rad_[i], actual_.qd_radps[i]);
+    const double remaining = q_cmd_rad_[i] - q_setpoint_rad_[i];
+    const double move = setpoint_rate_[i] * h_s_;
+    q_setpoint_rad_[i] = std::abs(move) >= std::abs(remaining) || move * remaining <= 0.0
+                             ? q_cmd_rad_[i]
+                             : q_setpoint_rad_[i] + move;
+    const Eigen::Vector2d x(actual_.q_rad[i] - q_setpoint_rad_[i], actual_.qd_radps[i]);
     const Eigen::Vector2d next = phi_ * x;
-    actual_.q_rad[i] = q_cmd_rad_[i] + next[0];
+    actual_.q_rad[i] = q_setpoint_rad_[i] + next[0];
     actual_.qd_radps[i] = next[1];
     actual_.qdd_radps2[i] = -w2 * next[0] - 2.0 * omega_radps_ * next[1];
   }

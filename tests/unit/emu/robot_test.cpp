@@ -126,6 +126,33 @@ TEST(RobotEmulator, ServoFollowsTheAnalyticCriticallyDampedStepResponse) {
   EXPECT_GT(robot.actual().q_rad[2] - q0[2], 0.999 * u);
 }
 
+TEST(RobotEmulator, TheInterpolatorSpreadsACorrectionOverOneCycleAndSmoothsTheServo) {
+  // A train of equal corrections, one per 12 ms cycle (a steady speed): stepping the set point
+  // jerks the servo by ω² Δq each cycle; the interpolator makes it a ramp.
+  auto peak_accel = [](double interpolation_s) {
+    RobotConfig config;
+    config.interpolation_s = interpolation_s;
+    RobotEmulator robot(config);
+    const int steps_per_cycle = static_cast<int>(0.012 * config.physics_rate_hz);
+    double peak = 0.0;
+    for (int cycle = 0; cycle < 100; ++cycle) {
+      robot.apply_akorr({0.0, 0.0, 0.1, 0.0, 0.0, 0.0});  // 0.1° per 12 ms ≈ 8.3 °/s
+      for (int k = 0; k < steps_per_cycle; ++k) {
+        robot.step();
+        if (cycle > 50) peak = std::max(peak, std::abs(robot.actual().qdd_radps2[2]));
+      }
+    }
+    // The command is followed either way.
+    EXPECT_NEAR(robot.commanded()[2] - default_start_joints()[2], 10.0 * kDeg, 1e-12);
+    return peak;
+  };
+  const double stepped = peak_accel(0.0);
+  const double ramped = peak_accel(0.012);
+  const double w = 2 * std::numbers::pi * 8.0;
+  EXPECT_GT(stepped, 0.5 * w * w * 0.1 * kDeg);  // of the order of ω² Δq
+  EXPECT_LT(ramped, 0.05 * stepped);
+}
+
 TEST(RobotEmulator, AkorrAddsToTheCommandAndRangesClamp) {
   RobotEmulator robot;
   const sim::JointVector q0 = robot.commanded();

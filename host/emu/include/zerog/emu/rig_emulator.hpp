@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <mutex>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -149,6 +150,9 @@ class RigEmulator {
   std::vector<CycleRecord> records_;
   std::vector<ScheduledSend> sends_;
   std::uint64_t delay_count_ = 0;
+  /// The timely reply of the cycle, applied at the next cycle's start.
+  std::optional<proto::rsi::Reply> pending_;
+  void apply_pending();
   bool any_ok_ = false;
   std::vector<FaultState> faults_;  // per scenario fault; robot faults: robot loop, devices:
                                     // physics thread (read after it is joined)

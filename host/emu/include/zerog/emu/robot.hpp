@@ -35,6 +35,11 @@ struct RobotConfig {
   double singular_threshold = 0.02;
   double max_damping = 0.02;
   int ik_iterations = 4;  ///< Newton steps per correction (1 = the plain linear step)
+  /// The controller's interpolator: each correction is spread evenly over this time (one RSI
+  /// cycle) instead of stepping the servo's set point at once. 0: step at once. A stepped set
+  /// point makes the servo jerk the payload at the cycle rate (ω² Δq: 5 m/s² for 2 mm per
+  /// cycle at 8 Hz), which no KUKA controller does.
+  double interpolation_s = 0.0;
 };
 
 /// A TCP pose: S in B.
@@ -81,8 +86,9 @@ class RobotEmulator {
   /// AKorr A1..A6 (degrees): added to the commanded joints, then clamped.
   CorrectionOutcome apply_akorr(const std::array<double, 6>& akorr_deg);
 
-  /// One servo step of 1 / physics_rate_hz: each actual joint follows its command through
-  /// q̈ = ω² (q_cmd − q) − 2ω q̇, integrated exactly for a command held over the step.
+  /// One servo step of 1 / physics_rate_hz: the interpolator moves the set point toward the
+  /// command, and each actual joint follows the set point through q̈ = ω² (q_set − q) − 2ω q̇,
+  /// integrated exactly for a set point held over the step.
   void step();
 
   const sim::JointVector& commanded() const { return q_cmd_rad_; }
@@ -109,7 +115,9 @@ class RobotEmulator {
   double omega_radps_ = 0.0;
   double h_s_ = 0.0;
   Eigen::Matrix2d phi_ = Eigen::Matrix2d::Identity();  // exact servo step for (q − q_cmd, q̇)
-  sim::JointVector q_cmd_rad_{};
+  sim::JointVector q_cmd_rad_{};                       // the command: start + all corrections
+  sim::JointVector q_setpoint_rad_{};  // the interpolator's set point the servo follows
+  sim::JointVector setpoint_rate_{};   // its speed toward q_cmd_rad_ (rad/s)
   sim::JointState actual_;
   RobotCounters counters_;
 };
