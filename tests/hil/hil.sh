@@ -1,0 +1,78 @@
+#!/usr/bin/env bash
+# hil.sh --bin BUILD_DIR --out DIR CASE...
+#
+# Hardware-in-the-loop run of zerog-rt against the rig emulator (zerog-emu: KR 210 controller
+# over RSI/UDP with servo lag, ATI NETCANOEM board on vcan0, STIM300 on a pty, all driven by the
+# rig simulator). Needs a kernel with vcan (tests/vm/run_in_vm.sh provides one). For each CASE
+# (tests/hil/cases/CASE.toml = the emulator's scenario, CASE.rt.toml = zerog-rt's configuration
+# template) it starts the emulator, deploys the emulated payload's exact model with
+# `zerog export`, runs zerog-rt with --enable-zero-g and checks the run with check_hil.py.
+# Results per case in DIR/CASE/. Exit status: 0 if every case passed.
+set -uo pipefail
+
+here=$(cd "$(dirname "$0")" && pwd)
+bin= out=
+cases=()
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --bin) bin=$2; shift 2 ;;
+    --out) out=$2; shift 2 ;;
+    -*) echo "hil.sh: unknown option $1" >&2; exit 2 ;;
+    *) cases+=("$1"); shift ;;
+  esac
+done
+[ -n "$bin" ] && [ -n "$out" ] && [ ${#cases[@]} -gt 0 ] || {
+  echo "usage: hil.sh --bin BUILD_DIR --out DIR CASE..." >&2; exit 2; }
+emu=$bin/host/emu/zerog-emu
+rt=$bin/firmware/rt/zerog-rt
+zerog=$bin/host/cli/zerog
+for p in "$emu" "$rt" "$zerog"; do
+  [ -x "$p" ] || { echo "hil.sh: $p not built" >&2; exit 2; }
+done
+ip link show vcan0 >/dev/null 2>&1 || { echo "hil.sh: no vcan0 (run inside tests/vm/run_in_vm.sh)" >&2; exit 2; }
+
+status=0
+for c in "${cases[@]}"; do
+  scenario=$here/cases/$c.toml
+  template=$here/cases/$c.rt.toml
+  [ -f "$scenario" ] && [ -f "$template" ] || { echo "hil.sh: no case $c" >&2; status=1; continue; }
+  w=$out/$c
+  rm -rf "$w" && mkdir -p "$w/rec"
+  duration=$(sed -n 's/^# duration_s = \([0-9.]*\)$/\1/p' "$scenario")
+  [ -n "$duration" ] || { echo "hil.sh: $scenario lacks a '# duration_s = N' line" >&2; status=1; continue; }
+  echo "=== $c: ${duration} s ==="
+  emu_start=$(date +%s.%N)
+  "$emu" --scenario "$scenario" --can vcan0 --imu-link "$w/imu-tty" \
+    --robot-bind 127.0.0.1:49153 --rt-address 127.0.0.1:49152 --duration "$duration" \
+    --truth-out "$w/truth.csv" --summary-out "$w/emu.json" \
+    --write-model "$w/truth-model.json" --write-rig "$w/rig.rig.toml" >"$w/emu.out" 2>"$w/emu.err" &
+  emu_pid=$!
+  for _ in $(seq 1 300); do
+    grep -q "zerog-emu: ready" "$w/emu.out" 2>/dev/null && break
+    kill -0 $emu_pid 2>/dev/null || break
+    sleep 0.1
+  done
+  if ! grep -q "zerog-emu: ready" "$w/emu.out" 2>/dev/null; then
+    echo "hil.sh: $c: the emulator did not come up:" >&2; cat "$w/emu.err" >&2
+    kill $emu_pid 2>/dev/null; wait $emu_pid 2>/dev/null; status=1; continue
+  fi
+  "$zerog" export --model "$w/truth-model.json" --rig "$w/rig.rig.toml" --out "$w/model.zgm" -q \
+    || { echo "hil.sh: $c: zerog export failed" >&2; kill $emu_pid; wait $emu_pid; status=1; continue; }
+  sed -e "s|@MODEL@|$w/model.zgm|" -e "s|@RIG@|$w/rig.rig.toml|" -e "s|@IMU@|$w/imu-tty|" \
+    "$template" >"$w/zerog-rt.toml"
+  # zerog-rt stops 0.7 s before the emulator does, so the robot never goes silent on it.
+  rt_duration=$(awk -v d="$duration" -v s="$emu_start" -v n="$(date +%s.%N)" 'BEGIN { print d - (n - s) - 0.7 }')
+  "$rt" --config "$w/zerog-rt.toml" --enable-zero-g --record "$w/rec" --duration "$rt_duration" \
+    --summary-out "$w/rt.json" >"$w/rt.out" 2>"$w/rt.err"
+  rt_status=$?
+  wait $emu_pid
+  emu_status=$?
+  if [ $rt_status -ne 0 ] || [ $emu_status -ne 0 ]; then
+    echo "hil.sh: $c: zerog-rt exited $rt_status, zerog-emu $emu_status" >&2
+    tail -n 5 "$w/rt.err" "$w/emu.err" >&2
+    status=1; continue
+  fi
+  /usr/bin/python3 "$here/check_hil.py" --case "$c" --dir "$w" --scenario "$scenario" --rt-config "$w/zerog-rt.toml" \
+    || status=1
+done
+exit $status
