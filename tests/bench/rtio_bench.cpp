@@ -1,6 +1,8 @@
 // RSI round trip on loopback UDP: datagram in → parsed (RsiEndpoint::receive) → reply out
 // (RsiEndpoint::reply), against a bare UDP echo (recvfrom → sendto of the same bytes) measured
 // the same way in the same run. A client socket plays the robot; the server runs in a thread.
+// BM_ZerogRtRoundTrip times zerog-rt's whole cycle thread (zerog::rt::Runtime: receive, hand-over
+// of the sensor samples, Cycle::step in zero-g, reply) the same way.
 // Reported per benchmark: p50, p99, p99.9 and max round trip in µs; the RSI benchmark also
 // reports its ratio to the echo at the median and the 99.9th percentile. Speed is measured,
 // never asserted (tests/bench/CMakeLists.txt).
@@ -13,10 +15,16 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <functional>
+#include <span>
+#include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
+#include "rt_fixtures.hpp"
 #include "udp.hpp"
+#include "zerog/rt/runtime.hpp"
 #include "zerog/rtio/rsi_endpoint.hpp"
 
 namespace {
@@ -48,7 +56,11 @@ void report(benchmark::State& state, const Percentiles& p) {
 }
 
 // Sends one robot message per iteration and waits for the answer; returns the round trips (µs).
-std::vector<double> run_client(benchmark::State& state, std::uint16_t server_port) {
+// `before` runs before each message, outside the timed part, and may replace the message.
+std::vector<double> run_client(
+    benchmark::State& state, std::uint16_t server_port,
+    const std::function<std::string_view(std::span<char>, std::uint64_t)>& make_message = {},
+    const std::function<void()>& before = {}) {
   UdpPeer robot("127.0.0.1", 0);
   std::vector<double> round_trips_us;
   round_trips_us.reserve(static_cast<std::size_t>(kRoundTrips));
@@ -56,7 +68,10 @@ std::vector<double> run_client(benchmark::State& state, std::uint16_t server_por
   std::array<char, 1024> in{};
   std::uint64_t ipoc = 1;
   for (auto _ : state) {
-    const std::string_view message = zerog::rtio::test::robot_message(out, ipoc++);
+    if (before) before();
+    const std::string_view message =
+        make_message ? make_message(out, ipoc) : zerog::rtio::test::robot_message(out, ipoc);
+    ++ipoc;
     const auto start = std::chrono::steady_clock::now();
     robot.send_to(server_port, message);
     const long n = robot.receive(in, 1000);
@@ -129,9 +144,71 @@ void BM_RsiEndpointRoundTrip(benchmark::State& state) {
   state.counters["malformed"] = static_cast<double>(endpoint.counters().malformed);
 }
 
-// Registered in this order: the echo runs first, so the RSI run can report its ratio.
+void BM_ZerogRtRoundTrip(benchmark::State& state) {
+  namespace rt = zerog::rt;
+  zerog::rtio::RsiEndpointConfig config;
+  config.bind_port = 0;
+  config.robot_port = 0;
+  config.receive_timeout = 20ms;
+  zerog::rtio::RsiEndpoint endpoint(config);
+  if (endpoint.start() != zerog::rtio::RobotStartStatus::ok) {
+    state.SkipWithError("RsiEndpoint::start failed");
+    return;
+  }
+  rt::RuntimeOptions options;
+  options.auto_enable_zero_g = true;
+  rt::Runtime runtime(options, rt::RuntimeDevices{&endpoint});
+  if (!runtime.configure(rt::test::test_cycle_config(), rt::test::payload_model()).empty()) {
+    state.SkipWithError("Runtime::configure failed");
+    return;
+  }
+  std::vector<std::string> warnings;
+  if (!runtime.start(warnings).empty()) {
+    state.SkipWithError("Runtime::start failed");
+    return;
+  }
+  // The cycle thread drops what was queued before it started (zerog-rt's start-up): let it start.
+  std::this_thread::sleep_for(100ms);
+  rt::test::StaticRobot rig;
+  std::int64_t n = 0;
+  // Per cycle, as at 12 ms: 4 F/T and 24 IMU samples handed over by the "sensor threads" (here
+  // the client, outside the timed part), a slow push back and forth so the body moves.
+  auto before = [&] {
+    const double push = (n / 50) % 2 == 0 ? 0.0 : ((n / 100) % 2 ? 20.0 : -20.0);
+    for (int i = 0; i < 4; ++i) runtime.ft_ring().try_push(rig.ft(rt::test::push(push, 0, 0)));
+    for (int i = 0; i < 24; ++i) runtime.imu_ring().try_push(rig.imu_sample);
+    if (n % 64 == 0) runtime.supervise();  // --enable-zero-g
+    ++n;
+  };
+  auto make_message = [&](std::span<char> out, std::uint64_t ipoc) {
+    rig.message.ipoc = 1'000'000 + 12 * ipoc;
+    const zerog::proto::rsi::FormatResult f =
+        zerog::proto::rsi::format_robot_message(rig.message, out);
+    return std::string_view(out.data(), f.size);
+  };
+  std::vector<double> us = run_client(state, endpoint.local_port(), make_message, before);
+  runtime.stop();
+  const std::string summary = runtime.summary_json();
+  if (summary.find("\"state\": \"zero_g\"") == std::string::npos) {
+    state.SkipWithError("the cycle was not in zero-g at the end");
+    return;
+  }
+  if (us.empty()) return;
+  const Percentiles p = percentiles(us);
+  report(state, p);
+  if (g_echo.p50_us > 0) {
+    state.counters["ratio_p50"] = p.p50_us / g_echo.p50_us;
+    state.counters["ratio_p999"] = p.p999_us / g_echo.p999_us;
+  }
+}
+
+// Registered in this order: the echo runs first, so the RSI runs can report their ratio.
 BENCHMARK(BM_BareUdpEcho)->Iterations(kRoundTrips)->Unit(benchmark::kMicrosecond)->UseRealTime();
 BENCHMARK(BM_RsiEndpointRoundTrip)
+    ->Iterations(kRoundTrips)
+    ->Unit(benchmark::kMicrosecond)
+    ->UseRealTime();
+BENCHMARK(BM_ZerogRtRoundTrip)
     ->Iterations(kRoundTrips)
     ->Unit(benchmark::kMicrosecond)
     ->UseRealTime();
