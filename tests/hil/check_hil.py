@@ -158,6 +158,9 @@ def case_push(run):
           f"J/m = ({v_expected[0]:.4f}, {v_expected[1]:.4f}, {v_expected[2]:.4f}) m/s")
     print(f"  payload centre-of-mass velocity {t_end + 1:.1f}–{t_end + 2.5:.1f} s: "
           f"({v[0]:.4f}, {v[1]:.4f}, {v[2]:.4f}) m/s")
+    p_lin = run.mass * v
+    print(f"  momentum m·v = ({p_lin[0]:.3f}, {p_lin[1]:.3f}, {p_lin[2]:.3f}) N·s against the "
+          f"impulse J: the part floated off with {100 * np.linalg.norm(p_lin) / np.linalg.norm(J):.1f} % of it")
     check(err < 0.03, f"velocity settles at J/m: error {100 * err:.2f} % (limit 3 %)")
     spread = np.linalg.norm(run.v_com[sel] - v, axis=1).max() / np.linalg.norm(v_expected)
     figure("push_velocity_spread", spread)
