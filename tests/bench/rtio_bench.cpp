@@ -167,8 +167,6 @@ void BM_ZerogRtRoundTrip(benchmark::State& state) {
     state.SkipWithError("Runtime::start failed");
     return;
   }
-  // The cycle thread drops what was queued before it started (zerog-rt's start-up): let it start.
-  std::this_thread::sleep_for(100ms);
   rt::test::StaticRobot rig;
   std::int64_t n = 0;
   // Per cycle, as at 12 ms: 4 F/T and 24 IMU samples handed over by the "sensor threads" (here

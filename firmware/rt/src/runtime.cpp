@@ -149,6 +149,9 @@ std::string Runtime::start(std::vector<std::string>& warnings) {
     error = launch(imu_thread_, "imu", &Runtime::imu_loop, sensor_priority, -1);
   if (error.empty() && devices_.ft != nullptr)
     error = launch(ft_thread_, "ft", &Runtime::ft_loop, sensor_priority, -1);
+  // Whatever robot datagrams piled up while the program started are old: the first cycle
+  // starts from now (and a datagram sent after start() began is kept).
+  devices_.robot->discard_queued();
   if (error.empty())
     error = launch(cycle_thread_, "cycle", &Runtime::cycle_loop, priority, options_.realtime.cpu);
   if (!refused.empty()) {
@@ -164,9 +167,6 @@ std::string Runtime::start(std::vector<std::string>& warnings) {
 
 void Runtime::cycle_loop() {
   prefault_stack();
-  // Whatever piled up while the program started is old: the first cycle starts from now.
-  devices_.robot->discard_queued();
-  discard_samples();
   while (!stop_cycle_.load(std::memory_order_relaxed)) cycle_once();
 }
 

@@ -4,16 +4,16 @@
 #include <cstdio>
 #include <stdexcept>
 
-#include "toml_table.hpp"  // zerog::io's strict TOML reader (host/io/src)
 #include "zerog/emu/robot.hpp"
 #include "zerog/io/log.hpp"
+#include "zerog/io/toml_table.hpp"
 
 namespace zerog::emu {
 namespace {
 
-using io::detail::number_text;
-using io::detail::throw_at;
-using io::detail::TomlTable;
+using io::number_text;
+using io::throw_at;
+using io::TomlTable;
 namespace fs = std::filesystem;
 
 constexpr double kDeg = 3.14159265358979323846 / 180.0;
@@ -45,44 +45,12 @@ const std::array<FaultKindInfo, kFaultKindCount> kFaults = {{
      "the IMU's pty closes (hang-up); re-plugged after `duration_s` if given"},
 }};
 
-// A number in [lo, hi] (either bound open when the flag says so).
-double ranged(const TomlTable& t, const toml::node& node, std::string_view key, double lo,
-              bool lo_open, double hi, bool hi_open) {
-  const double v = t.number(node, key);
-  const bool below = lo_open ? v <= lo : v < lo;
-  const bool above = hi_open ? v >= hi : v > hi;
-  if (below || above) {
-    throw_at(t.file(), node.source(),
-             "'" + t.name(key) + "' must be in " + (lo_open ? "(" : "[") + number_text(lo) + ", " +
-                 number_text(hi) + (hi_open ? ")" : "]") + ", is " + number_text(v));
-  }
-  return v;
-}
-
-double ranged(const TomlTable& t, std::string_view key, double lo, bool lo_open, double hi,
-              bool hi_open) {
-  return ranged(t, t.require(key), key, lo, lo_open, hi, hi_open);
-}
-
-std::int64_t ranged_integer(const TomlTable& t, std::string_view key, std::int64_t lo,
-                            std::int64_t hi) {
-  const std::int64_t v = t.integer(key);
-  if (v < lo || v > hi) {
-    throw_at(t.file(), t.require(key).source(),
-             "'" + t.name(key) + "' must be an integer in [" + std::to_string(lo) + ", " +
-                 std::to_string(hi) + "], is " + std::to_string(v));
-  }
-  return v;
-}
-
 // A list of 3 numbers, each finite and of magnitude ≤ `limit` (the vector's norm).
 Eigen::Vector3d vector3(const TomlTable& t, std::string_view key, double limit, const char* unit) {
-  const std::vector<double> v = t.numbers(key, 3);
-  const Eigen::Vector3d out(v[0], v[1], v[2]);
+  const Eigen::Vector3d out = t.vector3(key);
   if (out.norm() > limit) {
-    throw_at(t.file(), t.require(key).source(),
-             "'" + t.name(key) + "' has magnitude " + number_text(out.norm()) + " " + unit +
-                 ", more than the " + number_text(limit) + " " + unit + " allowed");
+    t.fail(key, "has magnitude " + number_text(out.norm()) + " " + unit + ", more than the " +
+                    number_text(limit) + " " + unit + " allowed");
   }
   return out;
 }
@@ -93,22 +61,19 @@ std::string degrees(double rad) {
   return buf;
 }
 
-void read_robot(const toml::table& table, const fs::path& file, RobotSettings& r) {
-  const TomlTable t(table, file, "robot.",
-                    {"cycle_ms", "servo_bandwidth_hz", "physics_rate_hz", "start_joints_deg"});
+void read_robot(const TomlTable& top, RobotSettings& r) {
+  const TomlTable t = top.sub_table(
+      "robot", {"cycle_ms", "servo_bandwidth_hz", "physics_rate_hz", "start_joints_deg"});
   if (t.find("cycle_ms")) {
     const std::int64_t c = t.integer("cycle_ms");
     if (c != 4 && c != 12)
-      throw_at(file, t.require("cycle_ms").source(),
-               "'robot.cycle_ms' must be 4 or 12 (the RSI interpolation cycles), is " +
-                   std::to_string(c));
+      t.fail("cycle_ms", "must be 4 or 12 (the RSI interpolation cycles), is " + std::to_string(c));
     r.cycle_ms = static_cast<int>(c);
   }
-  if (t.find("physics_rate_hz"))
-    r.physics_rate_hz = ranged(t, "physics_rate_hz", 500.0, false, 20000.0, false);
-  if (t.find("servo_bandwidth_hz"))
-    r.servo_bandwidth_hz =
-        ranged(t, "servo_bandwidth_hz", 0.0, true, r.physics_rate_hz / 10.0, false);
+  r.physics_rate_hz =
+      t.optional_number("physics_rate_hz", r.physics_rate_hz, {500.0, false, 20000.0, false});
+  r.servo_bandwidth_hz = t.optional_number("servo_bandwidth_hz", r.servo_bandwidth_hz,
+                                           {0.0, true, r.physics_rate_hz / 10.0, false});
   if (t.find("start_joints_deg")) {
     const std::vector<double> q = t.numbers("start_joints_deg", 6);
     const sim::JointLimits lim = emulator_joint_limits();
@@ -116,10 +81,10 @@ void read_robot(const toml::table& table, const fs::path& file, RobotSettings& r
       const double rad = q[i] * kDeg;
       if (rad < lim.lower_rad[i] - 1e-12 || rad > lim.upper_rad[i] + 1e-12) {
         const toml::node& element = *t.require("start_joints_deg").as_array()->get(i);
-        throw_at(file, element.source(),
-                 "'robot.start_joints_deg' A" + std::to_string(i + 1) + " = " + number_text(q[i]) +
-                     " deg is outside its range [" + degrees(lim.lower_rad[i]) + ", " +
-                     degrees(lim.upper_rad[i]) + "] deg");
+        t.fail("start_joints_deg", element.source(),
+               "A" + std::to_string(i + 1) + " = " + number_text(q[i]) +
+                   " deg is outside its range [" + degrees(lim.lower_rad[i]) + ", " +
+                   degrees(lim.upper_rad[i]) + "] deg");
       }
       r.start_joints_rad[i] = rad;
     }
@@ -128,72 +93,68 @@ void read_robot(const toml::table& table, const fs::path& file, RobotSettings& r
 
 // `set` keys are host/sim's set_config_value names, e.g. gravity.mass: written dotted (nested
 // tables) or quoted ("gravity.mass"), both work.
-void apply_set(const toml::table& table, const fs::path& file, const std::string& prefix,
+void apply_set(const toml::table& table, const TomlTable& payload, const std::string& prefix,
                sim::SimConfig& sim) {
   for (const auto& [key, value] : table) {
     const std::string name = prefix + std::string(key.str());
     if (const toml::table* nested = value.as_table()) {
-      apply_set(*nested, file, name + ".", sim);
+      apply_set(*nested, payload, name + ".", sim);
       continue;
     }
-    if (!value.is_number())
-      throw_at(file, value.source(), "'payload.set." + name + "' must be a number");
+    if (!value.is_number()) payload.fail("set." + name, value.source(), "must be a number");
     try {
       sim::set_config_value(sim, name, *value.value<double>());
     } catch (const std::invalid_argument& e) {
-      throw_at(file, key.source(), "'payload.set." + name + "': " + e.what());
+      throw_at(payload.file(), key.source(), "'payload.set." + name + "': " + e.what());
     }
   }
 }
 
-void read_payload(const toml::table& table, const fs::path& file, sim::SimConfig& sim) {
-  const TomlTable t(table, file, "payload.", {"seed", "effects", "set"});
-  std::uint64_t seed = 1;
-  if (t.find("seed"))
-    seed = static_cast<std::uint64_t>(ranged_integer(t, "seed", 0, (std::int64_t{1} << 53)));
+void read_payload(const TomlTable& top, sim::SimConfig& sim) {
+  const TomlTable t = top.sub_table("payload", {"seed", "effects", "set"});
+  if (!t.present()) return;
+  const auto seed =
+      static_cast<std::uint64_t>(t.optional_integer("seed", 1, 0, std::int64_t{1} << 53));
   sim = sim::default_sim_config(seed);
   if (const toml::node* node = t.find("effects")) {
     const toml::array* list = node->as_array();
-    if (list == nullptr)
-      throw_at(file, node->source(), "'payload.effects' must be a list of effect names");
+    if (list == nullptr) t.fail("effects", "must be a list of effect names");
     for (const toml::node& element : *list) {
       if (!element.is_string())
-        throw_at(file, element.source(), "'payload.effects' must be a list of effect names");
+        t.fail("effects", element.source(), "must be a list of effect names");
       try {
         sim.effects =
             sim::parse_sim_effects(std::string(*element.value<std::string_view>()), sim.effects);
       } catch (const std::invalid_argument& e) {
-        throw_at(file, element.source(), std::string("'payload.effects': ") + e.what());
+        throw_at(t.file(), element.source(), std::string("'payload.effects': ") + e.what());
       }
     }
   }
   if (const toml::node* node = t.find("set")) {
     const toml::table* set = node->as_table();
-    if (set == nullptr)
-      throw_at(file, node->source(), "'payload.set' must be a table of key = number");
-    apply_set(*set, file, "", sim);
+    if (set == nullptr) t.fail("set", "must be a table of key = number");
+    apply_set(*set, t, "", sim);
   }
 }
 
-void read_ft(const toml::table& table, const fs::path& file, FtSettings& ft) {
-  const TomlTable t(table, file, "ft.", {"counts_per_force", "counts_per_torque", "base_id"});
+void read_ft(const TomlTable& top, FtSettings& ft) {
+  const TomlTable t = top.sub_table("ft", {"counts_per_force", "counts_per_torque", "base_id"});
   constexpr std::int64_t kMaxCounts = 0x7FFFFFFF;
-  if (t.find("counts_per_force"))
-    ft.counts_per_force =
-        static_cast<std::uint32_t>(ranged_integer(t, "counts_per_force", 1, kMaxCounts));
-  if (t.find("counts_per_torque"))
-    ft.counts_per_torque =
-        static_cast<std::uint32_t>(ranged_integer(t, "counts_per_torque", 1, kMaxCounts));
-  if (t.find("base_id"))
-    ft.base_id = static_cast<std::uint8_t>(ranged_integer(t, "base_id", 0, 127));
+  ft.counts_per_force = static_cast<std::uint32_t>(
+      t.optional_integer("counts_per_force", ft.counts_per_force, 1, kMaxCounts));
+  ft.counts_per_torque = static_cast<std::uint32_t>(
+      t.optional_integer("counts_per_torque", ft.counts_per_torque, 1, kMaxCounts));
+  ft.base_id = static_cast<std::uint8_t>(t.optional_integer("base_id", ft.base_id, 0, 127));
 }
 
-const toml::array& array_of_tables(const toml::node& node, const fs::path& file,
-                                   const std::string& key) {
-  const toml::array* a = node.as_array();
+// The [[key]] tables of the file (none if `key` is not there).
+const toml::array* array_of_tables(const TomlTable& top, std::string_view key) {
+  const toml::node* node = top.find(key);
+  if (node == nullptr) return nullptr;
+  const toml::array* a = node->as_array();
   if (a == nullptr || !a->is_array_of_tables())
-    throw_at(file, node.source(), "'" + key + "' must be an array of tables ([[" + key + "]])");
-  return *a;
+    top.fail(key, "must be an array of tables ([[" + std::string(key) + "]])");
+  return a;
 }
 
 Push read_push(const toml::table& table, const fs::path& file, std::size_t index) {
@@ -201,8 +162,8 @@ Push read_push(const toml::table& table, const fs::path& file, std::size_t index
       table, file, "push[" + std::to_string(index + 1) + "].",
       {"start_s", "duration_s", "force_world_N", "torque_world_Nm", "point_sensor_m", "profile"});
   Push p;
-  p.start_s = ranged(t, "start_s", 0.0, false, 1e6, false);
-  p.duration_s = ranged(t, "duration_s", 0.0, true, 60.0, false);
+  p.start_s = t.number("start_s", {0.0, false, 1e6, false});
+  p.duration_s = t.number("duration_s", {0.0, true, 60.0, false});
   p.force_world_N = vector3(t, "force_world_N", 5000.0, "N");
   if (t.find("torque_world_Nm")) p.torque_world_Nm = vector3(t, "torque_world_Nm", 1000.0, "N*m");
   if (t.find("point_sensor_m")) p.point_sensor_m = vector3(t, "point_sensor_m", 3.0, "m");
@@ -212,9 +173,7 @@ Push read_push(const toml::table& table, const fs::path& file, std::size_t index
   } else if (profile == "constant") {
     p.profile = PushProfile::constant;
   } else {
-    throw_at(file, t.require("profile").source(),
-             "'" + t.name("profile") + "' must be \"half_sine\" or \"constant\", is \"" + profile +
-                 "\"");
+    t.fail("profile", "must be \"half_sine\" or \"constant\", is \"" + profile + "\"");
   }
   return p;
 }
@@ -229,33 +188,30 @@ Fault read_fault(const toml::table& table, const fs::path& file, std::size_t ind
   if (fi == nullptr) {
     std::string known;
     for (const FaultKindInfo& i : kFaults) known += std::string(known.empty() ? "" : ", ") + i.name;
-    throw_at(file, t.require("kind").source(),
-             "'" + t.name("kind") + "' is \"" + kind + "\", not a fault kind (" + known + ")");
+    t.fail("kind", "is \"" + kind + "\", not a fault kind (" + known + ")");
   }
   Fault f;
   f.kind = fi->kind;
-  f.start_s = ranged(t, "start_s", 0.0, false, 1e6, false);
+  f.start_s = t.number("start_s", {0.0, false, 1e6, false});
   // Each key only where it means something for this kind.
   auto refuse = [&](std::string_view key, const std::string& why) {
-    if (const toml::node* node = t.find(key))
-      throw_at(file, node->source(),
-               "'" + t.name(key) + "' does not apply to kind '" + kind + "' (" + why + ")");
+    if (t.find(key) != nullptr) t.fail(key, "does not apply to kind '" + kind + "' (" + why + ")");
   };
   if (fi->robot) {
-    f.cycles = static_cast<int>(ranged_integer(t, "cycles", 1, 1'000'000));
+    f.cycles = static_cast<int>(t.integer("cycles", 1, 1'000'000));
     refuse("duration_s", "robot faults count cycles");
   } else {
     refuse("cycles", "device faults last duration_s");
     if (f.kind != FaultKind::imu_unplug || t.find("duration_s"))
-      f.duration_s = ranged(t, "duration_s", 0.0, true, 1e6, false);
+      f.duration_s = t.number("duration_s", {0.0, true, 1e6, false});
   }
   if (f.kind == FaultKind::robot_late) {
-    f.delay_ms = ranged(t, "delay_ms", 0.0, true, 1000.0, false);
+    f.delay_ms = t.number("delay_ms", {0.0, true, 1000.0, false});
   } else {
     refuse("delay_ms", "only robot_late has it");
   }
   if (f.kind == FaultKind::ft_slow) {
-    f.response_delay_ms = ranged(t, "response_delay_ms", 0.0, true, 1000.0, false);
+    f.response_delay_ms = t.number("response_delay_ms", {0.0, true, 1000.0, false});
   } else {
     refuse("response_delay_ms", "only ft_slow has it");
   }
@@ -266,20 +222,19 @@ Scenario from_table(const toml::table& root, const fs::path& file) {
   const TomlTable top(root, file, "", {"robot", "payload", "ft", "push", "fault"});
   Scenario s = default_scenario();
   s.source = file;
-  if (top.find("robot")) read_robot(top.table("robot"), file, s.robot);
-  if (top.find("payload")) read_payload(top.table("payload"), file, s.sim);
-  if (top.find("ft")) read_ft(top.table("ft"), file, s.ft);
-  if (const toml::node* node = top.find("push")) {
-    const toml::array& pushes = array_of_tables(*node, file, "push");
-    if (pushes.size() > kMaxPushes)
-      throw_at(file, node->source(),
+  read_robot(top, s.robot);
+  read_payload(top, s.sim);
+  read_ft(top, s.ft);
+  if (const toml::array* pushes = array_of_tables(top, "push")) {
+    if (pushes->size() > kMaxPushes)
+      throw_at(file, pushes->source(),
                "at most " + std::to_string(kMaxPushes) + " [[push]] tables, got " +
-                   std::to_string(pushes.size()));
-    for (std::size_t k = 0; k < pushes.size(); ++k)
-      s.pushes.push_back(read_push(*pushes.get(k)->as_table(), file, k));
+                   std::to_string(pushes->size()));
+    for (std::size_t k = 0; k < pushes->size(); ++k)
+      s.pushes.push_back(read_push(*pushes->get(k)->as_table(), file, k));
   }
-  if (const toml::node* node = top.find("fault")) {
-    const toml::array& faults = array_of_tables(*node, file, "fault");
+  if (const toml::array* list = array_of_tables(top, "fault")) {
+    const toml::array& faults = *list;
     for (std::size_t k = 0; k < faults.size(); ++k)
       s.faults.push_back(read_fault(*faults.get(k)->as_table(), file, k));
     // One fault at a time per group (robot, F/T board, IMU): each would undo the other.
@@ -337,19 +292,9 @@ Scenario default_scenario() {
 }
 
 Scenario parse_scenario(std::string_view toml_text, const fs::path& file) {
-  toml::table root;
-  try {
-    root = toml::parse(toml_text, file.string());
-  } catch (const toml::parse_error& e) {
-    throw io::InputError(file, static_cast<int>(e.source().begin.line),
-                         static_cast<int>(e.source().begin.column),
-                         "TOML syntax: " + std::string(e.description()));
-  }
-  return from_table(root, file);
+  return from_table(io::parse_toml(toml_text, file), file);
 }
 
-Scenario read_scenario(const fs::path& file) {
-  return from_table(io::detail::parse_toml_file(file), file);
-}
+Scenario read_scenario(const fs::path& file) { return from_table(io::parse_toml_file(file), file); }
 
 }  // namespace zerog::emu

@@ -33,12 +33,6 @@ std::string location(const fs::path& file, int line, int column) {
   return out + ": ";
 }
 
-std::string num(double v) {
-  std::string s;
-  detail::append_number(s, v, 0);
-  return s;
-}
-
 // ---------------------------------------------------------------------------------------------
 // Columns of the log CSV (proto/log_format.md), in the order the writer emits them.
 // clang-format off
@@ -193,7 +187,7 @@ std::string toml_string(std::string_view s) {
 
 // TOML floats need a '.' or an exponent, else they read back as integers.
 std::string toml_float(double v) {
-  std::string s = num(v);
+  std::string s = number_text(v);
   if (s.find_first_of(".eE") == std::string::npos) s += ".0";
   return s;
 }
@@ -353,8 +347,9 @@ void LogCsvWriter::append_row(const Sample& sample, std::string& out) {
   const auto v = sample_values(sample);
   const std::size_t i = rows_;
   if (i > 0 && !(v[kT] > previous_t_)) {
-    throw std::invalid_argument("write_log: sample " + std::to_string(i) + ": t_s = " + num(v[kT]) +
-                                " does not increase (previous " + num(previous_t_) + ")");
+    throw std::invalid_argument("write_log: sample " + std::to_string(i) +
+                                ": t_s = " + number_text(v[kT]) + " does not increase (previous " +
+                                number_text(previous_t_) + ")");
   }
   for (int c = 0; c < kNumCols; ++c) {
     if (column_written(c, columns_) && !std::isfinite(v[c])) {
@@ -489,18 +484,19 @@ Log read_log(const fs::path& csv) {
     }
     if (!log.samples.empty() && !(values[kT] > log.samples.back().t_s)) {
       const double before = log.samples.back().t_s;
-      throw InputError(
-          csv, n, detail::char_column(line, cells[cell_of[kT]].offset),
-          std::string("time ") + (values[kT] < before ? "goes backwards" : "stands still") +
-              " at line " + std::to_string(n) + ": t=" + num(values[kT]) + " after " + num(before) +
-              " (line " + std::to_string(previous_line) + "); t_s must increase strictly");
+      throw InputError(csv, n, detail::char_column(line, cells[cell_of[kT]].offset),
+                       std::string("time ") +
+                           (values[kT] < before ? "goes backwards" : "stands still") + " at line " +
+                           std::to_string(n) + ": t=" + number_text(values[kT]) + " after " +
+                           number_text(before) + " (line " + std::to_string(previous_line) +
+                           "); t_s must increase strictly");
     }
     const double norm = std::sqrt(values[kQw] * values[kQw] + values[kQx] * values[kQx] +
                                   values[kQy] * values[kQy] + values[kQz] * values[kQz]);
     if (std::abs(norm - 1.0) > 1e-3) {
-      throw InputError(
-          csv, n, detail::char_column(line, cells[cell_of[kQw]].offset),
-          "quaternion (qw, qx, qy, qz) has norm " + num(norm) + ", off from 1 by more than 1e-3");
+      throw InputError(csv, n, detail::char_column(line, cells[cell_of[kQw]].offset),
+                       "quaternion (qw, qx, qy, qz) has norm " + number_text(norm) +
+                           ", off from 1 by more than 1e-3");
     }
     fill_sample(values, log.columns, log.samples.emplace_back());
     previous_line = n;
@@ -538,42 +534,16 @@ void write_file_atomic(const fs::path& path, const std::string& text,
 
 namespace detail {
 
-void throw_at(const fs::path& file, const toml::source_region& where, const std::string& why) {
-  int line = static_cast<int>(where.begin.line);
-  int column = static_cast<int>(where.begin.column);
-  if (line <= 0) {
-    line = 1;
-    column = 1;
-  }
-  throw InputError(file, line, column, why);
-}
-
-toml::table parse_toml_file(const fs::path& file) {
-  const std::string text = read_whole_file(file);
-  try {
-    return toml::parse(text, file.string());
-  } catch (const toml::parse_error& e) {
-    throw InputError(file, static_cast<int>(e.source().begin.line),
-                     static_cast<int>(e.source().begin.column),
-                     "TOML syntax: " + std::string(e.description()));
-  }
-}
-
 namespace {
 
-Transform transform_from_toml(const TomlTable& parent, std::string_view key, const fs::path& file) {
-  const toml::table& table = parent.table(key);
-  TomlTable t(table, file, parent.name(key) + ".", {"p_m", "q_wxyz"});
+Transform transform_from_toml(const TomlTable& parent, std::string_view key) {
+  const TomlTable t(parent.table(key), parent.file(), parent.name(key) + ".", {"p_m", "q_wxyz"});
   Transform out;
-  const auto p = t.numbers("p_m", 3);
-  out.p_m = {p[0], p[1], p[2]};
+  out.p_m = t.vector3("p_m");
   const auto q = t.numbers("q_wxyz", 4);
   const Eigen::Quaterniond quat(q[0], q[1], q[2], q[3]);
-  if (std::abs(quat.norm() - 1.0) > 1e-3) {
-    throw_at(file, t.require("q_wxyz").source(),
-             "'" + t.name("q_wxyz") + "' has norm " + num(quat.norm()) +
-                 ", off from 1 by more than 1e-3");
-  }
+  if (std::abs(quat.norm() - 1.0) > 1e-3)
+    t.fail("q_wxyz", "has norm " + number_text(quat.norm()) + ", off from 1 by more than 1e-3");
   out.q = quat.normalized();
   return out;
 }
@@ -587,10 +557,7 @@ Rig rig_from_toml(const toml::table& table, const fs::path& file, bool embedded,
                      "imu_rate_hz", "floor_z_m", "flange_sensor", "sensor_imu"});
   if (!embedded || t.find("format") != nullptr) {
     const std::string format = t.string("format");
-    if (format != "zerog-rig") {
-      throw_at(file, t.require("format").source(),
-               "'" + t.name("format") + "' must be \"zerog-rig\", is \"" + format + "\"");
-    }
+    if (format != "zerog-rig") t.fail("format", "must be \"zerog-rig\", is \"" + format + "\"");
   }
   if (!embedded || t.find("version") != nullptr) {
     const std::int64_t version = t.integer("version");
@@ -605,13 +572,13 @@ Rig rig_from_toml(const toml::table& table, const fs::path& file, bool embedded,
   rig.name = t.string("name");
   rig.robot = t.string("robot");
   const bool period_given = !embedded || t.find("sample_period_s") != nullptr;
-  if (period_given) rig.sample_period_s = t.number("sample_period_s", 0.0, true);
+  if (period_given) rig.sample_period_s = t.number("sample_period_s", {0.0, true});
   if (has_period != nullptr) *has_period = period_given;
-  rig.ft_rate_hz = t.optional_number("ft_rate_hz", 0.0, 0.0, false);
-  rig.imu_rate_hz = t.optional_number("imu_rate_hz", 0.0, 0.0, false);
-  rig.floor_z_m = t.optional_number("floor_z_m", 0.0, -1e300, false);
-  rig.flange_sensor = transform_from_toml(t, "flange_sensor", file);
-  rig.sensor_imu = transform_from_toml(t, "sensor_imu", file);
+  rig.ft_rate_hz = t.optional_number("ft_rate_hz", 0.0, {0.0, false});
+  rig.imu_rate_hz = t.optional_number("imu_rate_hz", 0.0, {0.0, false});
+  rig.floor_z_m = t.optional_number("floor_z_m", 0.0);
+  rig.flange_sensor = transform_from_toml(t, "flange_sensor");
+  rig.sensor_imu = transform_from_toml(t, "sensor_imu");
   return rig;
 }
 
@@ -623,7 +590,7 @@ Rig read_rig(const fs::path& toml) {
     throw InputError(toml, 0, 0,
                      "rig file missing (a log NAME.csv needs its rig NAME.rig.toml beside it)");
   }
-  const toml::table table = detail::parse_toml_file(toml);
+  const toml::table table = parse_toml_file(toml);
   return detail::rig_from_toml(table, toml, false, "", nullptr);
 }
 

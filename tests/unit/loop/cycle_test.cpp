@@ -10,106 +10,19 @@
 #include <functional>
 
 #include "alloc_count.hpp"
+#include "loop_fixtures.hpp"
 
 namespace zerog::loop {
 namespace {
 
-constexpr double kMass = 100.0;
-constexpr double kPeriod = 0.012;
+using test::kMass;
+using test::kPeriod;
+using test::payload_model;
+using test::push;
+using test::StaticRobot;
+using test::test_cycle_config;
 
-infer::DeployedModel payload_model() {
-  infer::DeployedModel m;
-  m.rig.name = "test-rig";
-  m.rig.robot = "KR 210 R2700";
-  m.rig.sample_period_s = kPeriod;
-  m.physics.effects = model::kDefaultModel;
-  double* bias = m.physics.block(model::Effect::bias);
-  const double b[6] = {12.0, -7.0, 30.0, 1.5, -0.5, 0.25};
-  for (int k = 0; k < 6; ++k) bias[k] = b[k];
-  double* g = m.physics.block(model::Effect::gravity);
-  g[0] = kMass;
-  g[1] = 0.03;
-  g[2] = -0.02;
-  g[3] = 0.25;
-  double* I = m.physics.block(model::Effect::rotational_inertia);
-  I[0] = 4.0;
-  I[1] = 5.0;
-  I[2] = 6.0;
-  return m;
-}
-
-CycleConfig test_config() {
-  CycleConfig c;
-  c.period_s = kPeriod;
-  c.body.mass_kg = kMass;
-  c.body.inertia_body_kgm2 = Eigen::Vector3d(4.0, 5.0, 6.0).asDiagonal();
-  c.p_sensor_com_m = Eigen::Vector3d(0.03, -0.02, 0.25);
-  return c;
-}
-
-/// A static robot at a fixed pose; the payload wrench as the model predicts it (so contact is
-/// exactly what the test adds).
-class StaticRig {
- public:
-  StaticRig() {
-    EXPECT_EQ(truth_.configure(payload_model()), "");
-    message_.actual_pose = {1500.0, 200.0, 1200.0, 10.0, 20.0, -30.0};
-    message_.joints_deg = {5.0, -80.0, 95.0, 10.0, 40.0, -20.0};
-    message_.has_delay = true;
-    message_.ipoc = 1'000'000;
-    const proto::rsi::PoseSi pose = proto::rsi::to_si(message_.actual_pose);
-    R_ = model::rotation_from_kuka_abc(pose.abc_rad[0], pose.abc_rad[1], pose.abc_rad[2]);
-    model::FeatureSignals s;
-    for (int r = 0; r < 3; ++r) {
-      for (int c = 0; c < 3; ++c) s.R_base_sensor[3 * r + c] = R_(r, c);
-    }
-    const Eigen::Vector3d f_imu = R_.transpose() * Eigen::Vector3d(0, 0, model::kStandardGravity);
-    for (int k = 0; k < 3; ++k) s.imu[k] = f_imu[k];
-    infer::Wrench w;
-    EXPECT_TRUE(truth_.evaluate_physics(s, w).written());
-    for (int k = 0; k < 6; ++k) payload_[k] = w[k];
-    imu_.rate_valid = imu_.accel_valid = true;
-    for (int k = 0; k < 3; ++k) imu_.accel_m_s2[k] = f_imu[k];
-  }
-
-  /// Feeds `n_ft` F/T samples (payload + contact, sensor frame) and `n_imu` IMU samples, then
-  /// one robot message; returns the reply.
-  CycleReply cycle(Cycle& c, const Eigen::Matrix<double, 6, 1>& contact, int n_ft = 4,
-                   int n_imu = 24) {
-    rtio::FtSample ft;
-    ft.valid = true;
-    for (int k = 0; k < 6; ++k) ft.wrench_si[k] = payload_[k] + contact[k];
-    for (int i = 0; i < n_ft; ++i) c.add_ft(ft);
-    for (int i = 0; i < n_imu; ++i) c.add_imu(imu_);
-    CycleReply reply;
-    c.step(message_, reply);
-    message_.ipoc += 12;
-    return reply;
-  }
-  CycleReply quiet(Cycle& c, int n_ft = 4, int n_imu = 24) {
-    return cycle(c, Eigen::Matrix<double, 6, 1>::Zero(), n_ft, n_imu);
-  }
-
-  proto::rsi::RobotMessage& message() { return message_; }
-  const Eigen::Matrix3d& R() const { return R_; }
-
- private:
-  infer::Inference truth_;
-  proto::rsi::RobotMessage message_;
-  Eigen::Matrix3d R_;
-  std::array<double, 6> payload_{};
-  rtio::ImuSample imu_;
-};
-
-/// A push through the virtual centre of mass (sensor frame; torque about the sensor origin).
-Eigen::Matrix<double, 6, 1> force(double fx, double fy, double fz) {
-  const Eigen::Vector3d F(fx, fy, fz);
-  Eigen::Matrix<double, 6, 1> w;
-  w << F, test_config().p_sensor_com_m.cross(F);
-  return w;
-}
-
-void start_zero_g(Cycle& c, StaticRig& rig) {
+void start_zero_g(Cycle& c, StaticRobot& rig) {
   for (int i = 0; i < 6; ++i) rig.quiet(c);
   ASSERT_TRUE(c.request(Command::enable_zero_g));
   rig.quiet(c);
@@ -118,24 +31,24 @@ void start_zero_g(Cycle& c, StaticRig& rig) {
 
 TEST(Cycle, ConfigureNamesWhatIsWrong) {
   Cycle c;
-  CycleConfig bad = test_config();
+  CycleConfig bad = test_cycle_config();
   bad.angular_accel_order = 3;
   EXPECT_NE(c.configure(bad, payload_model()).find("angular_accel_order"), std::string::npos);
-  bad = test_config();
+  bad = test_cycle_config();
   bad.body.inertia_body_kgm2(0, 1) = 1.0;
   EXPECT_NE(c.configure(bad, payload_model()).find("inertia"), std::string::npos);
-  bad = test_config();
+  bad = test_cycle_config();
   bad.watchdog.ft_fault_cycles = 0;
   EXPECT_NE(c.configure(bad, payload_model()).find("watchdog"), std::string::npos);
-  EXPECT_EQ(c.configure(test_config(), payload_model()), "");
+  EXPECT_EQ(c.configure(test_cycle_config(), payload_model()), "");
 }
 
 TEST(Cycle, IdleAnswersEveryMessageWithItsIpocAndNoCorrectionAndSeesNoContact) {
   Cycle c;
-  ASSERT_EQ(c.configure(test_config(), payload_model()), "");
-  StaticRig rig;
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  StaticRobot rig;
   for (int i = 0; i < 20; ++i) {
-    const std::uint64_t ipoc = rig.message().ipoc;
+    const std::uint64_t ipoc = rig.message.ipoc;
     const CycleReply r = rig.quiet(c);
     EXPECT_EQ(r.ipoc, ipoc);
     EXPECT_FALSE(r.axis);
@@ -150,8 +63,8 @@ TEST(Cycle, IdleAnswersEveryMessageWithItsIpocAndNoCorrectionAndSeesNoContact) {
 
 TEST(Cycle, SensorsThatHaveNotStartedYetMeanNotReadyNotAFault) {
   Cycle c;
-  ASSERT_EQ(c.configure(test_config(), payload_model()), "");
-  StaticRig rig;
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  StaticRobot rig;
   // The robot's datagrams come before the sensors' first samples (start-up order).
   for (int i = 0; i < 20; ++i) rig.quiet(c, 0, 0);
   EXPECT_EQ(c.state_machine().state(), State::idle);
@@ -167,8 +80,8 @@ TEST(Cycle, SensorsThatHaveNotStartedYetMeanNotReadyNotAFault) {
 
 TEST(Cycle, EnableIsRefusedUntilTheModelHasItsRows) {
   Cycle c;
-  ASSERT_EQ(c.configure(test_config(), payload_model()), "");
-  StaticRig rig;
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  StaticRobot rig;
   rig.quiet(c);
   ASSERT_TRUE(c.request(Command::enable_zero_g));
   rig.quiet(c);  // two rows: the 5-point stencil needs five
@@ -183,15 +96,15 @@ TEST(Cycle, EnableIsRefusedUntilTheModelHasItsRows) {
 
 TEST(Cycle, PushOfImpulseJGivesVelocityJOverMAndTheCorrectionsAddUpToTheMotion) {
   Cycle c;
-  ASSERT_EQ(c.configure(test_config(), payload_model()), "");
-  StaticRig rig;
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  StaticRobot rig;
   start_zero_g(c, rig);
   const Eigen::Vector3d p0 = c.motion().sensor_position_world();
   // 50 N along sensor x for 40 cycles; the contact gate keeps the whole impulse.
   const int n_push = 40;
   Eigen::Vector3d sum_mm = Eigen::Vector3d::Zero();
   for (int i = 0; i < n_push; ++i) {
-    const CycleReply r = rig.cycle(c, force(50.0, 0.0, 0.0));
+    const CycleReply r = rig.cycle(c, push(50.0, 0.0, 0.0));
     sum_mm += Eigen::Vector3d(r.rkorr.x_mm, r.rkorr.y_mm, r.rkorr.z_mm);
   }
   for (int i = 0; i < 30; ++i) {
@@ -199,7 +112,7 @@ TEST(Cycle, PushOfImpulseJGivesVelocityJOverMAndTheCorrectionsAddUpToTheMotion) 
     sum_mm += Eigen::Vector3d(r.rkorr.x_mm, r.rkorr.y_mm, r.rkorr.z_mm);
   }
   ASSERT_EQ(c.state_machine().state(), State::zero_g);
-  const Eigen::Vector3d J_world = rig.R() * Eigen::Vector3d(50.0 * n_push * kPeriod, 0, 0);
+  const Eigen::Vector3d J_world = rig.R * Eigen::Vector3d(50.0 * n_push * kPeriod, 0, 0);
   const Eigen::Vector3d v = c.motion().body().state().v_world_mps;
   EXPECT_NEAR((v - J_world / kMass).norm(), 0.0, 1e-9 * J_world.norm());
   // The robot was told to move exactly as the virtual sensor pose moved (RSI: 0.1 µm steps).
@@ -210,8 +123,8 @@ TEST(Cycle, PushOfImpulseJGivesVelocityJOverMAndTheCorrectionsAddUpToTheMotion) 
 
 TEST(Cycle, AnOffCentrePushTurnsTheBodyAndTheCorrectionCarriesTheRotation) {
   Cycle c;
-  ASSERT_EQ(c.configure(test_config(), payload_model()), "");
-  StaticRig rig;
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  StaticRobot rig;
   start_zero_g(c, rig);
   // A pure torque of 5 N·m about sensor z for 20 cycles (the gate's release of three cycles'
   // impulse stays below the angular acceleration limit).
@@ -227,19 +140,19 @@ TEST(Cycle, AnOffCentrePushTurnsTheBodyAndTheCorrectionCarriesTheRotation) {
   const Eigen::Vector3d L = c.motion().body().state().L_world_kgm2ps;
   // Angular impulse about the virtual centre of mass, in world: the 18 cycles that reached the
   // model row (two rows late), all of it kept by the contact gate.
-  const Eigen::Vector3d expected = rig.R() * Eigen::Vector3d(0, 0, 5.0 * 18 * kPeriod);
+  const Eigen::Vector3d expected = rig.R * Eigen::Vector3d(0, 0, 5.0 * 18 * kPeriod);
   EXPECT_NEAR((L - expected).norm(), 0.0, 1e-9 * expected.norm());
   EXPECT_GT(std::abs(a_sum) + std::abs(b_sum) + std::abs(c_sum), 0.1);
 }
 
 TEST(Cycle, StepDoesNotAllocate) {
   Cycle c;
-  ASSERT_EQ(c.configure(test_config(), payload_model()), "");
-  StaticRig rig;
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  StaticRobot rig;
   start_zero_g(c, rig);
   const std::size_t before = zerog::test::allocation_count();
-  for (int i = 0; i < 200; ++i) rig.cycle(c, force(i < 50 ? 30.0 : 0.0, 5.0, 0.0));
-  for (int i = 0; i < 10; ++i) rig.cycle(c, force(0, 0, 0), 0, 24);  // hold, then fault
+  for (int i = 0; i < 200; ++i) rig.cycle(c, push(i < 50 ? 30.0 : 0.0, 5.0, 0.0));
+  for (int i = 0; i < 10; ++i) rig.cycle(c, push(0, 0, 0), 0, 24);  // hold, then fault
   c.robot_lost(RobotLoss::timeout);
   EXPECT_EQ(zerog::test::allocation_count() - before, 0u);
   EXPECT_EQ(c.state_machine().fault(), Fault::ft_stale);
@@ -247,7 +160,7 @@ TEST(Cycle, StepDoesNotAllocate) {
 
 // Watchdogs: consecutive bad cycles below the threshold hold; the threshold raises the fault and
 // from that very cycle on the reply is a zero correction.
-void expect_hold_then_fault(Cycle& c, StaticRig& rig, int threshold, Fault fault,
+void expect_hold_then_fault(Cycle& c, StaticRobot& rig, int threshold, Fault fault,
                             const std::function<CycleReply()>& bad_cycle, std::uint32_t held_flag) {
   for (int i = 1; i < threshold; ++i) {
     const CycleReply r = bad_cycle();
@@ -255,7 +168,7 @@ void expect_hold_then_fault(Cycle& c, StaticRig& rig, int threshold, Fault fault
     EXPECT_NE(c.last().flags & held_flag, 0u) << "cycle " << i;
     (void)r;
   }
-  const std::uint64_t ipoc = rig.message().ipoc;
+  const std::uint64_t ipoc = rig.message.ipoc;
   const CycleReply r = bad_cycle();
   EXPECT_EQ(c.state_machine().state(), State::fault);
   EXPECT_EQ(c.state_machine().fault(), fault);
@@ -267,7 +180,7 @@ void expect_hold_then_fault(Cycle& c, StaticRig& rig, int threshold, Fault fault
   ASSERT_TRUE(c.black_box().frozen());
   EXPECT_EQ(c.black_box().at(c.black_box().size() - 1).fault, fault);
   for (int i = 0; i < 5; ++i) {
-    const CycleReply later = rig.cycle(c, force(40.0, 0.0, 0.0));
+    const CycleReply later = rig.cycle(c, push(40.0, 0.0, 0.0));
     EXPECT_EQ(later.rkorr.x_mm, 0.0);
   }
   EXPECT_EQ(c.black_box().at(c.black_box().size() - 1).fault, fault);
@@ -276,14 +189,14 @@ void expect_hold_then_fault(Cycle& c, StaticRig& rig, int threshold, Fault fault
 class Watchdog : public ::testing::Test {
  protected:
   void SetUp() override {
-    ASSERT_EQ(c.configure(test_config(), payload_model()), "");
+    ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
     start_zero_g(c, rig);
     // Moving, so that a zero correction is a real change.
-    for (int i = 0; i < 10; ++i) rig.cycle(c, force(30.0, 0.0, 0.0));
+    for (int i = 0; i < 10; ++i) rig.cycle(c, push(30.0, 0.0, 0.0));
     ASSERT_NE(rig.quiet(c).rkorr.x_mm, 0.0);
   }
   Cycle c;
-  StaticRig rig;
+  StaticRobot rig;
 };
 
 TEST_F(Watchdog, SilentFtSensorHoldsThenFaults) {
@@ -340,8 +253,8 @@ TEST_F(Watchdog, LostRobotCyclesFaultAtTheThresholdAndTheNextMessageGetsZero) {
   const CycleRecord& last = c.black_box().at(c.black_box().size() - 1);
   EXPECT_EQ(last.fault, Fault::robot_late);
   EXPECT_NE(last.flags & kRobotLost, 0u);
-  rig.message().ipoc += 12 * n;
-  const std::uint64_t ipoc = rig.message().ipoc;
+  rig.message.ipoc += 12 * n;
+  const std::uint64_t ipoc = rig.message.ipoc;
   const CycleReply r = rig.quiet(c);
   EXPECT_EQ(r.ipoc, ipoc);
   EXPECT_EQ(r.rkorr.x_mm, 0.0);
@@ -350,34 +263,34 @@ TEST_F(Watchdog, LostRobotCyclesFaultAtTheThresholdAndTheNextMessageGetsZero) {
 }
 
 TEST_F(Watchdog, AnIpocGapBelowTheThresholdIsCountedAndStepsTheBodyByTheElapsedTime) {
-  rig.message().ipoc += 12;  // one datagram lost
+  rig.message.ipoc += 12;  // one datagram lost
   rig.quiet(c);
   EXPECT_EQ(c.state_machine().state(), State::zero_g);
   EXPECT_NE(c.last().flags & kIpocGap, 0u);
   EXPECT_DOUBLE_EQ(c.last().dt_s, 2 * kPeriod);
   EXPECT_EQ(c.counters().datagrams_lost, 1u);
-  rig.message().ipoc += 12 * c.config().watchdog.robot_fault_cycles;
+  rig.message.ipoc += 12 * c.config().watchdog.robot_fault_cycles;
   rig.quiet(c);
   EXPECT_EQ(c.state_machine().fault(), Fault::robot_late);
 }
 
 TEST_F(Watchdog, GrowingRobotDelayMeansOurRepliesAreLateAndFaults) {
   for (int i = 1; i < c.config().watchdog.robot_late_cycles; ++i) {
-    ++rig.message().delay;
+    ++rig.message.delay;
     rig.quiet(c);
     EXPECT_EQ(c.state_machine().state(), State::zero_g);
     EXPECT_NE(c.last().flags & kRobotDelayGrew, 0u);
   }
-  ++rig.message().delay;
+  ++rig.message.delay;
   EXPECT_EQ(rig.quiet(c).rkorr.x_mm, 0.0);
   EXPECT_EQ(c.state_machine().fault(), Fault::robot_late);
 }
 
 TEST_F(Watchdog, DuplicateAndReorderedDatagramsAreAnsweredWithZeroAndChangeNothing) {
-  rig.message().ipoc -= 12;  // the previous datagram again
+  rig.message.ipoc -= 12;  // the previous datagram again
   const Eigen::Vector3d v = c.motion().body().state().v_world_mps;
   const CycleReply r = rig.quiet(c);
-  EXPECT_EQ(r.ipoc, rig.message().ipoc - 12);
+  EXPECT_EQ(r.ipoc, rig.message.ipoc - 12);
   EXPECT_EQ(r.rkorr.x_mm, 0.0);
   EXPECT_NE(c.last().flags & kIpocStale, 0u);
   EXPECT_EQ(c.counters().ipoc_stale, 1u);
@@ -387,11 +300,11 @@ TEST_F(Watchdog, DuplicateAndReorderedDatagramsAreAnsweredWithZeroAndChangeNothi
 }
 
 TEST_F(Watchdog, ContactAboveTheLimitFaultsAtOnce) {
-  const CycleReply r = rig.cycle(c, force(0.0, 500.0, 0.0));
+  const CycleReply r = rig.cycle(c, push(0.0, 500.0, 0.0));
   (void)r;
   // The contact is evaluated two rows back: the fault comes when the push reaches that row.
-  rig.cycle(c, force(0.0, 500.0, 0.0));
-  const CycleReply r3 = rig.cycle(c, force(0.0, 500.0, 0.0));
+  rig.cycle(c, push(0.0, 500.0, 0.0));
+  const CycleReply r3 = rig.cycle(c, push(0.0, 500.0, 0.0));
   EXPECT_EQ(c.state_machine().fault(), Fault::contact_over_limit);
   EXPECT_EQ(r3.rkorr.x_mm, 0.0);
 }
@@ -425,9 +338,9 @@ class RampPath final : public JointPath {
 
 TEST(Cycle, CollectionApproachesThePathThenFollowsItWithAxisCorrectionsAndStops) {
   Cycle c;
-  ASSERT_EQ(c.configure(test_config(), payload_model()), "");
-  StaticRig rig;
-  const std::array<double, 6> now = proto::rsi::joints_to_rad(rig.message().joints_deg);
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  StaticRobot rig;
+  const std::array<double, 6> now = proto::rsi::joints_to_rad(rig.message.joints_deg);
   std::array<double, 6> start = now;
   start[1] += 0.05;  // the path starts 0.05 rad away on A2
   RampPath path(start, 0.2, 2.0);

@@ -135,10 +135,12 @@ TEST(RtConfig, EachErrorNamesFileKeyPositionAndWhy) {
                {"robot.cycle_ms", line_of(s, "cycle_ms = 12"), 12, "must be 4 or 12"});
   expect_error(with_line(s, "rate_hz = 500.0", "rate_hz = -5.0"),
                {"ft.rate_hz", line_of(s, "rate_hz = 500.0"), 11, "must be in (0, 2000], is -5"});
-  expect_error(with_line(s, "base_id = 32", "base_id = 200"),
-               {"ft.base_id", line_of(s, "base_id = 32"), 11, "must be in 0..127, is 200"});
-  expect_error(with_line(s, "priority = 80", "priority = 120"),
-               {"realtime.priority", line_of(s, "priority = 80"), 12, "must be in 0..99"});
+  expect_error(
+      with_line(s, "base_id = 32", "base_id = 200"),
+      {"ft.base_id", line_of(s, "base_id = 32"), 11, "must be an integer in [0, 127], is 200"});
+  expect_error(
+      with_line(s, "priority = 80", "priority = 120"),
+      {"realtime.priority", line_of(s, "priority = 80"), 12, "must be an integer in [0, 99]"});
   expect_error(with_line(s, "angular_accel_order = 4", "angular_accel_order = 3"),
                {"filter.angular_accel_order", line_of(s, "angular_accel_order = 4"), 23,
                 "must be 4 (5-point"});
@@ -148,7 +150,7 @@ TEST(RtConfig, EachErrorNamesFileKeyPositionAndWhy) {
                {"robot.address", line_of(s, "address = \"192.168.1.10\""), 11, "IPv4 address"});
   expect_error(with_line(s, "contact_confirm_cycles = 3", "contact_confirm_cycles = 0"),
                {"limits.contact_confirm_cycles", line_of(s, "contact_confirm_cycles = 3"), 26,
-                "must be in 1..100, is 0"});
+                "must be an integer in [1, 100], is 0"});
   expect_error(with_line(s, "max_speed_mps = 0.25", "max_speed_mps = 0"),
                {"limits.max_speed_mps", line_of(s, "max_speed_mps = 0.25"), 17, "must be > 0"});
   expect_error(with_line(s, "workspace_max_m", "workspace_max_m = [2.5, 1.5, 0.2]"),

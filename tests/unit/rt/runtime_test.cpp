@@ -200,18 +200,20 @@ TEST(Runtime, ResetAfterTheDumpReleasesTheBlackBoxForTheNextFault) {
     for (int i = 0; i < 500 && !fs::exists(p); ++i) std::this_thread::sleep_for(10ms);
     return fs::exists(p);
   };
-  // The F/T watchdog runs in idle too: a silent sensor faults ft_stale at the 5th cycle.
+  // The F/T watchdog runs in idle too, once the sensor has delivered: after 3 good cycles a
+  // silent sensor faults ft_stale at its 5th cycle (cycle 8).
+  for (int i = 0; i < 3; ++i) one_cycle(false);
   for (int i = 0; i < 5; ++i) one_cycle(true);
-  ASSERT_TRUE(wait_for(dir.path() / "blackbox-5.csv"));
+  ASSERT_TRUE(wait_for(dir.path() / "blackbox-8.csv"));
   for (int i = 0; i < 3; ++i) one_cycle(false);
   ASSERT_TRUE(rt.request(loop::Command::reset_fault));
   for (int i = 0; i < 3; ++i) one_cycle(false);
-  for (int i = 0; i < 5; ++i) one_cycle(true);  // the second fault, at cycle 16
-  ASSERT_TRUE(wait_for(dir.path() / "blackbox-16.csv"));
+  for (int i = 0; i < 5; ++i) one_cycle(true);  // the second fault, at cycle 19
+  ASSERT_TRUE(wait_for(dir.path() / "blackbox-19.csv"));
   EXPECT_EQ(rt.stop(), "");
   EXPECT_EQ(rt.cycle_thread_counters().black_box_releases, 1u);
   EXPECT_EQ(rt.black_box_paths().size(), 2u);
-  EXPECT_EQ(cycles, 16u);
+  EXPECT_EQ(cycles, 19u);
 }
 
 class Ramp final : public loop::JointPath {

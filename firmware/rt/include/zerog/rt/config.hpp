@@ -8,31 +8,26 @@
 #include <cstdint>
 #include <filesystem>
 #include <optional>
-#include <stdexcept>
 #include <string>
 
 #include "zerog/control/motion.hpp"
 #include "zerog/control/virtual_body.hpp"
+#include "zerog/io/log.hpp"
 #include "zerog/loop/cycle.hpp"
 
 namespace zerog::rt {
 
 /// A configuration error. what() reads `FILE:LINE:COLUMN: KEY: why` (`FILE: KEY: why` when the
-/// position is unknown, e.g. a missing key names its table's position).
-class ConfigError : public std::runtime_error {
+/// position is unknown, e.g. the file cannot be read). A missing key names its table's position.
+/// file(), line() (1-based; 0 = unknown) and column() come from io::InputError.
+class ConfigError : public io::InputError {
  public:
   ConfigError(std::filesystem::path file, std::string key, int line, int column,
               const std::string& why);
-  const std::filesystem::path& file() const { return file_; }
   const std::string& key() const { return key_; }  ///< dotted path, e.g. "robot.cycle_ms"
-  int line() const { return line_; }               ///< 1-based; 0 = unknown
-  int column() const { return column_; }           ///< 1-based; 0 = unknown
 
  private:
-  std::filesystem::path file_;
   std::string key_;
-  int line_;
-  int column_;
 };
 
 struct RobotSection {
