@@ -185,7 +185,10 @@ RigEmulator::RigEmulator(const Scenario& scenario, const RigEmulatorOptions& opt
     std::tie(faults_[i].first_cycle, faults_[i].last_cycle) =
         robot_fault_cycles(f, scenario_.cycle_s());
   }
-  if (cycles_total_ > 0) records_.reserve(cycles_total_);
+  if (cycles_total_ > 0) {
+    records_.reserve(cycles_total_);
+    tick_truth_.reserve(cycles_total_ + 1);
+  }
 }
 
 RigEmulator::~RigEmulator() {
@@ -223,14 +226,60 @@ Clock::time_point RigEmulator::cycle_start(std::uint64_t n) const {
 
 // --- Physics thread ------------------------------------------------------------------------
 
-void RigEmulator::physics_step(std::uint64_t k) {
+std::uint64_t RigEmulator::tick_step(std::uint64_t n) const {
+  const double t_s = static_cast<double>(n * cycle_ms_) * 1e-3;
+  return static_cast<std::uint64_t>(std::ceil(t_s * physics_.physics_rate_hz() - 1e-6));
+}
+
+void RigEmulator::apply_correction(const rsi::Reply& reply) {
+  bool clamped = false, singular = false;
+  if (reply.has_rkorr) {
+    const CorrectionOutcome o = robot_.apply_rkorr(reply.rkorr);
+    clamped = o.clamped;
+    singular = o.near_singular;
+  }
+  if (reply.has_akorr) clamped = robot_.apply_akorr(reply.akorr_deg).clamped || clamped;
+  clamped_cycles_ += clamped;
+  near_singular_cycles_ += singular;
+}
+
+bool RigEmulator::apply_due_corrections(std::uint64_t k, std::unique_lock<std::mutex>& lock,
+                                        const std::atomic<bool>& stop) {
+  while (tick_step(next_apply_tick_) <= k) {
+    if (ticks_handed_ < next_apply_tick_) {
+      ++handover_waits_;  // the robot loop has not reached the tick yet (a slow host)
+      while (ticks_handed_ < next_apply_tick_) {
+        if (stop.load() || robot_done_.load()) return false;
+        handed_cv_.wait_for(lock, std::chrono::milliseconds(1));
+      }
+    }
+    const std::optional<rsi::Reply> reply = handed_.front();
+    handed_.pop_front();
+    ++next_apply_tick_;
+    if (reply) apply_correction(*reply);
+  }
+  return true;
+}
+
+bool RigEmulator::physics_step(std::uint64_t k, const std::atomic<bool>& stop) {
   sim::JointState js;
+  TcpMotion tcp;
   {
-    const std::lock_guard<std::mutex> lock(robot_mutex_);
-    if (k > 0) robot_.step();
+    std::unique_lock<std::mutex> lock(robot_mutex_);
+    if (k > 0) {
+      // The corrections of the ticks up to the start of this step take effect now.
+      if (!apply_due_corrections(k - 1, lock, stop)) return false;
+      robot_.step();
+    }
     js = robot_.actual();
+    tcp = robot_.actual_tcp();
   }
   const PhysicsSample s = physics_.step(js);
+  if (k == tick_step(tick_truth_.size())) {  // only this thread adds to tick_truth_
+    const std::lock_guard<std::mutex> lock(truth_mutex_);
+    tick_truth_.push_back(
+        {js.q_rad, tcp, s.truth.v_com_base_mps, s.push_force_base_N, s.push_torque_com_base_Nm});
+  }
   if (ft_ != nullptr) ft_->set_wrench(s.wrench_sensor_noisy);
   const double rate = physics_.physics_rate_hz();
   const auto imu_due =
@@ -243,6 +292,8 @@ void RigEmulator::physics_step(std::uint64_t k) {
     truth.specific_force_imu_mps2 = s.truth.imu.specific_force_imu_mps2;
     if (!imu_->write_sample(truth)) ++imu_dropped_;
   }
+  physics_steps_done_.store(k, std::memory_order_release);
+  return true;
 }
 
 void RigEmulator::device_faults(double t_s) {
@@ -333,7 +384,8 @@ void RigEmulator::physics_loop(const std::atomic<bool>& stop) {
     const std::uint64_t batch = due - k + 1;
     if (batch > 1) ++late_batches_;
     largest_batch_ = std::max(largest_batch_, batch);
-    for (; k <= due; ++k) physics_step(k);
+    for (; k <= due; ++k)
+      if (!physics_step(k, stop)) return;
     device_faults(static_cast<double>(due) * h);
   }
 }
@@ -380,8 +432,8 @@ void RigEmulator::handle_datagram(std::uint64_t n, const char* data, std::size_t
     if (!any_ok_) counts_.first_ok_cycle = static_cast<std::int64_t>(n);
     any_ok_ = true;
     // Like the controller's interpolator, the correction takes effect at the next cycle's
-    // tick, whenever in this cycle it arrived (apply_pending): the arrival jitter of the
-    // replies must not shake the robot.
+    // tick, whenever in this cycle it arrived (hand_over, then the physics thread applies it
+    // at the tick's physics step): the arrival jitter of the replies must not shake the robot.
     pending_ = reply;
     if (reply.has_rkorr) {
       const rsi::Correction& c = reply.rkorr;
@@ -406,22 +458,14 @@ void RigEmulator::handle_datagram(std::uint64_t n, const char* data, std::size_t
   }
 }
 
-void RigEmulator::apply_pending() {
-  if (!pending_) return;
-  const rsi::Reply reply = *pending_;
-  pending_.reset();
-  bool clamped = false, singular = false;
+void RigEmulator::hand_over(std::uint64_t n) {
   {
     const std::lock_guard<std::mutex> lock(robot_mutex_);
-    if (reply.has_rkorr) {
-      const CorrectionOutcome o = robot_.apply_rkorr(reply.rkorr);
-      clamped = o.clamped;
-      singular = o.near_singular;
-    }
-    if (reply.has_akorr) clamped = robot_.apply_akorr(reply.akorr_deg).clamped || clamped;
+    handed_.push_back(pending_);
+    ticks_handed_ = n;
   }
-  counts_.clamped_cycles += clamped;
-  counts_.near_singular_cycles += singular;
+  pending_.reset();
+  handed_cv_.notify_all();
 }
 
 void RigEmulator::receive_pending(std::uint64_t n) {
@@ -454,6 +498,16 @@ void RigEmulator::start_cycle(std::uint64_t n) {
     msg = robot_.message(r.ipoc, delay_count_);
     js = robot_.actual();
     r.tcp = robot_.actual_tcp();
+  }
+  // The datagram carries the latest state. Normally the physics is at the tick or one step
+  // short of it; a slow host may hold it back further (counted). The truth row gets the state at
+  // the tick's physics step after the run.
+  const std::uint64_t done = physics_steps_done_.load(std::memory_order_acquire);
+  if (done + 1 < tick_step(n)) {
+    ++stale_datagrams_;
+    worst_datagram_lag_s_ =
+        std::max(worst_datagram_lag_s_,
+                 static_cast<double>(tick_step(n) - done) / physics_.physics_rate_hz());
   }
   r.q_rad = js.q_rad;
   const PhysicsSample p = physics_.evaluate(js, js, t_s);
@@ -544,7 +598,7 @@ void RigEmulator::start_cycle(std::uint64_t n) {
 void RigEmulator::run(const std::atomic<bool>& stop) {
   if (fd_ < 0) throw std::logic_error("RigEmulator::run before bind()");
   t0_ = Clock::now();
-  physics_step(0);
+  physics_step(0, stop);
   device_faults(0.0);
   std::exception_ptr physics_error;
   std::thread physics([&] {
@@ -580,7 +634,7 @@ void RigEmulator::run(const std::atomic<bool>& stop) {
   };
   auto finish_cycle = [&](std::uint64_t n) {
     if (records_[n].reply != ReplyStatus::ok) ++delay_count_;
-    apply_pending();
+    hand_over(n + 1);
   };
 
   std::uint64_t n = 0;
@@ -594,8 +648,30 @@ void RigEmulator::run(const std::atomic<bool>& stop) {
     finish_cycle(n - 1);
   }
   sends_.clear();  // a held or late datagram due after the run: never sent
+  // Let the physics reach the last tick, so that every truth row is taken at its tick.
+  const Clock::time_point give_up = Clock::now() + std::chrono::seconds(2);
+  while (!stop.load() && Clock::now() < give_up) {
+    {
+      const std::lock_guard<std::mutex> lock(truth_mutex_);
+      if (tick_truth_.size() >= records_.size()) break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
   robot_done_ = true;
   physics.join();
+  // Corrections handed over for ticks the physics did not reach: the command takes them still.
+  for (const std::optional<rsi::Reply>& reply : handed_)
+    if (reply) apply_correction(*reply);
+  handed_.clear();
+  for (std::size_t i = 0; i < records_.size() && i < tick_truth_.size(); ++i) {
+    const TickTruth& t = tick_truth_[i];
+    CycleRecord& r = records_[i];
+    r.q_rad = t.q_rad;
+    r.tcp = t.tcp;
+    r.v_com_base_mps = t.v_com_base_mps;
+    r.push_force_base_N = t.push_force_base_N;
+    r.push_torque_com_base_Nm = t.push_torque_com_base_Nm;
+  }
   if (physics_error) std::rethrow_exception(physics_error);
 }
 
@@ -663,8 +739,8 @@ nlohmann::json RigEmulator::summary() const {
   s["robot"] = {{"delay", delay_count_},
                 {"rkorr_applied", robot_.counters().rkorr_applied},
                 {"akorr_applied", robot_.counters().akorr_applied},
-                {"clamped_cycles", counts_.clamped_cycles},
-                {"near_singular_cycles", counts_.near_singular_cycles},
+                {"clamped_cycles", clamped_cycles_},
+                {"near_singular_cycles", near_singular_cycles_},
                 {"servo_bandwidth_hz", scenario_.robot.servo_bandwidth_hz}};
   json pushes = json::array();
   for (std::size_t k = 0; k < scenario_.pushes.size(); ++k) {
@@ -709,9 +785,15 @@ nlohmann::json RigEmulator::summary() const {
     faults.push_back(j);
   }
   s["faults"] = faults;
-  s["physics"] = {{"rate_hz", physics_.physics_rate_hz()}, {"steps", physics_.steps()},
-                  {"worst_lag_s", worst_lag_s_},           {"late_batches", late_batches_},
-                  {"largest_batch", largest_batch_},       {"imu_samples", imu_samples_}};
+  s["physics"] = {{"rate_hz", physics_.physics_rate_hz()},
+                  {"steps", physics_.steps()},
+                  {"worst_lag_s", worst_lag_s_},
+                  {"late_batches", late_batches_},
+                  {"largest_batch", largest_batch_},
+                  {"imu_samples", imu_samples_},
+                  {"handover_waits", handover_waits_},
+                  {"stale_datagrams", stale_datagrams_},
+                  {"worst_datagram_lag_s", worst_datagram_lag_s_}};
   json devices = json::object();
   if (ft_ != nullptr) {
     const AtiBoard::Counters c = ft_->counters();

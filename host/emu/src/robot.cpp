@@ -59,8 +59,7 @@ RobotEmulator::RobotEmulator(const RobotConfig& config)
   h_s_ = 1.0 / c.physics_rate_hz;
   // x = (q − q_cmd, q̇), ẋ = A x with A = [[0, 1], [−ω², −2ω]] (a double pole at −ω):
   // e^{Ah} = e^{−ωh} [[1 + ωh, h], [−ω² h, 1 − ωh]].
-  const double w = omega_radps_, h = h_s_, e = std::exp(-w * h);
-  phi_ << e * (1.0 + w * h), e * h, -e * w * w * h, e * (1.0 - w * h);
+  phi_ = servo_transition(h_s_);
   q_cmd_rad_ = c.start_joints_rad;
   q_setpoint_rad_ = c.start_joints_rad;
   actual_.q_rad = c.start_joints_rad;
@@ -176,19 +175,52 @@ CorrectionOutcome RobotEmulator::apply_akorr(const std::array<double, 6>& akorr_
   return clamp_command();
 }
 
+Eigen::Matrix2d RobotEmulator::servo_transition(double tau_s) const {
+  const double w = omega_radps_, e = std::exp(-w * tau_s);
+  Eigen::Matrix2d phi;
+  phi << e * (1.0 + w * tau_s), e * tau_s, -e * w * w * tau_s, e * (1.0 - w * tau_s);
+  return phi;
+}
+
 void RobotEmulator::step() {
-  const double w2 = omega_radps_ * omega_radps_;
+  const double w = omega_radps_, w2 = w * w;
   for (int i = 0; i < 6; ++i) {
-    const double remaining = q_cmd_rad_[i] - q_setpoint_rad_[i];
-    const double move = setpoint_rate_[i] * h_s_;
-    q_setpoint_rad_[i] = std::abs(move) >= std::abs(remaining) || move * remaining <= 0.0
-                             ? q_cmd_rad_[i]
-                             : q_setpoint_rad_[i] + move;
-    const Eigen::Vector2d x(actual_.q_rad[i] - q_setpoint_rad_[i], actual_.qd_radps[i]);
-    const Eigen::Vector2d next = phi_ * x;
-    actual_.q_rad[i] = q_setpoint_rad_[i] + next[0];
-    actual_.qd_radps[i] = next[1];
-    actual_.qdd_radps2[i] = -w2 * next[0] - 2.0 * omega_radps_ * next[1];
+    double s = q_setpoint_rad_[i];
+    double q = actual_.q_rad[i];
+    double qd = actual_.qd_radps[i];
+    // The set point moves at the interpolator's speed r until it reaches the command (within
+    // this step or not), then holds. Over a piece of length τ in which s(t) = s + r t, the
+    // servo error (e, z) = (q − s + 2r/ω, q̇ − r) obeys the homogeneous equation, so the step
+    // is exact for the ramp too (first-order hold): a set point advanced in stairs of r h
+    // would make q̈ a sawtooth, and its value at the step's end would be off by −ω² r h / 2.
+    const double remaining = q_cmd_rad_[i] - s;
+    const double r = setpoint_rate_[i];
+    double ramp_s = 0.0;  // how long in this step the set point still moves
+    if (remaining != 0.0 && r * remaining > 0.0) {
+      ramp_s = std::min(h_s_, remaining / r);
+    } else {
+      s = q_cmd_rad_[i];  // reached (or no interpolation): held from here
+    }
+    auto advance = [&](double tau_s, double rate, const Eigen::Matrix2d& phi) {
+      const Eigen::Vector2d x(q - s + 2.0 * rate / w, qd - rate);
+      const Eigen::Vector2d next = phi * x;
+      s += rate * tau_s;
+      q = s + next[0] - 2.0 * rate / w;
+      qd = next[1] + rate;
+    };
+    if (ramp_s >= h_s_) {
+      advance(h_s_, r, phi_);
+    } else {
+      if (ramp_s > 0.0) {
+        advance(ramp_s, r, servo_transition(ramp_s));
+        s = q_cmd_rad_[i];
+      }
+      advance(h_s_ - ramp_s, 0.0, ramp_s > 0.0 ? servo_transition(h_s_ - ramp_s) : phi_);
+    }
+    q_setpoint_rad_[i] = s;
+    actual_.q_rad[i] = q;
+    actual_.qd_radps[i] = qd;
+    actual_.qdd_radps2[i] = w2 * (s - q) - 2.0 * w * qd;
   }
   ++counters_.servo_steps;
 }

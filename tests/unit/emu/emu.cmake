@@ -1,4 +1,6 @@
 # zerog::emu (helper emurobot): the robot controller emulator (with an end-to-end run of the robot
-# loop against a UDP responder), the payload physics with pushes, the scenario file.
+# loop against a UDP responder), the payload physics with pushes, the scenario file; and the
+# emulated rig against zerog-rt's cycle (spin_contact_test: contact stays zero while it turns).
 zerog_add_test(emu_test SOURCES emu/robot_test.cpp emu/physics_test.cpp emu/scenario_test.cpp
-               LIBS zerog::emu zerog::model)
+               emu/spin_contact_test.cpp
+               LIBS zerog::emu zerog::model zerog::loop)

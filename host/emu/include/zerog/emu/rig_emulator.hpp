@@ -6,15 +6,22 @@
 //
 // Threads: run() steps the physics in a thread of its own, against the monotonic clock (late
 // steps are caught up in batches; the worst lag is reported), and runs the robot loop in the
-// calling thread on its own clock, whatever the other side does. The devices are optional (the
-// caller serves the F/T board on its CAN bus and owns the pty): without them the robot loop and
-// the physics run alone, as in the unit tests. Emulator code, not real-time code.
+// calling thread on its own clock, whatever the other side does. The controller's interpolator
+// and servo run on the physics clock, as a real controller's run on the clock of its IPOC ticks:
+// the robot loop hands each tick's correction to the physics thread, which applies it exactly at
+// the tick's physics step (waiting for the hand-over if the robot loop is behind), and records
+// the truth of each tick there. So the emulated robot's motion depends only on the replies, not
+// on how the host schedules the two threads. The devices are optional (the caller serves the
+// F/T board on its CAN bus and owns the pty): without them the robot loop and the physics run
+// alone, as in the unit tests. Emulator code, not real-time code.
 #include <netinet/in.h>
 
 #include <array>
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <cstdint>
+#include <deque>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -54,7 +61,8 @@ const char* reply_status_name(ReplyStatus status);
 
 enum class CorrectionKind : std::uint8_t { none, rkorr, akorr, both };
 
-/// One row of truth.csv: the state when the cycle's datagram was made (all in B, SI).
+/// One row of truth.csv: the robot and the payload at the cycle's tick, physics time t_s (all in
+/// B, SI), and what the controller sent and received in that cycle.
 struct CycleRecord {
   double t_s = 0.0;  ///< cycle start, s since the run started
   std::uint64_t ipoc = 0;
@@ -120,9 +128,18 @@ class RigEmulator {
     std::string note;              // e.g. "no device"
   };
   void physics_loop(const std::atomic<bool>& stop);
-  void physics_step(std::uint64_t k);
+  /// Physics step k (k = 0: the start state). False if the run stopped while it waited.
+  bool physics_step(std::uint64_t k, const std::atomic<bool>& stop);
   void device_faults(double t_s);
   void start_cycle(std::uint64_t n);
+  /// The physics step at which tick n's correction takes effect and its truth is taken: the
+  /// first at or after t = n · cycle.
+  std::uint64_t tick_step(std::uint64_t n) const;
+  /// Physics thread, robot_mutex_ held: applies the corrections of the ticks at or before step
+  /// k, waiting for the robot loop to hand them over. False if it stopped before.
+  bool apply_due_corrections(std::uint64_t k, std::unique_lock<std::mutex>& lock,
+                             const std::atomic<bool>& stop);
+  void apply_correction(const proto::rsi::Reply& reply);
   void handle_datagram(std::uint64_t n, const char* data, std::size_t size);
   void receive_pending(std::uint64_t n);
   void send_due(std::chrono::steady_clock::time_point now);
@@ -150,9 +167,10 @@ class RigEmulator {
   std::vector<CycleRecord> records_;
   std::vector<ScheduledSend> sends_;
   std::uint64_t delay_count_ = 0;
-  /// The timely reply of the cycle, applied at the next cycle's start.
+  /// The timely reply of the cycle, applied at the next cycle's tick.
   std::optional<proto::rsi::Reply> pending_;
-  void apply_pending();
+  /// Hands pending_ over to the physics thread as tick n's correction (none if empty).
+  void hand_over(std::uint64_t n);
   bool any_ok_ = false;
   std::vector<FaultState> faults_;  // per scenario fault; robot faults: robot loop, devices:
                                     // physics thread (read after it is joined)
@@ -172,10 +190,32 @@ class RigEmulator {
     std::uint64_t foreign_replies = 0;  ///< replies to the foreign socket
     std::uint64_t before_first_ok = 0;
     std::int64_t first_ok_cycle = -1;
-    std::uint64_t clamped_cycles = 0, near_singular_cycles = 0;
   } counts_;
+  std::uint64_t clamped_cycles_ = 0, near_singular_cycles_ = 0;  // physics thread
+
+  // Robot loop → physics thread, under robot_mutex_: each tick's correction (or none), in tick
+  // order from tick 1 (tick 0 starts the run, nothing to apply).
+  std::deque<std::optional<proto::rsi::Reply>> handed_;
+  std::uint64_t ticks_handed_ = 0;  // ticks 1..ticks_handed_ are in handed_ or applied
+  std::condition_variable handed_cv_;
+  /// The truth of each tick, taken by the physics thread at tick_step(n) (under truth_mutex_);
+  /// merged into records_ after the run.
+  struct TickTruth {
+    sim::JointVector q_rad{};
+    TcpMotion tcp;
+    Eigen::Vector3d v_com_base_mps = Eigen::Vector3d::Zero();
+    Eigen::Vector3d push_force_base_N = Eigen::Vector3d::Zero();
+    Eigen::Vector3d push_torque_com_base_Nm = Eigen::Vector3d::Zero();
+  };
+  std::mutex truth_mutex_;
+  std::vector<TickTruth> tick_truth_;
+  std::atomic<std::uint64_t> physics_steps_done_{0};  // the last physics step evaluated
+  std::uint64_t stale_datagrams_ = 0;  // datagrams made while the physics was behind the tick
+  double worst_datagram_lag_s_ = 0.0;
 
   // Physics thread state (read after join).
+  std::uint64_t next_apply_tick_ = 1;
+  std::uint64_t handover_waits_ = 0;  // steps that waited for the robot loop's hand-over
   double worst_lag_s_ = 0.0;
   std::uint64_t late_batches_ = 0;
   std::uint64_t largest_batch_ = 0;

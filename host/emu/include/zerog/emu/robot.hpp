@@ -87,8 +87,10 @@ class RobotEmulator {
   CorrectionOutcome apply_akorr(const std::array<double, 6>& akorr_deg);
 
   /// One servo step of 1 / physics_rate_hz: the interpolator moves the set point toward the
-  /// command, and each actual joint follows the set point through q̈ = ω² (q_set − q) − 2ω q̇,
-  /// integrated exactly for a set point held over the step.
+  /// command at constant speed, and each actual joint follows the set point through
+  /// q̈ = ω² (q_set − q) − 2ω q̇, integrated exactly for the set point as it moves within the step
+  /// (a ramp until it reaches the command, then held). So q, q̇ and q̈ are those of the
+  /// continuous servo at the step's end, and q̈ is the derivative of q̇.
   void step();
 
   const sim::JointVector& commanded() const { return q_cmd_rad_; }
@@ -109,12 +111,14 @@ class RobotEmulator {
 
  private:
   CorrectionOutcome clamp_command();
+  /// e^{Aτ} of the servo for (q − q_set, q̇) with a held set point.
+  Eigen::Matrix2d servo_transition(double tau_s) const;
 
   RobotConfig config_;
   sim::JointLimits limits_;
   double omega_radps_ = 0.0;
   double h_s_ = 0.0;
-  Eigen::Matrix2d phi_ = Eigen::Matrix2d::Identity();  // exact servo step for (q − q_cmd, q̇)
+  Eigen::Matrix2d phi_ = Eigen::Matrix2d::Identity();  // servo_transition(h_s_)
   sim::JointVector q_cmd_rad_{};                       // the command: start + all corrections
   sim::JointVector q_setpoint_rad_{};  // the interpolator's set point the servo follows
   sim::JointVector setpoint_rate_{};   // its speed toward q_cmd_rad_ (rad/s)
