@@ -349,6 +349,7 @@ def main():
     ap.add_argument("--dir", required=True)
     ap.add_argument("--scenario", required=True)
     ap.add_argument("--rt-config", required=True)
+    ap.add_argument("--attempt", type=int, default=1, help="1, or 2 for hil.sh's retry")
     a = ap.parse_args()
     run = Run(a.dir, a.scenario, a.rt_config)
     print(f"{a.case}:")
@@ -357,6 +358,7 @@ def main():
     else:
         {"push": case_push, "drift": case_drift, "spin": case_spin, "tumble": case_tumble}[a.case](run)
     FIGURES["case"] = a.case
+    FIGURES["attempt"] = a.attempt
     FIGURES["passed"] = not FAILURES
     with open(f"{a.dir}/check.json", "w") as f:
         json.dump(FIGURES, f, indent=1)

@@ -33,6 +33,12 @@ def load(dirs):
     return cases
 
 
+def verdict(c):
+    if not c["passed"]:
+        return "**no**"
+    return "yes" if c.get("attempt", 1) == 1 else "yes, on the retry"
+
+
 def pct(x):
     return f"{100 * x:.2f} %"
 
@@ -48,27 +54,27 @@ def markdown(cases):
         motion.append(("push: velocity after an impulse J on 100 kg vs J/m",
                        f"J = ({J[0]:.2f}, {J[1]:.2f}, {J[2]:.2f}) N·s; v = ({v[0]:.4f}, {v[1]:.4f}, "
                        f"{v[2]:.4f}) m/s vs J/m = ({e[0]:.4f}, {e[1]:.4f}, {e[2]:.4f}); "
-                       f"error {pct(c['push_velocity_error'])}", "3 %", c["passed"]))
+                       f"error {pct(c['push_velocity_error'])}", "3 %", verdict(c)))
     if "drift" in cases:
         c = cases["drift"]
         motion.append(("drift: no push, 10 s of zero-g", f"{c['drift_mm_in_10s']:.3f} mm", "1 mm",
-                       c["passed"]))
+                       verdict(c)))
     if "spin" in cases:
         c = cases["spin"]
         motion.append(("spin: angular momentum (world) over 10 s of free rotation",
                        f"largest deviation {pct(c['spin_L_deviation'])}, turned "
-                       f"{c['spin_turned_rad']:.1f} rad", "2 %", c["passed"]))
+                       f"{c['spin_turned_rad']:.1f} rad", "2 %", verdict(c)))
     if "tumble" in cases:
         c = cases["tumble"]
         motion.append(("tumble: ω in body axes vs Euler's equations, 10 s",
                        f"RMS error {pct(c['tumble_rms_error'])}; off-axis part ×"
                        f"{c['tumble_off_axis_growth_measured']:.2f} (predicted ×"
-                       f"{c['tumble_off_axis_growth_predicted']:.2f})", "10 %", c["passed"]))
+                       f"{c['tumble_off_axis_growth_predicted']:.2f})", "10 %", verdict(c)))
     if motion:
         out.append("| case | measured | limit | passed |")
         out.append("|---|---|---|---|")
         for name, measured, limit, ok in motion:
-            out.append(f"| {name} | {measured} | {limit} | {'yes' if ok else '**no**'} |")
+            out.append(f"| {name} | {measured} | {limit} | {ok} |")
         out.append("")
     faults = [k for k in FAULT_REACTION if k in cases]
     if faults:
@@ -82,7 +88,7 @@ def markdown(cases):
             else:
                 cycles = f"{cycles} ({c.get('fault_threshold_cycles', '?')})"
             out.append(f"| {FAULT_REACTION[k]} | hold, then fault `{c.get('fault', '?')}`: zero "
-                       f"correction, black box dumped | {cycles} | {'yes' if c['passed'] else '**no**'} |")
+                       f"correction, black box dumped | {cycles} | {verdict(c)} |")
         out.append("")
     return "\n".join(out)
 

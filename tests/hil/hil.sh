@@ -31,16 +31,17 @@ for p in "$emu" "$rt" "$zerog"; do
 done
 ip link show vcan0 >/dev/null 2>&1 || { echo "hil.sh: no vcan0 (run inside tests/vm/run_in_vm.sh)" >&2; exit 2; }
 
-status=0
-for c in "${cases[@]}"; do
-  scenario=$here/cases/$c.toml
-  template=$here/cases/$c.rt.toml
-  [ -f "$scenario" ] && [ -f "$template" ] || { echo "hil.sh: no case $c" >&2; status=1; continue; }
-  w=$out/$c
+# One run of case $1 into folder $2 (attempt $3); 0 if it ran and every check passed.
+run_case() {
+  local c=$1 w=$2 attempt=$3
+  local scenario=$here/cases/$c.toml template=$here/cases/$c.rt.toml
+  [ -f "$scenario" ] && [ -f "$template" ] || { echo "hil.sh: no case $c" >&2; return 1; }
   rm -rf "$w" && mkdir -p "$w/rec"
+  local duration
   duration=$(sed -n 's/^# duration_s = \([0-9.]*\)$/\1/p' "$scenario")
-  [ -n "$duration" ] || { echo "hil.sh: $scenario lacks a '# duration_s = N' line" >&2; status=1; continue; }
-  echo "=== $c: ${duration} s ==="
+  [ -n "$duration" ] || { echo "hil.sh: $scenario lacks a '# duration_s = N' line" >&2; return 1; }
+  echo "=== $c: ${duration} s (attempt $attempt) ==="
+  local emu_start emu_pid rt_duration rt_status emu_status
   emu_start=$(date +%s.%N)
   "$emu" --scenario "$scenario" --can vcan0 --imu-link "$w/imu-tty" \
     --robot-bind 127.0.0.1:49153 --rt-address 127.0.0.1:49152 --duration "$duration" \
@@ -54,10 +55,10 @@ for c in "${cases[@]}"; do
   done
   if ! grep -q "zerog-emu: ready" "$w/emu.out" 2>/dev/null; then
     echo "hil.sh: $c: the emulator did not come up:" >&2; cat "$w/emu.err" >&2
-    kill $emu_pid 2>/dev/null; wait $emu_pid 2>/dev/null; status=1; continue
+    kill $emu_pid 2>/dev/null; wait $emu_pid 2>/dev/null; return 1
   fi
   "$zerog" export --model "$w/truth-model.json" --rig "$w/rig.rig.toml" --out "$w/model.zgm" -q \
-    || { echo "hil.sh: $c: zerog export failed" >&2; kill $emu_pid; wait $emu_pid; status=1; continue; }
+    || { echo "hil.sh: $c: zerog export failed" >&2; kill $emu_pid; wait $emu_pid; return 1; }
   sed -e "s|@MODEL@|$w/model.zgm|" -e "s|@RIG@|$w/rig.rig.toml|" -e "s|@IMU@|$w/imu-tty|" \
     "$template" >"$w/zerog-rt.toml"
   # zerog-rt stops 0.7 s before the emulator does, so the robot never goes silent on it.
@@ -70,9 +71,21 @@ for c in "${cases[@]}"; do
   if [ $rt_status -ne 0 ] || [ $emu_status -ne 0 ]; then
     echo "hil.sh: $c: zerog-rt exited $rt_status, zerog-emu $emu_status" >&2
     tail -n 5 "$w/rt.err" "$w/emu.err" >&2
-    status=1; continue
+    return 1
   fi
-  /usr/bin/python3 "$here/check_hil.py" --case "$c" --dir "$w" --scenario "$scenario" --rt-config "$w/zerog-rt.toml" \
-    || status=1
+  /usr/bin/python3 "$here/check_hil.py" --case "$c" --dir "$w" --scenario "$scenario" \
+    --rt-config "$w/zerog-rt.toml" --attempt "$attempt"
+}
+
+# A case that fails is run once more (its first run kept in CASE.attempt1/, the retry recorded in
+# check.json): under qemu's software emulation the guest sometimes freezes for 30 ms or more,
+# which a real cabinet PC does not, and a late reply then really jolts the emulated robot. A
+# behaviour that is broken fails both times.
+status=0
+for c in "${cases[@]}"; do
+  if ! run_case "$c" "$out/$c" 1; then
+    rm -rf "$out/$c.attempt1" && mv "$out/$c" "$out/$c.attempt1"
+    run_case "$c" "$out/$c" 2 || status=1
+  fi
 done
 exit $status
