@@ -70,10 +70,7 @@ void run(benchmark::State& state, infer::Path path) {
   infer::Wrench w;
   for (auto _ : state) {
     const model::FeatureSignals& x = s[i++ & 1023];
-    model::ImuSignals<double> imu;
-    imu.specific_force_imu = Eigen::Vector3d(x.imu[0], x.imu[1], x.imu[2]);
-    imu.angular_rate_imu = Eigen::Vector3d(x.imu[3], x.imu[4], x.imu[5]);
-    imu.angular_accel_imu = Eigen::Vector3d(x.imu[6], x.imu[7], x.imu[8]);
+    const model::ImuSignals<double> imu = infer::imu_signals(x);
     benchmark::DoNotOptimize(inf.evaluate(path, x, imu, w));
     benchmark::DoNotOptimize(w);
   }

@@ -74,17 +74,17 @@ model::PoseSignals pose_of(const model::FeatureSignals& s) {
   return p;
 }
 
-model::ImuSignals<double> imu_of(const model::FeatureSignals& s) {
+bool finite(const Wrench& w) { return w.allFinite(); }
+
+}  // namespace
+
+model::ImuSignals<double> imu_signals(const model::FeatureSignals& s) {
   model::ImuSignals<double> imu;
   imu.specific_force_imu = Eigen::Map<const Eigen::Vector3d>(&s.imu[0]);
   imu.angular_rate_imu = Eigen::Map<const Eigen::Vector3d>(&s.imu[3]);
   imu.angular_accel_imu = Eigen::Map<const Eigen::Vector3d>(&s.imu[6]);
   return imu;
 }
-
-bool finite(const Wrench& w) { return w.allFinite(); }
-
-}  // namespace
 
 const char* status_name(StatusCode c) {
   switch (c) {
@@ -235,13 +235,13 @@ Status Inference::evaluate(Path path, const model::FeatureSignals& s,
 }
 
 Status Inference::evaluate(const model::FeatureSignals& s, Wrench& out) noexcept {
-  return evaluate(Path::quantised, s, imu_of(s), out);
+  return evaluate(Path::quantised, s, imu_signals(s), out);
 }
 Status Inference::evaluate_reference(const model::FeatureSignals& s, Wrench& out) noexcept {
-  return evaluate(Path::float_reference, s, imu_of(s), out);
+  return evaluate(Path::float_reference, s, imu_signals(s), out);
 }
 Status Inference::evaluate_physics(const model::FeatureSignals& s, Wrench& out) noexcept {
-  return evaluate(Path::physics_only, s, imu_of(s), out);
+  return evaluate(Path::physics_only, s, imu_signals(s), out);
 }
 
 Status Inference::residual_quantised(const model::FeatureSignals& s, Wrench& out) noexcept {
@@ -281,7 +281,7 @@ std::size_t evaluate_sequence(Inference& inference, Path path,
       n > 1 ? (samples[n - 1].t_s - samples[0].t_s) / static_cast<double>(n - 1) : 0.0;
   std::size_t not_ok = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    model::ImuSignals<double> imu = imu_of(samples[i]);
+    model::ImuSignals<double> imu = imu_signals(samples[i]);
     if (tau != 0.0 && dt > 0.0) {
       // The interpolation of ident::Dataset::imu_at (model::interpolate_uniform: index i + tau/dt,
       // clamped to the ends), written out because the rows are not one contiguous array.

@@ -40,6 +40,10 @@ struct Status {
   bool written() const { return code == StatusCode::ok || code == StatusCode::saturated; }
 };
 
+/// The IMU signals a sample carries (s.imu: specific force, rate, angular acceleration), as the
+/// physics reads them when they need no interpolation. Real-time safe.
+model::ImuSignals<double> imu_signals(const model::FeatureSignals& s);
+
 /// Which computation evaluate_sequence runs.
 enum class Path : std::uint8_t { quantised, float_reference, physics_only };
 
