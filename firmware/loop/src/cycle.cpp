@@ -92,6 +92,11 @@ void Cycle::add_imu(const rtio::ImuSample& s) noexcept {
   ++window_.imu_n;
 }
 
+void Cycle::set_compute_ns(std::int64_t ns) noexcept {
+  record_.compute_ns = ns;
+  if (box_.size() > 0 && box_.newest().cycle == record_.cycle) box_.newest().compute_ns = ns;
+}
+
 bool Cycle::request(Command c) noexcept {
   std::uint8_t expected = 0;
   return pending_.compare_exchange_strong(
@@ -226,8 +231,7 @@ void Cycle::run_zero_g(double dt, CycleReply& reply) noexcept {
       {c.translation_m[0], c.translation_m[1], c.translation_m[2]}, {abc[0], abc[1], abc[2]});
 }
 
-void Cycle::run_collection(const Row& now, double dt, std::uint32_t& flags,
-                           CycleReply& reply) noexcept {
+void Cycle::run_collection(double dt, std::uint32_t& flags, CycleReply& reply) noexcept {
   reply.axis = true;
   std::array<double, 6> delta{};
   if (!collection_on_path_) {
@@ -263,7 +267,6 @@ void Cycle::run_collection(const Row& now, double dt, std::uint32_t& flags,
     collection_cmd_rad_[k] += delta[k];
     reply.akorr_deg[k] = delta[k] / proto::rsi::kRadPerDeg;
   }
-  (void)now;
 }
 
 void Cycle::step(const proto::rsi::RobotMessage& m, CycleReply& reply) noexcept {
@@ -417,7 +420,7 @@ void Cycle::step(const proto::rsi::RobotMessage& m, CycleReply& reply) noexcept 
       }
       break;
     case State::collecting:
-      run_collection(now, dt, flags, reply);
+      run_collection(dt, flags, reply);
       break;
     case State::fault:
       break;

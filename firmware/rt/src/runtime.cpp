@@ -216,8 +216,8 @@ void Runtime::cycle_once() noexcept {
   }
   if (reply_.axis) ++cycle_counters_.axis_replies;
 
-  loop::CycleRecord& record = cycle_.last_mutable();
-  record.compute_ns = t1 - t0;
+  cycle_.set_compute_ns(t1 - t0);
+  const loop::CycleRecord& record = cycle_.last();
   compute_ns_.add(t1 - t0);
   reply_ns_.add(t2 - t_received);
   if ((record.flags & loop::kCollectionDone) != 0) ++collections_done_;

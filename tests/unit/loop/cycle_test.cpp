@@ -205,6 +205,21 @@ TEST_F(Watchdog, SilentFtSensorHoldsThenFaults) {
       [&] { return rig.quiet(c, 0, 24); }, kFtHeld);
 }
 
+TEST_F(Watchdog, TheMeasuredComputeTimeReachesTheFrozenBlackBoxForTheFaultCycleOnly) {
+  for (int i = 0; i < c.config().watchdog.ft_fault_cycles; ++i) {
+    rig.quiet(c, 0, 24);
+    c.set_compute_ns(1000 + i);
+  }
+  ASSERT_TRUE(c.black_box().frozen());
+  const std::size_t n = c.black_box().size();
+  EXPECT_EQ(c.black_box().at(n - 1).compute_ns, 1000 + c.config().watchdog.ft_fault_cycles - 1);
+  EXPECT_EQ(c.black_box().at(n - 2).compute_ns, 1000 + c.config().watchdog.ft_fault_cycles - 2);
+  rig.quiet(c);
+  c.set_compute_ns(5);  // a later cycle: not in the frozen box
+  EXPECT_EQ(c.black_box().at(n - 1).compute_ns, 1000 + c.config().watchdog.ft_fault_cycles - 1);
+  EXPECT_EQ(c.last().compute_ns, 5);
+}
+
 TEST_F(Watchdog, CriticalStatusHoldsThenFaultsNamingIt) {
   expect_hold_then_fault(
       c, rig, c.config().watchdog.ft_fault_cycles, Fault::ft_critical,

@@ -17,6 +17,9 @@ class BlackBox {
     ring_[count_ % N] = r;
     ++count_;
   }
+  /// The newest record, to complete it after the cycle (e.g. its measured compute time), frozen
+  /// or not. Requires size() > 0.
+  Record& newest() { return ring_[(count_ - 1) % N]; }
   /// Keeps the current content (the cycles before a fault) until `release()`.
   void freeze() { frozen_ = true; }
   void release() { frozen_ = false; }

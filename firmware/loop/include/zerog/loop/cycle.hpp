@@ -180,7 +180,9 @@ class Cycle {
 
   /// The record of the last step() (or robot_lost()).
   const CycleRecord& last() const { return record_; }
-  CycleRecord& last_mutable() { return record_; }
+  /// The program's measured time of the last step(): into its record and, if that cycle is the
+  /// black box's newest entry (also the fault cycle of a frozen box), there too.
+  void set_compute_ns(std::int64_t ns) noexcept;
   const StateMachine& state_machine() const { return sm_; }
   const Box& black_box() const { return box_; }
   /// After a fault has been dumped: let the black box record again (outside the cycle).
@@ -210,7 +212,7 @@ class Cycle {
   void raise(Fault f) noexcept;
   bool evaluate(std::uint32_t& flags) noexcept;
   void run_zero_g(double dt, CycleReply& reply) noexcept;
-  void run_collection(const Row& now, double dt, std::uint32_t& flags, CycleReply& reply) noexcept;
+  void run_collection(double dt, std::uint32_t& flags, CycleReply& reply) noexcept;
 
   CycleConfig config_;
   infer::Inference inference_;
