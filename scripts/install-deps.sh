@@ -10,9 +10,19 @@ packages=(
   libcli11-dev nlohmann-json3-dev libtomlplusplus-dev
   python3 python3-numpy python3-matplotlib
   clang-format
+  # telemetry (Cyclone DDS, idlc) and the PLC interface (libmodbus; mbpoll as the test client)
+  cyclonedds-dev cyclonedds-tools libmodbus-dev mbpoll python3-venv
   # vcan VM tests
   qemu-system-x86 busybox-static linux-image-amd64 xz-utils cpio iproute2 can-utils
 )
 export DEBIAN_FRONTEND=noninteractive
 $SUDO apt-get update -qq
 $SUDO apt-get install -y -qq --no-install-recommends "${packages[@]}"
+
+# The independent DDS subscriber of the telemetry tests: Python's cyclonedds from PyPI (its wheel
+# bundles its own Cyclone C library, so the wire types are checked against a second build).
+venv="$(cd "$(dirname "$0")/.." && pwd)/.venv"
+if ! "$venv/bin/python" -c 'import cyclonedds' 2>/dev/null; then
+  /usr/bin/python3 -m venv "$venv"
+  "$venv/bin/pip" install -q --disable-pip-version-check 'cyclonedds==11.0.1'
+fi
