@@ -118,6 +118,12 @@ std::uint32_t ZeroGMotion::step(const Eigen::Vector3d& force_sensor_N,
   // Limits act on the body's state, so the simulated object itself obeys them (and its
   // momentum records that it was held back).
   BodyState s = body_.state();
+  // Damping (MotionLimits): exact decay over the step, before the limits look at the velocities.
+  const bool damped = limits_.linear_damping_per_s > 0.0 || limits_.angular_damping_per_s > 0.0;
+  if (damped) {
+    s.v_world_mps *= std::exp(-limits_.linear_damping_per_s * dt_s);
+    s.L_world_kgm2ps *= std::exp(-limits_.angular_damping_per_s * dt_s);
+  }
   const Eigen::Vector3d dv =
       clamp_norm(s.v_world_mps - v_before, limits_.max_accel_mps2 * dt_s, kAccelLimited, flags);
   s.v_world_mps = clamp_norm(v_before + dv, limits_.max_speed_mps, kSpeedLimited, flags);
@@ -150,7 +156,7 @@ std::uint32_t ZeroGMotion::step(const Eigen::Vector3d& force_sensor_N,
       flags |= kWorkspaceLimited;
     }
   }
-  if (flags != kLimitNone) body_.reset(s);
+  if (flags != kLimitNone || damped) body_.reset(s);
 
   out.translation_m = sensor_position_world() - p_sensor_before;
   out.rotation_rad = rotation_vector(sensor_attitude_world() * q_before.conjugate());

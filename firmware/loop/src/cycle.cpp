@@ -21,26 +21,19 @@ std::string check_config(const CycleConfig& c) {
   if (w.ft_fault_cycles < 1 || w.imu_fault_cycles < 1 || w.robot_fault_cycles < 1 ||
       w.robot_late_cycles < 1 || w.model_fault_cycles < 1)
     return "watchdog cycle counts must be at least 1";
-  if (!positive_finite(c.body.mass_kg)) return "body mass must be positive";
-  const Eigen::Matrix3d& I = c.body.inertia_body_kgm2;
-  if (!I.allFinite() || (I - I.transpose()).norm() > 1e-9 * I.norm() ||
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(I).eigenvalues().minCoeff() <= 0.0)
-    return "body inertia must be symmetric positive definite";
-  if (!c.p_sensor_com_m.allFinite()) return "virtual centre of mass must be finite";
-  const control::MotionLimits& l = c.limits;
-  if (!(l.force_deadband_N >= 0.0) || !(l.torque_deadband_Nm >= 0.0))
-    return "deadbands must be zero or positive";
-  if (!positive_finite(l.max_contact_force_N) || !positive_finite(l.max_contact_torque_Nm) ||
-      !positive_finite(l.max_speed_mps) || !positive_finite(l.max_angular_speed_radps) ||
-      !positive_finite(l.max_accel_mps2) || !positive_finite(l.max_angular_accel_radps2))
-    return "motion limits must be positive";
-  if (!(l.workspace_min_m.array() < l.workspace_max_m.array()).all())
-    return "workspace_min must be below workspace_max on every axis";
+  if (const char* why = check_tunables({c.body, c.limits, c.p_sensor_com_m}); *why != '\0')
+    return why;
   if (!positive_finite(c.max_axis_step_rad) || !positive_finite(c.approach_speed_radps) ||
       !positive_finite(c.approach_accel_radps2))
     return "collection step, speed and acceleration must be positive";
   return {};
 }
+
+// Internal values of Cycle::proposal_state_ besides the ProposalStatus ones.
+constexpr std::uint8_t kProposalWriting = 100;  // the proposer is filling proposal_
+constexpr std::uint8_t kProposalTaking = 101;   // the cycle is reading proposal_
+
+constexpr std::uint8_t status_byte(ProposalStatus s) { return static_cast<std::uint8_t>(s); }
 
 template <std::size_t N>
 void set_zero(std::array<double, N>& a) {
@@ -48,6 +41,37 @@ void set_zero(std::array<double, N>& a) {
 }
 
 }  // namespace
+
+const char* check_tunables(const Tunables& t) noexcept {
+  if (!positive_finite(t.body.mass_kg)) return "body mass must be positive";
+  const Eigen::Matrix3d& I = t.body.inertia_body_kgm2;
+  if (!I.allFinite() || (I - I.transpose()).norm() > 1e-9 * I.norm() ||
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(I, Eigen::EigenvaluesOnly)
+              .eigenvalues()
+              .minCoeff() <= 0.0)
+    return "body inertia must be symmetric positive definite";
+  if (!t.p_sensor_com_m.allFinite()) return "virtual centre of mass must be finite";
+  const control::MotionLimits& l = t.limits;
+  if (!(l.force_deadband_N >= 0.0) || !(l.torque_deadband_Nm >= 0.0))
+    return "deadbands must be zero or positive";
+  if (l.contact_confirm_cycles < 1) return "contact_confirm_cycles must be at least 1";
+  if (!(l.contact_release_fraction >= 0.0 && l.contact_release_fraction <= 1.0))
+    return "contact_release_fraction must be in 0..1";
+  if (!positive_finite(l.max_contact_force_N) || !positive_finite(l.max_contact_torque_Nm) ||
+      !positive_finite(l.max_speed_mps) || !positive_finite(l.max_angular_speed_radps) ||
+      !positive_finite(l.max_accel_mps2) || !positive_finite(l.max_angular_accel_radps2))
+    return "motion limits must be positive";
+  if (!(l.force_deadband_N < l.max_contact_force_N) ||
+      !(l.torque_deadband_Nm < l.max_contact_torque_Nm))
+    return "deadbands must be below the contact limits";
+  if (!(l.linear_damping_per_s >= 0.0 && std::isfinite(l.linear_damping_per_s)) ||
+      !(l.angular_damping_per_s >= 0.0 && std::isfinite(l.angular_damping_per_s)))
+    return "damping must be zero or positive";
+  if (!l.workspace_min_m.allFinite() || !l.workspace_max_m.allFinite() ||
+      !(l.workspace_min_m.array() < l.workspace_max_m.array()).all())
+    return "workspace_min must be below workspace_max on every axis";
+  return "";
+}
 
 std::string Cycle::configure(const CycleConfig& config, infer::DeployedModel model) {
   if (std::string why = check_config(config); !why.empty()) return why;
@@ -109,7 +133,54 @@ void Cycle::raise(Fault f) noexcept {
   freeze_pending_ = true;
 }
 
+bool Cycle::propose(const Tunables& t) noexcept {
+  std::uint8_t seen = proposal_state_.load(std::memory_order_acquire);
+  do {
+    if (seen == status_byte(ProposalStatus::pending) || seen == kProposalWriting ||
+        seen == kProposalTaking)
+      return false;
+  } while (
+      !proposal_state_.compare_exchange_weak(seen, kProposalWriting, std::memory_order_acq_rel));
+  proposal_ = t;
+  proposal_state_.store(status_byte(ProposalStatus::pending), std::memory_order_release);
+  return true;
+}
+
+ProposalStatus Cycle::proposal_status() const noexcept {
+  const std::uint8_t s = proposal_state_.load(std::memory_order_acquire);
+  if (s == kProposalTaking) return ProposalStatus::pending;
+  if (s == kProposalWriting) return ProposalStatus::none;
+  return static_cast<ProposalStatus>(s);
+}
+
+bool Cycle::withdraw_proposal() noexcept {
+  std::uint8_t expected = status_byte(ProposalStatus::pending);
+  return proposal_state_.compare_exchange_strong(expected, status_byte(ProposalStatus::none),
+                                                 std::memory_order_acq_rel);
+}
+
+void Cycle::take_proposal() noexcept {
+  std::uint8_t expected = status_byte(ProposalStatus::pending);
+  if (!proposal_state_.compare_exchange_strong(expected, kProposalTaking,
+                                               std::memory_order_acq_rel))
+    return;
+  ProposalStatus outcome = ProposalStatus::accepted;
+  if (sm_.state() != State::idle) {
+    outcome = ProposalStatus::refused_state;
+  } else if (*check_tunables(proposal_) != '\0') {
+    outcome = ProposalStatus::refused_invalid;
+  } else {
+    config_.body = proposal_.body;
+    config_.limits = proposal_.limits;
+    config_.p_sensor_com_m = proposal_.p_sensor_com_m;
+    // Idle: the body is reset to the sensor's pose every cycle, so nothing moving is lost.
+    motion_ = control::ZeroGMotion(config_.body, config_.limits, config_.p_sensor_com_m);
+  }
+  proposal_state_.store(status_byte(outcome), std::memory_order_release);
+}
+
 void Cycle::robot_lost(RobotLoss why) noexcept {
+  take_proposal();
   if (why == RobotLoss::timeout) {
     ++counters_.robot_timeouts;
   } else {
@@ -280,6 +351,7 @@ void Cycle::step(const proto::rsi::RobotMessage& m, CycleReply& reply) noexcept 
   record_.limit_flags = 0;
   record_.axis_reply = false;
   robot_lost_run_ = 0;
+  take_proposal();
 
   if (!configured_) {
     raise(Fault::model_invalid);

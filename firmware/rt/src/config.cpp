@@ -129,10 +129,11 @@ RtConfig read_tables(const toml::table& root, const fs::path& path) {
   c.com_sensor_m = body.optional_vector3("com_sensor_m", Eigen::Vector3d::Zero());
 
   const TomlTable limits = file.sub_table(
-      "limits", {"force_deadband_N", "torque_deadband_Nm", "contact_confirm_cycles",
-                 "contact_release_fraction", "max_contact_force_N", "max_contact_torque_Nm",
-                 "max_speed_mps", "max_angular_speed_radps", "max_accel_mps2",
-                 "max_angular_accel_radps2", "workspace_min_m", "workspace_max_m"});
+      "limits",
+      {"force_deadband_N", "torque_deadband_Nm", "contact_confirm_cycles",
+       "contact_release_fraction", "max_contact_force_N", "max_contact_torque_Nm", "max_speed_mps",
+       "max_angular_speed_radps", "max_accel_mps2", "max_angular_accel_radps2",
+       "linear_damping_per_s", "angular_damping_per_s", "workspace_min_m", "workspace_max_m"});
   const io::NumberRange at_least_zero{0.0, false};
   const io::NumberRange positive{0.0, true};
   control::MotionLimits& l = c.limits;
@@ -154,6 +155,10 @@ RtConfig read_tables(const toml::table& root, const fs::path& path) {
   l.max_accel_mps2 = limits.optional_number("max_accel_mps2", l.max_accel_mps2, positive);
   l.max_angular_accel_radps2 =
       limits.optional_number("max_angular_accel_radps2", l.max_angular_accel_radps2, positive);
+  l.linear_damping_per_s = limits.optional_number("linear_damping_per_s", l.linear_damping_per_s,
+                                                  {0.0, false, 100.0, false});
+  l.angular_damping_per_s = limits.optional_number("angular_damping_per_s", l.angular_damping_per_s,
+                                                   {0.0, false, 100.0, false});
   l.workspace_min_m = limits.optional_vector3("workspace_min_m", l.workspace_min_m);
   l.workspace_max_m = limits.optional_vector3("workspace_max_m", l.workspace_max_m);
   if (l.force_deadband_N >= l.max_contact_force_N) {

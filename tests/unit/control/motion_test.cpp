@@ -86,6 +86,25 @@ TEST(ZeroGMotion, PushThroughTheCentreOfMassTranslatesOnly) {
               1e-12);
 }
 
+TEST(ZeroGMotion, DampingMakesVelocityAndAngularMomentumDecayExponentially) {
+  MotionLimits l = loose();
+  l.force_deadband_N = 0;
+  l.torque_deadband_Nm = 0;
+  l.linear_damping_per_s = 0.5;
+  l.angular_damping_per_s = 2.0;
+  ZeroGMotion m(body100(), l, Eigen::Vector3d::Zero());
+  m.reset(Eigen::Vector3d(1.0, 0.0, 1.2), Eigen::Quaterniond::Identity());
+  PoseCorrection c;
+  ASSERT_EQ(m.step(Eigen::Vector3d(250, 0, 0), Eigen::Vector3d(0, 0, 25), kDt, c), kLimitNone);
+  const Eigen::Vector3d v0 = m.body().state().v_world_mps;
+  const Eigen::Vector3d L0 = m.body().state().L_world_kgm2ps;
+  ASSERT_GT(v0.norm(), 0.0);
+  const int n = 250;  // 1 s of free motion
+  for (int i = 0; i < n; ++i) m.step(Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), kDt, c);
+  EXPECT_NEAR(m.body().state().v_world_mps.norm() / v0.norm(), std::exp(-0.5 * n * kDt), 1e-12);
+  EXPECT_NEAR(m.body().state().L_world_kgm2ps.norm() / L0.norm(), std::exp(-2.0 * n * kDt), 1e-12);
+}
+
 TEST(ZeroGMotion, OffCentrePushAlsoTurnsAboutTheVirtualCentreOfMass) {
   MotionLimits l = loose();
   l.force_deadband_N = 0, l.torque_deadband_Nm = 0;

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <thread>
 
 #include "alloc_count.hpp"
 #include "loop_fixtures.hpp"
@@ -143,6 +144,96 @@ TEST(Cycle, AnOffCentrePushTurnsTheBodyAndTheCorrectionCarriesTheRotation) {
   const Eigen::Vector3d expected = rig.R * Eigen::Vector3d(0, 0, 5.0 * 18 * kPeriod);
   EXPECT_NEAR((L - expected).norm(), 0.0, 1e-9 * expected.norm());
   EXPECT_GT(std::abs(a_sum) + std::abs(b_sum) + std::abs(c_sum), 0.1);
+}
+
+TEST(Cycle, TunablesProposedInIdleAreTakenByTheNextCycle) {
+  Cycle c;
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  StaticRobot rig;
+  for (int i = 0; i < 6; ++i) rig.quiet(c);
+  Tunables t = c.tunables();
+  EXPECT_EQ(t.body.mass_kg, kMass);
+  t.body.mass_kg = 60.0;
+  t.limits.linear_damping_per_s = 0.5;
+  ASSERT_TRUE(c.propose(t));
+  EXPECT_EQ(c.proposal_status(), ProposalStatus::pending);
+  EXPECT_FALSE(c.propose(t)) << "one proposal at a time";
+  rig.quiet(c);
+  EXPECT_EQ(c.proposal_status(), ProposalStatus::accepted);
+  EXPECT_EQ(c.tunables().body.mass_kg, 60.0);
+  EXPECT_EQ(c.motion().body().params().mass_kg, 60.0);
+  // A lost robot cycle (receive timeout) also takes a proposal: no robot, no wait.
+  t.body.mass_kg = 70.0;
+  ASSERT_TRUE(c.propose(t));
+  c.robot_lost(RobotLoss::timeout);
+  EXPECT_EQ(c.proposal_status(), ProposalStatus::accepted);
+  EXPECT_EQ(c.tunables().body.mass_kg, 70.0);
+  // Inconsistent values are refused whole.
+  t.body.mass_kg = 80.0;
+  t.body.inertia_body_kgm2(0, 1) = 1.0;  // not symmetric
+  ASSERT_TRUE(c.propose(t));
+  rig.quiet(c);
+  EXPECT_EQ(c.proposal_status(), ProposalStatus::refused_invalid);
+  EXPECT_EQ(c.tunables().body.mass_kg, 70.0);
+  // Withdrawn before the cycle took it: nothing happens.
+  t = c.tunables();
+  t.body.mass_kg = 90.0;
+  ASSERT_TRUE(c.propose(t));
+  EXPECT_TRUE(c.withdraw_proposal());
+  EXPECT_FALSE(c.withdraw_proposal());
+  EXPECT_EQ(c.proposal_status(), ProposalStatus::none);
+  rig.quiet(c);
+  EXPECT_EQ(c.tunables().body.mass_kg, 70.0);
+}
+
+TEST(Cycle, TunablesAreRefusedOutsideIdleAndTheRunningBodyKeepsItsMass) {
+  Cycle c;
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  StaticRobot rig;
+  start_zero_g(c, rig);
+  Tunables t = c.tunables();
+  t.body.mass_kg = 50.0;
+  ASSERT_TRUE(c.propose(t));
+  const std::size_t before = zerog::test::allocation_count();
+  rig.cycle(c, push(30.0, 0.0, 0.0));
+  EXPECT_EQ(zerog::test::allocation_count() - before, 0u);
+  EXPECT_EQ(c.proposal_status(), ProposalStatus::refused_state);
+  EXPECT_EQ(c.tunables().body.mass_kg, kMass);
+  EXPECT_EQ(c.motion().body().params().mass_kg, kMass);
+  EXPECT_EQ(c.state_machine().state(), State::zero_g);
+}
+
+TEST(Cycle, ProposalsFromAnotherThreadAreEachDecidedOnce) {
+  Cycle c;
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  StaticRobot rig;
+  for (int i = 0; i < 6; ++i) rig.quiet(c);
+  std::atomic<bool> done{false};
+  int accepted = 0, withdrawn = 0;
+  const Tunables start = c.tunables();  // the proposer never reads the cycle's own copy
+  std::thread proposer([&] {
+    for (int i = 0; i < 2000; ++i) {
+      Tunables t = start;
+      t.body.mass_kg = 50.0 + (i % 100);
+      while (!c.propose(t)) std::this_thread::yield();
+      if (i % 3 == 0 && c.withdraw_proposal()) {
+        ++withdrawn;
+        continue;
+      }
+      ProposalStatus s;
+      while ((s = c.proposal_status()) == ProposalStatus::pending) std::this_thread::yield();
+      if (s == ProposalStatus::accepted) ++accepted;
+    }
+    done = true;
+  });
+  while (!done) {
+    rig.quiet(c);
+    const double m = c.motion().body().params().mass_kg;
+    ASSERT_TRUE(m == kMass || (m >= 50.0 && m < 150.0)) << m;
+  }
+  proposer.join();
+  EXPECT_EQ(accepted + withdrawn, 2000);
+  EXPECT_GT(accepted, 0);
 }
 
 TEST(Cycle, StepDoesNotAllocate) {

@@ -26,6 +26,11 @@ struct MotionLimits {
   double max_angular_speed_radps = 0.6;
   double max_accel_mps2 = 1.5;  ///< commanded change of velocity per second
   double max_angular_accel_radps2 = 3.0;
+  /// Viscous damping of the virtual body (0: a free body, as in orbit): the velocity and the
+  /// angular momentum decay as e^(−c·t) when nothing pushes, so a test engineer can make a
+  /// heavy part settle. Applied exactly per step (v ← v·e^(−c·dt)).
+  double linear_damping_per_s = 0.0;
+  double angular_damping_per_s = 0.0;
   Eigen::Vector3d workspace_min_m{-0.5, -1.5, 0.3};  ///< box for the centre of mass, world
   Eigen::Vector3d workspace_max_m{2.5, 1.5, 2.2};
 };

@@ -69,6 +69,27 @@ struct CycleConfig {
   double approach_accel_radps2 = 0.5;
 };
 
+/// What a supervisor (the cell PLC over Modbus) may change, only while the cycle is idle: the
+/// virtual body, the motion limits and the virtual centre of mass (CycleConfig's fields).
+struct Tunables {
+  control::BodyParams body;
+  control::MotionLimits limits;
+  Eigen::Vector3d p_sensor_com_m{0.0, 0.0, 0.0};  ///< virtual centre of mass, sensor frame
+};
+
+/// The fate of the last Cycle::propose().
+enum class ProposalStatus : std::uint8_t {
+  none,             ///< nothing proposed (or withdrawn)
+  pending,          ///< waiting for the next step() or robot_lost()
+  accepted,         ///< in use from that cycle on
+  refused_state,    ///< not idle: nothing changed
+  refused_invalid,  ///< inconsistent values (check_tunables()): nothing changed
+};
+
+/// Why tunables cannot be used ("" if they can): positive mass, symmetric positive-definite
+/// inertia, finite centre of mass, consistent limits. Real-time safe (static strings).
+const char* check_tunables(const Tunables& t) noexcept;
+
 /// Why a robot cycle was lost (robot_lost()).
 enum class RobotLoss : std::uint8_t { timeout, malformed };
 
@@ -172,6 +193,17 @@ class Cycle {
   /// A command (Modbus, CLI), applied at the start of the next step(). Returns false if one is
   /// already pending.
   bool request(Command c) noexcept;
+  /// New tunables (any one thread, e.g. the Modbus server): taken at the start of the next
+  /// step() or robot_lost(), accepted only in State::idle and if check_tunables() passes; the
+  /// outcome is proposal_status(). Returns false (and changes nothing) while one is pending.
+  bool propose(const Tunables& t) noexcept;
+  ProposalStatus proposal_status() const noexcept;
+  /// Takes back a proposal the cycle has not taken yet (e.g. the proposer gave up waiting).
+  /// True if withdrawn; false if the cycle already decided (see proposal_status()).
+  bool withdraw_proposal() noexcept;
+  /// The tunables in use (the cycle's thread, or when it is not running).
+  Tunables tunables() const { return {config_.body, config_.limits, config_.p_sensor_com_m}; }
+
   /// No robot message this time (receive timeout or a malformed datagram from the robot).
   /// Counts toward the robot watchdog. Nothing is sent.
   void robot_lost(RobotLoss why) noexcept;
@@ -243,6 +275,11 @@ class Cycle {
   Fault ft_bad_reason_ = Fault::ft_stale;
 
   std::atomic<std::uint8_t> pending_{0};  ///< 0: none, else 1 + Command
+
+  void take_proposal() noexcept;
+  /// ProposalStatus, or kProposalWriting / kProposalTaking while one side owns proposal_.
+  std::atomic<std::uint8_t> proposal_state_{0};
+  Tunables proposal_;
 
   bool freeze_pending_ = false;
 
