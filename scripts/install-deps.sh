@@ -12,6 +12,8 @@ packages=(
   clang-format
   # telemetry (Cyclone DDS, idlc) and the PLC interface (libmodbus; mbpoll as the test client)
   cyclonedds-dev cyclonedds-tools libmodbus-dev mbpoll python3-venv
+  # the install test checks the systemd unit (systemd-analyze verify)
+  systemd
   # vcan VM tests
   qemu-system-x86 busybox-static linux-image-amd64 xz-utils cpio iproute2 can-utils
 )

@@ -215,8 +215,12 @@ RtConfig read_tables(const toml::table& root, const fs::path& path) {
   col.approach_accel_radps2 =
       collection.optional_number("approach_accel_radps2", 0.5, {0.0, true, 10.0, false});
 
-  const TomlTable record = file.sub_table("record", {"dir"});
+  const TomlTable record = file.sub_table("record", {"dir", "per_run"});
   if (record.find("dir") != nullptr) c.record_dir = record.path("dir");
+  c.record_per_run = record.optional_boolean("per_run", false);
+  if (c.record_per_run && !c.record_dir) {
+    record.fail("per_run", "needs [record] dir (the folder the runs go into)");
+  }
   return c;
 }
 

@@ -11,6 +11,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include <ctime>
 #include <memory>
 #include <optional>
 #include <string>
@@ -87,6 +88,16 @@ struct Options {
   bool check_config = false;
 };
 
+/// [record] per_run: run-YYYYmmddTHHMMSSZ (UTC), so a restarted service never meets its last run.
+std::string run_folder_name(std::chrono::system_clock::time_point now) {
+  const std::time_t t = std::chrono::system_clock::to_time_t(now);
+  std::tm utc{};
+  ::gmtime_r(&t, &utc);
+  char text[32];
+  std::strftime(text, sizeof text, "run-%Y%m%dT%H%M%SZ", &utc);
+  return text;
+}
+
 int run(const Options& opt) {
   const int failure = opt.check_config ? 1 : kExitStartup;
   rt::RtConfig config;
@@ -97,6 +108,9 @@ int run(const Options& opt) {
     return failure;
   }
   if (!opt.record.empty()) config.record_dir = fs::path(opt.record);
+  if (config.record_dir && config.record_per_run) {
+    config.record_dir = *config.record_dir / run_folder_name(std::chrono::system_clock::now());
+  }
   rt::Setup setup;
   std::unique_ptr<rt::PtpJointPath> path;
   try {

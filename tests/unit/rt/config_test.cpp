@@ -156,6 +156,11 @@ TEST(RtConfig, EachErrorNamesFileKeyPositionAndWhy) {
   expect_error(with_line(s, "workspace_max_m", "workspace_max_m = [2.5, 1.5, 0.2]"),
                {"limits.workspace_max_m", line_of(s, "workspace_max_m"), 19,
                 "workspace_min_m must be below workspace_max_m on every axis (z"});
+  expect_error(with_line(s, "max_speed_mps = 0.25", "linear_damping_per_s = -0.1"),
+               {"limits.linear_damping_per_s", line_of(s, "max_speed_mps = 0.25"), 24,
+                "must be in [0, 100], is -0.1"});
+  expect_error(with_line(s, "# [record]", "[record]\nper_run = true"),
+               {"record.per_run", line_of(s, "# [record]") + 1, 11, "needs [record] dir"});
   // A matrix of the wrong shape, and one that is no inertia.
   expect_error(with_line(s, "                [0.0, 0.0, 6.0]]", "                [0.0, 0.0]]"),
                {"body.inertia_kgm2[2]", line_of(s, "                [0.0, 0.0, 6.0]]"), 17,

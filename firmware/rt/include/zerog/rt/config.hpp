@@ -87,6 +87,8 @@ struct RtConfig {
   RealtimeSection realtime;
   CollectionSection collection;
   std::optional<std::filesystem::path> record_dir;  ///< [record] dir
+  /// [record] per_run: each start records into dir/run-<UTC start time> (a service restarts).
+  bool record_per_run = false;
 };
 
 /// Reads and checks `path`. Throws ConfigError (naming file, key, line:column, why).
