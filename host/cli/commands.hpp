@@ -12,5 +12,6 @@ void add_report_command(CLI::App& app);      // cmd_report.cpp
 void add_decode_can_command(CLI::App& app);  // cmd_decode_can.cpp
 void add_learn_commands(CLI::App& app);      // cmd_learn.cpp: train, results
 void add_export_command(CLI::App& app);      // cmd_export.cpp
+void add_watch_command(CLI::App& app);       // cmd_watch.cpp: live telemetry (DDS)
 
 }  // namespace zerog::cli

@@ -1,0 +1,39 @@
+#pragma once
+// Settings of zerog-rt's live telemetry (proto/telemetry.md, "Network") and the Cyclone DDS XML
+// configuration built from them, which TelemetryChannel hands to dds_create_domain (so a VM or
+// a cell network without multicast works without a CYCLONEDDS_URI file). Start-up only.
+#include <string>
+#include <vector>
+
+namespace zerog::telemetry {
+
+/// The largest DDS domain id with Cyclone's default port mapping (DDSI 9.6.1.1: port ≤ 65535).
+inline constexpr int kMaxDomainId = 232;
+
+struct TelemetryConfig {
+  int domain_id = 0;
+  /// Network interface to use (e.g. "lo", "eth1"); empty: Cyclone picks one.
+  std::string interface;
+  /// Unicast discovery peers (addresses or host names, e.g. "127.0.0.1"); needed when
+  /// multicast is off.
+  std::vector<std::string> peers;
+  bool allow_multicast = true;
+  /// Prepended to every topic name ("zerog/" → "zerog/wrench", …).
+  std::string topic_prefix = "zerog/";
+  /// Health is published on every change and at least this often (s).
+  double health_period_s = 1.0;
+  /// The robot's nominal cycle (s): timing's jitter is the measured period minus this.
+  double nominal_period_s = 0.004;
+  /// How long the publisher thread sleeps when its queue is empty (s).
+  double poll_period_s = 0.001;
+};
+
+/// Empty if `config` can be used; otherwise what is wrong, naming the setting (e.g.
+/// "telemetry.domain_id: 300 is outside 0..232").
+std::string check_config(const TelemetryConfig& config);
+
+/// The Cyclone DDS XML configuration (<CycloneDDS><Domain>…) for `config`. Call check_config
+/// first: names with XML special characters are refused there, not escaped here.
+std::string cyclone_xml(const TelemetryConfig& config);
+
+}  // namespace zerog::telemetry

@@ -1,0 +1,261 @@
+#include "zerog/telemetry/channel.hpp"
+
+#include <time.h>
+
+#include <chrono>
+#include <vector>
+
+#include "dds/dds.h"
+
+namespace zerog::telemetry {
+
+namespace {
+
+std::int64_t monotonic_ns() noexcept {
+  timespec ts{};
+  ::clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+BodyParamsValue body_value(const control::BodyParams& body) noexcept {
+  BodyParamsValue v;
+  v.mass_kg = body.mass_kg;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) v.inertia_body_kgm2[3 * r + c] = body.inertia_body_kgm2(r, c);
+  return v;
+}
+
+control::BodyParams body_params(const BodyParamsValue& v) noexcept {
+  control::BodyParams body;
+  body.mass_kg = v.mass_kg;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) body.inertia_body_kgm2(r, c) = v.inertia_body_kgm2[3 * r + c];
+  return body;
+}
+
+std::string dds_error(const std::string& what, dds_return_t rc) {
+  return "telemetry: " + what + " failed: " + dds_strretcode(rc);
+}
+
+}  // namespace
+
+struct TelemetryChannel::Dds {
+  dds_entity_t domain = 0;
+  dds_entity_t participant = 0;
+  dds_entity_t wrench = 0, imu = 0, robot = 0, command = 0, body = 0, timing = 0;
+  dds_entity_t health = 0, model = 0;
+
+  ~Dds() {
+    if (participant > 0) dds_delete(participant);
+    if (domain > 0) dds_delete(domain);
+  }
+};
+
+TelemetryChannel::TelemetryChannel(TelemetryConfig config, ModelIdentityInfo model,
+                                   control::BodyParams body)
+    : config_(std::move(config)),
+      model_(std::move(model)),
+      ring_(std::make_unique<Ring>()),
+      body_(body) {
+  body_params_.publish(body_value(body));
+}
+
+TelemetryChannel::~TelemetryChannel() { stop(); }
+
+std::string TelemetryChannel::start() {
+  if (started_) return {};
+  if (std::string why = check_config(config_); !why.empty()) return why;
+  auto dds = std::make_unique<Dds>();
+  const std::string xml = cyclone_xml(config_);
+  const auto domain_id = static_cast<dds_domainid_t>(config_.domain_id);
+  dds->domain = dds_create_domain(domain_id, xml.c_str());
+  if (dds->domain < 0) {
+    const dds_return_t rc = dds->domain;
+    dds->domain = 0;
+    std::string why = dds_error("dds_create_domain(" + std::to_string(config_.domain_id) + ")", rc);
+    if (rc == DDS_RETCODE_PRECONDITION_NOT_MET)
+      why += " (the domain already exists in this process)";
+    return why + "; configuration: " + xml;
+  }
+  dds->participant = dds_create_participant(domain_id, nullptr, nullptr);
+  if (dds->participant < 0) {
+    const dds_return_t rc = dds->participant;
+    dds->participant = 0;
+    return dds_error("dds_create_participant", rc);
+  }
+
+  // High-rate streams: best-effort, keep-last 1, volatile. State: reliable, transient-local.
+  dds_qos_t* stream_qos = dds_create_qos();
+  dds_qset_reliability(stream_qos, DDS_RELIABILITY_BEST_EFFORT, 0);
+  dds_qset_history(stream_qos, DDS_HISTORY_KEEP_LAST, 1);
+  dds_qset_durability(stream_qos, DDS_DURABILITY_VOLATILE);
+  dds_qos_t* state_qos = dds_create_qos();
+  dds_qset_reliability(state_qos, DDS_RELIABILITY_RELIABLE, DDS_MSECS(100));
+  dds_qset_history(state_qos, DDS_HISTORY_KEEP_LAST, 1);
+  dds_qset_durability(state_qos, DDS_DURABILITY_TRANSIENT_LOCAL);
+
+  std::string error;
+  const auto writer = [&](const dds_topic_descriptor_t* desc, const char* suffix,
+                          const dds_qos_t* qos, dds_entity_t& out) {
+    if (!error.empty()) return;
+    const std::string name = topic_name(suffix);
+    const dds_entity_t topic = dds_create_topic(dds->participant, desc, name.c_str(), qos, nullptr);
+    if (topic < 0) {
+      error = dds_error("dds_create_topic(" + name + ")", topic);
+      return;
+    }
+    out = dds_create_writer(dds->participant, topic, qos, nullptr);
+    if (out < 0) error = dds_error("dds_create_writer(" + name + ")", out);
+  };
+  writer(&zerog_telemetry_WrenchSample_desc, "wrench", stream_qos, dds->wrench);
+  writer(&zerog_telemetry_ImuSample_desc, "imu", stream_qos, dds->imu);
+  writer(&zerog_telemetry_RobotSample_desc, "robot", stream_qos, dds->robot);
+  writer(&zerog_telemetry_CommandSample_desc, "command", stream_qos, dds->command);
+  writer(&zerog_telemetry_BodySample_desc, "body", stream_qos, dds->body);
+  writer(&zerog_telemetry_TimingSample_desc, "timing", stream_qos, dds->timing);
+  writer(&zerog_telemetry_Health_desc, "health", state_qos, dds->health);
+  writer(&zerog_telemetry_ModelIdentity_desc, "model", state_qos, dds->model);
+  dds_delete_qos(stream_qos);
+  dds_delete_qos(state_qos);
+  if (!error.empty()) return error;
+
+  std::vector<char*> storage;
+  const zerog_telemetry_ModelIdentity identity = model_identity_sample(model_, storage);
+  if (const dds_return_t rc = dds_write(dds->model, &identity); rc < 0)
+    return dds_error("dds_write(" + topic_name("model") + ")", rc);
+
+  dds_ = std::move(dds);
+  stop_.store(false, std::memory_order_relaxed);
+  started_ = true;
+  publish_health(true);
+  thread_ = std::thread([this] { publisher_loop(); });
+  return {};
+}
+
+void TelemetryChannel::stop(double ack_timeout_s) {
+  if (!started_) return;
+  paused_.store(false, std::memory_order_relaxed);
+  stop_.store(true, std::memory_order_release);
+  if (thread_.joinable()) thread_.join();
+  publish_health(true);
+  const auto timeout = static_cast<dds_duration_t>(ack_timeout_s * 1e9);
+  dds_wait_for_acks(dds_->health, timeout);
+  dds_wait_for_acks(dds_->model, timeout);
+  dds_.reset();
+  started_ = false;
+}
+
+bool TelemetryChannel::offer(const loop::CycleRecord& record, std::int64_t received_ns) noexcept {
+  offer_slot_.record = record;
+  offer_slot_.received_ns = received_ns;
+  return ring_->try_push(offer_slot_);
+}
+
+void TelemetryChannel::set_body_params(const control::BodyParams& body) noexcept {
+  body_params_.publish(body_value(body));
+}
+
+ChannelCounters TelemetryChannel::counters() const {
+  ChannelCounters c;
+  c.telemetry_drops = ring_->dropped();
+  c.records_offered = ring_->pushed() + c.telemetry_drops;
+  c.records_published = published_.load(std::memory_order_acquire);
+  c.write_errors = write_errors_.load(std::memory_order_relaxed);
+  c.health_published = health_published_.load(std::memory_order_relaxed);
+  return c;
+}
+
+int TelemetryChannel::subscribers() const {
+  if (!started_) return 0;
+  dds_publication_matched_status_t status{};
+  if (dds_get_publication_matched_status(dds_->wrench, &status) < 0) return 0;
+  return static_cast<int>(status.current_count);
+}
+
+void TelemetryChannel::publisher_loop() {
+  const auto poll =
+      std::chrono::nanoseconds(static_cast<std::int64_t>(config_.poll_period_s * 1e9));
+  for (;;) {
+    const bool stopping = stop_.load(std::memory_order_acquire);
+    bool took = false;
+    if (!paused_.load(std::memory_order_relaxed)) {
+      // Health between batches, so a state change is published within a batch of records.
+      for (int i = 0; i < 64 && drain_one(); ++i) took = true;
+    }
+    publish_health(false);
+    if (stopping && !took) break;  // stop(): the ring is drained
+    if (!took) std::this_thread::sleep_for(poll);
+  }
+}
+
+bool TelemetryChannel::drain_one() {
+  if (!ring_->try_pop(slot_)) return false;
+  BodyParamsValue body;
+  if (body_params_.read(body) == rtio::LatestRead::fresh) body_ = body_params(body);
+  const loop::CycleRecord& r = slot_.record;
+  RuntimeHealth runtime;
+  if (runtime_health_.read(runtime) != rtio::LatestRead::empty) health_in_ = runtime;
+
+  double period_s = 0.0;
+  if (have_newest_ && r.cycle == previous_cycle_ + 1) {
+    if (slot_.received_ns != 0 && previous_received_ns_ != 0)
+      period_s = static_cast<double>(slot_.received_ns - previous_received_ns_) * 1e-9;
+    else if (slot_.received_ns == 0)
+      period_s = r.t_s - previous_t_s_;
+  }
+  previous_cycle_ = r.cycle;
+  previous_received_ns_ = slot_.received_ns;
+  previous_t_s_ = r.t_s;
+
+  std::uint64_t errors = 0;
+  const auto write = [&errors](dds_entity_t w, const void* sample) {
+    if (dds_write(w, sample) < 0) ++errors;
+  };
+  const WrenchSample wrench = to_wrench(r);
+  write(dds_->wrench, &wrench);
+  const ImuSample imu = to_imu(r);
+  write(dds_->imu, &imu);
+  const RobotSample robot = to_robot(r);
+  write(dds_->robot, &robot);
+  const CommandSample command = to_command(r, body_);
+  write(dds_->command, &command);
+  const BodySample body_sample = to_body(r, body_);
+  write(dds_->body, &body_sample);
+  const TimingSample timing =
+      to_timing(r, period_s, config_.nominal_period_s, health_in_.datagrams_lost);
+  write(dds_->timing, &timing);
+  if (errors != 0) write_errors_.fetch_add(errors, std::memory_order_relaxed);
+
+  newest_ = r;
+  have_newest_ = true;
+  published_.fetch_add(1, std::memory_order_release);
+  return true;
+}
+
+void TelemetryChannel::publish_health(bool force) {
+  RuntimeHealth runtime;
+  if (runtime_health_.read(runtime) != rtio::LatestRead::empty) health_in_ = runtime;
+  const ChannelCounters c = counters();
+  const std::int64_t now = monotonic_ns();
+  const std::uint8_t state = have_newest_ ? static_cast<std::uint8_t>(newest_.state) : 0xFF;
+  const std::uint8_t fault = have_newest_ ? static_cast<std::uint8_t>(newest_.fault) : 0xFF;
+  const bool changed = state != last_state_ || fault != last_fault_ ||
+                       !(health_in_ == last_runtime_) || c.telemetry_drops != last_drops_ ||
+                       c.write_errors != last_write_errors_;
+  const bool due = static_cast<double>(now - last_health_ns_) * 1e-9 >= config_.health_period_s;
+  if (!force && !changed && !due) return;
+  const HealthSample h = to_health(++health_seq_, have_newest_ ? &newest_ : nullptr, c, health_in_);
+  if (dds_write(dds_->health, &h) < 0) {
+    write_errors_.fetch_add(1, std::memory_order_relaxed);
+  } else {
+    health_published_.fetch_add(1, std::memory_order_relaxed);
+  }
+  last_health_ns_ = now;
+  last_state_ = state;
+  last_fault_ = fault;
+  last_runtime_ = health_in_;
+  last_drops_ = c.telemetry_drops;
+  last_write_errors_ = c.write_errors;
+}
+
+}  // namespace zerog::telemetry

@@ -1,0 +1,256 @@
+// The pure parts of zerog::telemetry: record → IDL samples (units, frames, codes, reuse of
+// control::VirtualBody for ω and the energy), the model identity, the configuration check and
+// the Cyclone XML built from it.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+
+#include "zerog/proto/rsi.hpp"
+#include "zerog/telemetry/config.hpp"
+#include "zerog/telemetry/convert.hpp"
+
+namespace zerog::telemetry {
+namespace {
+
+loop::CycleRecord sample_record() {
+  loop::CycleRecord r;
+  r.cycle = 42;
+  r.ipoc = 123456;
+  r.t_s = 0.164;
+  r.dt_s = 0.004;
+  r.state = loop::State::zero_g;
+  r.fault = loop::Fault::none;
+  r.flags = loop::kIpocGap | loop::kRobotDelayGrew;
+  r.limit_flags = control::kSpeedLimited;
+  r.model_status = infer::StatusCode::saturated;
+  for (int i = 0; i < 6; ++i) {
+    r.joints_rad[i] = 0.1 * i;
+    r.wrench_measured[i] = 1.0 + i;
+    r.wrench_at_eval[i] = 2.0 + i;
+    r.predicted[i] = 1.5 + i;
+    r.contact[i] = 0.5;
+    r.akorr_deg[i] = 0.01 * (i + 1);
+  }
+  r.p_base_sensor_m = {1.0, 2.0, 3.0};
+  r.q_base_sensor = Eigen::Quaterniond(Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitY()));
+  r.specific_force_imu = {0.1, 0.2, 9.8};
+  r.rate_imu = {0.01, 0.02, 0.03};
+  r.ft_samples = 2;
+  r.imu_samples = 9;
+  r.t_eval_s = 0.156;
+  r.rkorr = {1.0, -2.0, 0.5, 0.1, -0.2, 0.3};  // mm, degrees
+  r.body.p_world_m = {0.5, 0.6, 0.7};
+  r.body.q_world_body = Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitX()));
+  r.body.v_world_mps = {0.1, -0.2, 0.05};
+  r.body.L_world_kgm2ps = {0.3, 0.1, -0.2};
+  r.compute_ns = 25'000;
+  return r;
+}
+
+control::BodyParams sample_body() {
+  control::BodyParams b;
+  b.mass_kg = 80.0;
+  b.inertia_body_kgm2 = Eigen::Vector3d(4.0, 5.0, 6.0).asDiagonal();
+  return b;
+}
+
+TEST(TelemetryConvert, WrenchCarriesEveryWrenchOfTheRecord) {
+  const loop::CycleRecord r = sample_record();
+  const WrenchSample s = to_wrench(r);
+  EXPECT_EQ(s.cycle, 42u);
+  EXPECT_DOUBLE_EQ(s.t_s, 0.164);
+  EXPECT_DOUBLE_EQ(s.t_eval_s, 0.156);
+  for (int i = 0; i < 6; ++i) {
+    EXPECT_EQ(s.measured[i], r.wrench_measured[i]);
+    EXPECT_EQ(s.measured_at_eval[i], r.wrench_at_eval[i]);
+    EXPECT_EQ(s.predicted[i], r.predicted[i]);
+    EXPECT_EQ(s.contact[i], r.contact[i]);
+  }
+  EXPECT_EQ(s.ft_samples, 2);
+  EXPECT_EQ(s.model_status, 1);  // saturated
+  EXPECT_EQ(s.flags, r.flags);
+}
+
+TEST(TelemetryConvert, ImuAndRobotKeepFramesAndQuaternionOrder) {
+  const loop::CycleRecord r = sample_record();
+  const ImuSample imu = to_imu(r);
+  EXPECT_EQ(imu.specific_force_imu_mps2[2], 9.8);
+  EXPECT_EQ(imu.rate_imu_radps[1], 0.02);
+  EXPECT_EQ(imu.imu_samples, 9);
+  const RobotSample robot = to_robot(r);
+  EXPECT_EQ(robot.ipoc, 123456u);
+  EXPECT_EQ(robot.joints_rad[5], 0.5);
+  EXPECT_EQ(robot.p_base_sensor_m[2], 3.0);
+  EXPECT_EQ(robot.q_base_sensor_wxyz[0], r.q_base_sensor.w());
+  EXPECT_EQ(robot.q_base_sensor_wxyz[2], r.q_base_sensor.y());
+  EXPECT_NEAR(robot.q_base_sensor_wxyz[2], std::sin(0.25), 1e-15);
+}
+
+TEST(TelemetryConvert, CommandIsInSiAndTheTwistComesFromTheVirtualBody) {
+  const loop::CycleRecord r = sample_record();
+  const control::BodyParams body = sample_body();
+  const CommandSample s = to_command(r, body);
+  EXPECT_NEAR(s.rkorr_translation_m[0], 1.0e-3, 1e-18);
+  EXPECT_NEAR(s.rkorr_translation_m[1], -2.0e-3, 1e-18);
+  EXPECT_NEAR(s.rkorr_abc_rad[2], 0.3 * M_PI / 180.0, 1e-15);
+  EXPECT_NEAR(s.akorr_rad[5], 0.06 * M_PI / 180.0, 1e-15);
+  EXPECT_FALSE(s.axis_reply);
+  EXPECT_EQ(s.limit_flags, static_cast<std::uint32_t>(control::kSpeedLimited));
+  const control::VirtualBody vb(body, r.body);
+  const Eigen::Vector3d w = vb.omega_world();
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(s.omega_world_radps[i], w[i]);
+    EXPECT_EQ(s.v_world_mps[i], r.body.v_world_mps[i]);
+  }
+  // Independent check of ω: L = R I Rᵀ ω in the world frame.
+  const Eigen::Matrix3d R = r.body.q_world_body.toRotationMatrix();
+  const Eigen::Vector3d L =
+      R * body.inertia_body_kgm2 * R.transpose() *
+      Eigen::Vector3d(s.omega_world_radps[0], s.omega_world_radps[1], s.omega_world_radps[2]);
+  EXPECT_NEAR((L - r.body.L_world_kgm2ps).norm(), 0.0, 1e-12);
+}
+
+TEST(TelemetryConvert, BodyHasMomentumAndKineticEnergy) {
+  const loop::CycleRecord r = sample_record();
+  const control::BodyParams body = sample_body();
+  const BodySample s = to_body(r, body);
+  EXPECT_EQ(s.mass_kg, 80.0);
+  EXPECT_NEAR(s.momentum_world_kgmps[1], 80.0 * -0.2, 1e-12);
+  EXPECT_EQ(s.L_world_kgm2ps[0], 0.3);
+  EXPECT_EQ(s.q_world_body_wxyz[1], r.body.q_world_body.x());
+  const control::VirtualBody vb(body, r.body);
+  EXPECT_EQ(s.kinetic_energy_J, vb.kinetic_energy_J());
+  // ½ m v² + ½ ω·L, computed here from the sample alone.
+  double linear = 0.0, rotational = 0.0;
+  for (int i = 0; i < 3; ++i) {
+    linear += 0.5 * s.mass_kg * s.v_world_mps[i] * s.v_world_mps[i];
+    rotational += 0.5 * s.omega_world_radps[i] * s.L_world_kgm2ps[i];
+  }
+  EXPECT_NEAR(s.kinetic_energy_J, linear + rotational, 1e-12);
+  EXPECT_GT(rotational, 0.0);
+}
+
+TEST(TelemetryConvert, TimingFlagsAndJitter) {
+  loop::CycleRecord r = sample_record();
+  const TimingSample s = to_timing(r, 0.0041, 0.004, 7);
+  EXPECT_DOUBLE_EQ(s.period_s, 0.0041);
+  EXPECT_NEAR(s.jitter_s, 0.0001, 1e-15);
+  EXPECT_DOUBLE_EQ(s.compute_s, 25e-6);
+  EXPECT_TRUE(s.ipoc_gap);
+  EXPECT_TRUE(s.robot_late);
+  EXPECT_FALSE(s.robot_lost);
+  EXPECT_EQ(s.datagrams_lost, 7u);
+  const TimingSample first = to_timing(r, 0.0, 0.004, 0);
+  EXPECT_EQ(first.jitter_s, 0.0);  // no period known: no jitter
+}
+
+TEST(TelemetryConvert, HealthCodesAndCounters) {
+  loop::CycleRecord r = sample_record();
+  r.state = loop::State::fault;
+  r.fault = loop::Fault::contact_over_limit;
+  ChannelCounters c;
+  c.records_offered = 10;
+  c.records_published = 8;
+  c.telemetry_drops = 2;
+  RuntimeHealth h;
+  h.datagrams_lost = 3;
+  h.record_drops = 4;
+  const HealthSample s = to_health(5, &r, c, h);
+  EXPECT_EQ(s.health_seq, 5u);
+  EXPECT_EQ(s.state, 3);
+  EXPECT_EQ(s.fault, 6);
+  EXPECT_STREQ(state_code_name(s.state), "fault");
+  EXPECT_STREQ(fault_code_name(s.fault), "contact_over_limit");
+  EXPECT_STREQ(state_code_name(9), "?");
+  EXPECT_EQ(s.telemetry_drops, 2u);
+  EXPECT_EQ(s.records_offered, 10u);
+  EXPECT_EQ(s.datagrams_lost, 3u);
+  EXPECT_EQ(s.record_drops, 4u);
+  const HealthSample none = to_health(1, nullptr, c, h);
+  EXPECT_EQ(none.cycle, 0u);
+}
+
+TEST(TelemetryConvert, ModelIdentityNamesRigEffectsAndNetwork) {
+  infer::DeployedModel m;
+  m.rig.name = "kr210-test";
+  m.rig.robot = "KR 210 R2700";
+  m.physics.effects = {model::Effect::bias, model::Effect::gravity, model::Effect::cable};
+  infer::DeployedNetwork n;
+  n.features = {model::Feature::sin_q1, model::Feature::sin_q2};
+  n.output_axes = {2, 5};
+  n.shape.width = {2, 8, 2};
+  n.shape.activation = {model::Activation::leaky_relu, model::Activation::identity};
+  n.quantised.weight_bits = 8;
+  m.network = n;
+  m.provenance_json = R"({"fit":"x"})";
+  const ModelIdentityInfo info = model_identity(m, "model.zgm", 0xDEADBEEFu);
+  EXPECT_EQ(info.rig_name, "kr210-test");
+  EXPECT_EQ(info.effects, (std::vector<std::string>{"bias", "gravity", "cable"}));
+  EXPECT_TRUE(info.has_network);
+  EXPECT_EQ(info.network_width, (std::vector<std::int32_t>{2, 8, 2}));
+  EXPECT_EQ(info.network_activations, (std::vector<std::string>{"leaky_relu", "identity"}));
+  EXPECT_EQ(info.network_features, (std::vector<std::string>{"sin_q1", "sin_q2"}));
+  EXPECT_EQ(info.network_outputs, (std::vector<std::string>{"Fz", "Mz"}));
+  EXPECT_EQ(info.weight_bits, 8);
+  EXPECT_EQ(info.deploy_crc32, 0xDEADBEEFu);
+
+  std::vector<char*> storage;
+  const zerog_telemetry_ModelIdentity s = model_identity_sample(info, storage);
+  EXPECT_STREQ(s.rig_name, "kr210-test");
+  ASSERT_EQ(s.effects._length, 3u);
+  EXPECT_STREQ(s.effects._buffer[2], "cable");
+  ASSERT_EQ(s.network_features._length, 2u);
+  EXPECT_STREQ(s.network_features._buffer[1], "sin_q2");
+  ASSERT_EQ(s.network_outputs._length, 2u);
+  EXPECT_STREQ(s.network_outputs._buffer[0], "Fz");
+  ASSERT_EQ(s.network_width._length, 3u);
+  EXPECT_EQ(s.network_width._buffer[1], 8);
+  EXPECT_EQ(s.deploy_crc32, 0xDEADBEEFu);
+  EXPECT_STREQ(s.provenance_json, R"({"fit":"x"})");
+}
+
+TEST(TelemetryConfig, ChecksNameTheSetting) {
+  TelemetryConfig c;
+  EXPECT_EQ(check_config(c), "");
+  c.domain_id = 233;
+  EXPECT_NE(check_config(c).find("telemetry.domain_id"), std::string::npos);
+  c = {};
+  c.interface = "eth0\"/><x";
+  EXPECT_NE(check_config(c).find("telemetry.interface"), std::string::npos);
+  c = {};
+  c.allow_multicast = false;
+  EXPECT_NE(check_config(c).find("telemetry.peers"), std::string::npos);
+  c.peers = {"127.0.0.1", "bad<peer"};
+  EXPECT_NE(check_config(c).find("\"bad<peer\""), std::string::npos);
+  c = {};
+  c.topic_prefix = "zerog.";
+  EXPECT_NE(check_config(c).find("telemetry.topic_prefix"), std::string::npos);
+  c = {};
+  c.health_period_s = 0.0;
+  EXPECT_NE(check_config(c).find("telemetry.health_period_s"), std::string::npos);
+  c = {};
+  c.nominal_period_s = std::nan("");
+  EXPECT_NE(check_config(c).find("telemetry.nominal_period_s"), std::string::npos);
+}
+
+TEST(TelemetryConfig, CycloneXmlForLoopbackWithoutMulticast) {
+  TelemetryConfig c;
+  c.interface = "lo";
+  c.allow_multicast = false;
+  c.peers = {"127.0.0.1", "10.0.0.2"};
+  ASSERT_EQ(check_config(c), "");
+  EXPECT_EQ(cyclone_xml(c),
+            "<CycloneDDS><Domain id=\"any\"><General><Interfaces><NetworkInterface "
+            "name=\"lo\"/></Interfaces><AllowMulticast>false</AllowMulticast></General>"
+            "<Discovery><ParticipantIndex>auto</ParticipantIndex><Peers><Peer "
+            "address=\"127.0.0.1\"/><Peer address=\"10.0.0.2\"/></Peers></Discovery></Domain>"
+            "</CycloneDDS>");
+  const TelemetryConfig defaults;
+  EXPECT_EQ(cyclone_xml(defaults),
+            "<CycloneDDS><Domain id=\"any\"><General><AllowMulticast>true</AllowMulticast>"
+            "</General></Domain></CycloneDDS>");
+}
+
+}  // namespace
+}  // namespace zerog::telemetry
