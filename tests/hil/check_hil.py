@@ -167,6 +167,73 @@ def case_push(run):
     check(spread < 0.03, f"and stays there: largest deviation {100 * spread:.2f} % of J/m")
 
 
+def check_telemetry_run(run):
+    """The independent Python DDS subscriber's recording, compared with cycles.csv by
+    check_telemetry.py in hil.sh (every topic, values per cycle)."""
+    try:
+        with open(f"{run.dir}/telemetry.status") as f:
+            status = int(f.read().strip())
+        with open(f"{run.dir}/telemetry.txt") as f:
+            report = f.read().strip().splitlines()
+    except (OSError, ValueError):
+        check(False, "telemetry: hil.sh ran no check_telemetry.py")
+        return
+    for line in report[-12:]:
+        print(f"    {line}")
+    topics = {}
+    with open(f"{run.dir}/telemetry.jsonl") as f:
+        for line in f:
+            name = json.loads(line).get("topic", "?")
+            topics[name] = topics.get(name, 0) + 1
+    figure("telemetry_samples_by_topic", topics)
+    check(status == 0, f"telemetry: every topic received, values match cycles.csv "
+                       f"(check_telemetry.py exit {status})")
+
+
+def case_supervisor(run):
+    """The PLC (mbpoll over Modbus TCP) sets the mass while idle, enables zero-g, is refused a
+    mass change during zero-g; the push then moves the part with the PLC's mass."""
+    try:
+        with open(f"{run.dir}/plc.json") as f:
+            plc = json.load(f)
+    except OSError:
+        check(False, "PLC: plc_supervisor.py wrote no plc.json")
+        return
+    for s in plc.get("steps", []):
+        print(f"    PLC {s['step']}: exit {s['exit']} {s['values'] if s['values'] else ''}"
+              f"{'' if s['exit'] == 0 else ' — ' + ' '.join(s['output'][-1:])}")
+    check(plc.get("ok"), f"PLC: the session ran ({plc.get('error', 'all steps')})")
+    if not plc.get("ok"):
+        return
+    written = plc["mass_raw_written"]
+    check(plc["state_idle"] == [0], f"PLC: state read as idle (0) before enabling: {plc['state_idle']}")
+    check(plc["mass_raw_before"] == [round(run.mass * 1000)],
+          f"PLC: mass read as the configuration's {run.mass:g} kg: {plc['mass_raw_before']} (0.001 kg)")
+    check(plc["write_idle_exit"] == 0 and plc["mass_raw_after_write"] == [written]
+          and plc["proposal_status_after_write"] == [2],
+          f"PLC: mass {written / 1000:g} kg written while idle, accepted (status "
+          f"{plc['proposal_status_after_write']}) and read back {plc['mass_raw_after_write']}")
+    check(plc["enable_exit"] == 0 and plc["state_after_enable"] == [2],
+          f"PLC: zero-g enabled with coil 0, state read as zero_g (2): {plc['state_after_enable']}")
+    refusal = " ".join(plc["write_zero_g_output"])
+    check(plc["write_zero_g_exit"] != 0 and "busy" in refusal.lower(),
+          f"PLC: mass write during zero-g refused with an exception: '{refusal}'")
+    check(plc["mass_raw_after_refusal"] == [written] and plc["proposal_status_after_refusal"] == [3],
+          f"PLC: and nothing changed: mass {plc['mass_raw_after_refusal']}, status "
+          f"{plc['proposal_status_after_refusal']} (3 refused_state)")
+    m = run.rt.get("modbus", {})
+    figure("modbus_counters", m)
+    check(m.get("writes_accepted") == 1 and m.get("exceptions_by_code", {}).get("6", 0) >= 1,
+          f"zerog-rt's summary: 1 write accepted, {m.get('exceptions_by_code')} exceptions by code")
+    # The part floats with the PLC's mass, not the configuration's.
+    config_mass = run.mass
+    run.mass = written / 1000.0
+    check(abs(config_mass - run.mass) > 1.0, f"the PLC's mass ({run.mass:g} kg) differs from "
+                                             f"the configuration's ({config_mass:g} kg)")
+    case_push(run)
+    check_telemetry_run(run)
+
+
 def case_drift(run):
     t_en = common_checks(run)
     if t_en is None:
@@ -356,7 +423,8 @@ def main():
     if a.case.startswith("fault_"):
         case_fault(run, a.case)
     else:
-        {"push": case_push, "drift": case_drift, "spin": case_spin, "tumble": case_tumble}[a.case](run)
+        {"push": case_push, "drift": case_drift, "spin": case_spin, "tumble": case_tumble,
+         "supervisor": case_supervisor}[a.case](run)
     FIGURES["case"] = a.case
     FIGURES["attempt"] = a.attempt
     FIGURES["passed"] = not FAILURES

@@ -7,6 +7,10 @@
 # (tests/hil/cases/CASE.toml = the emulator's scenario, CASE.rt.toml = zerog-rt's configuration
 # template) it starts the emulator, deploys the emulated payload's exact model with
 # `zerog export`, runs zerog-rt with --enable-zero-g and checks the run with check_hil.py.
+# A scenario with a `# plc = SCRIPT` line has no --enable-zero-g: SCRIPT (in tests/hil/, the
+# cell PLC over Modbus) runs beside zerog-rt and enables zero-g itself. A template with
+# @DDS_DOMAIN@ gets DDS telemetry: the independent Python subscriber (the repository's .venv)
+# records every topic during the run and check_telemetry.py compares it with cycles.csv.
 # Results per case in DIR/CASE/. Exit status: 0 if every case passed.
 set -uo pipefail
 
@@ -42,6 +46,22 @@ run_case() {
   [ -n "$duration" ] || { echo "hil.sh: $scenario lacks a '# duration_s = N' line" >&2; return 1; }
   echo "=== $c: ${duration} s (attempt $attempt) ==="
   local emu_start emu_pid rt_duration rt_status emu_status
+  # The DDS subscriber first: Python and its imports can take seconds in the VM, and the
+  # emulator's run is timed.
+  local domain=$((150 + attempt)) dds= sub_pid=
+  if grep -q '@DDS_DOMAIN@' "$template"; then
+    dds=$here/../../.venv/bin/python
+    "$dds" "$here/../telemetry/dds_subscriber.py" --domain $domain --interface lo \
+      --peer 127.0.0.1 --no-multicast --duration $((${duration%.*} + 60)) --idle 3 \
+      --out "$w/telemetry.jsonl" --ready "$w/telemetry.ready" 2>"$w/telemetry.err" &
+    sub_pid=$!
+    for _ in $(seq 1 300); do
+      [ -f "$w/telemetry.ready" ] && break
+      kill -0 $sub_pid 2>/dev/null || break
+      sleep 0.1
+    done
+    [ -f "$w/telemetry.ready" ] || echo "hil.sh: $c: the DDS subscriber did not start" >&2
+  fi
   emu_start=$(date +%s.%N)
   "$emu" --scenario "$scenario" --can vcan0 --imu-link "$w/imu-tty" \
     --robot-bind 127.0.0.1:49153 --rt-address 127.0.0.1:49152 --duration "$duration" \
@@ -55,19 +75,38 @@ run_case() {
   done
   if ! grep -q "zerog-emu: ready" "$w/emu.out" 2>/dev/null; then
     echo "hil.sh: $c: the emulator did not come up:" >&2; cat "$w/emu.err" >&2
-    kill $emu_pid 2>/dev/null; wait $emu_pid 2>/dev/null; return 1
+    kill $emu_pid $sub_pid 2>/dev/null; wait $emu_pid 2>/dev/null; return 1
   fi
   "$zerog" export --model "$w/truth-model.json" --rig "$w/rig.rig.toml" --out "$w/model.zgm" -q \
-    || { echo "hil.sh: $c: zerog export failed" >&2; kill $emu_pid; wait $emu_pid; return 1; }
+    || { echo "hil.sh: $c: zerog export failed" >&2; kill $emu_pid $sub_pid; wait $emu_pid; return 1; }
   sed -e "s|@MODEL@|$w/model.zgm|" -e "s|@RIG@|$w/rig.rig.toml|" -e "s|@IMU@|$w/imu-tty|" \
-    "$template" >"$w/zerog-rt.toml"
+    -e "s|@DDS_DOMAIN@|$domain|" "$template" >"$w/zerog-rt.toml"
+  local plc enable=--enable-zero-g plc_pid= plc_status=0
+  plc=$(sed -n 's/^# plc = \(.*\)$/\1/p' "$scenario")
+  [ -z "$plc" ] || enable=
   # zerog-rt stops 0.7 s before the emulator does, so the robot never goes silent on it.
   rt_duration=$(awk -v d="$duration" -v s="$emu_start" -v n="$(date +%s.%N)" 'BEGIN { print d - (n - s) - 0.7 }')
-  "$rt" --config "$w/zerog-rt.toml" --enable-zero-g --record "$w/rec" --duration "$rt_duration" \
-    --summary-out "$w/rt.json" >"$w/rt.out" 2>"$w/rt.err"
+  "$rt" --config "$w/zerog-rt.toml" $enable --record "$w/rec" --duration "$rt_duration" \
+    --summary-out "$w/rt.json" >"$w/rt.out" 2>"$w/rt.err" &
+  local rt_pid=$!
+  if [ -n "$plc" ]; then
+    /usr/bin/python3 "$here/$plc" --port 1502 --out "$w/plc.json" >"$w/plc.out" 2>&1 &
+    plc_pid=$!
+  fi
+  wait $rt_pid
   rt_status=$?
+  if [ -n "$plc_pid" ]; then wait $plc_pid; plc_status=$?; fi
   wait $emu_pid
   emu_status=$?
+  if [ -n "$sub_pid" ]; then
+    wait $sub_pid
+    local crc
+    crc=$(/usr/bin/python3 -c 'import sys, zlib; print(hex(zlib.crc32(open(sys.argv[1], "rb").read())))' "$w/model.zgm")
+    "$dds" "$here/../telemetry/check_telemetry.py" --received "$w/telemetry.jsonl" \
+      --cycles "$w/rec/cycles.csv" --expect-crc "$crc" --min-fraction 0.95 >"$w/telemetry.txt" 2>&1
+    echo $? >"$w/telemetry.status"
+  fi
+  [ $plc_status -eq 0 ] || echo "hil.sh: $c: the PLC script exited $plc_status (see plc.json)" >&2
   if [ $rt_status -ne 0 ] || [ $emu_status -ne 0 ]; then
     echo "hil.sh: $c: zerog-rt exited $rt_status, zerog-emu $emu_status" >&2
     tail -n 5 "$w/rt.err" "$w/emu.err" >&2

@@ -175,6 +175,7 @@ void Cycle::take_proposal() noexcept {
     config_.p_sensor_com_m = proposal_.p_sensor_com_m;
     // Idle: the body is reset to the sensor's pose every cycle, so nothing moving is lost.
     motion_ = control::ZeroGMotion(config_.body, config_.limits, config_.p_sensor_com_m);
+    ++tunables_accepted_;
   }
   proposal_state_.store(status_byte(outcome), std::memory_order_release);
 }

@@ -36,7 +36,7 @@ RtConfig read_tables(const toml::table& root, const fs::path& path) {
   c.file = path;
   const TomlTable file(root, path, "",
                        {"model", "rig", "robot", "ft", "imu", "body", "limits", "watchdog",
-                        "filter", "realtime", "collection", "record"},
+                        "filter", "realtime", "collection", "record", "modbus", "telemetry"},
                        "proto/rt_config.md");
 
   const TomlTable model = file.sub_table("model", {"file", "temperature_C"});
@@ -218,6 +218,62 @@ RtConfig read_tables(const toml::table& root, const fs::path& path) {
   const TomlTable record = file.sub_table("record", {"dir", "per_run"});
   if (record.find("dir") != nullptr) c.record_dir = record.path("dir");
   c.record_per_run = record.optional_boolean("per_run", false);
+
+  // [modbus]: absent, no server (proto/modbus.md, "Connecting", documents the keys).
+  const TomlTable mb =
+      file.sub_table("modbus", {"bind_address", "port", "allow", "max_clients", "request_timeout_s",
+                                "idle_timeout_s", "proposal_timeout_s"});
+  if (mb.present()) {
+    modbus::ServerConfig m;
+    m.bind_address = mb.string("bind_address");
+    m.port = static_cast<int>(mb.optional_integer("port", m.port, 0, 65535));
+    if (const toml::node* allow = mb.find("allow")) {
+      const toml::array* list = allow->as_array();
+      if (list == nullptr || !list->empty()) m.allow = mb.strings("allow", 0);
+    }
+    m.max_clients = static_cast<int>(mb.optional_integer("max_clients", m.max_clients, 1, 64));
+    m.request_timeout_s =
+        mb.optional_number("request_timeout_s", m.request_timeout_s, {0.0, true, 10.0, false});
+    m.idle_timeout_s =
+        mb.optional_number("idle_timeout_s", m.idle_timeout_s, {0.0, false, 86400.0, false});
+    m.proposal_timeout_s =
+        mb.optional_number("proposal_timeout_s", m.proposal_timeout_s, {0.0, true, 5.0, false});
+    if (const std::string why = modbus::check_server_config(m); !why.empty()) {
+      // "allow[1]: …" or "bind_address: …": the setting, then why.
+      const std::size_t colon = why.find(": ");
+      std::string key = colon == std::string::npos ? "bind_address" : why.substr(0, colon);
+      const std::string base = key.substr(0, key.find('['));
+      mb.fail(key, mb.where(base), colon == std::string::npos ? why : why.substr(colon + 2));
+    }
+    c.modbus = std::move(m);
+  }
+
+  // [telemetry]: absent, none (proto/telemetry.md, "Configuration").
+  const TomlTable tel = file.sub_table(
+      "telemetry",
+      {"domain_id", "interface", "peers", "allow_multicast", "topic_prefix", "health_period_s"});
+  if (tel.present()) {
+    telemetry::TelemetryConfig t;
+    t.domain_id = static_cast<int>(tel.optional_integer("domain_id", t.domain_id, 0, 232));
+    t.interface = tel.optional_string("interface", t.interface);
+    if (const toml::node* peers = tel.find("peers")) {
+      const toml::array* list = peers->as_array();
+      if (list == nullptr || !list->empty()) t.peers = tel.strings("peers", 0);
+    }
+    t.allow_multicast = tel.optional_boolean("allow_multicast", t.allow_multicast);
+    t.topic_prefix = tel.optional_string("topic_prefix", t.topic_prefix);
+    t.health_period_s =
+        tel.optional_number("health_period_s", t.health_period_s, {0.0, true, 60.0, false});
+    if (const std::string why = telemetry::check_config(t); !why.empty()) {
+      // "telemetry.peers[0]: …": the setting, then why.
+      const std::size_t colon = why.find(": ");
+      std::string key = colon == std::string::npos ? "domain_id" : why.substr(0, colon);
+      if (key.rfind("telemetry.", 0) == 0) key = key.substr(10);
+      const std::string base = key.substr(0, key.find('['));
+      tel.fail(key, tel.where(base), colon == std::string::npos ? why : why.substr(colon + 2));
+    }
+    c.telemetry = std::move(t);
+  }
   if (c.record_per_run && !c.record_dir) {
     record.fail("per_run", "needs [record] dir (the folder the runs go into)");
   }

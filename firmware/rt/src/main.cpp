@@ -208,6 +208,10 @@ int run(const Options& opt) {
   options.auto_collect = path != nullptr;
   options.recorder.dir = config.record_dir;
   options.recorder.rig = setup.rig;
+  options.model_file_crc32 = setup.model_file_crc32;
+  options.modbus = config.modbus;
+  options.telemetry = config.telemetry;
+  options.model_file_name = config.model_file.filename().string();
   rt::Runtime runtime(options, rt::RuntimeDevices{&robot, &ft, &imu});
   if (std::string why = runtime.configure(setup.cycle, std::move(setup.model), path.get());
       !why.empty()) {
@@ -221,11 +225,17 @@ int run(const Options& opt) {
     print_err("zerog-rt: " + started);
     return kExitStartup;
   }
-  print_err("zerog-rt: running: RSI on " + config.robot.bind_address + ":" +
-            std::to_string(robot.local_port()) + " for " + config.robot.address + ", cycle " +
-            std::to_string(config.robot.cycle_ms) + " ms; F/T " + config.ft.interface + " at " +
-            std::to_string(static_cast<int>(config.ft.rate_hz)) + " Hz; IMU " + config.imu.device +
-            (config.record_dir ? "; recording to " + config.record_dir->string() : std::string()));
+  print_err(
+      "zerog-rt: running: RSI on " + config.robot.bind_address + ":" +
+      std::to_string(robot.local_port()) + " for " + config.robot.address + ", cycle " +
+      std::to_string(config.robot.cycle_ms) + " ms; F/T " + config.ft.interface + " at " +
+      std::to_string(static_cast<int>(config.ft.rate_hz)) + " Hz; IMU " + config.imu.device +
+      (config.record_dir ? "; recording to " + config.record_dir->string() : std::string()) +
+      (config.telemetry ? "; telemetry on DDS domain " + std::to_string(config.telemetry->domain_id)
+                        : std::string()) +
+      (runtime.modbus_server() != nullptr ? "; Modbus on " + config.modbus->bind_address + ":" +
+                                                std::to_string(runtime.modbus_server()->port())
+                                          : std::string()));
 
   // Main loop: signals, commands, supervision, status once a second.
   const bool commands = opt.commands == "stdin";

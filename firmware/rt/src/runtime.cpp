@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <iostream>
 #include <nlohmann/json.hpp>
 
@@ -108,7 +109,30 @@ Runtime::~Runtime() { stop(); }
 std::string Runtime::configure(const loop::CycleConfig& config, infer::DeployedModel model,
                                const loop::JointPath* path) {
   if (devices_.robot == nullptr) return "no robot link";
+  // The model's identity, for the supervisor (proto/modbus.md) before the cycle takes the model.
+  snapshot_.model_crc32 = options_.model_file_crc32;
+  snapshot_.model_effects = model.physics.effects.bits();
+  if (model.network) {
+    const model::NetworkShape& shape = model.network->shape;
+    snapshot_.network_inputs = static_cast<std::uint16_t>(shape.width.front());
+    snapshot_.network_outputs = static_cast<std::uint16_t>(shape.width.back());
+    snapshot_.network_layers = static_cast<std::uint16_t>(shape.num_layers());
+    int widest = 0;
+    for (std::size_t l = 1; l + 1 < shape.width.size(); ++l)
+      widest = std::max(widest, shape.width[l]);
+    snapshot_.network_width = static_cast<std::uint16_t>(widest);
+  }
+  if (options_.telemetry) {
+    telemetry::TelemetryConfig t = *options_.telemetry;
+    t.nominal_period_s = config.period_s;
+    if (std::string why = telemetry::check_config(t); !why.empty()) return why;
+    telemetry_ = std::make_unique<telemetry::TelemetryChannel>(
+        t, telemetry::model_identity(model, options_.model_file_name, options_.model_file_crc32),
+        config.body);
+  }
   if (std::string why = cycle_.configure(config, std::move(model)); !why.empty()) return why;
+  configured_tunables_ = cycle_.tunables();
+  supervisor_.publish(snapshot_);
   path_ = path;
   cycle_.set_collection_path(path);
   return {};
@@ -120,6 +144,9 @@ std::string Runtime::start(std::vector<std::string>& warnings) {
     recorder_ = std::make_unique<Recorder>(options_.recorder);
   } catch (const std::exception& e) {
     return e.what();
+  }
+  if (telemetry_ != nullptr) {
+    if (std::string why = telemetry_->start(); !why.empty()) return "telemetry: " + why;
   }
   if (options_.realtime.lock_memory) {
     if (std::string w = lock_memory(); !w.empty()) warnings.push_back(std::move(w));
@@ -154,6 +181,10 @@ std::string Runtime::start(std::vector<std::string>& warnings) {
   devices_.robot->discard_queued();
   if (error.empty())
     error = launch(cycle_thread_, "cycle", &Runtime::cycle_loop, priority, options_.realtime.cpu);
+  if (error.empty() && options_.modbus) {
+    modbus_ = std::make_unique<modbus::ModbusServer>(*options_.modbus, *this);
+    error = modbus_->start();
+  }
   if (!refused.empty()) {
     std::string names;
     for (const std::string& n : refused) names += (names.empty() ? "" : ", ") + n;
@@ -200,6 +231,7 @@ void Runtime::cycle_once() noexcept {
     return;
   }
   const std::int64_t t_received = monotonic_ns();
+  update_snapshot(t_received);
   while (ft_ring_->try_pop(ft_sample_)) cycle_.add_ft(ft_sample_);
   while (imu_ring_->try_pop(imu_sample_)) cycle_.add_imu(imu_sample_);
 
@@ -223,6 +255,7 @@ void Runtime::cycle_once() noexcept {
   if ((record.flags & loop::kCollectionDone) != 0) ++collections_done_;
   slot_.record = record;
   record_ring_->try_push(slot_);  // a full ring drops the record (counted by the ring)
+  if (telemetry_ != nullptr) telemetry_->offer(record, t_received);  // full: counted drop
   after_cycle();
 }
 
@@ -254,6 +287,66 @@ void Runtime::after_cycle() noexcept {
                  cycle_counters_.receive_errors;
   s.commands_refused = cycle_.counters().commands_refused;
   cycle_status_.publish(s);
+
+  modbus::fill_from_cycle(cycle_, snapshot_);
+  snapshot_.compute_last_s = 1e-9 * static_cast<double>(r.compute_ns);
+  snapshot_.robot_lost = s.robot_lost;
+  snapshot_.records_dropped = record_ring_->dropped();
+
+  if (telemetry_ != nullptr) {
+    const loop::CycleCounters& c = cycle_.counters();
+    telemetry::RuntimeHealth h;
+    h.robot_lost = s.robot_lost;
+    h.datagrams_lost = c.datagrams_lost;
+    h.ipoc_gaps = c.ipoc_gaps;
+    h.ft_held_cycles = c.ft_held_cycles;
+    h.imu_held_cycles = c.imu_held_cycles;
+    h.replies_failed = cycle_counters_.replies_failed;
+    h.record_drops = snapshot_.records_dropped;
+    h.commands_refused = c.commands_refused;
+    h.transitions = s.transitions;
+    telemetry_->set_health(h);
+    if (cycle_.tunables_accepted() != tunables_seen_) {  // the PLC changed the virtual body
+      tunables_seen_ = cycle_.tunables_accepted();
+      telemetry_->set_body_params(cycle_.config().body);
+    }
+    snapshot_.telemetry_dropped = telemetry_->counters().telemetry_drops;
+  }
+  supervisor_.publish(snapshot_);
+}
+
+void Runtime::update_snapshot(std::int64_t t_received_ns) noexcept {
+  // Called when a robot message has arrived: the period since the last one, and once a second
+  // the compute-time p99 and the largest jitter of that second.
+  if (last_start_ns_ != 0) {
+    const std::int64_t period = t_received_ns - last_start_ns_;
+    snapshot_.period_last_s = 1e-9 * static_cast<double>(period);
+    const auto nominal = static_cast<std::int64_t>(cycle_.config().period_s * 1e9);
+    second_jitter_ns_ = std::max(second_jitter_ns_, std::abs(period - nominal));
+  }
+  last_start_ns_ = t_received_ns;
+  const std::int64_t compute = cycle_.last().compute_ns;
+  if (cycle_.last().cycle > 0 && second_n_ < second_compute_ns_.size())
+    second_compute_ns_[second_n_++] = compute;
+  if (second_start_ns_ == 0) second_start_ns_ = t_received_ns;
+  if (t_received_ns - second_start_ns_ >= 1'000'000'000) {
+    if (second_n_ > 0) {
+      const std::size_t rank = (second_n_ - 1) * 99 / 100;
+      std::nth_element(second_compute_ns_.begin(),
+                       second_compute_ns_.begin() + static_cast<std::ptrdiff_t>(rank),
+                       second_compute_ns_.begin() + static_cast<std::ptrdiff_t>(second_n_));
+      snapshot_.compute_p99_s = 1e-9 * static_cast<double>(second_compute_ns_[rank]);
+    }
+    snapshot_.jitter_max_s = 1e-9 * static_cast<double>(second_jitter_ns_);
+    second_n_ = 0;
+    second_jitter_ns_ = 0;
+    second_start_ns_ = t_received_ns;
+  }
+}
+
+modbus::SupervisorSnapshot Runtime::snapshot() const {
+  supervisor_.read(supervisor_read_);
+  return supervisor_read_;
 }
 
 // --- sensor threads -------------------------------------------------------------------------
@@ -457,6 +550,8 @@ std::string Runtime::stop() {
     stopped_ = stopped_ || !started_;
     return recorder_error_;
   }
+  // The supervisor first: the cycle it talks to is about to stop.
+  if (modbus_ != nullptr) modbus_->stop();
   stop_cycle_.store(true, std::memory_order_relaxed);
   cycle_thread_.join();
   stop_sensors_.store(true, std::memory_order_relaxed);
@@ -464,6 +559,7 @@ std::string Runtime::stop() {
   imu_thread_.join();
   stop_recorder_.store(true, std::memory_order_release);
   recorder_thread_.join();
+  if (telemetry_ != nullptr) telemetry_->stop();  // publishes what the cycle handed over
   stopped_ = true;
   return recorder_error_;
 }
@@ -598,6 +694,37 @@ std::string Runtime::summary_json() const {
               {"reply_latency_ns", latency_json(reply_ns_)},
               {"black_box_dumps", boxes},
               {"recording", recording}};
+  if (telemetry_ != nullptr) {
+    const telemetry::ChannelCounters tc = telemetry_->counters();
+    out["telemetry"] = {{"domain_id", telemetry_->config().domain_id},
+                        {"records_offered", tc.records_offered},
+                        {"records_published", tc.records_published},
+                        {"dropped", tc.telemetry_drops},
+                        {"write_errors", tc.write_errors},
+                        {"health_published", tc.health_published}};
+  }
+  if (modbus_ != nullptr) {
+    const modbus::ServerCounters m = modbus_->counters();
+    json exceptions = json::object();
+    for (std::size_t code = 1; code < m.exceptions.size(); ++code) {
+      if (m.exceptions[code] != 0) exceptions[std::to_string(code)] = m.exceptions[code];
+    }
+    out["modbus"] = {{"port", modbus_->port()},
+                     {"requests", m.requests},
+                     {"replies", m.replies},
+                     {"exceptions_by_code", exceptions},
+                     {"writes_accepted", m.writes_accepted},
+                     {"writes_refused", m.writes_refused},
+                     {"commands_accepted", m.commands_accepted},
+                     {"clients_accepted", m.clients_accepted},
+                     {"clients_refused_allowlist", m.clients_refused_allowlist},
+                     {"clients_refused_limit", m.clients_refused_limit},
+                     {"clients_closed", m.clients_closed},
+                     {"request_timeouts", m.request_timeouts},
+                     {"idle_timeouts", m.idle_timeouts},
+                     {"framing_errors", m.framing_errors},
+                     {"send_errors", m.send_errors}};
+  }
   return out.dump(1) + "\n";
 }
 

@@ -4,6 +4,8 @@
 
 #include <cerrno>
 #include <cmath>
+#include <fstream>
+#include <iterator>
 #include <stdexcept>
 #include <system_error>
 
@@ -76,6 +78,11 @@ Setup load_setup(const RtConfig& config) {
     throw std::runtime_error("[model] file: " + why);
   }
   s.model = std::move(*loaded.model);
+  {
+    std::ifstream in(config.model_file, std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    s.model_file_crc32 = infer::crc32(bytes);
+  }
   s.cycle = cycle_config(config);
   // The loop's own checks, on a scratch cycle (configure takes the model).
   auto scratch = std::make_unique<loop::Cycle>();

@@ -203,6 +203,8 @@ class Cycle {
   bool withdraw_proposal() noexcept;
   /// The tunables in use (the cycle's thread, or when it is not running).
   Tunables tunables() const { return {config_.body, config_.limits, config_.p_sensor_com_m}; }
+  /// Proposals accepted so far (the cycle's thread): a change tells who mirrors the tunables.
+  std::uint64_t tunables_accepted() const { return tunables_accepted_; }
 
   /// No robot message this time (receive timeout or a malformed datagram from the robot).
   /// Counts toward the robot watchdog. Nothing is sent.
@@ -280,6 +282,7 @@ class Cycle {
   /// ProposalStatus, or kProposalWriting / kProposalTaking while one side owns proposal_.
   std::atomic<std::uint8_t> proposal_state_{0};
   Tunables proposal_;
+  std::uint64_t tunables_accepted_ = 0;
 
   bool freeze_pending_ = false;
 

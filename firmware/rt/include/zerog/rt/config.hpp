@@ -14,6 +14,8 @@
 #include "zerog/control/virtual_body.hpp"
 #include "zerog/io/log.hpp"
 #include "zerog/loop/cycle.hpp"
+#include "zerog/modbus/server.hpp"
+#include "zerog/telemetry/config.hpp"
 
 namespace zerog::rt {
 
@@ -89,6 +91,10 @@ struct RtConfig {
   std::optional<std::filesystem::path> record_dir;  ///< [record] dir
   /// [record] per_run: each start records into dir/run-<UTC start time> (a service restarts).
   bool record_per_run = false;
+  /// [modbus]: the supervisory interface for the cell PLC (proto/modbus.md); absent: none.
+  std::optional<modbus::ServerConfig> modbus;
+  /// [telemetry]: live telemetry over DDS (proto/telemetry.md); absent: none.
+  std::optional<telemetry::TelemetryConfig> telemetry;
 };
 
 /// Reads and checks `path`. Throws ConfigError (naming file, key, line:column, why).

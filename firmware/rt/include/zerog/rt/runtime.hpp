@@ -12,16 +12,20 @@
 // fakes, or none and feed the rings through ft_ring()/imu_ring(). cycle_once() is the cycle
 // thread's whole loop body: real-time safe (no allocation, no locks, no exceptions; proved by
 // tests/unit/rt/cycle_once_test.cpp).
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include "zerog/loop/cycle.hpp"
+#include "zerog/modbus/server.hpp"
+#include "zerog/modbus/target.hpp"
 #include "zerog/rt/config.hpp"
 #include "zerog/rt/latency.hpp"
 #include "zerog/rt/realtime.hpp"
@@ -31,6 +35,7 @@
 #include "zerog/rtio/latest_value.hpp"
 #include "zerog/rtio/robot_link.hpp"
 #include "zerog/rtio/spsc_ring.hpp"
+#include "zerog/telemetry/channel.hpp"
 
 namespace zerog::rt {
 
@@ -42,6 +47,13 @@ struct RuntimeOptions {
   bool auto_collect = false;        ///< --collect: start collecting as soon as the cycle is ready
   RecorderOptions recorder;
   std::chrono::milliseconds imu_reopen_interval{100};
+  std::uint32_t model_file_crc32 = 0;  ///< the deploy file's identity (Setup::model_file_crc32)
+  /// The Modbus server for the cell PLC (proto/modbus.md), started last and stopped first.
+  std::optional<modbus::ServerConfig> modbus;
+  /// Live telemetry over DDS (proto/telemetry.md), started before the threads, stopped (drained)
+  /// after the cycle thread. nominal_period_s is taken from the loop's configuration.
+  std::optional<telemetry::TelemetryConfig> telemetry;
+  std::string model_file_name;  ///< named in the telemetry's model identity
 };
 
 struct RuntimeDevices {
@@ -119,7 +131,10 @@ struct RecordSlot {
   }
 };
 
-class Runtime {
+/// Also the Modbus server's way into the cycle (modbus::SupervisorTarget): commands and
+/// proposals go to the cycle's lock-free mailboxes, the snapshot is published by the cycle
+/// thread after every cycle (LatestValue; the Modbus thread is its only reader).
+class Runtime final : public modbus::SupervisorTarget {
  public:
   using FtRing = rtio::SpscRing<rtio::FtSample, 256>;     // 0.5 s at 500 Hz
   using ImuRing = rtio::SpscRing<rtio::ImuSample, 1024>;  // 0.5 s at 2 kHz
@@ -143,7 +158,17 @@ class Runtime {
   void cycle_once() noexcept;
 
   /// A command for the next cycle (any thread). False if one is already pending.
-  bool request(loop::Command c) noexcept { return cycle_.request(c); }
+  bool request(loop::Command c) noexcept override { return cycle_.request(c); }
+
+  // modbus::SupervisorTarget (the Modbus server's thread).
+  modbus::SupervisorSnapshot snapshot() const override;
+  bool propose(const loop::Tunables& t) noexcept override { return cycle_.propose(t); }
+  loop::ProposalStatus proposal_status() const noexcept override {
+    return cycle_.proposal_status();
+  }
+  bool withdraw_proposal() noexcept override { return cycle_.withdraw_proposal(); }
+  /// The tunables of configure() (the cycle's own copy is the cycle thread's).
+  loop::Tunables tunables() const override { return configured_tunables_; }
 
   /// Main thread, every few ms: --enable-zero-g and --collect requests, announcements.
   SupervisorEvents supervise();
@@ -169,6 +194,10 @@ class Runtime {
   const CycleThreadCounters& cycle_thread_counters() const { return cycle_counters_; }
   const LatencyHistogram& compute_histogram() const { return compute_ns_; }
   const Recorder* recorder() const { return recorder_.get(); }
+  /// The telemetry channel, if configured.
+  const telemetry::TelemetryChannel* telemetry() const { return telemetry_.get(); }
+  /// The Modbus server, if configured and started.
+  const modbus::ModbusServer* modbus_server() const { return modbus_.get(); }
 
  private:
   void cycle_loop();
@@ -198,6 +227,17 @@ class Runtime {
   LatencyHistogram reply_ns_;  ///< receive returned → reply sent
   std::uint64_t collections_done_ = 0;
   rtio::LatestValue<CycleStatus> cycle_status_;
+  // The supervisor snapshot, with one-second statistics of the cycle's timing.
+  void update_snapshot(std::int64_t t_received_ns) noexcept;
+  modbus::SupervisorSnapshot snapshot_;
+  mutable rtio::LatestValue<modbus::SupervisorSnapshot> supervisor_;
+  mutable modbus::SupervisorSnapshot supervisor_read_;
+  loop::Tunables configured_tunables_;
+  std::array<std::int64_t, 1024> second_compute_ns_{};  ///< this second's compute times
+  std::size_t second_n_ = 0;
+  std::int64_t second_start_ns_ = 0;
+  std::int64_t second_jitter_ns_ = 0;  ///< largest |period − nominal| this second
+  std::int64_t last_start_ns_ = 0;     ///< when the last robot message was received
 
   // Black-box handover: 0 recording, 1 frozen (cycle → recorder), 2 dumped (recorder → cycle).
   std::atomic<std::uint8_t> box_state_{0};
@@ -225,6 +265,10 @@ class Runtime {
   bool collection_finished_ = false;
   CycleStatus last_status_;
   RecorderStatus last_recorder_status_;
+
+  std::unique_ptr<modbus::ModbusServer> modbus_;
+  std::unique_ptr<telemetry::TelemetryChannel> telemetry_;
+  std::uint64_t tunables_seen_ = 0;  ///< cycle thread: Cycle::tunables_accepted() mirrored
 
   std::atomic<bool> stop_cycle_{false}, stop_sensors_{false}, stop_recorder_{false};
   Thread cycle_thread_, ft_thread_, imu_thread_, recorder_thread_;

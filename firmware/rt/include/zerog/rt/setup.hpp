@@ -3,6 +3,7 @@
 // deployed model (checked against that rig at the robot's cycle) and the loop's configuration,
 // and for collection mode the design path. Everything here may allocate and throws
 // std::runtime_error whose message names the file and why. Not real-time safe.
+#include <cstdint>
 #include <filesystem>
 #include <memory>
 #include <string>
@@ -25,6 +26,7 @@ struct Setup {
   RtConfig config;
   io::Rig rig;  ///< the running rig, sample_period_s = the robot cycle (what a recording gets)
   infer::DeployedModel model;
+  std::uint32_t model_file_crc32 = 0;  ///< CRC-32 of the deploy file's bytes: its identity
   loop::CycleConfig cycle;
 };
 
