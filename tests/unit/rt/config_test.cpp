@@ -180,6 +180,49 @@ TEST(RtConfig, EachErrorNamesFileKeyPositionAndWhy) {
                {"", line_of(s, "port = 0"), 0, "TOML syntax"});
 }
 
+/// The sample with its commented-out [modbus] and [telemetry] tables switched on.
+std::string with_supervision(std::string text) {
+  for (const char* key :
+       {"[modbus]", "bind_address = \"192.168.2", "port = 502", "allow = ", "max_clients",
+        "[telemetry]", "domain_id", "interface = \"eth1", "peers = []", "allow_multicast"}) {
+    const std::string commented = std::string("# ") + key;
+    const int line = line_of(text, commented);
+    EXPECT_GT(line, 0) << key;
+    std::size_t at = 0;
+    for (int i = 1; i < line; ++i) at = text.find('\n', at) + 1;
+    text.erase(at, 2);
+  }
+  return text;
+}
+
+TEST(RtConfig, ModbusAndTelemetryTablesAreReadAndCheckedKeyByKey) {
+  const RtConfig none = parse_config(sample_text(), "rt.toml");
+  EXPECT_FALSE(none.modbus.has_value()) << "no [modbus]: no server";
+  EXPECT_FALSE(none.telemetry.has_value());
+  const std::string s = with_supervision(sample_text());
+  const RtConfig c = parse_config(s, "rt.toml");
+  ASSERT_TRUE(c.modbus.has_value());
+  EXPECT_EQ(c.modbus->bind_address, "192.168.2.100");
+  EXPECT_EQ(c.modbus->port, 502);
+  EXPECT_EQ(c.modbus->allow, std::vector<std::string>{"192.168.2.10"});
+  EXPECT_EQ(c.modbus->max_clients, 4);
+  ASSERT_TRUE(c.telemetry.has_value());
+  EXPECT_EQ(c.telemetry->interface, "eth1");
+  EXPECT_TRUE(c.telemetry->peers.empty());
+  EXPECT_TRUE(c.telemetry->allow_multicast);
+  // Errors name the key, its position and why.
+  expect_error(with_line(s, "allow = ", "allow = [\"192.168.2.10\", \"10.0.0.5/24\"]"),
+               {"modbus.allow[1]", line_of(s, "allow = "), 9, "host bits"});
+  expect_error(with_line(s, "bind_address = \"192.168.2", "bind_adress = \"192.168.2.100\""),
+               {"modbus.bind_adress", line_of(s, "bind_address = \"192.168.2"), 1, "unknown key"});
+  expect_error(with_line(s, "max_clients", "max_clients = 1000"),
+               {"modbus.max_clients", line_of(s, "max_clients"), 15, "[1, 64]"});
+  expect_error(with_line(s, "domain_id", "domain_id = 300"),
+               {"telemetry.domain_id", line_of(s, "domain_id"), 13, "[0, 232]"});
+  expect_error(with_line(s, "allow_multicast", "allow_multicast = false"),
+               {"telemetry.peers", line_of(s, "peers = []"), 0, "needs at least one unicast peer"});
+}
+
 // --- the program ---------------------------------------------------------------------------
 
 struct ProgramRun {

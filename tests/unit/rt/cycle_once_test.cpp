@@ -62,6 +62,47 @@ class CycleOnce : public ::testing::Test {
   std::size_t allocations = 0;
 };
 
+TEST_F(CycleOnce, TheSupervisorSnapshotAndTelemetryHandOverAllocateNothing) {
+  RuntimeOptions options;
+  options.model_file_crc32 = 0xC0FFEEu;
+  telemetry::TelemetryConfig t;  // configured, not started: offer() only fills the queue
+  t.domain_id = 7;
+  options.telemetry = t;
+  auto rt = std::make_unique<Runtime>(options, RuntimeDevices{&robot_link});
+  ASSERT_EQ(rt->configure(test::test_cycle_config(), test::payload_model()), "");
+  modbus::SupervisorTarget& target = *rt;
+  EXPECT_EQ(target.snapshot().model_crc32, 0xC0FFEEu) << "identity published at configure";
+  EXPECT_EQ(target.snapshot().model_effects, model::kDefaultModel.bits());
+  const Eigen::Matrix<double, 6, 1> none = Eigen::Matrix<double, 6, 1>::Zero();
+  for (int i = 0; i < 6; ++i) {
+    feed(*rt, none);
+    cycle(*rt);
+  }
+  // The PLC's mass change, taken by the next cycle (idle), mirrored to the telemetry.
+  loop::Tunables tun = target.tunables();
+  EXPECT_EQ(tun.body.mass_kg, test::kMass);
+  tun.body.mass_kg = 80.0;
+  ASSERT_TRUE(target.propose(tun));
+  feed(*rt, none);
+  cycle(*rt);
+  EXPECT_EQ(target.proposal_status(), loop::ProposalStatus::accepted);
+  ASSERT_TRUE(target.request(loop::Command::enable_zero_g));
+  for (int i = 0; i < 20; ++i) {
+    feed(*rt, test::push(i < 10 ? 40.0 : 0.0, 0.0, 0.0));
+    cycle(*rt);
+  }
+  EXPECT_EQ(allocations, 0u);
+  const modbus::SupervisorSnapshot s = target.snapshot();
+  EXPECT_EQ(s.state, loop::State::zero_g);
+  EXPECT_EQ(s.cycle, 27u);
+  EXPECT_EQ(s.model_crc32, 0xC0FFEEu);
+  EXPECT_GT(s.compute_last_s, 0.0);
+  EXPECT_EQ(s.contact_sensor, rt->cycle().last().contact);
+  EXPECT_EQ(rt->cycle().motion().body().params().mass_kg, 80.0);
+  ASSERT_NE(rt->telemetry(), nullptr);
+  EXPECT_EQ(rt->telemetry()->counters().records_offered, 27u);
+}
+
 TEST_F(CycleOnce, AllocatesNothingInZeroGAndThroughAFault) {
   auto rt = std::make_unique<Runtime>(RuntimeOptions{}, RuntimeDevices{&robot_link});
   ASSERT_EQ(rt->configure(test::test_cycle_config(), test::payload_model()), "");
