@@ -130,6 +130,12 @@ bool Cycle::request(Command c) noexcept {
 void Cycle::raise(Fault f) noexcept {
   if (sm_.state() == State::fault) return;
   sm_.raise(f, cycle_);
+  // The box still holds an earlier fault that has not been dumped and released: this fault's
+  // cycles cannot be kept. Counted, never silent.
+  if (box_.frozen()) {
+    ++counters_.black_boxes_lost;
+    return;
+  }
   freeze_pending_ = true;
 }
 

@@ -583,7 +583,8 @@ std::string Runtime::summary_json() const {
                  {"imu_held_cycles", c.imu_held_cycles},
                  {"sample_overflow", c.sample_overflow},
                  {"model_saturated", c.model_saturated},
-                 {"commands_refused", c.commands_refused}};
+                 {"commands_refused", c.commands_refused},
+                 {"black_boxes_lost", c.black_boxes_lost}};
   const CycleThreadCounters& t = cycle_counters_;
   json cycle_thread = {
       {"receive_timeouts", t.receive_timeouts},   {"receive_malformed", t.receive_malformed},

@@ -426,6 +426,28 @@ TEST_F(Watchdog, ResetReturnsToIdleOnlyFromFault) {
   EXPECT_EQ(c.state_machine().state(), State::idle);
 }
 
+TEST_F(Watchdog, AFaultBeforeTheLastBoxWasReleasedIsCountedAsALostBlackBox) {
+  for (int i = 0; i < c.config().watchdog.ft_fault_cycles; ++i) rig.quiet(c, 0, 24);
+  ASSERT_EQ(c.state_machine().fault(), Fault::ft_stale);
+  ASSERT_TRUE(c.black_box().frozen());
+  const std::uint64_t frozen_at = c.black_box().total_pushed();
+  // Reset without the program having dumped and released the box, then a second fault.
+  ASSERT_TRUE(c.request(Command::reset_fault));
+  rig.quiet(c);
+  ASSERT_EQ(c.state_machine().state(), State::idle);
+  for (int i = 0; i < c.config().watchdog.ft_fault_cycles; ++i) rig.quiet(c, 0, 24);
+  ASSERT_EQ(c.state_machine().state(), State::fault);
+  EXPECT_EQ(c.counters().black_boxes_lost, 1u);
+  EXPECT_EQ(c.black_box().total_pushed(), frozen_at) << "the first fault's box is kept";
+  // Released in time, the next fault is kept again.
+  c.release_black_box();
+  ASSERT_TRUE(c.request(Command::reset_fault));
+  rig.quiet(c);
+  for (int i = 0; i < c.config().watchdog.ft_fault_cycles; ++i) rig.quiet(c, 0, 24);
+  EXPECT_TRUE(c.black_box().frozen());
+  EXPECT_EQ(c.counters().black_boxes_lost, 1u);
+}
+
 class RampPath final : public JointPath {
  public:
   RampPath(std::array<double, 6> start, double delta, double duration)

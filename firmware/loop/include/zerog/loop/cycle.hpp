@@ -166,6 +166,9 @@ struct CycleCounters {
   std::uint64_t sample_overflow = 0;  ///< samples beyond one cycle's accumulator (not averaged)
   std::uint64_t model_saturated = 0;
   std::uint64_t commands_refused = 0;
+  /// Faults whose cycles could not be kept: the black box still held an earlier fault that had
+  /// not been dumped and released yet.
+  std::uint64_t black_boxes_lost = 0;
 };
 
 class Cycle {
