@@ -21,12 +21,16 @@ infer::RigDescription rig_description(const io::Rig& r) {
 
 infer::DeployedNetwork deploy_network(const NetworkFile& net, infer::QuantiseOptions q,
                                       const ident::Dataset* data, const io::Log* log) {
+  // QuantiseOptions::calibration_inputs is a view: the rows must outlive the quantisation.
+  // (They were a temporary once: ASan found the read after free.)
+  std::vector<double> rows;
   if (data && log) {
     check_feature_signals(net.inputs, *data);
     std::vector<std::size_t> idx;
     const std::size_t n = data->size(), step = std::max<std::size_t>(1, n / 20000);
     for (std::size_t i = 0; i < n; i += step) idx.push_back(i);
-    q.calibration_inputs = feature_rows(*data, *log, net.inputs, idx);
+    rows = feature_rows(*data, *log, net.inputs, idx);
+    q.calibration_inputs = rows;
   }
   return infer::make_deployed_network(net.inputs, net.output_axes, net.shape, net.normalisation,
                                       net.params, q);
