@@ -8,15 +8,13 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "zerog/rtio/clock.hpp"
+
 namespace zerog::rt {
 
 namespace {
 
-std::int64_t monotonic_ns() noexcept {
-  timespec ts{};
-  ::clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
+using rtio::monotonic_ns;
 
 void sleep_ns(std::int64_t ns) noexcept {
   timespec ts{};

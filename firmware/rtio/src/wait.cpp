@@ -7,12 +7,6 @@
 
 namespace zerog::rtio::detail {
 
-std::int64_t monotonic_ns() {
-  timespec ts{};
-  ::clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
-
 int wait_fd(int fd, short events, std::int64_t timeout_ns) {
   const std::int64_t deadline = monotonic_ns() + (timeout_ns > 0 ? timeout_ns : 0);
   while (true) {

@@ -6,16 +6,13 @@
 #include <vector>
 
 #include "dds/dds.h"
+#include "zerog/rtio/clock.hpp"
 
 namespace zerog::telemetry {
 
 namespace {
 
-std::int64_t monotonic_ns() noexcept {
-  timespec ts{};
-  ::clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
+using rtio::monotonic_ns;
 
 BodyParamsValue body_value(const control::BodyParams& body) noexcept {
   BodyParamsValue v;
