@@ -3,6 +3,21 @@
 # so that every zerog target, and only those, is instrumented the same way.
 set(ZEROG_SANITIZE "" CACHE STRING
     "Sanitizers for every zerog target: empty, 'address,undefined' or 'thread'")
+# The fuzz build (preset `fuzz`, tests/fuzz): clang's libFuzzer. Every zerog target gets
+# ASan + UBSan as above plus libFuzzer's coverage instrumentation (-fsanitize=fuzzer-no-link);
+# the fuzz targets themselves link libFuzzer's main (zerog_fuzz_target in tests/fuzz).
+option(ZEROG_FUZZ "Build the libFuzzer targets (tests/fuzz); needs clang" OFF)
+if(ZEROG_FUZZ)
+  if(NOT CMAKE_CXX_COMPILER_ID STREQUAL "Clang")
+    message(FATAL_ERROR "ZEROG_FUZZ needs clang (libFuzzer), the compiler is "
+                        "${CMAKE_CXX_COMPILER_ID}: configure with the preset `fuzz`")
+  endif()
+  if(ZEROG_SANITIZE AND NOT ZEROG_SANITIZE STREQUAL "address,undefined")
+    message(FATAL_ERROR "ZEROG_FUZZ runs with ZEROG_SANITIZE=address,undefined, "
+                        "not '${ZEROG_SANITIZE}'")
+  endif()
+  set(ZEROG_SANITIZE "address,undefined")
+endif()
 
 function(zerog_warnings target)
   target_compile_options(${target} PRIVATE -Wall -Wextra -Wpedantic -Wshadow -Wconversion
@@ -12,7 +27,11 @@ function(zerog_warnings target)
   endif()
   if(ZEROG_SANITIZE)
     # Any finding ends the program with an error (no "recover and carry on").
-    target_compile_options(${target} PRIVATE -fsanitize=${ZEROG_SANITIZE}
+    set(instrument ${ZEROG_SANITIZE})
+    if(ZEROG_FUZZ)
+      set(instrument "fuzzer-no-link,${ZEROG_SANITIZE}")
+    endif()
+    target_compile_options(${target} PRIVATE -fsanitize=${instrument}
                                              -fno-sanitize-recover=all -fno-omit-frame-pointer)
     target_link_options(${target} PRIVATE -fsanitize=${ZEROG_SANITIZE})
   endif()

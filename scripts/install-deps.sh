@@ -10,6 +10,8 @@ packages=(
   libcli11-dev nlohmann-json3-dev libtomlplusplus-dev
   python3 python3-numpy python3-matplotlib
   clang-format
+  # the fuzz targets (tests/fuzz, scripts/fuzz.sh): clang with libFuzzer and the sanitizers
+  clang libclang-rt-14-dev
   # telemetry (Cyclone DDS, idlc) and the PLC interface (libmodbus; mbpoll as the test client)
   cyclonedds-dev cyclonedds-tools libmodbus-dev mbpoll python3-venv
   # the install test checks the systemd unit (systemd-analyze verify)

@@ -2,6 +2,8 @@
 
 #include <cstdio>
 #include <istream>
+#include <limits>
+#include <string>
 
 namespace zerog::proto {
 
@@ -17,7 +19,10 @@ bool is_digit(char c) { return c >= '0' && c <= '9'; }
 bool is_space(char c) { return c == ' ' || c == '\t'; }
 
 constexpr std::size_t kMaxInterfaceLength = 15;  // IFNAMSIZ - 1
-constexpr int kMaxSecondsDigits = 12;            // up to year ~33658, no overflow in ns
+constexpr int kMaxSecondsDigits = 12;  // bounds the digit loop (no overflow while reading)
+// The largest seconds whose timestamp in ns (with any fraction) fits std::int64_t: year 2262.
+constexpr std::int64_t kMaxSeconds =
+    (std::numeric_limits<std::int64_t>::max() - 999'999'999) / 1'000'000'000;
 
 // Cursor over one line that records the first error.
 struct Cursor {
@@ -60,6 +65,10 @@ bool parse_timestamp(Cursor& c, std::int64_t& ns) {
     ++c.pos;
   }
   if (digits == 0) return c.fail(c.pos, "expected the timestamp's seconds (digits)");
+  if (seconds > kMaxSeconds) {
+    return c.fail(seconds_start, "timestamp seconds too large (at most " +
+                                     std::to_string(kMaxSeconds) + ", in the year 2262)");
+  }
   if (!c.expect('.', "'.' in the timestamp")) return false;
   std::int64_t fraction = 0;
   int fraction_digits = 0;

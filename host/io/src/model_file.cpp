@@ -41,13 +41,19 @@ ModelFile model_from_json(const nlohmann::json& j, const std::string& source) {
     throw std::runtime_error(source + ": " + why);
   };
   if (!j.is_object()) fail("not a JSON object");
-  if (j.value("format", "") != "zerog-model") fail("key 'format' must be \"zerog-model\"");
+  // Types are checked before values are taken: nlohmann's own exceptions (a type_error from
+  // value() or get() on a number where a string belongs) would not name the file or the key.
+  if (!j.contains("format") || !j["format"].is_string() || j["format"] != "zerog-model")
+    fail("key 'format' must be \"zerog-model\"");
   if (!j.contains("version") || !j["version"].is_number_integer())
     fail("key 'version' missing or not an integer");
-  if (j["version"].get<int>() != kModelFormatVersion)
-    fail("version " + std::to_string(j["version"].get<int>()) +
-         " is not supported (this zerog reads " + std::to_string(kModelFormatVersion) + ")");
+  // Compared as JSON numbers: get<int>() would wrap 4294967297 to 1.
+  if (j["version"] != kModelFormatVersion) {
+    fail("version " + j["version"].dump() + " is not supported (this zerog reads " +
+         std::to_string(kModelFormatVersion) + ")");
+  }
   ModelFile m;
+  if (j.contains("rig") && !j["rig"].is_string()) fail("key 'rig' must be a string");
   m.rig_name = j.value("rig", "");
   if (!j.contains("effects") || !j["effects"].is_array())
     fail("key 'effects' missing or not a list");
@@ -88,7 +94,8 @@ ModelFile read_model(const std::filesystem::path& path) {
   nlohmann::json j;
   try {
     j = nlohmann::json::parse(in);
-  } catch (const nlohmann::json::parse_error& e) {
+  } catch (const nlohmann::json::exception& e) {
+    // parse_error, and out_of_range for a number beyond double (1e400).
     throw std::runtime_error(path.string() + ": " + e.what());
   }
   return model_from_json(j, path.string());

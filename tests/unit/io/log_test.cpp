@@ -7,9 +7,12 @@
 #include <chrono>
 #include <cmath>
 #include <random>
+#include <stdexcept>
+#include <typeinfo>
 
 #include "test_util.hpp"
 #include "zerog/io/log.hpp"
+#include "zerog/io/model_file.hpp"
 
 namespace zerog::io {
 namespace {
@@ -407,6 +410,33 @@ TEST_F(AtomicWriteTest, FailureLeavesNothingBehind) {
 }
 
 // ---- speed ------------------------------------------------------------------------------------
+
+// Found by tests/fuzz (model_file_fuzz): nlohmann's own exceptions escaped read_model (a
+// type_error for a non-string "format" or "rig", an out_of_range for a number beyond double), so
+// the message named neither the file nor the key. Each is now a runtime_error naming both.
+TEST_F(LogTest, ModelFileWithWrongTypesIsAnErrorNamingTheFile) {
+  const fs::path model = path("m.json");
+  const auto expect_runtime_error = [&](const std::string& json, const std::string& part) {
+    write_text(model, json);
+    try {
+      (void)read_model(model);
+      ADD_FAILURE() << "no error for " << json;
+    } catch (const std::runtime_error& e) {
+      EXPECT_EQ(typeid(e), typeid(std::runtime_error)) << json;
+      EXPECT_NE(std::string(e.what()).find(model.string()), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
+    }
+  };
+  expect_runtime_error(R"({"format": 5})", "'format'");
+  expect_runtime_error(R"({"format": "zerog-model", "version": 1, "rig": 3, "effects": []})",
+                       "'rig'");
+  expect_runtime_error(R"({"format": "zerog-model", "version": 1, "effects": [], "x": 1e400})",
+                       "number overflow");
+  expect_runtime_error(R"({"format": "zerog-model", "version": 4294967297, "effects": []})",
+                       "version 4294967297");
+  write_text(model, R"({"format": "zerog-model", "version": 1, "rig": "r", "effects": []})");
+  EXPECT_EQ(read_model(model).rig_name, "r");
+}
 
 TEST_F(LogTest, ReadsAHundredThousandRowsQuickly) {
   const Log log = example_log(100000, {true, true, true});

@@ -117,6 +117,14 @@ TEST(Candump, Errors) {
   expect_error("(1.0) can0 123#R5x", 18, "unexpected characters");
 }
 
+// Found by tests/fuzz (candump_fuzz): 12 digits of seconds overflowed the timestamp in ns
+// (signed overflow, undefined behaviour). The largest that fits: 9223372035 s (year 2262).
+TEST(Candump, TimestampBeyondInt64NanosecondsIsAnError) {
+  expect_error("(170000000000.125000) can0 202#00", 2, "too large");
+  expect_error("(9223372036.000000) can0 123#00", 2, "too large");
+  EXPECT_EQ(parse_ok("(9223372035.999999999) can0 123#00").timestamp_ns, 9'223'372'035'999'999'999);
+}
+
 TEST(Candump, ErrorMessageNamesLineAndColumn) {
   CandumpError e{3, 14, "why"};
   EXPECT_EQ(e.message(), "line 3, column 14: why");
