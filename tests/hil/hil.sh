@@ -84,17 +84,25 @@ run_case() {
   local plc enable=--enable-zero-g plc_pid= plc_status=0
   plc=$(sed -n 's/^# plc = \(.*\)$/\1/p' "$scenario")
   [ -z "$plc" ] || enable=
-  # zerog-rt stops 0.7 s before the emulator does, so the robot never goes silent on it.
-  rt_duration=$(awk -v d="$duration" -v s="$emu_start" -v n="$(date +%s.%N)" 'BEGIN { print d - (n - s) - 0.7 }')
-  "$rt" --config "$w/zerog-rt.toml" $enable --record "$w/rec" --duration "$rt_duration" \
+  # zerog-rt stops 0.7 s before the emulator does, so the robot never goes silent on it: at an
+  # absolute deadline from the emulator's start (SIGINT: it stops and writes its files), not
+  # after a --duration counted from its own start, which its start-up (DDS, Modbus, the F/T
+  # calibration read-out) would push past the emulator's end under the VM's emulation.
+  "$rt" --config "$w/zerog-rt.toml" $enable --record "$w/rec" --duration "$duration" \
     --summary-out "$w/rt.json" >"$w/rt.out" 2>"$w/rt.err" &
   local rt_pid=$!
   if [ -n "$plc" ]; then
     /usr/bin/python3 "$here/$plc" --port 1502 --out "$w/plc.json" >"$w/plc.out" 2>&1 &
     plc_pid=$!
   fi
+  rt_duration=$(awk -v d="$duration" -v s="$emu_start" -v n="$(date +%s.%N)" \
+    'BEGIN { t = d - (n - s) - 0.7; print (t > 0 ? t : 0) }')
+  (sleep "$rt_duration" && kill -INT $rt_pid 2>/dev/null) &
+  local stopper=$!
   wait $rt_pid
   rt_status=$?
+  kill $stopper 2>/dev/null
+  wait $stopper 2>/dev/null
   if [ -n "$plc_pid" ]; then wait $plc_pid; plc_status=$?; fi
   wait $emu_pid
   emu_status=$?
