@@ -8,7 +8,7 @@ void fill_from_cycle(const loop::Cycle& cycle, SupervisorSnapshot& s) noexcept {
   s.state = cycle.state_machine().state();
   s.fault = cycle.state_machine().fault();
   s.flags = r.flags;
-  s.ready = (r.flags & (loop::kNotReady | loop::kFtHeld | loop::kImuHeld)) == 0 && r.cycle > 0;
+  s.ready = cycle.ready();
   s.contact_sensor = r.contact;
   s.datagrams_lost = cycle.counters().datagrams_lost;
   s.commands_refused = cycle.counters().commands_refused;

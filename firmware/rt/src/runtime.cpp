@@ -24,8 +24,6 @@ void sleep_ns(std::int64_t ns) noexcept {
   }
 }
 
-constexpr std::uint32_t kNotReadyFlags = loop::kNotReady | loop::kFtHeld | loop::kImuHeld;
-
 // Names of rsi::ParseStatus, in enum order (RobotLinkCounters::malformed_by_status).
 constexpr const char* kParseStatusNames[] = {"ok",
                                              "too_long",
@@ -276,7 +274,7 @@ void Runtime::after_cycle() noexcept {
   s.state = sm.state();
   s.fault = sm.fault();
   s.flags = r.flags;
-  s.ready = r.cycle > 0 && (r.flags & kNotReadyFlags) == 0;
+  s.ready = cycle_.ready();
   s.compute_ns = r.compute_ns;
   s.transitions = sm.total_transitions();
   if (sm.log_size() > 0) s.last_transition = sm.log_at(sm.log_size() - 1);

@@ -217,6 +217,11 @@ class Cycle {
 
   /// The record of the last step() (or robot_lost()).
   const CycleRecord& last() const { return record_; }
+  /// The last cycle had its model rows and fresh samples of both sensors: enable_zero_g can be
+  /// accepted (what zerog-rt's status and the Modbus `ready` input show).
+  bool ready() const noexcept {
+    return record_.cycle > 0 && (record_.flags & (kNotReady | kFtHeld | kImuHeld)) == 0;
+  }
   /// The program's measured time of the last step(): into its record and, if that cycle is the
   /// black box's newest entry (also the fault cycle of a frozen box), there too.
   void set_compute_ns(std::int64_t ns) noexcept;
