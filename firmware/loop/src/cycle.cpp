@@ -291,6 +291,13 @@ bool Cycle::evaluate(std::uint32_t& flags) noexcept {
     record_.predicted[k] = predicted[k];
     record_.contact[k] = centre.wrench[k] - predicted[k];
   }
+  // A held sensor value is stale while the other inputs (pose, the other sensor) are fresh:
+  // measured − predicted would then be a contact nobody applied (the motion of the last cycles
+  // missing from one side). Such a row drives nothing: zero contact, the body coasts.
+  if (centre.held != 0) {
+    flags |= kContactHeld;
+    set_zero(record_.contact);
+  }
   return true;
 }
 
@@ -460,6 +467,7 @@ void Cycle::step(const proto::rsi::RobotMessage& m, CycleReply& reply) noexcept 
     ++counters_.imu_held_cycles;
     if (have_imu_ && ++imu_bad_run_ >= config_.watchdog.imu_fault_cycles) raise(Fault::imu_stale);
   }
+  now.held = flags & (kFtHeld | kImuHeld);
   record_.ft_samples = static_cast<std::uint16_t>(window_.ft_n);
   record_.imu_samples = static_cast<std::uint16_t>(window_.imu_n);
   window_ = Window{};

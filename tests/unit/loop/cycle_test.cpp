@@ -249,6 +249,48 @@ TEST(Cycle, StepDoesNotAllocate) {
   EXPECT_EQ(c.state_machine().fault(), Fault::ft_stale);
 }
 
+// A held sensor value is stale next to fresh ones: the rows that held it drive nothing (zero
+// contact, kContactHeld, the body coasts), D cycles later when the model reaches them. Before
+// this rule a held 30 N push went on pushing the body for every held cycle.
+TEST(Cycle, RowsWithAHeldSensorValueDoNotDriveTheBody) {
+  for (const bool hold_ft : {true, false}) {
+    SCOPED_TRACE(hold_ft ? "F/T held" : "IMU held");
+    Cycle c;
+    ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+    StaticRobot rig;
+    start_zero_g(c, rig);
+    const int D = c.delay_rows();
+    const int n_push = 20, n_held = 3;
+    int contact_held = 0, pushed = 0;
+    auto tally = [&] {
+      if ((c.last().flags & kContactHeld) != 0) {
+        ++contact_held;
+        for (int k = 0; k < 6; ++k) EXPECT_EQ(c.last().contact[k], 0.0);
+      } else if (c.last().contact[0] > 1.0) {
+        ++pushed;
+      }
+    };
+    for (int i = 0; i < n_push; ++i) {
+      const bool held = i >= 8 && i < 8 + n_held;  // three cycles without a sample, mid-push
+      rig.cycle(c, push(30.0, 0.0, 0.0), held && hold_ft ? 0 : 4, held && !hold_ft ? 0 : 24);
+      EXPECT_EQ((c.last().flags & (kFtHeld | kImuHeld)) != 0, held) << "cycle " << i;
+      tally();
+    }
+    for (int i = 0; i < 10; ++i) {
+      rig.quiet(c);
+      tally();
+    }
+    ASSERT_EQ(c.state_machine().state(), State::zero_g);
+    EXPECT_EQ(contact_held, n_held);
+    EXPECT_EQ(pushed, n_push - n_held);
+    // The impulse is that of the cycles with fresh samples only.
+    const Eigen::Vector3d J_world =
+        rig.R * Eigen::Vector3d(30.0 * (n_push - n_held) * kPeriod, 0, 0);
+    const Eigen::Vector3d v = c.motion().body().state().v_world_mps;
+    EXPECT_NEAR((v - J_world / kMass).norm(), 0.0, 1e-9 * J_world.norm()) << "D = " << D;
+  }
+}
+
 // Watchdogs: consecutive bad cycles below the threshold hold; the threshold raises the fault and
 // from that very cycle on the reply is a zero correction.
 void expect_hold_then_fault(Cycle& c, StaticRobot& rig, int threshold, Fault fault,

@@ -106,6 +106,9 @@ enum CycleFlags : std::uint32_t {
   kCollectionDone = 1u << 8,  ///< collection reached the end of its path (back to idle)
   kFtWarning = 1u << 9,       ///< F/T samples with non-critical status bits were used
   kRobotLost = 1u << 10,      ///< a lost robot cycle (robot_lost()): no message, no reply
+  /// The model's row (t_eval_s) had a held sensor value (kFtHeld or kImuHeld when it was this
+  /// cycle's row): its contact is not trusted, so `contact` is zero and the body coasts.
+  kContactHeld = 1u << 11,
 };
 
 /// Everything one cycle did: the black box, the recorder and telemetry take it. Fixed size.
@@ -241,6 +244,7 @@ class Cycle {
     model::FeatureSignals signals;  ///< imu[6..8] (angular acceleration) filled when centred
     std::array<double, 6> wrench{};
     double t_s = 0.0;
+    std::uint32_t held = 0;  ///< kFtHeld | kImuHeld of the cycle that made the row
   };
   struct Window {  // sums of the samples that arrived this cycle
     std::array<double, 6> ft_sum{};
