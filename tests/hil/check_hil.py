@@ -653,10 +653,24 @@ def case_robot_nofault(run, kind):
     v_before, _ = velocity(run, push["start_s"] + push["duration_s"] + 0.5, t_inj - 0.05)
     v_after, n_after = velocity(run, t_end + 0.3, min(t_end + 2.0, t_last))
     err = np.linalg.norm(v_after - v_exp) / np.linalg.norm(v_exp)
+    err_before = np.linalg.norm(v_before - v_exp) / np.linalg.norm(v_exp)
+    kick = np.linalg.norm(v_after - v_before) / np.linalg.norm(v_exp)
     figure("push_velocity_error_after", err)
-    check(n_after > 50 and err < 0.03,
-          f"the part floats on at J/m after the fault: error {100 * err:.2f} % (limit 3 %; "
-          f"before it {100 * np.linalg.norm(v_before - v_exp) / np.linalg.norm(v_exp):.2f} %)")
+    figure("velocity_change_by_the_fault", kick)
+    if kind == "robot_reorder":
+        # A swapped pair makes the robot catch up a missed step in one cycle: a jerk of the 100 kg
+        # part whose inertial force the model does not cancel to the sample (F/T and IMU are
+        # averaged over different sample sets), so some of it reaches the body as contact:
+        # measured 0.2–1.1 % of J/m per pair (proto/loop.md). Bounded per pair.
+        limit = 0.015 * len(faults)
+        check(n_after > 50 and kick < limit,
+              f"the pairs changed the part's velocity by {100 * kick:.2f} % of J/m (limit "
+              f"{100 * limit:.1f} %: 1.5 % per pair; error to J/m {100 * err_before:.2f} % before, "
+              f"{100 * err:.2f} % after)")
+    else:
+        check(n_after > 50 and err < 0.03,
+              f"the part floats on at J/m after the fault: error {100 * err:.2f} % (limit 3 %; "
+              f"before it {100 * err_before:.2f} %)")
     c = run.rt["cycles"]
     robot = run.rt["devices"]["robot"]
     rep = run.emu["replies"]
@@ -700,8 +714,9 @@ def case_robot_nofault(run, kind):
         figure("replies_late_truth", late)
         figure("delay_grew", grew)
         figure("measured", f"{pairs} pairs: {c['ipoc_gaps']} gaps ({c['datagrams_lost']} lost), "
-                           f"{c['ipoc_stale']} stale answered with zero, {late} late; velocity "
-                           f"after {100 * err:.2f} % off J/m; no fault")
+                           f"{c['ipoc_stale']} stale answered with zero, {late} late; the "
+                           f"catch-up jerks changed the velocity by {100 * kick:.2f} % of J/m; "
+                           f"no fault")
     elif kind == "robot_foreign":
         n = run.emu["datagrams"]["foreign"]
         check(n == faults[0]["cycles"], f"the emulator sent {n} datagrams from another port")

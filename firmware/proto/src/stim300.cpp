@@ -197,9 +197,13 @@ std::int16_t temperature_counts(double temperature_c) {
 // --- StreamDecoder ----------------------------------------------------------------------------
 
 std::size_t StreamDecoder::push(std::span<const std::uint8_t> bytes) {
-  if (head_ == tail_) head_ = tail_ = 0;
+  if (head_ == tail_) {
+    base_ += head_;
+    head_ = tail_ = 0;
+  }
   if (tail_ + bytes.size() > kBufferSize && head_ > 0) {  // compact
     std::memmove(buffer_.data(), buffer_.data() + head_, tail_ - head_);
+    base_ += head_;
     tail_ -= head_;
     head_ = 0;
   }
@@ -243,10 +247,17 @@ bool StreamDecoder::pop(Sample& out) {
     RawDatagram raw;
     const DecodeStatus status = decode_datagram({buffer_.data() + head_, length}, raw);
     if (status != DecodeStatus::ok) {  // only crc_mismatch is possible here
-      if (in_sync_) ++counters_.crc_failures;
+      // Due here: in sync, or where the datagram after a counted bad one would start.
+      const std::uint64_t at = base_ + head_;
+      if (in_sync_ || (have_bad_end_ && (at == bad_end_ || at == bad_end_ + 2))) {
+        ++counters_.crc_failures;
+        bad_end_ = at + length;
+        have_bad_end_ = true;
+      }
       skip_byte();
       continue;
     }
+    have_bad_end_ = false;
     head_ += length;
     in_sync_ = true;
     after_datagram_ = 1;
@@ -275,7 +286,9 @@ bool StreamDecoder::pop(Sample& out) {
 }
 
 void StreamDecoder::reset() {
+  base_ += tail_;
   head_ = tail_ = 0;
+  have_bad_end_ = false;
   in_sync_ = false;
   after_datagram_ = 0;
   have_counter_ = false;

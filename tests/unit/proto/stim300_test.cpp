@@ -304,6 +304,27 @@ TEST(Stim300Stream, BadCrcResynchronisesToTheNextGoodDatagram) {
   EXPECT_EQ(decoder.counters().datagrams_missed, 1u);
 }
 
+// A line whose every datagram has a wrong CRC (noise on the wire, a wrong CRC setting) counts each
+// of them, with and without CR LF, fed whole or in small chunks (the buffer compacts).
+TEST(Stim300Stream, ARunOfDatagramsWithWrongCrcsCountsEachOfThem) {
+  for (const bool crlf : {false, true}) {
+    for (const std::size_t chunk : {std::size_t{7}, std::size_t{5000}}) {
+      SCOPED_TRACE(std::string(crlf ? "CR LF" : "no CR LF") + ", chunk " + std::to_string(chunk));
+      Bytes bytes = stream_of(60, 0, crlf);
+      const std::size_t stride = bytes.size() / 60;
+      for (std::size_t k = 10; k < 50; ++k) bytes[k * stride + 20] ^= 0x10;  // 40 bad ones
+      StreamDecoder decoder;
+      const std::vector<Sample> samples = decode_all(decoder, bytes, chunk);
+      ASSERT_EQ(samples.size(), 20u);
+      EXPECT_EQ(samples[10].raw.counter, 50);
+      EXPECT_EQ(samples[10].missed_before, 40);
+      EXPECT_EQ(decoder.counters().crc_failures, 40u);
+      EXPECT_EQ(decoder.counters().sync_losses, 1u);
+      EXPECT_EQ(decoder.counters().bytes_skipped, 40u * stride);
+    }
+  }
+}
+
 TEST(Stim300Stream, CounterGapsAreCounted) {
   StreamDecoder decoder;
   Bytes bytes;

@@ -184,9 +184,12 @@ std::int16_t temperature_counts(double temperature_c);
 // --- Stream decoder --------------------------------------------------------------------------
 
 struct StreamCounters {
-  std::uint64_t datagrams = 0;         ///< good datagrams decoded
-  std::uint64_t bytes_skipped = 0;     ///< bytes discarded while (re)synchronising
-  std::uint64_t crc_failures = 0;      ///< bad CRC where the next datagram was expected (in sync)
+  std::uint64_t datagrams = 0;      ///< good datagrams decoded
+  std::uint64_t bytes_skipped = 0;  ///< bytes discarded while (re)synchronising
+  /// Bad CRC where the next datagram was due: right after a good datagram, or one datagram (+ CR
+  /// LF) after a bad one counted here, so that a stream of framed datagrams with wrong CRCs
+  /// counts each of them, and identifier-like bytes inside garbage count none.
+  std::uint64_t crc_failures = 0;
   std::uint64_t sync_losses = 0;       ///< in sync, then something other than a good datagram
   std::uint64_t counter_gaps = 0;      ///< times the counter jumped by more than one
   std::uint64_t datagrams_missed = 0;  ///< sum of the counter gaps
@@ -246,6 +249,9 @@ class StreamDecoder {
   std::size_t tail_ = 0;  // one past the last byte
   bool in_sync_ = false;
   std::uint8_t after_datagram_ = 0;  // 1: CR may follow, 2: LF may follow
+  std::uint64_t base_ = 0;           // stream offset of buffer_[0]
+  std::uint64_t bad_end_ = 0;        // stream offset after the last counted bad datagram
+  bool have_bad_end_ = false;
   bool have_counter_ = false;
   std::uint8_t last_counter_ = 0;
   StreamCounters counters_;
