@@ -825,7 +825,8 @@ def case_peer(run, kind):
         check(off > 0 and pub >= 0.99 * off and t.get("write_errors", 1) == 0,
               f"zerog-rt went on publishing: {pub} of {off} records published, "
               f"{t.get('dropped')} dropped, {t.get('write_errors')} write errors")
-        figure("measured", f"killed after {k['lines_received']} samples; {pub} of {off} records "
+        figure("measured", f"killed after receiving {k['bytes_received']} bytes of samples; "
+                           f"{pub} of {off} records "
                            f"published, {t.get('dropped')} dropped; {n2} cycles after the kill "
                            f"all in time, no fault")
     elif kind == "model_swap":
