@@ -255,7 +255,14 @@ RtConfig read_tables(const toml::table& root, const fs::path& path) {
   if (tel.present()) {
     telemetry::TelemetryConfig t;
     t.domain_id = static_cast<int>(tel.optional_integer("domain_id", t.domain_id, 0, 232));
-    t.interface = tel.optional_string("interface", t.interface);
+    // Required, as [modbus] bind_address is: the operator names the network telemetry goes to.
+    if (tel.find("interface") == nullptr) {
+      tel.fail("interface",
+               "is required: the network interface DDS announces and sends on (\"eth1\", "
+               "\"lo\"); note that Cyclone DDS binds its discovery and data ports on every "
+               "address (proto/telemetry.md, \"Network\")");
+    }
+    t.interface = tel.string("interface");
     if (const toml::node* peers = tel.find("peers")) {
       const toml::array* list = peers->as_array();
       if (list == nullptr || !list->empty()) t.peers = tel.strings("peers", 0);

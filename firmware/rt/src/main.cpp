@@ -297,7 +297,7 @@ int run(const Options& opt) {
   }
   if (!opt.summary_out.empty()) {
     try {
-      io::write_file_atomic(opt.summary_out, runtime.summary_json());
+      io::write_file_atomic(opt.summary_out, runtime.summary_json(), {}, rt::kRecordFileMode);
     } catch (const std::exception& e) {
       print_err(std::string("zerog-rt: cannot write the summary: ") + e.what());
       code = kExitOutputFailed;

@@ -1,6 +1,7 @@
 #include "zerog/rt/recorder.hpp"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -54,8 +55,9 @@ void PartialFile::open(const fs::path& target) {
   target_ = target;
   partial_ = target;
   partial_ += ".partial";
-  fd_ = ::open(partial_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  fd_ = ::open(partial_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
   if (fd_ < 0) fail(partial_, "cannot create", errno);
+  if (::fchmod(fd_, kRecordFileMode) != 0) fail(partial_, "cannot set its mode", errno);
   buffer_.reserve(kFlushBytes + 64 * 1024);
 }
 
@@ -94,7 +96,11 @@ Recorder::Recorder(RecorderOptions options) : options_(std::move(options)) {
   if (!options_.dir) return;
   const fs::path& dir = *options_.dir;
   std::error_code ec;
+  const bool existed = fs::exists(dir, ec);
   fs::create_directories(dir, ec);
+  if (!ec && !existed) {
+    fs::permissions(dir, static_cast<fs::perms>(kRecordDirMode), fs::perm_options::replace, ec);
+  }
   if (ec || !fs::is_directory(dir)) {
     throw std::runtime_error(dir.string() + ": cannot create the record folder" +
                              (ec ? " (" + ec.message() + ")" : std::string(" (not a folder)")));
@@ -172,14 +178,14 @@ fs::path Recorder::dump_black_box(const loop::Cycle::Box& box) {
                      std::to_string(cycle) + " (proto/loop.md)\n";
   append_record_header(text);
   for (std::size_t i = 0; i < box.size(); ++i) append_record_row(box.at(i), text);
-  io::write_file_atomic(path, text);
+  io::write_file_atomic(path, text, {}, kRecordFileMode);
   ++counters_.black_boxes;
   return path;
 }
 
 void Recorder::finish() {
   if (!options_.dir) return;
-  io::write_rig(options_.rig, io::rig_path_for(log_path()));
+  io::write_rig(options_.rig, io::rig_path_for(log_path()), {}, kRecordFileMode);
   log_.finish();
   cycles_.finish();
 }

@@ -258,7 +258,8 @@ void refuse_inputs(const fs::path& path, const std::vector<fs::path>& inputs) {
 // Until then the destructor removes the temporary, so a failed run leaves nothing behind.
 class PendingFile {
  public:
-  PendingFile(fs::path target, const std::string& text) : target_(std::move(target)) {
+  PendingFile(fs::path target, const std::string& text, unsigned mode = 0644)
+      : target_(std::move(target)) {
     // Renaming onto a device, FIFO or folder would replace it (an --out /dev/null once turned
     // this machine's /dev/null into a regular file): only regular files are ever replaced.
     std::error_code ec;
@@ -281,7 +282,7 @@ class PendingFile {
     if (fd < 0) throw_errno(target_, "cannot create a temporary file in " + dir.string(), errno);
     temp_ = name;
     int error = 0;
-    if (::fchmod(fd, 0644) != 0) error = errno;
+    if (::fchmod(fd, static_cast<mode_t>(mode & 07777)) != 0) error = errno;
     std::size_t done = 0;
     while (error == 0 && done < text.size()) {
       const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
@@ -518,14 +519,15 @@ void write_log(const Log& log, const fs::path& csv, const std::vector<fs::path>&
   csv_file.commit();
 }
 
-void write_rig(const Rig& rig, const fs::path& toml, const std::vector<fs::path>& inputs) {
-  write_file_atomic(toml, format_rig(rig), inputs);
+void write_rig(const Rig& rig, const fs::path& toml, const std::vector<fs::path>& inputs,
+               unsigned mode) {
+  write_file_atomic(toml, format_rig(rig), inputs, mode);
 }
 
 void write_file_atomic(const fs::path& path, const std::string& text,
-                       const std::vector<fs::path>& inputs) {
+                       const std::vector<fs::path>& inputs, unsigned mode) {
   refuse_inputs(path, inputs);
-  PendingFile file(path, text);
+  PendingFile file(path, text, mode);
   file.commit();
 }
 

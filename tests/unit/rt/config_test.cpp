@@ -219,6 +219,8 @@ TEST(RtConfig, ModbusAndTelemetryTablesAreReadAndCheckedKeyByKey) {
                {"modbus.max_clients", line_of(s, "max_clients"), 15, "[1, 64]"});
   expect_error(with_line(s, "domain_id", "domain_id = 300"),
                {"telemetry.domain_id", line_of(s, "domain_id"), 13, "[0, 232]"});
+  expect_error(with_line(s, "interface = \"eth1", "# no interface"),
+               {"telemetry.interface", line_of(s, "[telemetry]"), 1, "is required"});
   expect_error(with_line(s, "allow_multicast", "allow_multicast = false"),
                {"telemetry.peers", line_of(s, "peers = []"), 0, "needs at least one unicast peer"});
 }

@@ -3,6 +3,7 @@
 #include "zerog/rt/recorder.hpp"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <algorithm>
 #include <random>
@@ -171,6 +172,36 @@ TEST(Recorder, DumpsTheFrozenBlackBoxOldestFirstWithTheFaultCycleLast) {
   EXPECT_EQ(split(lines.back(), ',')[0], "300");
   EXPECT_EQ(split(lines.back(), ',')[5], "ft_stale");
   EXPECT_EQ(rec.counters().black_boxes, 1u);
+}
+
+// Restrictive whatever the umask: with umask 0 (what a careless start-up script leaves) the
+// recording, its rig, the black box and the summary are still 0640, the folder 0750.
+TEST(Recorder, FilesAre0640AndTheFolder0750WhateverTheUmask) {
+  const mode_t old_umask = ::umask(0);
+  test::TempDir dir;
+  RecorderOptions o;
+  o.dir = dir.path() / "run1";
+  o.rig = test::test_rig();
+  fs::path box_path;
+  {
+    Recorder rec(o);
+    for (std::uint64_t c = 1; c <= 20; ++c) rec.add(record(c, 0.012 * static_cast<double>(c)));
+    EXPECT_EQ(fs::status(dir.path() / "run1" / "run.csv.partial").permissions(),
+              static_cast<fs::perms>(kRecordFileMode));
+    loop::Cycle::Box box;
+    box.push(record(21, 0.252));
+    box.freeze();
+    box_path = rec.dump_black_box(box);
+    rec.finish();
+  }
+  io::write_file_atomic(dir.path() / "summary.json", "{}\n", {}, kRecordFileMode);
+  ::umask(old_umask);
+  for (const fs::path& p :
+       {dir.path() / "run1" / "run.csv", dir.path() / "run1" / "cycles.csv",
+        io::rig_path_for(dir.path() / "run1" / "run.csv"), box_path, dir.path() / "summary.json"}) {
+    EXPECT_EQ(fs::status(p).permissions(), static_cast<fs::perms>(0640)) << p;
+  }
+  EXPECT_EQ(fs::status(dir.path() / "run1").permissions(), static_cast<fs::perms>(0750));
 }
 
 }  // namespace

@@ -15,6 +15,12 @@
 
 namespace zerog::rt {
 
+/// zerog-rt's files (recordings, black boxes, the summary): owner read/write, group read (the
+/// service's group, for the operators), nobody else, whatever the process umask. Folders it
+/// creates: 0750.
+inline constexpr unsigned kRecordFileMode = 0640;
+inline constexpr unsigned kRecordDirMode = 0750;
+
 struct RecorderOptions {
   std::optional<std::filesystem::path> dir;  ///< --record DIR (created if missing); none: no files
   std::filesystem::path blackbox_dir = ".";  ///< black-box dumps when there is no record dir

@@ -88,7 +88,7 @@ Rig read_rig(const std::filesystem::path& toml);
 void write_log(const Log& log, const std::filesystem::path& csv,
                const std::vector<std::filesystem::path>& inputs = {});
 void write_rig(const Rig& rig, const std::filesystem::path& toml,
-               const std::vector<std::filesystem::path>& inputs = {});
+               const std::vector<std::filesystem::path>& inputs = {}, unsigned mode = 0644);
 
 /// Streaming writer of the log CSV, for recorders that write rows as they come (zerog-rt):
 /// exactly the text write_log produces (version line, header, then one row per sample, same
@@ -110,11 +110,12 @@ class LogCsvWriter {
   double previous_t_ = 0.0;
 };
 
-/// Writes `text` to `path` atomically (temporary file in the same folder, fsync, rename; mode
-/// 0644). Refuses (std::runtime_error) if `path` is one of `inputs` (same file after resolving
-/// symbolic links, `..` and hard links) — inputs are never overwritten. On failure no temporary
-/// file is left behind.
+/// Writes `text` to `path` atomically (temporary file in the same folder, created 0600, set to
+/// `mode` before any byte is written, fsync, rename). Refuses (std::runtime_error) if `path` is
+/// one of `inputs` (same file after resolving symbolic links, `..` and hard links) — inputs are
+/// never overwritten. On failure no temporary file is left behind. zerog-rt writes its files
+/// with rt::kRecordFileMode (0640).
 void write_file_atomic(const std::filesystem::path& path, const std::string& text,
-                       const std::vector<std::filesystem::path>& inputs = {});
+                       const std::vector<std::filesystem::path>& inputs = {}, unsigned mode = 0644);
 
 }  // namespace zerog::io
