@@ -4,9 +4,10 @@
 # Hardware-in-the-loop run of zerog-rt against the rig emulator (zerog-emu: KR 210 controller
 # over RSI/UDP with servo lag, ATI NETCANOEM board on vcan0, STIM300 on a pty, all driven by the
 # rig simulator). Needs a kernel with vcan (tests/vm/run_in_vm.sh provides one). For each CASE
-# (tests/hil/cases/CASE.toml = the emulator's scenario, CASE.rt.toml = zerog-rt's configuration
-# template) it starts the emulator, deploys the emulated payload's exact model with
-# `zerog export`, runs zerog-rt with --enable-zero-g and checks the run with check_hil.py.
+# (tests/hil/cases/CASE.toml = the emulator's scenario; zerog-rt's configuration template is
+# cases/zerog-rt.base.toml, extended or replaced by CASE.rt.toml if there is one) it starts the
+# emulator, deploys the emulated payload's exact model with `zerog export`, runs zerog-rt with
+# --enable-zero-g and checks the run with check_hil.py.
 # A scenario with a `# plc = SCRIPT` line has no --enable-zero-g: SCRIPT (in tests/hil/, the
 # cell PLC over Modbus) runs beside zerog-rt and enables zero-g itself. A template with
 # @DDS_DOMAIN@ gets DDS telemetry: the independent Python subscriber (the repository's .venv)
@@ -44,9 +45,19 @@ for p in "$emu" "$rt" "$zerog"; do "$p" --help >/dev/null 2>&1; done
 # One run of case $1 into folder $2 (attempt $3); 0 if it ran and every check passed.
 run_case() {
   local c=$1 w=$2 attempt=$3
-  local scenario=$here/cases/$c.toml template=$here/cases/$c.rt.toml
-  [ -f "$scenario" ] && [ -f "$template" ] || { echo "hil.sh: no case $c" >&2; return 1; }
+  local scenario=$here/cases/$c.toml own=$here/cases/$c.rt.toml base=$here/cases/zerog-rt.base.toml
+  [ -f "$scenario" ] || { echo "hil.sh: no case $c" >&2; return 1; }
   rm -rf "$w" && mkdir -p "$w/rec"
+  # zerog-rt's configuration template: the shared one, the shared one and the case's tables, or
+  # the case's own (cases/zerog-rt.base.toml says when which).
+  local template=$w/zerog-rt.template.toml
+  if [ ! -f "$own" ]; then
+    cp "$base" "$template"
+  elif [ "$(head -n 1 "$own")" = "# extends zerog-rt.base.toml" ]; then
+    { cat "$base"; echo; cat "$own"; } >"$template"
+  else
+    cp "$own" "$template"
+  fi
   local duration
   duration=$(sed -n 's/^# duration_s = \([0-9.]*\)$/\1/p' "$scenario")
   [ -n "$duration" ] || { echo "hil.sh: $scenario lacks a '# duration_s = N' line" >&2; return 1; }
