@@ -39,7 +39,10 @@ class LatestValueTarget : public modbus::SupervisorTarget {
     box_.read(last_);  // the server thread is the only reader
     return last_;
   }
-  bool request(loop::Command c) override { return cycle_.request(c); }
+  std::uint64_t request(loop::Command c) override { return cycle_.request(c); }
+  loop::CommandOutcome command_outcome(std::uint64_t ticket) const override {
+    return cycle_.command_outcome(ticket);
+  }
   bool propose(const loop::Tunables& t) override { return cycle_.propose(t); }
   loop::ProposalStatus proposal_status() const override { return cycle_.proposal_status(); }
   bool withdraw_proposal() override { return cycle_.withdraw_proposal(); }

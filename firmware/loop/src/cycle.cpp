@@ -121,10 +121,22 @@ void Cycle::set_compute_ns(std::int64_t ns) noexcept {
   if (box_.size() > 0 && box_.newest().cycle == record_.cycle) box_.newest().compute_ns = ns;
 }
 
-bool Cycle::request(Command c) noexcept {
-  std::uint8_t expected = 0;
-  return pending_.compare_exchange_strong(
-      expected, static_cast<std::uint8_t>(1 + static_cast<int>(c)), std::memory_order_acq_rel);
+std::uint64_t Cycle::request(Command c) noexcept {
+  if (pending_.load(std::memory_order_acquire) != 0) return 0;
+  const std::uint64_t ticket = tickets_.fetch_add(1, std::memory_order_relaxed) + 1;
+  std::uint64_t expected = 0;
+  const std::uint64_t packed = ticket << 8 | static_cast<std::uint64_t>(1 + static_cast<int>(c));
+  return pending_.compare_exchange_strong(expected, packed, std::memory_order_acq_rel) ? ticket : 0;
+}
+
+CommandOutcome Cycle::command_outcome(std::uint64_t ticket) const noexcept {
+  const std::uint64_t slot = outcomes_[ticket % kCommandOutcomes].load(std::memory_order_acquire);
+  if (slot >> 2 == ticket) {
+    return (slot & 3u) == 1u ? CommandOutcome::accepted : CommandOutcome::refused;
+  }
+  // Not decided yet (still pending, or taken by the cycle that is deciding it now), or decided
+  // so long ago that a later ticket took its slot.
+  return slot >> 2 > ticket ? CommandOutcome::unknown : CommandOutcome::pending;
 }
 
 void Cycle::raise(Fault f) noexcept {
@@ -213,13 +225,16 @@ void Cycle::robot_lost(RobotLoss why) noexcept {
 
 void Cycle::apply_command(std::uint64_t cycle, const Row& now, bool ready,
                           std::uint32_t& flags) noexcept {
-  const std::uint8_t p = pending_.exchange(0, std::memory_order_acq_rel);
+  const std::uint64_t p = pending_.exchange(0, std::memory_order_acq_rel);
   if (p == 0) return;
-  const auto c = static_cast<Command>(p - 1);
+  const auto c = static_cast<Command>((p & 0xffu) - 1);
+  const std::uint64_t ticket = p >> 8;
   bool allowed = true;
   if (c == Command::enable_zero_g && !ready) allowed = false;
   if (c == Command::start_collection && path_ == nullptr) allowed = false;
   if (allowed) allowed = sm_.command(c, cycle);
+  outcomes_[ticket % kCommandOutcomes].store(ticket << 2 | (allowed ? 1u : 2u),
+                                             std::memory_order_release);
   if (!allowed) {
     flags |= kCommandRefused;
     ++counters_.commands_refused;

@@ -370,7 +370,7 @@ class Loop {
         }
         break;
       case Action::command:
-        code = command_and_wait(d.command, snap);
+        code = command_and_wait(d.command);
         if (code == ExceptionCode::none) bump(impl_.counters.commands_accepted);
         break;
     }
@@ -410,16 +410,21 @@ class Loop {
     }
   }
 
-  ExceptionCode command_and_wait(loop::Command c, const SupervisorSnapshot& before) {
-    if (!target_.request(c)) return ExceptionCode::server_device_busy;
-    // The command is applied at the start of the next step(); the one running now may have
-    // passed that point already, so it has surely been applied once two more cycles are done.
+  ExceptionCode command_and_wait(loop::Command c) {
+    const std::uint64_t ticket = target_.request(c);
+    if (ticket == 0) return ExceptionCode::server_device_busy;
+    // The next step() applies it and records its own outcome under the ticket.
     const Clock::time_point deadline = Clock::now() + seconds(config_.proposal_timeout_s);
     for (;;) {
-      const SupervisorSnapshot now = target_.snapshot();
-      if (now.cycle >= before.cycle + 2) {
-        return now.commands_refused > before.commands_refused ? ExceptionCode::server_device_failure
-                                                              : ExceptionCode::none;
+      switch (target_.command_outcome(ticket)) {
+        case loop::CommandOutcome::accepted:
+          return ExceptionCode::none;
+        case loop::CommandOutcome::refused:
+          return ExceptionCode::server_device_failure;
+        case loop::CommandOutcome::unknown:  // 8 later commands while this server waited
+          return ExceptionCode::acknowledge;
+        case loop::CommandOutcome::pending:
+          break;
       }
       if (Clock::now() > deadline) return ExceptionCode::acknowledge;  // queued, not yet run
       std::this_thread::sleep_for(std::chrono::microseconds(200));

@@ -95,6 +95,41 @@ TEST(Cycle, EnableIsRefusedUntilTheModelHasItsRows) {
   EXPECT_EQ(c.state_machine().state(), State::zero_g);
 }
 
+// Each command's own outcome, under its ticket (the Modbus server answers a coil write with it).
+TEST(Cycle, EveryCommandHasATicketAndItsOwnOutcome) {
+  Cycle c;
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  StaticRobot rig;
+  rig.quiet(c);
+  const std::uint64_t early = c.request(Command::enable_zero_g);
+  ASSERT_NE(early, 0u);
+  EXPECT_EQ(c.request(Command::stop), 0u) << "one pending at a time";
+  EXPECT_EQ(c.command_outcome(early), CommandOutcome::pending);
+  rig.quiet(c);  // two rows: not ready
+  EXPECT_EQ(c.command_outcome(early), CommandOutcome::refused);
+  for (int i = 0; i < 4; ++i) rig.quiet(c);
+  const std::uint64_t enable = c.request(Command::enable_zero_g);
+  ASSERT_GT(enable, early);
+  rig.quiet(c);
+  EXPECT_EQ(c.command_outcome(enable), CommandOutcome::accepted);
+  EXPECT_EQ(c.state_machine().state(), State::zero_g);
+  EXPECT_EQ(c.command_outcome(early), CommandOutcome::refused) << "kept";
+  // A stale-IPOC message does not apply it (nor decide it): still pending.
+  const std::uint64_t stop = c.request(Command::stop);
+  rig.message.ipoc -= 24;
+  rig.quiet(c);
+  EXPECT_EQ(c.command_outcome(stop), CommandOutcome::pending);
+  rig.message.ipoc += 24;
+  rig.quiet(c);
+  EXPECT_EQ(c.command_outcome(stop), CommandOutcome::accepted);
+  // Outcomes older than the last kCommandOutcomes are no longer known.
+  for (std::size_t i = 0; i < Cycle::kCommandOutcomes; ++i) {
+    ASSERT_NE(c.request(Command::reset_fault), 0u);
+    rig.quiet(c);
+  }
+  EXPECT_EQ(c.command_outcome(early), CommandOutcome::unknown);
+}
+
 TEST(Cycle, PushOfImpulseJGivesVelocityJOverMAndTheCorrectionsAddUpToTheMotion) {
   Cycle c;
   ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");

@@ -78,6 +78,14 @@ struct Tunables {
 };
 
 /// The fate of the last Cycle::propose().
+/// What became of a command (Cycle::command_outcome of its ticket).
+enum class CommandOutcome : std::uint8_t {
+  pending,   ///< not applied yet (the next step() applies it)
+  accepted,  ///< the state machine took it
+  refused,   ///< refused in that cycle (kCommandRefused, counted)
+  unknown,   ///< so many commands came after it that its outcome is no longer kept
+};
+
 enum class ProposalStatus : std::uint8_t {
   none,             ///< nothing proposed (or withdrawn)
   pending,          ///< waiting for the next step() or robot_lost()
@@ -196,9 +204,13 @@ class Cycle {
   /// watchdog's reason).
   void add_ft(const rtio::FtSample& s) noexcept;
   void add_imu(const rtio::ImuSample& s) noexcept;
-  /// A command (Modbus, CLI), applied at the start of the next step(). Returns false if one is
-  /// already pending.
-  bool request(Command c) noexcept;
+  /// A command (Modbus, CLI), applied at the start of the next step(). Returns its ticket
+  /// (≥ 1) for command_outcome(), or 0 if one is already pending. Any thread, lock-free.
+  std::uint64_t request(Command c) noexcept;
+  /// The outcome of the command with this ticket (any thread, lock-free). The last
+  /// kCommandOutcomes outcomes are kept.
+  CommandOutcome command_outcome(std::uint64_t ticket) const noexcept;
+  static constexpr std::size_t kCommandOutcomes = 8;
   /// New tunables (any one thread, e.g. the Modbus server): taken at the start of the next
   /// step() or robot_lost(), accepted only in State::idle and if check_tunables() passes; the
   /// outcome is proposal_status(). Returns false (and changes nothing) while one is pending.
@@ -288,7 +300,11 @@ class Cycle {
   int ft_bad_run_ = 0, imu_bad_run_ = 0, model_bad_run_ = 0;
   Fault ft_bad_reason_ = Fault::ft_stale;
 
-  std::atomic<std::uint8_t> pending_{0};  ///< 0: none, else 1 + Command
+  /// 0: none, else ticket << 8 | (1 + Command).
+  std::atomic<std::uint64_t> pending_{0};
+  std::atomic<std::uint64_t> tickets_{0};
+  /// Outcome of ticket t in slot t % kCommandOutcomes: t << 2 | 1 (accepted) or 2 (refused).
+  std::array<std::atomic<std::uint64_t>, kCommandOutcomes> outcomes_{};
 
   void take_proposal() noexcept;
   /// ProposalStatus, or kProposalWriting / kProposalTaking while one side owns proposal_.

@@ -52,8 +52,10 @@ class SupervisorTarget {
   virtual ~SupervisorTarget() = default;
   /// The newest published snapshot (any thread).
   virtual SupervisorSnapshot snapshot() const = 0;
-  /// Cycle::request: false if a command is already pending.
-  virtual bool request(loop::Command c) = 0;
+  /// Cycle::request: the command's ticket, 0 if a command is already pending.
+  virtual std::uint64_t request(loop::Command c) = 0;
+  /// Cycle::command_outcome of a ticket request() returned.
+  virtual loop::CommandOutcome command_outcome(std::uint64_t ticket) const = 0;
   /// Cycle::propose: false if a proposal is already pending.
   virtual bool propose(const loop::Tunables& t) = 0;
   virtual loop::ProposalStatus proposal_status() const = 0;

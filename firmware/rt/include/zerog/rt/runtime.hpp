@@ -157,8 +157,11 @@ class Runtime final : public modbus::SupervisorTarget {
   /// The cycle thread's loop body: one robot cycle (or one lost one). Real-time safe.
   void cycle_once() noexcept;
 
-  /// A command for the next cycle (any thread). False if one is already pending.
-  bool request(loop::Command c) noexcept override { return cycle_.request(c); }
+  /// A command for the next cycle (any thread): its ticket, 0 if one is already pending.
+  std::uint64_t request(loop::Command c) noexcept override { return cycle_.request(c); }
+  loop::CommandOutcome command_outcome(std::uint64_t ticket) const noexcept override {
+    return cycle_.command_outcome(ticket);
+  }
 
   // modbus::SupervisorTarget (the Modbus server's thread).
   modbus::SupervisorSnapshot snapshot() const override;
