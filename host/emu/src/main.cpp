@@ -47,6 +47,7 @@ struct Args {
   double duration_s = 20.0;
   std::string truth_out, summary_out, write_model, write_rig;
   bool list_faults = false;
+  bool write_only = false;
 };
 
 void list_faults() {
@@ -103,6 +104,7 @@ int run(const Args& a) {
                     inputs);
   if (!a.write_rig.empty())
     io::write_rig(emu::emulator_rig(scenario, emulator.physics().simulator()), a.write_rig, inputs);
+  if (a.write_only) return 0;
 
   // Devices ready before the first datagram.
   rtio::CanSocket can;
@@ -178,6 +180,9 @@ int main(int argc, char** argv) {
   app.add_option("--write-model", a.write_model,
                  "Also write the payload's truth model file (JSON, what zerog export reads)");
   app.add_option("--write-rig", a.write_rig, "Also write the rig (.rig.toml) zerog-rt runs on");
+  app.add_flag("--write-only", a.write_only,
+               "Write --write-model and --write-rig, then exit without running (so zerog export "
+               "can run before the timed run starts)");
   app.add_flag("--list-faults", a.list_faults, "List the fault kinds of [[fault]] and exit");
   try {
     app.parse(argc, argv);
