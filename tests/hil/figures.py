@@ -81,6 +81,8 @@ def load(dirs):
 
 
 def verdict(c):
+    if c.get("inconclusive"):
+        return f"not verified: the emulated rig stood still {1e3 * c['rig_worst_lag_s']:.0f} ms"
     if not c["passed"]:
         return "**no**"
     return "yes" if c.get("attempt", 1) == 1 else "yes, on the retry"
