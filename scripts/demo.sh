@@ -53,10 +53,12 @@ step "10. Live: zerog-rt floats the part (hardware in the loop against the emula
 # machine's kernel has no CAN, so it runs in a small VM (tests/vm/run_in_vm.sh, about 30 s).
 here=$(pwd)
 mkdir -p "$out/hil"
-if tests/vm/run_in_vm.sh --timeout 600 --results "$here/$out/hil" -- \
-    "$here/tests/hil/hil.sh" --bin "$here/build/release" --out "$here/$out/hil" push; then
-  echo "hardware-in-the-loop run: $out/hil/push (truth.csv, rec/run.csv, rt.json)"
-else
-  echo "the hardware-in-the-loop run failed; see $out/hil/push/*.err"
-  exit 1
-fi
+hil_status=0
+tests/vm/run_in_vm.sh --timeout 600 --results "$here/$out/hil" -- \
+  "$here/tests/hil/hil.sh" --bin "$here/build/release" --out "$here/$out/hil" push || hil_status=$?
+case $hil_status in
+  0) echo "hardware-in-the-loop run: $out/hil/push (truth.csv, rec/run.csv, rt.json)" ;;
+  77) echo "hardware-in-the-loop run inconclusive: this machine's VM could not keep the emulated" \
+         "rig in real time (see $out/hil/push/check.json, rig_worst_lag_s)" ;;
+  *) echo "the hardware-in-the-loop run failed; see $out/hil/push/*.err"; exit 1 ;;
+esac
