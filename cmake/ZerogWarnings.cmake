@@ -3,6 +3,10 @@
 # so that every zerog target, and only those, is instrumented the same way.
 set(ZEROG_SANITIZE "" CACHE STRING
     "Sanitizers for every zerog target: empty, 'address,undefined' or 'thread'")
+# Checks of those left out (-fno-sanitize=...), e.g. the asan preset's UBSan checks on every
+# memory access that ASan already makes (null, object-size), or that cost most of the compile
+# time on Eigen code and mean nothing on x86-64 (alignment, pointer-overflow, vptr).
+set(ZEROG_SANITIZE_EXCLUDE "" CACHE STRING "Sanitizer checks left out: empty or a comma list")
 # The fuzz build (preset `fuzz`, tests/fuzz): clang's libFuzzer. Every zerog target gets
 # ASan + UBSan as above plus libFuzzer's coverage instrumentation (-fsanitize=fuzzer-no-link);
 # the fuzz targets themselves link libFuzzer's main (zerog_fuzz_target in tests/fuzz).
@@ -33,6 +37,9 @@ function(zerog_warnings target)
     endif()
     target_compile_options(${target} PRIVATE -fsanitize=${instrument}
                                              -fno-sanitize-recover=all -fno-omit-frame-pointer)
+    if(ZEROG_SANITIZE_EXCLUDE)
+      target_compile_options(${target} PRIVATE -fno-sanitize=${ZEROG_SANITIZE_EXCLUDE})
+    endif()
     target_link_options(${target} PRIVATE -fsanitize=${ZEROG_SANITIZE})
   endif()
 endfunction()
