@@ -27,11 +27,30 @@ $zerog fit "$out/run.csv" --out "$out/fit_default.json" -q
 step "4. Compare it with the measurements: where does it fail?"
 $zerog compare "$out/run.csv" --model "$out/fit_default.json" --truth "$out/run.truth.json" -q
 
-step "5. Diagnose: which effect is missing?"
-$zerog diagnose "$out/run.csv" --model "$out/fit_default.json" --json -q > "$out/diagnosis.json"
-$zerog diagnose "$out/run.csv" --model "$out/fit_default.json" -q | tee "$out/diagnosis.txt" | tail -n 4
-effects=$(/usr/bin/python3 -c 'import json,sys; d=json.load(open(sys.argv[1])); c=d["candidates"][0]; print(",".join(d["model"]+[c["effect"]]) if d["verdict"]["kind"]=="effect" else "")' "$out/diagnosis.json")
-if [ -z "$effects" ]; then echo "diagnose found no library effect to add; stopping here."; exit 0; fi
+step "5. Diagnose: which effect is missing? (a library effect, or a law found in the signal dictionary)"
+$zerog diagnose "$out/run.csv" --model "$out/fit_default.json" --discovered-out "$out/discovered.toml" \
+  --json -q > "$out/diagnosis.json"
+# The verdict in plain words, and what to add: a library effect, or the discovered effect file.
+read -r kind effects < <(/usr/bin/python3 - "$out/diagnosis.json" <<'PY'
+import json, sys
+d = json.load(open(sys.argv[1]))
+v = d["verdict"]
+print(v["text"], file=sys.stderr)
+if d["discovery"]:
+    for t in d["discovery"]["terms"]:
+        print("  discovered:", t["law"], file=sys.stderr)
+if v["command"]:
+    print("  add it:", v["command"], file=sys.stderr)
+model = ",".join(d["model"])
+if v["kind"] == "effect":
+    print("effect", model + "," + v["effect"])
+elif v["kind"] == "discovered":
+    print("discovered", model + ",@" + v["effect_file"])
+else:
+    print(v["kind"], "")
+PY
+)
+if [ -z "$effects" ]; then echo "diagnose found nothing to add ($kind); stopping here."; exit 0; fi
 
 step "6. Add it and refit: $effects"
 $zerog fit "$out/run.csv" --effects "$effects" --out "$out/fit_fixed.json" --truth "$out/run.truth.json" -q

@@ -11,6 +11,7 @@
 #include "zerog/ident/compare.hpp"
 #include "zerog/ident/diagnose.hpp"
 #include "zerog/ident/fit.hpp"
+#include "zerog/io/effect_file.hpp"
 #include "zerog/io/log.hpp"
 #include "zerog/io/model_file.hpp"
 
@@ -60,7 +61,7 @@ nlohmann::json fit_json(const ident::FitResult& r) {
 }
 
 std::string param_table(const model::ModelParams& p, const std::optional<ident::ParamArray>& std,
-                        const model::ModelParams* truth) {
+                        const model::ModelParams* truth, const std::vector<double>& user_std = {}) {
   std::string out;
   char line[256];
   std::snprintf(line, sizeof line, "%-20s %-10s %14s %12s %-8s%s\n", "effect", "parameter", "value",
@@ -87,6 +88,20 @@ std::string param_table(const model::ModelParams& p, const std::optional<ident::
       out += "\n";
     }
   }
+  // User-defined effects (proto/user_effects.md): one row per term.
+  const model::UserEffects& u = p.user;
+  for (int j = 0; j < u.num_terms; ++j) {
+    const model::UserTerm& t = u.terms[static_cast<std::size_t>(j)];
+    const double v = u.coeff[static_cast<std::size_t>(j)];
+    const double s = static_cast<std::size_t>(j) < user_std.size()
+                         ? user_std[static_cast<std::size_t>(j)]
+                         : std::nan("");
+    const std::string name = "@" + io::user_effect_name(u, t.effect);
+    const std::string term = io::term_axis_name(t) + "*" + io::basis_text(t.basis);
+    std::snprintf(line, sizeof line, "%-20s %-10s %14.6g %12.3g %s\n", name.c_str(), term.c_str(),
+                  v, s, io::coefficient_unit(t).c_str());
+    out += line;
+  }
   return out;
 }
 
@@ -98,6 +113,7 @@ io::ModelFile fitted_model_file(const ident::FitResult& r, const io::Log& log,
   io::ModelFile m;
   m.params = r.params;
   m.std = r.std;
+  m.user_std = r.user_std;
   m.rig_name = log.rig.name;
   m.extra["fit"] = fit_json(r);
   m.extra["fit"]["log"] = log_path;
@@ -123,7 +139,9 @@ void run_fit(const Common& c, const std::string& effects, const std::string& out
   const io::Log log = io::read_log(c.log);
   const ident::Dataset data = ident::make_dataset(log);
   ident::FitOptions o;
-  o.effects = io::parse_effect_list(effects);
+  const io::ModelSpec spec = io::parse_model_spec(effects);
+  o.effects = spec.effects;
+  o.user = spec.user;
   o.loss = loss;
   o.loss_scale = loss_scale;
   o.max_iterations = max_iter;
@@ -136,9 +154,10 @@ void run_fit(const Common& c, const std::string& effects, const std::string& out
   if (!truth_path.empty()) truth = io::read_model(truth_path);
   if (write_fitted_model(c, m, out, {c.log, io::rig_path_for(c.log)})) return;
   std::printf("fitted %s on %zu samples in %.2f s (%d iterations): %s\n",
-              io::effect_list_string(r.params.effects).c_str(), r.samples, r.seconds, r.iterations,
-              r.termination.c_str());
-  std::printf("%s", param_table(r.params, r.std, truth ? &truth->params : nullptr).c_str());
+              io::model_spec_string(r.params.effects, r.params.user, spec.files).c_str(), r.samples,
+              r.seconds, r.iterations, r.termination.c_str());
+  std::printf("%s",
+              param_table(r.params, r.std, truth ? &truth->params : nullptr, r.user_std).c_str());
   std::printf("residual RMS: Fx %.3f  Fy %.3f  Fz %.3f N   Mx %.3f  My %.3f  Mz %.3f N*m\n",
               r.residual_rms[0], r.residual_rms[1], r.residual_rms[2], r.residual_rms[3],
               r.residual_rms[4], r.residual_rms[5]);
@@ -261,7 +280,9 @@ void add_ident_commands(CLI::App& app) {
     CLI::App* s = app.add_subcommand("fit", "Fit a model (a list of effects) to a log with Ceres");
     add_common(s, *c);
     auto* effects_opt =
-        s->add_option("-e,--effects", *effects, "Comma-separated effects (see proto/effects.md)")
+        s->add_option("-e,--effects", *effects,
+                      "Comma-separated effects (proto/effects.md); @FILE adds a user-defined "
+                      "effect (proto/user_effects.md)")
             ->capture_default_str();
     s->add_flag("--tool-change", *tool_change,
                 "After an end-effector change: fit only the payload (gravity: mass, centre of "
@@ -319,6 +340,8 @@ void add_ident_commands(CLI::App& app) {
     auto model_path = std::make_shared<std::string>();
     auto effects = std::make_shared<std::string>();
     auto block = std::make_shared<double>(60.0);
+    auto no_discover = std::make_shared<bool>(false);
+    auto discovered_out = std::make_shared<std::string>("discovered.toml");
     CLI::App* s = app.add_subcommand(
         "diagnose",
         "Rank the effects a model lacks by how much they reduce the error on held-out data");
@@ -326,7 +349,14 @@ void add_ident_commands(CLI::App& app) {
     s->add_option("-m,--model", *model_path,
                   "Fitted model to diagnose (its effects and start values)")
         ->check(CLI::ExistingFile);
-    s->add_option("-e,--effects", *effects, "Or: the effects of the model to diagnose");
+    s->add_option("-e,--effects", *effects,
+                  "Or: the effects of the model to diagnose (@FILE: a user-defined effect)");
+    s->add_flag("--no-discover", *no_discover,
+                "When no library effect explains the residual, do not search the signal "
+                "dictionary for a law");
+    s->add_option("--discovered-out", *discovered_out,
+                  "Where to write a discovered law as an effect file (proto/user_effects.md)")
+        ->capture_default_str();
     s->add_option("--block", *block,
                   "Length of the held-out time blocks, s (every 4th block is held out)")
         ->capture_default_str();
@@ -338,14 +368,20 @@ void add_ident_commands(CLI::App& app) {
       o.log_path = c->log;
       o.progress = progress(*c);
       o.fit.threads = c->threads;
+      o.discover = !*no_discover;
+      o.discovery_path = *discovered_out;
       std::optional<io::ModelFile> m;
       if (!model_path->empty()) {
         m = io::read_model(*model_path);
         o.fit.effects = m->params.effects;
+        o.fit.user = m->params.user;
         o.fit.initial = &m->params;
       } else {
-        o.fit.effects = io::parse_effect_list(
+        const io::ModelSpec spec = io::parse_model_spec(
             effects->empty() ? io::effect_list_string(model::kDefaultModel) : *effects);
+        o.fit.effects = spec.effects;
+        o.fit.user = spec.user;
+        o.model_text = io::model_spec_string(spec.effects, spec.user, spec.files);
       }
       const ident::Diagnosis d = ident::diagnose(data, o);
       if (c->json) {
@@ -387,7 +423,9 @@ void add_ident_commands(CLI::App& app) {
       o.diagnose.log_path = c->log;
       o.diagnose.progress = progress(*c);
       o.diagnose.fit.threads = c->threads;
-      o.diagnose.fit.effects = io::parse_effect_list(*start);
+      const io::ModelSpec spec = io::parse_model_spec(*start);
+      o.diagnose.fit.effects = spec.effects;
+      o.diagnose.fit.user = spec.user;
       const auto steps = ident::ladder(data, o);
       nlohmann::json j = ident::to_json(steps);
       if (!truth->empty()) {

@@ -1,5 +1,8 @@
 #include "zerog/ident/dataset.hpp"
 
+#include "zerog/io/effect_file.hpp"
+
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -60,6 +63,35 @@ Dataset make_dataset(const io::Log& log) {
     }
   }
   if (n > 1) d.joint_vel_radps[0] = d.joint_vel_radps[1];
+  // Dictionary signals: 3-point central differences (one-sided at the ends), on the rows' own
+  // time stamps.
+  d.p_base_sensor_m.resize(n);
+  d.v_base_sensor_mps.assign(n, Eigen::Vector3d::Zero());
+  d.joint_vel_central_radps.assign(n, {});
+  d.joint_acc_radps2.assign(n, {});
+  for (std::size_t i = 0; i < n; ++i) d.p_base_sensor_m[i] = log.samples[i].p_base_sensor_m;
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t lo = i > 0 ? i - 1 : 0, hi = std::min(n - 1, i + 1);
+    const double span = log.samples[hi].t_s - log.samples[lo].t_s;
+    d.v_base_sensor_mps[i] = (d.p_base_sensor_m[hi] - d.p_base_sensor_m[lo]) / span;
+    if (!log.columns.joints) continue;
+    for (int j = 0; j < 6; ++j)
+      d.joint_vel_central_radps[i][j] =
+          (log.samples[hi].joints_rad[j] - log.samples[lo].joints_rad[j]) / span;
+  }
+  if (log.columns.joints) {
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::size_t c = std::clamp<std::size_t>(i, 1, n - 2);
+      const double h0 = log.samples[c].t_s - log.samples[c - 1].t_s;
+      const double h1 = log.samples[c + 1].t_s - log.samples[c].t_s;
+      for (int j = 0; j < 6; ++j) {
+        const double q0 = log.samples[c - 1].joints_rad[j], q1 = log.samples[c].joints_rad[j],
+                     q2 = log.samples[c + 1].joints_rad[j];
+        // Second derivative of the parabola through three (possibly uneven) points.
+        d.joint_acc_radps2[i][j] = 2.0 * ((q2 - q1) / h1 - (q1 - q0) / h0) / (h0 + h1);
+      }
+    }
+  }
   const std::size_t dilate = 3;
   for (std::size_t i = 0; i < n; ++i) {
     if (!raw[i]) continue;
@@ -70,12 +102,35 @@ Dataset make_dataset(const io::Log& log) {
   return d;
 }
 
+model::DictionarySignals Dataset::dictionary(std::size_t i) const {
+  model::KinematicInputs in;
+  model::FeatureSignals& f = in.features;
+  const model::PoseSignals& p = pose[i];
+  f.joints_rad = p.joints_rad;
+  f.joint_vel_radps = joint_vel_central_radps[i];
+  in.joint_acc_radps2 = joint_acc_radps2[i];
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c)
+      f.R_base_sensor[static_cast<std::size_t>(3 * r + c)] = p.R_base_sensor(r, c);
+  for (int k = 0; k < 3; ++k) {
+    f.p_base_sensor_m[static_cast<std::size_t>(k)] = p_base_sensor_m[i][k];
+    in.v_base_sensor_mps[static_cast<std::size_t>(k)] = v_base_sensor_mps[i][k];
+  }
+  for (std::size_t k = 0; k < 9; ++k) f.imu[k] = imu[i * 9 + k];
+  f.temperature_C = p.temperature_C;
+  f.t_s = p.t_rel_s;
+  return model::dictionary_signals(in, rig);
+}
+
 Wrench predict(const model::ModelParams& params, const Dataset& data, std::size_t i) {
   const auto p = model::pointers(params);
   const double* tau =
       params.effects.has(Effect::imu_time_offset) ? params.block(Effect::imu_time_offset) : nullptr;
-  return model::predict_wrench<double>(params.effects, p, data.pose[i], data.imu_at<double>(i, tau),
-                                       data.rig);
+  Wrench w = model::predict_wrench<double>(params.effects, p, data.pose[i],
+                                           data.imu_at<double>(i, tau), data.rig);
+  if (!params.user.empty())
+    w += model::user_wrench(params.user, data.dictionary(i), data.pose[i].R_base_sensor);
+  return w;
 }
 
 std::vector<std::uint8_t> heldout_mask(const Dataset& data, double block_s, int every, int offset) {
@@ -87,6 +142,31 @@ std::vector<std::uint8_t> heldout_mask(const Dataset& data, double block_s, int 
     mask[i] = (block % every) == offset ? 1 : 0;
   }
   return mask;
+}
+
+unsigned available_sources(const Dataset& data) {
+  using model::SignalSource;
+  auto bit = [](SignalSource s) { return 1u << static_cast<unsigned>(s); };
+  unsigned m = bit(SignalSource::position) | bit(SignalSource::pose) | bit(SignalSource::time);
+  if (data.columns.joints) m |= bit(SignalSource::joints);
+  if (data.columns.imu) m |= bit(SignalSource::imu);
+  if (data.columns.temperature) m |= bit(SignalSource::temperature);
+  return m;
+}
+
+void check_signals(const model::UserEffects& user, const Dataset& data) {
+  const unsigned have = available_sources(data);
+  static constexpr const char* kColumns[] = {"joint angles (q1_rad..q6_rad)", "sensor position",
+                                             "IMU columns (imu_f*, imu_w*)",  "sensor attitude",
+                                             "temperature (temp_C)",          "time"};
+  for (int j = 0; j < user.num_terms; ++j) {
+    const unsigned need = model::basis_sources(user.terms[static_cast<std::size_t>(j)].basis);
+    for (unsigned s = 0; s < 6; ++s) {
+      if ((need >> s & 1u) && !(have >> s & 1u))
+        throw std::runtime_error("user term " + io::term_label(user, j) + " needs " + kColumns[s] +
+                                 ", which the log lacks");
+    }
+  }
 }
 
 void check_signals(const model::EffectSet& effects, const Dataset& data) {

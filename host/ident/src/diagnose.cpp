@@ -5,6 +5,10 @@
 #include <cstdio>
 #include <sstream>
 
+#include <Eigen/Dense>
+#include <limits>
+
+#include "zerog/io/effect_file.hpp"
 #include "zerog/io/model_file.hpp"
 
 namespace zerog::ident {
@@ -257,6 +261,337 @@ std::string param_summary(const Candidate& c) {
   return s;
 }
 
+// ---- Discovery of a law in the signal dictionary (proto/user_effects.md, "Discovery") ----
+
+// Blocks of `m` consecutive samples inside the mask (as the fit forms them).
+std::vector<std::pair<std::size_t, std::size_t>> mask_blocks(const std::vector<std::uint8_t>& mask,
+                                                             std::size_t m) {
+  std::vector<std::pair<std::size_t, std::size_t>> out;
+  std::size_t run = 0;
+  for (std::size_t i = 0; i <= mask.size(); ++i) {
+    if (i < mask.size() && mask[i]) {
+      ++run;
+      continue;
+    }
+    for (std::size_t b = i - run; b + m <= i; b += m) out.emplace_back(b, m);
+    run = 0;
+  }
+  return out;
+}
+
+// One factor of a basis, tabulated over the samples.
+struct FactorColumn {
+  model::Factor factor;
+  std::vector<double> v;
+};
+
+// The discovery dictionary's factors: every base signal the log has (its value), sin and cos of
+// the joint angles, and tanh(x/eps) of the velocities (eps: 0.02 rad/s, 0.005 m/s).
+std::vector<FactorColumn> dictionary_factors(const Dataset& data,
+                                             const std::vector<model::DictionarySignals>& sig) {
+  const unsigned have = available_sources(data);
+  std::vector<FactorColumn> out;
+  auto add = [&](model::Signal s, model::FactorOp op, double eps) {
+    FactorColumn c{{s, op, eps}, std::vector<double>(sig.size())};
+    model::Basis b;
+    b.a = c.factor;
+    for (std::size_t i = 0; i < sig.size(); ++i) c.v[i] = model::basis_value(b, sig[i]);
+    out.push_back(std::move(c));
+  };
+  for (int k = 0; k < model::kSignalCount; ++k) {
+    const auto s = static_cast<model::Signal>(k);
+    const model::SignalInfo& si = model::signal_info(s);
+    if (!(have >> static_cast<unsigned>(si.source) & 1u)) continue;
+    if (si.angle) {
+      add(s, model::FactorOp::sin, 0.0);
+      add(s, model::FactorOp::cos, 0.0);
+      continue;
+    }
+    add(s, model::FactorOp::value, 0.0);
+    if (si.velocity)
+      add(s, model::FactorOp::tanh, std::string_view(si.unit) == "m/s" ? 0.005 : 0.02);
+  }
+  return out;
+}
+
+// The first rank() columns of Q of a column-pivoted QR (never the full square Q).
+Eigen::MatrixXd thin_q(const Eigen::ColPivHouseholderQR<Eigen::MatrixXd>& qr, Eigen::Index rows) {
+  return qr.householderQ() * Eigen::MatrixXd::Identity(rows, qr.rank());
+}
+
+// z such that P(|N(0,1)| > z) = p.
+double normal_two_sided_quantile(double p) {
+  double lo = 0.0, hi = 40.0;
+  for (int it = 0; it < 200; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (std::erfc(mid / std::sqrt(2.0)) > p ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+struct Column {
+  model::Basis basis;
+  int axis = 0;
+  std::vector<double> train, held;  // whitened block means on `axis` (other axes are zero)
+  double score = 0.0;
+};
+
+std::string law_text(const model::UserEffects& u, int j, double sd) {
+  const model::UserTerm& t = u.terms[static_cast<std::size_t>(j)];
+  std::ostringstream os;
+  const std::string unit = t.axis < 3 ? "N" : "N*m";
+  char basis_unit[64];
+  model::basis_unit(t.basis, basis_unit, sizeof basis_unit);
+  os << io::term_axis_name(t) << " += " << fmt("%.4g", u.coeff[static_cast<std::size_t>(j)]);
+  if (std::isfinite(sd)) os << " ± " << fmt("%.2g", sd);
+  os << " " << io::coefficient_unit(t) << " · " << io::basis_text(t.basis);
+  return os.str();
+}
+
+std::optional<Discovery> discover_law(const Dataset& data, const Baseline& base, const Split& split,
+                                      const DiagnoseOptions& o,
+                                      const std::array<double, 6>& scale) {
+  const std::size_t m = static_cast<std::size_t>(std::max(1, o.fit.block_samples));
+  const auto train_blocks = mask_blocks(split.train, m);
+  const auto held_blocks = mask_blocks(split.heldout, m);
+  const std::size_t nt = train_blocks.size(), nh = held_blocks.size();
+  if (nt < 20 || nh < 5) return std::nullopt;
+  const std::array<double, 6>& sigma = base.fit.sigma;  // block-mean whitening of the fit
+  std::vector<model::DictionarySignals> sig(data.size());
+  for (std::size_t i = 0; i < data.size(); ++i) sig[i] = data.dictionary(i);
+  const std::vector<FactorColumn> factors = dictionary_factors(data, sig);
+
+  auto block_means = [&](const std::vector<double>& v,
+                         const std::vector<std::pair<std::size_t, std::size_t>>& blocks,
+                         std::vector<double>& out) {
+    out.resize(blocks.size());
+    for (std::size_t b = 0; b < blocks.size(); ++b) {
+      double s = 0.0;
+      for (std::size_t i = blocks[b].first; i < blocks[b].first + blocks[b].second; ++i) s += v[i];
+      out[b] = s / static_cast<double>(blocks[b].second);
+    }
+  };
+  // Whitened block-mean residuals of the baseline, per axis: r[b * 6 + k].
+  auto residual_means = [&](const std::vector<std::pair<std::size_t, std::size_t>>& blocks) {
+    std::vector<double> r(blocks.size() * 6, 0.0);
+    for (std::size_t b = 0; b < blocks.size(); ++b) {
+      for (std::size_t i = blocks[b].first; i < blocks[b].first + blocks[b].second; ++i)
+        for (int k = 0; k < 6; ++k) r[b * 6 + k] += base.res[i][k];
+      for (int k = 0; k < 6; ++k) r[b * 6 + k] /= static_cast<double>(blocks[b].second) * sigma[k];
+    }
+    return r;
+  };
+  const std::vector<double> r_train = residual_means(train_blocks);
+  const std::vector<double> r_held = residual_means(held_blocks);
+
+  // The baseline's tangent space: whitened block-mean Jacobian of its free parameters by
+  // central differences, so that a term the model can already absorb (a constant, a change of
+  // mass) scores nothing.
+  std::vector<double*> params;
+  std::vector<double> steps;
+  model::ModelParams p = base.fit.params;
+  for (Effect e : model::kAllEffects) {
+    if (!p.effects.has(e) || o.fit.frozen.has(e)) continue;
+    for (int i = 0; i < model::info(e).num_params; ++i) params.push_back(p.block(e) + i);
+  }
+  for (int j = 0; j < p.user.num_terms; ++j)
+    params.push_back(&p.user.coeff[static_cast<std::size_t>(j)]);
+  const std::size_t np = params.size();
+  auto jacobian = [&](const std::vector<std::pair<std::size_t, std::size_t>>& blocks) {
+    Eigen::MatrixXd J = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(blocks.size() * 6),
+                                              static_cast<Eigen::Index>(np));
+    for (std::size_t q = 0; q < np; ++q) {
+      const double x0 = *params[q];
+      const double h = 1e-6 * std::max(1.0, std::abs(x0));
+      for (int side = 0; side < 2; ++side) {
+        *params[q] = x0 + (side == 0 ? h : -h);
+        for (std::size_t b = 0; b < blocks.size(); ++b) {
+          Wrench mean = Wrench::Zero();
+          for (std::size_t i = blocks[b].first; i < blocks[b].first + blocks[b].second; ++i)
+            mean += predict(p, data, i);
+          mean /= static_cast<double>(blocks[b].second);
+          for (int k = 0; k < 6; ++k)
+            J(static_cast<Eigen::Index>(b * 6 + k), static_cast<Eigen::Index>(q)) +=
+                (side == 0 ? 1.0 : -1.0) * mean[k] / (2.0 * h * sigma[k]);
+        }
+      }
+      *params[q] = x0;
+    }
+    return J;
+  };
+  const Eigen::MatrixXd J_train = jacobian(train_blocks);
+  const Eigen::MatrixXd J_held = jacobian(held_blocks);
+  // Orthonormal basis of the training tangent space (column-pivoted QR drops dependent ones).
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(J_train);
+  const Eigen::Index rank = qr.rank();
+  const Eigen::MatrixXd Q = thin_q(qr, J_train.rows());
+  // Its rows per axis, contiguous: Qk[k] is nt × rank.
+  std::array<Eigen::MatrixXd, 6> Qk;
+  std::array<Eigen::VectorXd, 6> rk;
+  for (int k = 0; k < 6; ++k) {
+    Qk[static_cast<std::size_t>(k)].resize(static_cast<Eigen::Index>(nt), rank);
+    rk[static_cast<std::size_t>(k)].resize(static_cast<Eigen::Index>(nt));
+    for (std::size_t t = 0; t < nt; ++t) {
+      Qk[static_cast<std::size_t>(k)].row(static_cast<Eigen::Index>(t)) =
+          Q.row(static_cast<Eigen::Index>(t * 6 + k));
+      rk[static_cast<std::size_t>(k)][static_cast<Eigen::Index>(t)] = r_train[t * 6 + k];
+    }
+  }
+
+  // Screening: every basis (factor, or product of two) on every axis, scored by the training
+  // sum of squares it would remove alone after the model's own parameters (its squared
+  // partial correlation with the residual); the best few per axis go on.
+  constexpr int kKeepPerAxis = 10;
+  std::array<std::vector<Column>, 6> kept;
+  int searched = 0;
+  std::vector<double> product(data.size()), mt, mh;
+  const std::size_t nf = factors.size();
+  for (std::size_t a = 0; a < nf; ++a) {
+    for (std::size_t b = a; b <= nf; ++b) {
+      model::Basis basis;
+      basis.a = factors[a].factor;
+      if (b < nf) {
+        // A product of two; the same angle's sin·cos and a velocity's tanh·value repeat simpler
+        // shapes, but are kept: the search decides.
+        basis.b = factors[b].factor;
+        basis.product = true;
+        for (std::size_t i = 0; i < data.size(); ++i)
+          product[i] = factors[a].v[i] * factors[b].v[i];
+        block_means(product, train_blocks, mt);
+      } else {
+        block_means(factors[a].v, train_blocks, mt);
+      }
+      const Eigen::Map<const Eigen::VectorXd> cm(mt.data(), static_cast<Eigen::Index>(nt));
+      const double cm2 = cm.squaredNorm();
+      for (int k = 0; k < 6; ++k) {
+        ++searched;
+        const auto ks = static_cast<std::size_t>(k);
+        const double w = 1.0 / sigma[k];
+        const double rc = w * rk[ks].dot(cm), cc = w * w * cm2;
+        const double qq = w * w * (Qk[ks].transpose() * cm).squaredNorm();
+        const double perp = cc - qq;
+        if (!(perp > 1e-9 * std::max(cc, 1e-300))) continue;
+        const double score = rc * rc / perp;
+        auto& list = kept[static_cast<std::size_t>(k)];
+        if (static_cast<int>(list.size()) == kKeepPerAxis && score <= list.back().score) continue;
+        Column col;
+        col.basis = basis;
+        col.axis = k;
+        col.score = score;
+        col.train.resize(nt);
+        for (std::size_t t = 0; t < nt; ++t) col.train[t] = mt[t] / sigma[k];
+        if (b < nf) {
+          block_means(product, held_blocks, mh);
+        } else {
+          block_means(factors[a].v, held_blocks, mh);
+        }
+        col.held.resize(nh);
+        for (std::size_t t = 0; t < nh; ++t) col.held[t] = mh[t] / sigma[k];
+        list.push_back(std::move(col));
+        std::sort(list.begin(), list.end(),
+                  [](const Column& x, const Column& y) { return x.score > y.score; });
+        if (static_cast<int>(list.size()) > kKeepPerAxis) list.pop_back();
+      }
+    }
+  }
+  std::vector<Column> cand;
+  for (auto& list : kept)
+    for (auto& c : list) cand.push_back(std::move(c));
+
+  // Orthogonal matching pursuit over the screened columns, in the full whitened space (all six
+  // axes), with the model's tangent space always in the regression.
+  const Eigen::Index Nt = static_cast<Eigen::Index>(nt * 6), Nh = static_cast<Eigen::Index>(nh * 6);
+  auto embed = [&](const Column& c, bool held) {
+    const std::vector<double>& v = held ? c.held : c.train;
+    Eigen::VectorXd x = Eigen::VectorXd::Zero(held ? Nh : Nt);
+    for (std::size_t t = 0; t < v.size(); ++t) x[static_cast<Eigen::Index>(t * 6) + c.axis] = v[t];
+    return x;
+  };
+  const Eigen::Map<const Eigen::VectorXd> rt(r_train.data(), Nt), rh(r_held.data(), Nh);
+  const double held_base = rh.squaredNorm();
+  Discovery d;
+  d.dictionary_size = searched;
+  // Bonferroni over every column searched: a noise column passes with probability 1 %.
+  d.z_threshold = normal_two_sided_quantile(0.01 / std::max(1, searched));
+  std::vector<std::size_t> chosen;
+  Eigen::MatrixXd X_train(Nt, 0), X_held(Nh, 0);
+  double held_prev = held_base;
+  for (int step = 0; step < o.max_discovered_terms; ++step) {
+    // Current fit: [J, X] on training; residual r_cur.
+    Eigen::MatrixXd A(Nt, J_train.cols() + X_train.cols());
+    A << J_train, X_train;
+    const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> aqr(A);
+    const Eigen::MatrixXd QA = thin_q(aqr, Nt);
+    const Eigen::VectorXd r_cur = rt - QA * (QA.transpose() * rt);
+    double best_z = 0.0;
+    std::size_t best = cand.size();
+    for (std::size_t c = 0; c < cand.size(); ++c) {
+      if (std::find(chosen.begin(), chosen.end(), c) != chosen.end()) continue;
+      const Eigen::VectorXd x = embed(cand[c], false);
+      const Eigen::VectorXd xp = x - QA * (QA.transpose() * x);
+      const double xx = xp.squaredNorm();
+      if (!(xx > 1e-9 * x.squaredNorm())) continue;
+      // Heteroscedasticity-robust statistic of the coefficient (White's sandwich): moving
+      // blocks carry more noise (IMU noise × mass) than dwells.
+      const double num = xp.dot(r_cur);
+      const double var = (xp.array().square() * r_cur.array().square()).sum();
+      const double z = var > 0 ? std::abs(num) / std::sqrt(var) : 0.0;
+      if (z > best_z) best_z = z, best = c;
+    }
+    if (best == cand.size() || best_z < d.z_threshold) break;
+    // Held-out check: the linearised refit with the new column must lower the held-out error.
+    Eigen::MatrixXd Xt(Nt, X_train.cols() + 1), Xh(Nh, X_held.cols() + 1);
+    Xt << X_train, embed(cand[best], false);
+    Xh << X_held, embed(cand[best], true);
+    Eigen::MatrixXd At(Nt, J_train.cols() + Xt.cols()), Ah(Nh, J_held.cols() + Xh.cols());
+    At << J_train, Xt;
+    Ah << J_held, Xh;
+    const Eigen::VectorXd theta = At.colPivHouseholderQr().solve(rt);
+    const double held_new = (rh - Ah * theta).squaredNorm();
+    if (held_prev - held_new < o.min_term_gain * held_base) break;
+    held_prev = held_new;
+    chosen.push_back(best);
+    d.z.push_back(best_z);
+    X_train = Xt;
+    X_held = Xh;
+  }
+  if (chosen.empty()) return std::nullopt;
+
+  // The effect: the chosen terms, refitted with the whole model on the training blocks.
+  model::UserEffects& u = d.effect;
+  const std::string name = "discovered";
+  u.num_effects = 1;
+  std::copy(name.begin(), name.end(), u.names[0].begin());
+  for (std::size_t c : chosen) {
+    model::UserTerm t;
+    t.basis = cand[c].basis;
+    t.axis = static_cast<std::uint8_t>(cand[c].axis);
+    u.terms[static_cast<std::size_t>(u.num_terms++)] = t;
+  }
+  FitOptions fo = o.fit;
+  fo.effects = base.fit.params.effects;
+  fo.user = base.fit.params.user;
+  io::append_user_effects(fo.user, u);
+  fo.mask = &split.train;
+  fo.covariance = true;
+  fo.initial = &base.fit.params;
+  fo.progress = nullptr;
+  d.fit = fit(data, fo);
+  if (!d.fit.usable) return std::nullopt;
+  const int offset = base.fit.params.user.num_terms;
+  for (int j = 0; j < u.num_terms; ++j) {
+    u.coeff[static_cast<std::size_t>(j)] =
+        d.fit.params.user.coeff[static_cast<std::size_t>(offset + j)];
+    d.std.push_back(static_cast<std::size_t>(offset + j) < d.fit.user_std.size()
+                        ? d.fit.user_std[static_cast<std::size_t>(offset + j)]
+                        : std::numeric_limits<double>::quiet_NaN());
+    d.laws.push_back(law_text(u, j, d.std.back()));
+  }
+  d.heldout = heldout_error(residuals(d.fit.params, data), split.heldout, scale);
+  d.gain = 1.0 - d.heldout.whitened_mse / base.heldout.whitened_mse;
+  return d;
+}
+
 }  // namespace
 
 std::vector<Effect> candidate_effects(const model::EffectSet& m, const Dataset& data) {
@@ -339,6 +674,12 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
                 " --out fitted.json";
   } else {
     d.verdict = Diagnosis::Verdict::none;
+    if (o.discover) {
+      if (o.progress)
+        o.progress("diagnose: no library effect explains it; searching the signal dictionary");
+      d.discovery = discover_law(data, base, split, o, d.noise_rms);
+      if (d.discovery && d.discovery->gain < 0.02) d.discovery.reset();
+    }
     os << "No library effect explains the remaining structure: "
        << fmt("%.0f", 100 * d.structured_fraction) << "% of the held-out error is structured, ";
     if (!d.candidates.empty())
@@ -355,6 +696,35 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
            << " (rho = " << fmt("%.2f", s.correlation) << ")";
       }
       os << ". Look for a physical cause tied to " << d.correlated[0].signal << ".";
+    }
+    if (d.discovery) {
+      Discovery& x = *d.discovery;
+      d.verdict = Diagnosis::Verdict::discovered;
+      os << " Discovered in the signal dictionary (" << x.dictionary_size
+         << " basis-axis columns searched, each term |z| > " << fmt("%.1f", x.z_threshold)
+         << " and validated on held-out blocks): ";
+      for (std::size_t j = 0; j < x.laws.size(); ++j) os << (j ? "; " : "") << x.laws[j];
+      os << ". Adding it removes " << fmt("%.0f", 100 * x.gain)
+         << "% of the held-out error (force RMS " << fmt("%.3f", h.force_rms) << " -> "
+         << fmt("%.3f", x.heldout.stats.force_rms) << " N, torque RMS " << fmt("%.3f", h.torque_rms)
+         << " -> " << fmt("%.3f", x.heldout.stats.torque_rms) << " N*m).";
+      if (!o.discovery_path.empty()) {
+        std::vector<std::string> comment = {
+            "Discovered by zerog diagnose on " + o.log_path + " (proto/user_effects.md).",
+            "Held-out error removed: " + fmt("%.1f", 100 * x.gain) + " %."};
+        for (const std::string& law : x.laws) comment.push_back(law);
+        io::write_effect_file(o.discovery_path,
+                              io::effect_file_text(x.effect, 0, &x.std,
+                                                   "found by zerog diagnose: no library effect "
+                                                   "explained the residual",
+                                                   comment),
+                              {o.log_path});
+        x.path = o.discovery_path;
+        const std::string model =
+            o.model_text.empty() ? io::model_spec_string(d.model, o.fit.user) : o.model_text;
+        d.command = "zerog fit " + o.log_path + " --effects " + model + ",@" + x.path +
+                    " --out fitted.json";
+      }
     }
   }
   d.text = os.str();
@@ -410,6 +780,8 @@ nlohmann::json to_json(const Diagnosis& d) {
   j["kind"] = "zerog-diagnosis";
   j["version"] = 1;
   j["model"] = names(d.model);
+  for (int k = 0; k < d.baseline.params.user.num_effects; ++k)
+    j["model"].push_back("@" + io::user_effect_name(d.baseline.params.user, k));
   j["baseline"] = heldout_json(d.baseline_heldout);
   j["noise_rms"] = d.noise_rms;
   j["structured_fraction"] = d.structured_fraction;
@@ -427,12 +799,38 @@ nlohmann::json to_json(const Diagnosis& d) {
     cj["params"] = p;
     j["candidates"].push_back(cj);
   }
-  const char* kinds[] = {"effect", "none", "nothing_left"};
+  const char* kinds[] = {"effect", "none", "nothing_left", "discovered"};
+  if (d.discovery) {
+    const Discovery& x = *d.discovery;
+    nlohmann::json dj;
+    dj["terms"] = nlohmann::json::array();
+    for (int t = 0; t < x.effect.num_terms; ++t) {
+      const model::UserTerm& term = x.effect.terms[static_cast<std::size_t>(t)];
+      dj["terms"].push_back({{"axis", io::term_axis_name(term)},
+                             {"basis", io::basis_text(term.basis)},
+                             {"unit", io::coefficient_unit(term)},
+                             {"value", x.effect.coeff[static_cast<std::size_t>(t)]},
+                             {"std", x.std[static_cast<std::size_t>(t)]},
+                             {"z", x.z[static_cast<std::size_t>(t)]},
+                             {"law", x.laws[static_cast<std::size_t>(t)]}});
+    }
+    dj["heldout"] = heldout_json(x.heldout);
+    dj["gain"] = x.gain;
+    dj["dictionary_size"] = x.dictionary_size;
+    dj["z_threshold"] = x.z_threshold;
+    dj["effect_file"] = x.path.empty() ? nlohmann::json(nullptr) : nlohmann::json(x.path);
+    j["discovery"] = dj;
+  } else {
+    j["discovery"] = nullptr;
+  }
   j["verdict"] = {
       {"kind", kinds[static_cast<int>(d.verdict)]},
       {"effect", d.verdict == Diagnosis::Verdict::effect
                      ? nlohmann::json(model::info(d.candidates[0].effect).name)
                      : nlohmann::json(nullptr)},
+      {"effect_file", d.verdict == Diagnosis::Verdict::discovered && !d.discovery->path.empty()
+                          ? nlohmann::json(d.discovery->path)
+                          : nlohmann::json(nullptr)},
       {"text", d.text},
       {"command", d.command.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.command)}};
   j["correlated_signals"] = nlohmann::json::array();
@@ -490,6 +888,13 @@ std::string format_diagnosis(const Diagnosis& d) {
     for (const auto& s : d.correlated)
       os << "  " << fmt("%+.2f", s.correlation) << "  " << kAxisNames[s.axis] << " ~ " << s.signal
          << "\n";
+  }
+  if (d.discovery) {
+    os << "\ndiscovered in the signal dictionary (" << d.discovery->dictionary_size
+       << " columns, |z| > " << fmt("%.1f", d.discovery->z_threshold) << "):\n";
+    for (std::size_t t = 0; t < d.discovery->laws.size(); ++t)
+      os << "  " << d.discovery->laws[t] << "   (z " << fmt("%.1f", d.discovery->z[t]) << ")\n";
+    if (!d.discovery->path.empty()) os << "effect file: " << d.discovery->path << "\n";
   }
   os << "\n" << d.text << "\n";
   if (!d.command.empty()) os << "add it:  " << d.command << "\n";

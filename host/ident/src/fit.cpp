@@ -15,6 +15,8 @@
 #include <optional>
 #include <sstream>
 
+#include "zerog/io/effect_file.hpp"
+
 namespace zerog::ident {
 namespace {
 
@@ -39,14 +41,19 @@ class BlockCost : public ceres::CostFunction {
   using SensorJet = ceres::Jet<double, kSensorDim>;
 
  public:
+  // `user_design`: the block mean of the user terms' design (6 × num_user, column-major), the
+  // last parameter block (user terms are linear and add after the library effects).
   BlockCost(const Dataset* data, std::size_t first, std::size_t count, model::EffectSet effects,
-            std::vector<Effect> order, std::array<double, 6> inv_sigma)
+            std::vector<Effect> order, std::array<double, 6> inv_sigma, const double* user_design,
+            int num_user)
       : data_(data),
         first_(first),
         count_(count),
         effects_(effects),
         order_(std::move(order)),
-        inv_sigma_(inv_sigma) {
+        inv_sigma_(inv_sigma),
+        user_design_(user_design),
+        num_user_(num_user) {
     set_num_residuals(6);
     int core = 0, sensor = 6;
     for (Effect e : order_) {
@@ -56,6 +63,7 @@ class BlockCost : public ceres::CostFunction {
       offset_[model::index(e)] = next;
       next += n;
     }
+    if (num_user_ > 0) mutable_parameter_block_sizes()->push_back(num_user_);
   }
 
   bool Evaluate(double const* const* parameters, double* residuals,
@@ -105,6 +113,7 @@ class BlockCost : public ceres::CostFunction {
               inv_n;
       }
       pred = model::sensor_output<double>(effects_, p, mean_in, w1);
+      add_user(parameters, pred);
       for (int r = 0; r < 6; ++r) residuals[r] = (meas[r] - pred[r]) * inv_sigma_[r];
       return true;
     }
@@ -128,7 +137,14 @@ class BlockCost : public ceres::CostFunction {
       // Chain rule: d out / d core = sum_k d out / d w1_k * d w1_k / d core.
       for (int k = 0; k < 6; ++k) d_core.row(r) += out[r].v[k] * w1[k].v.transpose();
     }
+    add_user(parameters, pred);
     for (int r = 0; r < 6; ++r) residuals[r] = (meas[r] - pred[r]) * inv_sigma_[r];
+    if (num_user_ > 0 && jacobians[order_.size()] != nullptr) {
+      double* J = jacobians[order_.size()];
+      for (int r = 0; r < 6; ++r)
+        for (int j = 0; j < num_user_; ++j)
+          J[r * num_user_ + j] = -inv_sigma_[r] * user_design_[6 * j + r];
+    }
     for (std::size_t b = 0; b < order_.size(); ++b) {
       if (jacobians[b] == nullptr) continue;
       const Effect e = order_[b];
@@ -144,25 +160,38 @@ class BlockCost : public ceres::CostFunction {
   }
 
  private:
+  void add_user(double const* const* parameters, ident::Wrench& pred) const {
+    if (num_user_ == 0) return;
+    const double* c = parameters[order_.size()];
+    for (int j = 0; j < num_user_; ++j)
+      pred += c[j] * Eigen::Map<const ident::Wrench>(user_design_ + 6 * j);
+  }
+
   const Dataset* data_;
   std::size_t first_, count_;
   model::EffectSet effects_;
   std::vector<Effect> order_;
   std::array<double, 6> inv_sigma_;
   std::array<int, model::kEffectCount> offset_{};
+  const double* user_design_;
+  int num_user_;
 };
 
 /// The narrowest BlockCost whose sensor-stage Jet holds the model's sensor-stage parameters.
 ceres::CostFunction* make_block_cost(const Dataset* data, std::size_t first, std::size_t count,
                                      model::EffectSet effects, const std::vector<Effect>& order,
-                                     std::array<double, 6> inv_sigma) {
+                                     std::array<double, 6> inv_sigma, const double* user_design,
+                                     int num_user) {
   int sensor_dim = 6;
   for (Effect e : order)
     if (!model::is_payload_effect(e)) sensor_dim += model::info(e).num_params;
-  if (sensor_dim <= 12) return new BlockCost<12>(data, first, count, effects, order, inv_sigma);
-  if (sensor_dim <= 24) return new BlockCost<24>(data, first, count, effects, order, inv_sigma);
-  if (sensor_dim <= 48) return new BlockCost<48>(data, first, count, effects, order, inv_sigma);
-  return new BlockCost<96>(data, first, count, effects, order, inv_sigma);
+  if (sensor_dim <= 12)
+    return new BlockCost<12>(data, first, count, effects, order, inv_sigma, user_design, num_user);
+  if (sensor_dim <= 24)
+    return new BlockCost<24>(data, first, count, effects, order, inv_sigma, user_design, num_user);
+  if (sensor_dim <= 48)
+    return new BlockCost<48>(data, first, count, effects, order, inv_sigma, user_design, num_user);
+  return new BlockCost<96>(data, first, count, effects, order, inv_sigma, user_design, num_user);
 }
 
 // Blocks of `m` consecutive used samples, never spanning a gap in the mask (so held-out data
@@ -280,7 +309,8 @@ std::string param_label(Effect e, int i) {
 FitResult fit(const Dataset& data, const FitOptions& o) {
   const auto start = std::chrono::steady_clock::now();
   check_signals(o.effects, data);
-  if (!o.effects.has(Effect::bias) && !o.effects.has(Effect::gravity) && o.effects.size() == 0)
+  check_signals(o.user, data);
+  if (o.effects.size() == 0 && o.user.empty())
     throw std::runtime_error("empty model: give at least one effect");
 
   FitResult r;
@@ -292,6 +322,15 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
       if (!o.initial->effects.has(e)) r.params.values[model::index(e)].fill(0.0);
     }
   }
+  r.params.user = o.user;
+  if (o.initial && o.initial->user.num_terms == o.user.num_terms) {
+    bool same = true;
+    for (int j = 0; j < o.user.num_terms; ++j)
+      same = same && o.initial->user.terms[static_cast<std::size_t>(j)] ==
+                         o.user.terms[static_cast<std::size_t>(j)];
+    if (same) r.params.user.coeff = o.initial->user.coeff;
+  }
+  const int num_user = r.params.user.num_terms;
   auto is_frozen = [&](Effect e) { return o.frozen.has(e) && o.effects.has(e); };
   for (Effect e : model::kAllEffects) {
     if (is_frozen(e) && (o.initial == nullptr || !o.initial->effects.has(e)))
@@ -313,7 +352,8 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
       if (!is_frozen(e)) r.num_params += model::info(e).num_params;
     }
   }
-  if (r.num_params == 0 && !order.empty())
+  r.num_params += num_user;
+  if (r.num_params == 0 && (!order.empty() || num_user > 0))
     throw std::runtime_error("every effect of the model is frozen: nothing to fit");
 
   std::array<double, 6> sigma = o.sigma.value_or(std::array<double, 6>{1, 1, 1, 0.1, 0.1, 0.1});
@@ -322,6 +362,22 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
   // scatter of consecutive block means inside dwells (there the residual of any model is a
   // constant plus noise), so one solve suffices; without dwells, a second pass reweights.
   const auto blocks_of_samples = make_blocks(data, o, std::max(1, o.block_samples));
+  // User terms are linear: each block's mean design (6 × num_user) is computed once.
+  std::vector<double> user_design(blocks_of_samples.size() * 6 *
+                                  static_cast<std::size_t>(num_user));
+  if (num_user > 0) {
+    std::array<double, 6 * model::kMaxUserTerms> row{};
+    for (std::size_t b = 0; b < blocks_of_samples.size(); ++b) {
+      const auto [first, count] = blocks_of_samples[b];
+      double* mean = &user_design[b * 6 * static_cast<std::size_t>(num_user)];
+      for (std::size_t i = first; i < first + count; ++i) {
+        model::user_design(r.params.user, data.dictionary(i), data.pose[i].R_base_sensor,
+                           row.data());
+        for (int k = 0; k < 6 * num_user; ++k)
+          mean[k] += row[static_cast<std::size_t>(k)] / static_cast<double>(count);
+      }
+    }
+  }
   int passes = 1;
   if (!o.sigma) {
     const auto est = static_noise_of_block_means(data, r.params, blocks_of_samples);
@@ -351,9 +407,13 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
     for (int k = 0; k < 6; ++k) inv_sigma[k] = 1.0 / sigma[k];
     std::vector<double*> blocks;
     for (Effect e : order) blocks.push_back(r.params.block(e));
-    for (const auto& [first, count] : blocks_of_samples) {
-      problem->AddResidualBlock(make_block_cost(&data, first, count, o.effects, order, inv_sigma),
-                                loss.get(), blocks);
+    if (num_user > 0) blocks.push_back(r.params.user.coeff.data());
+    for (std::size_t b = 0; b < blocks_of_samples.size(); ++b) {
+      const auto [first, count] = blocks_of_samples[b];
+      problem->AddResidualBlock(
+          make_block_cost(&data, first, count, o.effects, order, inv_sigma,
+                          &user_design[b * 6 * static_cast<std::size_t>(num_user)], num_user),
+          loss.get(), blocks);
     }
     if (problem->NumResidualBlocks() == 0) throw std::runtime_error("no samples to fit");
     for (Effect e : order)
@@ -426,8 +486,12 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
     std::vector<Effect> free_order;
     for (Effect e : order)
       if (!is_frozen(e)) free_order.push_back(e);
+    // Free parameter blocks: the library effects', then the user terms' (one block).
+    std::vector<double*> free_blocks;
+    for (Effect e : free_order) free_blocks.push_back(r.params.block(e));
+    if (num_user > 0) free_blocks.push_back(r.params.user.coeff.data());
     ceres::Problem::EvaluateOptions eval_options;
-    for (Effect e : free_order) eval_options.parameter_blocks.push_back(r.params.block(e));
+    eval_options.parameter_blocks = free_blocks;
     ceres::CRSMatrix J;
     double cost = 0.0;
     problem->Evaluate(eval_options, &cost, nullptr, nullptr, &J);
@@ -442,9 +506,15 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
       }
       JtJ = JtJ.selfadjointView<Eigen::Lower>();
     }
-    std::vector<std::pair<Effect, int>> names;
+    // Parameter q: (effect, index), or (no effect, term) for a user term.
+    std::vector<std::pair<std::optional<Effect>, int>> names;
     for (Effect e : free_order)
       for (int k = 0; k < model::info(e).num_params; ++k) names.emplace_back(e, k);
+    for (int j = 0; j < num_user; ++j) names.emplace_back(std::nullopt, j);
+    auto label = [&](int q) {
+      return names[q].first ? param_label(*names[q].first, names[q].second)
+                            : io::term_label(r.params.user, names[q].second);
+    };
     Eigen::VectorXd d = JtJ.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
     const Eigen::MatrixXd C = d.asDiagonal() * JtJ * d.asDiagonal();
     Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(C);
@@ -461,7 +531,7 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
         if (std::abs(v[q]) < 0.3 * vmax) continue;
         deficient[q] = true;
         ++count;
-        who += (who.empty() ? "" : ", ") + param_label(names[q].first, names[q].second);
+        who += (who.empty() ? "" : ", ") + label(q);
       }
       r.warnings.push_back(
           {"rank_deficient",
@@ -487,10 +557,9 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
       co.num_threads = o.threads;
       ceres::Covariance covariance(co);
       std::vector<std::pair<const double*, const double*>> pairs;
-      for (Effect a : free_order)
-        for (Effect b : free_order) pairs.emplace_back(r.params.block(a), r.params.block(b));
-      std::vector<const double*> ptrs;
-      for (Effect e : free_order) ptrs.push_back(r.params.block(e));
+      for (const double* a : free_blocks)
+        for (const double* b : free_blocks) pairs.emplace_back(a, b);
+      std::vector<const double*> ptrs(free_blocks.begin(), free_blocks.end());
       if (covariance.Compute(pairs, problem.get())) {
         Eigen::MatrixXd ceres_cov(p, p);
         covariance.GetCovarianceMatrix(ptrs, ceres_cov.data());
@@ -501,10 +570,14 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
     cov *= s2;
     ParamArray stds{};
     for (auto& a : stds) a.fill(std::numeric_limits<double>::quiet_NaN());
+    r.user_std.assign(static_cast<std::size_t>(num_user), std::numeric_limits<double>::quiet_NaN());
     for (int q = 0; q < p; ++q) {
-      stds[model::index(names[q].first)][names[q].second] =
-          deficient[q] ? std::numeric_limits<double>::quiet_NaN()
-                       : std::sqrt(std::max(cov(q, q), 0.0));
+      const double sd = deficient[q] ? std::numeric_limits<double>::quiet_NaN()
+                                     : std::sqrt(std::max(cov(q, q), 0.0));
+      if (names[q].first)
+        stds[model::index(*names[q].first)][names[q].second] = sd;
+      else
+        r.user_std[static_cast<std::size_t>(names[q].second)] = sd;
     }
     r.std = stds;
     for (int a = 0; a < p; ++a) {
@@ -514,9 +587,7 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
         if (std::abs(rho) > 0.99) {
           std::ostringstream os;
           os.precision(4);
-          os << param_label(names[a].first, names[a].second) << " and "
-             << param_label(names[b].first, names[b].second)
-             << " are strongly correlated (rho = " << rho
+          os << label(a) << " and " << label(b) << " are strongly correlated (rho = " << rho
              << "): the data barely tells them apart; their standard deviations are large";
           r.warnings.push_back({"correlated", os.str()});
         }

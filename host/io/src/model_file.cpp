@@ -1,15 +1,85 @@
 #include "zerog/io/model_file.hpp"
 
+#include <algorithm>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
+#include "zerog/io/effect_file.hpp"
 #include "zerog/io/log.hpp"
 
 namespace zerog::io {
 
 using model::Effect;
 using model::info;
+
+namespace {
+
+// The "user_effects" list of a model file: effects with their terms (see to_json).
+template <typename Fail>
+void read_user_effects(const nlohmann::json& list, ModelFile& m, const Fail& fail) {
+  if (!list.is_array()) fail("key 'user_effects' must be a list");
+  model::UserEffects& u = m.params.user;
+  bool any_std = false;
+  std::vector<double> stds;
+  for (std::size_t k = 0; k < list.size(); ++k) {
+    const auto& e = list[k];
+    const std::string where = "user_effects[" + std::to_string(k) + "]";
+    if (!e.is_object() || !e.contains("name") || !e["name"].is_string() || !e.contains("terms") ||
+        !e["terms"].is_array())
+      fail("'" + where + "' needs a string 'name' and a list 'terms'");
+    model::UserEffects one;
+    const std::string name = e["name"].get<std::string>();
+    if (name.empty() || name.size() >= static_cast<std::size_t>(model::kUserNameSize))
+      fail("'" + where + ".name' must have 1 to " + std::to_string(model::kUserNameSize - 1) +
+           " characters");
+    std::copy(name.begin(), name.end(), one.names[0].begin());
+    one.num_effects = 1;
+    for (std::size_t t = 0; t < e["terms"].size(); ++t) {
+      const auto& tj = e["terms"][t];
+      const std::string tw = where + ".terms[" + std::to_string(t) + "]";
+      if (!tj.is_object() || !tj.contains("axis") || !tj["axis"].is_string() ||
+          !tj.contains("basis") || !tj["basis"].is_string() || !tj.contains("value") ||
+          !tj["value"].is_number())
+        fail("'" + tw + "' needs strings 'axis', 'basis' and a number 'value'");
+      model::UserTerm term;
+      const std::string axis = tj["axis"].get<std::string>();
+      static constexpr const char* kAxes[6] = {"Fx", "Fy", "Fz", "Mx", "My", "Mz"};
+      int a = -1;
+      for (int q = 0; q < 6; ++q)
+        if (axis == kAxes[q]) a = q;
+      if (a < 0) fail("'" + tw + ".axis' must be one of Fx, Fy, Fz, Mx, My, Mz");
+      term.axis = static_cast<std::uint8_t>(a);
+      const std::string frame = tj.contains("frame") && tj["frame"].is_string()
+                                    ? tj["frame"].get<std::string>()
+                                    : std::string("sensor");
+      if (frame != "sensor" && frame != "base") fail("'" + tw + ".frame' must be sensor or base");
+      term.frame = frame == "base" ? model::TermFrame::base : model::TermFrame::sensor;
+      const std::string basis = tj["basis"].get<std::string>();
+      const char* error = nullptr;
+      std::size_t pos = 0;
+      if (!model::parse_basis(basis, term.basis, error, pos))
+        fail("'" + tw + ".basis' \"" + basis + "\" at character " + std::to_string(pos + 1) + ": " +
+             error);
+      if (one.num_terms >= model::kMaxUserTerms) fail("too many user terms");
+      one.terms[static_cast<std::size_t>(one.num_terms)] = term;
+      one.coeff[static_cast<std::size_t>(one.num_terms)] = tj["value"].get<double>();
+      ++one.num_terms;
+      const bool has_std = tj.contains("std") && tj["std"].is_number();
+      any_std = any_std || has_std;
+      stds.push_back(has_std ? tj["std"].get<double>() : std::numeric_limits<double>::quiet_NaN());
+    }
+    try {
+      append_user_effects(u, one);
+    } catch (const std::runtime_error& ex) {
+      fail("'" + where + "': " + ex.what());
+    }
+  }
+  if (any_std) m.user_std = stds;
+}
+
+}  // namespace
 
 nlohmann::json to_json(const ModelFile& m) {
   nlohmann::json j;
@@ -31,6 +101,31 @@ nlohmann::json to_json(const ModelFile& m) {
       block[ei.params[i].name] = p;
     }
     j["parameters"][ei.name] = block;
+  }
+  // User-defined effects (proto/user_effects.md): each term with its basis, axis and value.
+  if (m.params.user.num_effects > 0) {
+    const model::UserEffects& u = m.params.user;
+    nlohmann::json list = nlohmann::json::array();
+    for (int k = 0; k < u.num_effects; ++k) {
+      nlohmann::json e;
+      e["name"] = user_effect_name(u, k);
+      e["terms"] = nlohmann::json::array();
+      for (int t = 0; t < u.num_terms; ++t) {
+        const model::UserTerm& term = u.terms[static_cast<std::size_t>(t)];
+        if (term.effect != k) continue;
+        nlohmann::json tj;
+        tj["axis"] = term_axis_name(term).substr(0, 2);
+        tj["frame"] = term.frame == model::TermFrame::base ? "base" : "sensor";
+        tj["basis"] = basis_text(term.basis);
+        tj["unit"] = coefficient_unit(term);
+        tj["value"] = u.coeff[static_cast<std::size_t>(t)];
+        if (static_cast<std::size_t>(t) < m.user_std.size())
+          tj["std"] = m.user_std[static_cast<std::size_t>(t)];
+        e["terms"].push_back(tj);
+      }
+      list.push_back(e);
+    }
+    j["user_effects"] = list;
   }
   j["extra"] = m.extra;
   return j;
@@ -84,6 +179,7 @@ ModelFile model_from_json(const nlohmann::json& j, const std::string& source) {
     }
   }
   if (any_std) m.std = stds;
+  if (j.contains("user_effects")) read_user_effects(j["user_effects"], m, fail);
   if (j.contains("extra")) m.extra = j["extra"];
   return m;
 }

@@ -8,6 +8,8 @@
 #include <optional>
 #include <string_view>
 
+#include "zerog/model/user_effects.hpp"
+
 namespace zerog::model {
 
 enum class Effect : std::uint8_t {
@@ -96,6 +98,8 @@ inline constexpr EffectSet kMinimalModel = {Effect::bias, Effect::gravity};
 struct ModelParams {
   EffectSet effects;
   std::array<std::array<double, kMaxEffectParams>, kEffectCount> values{};
+  /// User-defined effects (terms and their coefficients), added after the library effects.
+  UserEffects user;
 
   double* block(Effect e) { return values[index(e)].data(); }
   const double* block(Effect e) const { return values[index(e)].data(); }

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "zerog/io/log.hpp"
+#include "zerog/model/dictionary.hpp"
 #include "zerog/model/predict.hpp"
 #include "zerog/model/signals.hpp"
 
@@ -24,6 +25,15 @@ struct Dataset {
   std::vector<Wrench> measured;
   std::vector<std::uint8_t> moving;                    ///< 1 while the sensor moves
   std::vector<std::array<double, 6>> joint_vel_radps;  ///< from differencing the joint angles
+  // For the signal dictionary (model/dictionary.hpp): central differences (3-point; one-sided
+  // at the ends), so that they carry no delay.
+  std::vector<Eigen::Vector3d> p_base_sensor_m;                ///< S origin in B, m
+  std::vector<Eigen::Vector3d> v_base_sensor_mps;              ///< velocity of the S origin in B
+  std::vector<std::array<double, 6>> joint_vel_central_radps;  ///< A1..A6
+  std::vector<std::array<double, 6>> joint_acc_radps2;         ///< A1..A6
+
+  /// Every signal of the dictionary for sample i (the IMU as logged, no time offset).
+  model::DictionarySignals dictionary(std::size_t i) const;
 
   std::size_t size() const { return t_s.size(); }
   /// IMU signals of sample i, read at t_i + tau when tau is given (imu_time_offset).
@@ -64,5 +74,9 @@ std::vector<std::uint8_t> heldout_mask(const Dataset& data, double block_s = 60.
 
 /// Throws std::runtime_error if the log lacks a signal an effect needs (names both).
 void check_signals(const model::EffectSet& effects, const Dataset& data);
+/// The same for user terms (names the term and the missing columns).
+void check_signals(const model::UserEffects& user, const Dataset& data);
+/// The dictionary's signal sources the log has (bit mask of 1 << model::SignalSource).
+unsigned available_sources(const Dataset& data);
 
 }  // namespace zerog::ident

@@ -34,6 +34,23 @@ struct SignalCorrelation {
   double correlation = 0.0;
 };
 
+/// A law found in the signal dictionary when no library effect explains the residual
+/// (proto/user_effects.md, "Discovery"): sure-independence screening of every basis and axis,
+/// then orthogonal matching pursuit on the training blocks, each term validated on the held-out
+/// blocks; the terms found are refitted with the whole model (Ceres) for values and deviations.
+struct Discovery {
+  model::UserEffects effect;      ///< one user effect ("discovered"), fitted coefficients
+  std::vector<double> std;        ///< standard deviation of each coefficient
+  std::vector<double> z;          ///< each term's screening statistic when it was chosen
+  FitResult fit;                  ///< the model with the discovered effect, on the training blocks
+  HeldOut heldout;                ///< of that fit (noise-whitened MSE with the diagnosis' scale)
+  double gain = 0.0;              ///< share of the baseline's held-out whitened MSE it removes
+  int dictionary_size = 0;        ///< candidate columns (basis × axis) searched
+  double z_threshold = 0.0;       ///< a term must pass this (Bonferroni over the dictionary)
+  std::vector<std::string> laws;  ///< "Mz += 1.49 ± 0.01 N*m · tanh(qd6/0.02)"
+  std::string path;               ///< the effect file written (empty if none)
+};
+
 struct Diagnosis {
   model::EffectSet model;
   FitResult baseline;
@@ -46,7 +63,8 @@ struct Diagnosis {
   double structured_fraction = 0.0;
   std::vector<Candidate> candidates;          ///< best first
   std::vector<SignalCorrelation> correlated;  ///< strongest first
-  enum class Verdict { effect, none, nothing_left } verdict = Verdict::none;
+  std::optional<Discovery> discovery;         ///< when verdict is `discovered`
+  enum class Verdict { effect, none, nothing_left, discovered } verdict = Verdict::none;
   std::string text;     ///< plain words
   std::string command;  ///< the command that adds the effect, if any
 };
@@ -59,6 +77,16 @@ struct DiagnoseOptions {
   const std::vector<std::uint8_t>* exclude = nullptr;
   FitOptions fit;                    ///< effects = the model to diagnose; mask is set internally
   std::string log_path = "run.csv";  ///< for the suggested command
+  /// The model as given on the command line, for the suggested command (default: the effect
+  /// names of `fit.effects` and `fit.user`).
+  std::string model_text;
+  /// When no library effect explains the structure, search the signal dictionary for a law.
+  bool discover = true;
+  /// Where discovery writes the effect file it finds ("" = do not write).
+  std::string discovery_path;
+  int max_discovered_terms = 8;
+  /// A term must remove at least this share of the baseline's held-out whitened MSE.
+  double min_term_gain = 0.003;
   std::function<void(const std::string&)> progress;
 };
 

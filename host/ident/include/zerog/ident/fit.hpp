@@ -17,6 +17,9 @@ using ParamArray = std::array<std::array<double, model::kMaxEffectParams>, model
 
 struct FitOptions {
   model::EffectSet effects;
+  /// User-defined effects to fit with the library ones (proto/user_effects.md); their
+  /// coefficients are the start values (or `initial`'s, when it holds the same terms).
+  model::UserEffects user;
   std::string loss = "none";  ///< none | huber | cauchy (on residuals whitened per axis)
   double loss_scale = 3.0;    ///< robust-loss scale in units of the per-axis noise
   int max_iterations = 50;
@@ -45,6 +48,7 @@ struct Warning {
 struct FitResult {
   model::ModelParams params;
   std::optional<ParamArray> std;  ///< standard deviations (absent where unidentifiable: NaN)
+  std::vector<double> user_std;   ///< of params.user's coefficients (with `std`; NaN likewise)
   bool usable = false;
   std::string termination;
   int iterations = 0;

@@ -19,6 +19,8 @@ struct ModelFile {
   model::ModelParams params;
   /// Standard deviation of each parameter (same layout as params.values); absent for truth files.
   std::optional<std::array<std::array<double, model::kMaxEffectParams>, model::kEffectCount>> std;
+  /// Standard deviation of each user term's coefficient (params.user); empty if unknown.
+  std::vector<double> user_std;
   std::string rig_name;
   nlohmann::json extra = nlohmann::json::object();  ///< provenance: fit statistics, sim seed, …
 };
