@@ -1,5 +1,7 @@
 #include "zerog/infer/deploy_file.hpp"
 
+#include "zerog/model/dictionary.hpp"
+
 #include <array>
 #include <charconv>
 #include <cmath>
@@ -114,6 +116,22 @@ ordered_json to_json(const DeployedModel& m) {
     params[info.name] = block;
   }
   j["physics"] = {{"effects", effects}, {"parameters", params}};
+  // User-defined effects (proto/user_effects.md): one entry per term, in order.
+  const model::UserEffects& u = m.physics.user;
+  if (!u.empty()) {
+    ordered_json terms = ordered_json::array();
+    for (int t = 0; t < u.num_terms; ++t) {
+      const model::UserTerm& term = u.terms[static_cast<std::size_t>(t)];
+      char basis[128];
+      model::format_basis(term.basis, basis, sizeof basis);
+      terms.push_back({{"effect", std::string(u.names[term.effect].data())},
+                       {"axis", kAxisNames[term.axis]},
+                       {"frame", term.frame == model::TermFrame::base ? "base" : "sensor"},
+                       {"basis", basis},
+                       {"value", u.coeff[static_cast<std::size_t>(t)]}});
+    }
+    j["physics"]["user_terms"] = terms;
+  }
   if (!m.network) {
     j["network"] = nullptr;
   } else {
@@ -213,6 +231,50 @@ model::ModelParams physics_from_json(const json& j) {
     if (p.effects.has(e) && model::info(e).num_params > 0 && !params.contains(model::info(e).name))
       fail(LoadError::invalid_value,
            std::string("missing key 'physics.parameters.") + model::info(e).name + "'");
+  }
+  if (j.contains("user_terms")) {
+    const json& terms = j["user_terms"];
+    if (!terms.is_array()) fail(LoadError::invalid_value, "physics.user_terms is not an array");
+    model::UserEffects& u = p.user;
+    for (std::size_t t = 0; t < terms.size(); ++t) {
+      const std::string where = "physics.user_terms[" + std::to_string(t) + "]";
+      if (u.num_terms >= model::kMaxUserTerms)
+        fail(LoadError::inconsistent_sizes,
+             where + ": more than " + std::to_string(model::kMaxUserTerms) + " user terms");
+      model::UserTerm term;
+      const std::string effect = text(at(terms[t], "effect", where), where + ".effect");
+      if (effect.empty() || effect.size() >= static_cast<std::size_t>(model::kUserNameSize))
+        fail(LoadError::invalid_value,
+             where + ".effect: 1 to " + std::to_string(model::kUserNameSize - 1) + " characters");
+      int k = 0;
+      while (k < u.num_effects && effect != u.names[static_cast<std::size_t>(k)].data()) ++k;
+      if (k == u.num_effects) {
+        if (u.num_effects >= model::kMaxUserEffects)
+          fail(LoadError::inconsistent_sizes, where + ": too many user effects");
+        std::copy(effect.begin(), effect.end(), u.names[static_cast<std::size_t>(k)].begin());
+        ++u.num_effects;
+      }
+      term.effect = static_cast<std::uint8_t>(k);
+      const std::string axis = text(at(terms[t], "axis", where), where + ".axis");
+      int a = 0;
+      while (a < 6 && axis != kAxisNames[a]) ++a;
+      if (a == 6) fail(LoadError::invalid_value, where + ".axis: not one of Fx Fy Fz Mx My Mz");
+      term.axis = static_cast<std::uint8_t>(a);
+      const std::string frame = text(at(terms[t], "frame", where), where + ".frame");
+      if (frame != "sensor" && frame != "base")
+        fail(LoadError::invalid_value, where + ".frame: not sensor or base");
+      term.frame = frame == "base" ? model::TermFrame::base : model::TermFrame::sensor;
+      const std::string basis = text(at(terms[t], "basis", where), where + ".basis");
+      const char* error = nullptr;
+      std::size_t pos = 0;
+      if (!model::parse_basis(basis, term.basis, error, pos))
+        fail(LoadError::invalid_value, where + ".basis '" + basis + "' at character " +
+                                           std::to_string(pos + 1) + ": " + error);
+      u.terms[static_cast<std::size_t>(u.num_terms)] = term;
+      u.coeff[static_cast<std::size_t>(u.num_terms)] =
+          number(at(terms[t], "value", where), where + ".value");
+      ++u.num_terms;
+    }
   }
   return p;
 }
@@ -488,6 +550,10 @@ std::pair<LoadError, std::string> validate_model(const DeployedModel& m) {
         return {E::invalid_value, std::string("physics.parameters.") + info.name + "." +
                                       info.params[k].name + " is not finite"};
   }
+  for (int t = 0; t < m.physics.user.num_terms; ++t)
+    if (!std::isfinite(m.physics.user.coeff[static_cast<std::size_t>(t)]))
+      return {E::invalid_value,
+              "physics.user_terms[" + std::to_string(t) + "].value is not finite"};
   if (!m.network) return {E::none, {}};
   const DeployedNetwork& n = *m.network;
   const model::NetworkShape& s = n.shape;

@@ -220,11 +220,20 @@ Status Inference::network_quantised(const double* x, double* y) noexcept {
 }
 
 Status Inference::evaluate(Path path, const model::FeatureSignals& s,
-                           const model::ImuSignals<double>& physics_imu, Wrench& out) noexcept {
+                           const model::ImuSignals<double>& physics_imu, Wrench& out,
+                           const model::KinematicInputs* kinematics) noexcept {
   if (!configured_) return {StatusCode::not_configured, 0};
   const auto p = model::pointers(model_.physics);
   Wrench w =
       model::predict_wrench<double>(model_.physics.effects, p, pose_of(s), physics_imu, geometry_);
+  if (!model_.physics.user.empty()) {
+    model::KinematicInputs fallback;
+    if (kinematics == nullptr) fallback.features = s;
+    const model::DictionarySignals d =
+        model::dictionary_signals(kinematics ? *kinematics : fallback, geometry_);
+    const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> R(s.R_base_sensor.data());
+    w += model::user_wrench(model_.physics.user, d, R);
+  }
   Wrench r;
   const Status st = residual(path, s, r);
   if (st.code == StatusCode::non_finite) return st;

@@ -1,5 +1,7 @@
 #include "zerog/loop/cycle.hpp"
 
+#include "zerog/model/dictionary.hpp"
+
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
@@ -287,9 +289,28 @@ bool Cycle::evaluate(std::uint32_t& flags) noexcept {
   physics_imu.angular_rate_imu = model::interpolate_uniform<3>(w.data(), n, index);
   physics_imu.angular_accel_imu = wdot;
 
+  // The signal dictionary's kinematics at the centre row (user-defined effects): central
+  // differences of the joints and the sensor position over its neighbours.
+  model::KinematicInputs kinematics;
+  kinematics.features = centre.signals;
+  {
+    const Row& before = rows_[(newest - static_cast<std::uint64_t>(D + 1)) % kHistory];
+    const Row& after = rows_[(newest - static_cast<std::uint64_t>(D - 1)) % kHistory];
+    if (after.t_s > centre.t_s && centre.t_s > before.t_s) {
+      model::central_differences(before.signals.joints_rad.data(), centre.signals.joints_rad.data(),
+                                 after.signals.joints_rad.data(), 6, before.t_s, centre.t_s,
+                                 after.t_s, kinematics.features.joint_vel_radps.data(),
+                                 kinematics.joint_acc_radps2.data());
+      model::central_differences(before.signals.p_base_sensor_m.data(),
+                                 centre.signals.p_base_sensor_m.data(),
+                                 after.signals.p_base_sensor_m.data(), 3, before.t_s, centre.t_s,
+                                 after.t_s, kinematics.v_base_sensor_mps.data(), nullptr);
+    }
+  }
   infer::Wrench predicted;
   const infer::Path path = use_network_ ? infer::Path::quantised : infer::Path::physics_only;
-  const infer::Status st = inference_.evaluate(path, centre.signals, physics_imu, predicted);
+  const infer::Status st =
+      inference_.evaluate(path, centre.signals, physics_imu, predicted, &kinematics);
   record_.model_status = st.code;
   record_.t_eval_s = centre.t_s;
   record_.wrench_at_eval = centre.wrench;

@@ -230,6 +230,15 @@ bool signal_from_name(std::string_view name, Signal& out) {
   return false;
 }
 
+void central_differences(const double* x0, const double* x1, const double* x2, int n, double t0,
+                         double t1, double t2, double* v, double* a) {
+  const double h0 = t1 - t0, h1 = t2 - t1;
+  for (int k = 0; k < n; ++k) {
+    v[k] = (x2[k] - x0[k]) / (t2 - t0);
+    if (a != nullptr) a[k] = 2.0 * ((x2[k] - x1[k]) / h1 - (x1[k] - x0[k]) / h0) / (h0 + h1);
+  }
+}
+
 DictionarySignals dictionary_signals(const KinematicInputs& in, const RigGeometry& rig) {
   DictionarySignals s{};
   const FeatureSignals& f = in.features;

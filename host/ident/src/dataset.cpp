@@ -63,34 +63,23 @@ Dataset make_dataset(const io::Log& log) {
     }
   }
   if (n > 1) d.joint_vel_radps[0] = d.joint_vel_radps[1];
-  // Dictionary signals: 3-point central differences (one-sided at the ends), on the rows' own
-  // time stamps.
+  // Dictionary signals: 3-point central differences (model::central_differences; at the first
+  // and last row those of their neighbour), on the rows' own time stamps.
   d.p_base_sensor_m.resize(n);
   d.v_base_sensor_mps.assign(n, Eigen::Vector3d::Zero());
   d.joint_vel_central_radps.assign(n, {});
   d.joint_acc_radps2.assign(n, {});
   for (std::size_t i = 0; i < n; ++i) d.p_base_sensor_m[i] = log.samples[i].p_base_sensor_m;
   for (std::size_t i = 0; i < n; ++i) {
-    const std::size_t lo = i > 0 ? i - 1 : 0, hi = std::min(n - 1, i + 1);
-    const double span = log.samples[hi].t_s - log.samples[lo].t_s;
-    d.v_base_sensor_mps[i] = (d.p_base_sensor_m[hi] - d.p_base_sensor_m[lo]) / span;
-    if (!log.columns.joints) continue;
-    for (int j = 0; j < 6; ++j)
-      d.joint_vel_central_radps[i][j] =
-          (log.samples[hi].joints_rad[j] - log.samples[lo].joints_rad[j]) / span;
-  }
-  if (log.columns.joints) {
-    for (std::size_t i = 0; i < n; ++i) {
-      const std::size_t c = std::clamp<std::size_t>(i, 1, n - 2);
-      const double h0 = log.samples[c].t_s - log.samples[c - 1].t_s;
-      const double h1 = log.samples[c + 1].t_s - log.samples[c].t_s;
-      for (int j = 0; j < 6; ++j) {
-        const double q0 = log.samples[c - 1].joints_rad[j], q1 = log.samples[c].joints_rad[j],
-                     q2 = log.samples[c + 1].joints_rad[j];
-        // Second derivative of the parabola through three (possibly uneven) points.
-        d.joint_acc_radps2[i][j] = 2.0 * ((q2 - q1) / h1 - (q1 - q0) / h0) / (h0 + h1);
-      }
-    }
+    const std::size_t c = std::clamp<std::size_t>(i, 1, n - 2);
+    const io::Sample &s0 = log.samples[c - 1], &s1 = log.samples[c], &s2 = log.samples[c + 1];
+    model::central_differences(s0.p_base_sensor_m.data(), s1.p_base_sensor_m.data(),
+                               s2.p_base_sensor_m.data(), 3, s0.t_s, s1.t_s, s2.t_s,
+                               d.v_base_sensor_mps[i].data(), nullptr);
+    if (log.columns.joints)
+      model::central_differences(s0.joints_rad.data(), s1.joints_rad.data(), s2.joints_rad.data(),
+                                 6, s0.t_s, s1.t_s, s2.t_s, d.joint_vel_central_radps[i].data(),
+                                 d.joint_acc_radps2[i].data());
   }
   const std::size_t dilate = 3;
   for (std::size_t i = 0; i < n; ++i) {

@@ -9,6 +9,7 @@
 
 #include "alloc_count.hpp"
 #include "infer_fixtures.hpp"
+#include "zerog/infer/deploy_file.hpp"
 
 namespace zerog::infer {
 namespace {
@@ -141,6 +142,78 @@ TEST(Inference, SequenceMatchesPerSampleAndShiftsTheImuForTheTimeOffset) {
     inf.evaluate_physics(shifted, w);
     EXPECT_LT((out[i] - w).cwiseAbs().maxCoeff(), 1e-9) << i;
   }
+}
+
+}  // namespace
+}  // namespace zerog::infer
+
+namespace zerog::infer {
+namespace {
+
+// User-defined effects (proto/user_effects.md) in the deployed model: written, loaded, and added
+// by the evaluator to the physics as c · basis along their axis (values computed here by hand),
+// allocation-free.
+TEST(Inference, UserTermsRoundTripAndAddTheirLaw) {
+  DeployedModel m;
+  m.rig = test::demo_rig();
+  m.physics = test::demo_physics();
+  model::UserEffects& u = m.physics.user;
+  u.num_effects = 1;
+  const std::string name = "swivel";
+  std::copy(name.begin(), name.end(), u.names[0].begin());
+  const char* error = nullptr;
+  std::size_t pos = 0;
+  u.num_terms = 2;
+  ASSERT_TRUE(model::parse_basis("tanh(qd6/0.02)", u.terms[0].basis, error, pos));
+  u.terms[0].axis = 5;
+  ASSERT_TRUE(model::parse_basis("vx_B", u.terms[1].basis, error, pos));
+  u.terms[1].axis = 1;  // force along base y
+  u.terms[1].frame = model::TermFrame::base;
+  u.coeff[0] = 1.5;
+  u.coeff[1] = -25.0;
+  const LoadResult loaded = load_deployed_model(serialise_deployed_model(m), m.rig);
+  ASSERT_TRUE(loaded.ok()) << loaded.message;
+  ASSERT_EQ(loaded.model->physics.user.num_terms, 2);
+  EXPECT_EQ(loaded.model->physics.user.terms[1], u.terms[1]);
+  EXPECT_EQ(loaded.model->physics.user.coeff[1], -25.0);
+
+  Inference with, without;
+  ASSERT_EQ(with.configure(*loaded.model), "");
+  DeployedModel plain = m;
+  plain.physics.user = {};
+  ASSERT_EQ(without.configure(plain), "");
+  std::mt19937_64 rng(8);
+  std::size_t allocations = 0;
+  for (int i = 0; i < 50; ++i) {
+    const model::FeatureSignals s = test::random_signals(rng);
+    model::KinematicInputs k;
+    k.features = s;
+    k.features.joint_vel_radps[5] = 0.01 * (i - 25);
+    k.v_base_sensor_mps = {-0.2 + 0.01 * i, 0.1, 0.3};
+    const model::ImuSignals<double> imu = imu_signals(s);
+    Wrench a, b;
+    const std::size_t before = zerog::test::allocation_count();
+    ASSERT_TRUE(with.evaluate(Path::physics_only, s, imu, a, &k).written());
+    allocations += zerog::test::allocation_count() - before;
+    ASSERT_TRUE(without.evaluate(Path::physics_only, s, imu, b, &k).written());
+    const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> R(s.R_base_sensor.data());
+    Wrench law = Wrench::Zero();
+    law[5] = 1.5 * std::tanh(k.features.joint_vel_radps[5] / 0.02);
+    law.head<3>() += -25.0 * k.v_base_sensor_mps[0] * R.row(1).transpose();  // vx_B along base y
+    EXPECT_LT((a - b - law).cwiseAbs().maxCoeff(), 1e-9) << i;
+  }
+  EXPECT_EQ(allocations, 0u);
+  // A bad basis in the file is refused, naming the term; a non-finite value is never written.
+  std::string bytes = serialise_deployed_model(m);
+  const std::string body_from = "tanh(qd6/0.02)", body_to = "tanh(q6/0.02)";
+  const std::size_t at = bytes.find(body_from);
+  ASSERT_NE(at, std::string::npos);
+  bytes.replace(at, body_from.size(), body_to);
+  const LoadResult refused = load_deployed_model(bytes, m.rig);
+  EXPECT_FALSE(refused.ok());
+  DeployedModel bad = m;
+  bad.physics.user.coeff[0] = std::numeric_limits<double>::infinity();
+  EXPECT_THROW(serialise_deployed_model(bad), std::invalid_argument);
 }
 
 }  // namespace

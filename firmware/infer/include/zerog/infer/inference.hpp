@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "zerog/infer/deploy_model.hpp"
+#include "zerog/model/dictionary.hpp"
 #include "zerog/model/features.hpp"
 #include "zerog/model/network.hpp"
 #include "zerog/model/predict.hpp"
@@ -70,9 +71,12 @@ class Inference {
   Status residual_reference(const model::FeatureSignals& s, Wrench& out) noexcept;
 
   /// Physics with separately supplied IMU signals (e.g. interpolated at t + tau); the network
-  /// still reads s.imu. Real-time safe.
+  /// still reads s.imu. User-defined terms (proto/user_effects.md) read `kinematics` (central
+  /// differences at this row); without it they see s's joint velocities and no joint
+  /// acceleration or sensor velocity. Real-time safe.
   Status evaluate(Path path, const model::FeatureSignals& s,
-                  const model::ImuSignals<double>& physics_imu, Wrench& out) noexcept;
+                  const model::ImuSignals<double>& physics_imu, Wrench& out,
+                  const model::KinematicInputs* kinematics = nullptr) noexcept;
 
   /// The fitted IMU time offset tau (s), 0 without the imu_time_offset effect.
   double imu_time_offset_s() const;

@@ -81,6 +81,13 @@ struct KinematicInputs {
   std::array<double, 3> v_base_sensor_mps{};  ///< velocity of the S origin in B, m/s
 };
 
+/// Velocity and acceleration of `n` values at the middle of three rows taken at t0 < t1 < t2:
+/// v = (x2 − x0) / (t2 − t0), a = 2 ((x2 − x1)/h1 − (x1 − x0)/h0) / (h0 + h1) with h0 = t1 − t0,
+/// h1 = t2 − t1 (the parabola through the three points). `a` may be null. The one difference
+/// rule of the dictionary, for the host's logs and the firmware's rows. Real-time safe.
+void central_differences(const double* x0, const double* x1, const double* x2, int n, double t0,
+                         double t1, double t2, double* v, double* a);
+
 /// All base signals of one sample. The IMU's specific force f_I and rate ω_I are moved to the
 /// sensor origin with the rig geometry: ω_S = R_SI ω_I, a_S = R_SI f_I + g_S + ω̇_S × r +
 /// ω_S × (ω_S × r), r = −p_SI (rigid body), g_S = R_BSᵀ (0, 0, −9.80665). Real-time safe.
