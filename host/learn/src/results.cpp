@@ -191,14 +191,9 @@ Results run_results(const ResultsOptions& o) {
   for (std::size_t i = 0; i < data.size(); ++i) p_phys[i] = ident::predict(physics.params, data, i);
   const auto p_res = predictions(res, data, log);
   std::vector<ident::Wrench> p_floor(data.size());
-  for (std::size_t i = 0; i < data.size(); ++i) {
+  // The truth file holds the effects outside the library as user terms (joint A6 friction, …).
+  for (std::size_t i = 0; i < data.size(); ++i)
     p_floor[i] = ident::predict(out.truth.params, data, i);
-    // The truth outside the model library: joint A6 friction from the true joint rate.
-    if (cfg.effects.has(sim::SimEffect::joint6_friction))
-      p_floor[i][5] += cfg.joint6_friction_Nm *
-                       std::tanh(simulator.trajectory().at(log.samples[i].t_s).qd_radps[5] /
-                                 cfg.joint6_friction_rate_radps);
-  }
   add("paper-bp", "paper-bp: BP network 21-8-6, sigmoid (000_… §3–4)", &p_bp, s_bp,
       "random 60/20/20 split of the training blocks, Levenberg-Marquardt");
   add("paper-zp", "paper-zp: zero-point network 9-45-90-5 + least-squares tool (001_… §3)", &p_zp,

@@ -3,11 +3,13 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 #include <sstream>
 #include <stdexcept>
 
 #include "random.hpp"
+#include "zerog/model/dictionary.hpp"
 #include "zerog/model/rotation.hpp"
 
 namespace zerog::sim {
@@ -36,6 +38,12 @@ const std::array<SimEffectInfo, kSimEffectCount> kSimEffects = {{
      "rig geometry: IMU at (0.045, -0.030, -0.035) m in S (else at the S origin)"},
     {SimEffect::joint6_friction, "joint6_friction", std::nullopt,
      "outside the model: Mz += 1.5 N*m * tanh(qd6 / 0.02 rad/s)"},
+    {SimEffect::swivel_viscous, "swivel_viscous", std::nullopt,
+     "outside the model: Mz -= 2.0 N*m*s/rad * wz_S (hose swivel's seal drag)"},
+    {SimEffect::hose_drag, "hose_drag", std::nullopt,
+     "outside the model: F_S -= 25 N*s/m * v_S (supply hose dragged along)"},
+    {SimEffect::dress_pack_bend, "dress_pack_bend", std::nullopt,
+     "outside the model: Fx += 8 N * sin(q4) * sin(q5) (dress pack bent by A5, wound by A4)"},
 }};
 
 std::vector<JointVector> checked_points(std::vector<JointVector> points) {
@@ -86,6 +94,9 @@ std::vector<Binding> bindings(SimConfig& c) {
   b.push_back({"noise.gyro", &c.noise.gyro_radps});
   b.push_back({"joint6_friction.torque", &c.joint6_friction_Nm});
   b.push_back({"joint6_friction.rate", &c.joint6_friction_rate_radps});
+  b.push_back({"swivel_viscous.damping", &c.swivel_damping_Nms_per_rad});
+  b.push_back({"hose_drag.damping", &c.hose_drag_Ns_per_m});
+  b.push_back({"dress_pack_bend.force", &c.dress_pack_bend_N});
   b.push_back({"imu_lever_arm.x", &c.imu_lever_arm_m.x()});
   b.push_back({"imu_lever_arm.y", &c.imu_lever_arm_m.y()});
   b.push_back({"imu_lever_arm.z", &c.imu_lever_arm_m.z()});
@@ -101,6 +112,20 @@ std::vector<Binding> bindings(SimConfig& c) {
 }
 
 nlohmann::json vec_json(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+
+// The basis names of the signal dictionary (firmware/model/include/zerog/model/dictionary.hpp).
+std::string tanh_basis(const char* signal, double eps) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "tanh(%s/%g)", signal, eps);
+  return buf;
+}
+
+nlohmann::json terms_json(const std::vector<OutsideTerm>& terms) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const OutsideTerm& t : terms)
+    out.push_back({{"axis", t.axis}, {"basis", t.basis}, {"coefficient", t.coefficient}});
+  return out;
+}
 
 }  // namespace
 
@@ -154,6 +179,33 @@ std::string sim_effect_list_string(const SimEffectSet& effects) {
   for (const auto& i : kSimEffects) {
     if (!effects.has(i.id)) continue;
     out += (out.empty() ? "" : ",") + std::string(i.name);
+  }
+  return out;
+}
+
+std::vector<OutsideTerm> outside_terms(const SimConfig& config, SimEffect effect) {
+  const SimConfig& c = config;
+  switch (effect) {
+    case SimEffect::joint6_friction:
+      return {{"Mz", tanh_basis("qd6", c.joint6_friction_rate_radps), c.joint6_friction_Nm}};
+    case SimEffect::swivel_viscous:
+      return {{"Mz", "wz_S", -c.swivel_damping_Nms_per_rad}};
+    case SimEffect::hose_drag:
+      return {{"Fx", "vx_S", -c.hose_drag_Ns_per_m},
+              {"Fy", "vy_S", -c.hose_drag_Ns_per_m},
+              {"Fz", "vz_S", -c.hose_drag_Ns_per_m}};
+    case SimEffect::dress_pack_bend:
+      return {{"Fx", "sin(q4)*sin(q5)", c.dress_pack_bend_N}};
+    default:
+      return {};
+  }
+}
+
+std::vector<OutsideTerm> outside_terms(const SimConfig& config) {
+  std::vector<OutsideTerm> out;
+  for (const auto& i : kSimEffects) {
+    if (!config.effects.has(i.id)) continue;
+    for (OutsideTerm& t : outside_terms(config, i.id)) out.push_back(std::move(t));
   }
   return out;
 }
@@ -301,6 +353,32 @@ io::ModelFile RigSimulator::truth() const {
   const double elements[6] = {I(0, 0), I(1, 1), I(2, 2), I(0, 1), I(0, 2), I(1, 2)};
   std::copy(std::begin(elements), std::end(elements), rot);
   m.rig_name = rig().name;
+  // The effects outside the library, as user-defined effects with their exact terms
+  // (proto/user_effects.md), so that the truth predicts them too. They add after the crosstalk,
+  // the simulator's before: with both on, the truth is off by the crosstalk of the outside
+  // wrench (a fraction of a percent of it).
+  for (const SimEffectInfo& i : kSimEffects) {
+    if (!c.effects.has(i.id)) continue;
+    const std::vector<OutsideTerm> terms = outside_terms(c, i.id);
+    if (terms.empty()) continue;
+    model::UserEffects& u = m.params.user;
+    const std::string name = i.name;
+    std::copy(name.begin(), name.end(), u.names[static_cast<std::size_t>(u.num_effects)].begin());
+    for (const OutsideTerm& t : terms) {
+      model::UserTerm term;
+      const char* error = nullptr;
+      std::size_t pos = 0;
+      if (!model::parse_basis(t.basis, term.basis, error, pos))
+        throw std::logic_error("outside term basis '" + t.basis + "': " + error);
+      static constexpr const char* kAxes[6] = {"Fx", "Fy", "Fz", "Mx", "My", "Mz"};
+      term.axis = static_cast<std::uint8_t>(std::find(kAxes, kAxes + 6, t.axis) - kAxes);
+      term.effect = static_cast<std::uint8_t>(u.num_effects);
+      u.terms[static_cast<std::size_t>(u.num_terms)] = term;
+      u.coeff[static_cast<std::size_t>(u.num_terms)] = t.coefficient;
+      ++u.num_terms;
+    }
+    ++u.num_effects;
+  }
 
   nlohmann::json x;
   x["generator"] = "zerog sim";
@@ -313,7 +391,28 @@ io::ModelFile RigSimulator::truth() const {
       {"enabled", c.effects.has(SimEffect::joint6_friction)},
       {"torque_Nm", c.joint6_friction_Nm},
       {"rate_radps", c.joint6_friction_rate_radps},
-      {"formula", "Mz += torque_Nm * tanh(qd6 / rate_radps), added before crosstalk"}};
+      {"formula", "Mz += torque_Nm * tanh(qd6 / rate_radps), added before crosstalk"},
+      {"terms", terms_json(outside_terms(c, SimEffect::joint6_friction))}};
+  x["outside_model"]["swivel_viscous"] = {
+      {"enabled", c.effects.has(SimEffect::swivel_viscous)},
+      {"damping_Nms_per_rad", c.swivel_damping_Nms_per_rad},
+      {"formula",
+       "Mz -= damping_Nms_per_rad * wz_S (payload angular velocity about z of the true sensor "
+       "frame), added before crosstalk"},
+      {"terms", terms_json(outside_terms(c, SimEffect::swivel_viscous))}};
+  x["outside_model"]["hose_drag"] = {
+      {"enabled", c.effects.has(SimEffect::hose_drag)},
+      {"damping_Ns_per_m", c.hose_drag_Ns_per_m},
+      {"formula",
+       "F_S -= damping_Ns_per_m * v_S (velocity of the sensor origin in the true sensor frame), "
+       "no torque about the sensor origin, added before crosstalk"},
+      {"terms", terms_json(outside_terms(c, SimEffect::hose_drag))}};
+  x["outside_model"]["dress_pack_bend"] = {
+      {"enabled", c.effects.has(SimEffect::dress_pack_bend)},
+      {"force_N", c.dress_pack_bend_N},
+      {"formula",
+       "Fx += force_N * sin(q4) * sin(q5) (joint angles A4, A5), added before crosstalk"},
+      {"terms", terms_json(outside_terms(c, SimEffect::dress_pack_bend))}};
   x["rig_geometry"] = {{"imu_lever_arm_enabled", c.effects.has(SimEffect::imu_lever_arm)},
                        {"p_sensor_imu_m", vec_json(p_sensor_imu_m_)},
                        {"imu_mount_rotvec_rad", vec_json(c.imu_mount_rotvec_rad)},
@@ -403,8 +502,8 @@ Vec6 RigSimulator::wrench_of(const JointState& js, const FlangeMotion& fm, doubl
         w[i] += k[12 * j + i] * std::cos(q) + k[12 * j + 6 + i] * std::sin(q);
     }
   }
-  if (c.effects.has(SimEffect::joint6_friction))
-    w[5] += c.joint6_friction_Nm * std::tanh(js.qd_radps[5] / c.joint6_friction_rate_radps);
+  // Outside the model library: loads on the payload that the sensor carries like the others.
+  w += outside_wrench_of(js, fm, R_base_sensor);
   if (c.effects.has(SimEffect::crosstalk)) {
     const Eigen::Map<const Eigen::Matrix<double, 6, 6, Eigen::RowMajor>> E(
         c.params.block(Effect::crosstalk));
@@ -416,6 +515,45 @@ Vec6 RigSimulator::wrench_of(const JointState& js, const FlangeMotion& fm, doubl
   if (c.effects.has(SimEffect::temperature_bias))
     w += Eigen::Map<const Vec6>(c.params.block(Effect::temperature_bias)) *
          (c.temperature.at(t_s) - model::kTemperatureReferenceC);
+  return w;
+}
+
+Vec6 RigSimulator::outside_wrench_of(const JointState& js, const FlangeMotion& fm,
+                                     const Eigen::Matrix3d& R_base_sensor) const {
+  const SimConfig& c = config_;
+  Vec6 w = Vec6::Zero();
+  // A6 bearing friction, smoothed through zero rate.
+  if (c.effects.has(SimEffect::joint6_friction))
+    w[5] += c.joint6_friction_Nm * std::tanh(js.qd_radps[5] / c.joint6_friction_rate_radps);
+  // A rotary hose swivel on the z_S axis whose housing the hose holds still: its seal drags
+  // viscously against the payload's angular velocity about that axis.
+  if (c.effects.has(SimEffect::swivel_viscous)) {
+    const Eigen::Vector3d omega_sensor = R_base_sensor.transpose() * fm.omega_base_radps;
+    w[5] -= c.swivel_damping_Nms_per_rad * omega_sensor.z();
+  }
+  // A supply hose clamped at the sensor origin and dragged along: a viscous force against the
+  // origin's velocity, no torque about it.
+  if (c.effects.has(SimEffect::hose_drag)) {
+    const Eigen::Vector3d v_sensor =
+        R_base_sensor.transpose() * fm.velocity_of(fm.R_base_flange * c.p_flange_sensor_m);
+    w.head<3>() -= c.hose_drag_Ns_per_m * v_sensor;
+  }
+  // The dress pack over the wrist: its pull grows with the A5 bend, and A4 winds it round the
+  // forearm towards x_S.
+  if (c.effects.has(SimEffect::dress_pack_bend))
+    w[0] += c.dress_pack_bend_N * std::sin(js.q_rad[3]) * std::sin(js.q_rad[4]);
+  return w;
+}
+
+Vec6 RigSimulator::outside_wrench_at(double t_s) const {
+  const JointState js = trajectory_.at(t_s);
+  const FlangeMotion fm = flange_motion(js.q_rad, js.qd_radps, js.qdd_radps2);
+  Vec6 w = outside_wrench_of(js, fm, fm.R_base_flange * R_nominal_true_);
+  if (config_.effects.has(SimEffect::crosstalk)) {
+    const Eigen::Map<const Eigen::Matrix<double, 6, 6, Eigen::RowMajor>> E(
+        config_.params.block(Effect::crosstalk));
+    w = (Eigen::Matrix<double, 6, 6>::Identity() + E) * w;
+  }
   return w;
 }
 

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 
 #include "zerog/io/log.hpp"
@@ -88,6 +89,14 @@ double max_abs(const std::vector<Vec6>& d, int from = 0, int to = 6) {
   return m;
 }
 
+// Every switchable effect but those outside the model library.
+SimEffectSet all_in_the_model() {
+  SimEffectSet set = parse_sim_effects("all", {});
+  for (const auto& i : sim_effect_infos())
+    if (!outside_terms(default_sim_config(1), i.id).empty()) set.remove(i.id);
+  return set;
+}
+
 struct EffectCase {
   const char* name;
   SimEffectSet effects;
@@ -106,7 +115,7 @@ TEST(Simulator, ReproducedByTheModelLibraryForEachEffect) {
       {"sensor_rotation", {SimEffect::sensor_rotation}},
       {"cable", {SimEffect::cable}},
       {"imu_lever_arm", {SimEffect::imu_lever_arm}},
-      {"all in the model", parse_sim_effects("all,-joint6_friction", {})},
+      {"all in the model", all_in_the_model()},
   };
   for (const EffectCase& c : cases) {
     const RigSimulator sim(quiet_config(c.effects), path);
@@ -180,6 +189,154 @@ TEST(Simulator, Joint6FrictionIsOutsideTheModel) {
   EXPECT_GT(max_mz, 1.4);
   EXPECT_FALSE(out.truth.params.effects.has(Effect::crosstalk));
   EXPECT_TRUE(out.truth.extra["outside_model"]["joint6_friction"]["enabled"].get<bool>());
+}
+
+// The law of one outside effect evaluated from the simulator's own kinematics: flange twist from
+// the joint state, the true sensor frame, the sensor origin's velocity. Independent of
+// outside_terms (written from the brief's formulas).
+Vec6 outside_law(SimEffect effect, const Measurement& m, const JointState& js) {
+  Vec6 w = Vec6::Zero();
+  const Eigen::Matrix3d& R = m.R_base_sensor;
+  switch (effect) {
+    case SimEffect::swivel_viscous:
+      w[5] = -2.0 * (R.transpose() * m.flange.omega_base_radps).z();
+      break;
+    case SimEffect::hose_drag: {
+      // S origin: flange origin + R_BF p_FS; its velocity v_F + ω × (R_BF p_FS).
+      const Eigen::Vector3d lever = m.p_base_sensor_m - m.flange.p_base_flange_m;
+      const Eigen::Vector3d v_base =
+          m.flange.v_flange_base_mps + m.flange.omega_base_radps.cross(lever);
+      w.head<3>() = -25.0 * (R.transpose() * v_base);
+      break;
+    }
+    case SimEffect::dress_pack_bend:
+      w[0] = 8.0 * std::sin(js.q_rad[3]) * std::sin(js.q_rad[4]);
+      break;
+    default:
+      ADD_FAILURE() << "no law for " << info(effect).name;
+  }
+  return w;
+}
+
+TEST(Simulator, OutsideEffectsAddExactlyTheirLaw) {
+  const std::vector<JointVector> path = short_path();
+  for (SimEffect e :
+       {SimEffect::swivel_viscous, SimEffect::hose_drag, SimEffect::dress_pack_bend}) {
+    SCOPED_TRACE(info(e).name);
+    // Sensor rotation and an IMU lever arm on, so that "in S" and "of the S origin" matter.
+    const SimEffectSet base = {SimEffect::rotational_inertia, SimEffect::sensor_rotation,
+                               SimEffect::cable, SimEffect::bias_drift};
+    SimEffectSet with = base;
+    with.add(e);
+    const RigSimulator off(quiet_config(base), path);
+    const RigSimulator on(quiet_config(with), path);
+    EXPECT_FALSE(info(e).model_effect.has_value());
+    double largest = 0.0, sum2 = 0.0;
+    int n = 0;
+    for (double t = 0.0; t < on.trajectory().duration_s(); t += 0.25) {
+      const JointState js = on.trajectory().at(t);
+      const Measurement m = on.measure(js, t);
+      const Vec6 added = m.wrench_sensor - off.measure(js, t).wrench_sensor;
+      const Vec6 law = outside_law(e, m, js);
+      EXPECT_LT((added - law).cwiseAbs().maxCoeff(), 1e-9) << "t = " << t;
+      EXPECT_LT((on.outside_wrench_at(t) - law).cwiseAbs().maxCoeff(), 1e-12) << "t = " << t;
+      largest = std::max(largest, law.cwiseAbs().maxCoeff());
+      sum2 += law.squaredNorm();
+      ++n;
+    }
+    ASSERT_GT(n, 80);
+    // Clearly above the F/T noise (0.25 N, 0.03 N·m) on this short path.
+    EXPECT_GT(largest, e == SimEffect::swivel_viscous ? 0.5 : 5.0);
+    std::printf("  %-16s largest %.3g, RMS over axes %.3g (N or N*m)\n", info(e).name, largest,
+                std::sqrt(sum2 / n));
+  }
+}
+
+TEST(Simulator, OutsideEffectsGoThroughTheCrosstalk) {
+  const std::vector<JointVector> path = short_path();
+  const RigSimulator sim(quiet_config({SimEffect::hose_drag, SimEffect::crosstalk}), path);
+  const SimConfig& c = sim.config();
+  const Eigen::Map<const Eigen::Matrix<double, 6, 6, Eigen::RowMajor>> E(
+      c.params.block(Effect::crosstalk));
+  const double t = 3.3;
+  const Measurement m = sim.measure(sim.trajectory().at(t), t);
+  const Vec6 law = outside_law(SimEffect::hose_drag, m, sim.trajectory().at(t));
+  ASSERT_GT(law.norm(), 1.0);
+  EXPECT_LT((sim.outside_wrench_at(t) - (Vec6(law) + E * law)).norm(), 1e-9);
+}
+
+TEST(Simulator, OutsideTermsAreTheLaw) {
+  SimConfig c = default_sim_config(7);
+  c.effects = parse_sim_effects("-rotational_inertia");
+  EXPECT_TRUE(outside_terms(c).empty());
+  const auto expect_terms = [](const std::vector<OutsideTerm>& got,
+                               const std::vector<OutsideTerm>& want) {
+    ASSERT_EQ(got.size(), want.size());
+    for (std::size_t k = 0; k < want.size(); ++k) {
+      EXPECT_EQ(got[k].axis, want[k].axis) << k;
+      EXPECT_EQ(got[k].basis, want[k].basis) << k;
+      EXPECT_EQ(got[k].coefficient, want[k].coefficient) << k;
+    }
+  };
+  expect_terms(outside_terms(c, SimEffect::joint6_friction), {{"Mz", "tanh(qd6/0.02)", 1.5}});
+  expect_terms(outside_terms(c, SimEffect::swivel_viscous), {{"Mz", "wz_S", -2.0}});
+  expect_terms(outside_terms(c, SimEffect::hose_drag),
+               {{"Fx", "vx_S", -25.0}, {"Fy", "vy_S", -25.0}, {"Fz", "vz_S", -25.0}});
+  expect_terms(outside_terms(c, SimEffect::dress_pack_bend), {{"Fx", "sin(q4)*sin(q5)", 8.0}});
+  for (SimEffect e : {SimEffect::cable, SimEffect::crosstalk, SimEffect::imu_lever_arm})
+    EXPECT_TRUE(outside_terms(c, e).empty()) << info(e).name;
+
+  // Switched on, in SimEffect order; the values follow set_config_value.
+  c.effects = parse_sim_effects("dress_pack_bend,swivel_viscous,cable");
+  set_config_value(c, "swivel_viscous.damping", 3.5);
+  set_config_value(c, "dress_pack_bend.force", -6.0);
+  expect_terms(outside_terms(c), {{"Mz", "wz_S", -3.5}, {"Fx", "sin(q4)*sin(q5)", -6.0}});
+  c.effects = parse_sim_effects("all");
+  set_config_value(c, "hose_drag.damping", 40.0);
+  set_config_value(c, "joint6_friction.rate", 0.05);
+  const std::vector<OutsideTerm> all = outside_terms(c);
+  ASSERT_EQ(all.size(), 6u);
+  EXPECT_EQ(all[0].basis, "tanh(qd6/0.05)");
+  EXPECT_EQ(all[2].coefficient, -40.0);
+}
+
+TEST(Simulator, OutsideEffectsInTheTruthFileAndSettable) {
+  SimConfig c = default_sim_config(2);
+  c.effects = parse_sim_effects("swivel_viscous,hose_drag");
+  set_config_value(c, "swivel_viscous.damping", 1.25);
+  set_config_value(c, "hose_drag.damping", 30.0);
+  set_config_value(c, "dress_pack_bend.force", 4.5);
+  EXPECT_EQ(c.swivel_damping_Nms_per_rad, 1.25);
+  EXPECT_EQ(c.hose_drag_Ns_per_m, 30.0);
+  EXPECT_EQ(c.dress_pack_bend_N, 4.5);
+  EXPECT_THROW(set_config_value(c, "hose_drag.drag", 1.0), std::invalid_argument);
+  bool listed = false;
+  for (const auto& [key, value] : config_values(c))
+    if (key == "dress_pack_bend.force") listed = value == 4.5;
+  EXPECT_TRUE(listed);
+  c.duration_limit_s = 1.0;
+  const io::ModelFile t = RigSimulator(c, short_path()).truth();
+  const nlohmann::json& x = t.extra["outside_model"];
+  EXPECT_TRUE(x["swivel_viscous"]["enabled"].get<bool>());
+  EXPECT_EQ(x["swivel_viscous"]["damping_Nms_per_rad"].get<double>(), 1.25);
+  EXPECT_TRUE(x["hose_drag"]["enabled"].get<bool>());
+  EXPECT_EQ(x["hose_drag"]["damping_Ns_per_m"].get<double>(), 30.0);
+  EXPECT_FALSE(x["dress_pack_bend"]["enabled"].get<bool>());
+  EXPECT_EQ(x["dress_pack_bend"]["force_N"].get<double>(), 4.5);
+  EXPECT_FALSE(x["joint6_friction"]["enabled"].get<bool>());
+  EXPECT_EQ(x["hose_drag"]["terms"][1]["axis"].get<std::string>(), "Fy");
+  EXPECT_EQ(x["hose_drag"]["terms"][1]["basis"].get<std::string>(), "vy_S");
+  EXPECT_EQ(x["hose_drag"]["terms"][1]["coefficient"].get<double>(), -30.0);
+  EXPECT_EQ(x["dress_pack_bend"]["terms"][0]["basis"].get<std::string>(), "sin(q4)*sin(q5)");
+  // Outside the library: the model effects of the truth are the default ones.
+  const model::EffectSet expected = {Effect::bias, Effect::gravity, Effect::linear_inertia,
+                                     Effect::rotational_inertia};
+  EXPECT_EQ(t.params.effects, expected);
+  // And by name on the command line.
+  EXPECT_EQ(parse_sim_effects("hose_drag,dress_pack_bend,-rotational_inertia"),
+            SimEffectSet({SimEffect::hose_drag, SimEffect::dress_pack_bend}));
+  ASSERT_TRUE(sim_effect_from_name("swivel_viscous").has_value());
+  EXPECT_EQ(*sim_effect_from_name("swivel_viscous"), SimEffect::swivel_viscous);
 }
 
 TEST(Simulator, StaticSampleIsWeightWithinNoise) {

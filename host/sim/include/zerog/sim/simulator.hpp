@@ -36,8 +36,11 @@ enum class SimEffect : std::uint8_t {
   cable,
   imu_lever_arm,    ///< rig geometry, not a model effect: IMU origin off the sensor origin
   joint6_friction,  ///< outside the model library: Mz follows the sign of the A6 rate
+  swivel_viscous,   ///< outside the model library: Mz drags against the payload's rate about z_S
+  hose_drag,        ///< outside the model library: force against the sensor origin's velocity
+  dress_pack_bend,  ///< outside the model library: Fx follows sin(A4)·sin(A5)
 };
-inline constexpr int kSimEffectCount = 10;
+inline constexpr int kSimEffectCount = 13;
 
 struct SimEffectInfo {
   SimEffect id;
@@ -125,6 +128,9 @@ struct SimConfig {
   model::ModelParams params;
   double joint6_friction_Nm = 1.5;  ///< Mz = T tanh(q̇6 / rate)
   double joint6_friction_rate_radps = 0.02;
+  double swivel_damping_Nms_per_rad = 2.0;  ///< swivel_viscous: Mz −= b ω_z (ω in S)
+  double hose_drag_Ns_per_m = 25.0;         ///< hose_drag: F −= c v (S origin's velocity, S)
+  double dress_pack_bend_N = 8.0;           ///< dress_pack_bend: Fx += k sin(q4) sin(q5)
   Eigen::Vector3d imu_lever_arm_m{0.045, -0.030, -0.035};  ///< p_sensor_imu when imu_lever_arm on
   Eigen::Vector3d imu_mount_rotvec_rad = Eigen::Vector3d::Zero();  ///< R_sensor_imu = Exp(·)
   Eigen::Vector3d p_flange_sensor_m{0.0, 0.0, 0.06};
@@ -144,10 +150,29 @@ struct SimConfig {
 SimConfig default_sim_config(std::uint64_t seed);
 
 /// Sets one named value, e.g. "imu_time_offset.tau", "gravity.mass", "noise.force",
-/// "joint6_friction.torque". Throws std::invalid_argument listing the valid keys.
+/// "joint6_friction.torque", "swivel_viscous.damping", "hose_drag.damping",
+/// "dress_pack_bend.force". Throws std::invalid_argument listing the valid keys.
 void set_config_value(SimConfig& config, const std::string& key, double value);
 /// All keys with their current values, for --list-effects.
 std::vector<std::pair<std::string, double>> config_values(const SimConfig& config);
+
+/// One term of an outside-library truth effect: `axis` ("Fx".."Mz", sensor frame S) +=
+/// coefficient · basis. `basis` is named as the signal dictionary names it
+/// (firmware/model/include/zerog/model/dictionary.hpp, proto/user_effects.md): "wz_S",
+/// "tanh(qd6/0.02)", "sin(q4)*sin(q5)" (a product lists the lower-numbered signal first).
+/// Coefficients in SI: N or N·m per unit of the basis.
+struct OutsideTerm {
+  std::string axis;
+  std::string basis;
+  double coefficient;
+};
+/// The exact law of every outside-library effect switched on in `config` (empty if none), in
+/// SimEffect order. The simulator adds these wrenches to the payload's before the sensor's
+/// crosstalk: with crosstalk off the noise-free reading gains exactly Σ coefficient · basis.
+std::vector<OutsideTerm> outside_terms(const SimConfig& config);
+/// The same for one named effect ("joint6_friction", ...) whether switched on or not; empty for
+/// an effect the model library has and for imu_lever_arm (rig geometry).
+std::vector<OutsideTerm> outside_terms(const SimConfig& config, SimEffect effect);
 
 /// Noise-free IMU signals in the IMU frame I, as logged (including the time offset).
 struct ImuTruth {
@@ -170,7 +195,8 @@ struct ExternalWrench {
 /// effect, and the kinematics they came from.
 struct Measurement {
   /// Force (N) and torque about the S origin (N·m) in the true sensor frame S, as the sensor
-  /// reads it (bias, drift, temperature, cable, friction and crosstalk included).
+  /// reads it (bias, drift, temperature, cable, the outside-library effects and crosstalk
+  /// included).
   Eigen::Matrix<double, 6, 1> wrench_sensor = Eigen::Matrix<double, 6, 1>::Zero();
   ImuTruth imu;         ///< IMU frame I, of the joint state given for the IMU
   FlangeMotion flange;  ///< of the joint state given for the wrench, base axes
@@ -231,6 +257,10 @@ class RigSimulator {
   /// Noise-free sensor wrench at t of the trajectory (force N, torque N·m about S, true sensor
   /// frame S).
   Eigen::Matrix<double, 6, 1> wrench_at(double t_s) const;
+  /// The part of wrench_at(t_s) that the switched-on outside-library effects add (joint6_friction,
+  /// swivel_viscous, hose_drag, dress_pack_bend), as the sensor reads it: through the crosstalk
+  /// when that is on. Zero if none is on. What the truth model file cannot predict.
+  Eigen::Matrix<double, 6, 1> outside_wrench_at(double t_s) const;
 
   /// Runs the whole trajectory (or up to duration_limit_s). `progress` gets the fraction done.
   SimOutput run(const std::function<void(double)>& progress = {}) const;
@@ -240,6 +270,9 @@ class RigSimulator {
                                         std::span<const ExternalWrench> pushes,
                                         Measurement* kinematics) const;
   ImuTruth imu_of(const FlangeMotion& fm) const;
+  /// The outside-library effects' wrench on the payload (before crosstalk), S.
+  Eigen::Matrix<double, 6, 1> outside_wrench_of(const JointState& js, const FlangeMotion& fm,
+                                                const Eigen::Matrix3d& R_base_sensor) const;
 
   SimConfig config_;
   PtpTrajectory trajectory_;
