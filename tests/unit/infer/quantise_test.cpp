@@ -100,22 +100,34 @@ TEST(Quantise, SixteenBitWeightsStayWithinAnEighthOfTheSensorResolution) {
   }
 }
 
-TEST(Quantise, EightBitWeightsMeasuredAgainstTheBriefBound) {
-  // Reported, not the deployed default: 8-bit weights meet the looser 0.1 N / 0.01 N·m only on
-  // small networks (proto/deploy_format.md explains the choice).
+TEST(Quantise, EightBitWeightsStayWithinTheirMeasuredBoundAndMissTheBriefs) {
+  // Not the deployed default: proto/deploy_format.md's table, measured here. Worst over these
+  // networks: 0.28 N and 0.068 N*m (of 20,000 samples each); asserted with a 1.4x margin, so a
+  // change that makes 8-bit quantisation worse fails here. And every network misses the brief's
+  // 0.1 N / 0.01 N*m (the torque by 2-7x), which is why the default is 16-bit: if 8-bit weights
+  // ever meet it, this fails and the choice and the document need another look.
+  constexpr double kEightBitForce_N = 0.4, kEightBitTorque_Nm = 0.1;
   const auto data = test::random_samples(4000, 11);
   std::uint64_t seed = 100;
   int within = 0, total = 0;
+  double worst_force_N = 0.0, worst_torque_Nm = 0.0;
   for (const Case& c : cases()) {
     const DeployedNetwork net =
         test::make_network(c.features, c.hidden, c.activation, data, c.gain, ++seed, 8);
     const MaxError e = measure(net, 20000, seed + 1000);
     std::printf("   8-bit %-28s max |q - f|: %.2e N  %.2e N*m\n", c.name, e.force_N, e.torque_Nm);
+    EXPECT_LE(e.force_N, kEightBitForce_N) << c.name;
+    EXPECT_LE(e.torque_Nm, kEightBitTorque_Nm) << c.name;
     within += (e.force_N <= kForceBrief_N && e.torque_Nm <= kTorqueBrief_Nm) ? 1 : 0;
+    worst_force_N = std::max(worst_force_N, e.force_N);
+    worst_torque_Nm = std::max(worst_torque_Nm, e.torque_Nm);
     ++total;
   }
-  std::printf("   8-bit within 0.1 N / 0.01 N*m: %d of %d networks\n", within, total);
-  SUCCEED();
+  std::printf(
+      "   8-bit worst %.3f N, %.4f N*m (bound %.1f N, %.1f N*m); within 0.1 N / 0.01 N*m: "
+      "%d of %d networks\n",
+      worst_force_N, worst_torque_Nm, kEightBitForce_N, kEightBitTorque_Nm, within, total);
+  EXPECT_EQ(within, 0);
 }
 
 // A network fitted here: 15 features → 32 tanh → 6, to a residual of cable-, friction- and

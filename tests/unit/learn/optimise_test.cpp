@@ -121,7 +121,22 @@ TEST(Optimise, DeterministicForASeedWhateverTheThreadCount) {
   const auto val = known_function(100, 7);
   model::NetworkShape shape{{2, 6, 1}, {Activation::sigmoid, Activation::identity}};
   const auto norm = learn::normalisation_for(train);
-  EXPECT_EQ(learn::initial_params(shape, 9), learn::initial_params(shape, 9));
+  // The initial weights, computed here from the standard's mt19937_64 sequence (fixed by the
+  // C++ standard, so the same on every platform) and the documented rule: uniform in ±a with
+  // Glorot's a = √(6 / (n_in + n_out)), biases zero.
+  {
+    std::mt19937_64 gen(9);
+    const auto uniform = [&gen] { return static_cast<double>(gen() >> 11) * 0x1.0p-52 - 1.0; };
+    std::vector<double> expected;
+    const auto layer = [&](int n_in, int n_out) {
+      const double a = std::sqrt(6.0 / (n_in + n_out));
+      for (int k = 0; k < n_in * n_out; ++k) expected.push_back(a * uniform());
+      expected.insert(expected.end(), static_cast<std::size_t>(n_out), 0.0);
+    };
+    layer(2, 6);  // sigmoid
+    layer(6, 1);  // identity
+    EXPECT_EQ(learn::initial_params(shape, 9), expected);
+  }
   EXPECT_NE(learn::initial_params(shape, 9), learn::initial_params(shape, 10));
   learn::LmOptions o;
   o.max_iterations = 30;

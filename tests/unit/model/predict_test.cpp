@@ -61,7 +61,13 @@ TEST(Predict, LinearInertiaAtRestEqualsGravityFromPose) {
   const Wrench<double> from_pose = eval(payload({Effect::gravity}), pose, imu, rig);
   const Wrench<double> from_imu =
       eval(payload({Effect::gravity, Effect::linear_inertia}), pose, imu, rig);
-  EXPECT_NEAR((from_pose - from_imu).norm(), 0.0, 1e-9);
+  // Both against the hand computation (000_… eq. 2–3), not only against each other.
+  const Eigen::Vector3d F = 100.0 * g_S;
+  const Eigen::Vector3d c(0.03, -0.02, 0.25);
+  for (const Wrench<double>& w : {from_pose, from_imu}) {
+    EXPECT_NEAR((w.head<3>() - F).norm(), 0.0, 1e-9);
+    EXPECT_NEAR((w.tail<3>() - c.cross(F)).norm(), 0.0, 1e-9);
+  }
 }
 
 TEST(Predict, LinearInertiaAddsCentripetalTermAtTheCentreOfMass) {
@@ -120,13 +126,16 @@ TEST(Predict, DriftTemperatureCrosstalkAndCable) {
   p.block(Effect::temperature_bias)[5] = 0.1;    // Mz: 0.1 N·m/K
   p.block(Effect::cable)[2 * 12 + 6 + 1] = 3.0;  // A6 sine → Fy, 3 N
   PoseSignals pose;
-  pose.R_base_sensor = rot_x(M_PI / 2);  // gravity along sensor +y… (R^T (0,0,−g))
+  pose.R_base_sensor = rot_x(M_PI / 2);  // gravity along sensor −y: R^T (0,0,−g) = (0,−g,0)
   pose.t_rel_s = 100.0;
   pose.temperature_C = 30.0;
   pose.joints_rad[5] = M_PI / 2;
   const Wrench<double> w = eval(p, pose, {});
-  ModelParams g = payload({Effect::gravity});
-  Wrench<double> base = eval(g, pose, {});
+  // By hand, not by the model: the payload's weight F = m g_S and M = c × F (000_… eq. 2–3) …
+  const Eigen::Vector3d F(0.0, -100.0 * kStandardGravity, 0.0);
+  Wrench<double> base;
+  base << F, Eigen::Vector3d(0.03, -0.02, 0.25).cross(F);
+  // … then each effect's term.
   base[1] += 3.0;  // cable acts on the sensor, so it also sees the crosstalk
   const double fy = base[1];
   base[0] += 0.01 * fy;
