@@ -1,6 +1,7 @@
 #include "zerog/ident/diagnose.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
@@ -351,6 +352,10 @@ std::string law_text(const model::UserEffects& u, int j, double sd) {
 std::optional<Discovery> discover_law(const Dataset& data, const Baseline& base, const Split& split,
                                       const DiagnoseOptions& o,
                                       const std::array<double, 6>& scale) {
+  const auto start = std::chrono::steady_clock::now();
+  const auto since_start = [&] {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  };
   const std::size_t m = static_cast<std::size_t>(std::max(1, o.fit.block_samples));
   const auto train_blocks = mask_blocks(split.train, m);
   const auto held_blocks = mask_blocks(split.heldout, m);
@@ -531,10 +536,12 @@ std::optional<Discovery> discover_law(const Dataset& data, const Baseline& base,
       const Eigen::VectorXd xp = x - QA * (QA.transpose() * x);
       const double xx = xp.squaredNorm();
       if (!(xx > 1e-9 * x.squaredNorm())) continue;
-      // Heteroscedasticity-robust statistic of the coefficient (White's sandwich): moving
-      // blocks carry more noise (IMU noise × mass) than dwells.
+      // Heteroscedasticity-robust statistic of the coefficient (White's sandwich, HC0, on the
+      // residual with the column in the fit): moving blocks carry more noise (IMU noise × mass)
+      // than dwells.
       const double num = xp.dot(r_cur);
-      const double var = (xp.array().square() * r_cur.array().square()).sum();
+      const Eigen::VectorXd e = r_cur - (num / xx) * xp;
+      const double var = (xp.array().square() * e.array().square()).sum();
       const double z = var > 0 ? std::abs(num) / std::sqrt(var) : 0.0;
       if (z > best_z) best_z = z, best = c;
     }
@@ -555,6 +562,7 @@ std::optional<Discovery> discover_law(const Dataset& data, const Baseline& base,
     X_train = Xt;
     X_held = Xh;
   }
+  d.search_seconds = since_start();
   if (chosen.empty()) return std::nullopt;
 
   // The effect: the chosen terms, refitted with the whole model on the training blocks.
@@ -589,6 +597,7 @@ std::optional<Discovery> discover_law(const Dataset& data, const Baseline& base,
   }
   d.heldout = heldout_error(residuals(d.fit.params, data), split.heldout, scale);
   d.gain = 1.0 - d.heldout.whitened_mse / base.heldout.whitened_mse;
+  d.seconds = since_start();
   return d;
 }
 
@@ -816,6 +825,7 @@ nlohmann::json to_json(const Diagnosis& d) {
     }
     dj["heldout"] = heldout_json(x.heldout);
     dj["gain"] = x.gain;
+    dj["seconds"] = x.seconds;
     dj["dictionary_size"] = x.dictionary_size;
     dj["z_threshold"] = x.z_threshold;
     dj["effect_file"] = x.path.empty() ? nlohmann::json(nullptr) : nlohmann::json(x.path);

@@ -49,6 +49,8 @@ struct Discovery {
   double z_threshold = 0.0;       ///< a term must pass this (Bonferroni over the dictionary)
   std::vector<std::string> laws;  ///< "Mz += 1.49 ± 0.01 N*m · tanh(qd6/0.02)"
   std::string path;               ///< the effect file written (empty if none)
+  double search_seconds = 0.0;    ///< screening and pursuit (without the final refit)
+  double seconds = 0.0;           ///< the whole discovery, refit included
 };
 
 struct Diagnosis {
