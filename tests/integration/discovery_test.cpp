@@ -177,6 +177,14 @@ TEST_P(SlowNoise, NothingIsDiscovered) {
   const ident::Diagnosis d = ident::diagnose(run.data, o);
   EXPECT_GT(d.structured_fraction, 0.05) << "the wander must look like structure";
   EXPECT_FALSE(d.discovery) << ident::format_diagnosis(d);
+  // The mutant: without its statistical gates (any |z|, any held-out change, any gain) discovery
+  // does invent a law in this noise — the gates are what keep it out, and this test sees them.
+  o.discovery_alpha = 1.0;
+  o.min_term_gain = -1e9;
+  o.min_law_gain = -1e9;
+  const ident::Diagnosis mutant = ident::diagnose(run.data, o);
+  ASSERT_TRUE(mutant.discovery) << "the mutant should have proposed something";
+  EXPECT_GT(mutant.discovery->effect.num_terms, 0);
 }
 
 INSTANTIATE_TEST_SUITE_P(Seeds, SlowNoise, ::testing::ValuesIn(kSeeds));

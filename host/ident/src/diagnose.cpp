@@ -517,7 +517,7 @@ std::optional<Discovery> discover_law(const Dataset& data, const Baseline& base,
   Discovery d;
   d.dictionary_size = searched;
   // Bonferroni over every column searched: a noise column passes with probability 1 %.
-  d.z_threshold = normal_two_sided_quantile(0.01 / std::max(1, searched));
+  d.z_threshold = normal_two_sided_quantile(o.discovery_alpha / std::max(1, searched));
   std::vector<std::size_t> chosen;
   Eigen::MatrixXd X_train(Nt, 0), X_held(Nh, 0);
   double held_prev = held_base;
@@ -687,7 +687,7 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
       if (o.progress)
         o.progress("diagnose: no library effect explains it; searching the signal dictionary");
       d.discovery = discover_law(data, base, split, o, d.noise_rms);
-      if (d.discovery && d.discovery->gain < 0.02) d.discovery.reset();
+      if (d.discovery && d.discovery->gain < o.min_law_gain) d.discovery.reset();
     }
     os << "No library effect explains the remaining structure: "
        << fmt("%.0f", 100 * d.structured_fraction) << "% of the held-out error is structured, ";

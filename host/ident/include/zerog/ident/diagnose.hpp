@@ -89,6 +89,10 @@ struct DiagnoseOptions {
   int max_discovered_terms = 8;
   /// A term must remove at least this share of the baseline's held-out whitened MSE.
   double min_term_gain = 0.003;
+  /// Family-wise error rate of the term statistic (Bonferroni over every column searched).
+  double discovery_alpha = 0.01;
+  /// A law must remove at least this share of the baseline's held-out whitened MSE.
+  double min_law_gain = 0.02;
   std::function<void(const std::string&)> progress;
 };
 
