@@ -86,10 +86,12 @@ struct Baseline {
   HeldOut heldout;
 };
 
-Baseline fit_baseline(const Dataset& data, const model::EffectSet& effects, const Split& split,
-                      const DiagnoseOptions& o, const model::ModelParams* initial) {
+Baseline fit_baseline(const Dataset& data, const model::EffectSet& effects,
+                      const model::UserEffects& user, const Split& split, const DiagnoseOptions& o,
+                      const model::ModelParams* initial) {
   FitOptions fo = o.fit;
   fo.effects = effects;
+  fo.user = user;
   fo.mask = &split.train;
   fo.covariance = false;
   fo.initial = initial;
@@ -115,25 +117,34 @@ std::vector<Candidate> evaluate_candidates(const Dataset& data, const Baseline& 
                                            const std::array<double, 6>& scale) {
   std::vector<Candidate> out;
   const auto effects = candidate_effects(base.fit.params.effects, data);
-  int k = 0;
-  for (Effect e : effects) {
-    ++k;
-    if (o.progress)
-      o.progress("  candidate " + std::to_string(k) + "/" + std::to_string(effects.size()) + ": " +
-                 model::info(e).name);
-    Candidate c;
-    c.effect = e;
-    c.effects = base.fit.params.effects;
-    c.effects.add(e);
+  // The user-defined candidates the model does not hold yet (by name) and the log can feed.
+  std::vector<int> users;
+  for (std::size_t u = 0; u < o.user_candidates.size(); ++u) {
+    const model::UserEffects& cand = o.user_candidates[u].effect;
+    bool held = false;
+    for (int k = 0; k < base.fit.params.user.num_effects; ++k)
+      held = held || io::user_effect_name(base.fit.params.user, k) == io::user_effect_name(cand, 0);
+    if (held) continue;
+    try {
+      check_signals(cand, data);
+    } catch (const std::runtime_error&) {
+      continue;
+    }
+    users.push_back(static_cast<int>(u));
+  }
+  const std::size_t total = effects.size() + users.size();
+  // Fits the model with one more candidate and measures it on the held-out blocks.
+  auto evaluate = [&](Candidate c, const model::UserEffects& user) {
     FitOptions fo = o.fit;
     fo.effects = c.effects;
+    fo.user = user;
     fo.mask = &split.train;
     fo.covariance = false;
     fo.initial = &base.fit.params;
     fo.sigma = base.fit.sigma;
     fo.progress = nullptr;
     c.fit = fit(data, fo);
-    if (!c.fit.usable) continue;
+    if (!c.fit.usable) return;
     const auto res = residuals(c.fit.params, data);
     c.heldout = heldout_error(res, split.heldout, scale);
     c.gain = 1.0 - c.heldout.whitened_mse / base.heldout.whitened_mse;
@@ -144,6 +155,32 @@ std::vector<Candidate> evaluate_candidates(const Dataset& data, const Baseline& 
     }
     c.delta_bic = c.fit.bic - base.fit.bic;
     out.push_back(std::move(c));
+  };
+  std::size_t k = 0;
+  for (Effect e : effects) {
+    ++k;
+    if (o.progress)
+      o.progress("  candidate " + std::to_string(k) + "/" + std::to_string(total) + ": " +
+                 model::info(e).name);
+    Candidate c;
+    c.effect = e;
+    c.name = model::info(e).name;
+    c.effects = base.fit.params.effects;
+    c.effects.add(e);
+    evaluate(std::move(c), base.fit.params.user);
+  }
+  for (int u : users) {
+    ++k;
+    const model::UserEffects& cand = o.user_candidates[static_cast<std::size_t>(u)].effect;
+    Candidate c;
+    c.user = u;
+    c.name = "@" + io::user_effect_name(cand, 0);
+    if (o.progress)
+      o.progress("  candidate " + std::to_string(k) + "/" + std::to_string(total) + ": " + c.name);
+    c.effects = base.fit.params.effects;
+    model::UserEffects user = base.fit.params.user;
+    io::append_user_effects(user, cand);
+    evaluate(std::move(c), user);
   }
   std::sort(out.begin(), out.end(),
             [](const Candidate& a, const Candidate& b) { return a.gain > b.gain; });
@@ -246,6 +283,19 @@ std::string fmt(const char* f, double a) {
 }
 
 std::string param_summary(const Candidate& c) {
+  if (c.user >= 0) {
+    // The candidate's terms are the last ones of the fitted model's user effects.
+    const model::UserEffects& u = c.fit.params.user;
+    const int k = u.num_effects - 1;
+    std::string s;
+    for (int j = 0; j < u.num_terms; ++j) {
+      const model::UserTerm& t = u.terms[static_cast<std::size_t>(j)];
+      if (t.effect != k) continue;
+      s += (s.empty() ? "" : ", ") + io::term_axis_name(t) + "*" + io::basis_text(t.basis) + " = " +
+           fmt("%.4g", u.coeff[static_cast<std::size_t>(j)]) + " " + io::coefficient_unit(t);
+    }
+    return s;
+  }
   const auto& ei = model::info(c.effect);
   std::string s;
   const double* v = c.fit.params.block(c.effect);
@@ -625,7 +675,7 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
   const Split split = make_split(data, o);
   if (o.progress)
     o.progress("diagnose: fitting " + io::effect_list_string(d.model) + " on the training blocks");
-  Baseline base = fit_baseline(data, d.model, split, o, o.fit.initial);
+  Baseline base = fit_baseline(data, d.model, o.fit.user, split, o, o.fit.initial);
   d.baseline = base.fit;
   d.baseline_heldout = base.heldout;
 
@@ -662,25 +712,46 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
   } else if (!d.candidates.empty() && d.candidates[0].gain > 0.02 && explained >= 0.5) {
     const Candidate& c = d.candidates[0];
     d.verdict = Diagnosis::Verdict::effect;
-    const auto& ei = model::info(c.effect);
     const auto& ch = c.heldout.stats;
-    os << "Missing effect: " << ei.name << " (" << ei.summary << "). Adding it removes "
+    const std::string summary =
+        c.user >= 0
+            ? "your effect file " + o.user_candidates[static_cast<std::size_t>(c.user)].source
+            : std::string(model::info(c.effect).summary);
+    const int num_params =
+        c.user >= 0 ? o.user_candidates[static_cast<std::size_t>(c.user)].effect.num_terms
+                    : model::info(c.effect).num_params;
+    auto params_of = [&](const Candidate& x) {
+      return x.user >= 0 ? o.user_candidates[static_cast<std::size_t>(x.user)].effect.num_terms
+                         : model::info(x.effect).num_params;
+    };
+    os << "Missing effect: " << c.name << " (" << summary << "). Adding it removes "
        << fmt("%.0f", 100 * c.gain) << "% of the held-out error (force RMS "
        << fmt("%.3f", h.force_rms) << " -> " << fmt("%.3f", ch.force_rms) << " N, torque RMS "
        << fmt("%.3f", h.torque_rms) << " -> " << fmt("%.3f", ch.torque_rms) << " N*m)";
     if (d.candidates.size() > 1 && gains_tie(c.gain, d.candidates[1].gain)) {
       const Candidate& alt = d.candidates[1];
-      os << "; " << model::info(alt.effect).name << " removes as much ("
-         << fmt("%.0f", 100 * alt.gain) << "%) because it can mimic it, but with "
-         << model::info(alt.effect).num_params << " parameters against " << ei.num_params
-         << ": the information criterion prefers " << ei.name;
+      os << "; " << alt.name << " removes as much (" << fmt("%.0f", 100 * alt.gain)
+         << "%) because it can mimic it, but with " << params_of(alt) << " parameters against "
+         << num_params << ": the information criterion prefers " << c.name;
     } else if (d.candidates.size() > 1) {
-      os << "; the next best, " << model::info(d.candidates[1].effect).name << ", removes "
+      os << "; the next best, " << d.candidates[1].name << ", removes "
          << fmt("%.0f", 100 * d.candidates[1].gain) << "%";
     }
     os << ". Estimated: " << param_summary(c) << ".";
-    d.command = "zerog fit " + o.log_path + " --effects " + io::effect_list_string(c.effects) +
-                " --out fitted.json";
+    {
+      const std::string model =
+          o.model_text.empty() ? io::model_spec_string(d.model, o.fit.user) : o.model_text;
+      // The model as given plus the candidate: a library name goes before the files.
+      std::string library = io::effect_list_string(c.effects);
+      const std::string files = model.find(",@") != std::string::npos
+                                    ? model.substr(model.find(",@"))
+                                    : (model.rfind('@', 0) == 0 ? "," + model : std::string());
+      if (c.user >= 0)
+        library += files + ",@" + o.user_candidates[static_cast<std::size_t>(c.user)].source;
+      else
+        library += files;
+      d.command = "zerog fit " + o.log_path + " --effects " + library + " --out fitted.json";
+    }
   } else {
     d.verdict = Diagnosis::Verdict::none;
     if (o.discover) {
@@ -692,8 +763,8 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
     os << "No library effect explains the remaining structure: "
        << fmt("%.0f", 100 * d.structured_fraction) << "% of the held-out error is structured, ";
     if (!d.candidates.empty())
-      os << "but the best candidate, " << model::info(d.candidates[0].effect).name
-         << ", removes only " << fmt("%.0f", 100 * std::max(0.0, d.candidates[0].gain)) << "% ("
+      os << "but the best candidate, " << d.candidates[0].name << ", removes only "
+         << fmt("%.0f", 100 * std::max(0.0, d.candidates[0].gain)) << "% ("
          << fmt("%.0f", 100 * std::max(0.0, explained)) << "% of the structure). ";
     else
       os << "and no candidate is left to try. ";
@@ -747,8 +818,9 @@ std::vector<LadderStep> ladder(const Dataset& data, const LadderOptions& o) {
       o.diagnose.fit.effects.size() ? o.diagnose.fit.effects : model::kMinimalModel;
   if (o.diagnose.progress)
     o.diagnose.progress("ladder: step 0, " + io::effect_list_string(effects));
-  Baseline base = fit_baseline(data, effects, split, o.diagnose, nullptr);
-  steps.push_back({effects, std::nullopt, base.heldout, base.fit.bic, 0.0});
+  Baseline base = fit_baseline(data, effects, o.diagnose.fit.user, split, o.diagnose, nullptr);
+  steps.push_back(
+      {effects, base.fit.params.user, std::nullopt, "", base.heldout, base.fit.bic, 0.0});
   for (int s = 0; s < o.max_steps; ++s) {
     // Gains are measured against the noise of this step's residuals.
     const auto scale = noise_estimate(base.res, split.heldout);
@@ -758,12 +830,15 @@ std::vector<LadderStep> ladder(const Dataset& data, const LadderOptions& o) {
     const Candidate& best = cands[0];
     if (best.gain < o.min_gain || best.delta_bic >= 0) break;
     effects = best.effects;
+    const std::string added_name = best.name;
     if (o.diagnose.progress)
-      o.diagnose.progress("ladder: step " + std::to_string(s + 1) + ", adds " +
-                          model::info(best.effect).name);
+      o.diagnose.progress("ladder: step " + std::to_string(s + 1) + ", adds " + added_name);
     // Refit so the next step's whitening matches the new model.
-    base = fit_baseline(data, effects, split, o.diagnose, &best.fit.params);
-    steps.push_back({effects, best.effect, base.heldout, base.fit.bic, best.gain});
+    base = fit_baseline(data, effects, best.fit.params.user, split, o.diagnose, &best.fit.params);
+    LadderStep step{effects,      base.fit.params.user, std::nullopt, added_name,
+                    base.heldout, base.fit.bic,         best.gain};
+    if (best.user < 0) step.added = best.effect;
+    steps.push_back(step);
   }
   return steps;
 }
@@ -776,10 +851,11 @@ nlohmann::json heldout_json(const HeldOut& h) {
           {"max", h.stats.max_abs},
           {"count", h.stats.count}};
 }
-nlohmann::json names(const model::EffectSet& s) {
+nlohmann::json names(const model::EffectSet& s, const model::UserEffects& user = {}) {
   nlohmann::json a = nlohmann::json::array();
   for (Effect e : model::kAllEffects)
     if (s.has(e)) a.push_back(model::info(e).name);
+  for (int k = 0; k < user.num_effects; ++k) a.push_back("@" + io::user_effect_name(user, k));
   return a;
 }
 }  // namespace
@@ -788,23 +864,31 @@ nlohmann::json to_json(const Diagnosis& d) {
   nlohmann::json j;
   j["kind"] = "zerog-diagnosis";
   j["version"] = 1;
-  j["model"] = names(d.model);
-  for (int k = 0; k < d.baseline.params.user.num_effects; ++k)
-    j["model"].push_back("@" + io::user_effect_name(d.baseline.params.user, k));
+  j["model"] = names(d.model, d.baseline.params.user);
   j["baseline"] = heldout_json(d.baseline_heldout);
   j["noise_rms"] = d.noise_rms;
   j["structured_fraction"] = d.structured_fraction;
   j["candidates"] = nlohmann::json::array();
   for (const auto& c : d.candidates) {
     nlohmann::json cj;
-    cj["effect"] = model::info(c.effect).name;
+    cj["effect"] = c.name;
     cj["heldout"] = heldout_json(c.heldout);
     cj["gain"] = c.gain;
     cj["axis_gain"] = c.axis_gain;
     cj["delta_bic"] = c.delta_bic;
     nlohmann::json p = nlohmann::json::object();
-    const auto& ei = model::info(c.effect);
-    for (int i = 0; i < ei.num_params; ++i) p[ei.params[i].name] = c.fit.params.block(c.effect)[i];
+    if (c.user >= 0) {
+      const model::UserEffects& u = c.fit.params.user;
+      for (int t = 0; t < u.num_terms; ++t)
+        if (u.terms[static_cast<std::size_t>(t)].effect == u.num_effects - 1)
+          p[io::term_axis_name(u.terms[static_cast<std::size_t>(t)]) + "*" +
+            io::basis_text(u.terms[static_cast<std::size_t>(t)].basis)] =
+              u.coeff[static_cast<std::size_t>(t)];
+    } else {
+      const auto& ei = model::info(c.effect);
+      for (int i = 0; i < ei.num_params; ++i)
+        p[ei.params[i].name] = c.fit.params.block(c.effect)[i];
+    }
     cj["params"] = p;
     j["candidates"].push_back(cj);
   }
@@ -835,9 +919,8 @@ nlohmann::json to_json(const Diagnosis& d) {
   }
   j["verdict"] = {
       {"kind", kinds[static_cast<int>(d.verdict)]},
-      {"effect", d.verdict == Diagnosis::Verdict::effect
-                     ? nlohmann::json(model::info(d.candidates[0].effect).name)
-                     : nlohmann::json(nullptr)},
+      {"effect", d.verdict == Diagnosis::Verdict::effect ? nlohmann::json(d.candidates[0].name)
+                                                         : nlohmann::json(nullptr)},
       {"effect_file", d.verdict == Diagnosis::Verdict::discovered && !d.discovery->path.empty()
                           ? nlohmann::json(d.discovery->path)
                           : nlohmann::json(nullptr)},
@@ -857,8 +940,8 @@ nlohmann::json to_json(const std::vector<LadderStep>& steps) {
   j["steps"] = nlohmann::json::array();
   for (const auto& s : steps) {
     j["steps"].push_back(
-        {{"effects", names(s.effects)},
-         {"added", s.added ? nlohmann::json(model::info(*s.added).name) : nlohmann::json(nullptr)},
+        {{"effects", names(s.effects, s.user)},
+         {"added", s.added_name.empty() ? nlohmann::json(nullptr) : nlohmann::json(s.added_name)},
          {"heldout", heldout_json(s.heldout)},
          {"bic", s.bic},
          {"gain", s.gain}});
@@ -887,7 +970,7 @@ std::string format_diagnosis(const Diagnosis& d) {
   int r = 0;
   for (const auto& c : d.candidates) {
     std::snprintf(line, sizeof line, "%-4d %-20s %7.1f%% %9.3f N %8.3f N*m %10.0f ", ++r,
-                  model::info(c.effect).name, 100 * c.gain, c.heldout.stats.force_rms,
+                  c.name.c_str(), 100 * c.gain, c.heldout.stats.force_rms,
                   c.heldout.stats.torque_rms, c.delta_bic);
     os << line;
     for (double g : c.axis_gain) os << fmt(" %4.0f%%", 100 * g);
@@ -920,11 +1003,11 @@ std::string format_ladder(const std::vector<LadderStep>& steps) {
   int k = 0;
   for (const auto& s : steps) {
     std::snprintf(line, sizeof line, "%-4d %-20s %10.3f N %10.3f N*m %7.1f%%\n", k++,
-                  s.added ? model::info(*s.added).name : "(start)", s.heldout.stats.force_rms,
-                  s.heldout.stats.torque_rms, 100 * s.gain);
+                  s.added_name.empty() ? "(start)" : s.added_name.c_str(),
+                  s.heldout.stats.force_rms, s.heldout.stats.torque_rms, 100 * s.gain);
     os << line;
   }
-  os << "final model: " << io::effect_list_string(steps.back().effects) << "\n";
+  os << "final model: " << io::model_spec_string(steps.back().effects, steps.back().user) << "\n";
   return os.str();
 }
 

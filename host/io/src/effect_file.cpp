@@ -253,7 +253,12 @@ ModelSpec parse_model_spec(const std::string& list) {
       const fs::path file = item.substr(1);
       if (file.empty())
         throw std::runtime_error("'@' needs an effect file's path (@my_effect.toml)");
-      read_effect_file(file, spec.user);
+      if (file.extension() == ".json") {
+        // A model file (zerog fit): its user-defined effects, with their values as start values.
+        append_user_effects(spec.user, read_model(file).params.user);
+      } else {
+        read_effect_file(file, spec.user);
+      }
       spec.files.push_back(file);
     } else {
       library += (library.empty() ? "" : ",") + item;

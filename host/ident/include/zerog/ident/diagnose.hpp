@@ -19,7 +19,9 @@ struct HeldOut {
 };
 
 struct Candidate {
-  model::Effect effect;
+  model::Effect effect = model::Effect::bias;  ///< a library candidate (when user < 0)
+  int user = -1;             ///< else: index into DiagnoseOptions::user_candidates
+  std::string name;          ///< "cable", or "@name" for a user-defined effect
   model::EffectSet effects;  ///< the model with the candidate (and what it builds on)
   FitResult fit;
   HeldOut heldout;
@@ -53,6 +55,13 @@ struct Discovery {
   double seconds = 0.0;           ///< the whole discovery, refit included
 };
 
+/// A user-defined effect offered as a candidate (proto/user_effects.md): one effect, and the
+/// file it came from (for the suggested command).
+struct UserCandidate {
+  model::UserEffects effect;
+  std::string source;
+};
+
 struct Diagnosis {
   model::EffectSet model;
   FitResult baseline;
@@ -82,6 +91,8 @@ struct DiagnoseOptions {
   /// The model as given on the command line, for the suggested command (default: the effect
   /// names of `fit.effects` and `fit.user`).
   std::string model_text;
+  /// User-defined effects tried as candidates beside the library's (diagnose --candidates).
+  std::vector<UserCandidate> user_candidates;
   /// When no library effect explains the structure, search the signal dictionary for a law.
   bool discover = true;
   /// Where discovery writes the effect file it finds ("" = do not write).
@@ -103,7 +114,9 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& options);
 
 struct LadderStep {
   model::EffectSet effects;
+  model::UserEffects user;  ///< the user-defined effects of the step's model
   std::optional<model::Effect> added;
+  std::string added_name;  ///< the library effect's name or "@name"; empty at the start
   HeldOut heldout;
   double bic = 0.0;
   double gain = 0.0;

@@ -47,7 +47,8 @@ struct ModelSpec {
   model::UserEffects user;
   std::vector<std::filesystem::path> files;  ///< the effect files read, in order
 };
-/// Parses the list; '@PATH' reads an effect file. Throws naming an unknown effect or the file's
+/// Parses the list; '@PATH' reads an effect file, or, for a PATH ending in .json, takes the user
+/// effects of a model file (zerog fit's output). Throws naming an unknown effect or the file's
 /// error.
 ModelSpec parse_model_spec(const std::string& list);
 /// "bias,gravity,@friction.toml" (files as given) or, without files, the user effects' names as
