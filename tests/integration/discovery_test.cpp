@@ -11,6 +11,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <random>
 #include <string>
 #include <tuple>
@@ -188,6 +189,54 @@ TEST_P(SlowNoise, NothingIsDiscovered) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Seeds, SlowNoise, ::testing::ValuesIn(kSeeds));
+
+}  // namespace
+}  // namespace zerog
+
+namespace zerog {
+namespace {
+
+// A user's own effect file offered as a candidate (diagnose/ladder --candidates) is judged like a
+// library effect: the right law ranks first and the ladder adds it; a wrong one does not.
+TEST(UserCandidates, TheRightLawRanksFirstAndTheLadderAddsIt) {
+  const test::SimRun run = test::simulate("joint6_friction", 31);
+  auto candidate = [](const std::string& name, const std::string& axis, const std::string& basis) {
+    const std::filesystem::path file = temp_file(name + ".toml");
+    std::ofstream(file) << "format = \"zerog-effect\"\nversion = 1\nname = \"" << name
+                        << "\"\n[[term]]\naxis = \"" << axis << "\"\nbasis = \"" << basis << "\"\n";
+    ident::UserCandidate c;
+    c.source = file.string();
+    io::read_effect_file(file, c.effect);
+    std::filesystem::remove(file);
+    return c;
+  };
+  ident::DiagnoseOptions o;
+  o.fit.effects = model::kDefaultModel;
+  o.user_candidates = {candidate("a1_pull", "Fx", "sin(q1)"),
+                       candidate("a6_friction", "Mz", "tanh(qd6/0.02)")};
+  const ident::Diagnosis d = ident::diagnose(run.data, o);
+  ASSERT_EQ(d.verdict, ident::Diagnosis::Verdict::effect) << ident::format_diagnosis(d);
+  EXPECT_EQ(d.candidates[0].name, "@a6_friction");
+  EXPECT_EQ(d.candidates[0].user, 1);
+  EXPECT_NE(d.command.find(",@" + o.user_candidates[1].source), std::string::npos) << d.command;
+  for (const auto& c : d.candidates) {
+    if (c.name == "@a1_pull") {
+      EXPECT_LT(c.gain, 0.01) << "the wrong law removes nothing";
+    }
+  }
+  const model::UserEffects& fitted = d.candidates[0].fit.params.user;
+  ASSERT_EQ(fitted.num_terms, 1);
+  EXPECT_NEAR(fitted.coeff[0], run.config.joint6_friction_Nm, 0.05 * run.config.joint6_friction_Nm);
+
+  ident::LadderOptions lo;
+  lo.diagnose.fit.effects = model::kDefaultModel;  // from there, one step adds the law
+  lo.diagnose.user_candidates = o.user_candidates;
+  const auto steps = ident::ladder(run.data, lo);
+  bool added = false;
+  for (const auto& s : steps) added = added || s.added_name == "@a6_friction";
+  EXPECT_TRUE(added) << ident::format_ladder(steps);
+  EXPECT_EQ(steps.back().user.num_effects, 1);
+}
 
 }  // namespace
 }  // namespace zerog
