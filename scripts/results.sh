@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # The results table, generated: builds zerog, runs `zerog results` (paper-bp, paper-zp, physics,
-# physics + residual network float/quantised, noise floor on one simulated KR210/100 kg run),
-# writes out/results/results.{md,json} and replaces the part of README.md between the markers
-# <!-- results:begin --> and <!-- results:end --> with the table (atomically: a temporary file
-# beside README.md, then rename). Extra arguments go to `zerog results` (e.g. --seed 7).
+# physics + residual network float/quantised, true-model reference and sensor floor on one
+# simulated KR210/100 kg run), writes out/results/results.{md,json} and replaces the part of
+# README.md between the markers <!-- results:begin --> and <!-- results:end --> with the table
+# (atomically: a temporary file beside README.md, then rename). Extra arguments go to
+# `zerog results` (e.g. --seed 7).
 # Takes about 2 minutes after the build on a 2-core machine.
 set -euo pipefail
 cd "$(dirname "$0")/.."

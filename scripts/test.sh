@@ -2,9 +2,10 @@
 # Installs the dependencies, builds zerog with warnings as errors, and runs every test (ctest):
 #   1. the CI build (RelWithDebInfo): the whole suite, VM and hardware-in-the-loop tests included;
 #   2. AddressSanitizer + UndefinedBehaviorSanitizer: the suite again except the VM tests (they
-#      run the same programs in qemu) and six long numeric end-to-end cases that re-run the code
-#      of the cases kept (HiddenEffect/cable, CleanRun, OutsideLibrary) on other data; both
-#      exclusions are in CMakePresets.json (test preset `asan`) and run in stage 1;
+#      run the same programs in qemu) and the long numeric end-to-end cases beyond one of each
+#      kind (other seeds and effects of HiddenEffect and the discovery acceptance, Results), which
+#      re-run the code of the cases kept on other data; both exclusions are in CMakePresets.json
+#      (test preset `asan`) and run in stage 1;
 #   3. ThreadSanitizer: the threaded tests (rings, runtime, cycle, Modbus server, telemetry);
 #   4. the fuzz targets, each for a bounded time (scripts/fuzz.sh).
 # Any failure, sanitizer finding or fuzz crash fails the run. Each stage prints its duration, and

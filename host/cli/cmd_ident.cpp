@@ -4,6 +4,8 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <optional>
+#include <sstream>
 #include <string>
 
 #include "commands.hpp"
@@ -232,34 +234,61 @@ void run_tool_change(const Common& c, const std::string& base_path, const std::s
   if (!out.empty()) std::printf("wrote %s\n", out.c_str());
 }
 
+// The floors' keys of compare and ladder --json (proto/json_output.md): null without --truth;
+// the sensor floor is null, and sensor_floor_note says why, when the truth names no clean log.
+void floors_into(nlohmann::json& j, const ident::Floors* f) {
+  j["true_model_reference"] = f ? ident::to_json(f->reference) : nlohmann::json(nullptr);
+  j["sensor_floor"] = f && f->sensor ? ident::to_json(*f->sensor) : nlohmann::json(nullptr);
+  j["clean_signals_log"] = f && f->sensor ? nlohmann::json(f->clean_log) : nlohmann::json(nullptr);
+  j["sensor_floor_note"] =
+      f && !f->sensor ? nlohmann::json(f->sensor_note) : nlohmann::json(nullptr);
+}
+
 void run_compare(const Common& c, const std::string& model_path, const std::string& truth_path,
                  int bins) {
   const io::Log log = io::read_log(c.log);
   const ident::Dataset data = ident::make_dataset(log);
   const io::ModelFile m = io::read_model(model_path);
   ident::check_signals(m.params.effects, data);
+  ident::check_signals(m.params.user, data);
   const auto res = ident::residuals(m.params, data);
   const ident::Comparison cmp = ident::compare(res, data, nullptr, bins);
-  std::optional<ident::Comparison> floor;
-  if (!truth_path.empty()) {
-    const io::ModelFile t = io::read_model(truth_path);
-    floor = ident::compare(ident::residuals(t.params, data), data, nullptr, bins);
-  }
+  std::optional<ident::Floors> floors;
+  if (!truth_path.empty()) floors = ident::floors(truth_path, data);
   if (c.json) {
     nlohmann::json j = ident::to_json(cmp);
     j["kind"] = "zerog-compare";
-    j["version"] = 1;
+    j["version"] = 2;
     j["log"] = c.log;
     j["model"] = model_path;
     j["effects"] = io::effect_list_string(m.params.effects);
-    j["noise_floor"] = floor ? ident::to_json(floor->all) : nlohmann::json(nullptr);
+    floors_into(j, floors ? &*floors : nullptr);
     std::cout << j.dump(2) << "\n";
     return;
   }
   std::printf("model %s (%s) against %s, %zu samples (%zu static, %zu moving)\n",
               model_path.c_str(), io::effect_list_string(m.params.effects).c_str(), c.log.c_str(),
               cmp.all.count, cmp.stat.count, cmp.moving.count);
-  std::printf("%s", ident::format_comparison(cmp, floor ? &*floor : nullptr).c_str());
+  std::printf("%s", ident::format_comparison(cmp, floors ? &*floors : nullptr).c_str());
+}
+
+// "@a.toml,@b.toml": each file one candidate (diagnose and ladder --candidates).
+std::vector<ident::UserCandidate> user_candidates(const std::string& list) {
+  std::vector<ident::UserCandidate> out;
+  std::stringstream ss(list);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    while (!item.empty() && item.front() == ' ') item.erase(item.begin());
+    while (!item.empty() && item.back() == ' ') item.pop_back();
+    if (item.empty()) continue;
+    if (item.front() != '@')
+      throw std::invalid_argument("--candidates takes effect files as @FILE, not '" + item + "'");
+    ident::UserCandidate c;
+    c.source = item.substr(1);
+    io::read_effect_file(c.source, c.effect);
+    out.push_back(std::move(c));
+  }
+  return out;
 }
 
 }  // namespace
@@ -327,7 +356,9 @@ void add_ident_commands(CLI::App& app) {
     s->add_option("-m,--model", *model_path, "Model file (from zerog fit)")
         ->required()
         ->check(CLI::ExistingFile);
-    s->add_option("--truth", *truth, "Truth model (from zerog sim): also print the noise floor")
+    s->add_option("--truth", *truth,
+                  "Truth model (from zerog sim): also print the true-model reference and the "
+                  "sensor floor")
         ->check(CLI::ExistingFile);
     s->add_option("--bins", *bins, "Joint-angle bins per joint")
         ->check(CLI::Range(1, 100))
@@ -341,6 +372,7 @@ void add_ident_commands(CLI::App& app) {
     auto effects = std::make_shared<std::string>();
     auto block = std::make_shared<double>(60.0);
     auto no_discover = std::make_shared<bool>(false);
+    auto candidates = std::make_shared<std::string>();
     auto discovered_out = std::make_shared<std::string>("discovered.toml");
     CLI::App* s = app.add_subcommand(
         "diagnose",
@@ -351,6 +383,9 @@ void add_ident_commands(CLI::App& app) {
         ->check(CLI::ExistingFile);
     s->add_option("-e,--effects", *effects,
                   "Or: the effects of the model to diagnose (@FILE: a user-defined effect)");
+    s->add_option("--candidates", *candidates,
+                  "User-defined effects to try beside the library's: @FILE,@FILE "
+                  "(proto/user_effects.md)");
     s->add_flag("--no-discover", *no_discover,
                 "When no library effect explains the residual, do not search the signal "
                 "dictionary for a law");
@@ -370,12 +405,18 @@ void add_ident_commands(CLI::App& app) {
       o.fit.threads = c->threads;
       o.discover = !*no_discover;
       o.discovery_path = *discovered_out;
+      o.user_candidates = user_candidates(*candidates);
       std::optional<io::ModelFile> m;
       if (!model_path->empty()) {
         m = io::read_model(*model_path);
         o.fit.effects = m->params.effects;
         o.fit.user = m->params.user;
         o.fit.initial = &m->params;
+        // The suggested command names the model file for its user effects (@fit.json).
+        o.model_text = io::model_spec_string(m->params.effects, m->params.user,
+                                             m->params.user.empty()
+                                                 ? std::vector<std::filesystem::path>{}
+                                                 : std::vector<std::filesystem::path>{*model_path});
       } else {
         const io::ModelSpec spec = io::parse_model_spec(
             effects->empty() ? io::effect_list_string(model::kDefaultModel) : *effects);
@@ -400,18 +441,24 @@ void add_ident_commands(CLI::App& app) {
     auto out = std::make_shared<std::string>();
     auto truth = std::make_shared<std::string>();
     auto plot = std::make_shared<std::string>();
+    auto candidates = std::make_shared<std::string>();
     CLI::App* s = app.add_subcommand("ladder",
                                      "From a minimal model, add the best effect step by step while "
                                      "it pays; print the error at each step");
     add_common(s, *c);
-    s->add_option("--start", *start, "Effects to start from")->capture_default_str();
+    s->add_option("--start", *start, "Effects to start from (@FILE: a user-defined effect)")
+        ->capture_default_str();
+    s->add_option("--candidates", *candidates,
+                  "User-defined effects the ladder may add beside the library's: @FILE,@FILE");
     s->add_option("--min-gain", *min_gain,
                   "Smallest share of held-out error an effect must remove to be added")
         ->capture_default_str();
     s->add_option("--block", *block, "Length of the held-out time blocks, s")
         ->capture_default_str();
     s->add_option("-o,--out", *out, "Write the ladder as JSON (for zerog report)");
-    s->add_option("--truth", *truth, "Truth model (from zerog sim): add the noise floor")
+    s->add_option("--truth", *truth,
+                  "Truth model (from zerog sim): add the true-model reference and the sensor "
+                  "floor (held-out blocks)")
         ->check(CLI::ExistingFile);
     s->add_option("--plot", *plot, "Plot the error at each step into this PNG (matplotlib)");
     s->callback([=] {
@@ -426,16 +473,16 @@ void add_ident_commands(CLI::App& app) {
       const io::ModelSpec spec = io::parse_model_spec(*start);
       o.diagnose.fit.effects = spec.effects;
       o.diagnose.fit.user = spec.user;
+      o.diagnose.user_candidates = user_candidates(*candidates);
       const auto steps = ident::ladder(data, o);
       nlohmann::json j = ident::to_json(steps);
+      std::optional<ident::Floors> floors;
       if (!truth->empty()) {
-        const io::ModelFile t = io::read_model(*truth);
         const auto mask = ident::heldout_mask(data, *block);
-        const auto floor = ident::compare(ident::residuals(t.params, data), data, &mask);
-        j["noise_floor"] = ident::to_json(floor.all);
-      } else {
-        j["noise_floor"] = nullptr;
+        floors = ident::floors(*truth, data, &mask);
       }
+      j["version"] = 2;  // the floors' keys below (proto/json_output.md)
+      floors_into(j, floors ? &*floors : nullptr);
       const std::vector<std::filesystem::path> inputs = {c->log, io::rig_path_for(c->log)};
       if (!out->empty()) io::write_file_atomic(*out, j.dump(2) + "\n", inputs);
       if (!plot->empty()) {
@@ -457,10 +504,7 @@ void add_ident_commands(CLI::App& app) {
         return;
       }
       std::printf("%s", ident::format_ladder(steps).c_str());
-      if (!j["noise_floor"].is_null())
-        std::printf("noise floor (held-out): force %.3f N, torque %.3f N*m\n",
-                    j["noise_floor"]["force_rms"].get<double>(),
-                    j["noise_floor"]["torque_rms"].get<double>());
+      if (floors) std::printf("%s", ident::format_floors(*floors, "held-out").c_str());
       if (!out->empty()) std::printf("wrote %s\n", out->c_str());
       if (!plot->empty()) std::printf("plotted %s\n", plot->c_str());
     });

@@ -211,7 +211,8 @@ void add_learn_commands(CLI::App& app) {
     CLI::App* s = app.add_subcommand(
         "results",
         "The results table: paper-bp, paper-zp, physics, physics + residual network (float, "
-        "quantised) and the noise floor on one simulated run, held-out data, static and moving");
+        "quantised), the true-model reference and the sensor floor on one simulated run, "
+        "held-out data, static and moving");
     s->add_option("--seed", o->seed, "Simulation seed")->capture_default_str();
     s->add_option("--train-seed", o->train_seed, "Training seed")->capture_default_str();
     s->add_option("--truth-effects", o->truth_effects,

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <random>
 #include <string>
 
@@ -14,6 +15,7 @@
 #include "report_script.hpp"
 #include "zerog/ident/compare.hpp"
 #include "zerog/ident/dataset.hpp"
+#include "zerog/io/effect_file.hpp"
 #include "zerog/io/log.hpp"
 #include "zerog/io/model_file.hpp"
 
@@ -41,15 +43,12 @@ void run_report(const ReportOptions& o) {
   const ident::Dataset data = ident::make_dataset(log);
   const io::ModelFile m = io::read_model(o.model);
   ident::check_signals(m.params.effects, data);
+  ident::check_signals(m.params.user, data);
   const auto res = ident::residuals(m.params, data);
   const ident::Comparison cmp = ident::compare(res, data);
-  std::optional<std::vector<ident::Wrench>> floor_res;
-  nlohmann::json floor_json = nullptr;
-  if (!o.truth.empty()) {
-    const io::ModelFile t = io::read_model(o.truth);
-    floor_res = ident::residuals(t.params, data);
-    floor_json = ident::to_json(ident::compare(*floor_res, data).all);
-  }
+  std::optional<ident::Floors> floors;
+  if (!o.truth.empty()) floors = ident::floors(o.truth, data);
+  const bool with_sensor = floors && floors->sensor;
   const auto heldout = ident::heldout_mask(data);
 
   const fs::path out = fs::absolute(o.out);
@@ -72,8 +71,10 @@ void run_report(const ReportOptions& o) {
     const char* ax[] = {"Fx", "Fy", "Fz", "Mx", "My", "Mz"};
     for (auto a : ax) csv << "," << a << "_meas";
     for (auto a : ax) csv << "," << a << "_pred";
-    if (floor_res)
-      for (auto a : ax) csv << "," << a << "_floor";
+    if (floors)
+      for (auto a : ax) csv << "," << a << "_true";
+    if (with_sensor)
+      for (auto a : ax) csv << "," << a << "_true_clean";
     if (data.columns.joints) {
       for (int j = 1; j <= 6; ++j) csv << ",q" << j << "_rad";
       for (int j = 1; j <= 6; ++j) csv << ",qd" << j << "_radps";
@@ -91,8 +92,10 @@ void run_report(const ReportOptions& o) {
       csv << buf;
       for (int k = 0; k < 6; ++k) put(data.measured[i][k]);
       for (int k = 0; k < 6; ++k) put(data.measured[i][k] - res[i][k]);
-      if (floor_res)
-        for (int k = 0; k < 6; ++k) put(data.measured[i][k] - (*floor_res)[i][k]);
+      if (floors)
+        for (int k = 0; k < 6; ++k) put(data.measured[i][k] - floors->reference_residuals[i][k]);
+      if (with_sensor)
+        for (int k = 0; k < 6; ++k) put(data.measured[i][k] - floors->sensor_residuals[i][k]);
       if (data.columns.joints) {
         for (int j = 0; j < 6; ++j) put(data.pose[i].joints_rad[j]);
         for (int j = 0; j < 6; ++j) put(data.joint_vel_radps[i][j]);
@@ -110,7 +113,7 @@ void run_report(const ReportOptions& o) {
   }
   nlohmann::json summary;
   summary["kind"] = "zerog-report-bundle";
-  summary["version"] = 1;
+  summary["version"] = 2;
   summary["title"] =
       o.title.empty() ? "zerog report: " + fs::path(o.log).filename().string() : o.title;
   summary["log"] = o.log;
@@ -118,10 +121,24 @@ void run_report(const ReportOptions& o) {
   summary["effects"] = nlohmann::json::array();
   for (auto e : model::kAllEffects)
     if (m.params.effects.has(e)) summary["effects"].push_back(model::info(e).name);
+  // User-defined effects (proto/user_effects.md), one chip each with their terms.
+  for (int k = 0; k < m.params.user.num_effects; ++k) {
+    std::string terms;
+    for (int j = 0; j < m.params.user.num_terms; ++j) {
+      const model::UserTerm& t = m.params.user.terms[static_cast<std::size_t>(j)];
+      if (t.effect != k) continue;
+      terms += (terms.empty() ? "" : ", ") + io::term_axis_name(t) + "*" + io::basis_text(t.basis);
+    }
+    summary["effects"].push_back("@" + io::user_effect_name(m.params.user, k) + " (" + terms + ")");
+  }
   summary["compare"] = ident::to_json(cmp);
   summary["ladder"] = o.ladder.empty() ? nlohmann::json(nullptr) : read_json(o.ladder);
   summary["diagnosis"] = o.diagnosis.empty() ? nlohmann::json(nullptr) : read_json(o.diagnosis);
-  summary["noise_floor"] = floor_json;
+  summary["true_model_reference"] =
+      floors ? ident::to_json(floors->reference) : nlohmann::json(nullptr);
+  summary["sensor_floor"] = with_sensor ? ident::to_json(*floors->sensor) : nlohmann::json(nullptr);
+  summary["sensor_floor_note"] =
+      floors && !with_sensor ? nlohmann::json(floors->sensor_note) : nlohmann::json(nullptr);
   {
     std::ofstream js(bundle / "summary.json");
     js << summary.dump(1) << "\n";
@@ -141,7 +158,8 @@ void add_report_command(CLI::App& app) {
   s->add_option("-m,--model", o->model, "Model file (from zerog fit)")
       ->required()
       ->check(CLI::ExistingFile);
-  s->add_option("--truth", o->truth, "Truth model (from zerog sim), for the noise floor")
+  s->add_option("--truth", o->truth,
+                "Truth model (from zerog sim), for the true-model reference and the sensor floor")
       ->check(CLI::ExistingFile);
   s->add_option("--ladder", o->ladder, "Ladder JSON (zerog ladder --out)")
       ->check(CLI::ExistingFile);

@@ -1,5 +1,6 @@
-// `zerog sim`: simulate a calibration run of the rig and write the log, its rig sidecar and the
-// truth (a model file with the exact parameters of the simulated effects).
+// `zerog sim`: simulate a calibration run of the rig and write the log, its rig sidecar, the
+// truth (a model file with the exact parameters of the simulated effects) and the noise-free copy
+// of the log (for the sensor floor).
 #include <unistd.h>
 
 #include <chrono>
@@ -45,6 +46,14 @@ fs::path truth_path_for(const fs::path& csv) {
   fs::path p = csv;
   p.replace_extension();
   p += ".truth.json";
+  return p;
+}
+
+// The noise-free copy of the log (SimOutput::clean_log): NAME.csv → NAME.clean.csv.
+fs::path clean_path_for(const fs::path& csv) {
+  fs::path p = csv;
+  p.replace_extension();
+  p += ".clean.csv";
   return p;
 }
 
@@ -109,6 +118,7 @@ void run_sim(const SimArgs& a) {
   if (out.extension() != ".csv") throw std::invalid_argument("--out must name a .csv file");
   const fs::path rig_out = io::rig_path_for(out);
   const fs::path truth_out = truth_path_for(out);
+  const fs::path clean_out = clean_path_for(out);
 
   std::vector<sim::JointVector> points;
   nlohmann::json design_info;
@@ -116,7 +126,7 @@ void run_sim(const SimArgs& a) {
   if (!a.design.empty()) {
     if (!a.kind.empty()) throw std::invalid_argument("give either --design or --kind, not both");
     inputs.push_back(a.design);
-    for (const fs::path& o : {out, rig_out, truth_out})
+    for (const fs::path& o : {out, rig_out, truth_out, clean_out, io::rig_path_for(clean_out)})
       if (same_file(o, a.design))
         throw std::invalid_argument("refusing to overwrite the input " + a.design);
     points = sim::read_design(a.design);
@@ -154,9 +164,13 @@ void run_sim(const SimArgs& a) {
   const double sim_wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   result.truth.extra["design"] = design_info;
+  // Relative to the truth file's folder (both lie beside the log); zerog compare, ladder and
+  // report --truth read it for the sensor floor (proto/model_format.md).
+  result.truth.extra["clean_signals_log"] = clean_out.filename().string();
 
   io::write_log(result.log, out, inputs);
-  io::write_model(result.truth, truth_out, inputs);
+  io::write_log(result.clean_log, clean_out, inputs);
+  io::write_model(result.truth, truth_out, inputs);  // last: it names the other files
 
   const sim::SimStats& s = result.stats;
   if (s.samples_below_floor > 0)
@@ -168,8 +182,9 @@ void run_sim(const SimArgs& a) {
                 sim::sim_effect_list_string(simulator.config().effects).c_str());
     std::printf("sim: max |F| %.1f N, max |M| %.1f N*m, lowest point z %.3f m in base\n",
                 s.max_force_N, s.max_torque_Nm, s.lowest_point_z_m);
-    std::printf("wrote %s, %s, %s\n", out.string().c_str(), rig_out.string().c_str(),
-                truth_out.string().c_str());
+    std::printf("wrote %s, %s, %s, %s (noise-free signals, the same noisy wrench)\n",
+                out.string().c_str(), rig_out.string().c_str(), truth_out.string().c_str(),
+                clean_out.string().c_str());
   }
 }
 
@@ -181,8 +196,9 @@ void add_sim_command(CLI::App& app) {
       "sim",
       "Simulate a calibration run: KR 210 R2700 PTP moves through path points (2 s dwells, 30 % "
       "speed), a payload on an Omega191 F/T sensor and a STIM300-like IMU, with switchable "
-      "effects. Writes OUT.csv, OUT.rig.toml (proto/log_format.md) and OUT.truth.json (model "
-      "file with the true parameters).");
+      "effects. Writes OUT.csv, OUT.rig.toml (proto/log_format.md), OUT.truth.json (model "
+      "file with the true parameters) and OUT.clean.csv (+ OUT.clean.rig.toml: the same rows "
+      "with noise-free signals and the noisy wrench, for the sensor floor)");
   auto* design = cmd->add_option("--design", args->design, "design CSV (from `zerog design`)")
                      ->check(CLI::ExistingFile);
   cmd->add_option("--kind", args->kind, "inline design instead of --design: oa | random | sobol")
@@ -214,7 +230,8 @@ void add_sim_command(CLI::App& app) {
   cmd->add_option("--speed", args->speed_fraction, "speed override, fraction of the axis speeds")
       ->check(CLI::Range(0.01, 1.0))
       ->capture_default_str();
-  cmd->add_option("--out", args->out, "log to write: OUT.csv (+ OUT.rig.toml, OUT.truth.json)");
+  cmd->add_option("--out", args->out,
+                  "log to write: OUT.csv (+ OUT.rig.toml, OUT.truth.json, OUT.clean.csv)");
   cmd->add_flag("--list-effects", args->list_effects,
                 "print the effects, their default magnitudes and every --set key, then exit");
   cmd->add_flag("-q,--quiet", args->quiet, "no progress or summary");

@@ -19,8 +19,11 @@ import sys
 import tempfile
 
 BUNDLE_KIND = "zerog-report-bundle"
-BUNDLE_VERSION = 1
+BUNDLE_VERSION = 2
 AXES = ["Fx", "Fy", "Fz", "Mx", "My", "Mz"]
+# Column suffixes of the true model's predictions: on the log's signals (meas − it: the
+# true-model reference) and on noise-free signals (meas − it: the sensor floor).
+TRUE_SUFFIXES = ("_true", "_true_clean")
 UNITS = ["N", "N", "N", "N·m", "N·m", "N·m"]
 MAX_PLOT_POINTS = 20000      # per curve in the time-series figure
 MAX_SCATTER_POINTS = 5000    # per scatter panel
@@ -107,6 +110,15 @@ class _Checker:
         return {"force_rms": self.num(v["force_rms"], where + ".force_rms"),
                 "torque_rms": self.num(v["torque_rms"], where + ".torque_rms"),
                 "rms": self.nums(v["rms"], where + ".rms", 6)}
+
+    def floors(self, v, where):
+        """FLOORS: {"all": RMS6, "static": RMS6 or null, "moving": RMS6 or null}, or null."""
+        if v is None:
+            return None
+        self.obj(v, where, ("all",))
+        return {"all": self.rms6(v["all"], where + ".all"),
+                "static": self.rms6(v.get("static"), where + ".static", True),
+                "moving": self.rms6(v.get("moving"), where + ".moving", True)}
 
 
 def _jtype(v):
@@ -203,8 +215,8 @@ def load_summary(path):
                           "added": c.string(st["added"], w + ".added", nullable=True),
                           "heldout": c.rms6(st["heldout"], w + ".heldout"),
                           "bic": c.num(st["bic"], w + ".bic")})
-        lad = {"steps": steps,
-               "noise_floor": c.rms6(lad.get("noise_floor"), "ladder.noise_floor", True)}
+        ref, sensor = _ladder_floors(lad, c)
+        lad = {"steps": steps, "true_model_reference": ref, "sensor_floor": sensor}
     s["ladder"] = lad
 
     # diagnosis
@@ -245,8 +257,22 @@ def load_summary(path):
               "baseline": c.rms6(dg["baseline"], "diagnosis.baseline"),
               "candidates": cands, "verdict": verdict, "correlated_signals": corr}
     s["diagnosis"] = dg
-    s["noise_floor"] = c.rms6(doc.get("noise_floor"), "noise_floor", True)
+    s["true_model_reference"] = c.floors(doc.get("true_model_reference"),
+                                         "true_model_reference")
+    s["sensor_floor"] = c.floors(doc.get("sensor_floor"), "sensor_floor")
+    s["sensor_floor_note"] = c.string(doc.get("sensor_floor_note"), "sensor_floor_note", True)
     return s
+
+
+def _ladder_floors(lad, c):
+    """(true-model reference, sensor floor) of a ladder document, each FLOORS or None. A ladder
+    of version 1 (before the two floors) had only "noise_floor": the true-model reference over
+    all held-out samples."""
+    if "true_model_reference" in lad or "sensor_floor" in lad:
+        return (c.floors(lad.get("true_model_reference"), "ladder.true_model_reference"),
+                c.floors(lad.get("sensor_floor"), "ladder.sensor_floor"))
+    old = c.rms6(lad.get("noise_floor"), "ladder.noise_floor", True)
+    return ({"all": old, "static": None, "moving": None} if old else None), None
 
 
 def load_data(path, np):
@@ -277,11 +303,14 @@ def load_data(path, np):
         if missing:
             raise BundleError("%s: missing required column%s %s" % (
                 path, "s" if len(missing) > 1 else "", ", ".join("'%s'" % m for m in missing)))
-        floor = [a + "_floor" for a in AXES]
-        have_floor = [n for n in floor if n in seen]
-        if have_floor and len(have_floor) != 6:
-            raise BundleError("%s: the _floor columns come all six or none; missing %s" % (
-                path, ", ".join("'%s'" % n for n in floor if n not in seen)))
+        floor = []  # the true model's predictions: all six or none of each group
+        for suffix in TRUE_SUFFIXES:
+            group = [a + suffix for a in AXES]
+            have = [n for n in group if n in seen]
+            if have and len(have) != 6:
+                raise BundleError("%s: the %s columns come all six or none; missing %s" % (
+                    path, suffix, ", ".join("'%s'" % n for n in group if n not in seen)))
+            floor += have
         try:
             arr = np.loadtxt(f, delimiter=",", ndmin=2, dtype=float, comments=None)
         except (ValueError, IndexError):
@@ -294,7 +323,7 @@ def load_data(path, np):
         raise BundleError("%s: rows have %d cells, the header has %d columns" % (
             path, arr.shape[1], len(names)))
     cols = {n: np.ascontiguousarray(arr[:, i]) for i, n in enumerate(names)}
-    for n in required + (floor if have_floor else []):
+    for n in required + floor:
         bad = np.flatnonzero(~np.isfinite(cols[n]))
         if bad.size:
             raise BundleError("%s: line %d: column '%s' is not finite (%r)" % (
@@ -412,9 +441,14 @@ class Figures:
         self.moving = cols["moving"] > 0.5
         self.heldout = cols["heldout"] > 0.5 if "heldout" in cols else None
         self.res = np.stack([cols[a + "_meas"] - cols[a + "_pred"] for a in AXES])
-        self.has_floor = (AXES[0] + "_floor") in cols
-        self.fres = (np.stack([cols[a + "_meas"] - cols[a + "_floor"] for a in AXES])
-                     if self.has_floor else None)
+        # meas − true model on the log's signals (true-model reference) and on noise-free
+        # signals (sensor floor: the F/T sensor's noise), when the bundle has them
+        self.has_ref = (AXES[0] + "_true") in cols
+        self.rres = (np.stack([cols[a + "_meas"] - cols[a + "_true"] for a in AXES])
+                     if self.has_ref else None)
+        self.has_clean = (AXES[0] + "_true_clean") in cols
+        self.sres = (np.stack([cols[a + "_meas"] - cols[a + "_true_clean"] for a in AXES])
+                     if self.has_clean else None)
         t = cols["t_s"]
         self.t0 = t[0] if abs(t[0]) > 1e5 else 0.0
         self.t = t - self.t0
@@ -484,8 +518,11 @@ class Figures:
             stds.append(np.sqrt(v[keep]))
         return centers[keep], means, stds, (lo, hi)
 
-    def _floor_rms(self):
-        return self.s["_floor"]["rms"] if self.s.get("_floor") else None
+    def _ref_rms(self):
+        return self.s["_ref"]["all"]["rms"] if self.s.get("_ref") else None
+
+    def _sensor_rms(self):
+        return self.s["_sensor"]["all"]["rms"] if self.s.get("_sensor") else None
 
     # -- (3) measured vs predicted over time
     def timeseries(self):
@@ -495,11 +532,11 @@ class Figures:
 
     def zoom_window(self):
         """Index range of ZOOM_SAMPLES around the largest sustained residual, normalised per
-        axis by the noise floor (or the overall RMS). None when the log is short."""
+        axis by the true-model reference (or the overall RMS). None when the log is short."""
         np = self.np
         if self.n <= 2 * ZOOM_SAMPLES:
             return None
-        floor = self._floor_rms()
+        floor = self._ref_rms()
         score = np.zeros(self.n)
         for i in range(6):
             sc = floor[i] if floor and finite(floor[i]) and floor[i] > 0 else None
@@ -545,11 +582,16 @@ class Figures:
             ax.plot(t[k], meas[k], color="#222222", lw=0.7, label="measured")
             k = self._minmax_idx(pred, MAX_PLOT_POINTS)
             ax.plot(t[k], pred[k], color="tab:orange", lw=1.0, alpha=0.9, label="predicted")
-            if self.has_floor:
-                fr = self.fres[i][sl]
+            if self.has_ref:
+                fr = self.rres[i][sl]
                 k = self._minmax_idx(fr, MAX_PLOT_POINTS)
                 axr.plot(t[k], fr[k], color="#9a9a9a", lw=0.5,
-                         label="measured − true model (noise)")
+                         label="measured − true model (true-model reference)")
+            if self.has_clean:
+                fr = self.sres[i][sl]
+                k = self._minmax_idx(fr, MAX_PLOT_POINTS)
+                axr.plot(t[k], fr[k], color="tab:green", lw=0.5, alpha=0.8,
+                         label="measured − true model on noise-free signals (sensor floor)")
             r = self.res[i][sl]
             k = self._minmax_idx(r, MAX_PLOT_POINTS)
             axr.plot(t[k], r[k], color="tab:red", lw=0.7, label="residual meas − pred")
@@ -582,15 +624,17 @@ class Figures:
     def histograms(self):
         np, plt = self.np, self.plt
         fig, axs = plt.subplots(2, 3, figsize=(13, 7.5))
-        floor = self._floor_rms()
+        floor = self._ref_rms()
+        sensor = self._sensor_rms()
         clipped = 0
         for i, (a, u) in enumerate(zip(AXES, UNITS)):
             ax = axs.flat[i]
             r = self.res[i]
             lo, hi = np.percentile(r, [0.1, 99.9])
-            if self.has_floor:
-                flo, fhi = np.percentile(self.fres[i], [0.1, 99.9])
-                lo, hi = min(lo, flo), max(hi, fhi)
+            for other in (self.rres, self.sres):
+                if other is not None:
+                    flo, fhi = np.percentile(other[i], [0.1, 99.9])
+                    lo, hi = min(lo, flo), max(hi, fhi)
             if not hi > lo:
                 lo, hi = lo - 1e-9, hi + 1e-9
             clipped = max(clipped, int(np.count_nonzero((r < lo) | (r > hi))))
@@ -605,13 +649,20 @@ class Figures:
                 labels.append("moving")
                 colors.append("#e8945a")
             ax.hist(data, bins=bins, stacked=True, color=colors, label=labels)
-            if self.has_floor:
-                ax.hist(self.fres[i], bins=bins, histtype="step", color="k", lw=1.2,
+            if self.has_ref:
+                ax.hist(self.rres[i], bins=bins, histtype="step", color="k", lw=1.2,
                         label="meas − true model")
+            if self.has_clean:
+                ax.hist(self.sres[i], bins=bins, histtype="step", color="tab:green", lw=1.2,
+                        label="meas − true model, noise-free signals")
             if floor and finite(floor[i]):
                 for sgn in (-1, 1):
                     ax.axvline(sgn * floor[i], color="k", ls="--", lw=0.9,
-                               label="± noise floor RMS" if sgn > 0 else None)
+                               label="± true-model reference RMS" if sgn > 0 else None)
+            if sensor and finite(sensor[i]):
+                for sgn in (-1, 1):
+                    ax.axvline(sgn * sensor[i], color="tab:green", ls=":", lw=1.1,
+                               label="± sensor floor RMS" if sgn > 0 else None)
             ax.axvline(0, color="k", lw=0.4)
             mean, std = float(r.mean()), float(r.std())
             ax.set_title("%s: mean %s, std %s %s" % (a, fmt(mean, 3), fmt(std, 3), u),
@@ -646,7 +697,7 @@ class Figures:
         fig, axs = plt.subplots(nrows, ncols, figsize=(4.4 * ncols + 0.5, 3.6 * nrows),
                                 squeeze=False)
         rng = np.random.default_rng(0)
-        floor = self._floor_rms()
+        floor = self._ref_rms()
         for p, (cs, col, x) in enumerate(panels):
             ax = axs.flat[p]
             i = AXES.index(cs["axis"])
@@ -664,7 +715,7 @@ class Figures:
                                 label="± std")
             if floor and finite(floor[i]):
                 ax.axhspan(-floor[i], floor[i], color="tab:green", alpha=0.15,
-                           label="± noise floor")
+                           label="± true-model reference")
             ax.axhline(0, color="k", lw=0.5)
             ax.set_xlabel(signal_label(col))
             ax.set_ylabel("%s residual (%s)" % (cs["axis"], UNITS[i]))
@@ -697,17 +748,17 @@ class Figures:
             return None, skipped
         fig, axs = plt.subplots(len(rows), 2, figsize=(13, 2.9 * len(rows) + 0.4),
                                 squeeze=False)
-        floor = self.s.get("_floor")
+        floor = self.s.get("_ref")
         for r_i, (col, (xc, means, stds, _)) in enumerate(rows):
             for side in range(2):
                 ax = axs[r_i, side]
                 idx = range(3 * side, 3 * side + 3)
                 unit = UNITS[3 * side]
                 if floor:
-                    fl = floor["force_rms" if side == 0 else "torque_rms"]
+                    fl = floor["all"]["force_rms" if side == 0 else "torque_rms"]
                     if finite(fl):
                         ax.axhspan(-fl, fl, color="#cfcfcf", alpha=0.6,
-                                   label="± noise floor (pooled)")
+                                   label="± true-model reference (pooled)")
                 for i in idx:
                     ax.plot(xc, means[i], color=AXIS_COLORS[i], lw=1.4, label=AXES[i])
                     ax.fill_between(xc, means[i] - stds[i], means[i] + stds[i],
@@ -783,7 +834,10 @@ class Figures:
         steps = lad["steps"]
         if not steps:
             return None
-        floor = lad["noise_floor"] or self.s.get("_floor")
+        lines = [(lad["true_model_reference"] or self.s.get("_ref"), "true-model reference",
+                  "k", "--"),
+                 (lad["sensor_floor"] or self.s.get("_sensor"), "sensor floor", "tab:green",
+                  ":")]
         labels = []
         for k, st in enumerate(steps):
             if st["added"]:
@@ -802,13 +856,17 @@ class Figures:
                 if np.isfinite(yi):
                     ax.annotate(fmt(yi, 3), (xi, yi), textcoords="offset points",
                                 xytext=(0, 7), ha="center", fontsize=8)
-            fl = floor[key] if floor else None
-            if finite(fl):
-                ax.axhline(fl, color="k", ls="--", lw=1,
-                           label="noise floor %s %s" % (fmt(fl, 3), unit))
+            drawn = []
+            for fls, name, color, ls in lines:
+                fl = fls["all"][key] if fls else None
+                if finite(fl):
+                    ax.axhline(fl, color=color, ls=ls, lw=1.1,
+                               label="%s %s %s" % (name, fmt(fl, 3), unit))
+                    drawn.append(fl)
+            if drawn:
                 ax.legend(fontsize=8)
             good = y[np.isfinite(y)]
-            posv = np.concatenate((good, [fl] if finite(fl) else []))
+            posv = np.concatenate((good, drawn))
             posv = posv[posv > 0]
             if posv.size and posv.max() / posv.min() > 20:
                 ax.set_yscale("log")
@@ -910,10 +968,53 @@ def _ratio_class(r):
     return "r-good" if r < 1.5 else ("r-mid" if r < 3 else "r-bad")
 
 
+def _floors_table(s, seg):
+    """The residual beside the two yardsticks, force and torque, all / static / moving; and
+    what each means (README "Sensor floor and true-model reference")."""
+    floor, sensor = s.get("_ref"), s.get("_sensor")
+    if not floor and not sensor:
+        return ('<p class="muted">No true-model reference and no sensor floor in this bundle '
+                "(both need the truth of a simulated run).</p>")
+    out = ['<table><tr><th class="l" rowspan="2">RMS</th><th colspan="3">force (N)</th>'
+           '<th colspan="3">torque (N·m)</th><th class="l" rowspan="2">source</th></tr><tr>'
+           + "<th>all</th><th>static</th><th>moving</th>" * 2 + "</tr>"]
+    rows = [("residual meas − pred (this model)",
+             {g: seg[g] for g in ("all", "static", "moving")}, "summary.json compare")]
+    if floor:
+        rows.append(("true-model reference", floor, s.get("_ref_source")))
+    if sensor:
+        rows.append(("sensor floor", sensor, s.get("_sensor_source")))
+    for label, f, src in rows:
+        cells = "".join("<td>%s</td>" % fmt(f[g][key] if f.get(g) else None)
+                        for key in ("force_rms", "torque_rms")
+                        for g in ("all", "static", "moving"))
+        out.append('<tr><td class="l">%s</td>%s<td class="l">%s</td></tr>' % (
+            esc(label), cells, esc(src or "")))
+    out.append("</table>")
+    cap = []
+    if floor:
+        cap.append("<b>True-model reference</b>: the true model with the true parameters on the "
+                   "same noisy signals; what a perfect fit of the complete model leaves. Not a "
+                   "lower bound: the IMU's noise enters through the model (mass × accelerometer "
+                   "noise, inertia × differenced gyro), and a model that uses the IMU otherwise "
+                   "can beat it.")
+    if sensor:
+        cap.append("<b>Sensor floor</b>: the true model on noise-free signals against the same "
+                   "noisy wrench: the F/T sensor's own noise and quantisation; no model of the "
+                   "signals beats it on average.")
+    else:
+        cap.append("No sensor floor: %s." % esc(
+            s.get("sensor_floor_note") or "the bundle has none (it needs the noise-free log of "
+            "a simulated run)"))
+    out.append('<p class="muted">%s</p>' % " ".join(cap))
+    return "".join(out)
+
+
 def build_html(s, cols, figs, notes, warnings):
     cmp_ = s["compare"]
     seg = cmp_["segments"]
-    floor = s.get("_floor")
+    floor = s.get("_ref")
+    sensor = s.get("_sensor")
     out = []
     w = out.append
     w("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">")
@@ -955,21 +1056,25 @@ def build_html(s, cols, figs, notes, warnings):
 
     # (2) residual table
     w('<h2 id="residuals">Residual meas − pred</h2>')
-    fl_src = s.get("_floor_source")
     w("<table><tr><th class=\"l\" rowspan=\"2\">axis</th><th rowspan=\"2\">unit</th>"
       "<th colspan=\"2\">all</th><th colspan=\"2\">static</th><th colspan=\"2\">moving</th>")
     if floor:
-        w("<th rowspan=\"2\">noise floor RMS</th><th rowspan=\"2\">all RMS / floor</th>")
+        w("<th rowspan=\"2\">true-model reference RMS</th>"
+          "<th rowspan=\"2\">all RMS / reference</th>")
+    if sensor:
+        w("<th rowspan=\"2\">sensor floor RMS</th>")
     w("</tr><tr>" + "<th>RMS</th><th>max |r|</th>" * 3 + "</tr>")
     for i, (a, u) in enumerate(zip(AXES, UNITS)):
         w("<tr><td class=\"l\">%s</td><td>%s</td>" % (a, u))
         for g in ("all", "static", "moving"):
             w("<td>%s</td><td>%s</td>" % (fmt(seg[g]["rms"][i]), fmt(seg[g]["max"][i])))
         if floor:
-            fl = floor["rms"][i]
+            fl = floor["all"]["rms"][i]
             r = seg["all"]["rms"][i] / fl if finite(fl) and fl > 0 and finite(
                 seg["all"]["rms"][i]) else None
             w("<td>%s</td><td class=\"%s\">%s</td>" % (fmt(fl), _ratio_class(r), fmt(r, 3)))
+        if sensor:
+            w("<td>%s</td>" % fmt(sensor["all"]["rms"][i]))
         w("</tr>")
     for key, label, unit in (("force_rms", "force (pooled)", "N"),
                              ("torque_rms", "torque (pooled)", "N·m")):
@@ -977,19 +1082,20 @@ def build_html(s, cols, figs, notes, warnings):
         for g in ("all", "static", "moving"):
             w("<td>%s</td><td></td>" % fmt(seg[g][key]))
         if floor:
-            fl = floor[key]
+            fl = floor["all"][key]
             r = seg["all"][key] / fl if finite(fl) and fl > 0 and finite(seg["all"][key]) else None
             w("<td>%s</td><td class=\"%s\">%s</td>" % (fmt(fl), _ratio_class(r), fmt(r, 3)))
+        if sensor:
+            w("<td>%s</td>" % fmt(sensor["all"][key]))
         w("</tr>")
     w("</table>")
     cap = ("Pooled = sqrt of the mean of the three squared per-axis RMS. max |r| is the largest "
            "absolute residual.")
     if floor:
-        cap += (" Noise floor: %s. Ratio colours: green &lt; 1.5, yellow &lt; 3, red ≥ 3 times "
-                "the floor." % esc(fl_src))
-    else:
-        cap += " No noise floor in this bundle (it is known for simulated data only)."
+        cap += (" Ratio colours: green &lt; 1.5, yellow &lt; 3, red ≥ 3 times the true-model "
+                "reference.")
     w('<p class="muted">%s</p>' % cap)
+    w(_floors_table(s, seg))
     wo = cmp_["worst"]
     if wo:
         unit = UNITS[AXES.index(wo["axis"])] if wo["axis"] in AXES else ""
@@ -1010,9 +1116,11 @@ def build_html(s, cols, figs, notes, warnings):
     # (3) time series
     w('<h2 id="time">Measured vs predicted over time</h2>')
     cap = ("Per axis: measured (black) and predicted (orange); below it the residual meas − pred "
-           "(red)%s. Blue shading: moving segments%s." % (
-               ", and measured − true model in grey (the noise the fit cannot remove)"
-               if "_floor_cols" in notes else "",
+           "(red)%s%s. Blue shading: moving segments%s." % (
+               ", measured − true model in grey (what a perfect fit leaves on these signals)"
+               if "_ref_cols" in notes else "",
+               ", measured − true model on noise-free signals in green (the F/T sensor's noise)"
+               if "_sensor_cols" in notes else "",
                "; purple marks along the bottom of each residual panel: held-out blocks"
                if "heldout" in cols else ""))
     if notes["decimated"]:
@@ -1027,15 +1135,21 @@ def build_html(s, cols, figs, notes, warnings):
                "window with the largest sustained residual, each axis weighted by %s. Same "
                "layout and colours as above." % (
                    a + 1, b + 1, fmt(ta, 7), fmt(tb, 7), b - a + 1,
-                   "its noise floor" if floor else "its overall RMS")))
+                   "its true-model reference" if floor else "its overall RMS")))
 
     # (4) histograms
     w('<h2 id="hist">Residual distribution</h2>')
     cap = "Residual meas − pred per axis; static and moving samples stacked."
-    if "_floor_cols" in notes:
-        cap += " Black outline: measured − true model (noise only), for the spread to expect."
+    if "_ref_cols" in notes:
+        cap += (" Black outline: measured − true model on the same signals, the spread a perfect "
+                "fit leaves.")
+    if "_sensor_cols" in notes:
+        cap += (" Green outline: measured − true model on noise-free signals, the F/T sensor's "
+                "own noise.")
     if floor:
-        cap += " Dashed: ± noise floor RMS."
+        cap += " Dashed: ± true-model reference RMS."
+    if sensor:
+        cap += " Dotted green: ± sensor floor RMS."
     cap += " The x range spans the 0.1–99.9 percentiles"
     cap += (" (%d samples outside on the worst axis are not shown)." % notes["hist_clipped"]
             if notes["hist_clipped"] else ".")
@@ -1049,7 +1163,7 @@ def build_html(s, cols, figs, notes, warnings):
                    "Residual of the flagged axis against the signals the diagnosis found most "
                    "correlated with it (scatter of at most %d random samples, binned mean ± std "
                    "in red%s)." % (MAX_SCATTER_POINTS,
-                                   ", green band ± noise floor" if floor else "")))
+                                   ", green band ± true-model reference" if floor else "")))
         elif not dg["correlated_signals"]:
             w("<p class=\"muted\">The diagnosis lists no correlated signals.</p>")
         if notes["diag_skipped"]:
@@ -1062,7 +1176,8 @@ def build_html(s, cols, figs, notes, warnings):
                "angular acceleration |ω̇|: binned mean per axis, shaded ± one standard deviation "
                "(%d bins over the 0.5–99.5 percentile range; bins with fewer than 5 samples "
                "left out)%s. A model that fits leaves flat lines at zero." % (
-                   N_SIGNAL_BINS, "; grey band: ± pooled noise floor" if floor else "")))
+                   N_SIGNAL_BINS,
+                   "; grey band: ± pooled true-model reference" if floor else "")))
     if notes["sig_skipped"]:
         w("<p class=\"muted\">Not plotted: %s.</p>" % "; ".join(
             "%s (%s)" % (esc(c), esc(why)) for c, why in notes["sig_skipped"]))
@@ -1080,11 +1195,13 @@ def build_html(s, cols, figs, notes, warnings):
     if lad:
         w('<h2 id="ladder">Ladder of effects</h2>')
         if figs.get("ladder"):
-            lf = lad["noise_floor"] or floor
+            lf = lad["true_model_reference"] or floor
+            ls = lad["sensor_floor"] or sensor
             w(_img(figs["ladder"], "ladder of effects",
                    "Held-out force and torque RMS of the model at each step, labelled with the "
-                   "effect that step added%s." % (
-                       "; dashed: noise floor" if lf else "")))
+                   "effect that step added%s%s." % (
+                       "; dashed: true-model reference" if lf else "",
+                       "; dotted green: sensor floor" if ls else "")))
         if not lad["steps"]:
             w("<p class=\"muted\">The ladder has no steps.</p>")
         else:
@@ -1151,19 +1268,31 @@ def render(bundle, outdir_tmp, s, cols, np, plt):
     if int(s["compare"]["samples"]["total"]) != n:
         warnings.append("data.csv has %d rows but summary.json says %d samples."
                         % (n, int(s["compare"]["samples"]["total"])))
-    # noise floor: summary > ladder > computed from the _floor columns
-    has_floor_cols = (AXES[0] + "_floor") in cols
-    if s["noise_floor"]:
-        s["_floor"], s["_floor_source"] = s["noise_floor"], "from summary.json noise_floor"
-    elif s["ladder"] and s["ladder"]["noise_floor"]:
-        s["_floor"], s["_floor_source"] = s["ladder"]["noise_floor"], "from the ladder"
-    elif has_floor_cols:
-        rms = [float(np.sqrt(np.mean((cols[a + "_meas"] - cols[a + "_floor"]) ** 2)))
-               for a in AXES]
-        s["_floor"] = {"rms": rms, "force_rms": pooled(rms[:3]), "torque_rms": pooled(rms[3:])}
-        s["_floor_source"] = "RMS of measured − true model, computed from data.csv"
-    else:
-        s["_floor"], s["_floor_source"] = None, None
+    # Both yardsticks: summary > ladder (held-out blocks) > computed from the true model's
+    # columns of data.csv.
+    moving = cols["moving"] > 0.5
+
+    def from_columns(suffix):
+        out = {}
+        for g, sel in (("all", np.ones(n, dtype=bool)), ("static", ~moving), ("moving", moving)):
+            if not sel.any():
+                out[g] = None
+                continue
+            rms = [float(np.sqrt(np.mean((cols[a + "_meas"][sel] - cols[a + suffix][sel]) ** 2)))
+                   for a in AXES]
+            out[g] = {"rms": rms, "force_rms": pooled(rms[:3]), "torque_rms": pooled(rms[3:])}
+        return out
+
+    for key, name, suffix in (("_ref", "true_model_reference", "_true"),
+                              ("_sensor", "sensor_floor", "_true_clean")):
+        if s[name]:
+            s[key], s[key + "_source"] = s[name], "summary.json"
+        elif s["ladder"] and s["ladder"][name]:
+            s[key], s[key + "_source"] = s["ladder"][name], "the ladder (held-out blocks)"
+        elif (AXES[0] + suffix) in cols:
+            s[key], s[key + "_source"] = from_columns(suffix), "computed from data.csv"
+        else:
+            s[key], s[key + "_source"] = None, None
 
     figs_obj = Figures(outdir_tmp, s, cols, np, plt)
     res_rms = np.sqrt(np.mean(figs_obj.res ** 2, axis=1))
@@ -1173,8 +1302,10 @@ def render(bundle, outdir_tmp, s, cols, np, plt):
             warnings.append("RMS of %s recomputed from data.csv is %s, summary.json says %s."
                             % (a, fmt(float(res_rms[i])), fmt(ref)))
     notes = {}
-    if has_floor_cols:
-        notes["_floor_cols"] = True
+    if (AXES[0] + "_true") in cols:
+        notes["_ref_cols"] = True
+    if (AXES[0] + "_true_clean") in cols:
+        notes["_sensor_cols"] = True
     if figs_obj.heldout is not None and figs_obj.heldout.any() and (~figs_obj.heldout).any():
         h = figs_obj.heldout
         notes["heldout_rms"] = (
@@ -1227,7 +1358,12 @@ def ladder_plot(ladder_json, out_png):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    lad.setdefault("noise_floor", None)
+    try:
+        ref, sensor = _ladder_floors(lad, _Checker(ladder_json))
+    except BundleError as e:
+        print("make_report: error: %s" % e, file=sys.stderr)
+        return 1
+    lad = {"steps": lad["steps"], "true_model_reference": ref, "sensor_floor": sensor}
     out_png = os.path.abspath(out_png)
     if os.path.exists(out_png) and not os.path.isfile(out_png):
         print("make_report: error: %s: exists and is not a regular file; refusing to replace it"

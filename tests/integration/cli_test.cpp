@@ -99,6 +99,89 @@ TEST_F(Cli, FitCompareDiagnoseLadderPrintJsonOfTheDocumentedKinds) {
   EXPECT_TRUE(j["steps"][0]["added"].is_null());
 }
 
+// zerog sim writes the clean log beside the log and names it in the truth; compare and ladder
+// --truth give both floors (all, static, moving), the sensor floor below the reference; a truth
+// that names no clean log gives the reference only and says why.
+TEST_F(Cli, SimWritesTheCleanLogAndCompareAndLadderGiveBothFloors) {
+  ASSERT_TRUE(fs::exists(dir() / "run.clean.csv"));
+  ASSERT_TRUE(fs::exists(dir() / "run.clean.rig.toml"));
+  const std::string truth = (dir() / "run.truth.json").string();
+  auto t = nlohmann::json::parse(slurp(truth));
+  EXPECT_EQ(t["extra"]["clean_signals_log"], "run.clean.csv");
+  const std::string model = (dir() / "floors_fit.json").string();
+  Result r = run("fit " + log() +
+                 " -q --effects bias,gravity,linear_inertia,rotational_inertia,"
+                 "cable --out " +
+                 model);
+  ASSERT_EQ(r.status, 0) << r.err;
+
+  r = run("compare " + log() + " --model " + model + " --truth " + truth + " --json -q");
+  ASSERT_EQ(r.status, 0) << r.err;
+  auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["kind"], "zerog-compare");
+  EXPECT_EQ(j["version"], 2);
+  EXPECT_FALSE(j.contains("noise_floor"));
+  for (const char* g : {"all", "static", "moving"}) {
+    const auto& ref = j["true_model_reference"][g];
+    const auto& sensor = j["sensor_floor"][g];
+    ASSERT_TRUE(ref.is_object() && sensor.is_object()) << g;
+    EXPECT_EQ(ref["count"], j["samples"][g == std::string("all") ? "total" : g]) << g;
+    EXPECT_LT(sensor["force_rms"].get<double>(), ref["force_rms"].get<double>()) << g;
+    EXPECT_LT(sensor["torque_rms"].get<double>(), ref["torque_rms"].get<double>()) << g;
+  }
+  // The F/T noise: 0.25 N and 0.03 N·m white, plus the Omega191's steps.
+  EXPECT_NEAR(j["sensor_floor"]["all"]["force_rms"].get<double>(), 0.285, 0.03);
+  EXPECT_EQ(j["clean_signals_log"], (dir() / "run.clean.csv").string());
+  EXPECT_TRUE(j["sensor_floor_note"].is_null());
+
+  r = run("compare " + log() + " --model " + model + " --truth " + truth + " -q");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("true-model reference: force"));
+  EXPECT_THAT(r.out, HasSubstr("sensor floor: force"));
+
+  r = run("ladder " + log() + " --block 20 --truth " + truth + " --json -q");
+  ASSERT_EQ(r.status, 0) << r.err;
+  j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["kind"], "zerog-ladder");
+  EXPECT_EQ(j["version"], 2);
+  EXPECT_LT(j["sensor_floor"]["moving"]["force_rms"].get<double>(),
+            j["true_model_reference"]["moving"]["force_rms"].get<double>());
+
+  // An older truth (no clean log named): the reference only, and why.
+  t["extra"].erase("clean_signals_log");
+  const std::string old_truth = (dir() / "old.truth.json").string();
+  std::ofstream(old_truth) << t.dump(2);
+  r = run("compare " + log() + " --model " + model + " --truth " + old_truth + " --json -q");
+  ASSERT_EQ(r.status, 0) << r.err;
+  j = nlohmann::json::parse(r.out);
+  EXPECT_TRUE(j["true_model_reference"]["moving"].is_object());
+  EXPECT_TRUE(j["sensor_floor"].is_null());
+  EXPECT_THAT(j["sensor_floor_note"].get<std::string>(), HasSubstr("names no noise-free log"));
+  r = run("compare " + log() + " --model " + model + " --truth " + old_truth + " -q");
+  EXPECT_THAT(r.out, HasSubstr("sensor floor: not known"));
+
+  // Without --truth: neither.
+  r = run("compare " + log() + " --model " + model + " --json -q");
+  j = nlohmann::json::parse(r.out);
+  EXPECT_TRUE(j["true_model_reference"].is_null());
+  EXPECT_TRUE(j["sensor_floor"].is_null());
+}
+
+TEST_F(Cli, ReportShowsBothFloors) {
+  const std::string model = (dir() / "report_fit.json").string();
+  Result r = run("fit " + log() + " -q --out " + model);
+  ASSERT_EQ(r.status, 0) << r.err;
+  const fs::path out = dir() / "report";
+  r = run("report " + log() + " --model " + model + " --truth " +
+          (dir() / "run.truth.json").string() + " --out " + out.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string page = slurp(out / "index.html");
+  EXPECT_THAT(page, HasSubstr("true-model reference RMS"));
+  EXPECT_THAT(page, HasSubstr("sensor floor RMS"));
+  EXPECT_THAT(page, HasSubstr("<b>Sensor floor</b>"));
+  EXPECT_THAT(page, ::testing::Not(HasSubstr("No sensor floor")));
+}
+
 TEST_F(Cli, NeverOverwritesItsInput) {
   const std::string before = slurp(log());
   const Result r = run("fit " + log() + " -q --out " + log());
@@ -145,6 +228,50 @@ TEST_F(Cli, ABadCellIsReportedWithFileLineAndColumn) {
   EXPECT_EQ(r.status, 2);
   EXPECT_THAT(r.err, HasSubstr(bad.string() + ":" + std::to_string(target_line) + ":"));
   EXPECT_THAT(r.err, HasSubstr("1.2.3"));
+}
+
+// The discovery loop as a user runs it: diagnose finds a law outside the library, writes the effect
+// file and prints a command; the command runs as printed and fits the law; compare, report and
+// export take the fitted model with its user-defined effect.
+TEST_F(Cli, DiscoveredLawFitsWithThePrintedCommandAndTravelsToReportAndExport) {
+  const fs::path log = dir() / "j6.csv";
+  Result r = run("sim --kind oa --seed 3 --effects joint6_friction -q --out " + log.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const fs::path found = dir() / "found.toml";
+  r = run("diagnose " + log.string() + " --json -q --discovered-out " + found.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto d = nlohmann::json::parse(r.out);
+  ASSERT_EQ(d["verdict"]["kind"], "discovered") << d["verdict"]["text"];
+  EXPECT_EQ(d["verdict"]["effect_file"], found.string());
+  ASSERT_TRUE(fs::exists(found));
+  ASSERT_EQ(d["discovery"]["terms"].size(), 1u) << d["discovery"].dump();
+  EXPECT_EQ(d["discovery"]["terms"][0]["basis"], "tanh(qd6/0.02)");
+  EXPECT_EQ(d["discovery"]["terms"][0]["axis"], "Mz");
+  const std::string command = d["verdict"]["command"];
+  ASSERT_EQ(command.rfind("zerog fit ", 0), 0u) << command;
+  // As printed, from the folder it names its output in.
+  const std::string shell = "cd " + dir().string() + " && " + std::string(ZEROG_EXE) +
+                            command.substr(5) + " -q >/dev/null 2>" +
+                            (dir() / "cmd_err.txt").string();
+  ASSERT_EQ(std::system(shell.c_str()), 0) << slurp(dir() / "cmd_err.txt");
+  const fs::path fitted = dir() / "fitted.json";
+  ASSERT_TRUE(fs::exists(fitted));
+  const auto m = nlohmann::json::parse(slurp(fitted));
+  ASSERT_EQ(m["user_effects"].size(), 1u);
+  EXPECT_NEAR(m["user_effects"][0]["terms"][0]["value"].get<double>(), 1.5, 0.075);
+
+  r = run("compare " + log.string() + " --model " + fitted.string() + " --json -q");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto c = nlohmann::json::parse(r.out);
+  EXPECT_LT(c["segments"]["all"]["torque_rms"].get<double>(), 0.45);
+  r = run("report " + log.string() + " --model " + fitted.string() + " --out " +
+          (dir() / "rep").string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(slurp(dir() / "rep" / "index.html").find("@discovered"), std::string::npos);
+  r = run("export --model " + fitted.string() + " --rig " + (dir() / "j6.rig.toml").string() +
+          " --out " + (dir() / "deployed.zgm").string() + " -q");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(slurp(dir() / "deployed.zgm").find("tanh(qd6/0.02)"), std::string::npos);
 }
 
 }  // namespace

@@ -38,11 +38,24 @@ TEST(Results, PhysicsPlusResidualBeatsPhysicsAndBothPaperMethodsOnHeldOutData) {
   EXPECT_LE(r.quantised_vs_float_max_N, 0.1);
   EXPECT_LE(r.quantised_vs_float_max_Nm, 0.01);
   const auto& res = r.method("residual-quantised");
-  // The friction is a torque: the network removes most of what physics leaves above the floor.
-  const auto& floor = r.method("noise-floor");
-  EXPECT_LT(res.all.torque_rms - floor.all.torque_rms,
-            0.3 * (phys.all.torque_rms - floor.all.torque_rms))
+  // The friction is a torque: the network removes most of what physics leaves above the
+  // true-model reference.
+  const auto& reference = r.method("true-model-reference");
+  EXPECT_LT(res.all.torque_rms - reference.all.torque_rms,
+            0.3 * (phys.all.torque_rms - reference.all.torque_rms))
       << table;
+  // No method beats the sensor floor (the F/T noise alone), and it lies below the reference.
+  const auto& sensor = r.method("sensor-floor");
+  ASSERT_TRUE(sensor.available);
+  for (const auto& m : r.methods) {
+    if (!m.available || m.key == "sensor-floor") continue;
+    EXPECT_GT(m.stat.force_rms, sensor.stat.force_rms) << m.key << "\n" << table;
+    EXPECT_GT(m.moving.force_rms, sensor.moving.force_rms) << m.key << "\n" << table;
+    EXPECT_GT(m.stat.torque_rms, sensor.stat.torque_rms) << m.key << "\n" << table;
+    EXPECT_GT(m.moving.torque_rms, sensor.moving.torque_rms) << m.key << "\n" << table;
+  }
+  EXPECT_NE(table.find("| sensor floor ("), std::string::npos) << table;
+  EXPECT_NE(table.find("| true-model reference ("), std::string::npos) << table;
   // The ladder reaches the cable (the physics model can fit it) and the quantised column is
   // marked, whether or not the firmware inference is linked yet.
   EXPECT_NE(r.physics_effects.find("cable"), std::string::npos) << r.physics_effects;

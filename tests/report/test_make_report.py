@@ -31,9 +31,13 @@ def pooled(r3):
     return math.sqrt(sum(x * x for x in r3) / 3.0)
 
 
-def make_bundle(path, n=1500, floor=True, optional=True, ladder=True, diagnosis=True):
+def make_bundle(path, n=1500, floor=True, optional=True, ladder=True, diagnosis=True,
+                sensor=True):
     """A 100 kg payload rotated by the wrist; the fitted model misses the rotational inertia,
-    so Fy/Mx residuals grow with |omega_dot| while moving. Deterministic (fixed LCG noise)."""
+    so Fy/Mx residuals grow with |omega_dot| while moving. Deterministic (fixed LCG noise).
+    floor: the true model's columns (_true) and the true-model reference; sensor (with floor):
+    the true model on noise-free signals (_true_clean) and the sensor floor."""
+    sensor = sensor and floor
     os.makedirs(path, exist_ok=True)
     seed = [12345]
 
@@ -43,7 +47,9 @@ def make_bundle(path, n=1500, floor=True, optional=True, ladder=True, diagnosis=
 
     header = ["t_s", "moving"] + [a + "_meas" for a in AXES] + [a + "_pred" for a in AXES]
     if floor:
-        header += [a + "_floor" for a in AXES]
+        header += [a + "_true" for a in AXES]
+    if sensor:
+        header += [a + "_true_clean" for a in AXES]
     if optional:
         header += ["q%d_rad" % j for j in range(1, 7)] + ["qd%d_radps" % j for j in range(1, 7)]
         header += ["omega_norm_radps", "omega_dot_norm_radps2", "accel_norm_mps2", "temp_C",
@@ -74,6 +80,8 @@ def make_bundle(path, n=1500, floor=True, optional=True, ladder=True, diagnosis=
         row = [t, moving] + meas + pred
         if floor:
             row += truth
+        if sensor:
+            row += [truth[i] + 0.5 * noise() * (1.0 if i < 3 else 0.05) for i in range(6)]
         if optional:
             row += q + qd + [w, wd, 0.3 * wd, 25.0 + 0.001 * k, 1 if (k // 100) % 5 == 4 else 0]
         rows.append(row)
@@ -106,9 +114,14 @@ def make_bundle(path, n=1500, floor=True, optional=True, ladder=True, diagnosis=
                       [None] * 6)
         joint_bins.append({"joint": "A%d" % (j + 1), "edges_rad": edges, "count": cnt,
                            "rms": rr})
-    nf = {"force_rms": 0.1732, "torque_rms": 0.008660, "rms": [0.1732] * 3 + [0.00866] * 3}
+    def rms6(f, t):
+        return {"force_rms": f, "torque_rms": t, "rms": [f] * 3 + [t] * 3}
+    ref = {"all": rms6(0.1732, 0.008660), "static": rms6(0.1701, 0.008512),
+           "moving": rms6(0.1763, 0.008805)}
+    sen = {"all": rms6(0.08123, 0.004321), "static": rms6(0.08011, 0.004298),
+           "moving": rms6(0.08234, 0.004345)}
     summary = {
-        "kind": "zerog-report-bundle", "version": 1,
+        "kind": "zerog-report-bundle", "version": 2,
         "title": "Test report <KR210 & payload>",
         "log": "logs/sim_payload100.csv", "model": "fits/payload100.model.json",
         "effects": ["bias", "gravity", "linear_inertia"],
@@ -120,7 +133,12 @@ def make_bundle(path, n=1500, floor=True, optional=True, ladder=True, diagnosis=
             "worst": {"axis": "Fy", "segment": "moving", "joint": "A5",
                       "bin_rad": [-math.pi / 6, 0.0], "rms": 7.875},
         },
-        "ladder": None, "diagnosis": None, "noise_floor": nf if floor else None,
+        "ladder": None, "diagnosis": None,
+        "true_model_reference": ref if floor else None,
+        "sensor_floor": sen if sensor else None,
+        "sensor_floor_note": None if sensor or not floor else
+        "run.truth.json names no noise-free log (extra.clean_signals_log: a truth from an "
+        "older zerog sim, or not simulated)",
     }
     if ladder:
         steps = []
@@ -135,7 +153,8 @@ def make_bundle(path, n=1500, floor=True, optional=True, ladder=True, diagnosis=
                           "heldout": {"force_rms": fr[k], "torque_rms": tr[k],
                                       "rms": [fr[k]] * 3 + [tr[k]] * 3},
                           "bic": 90000.5 - 20000 * k})
-        summary["ladder"] = {"steps": steps, "noise_floor": nf}
+        summary["ladder"] = {"steps": steps, "true_model_reference": ref,
+                             "sensor_floor": sen if sensor else None}
     if diagnosis:
         def h(f, t):
             return {"force_rms": f, "torque_rms": t, "rms": [f] * 3 + [t] * 3}
@@ -235,7 +254,13 @@ class ReportTest(unittest.TestCase):
             self.assertIn("%.4g" % seg[g]["torque_rms"], page)
             self.assertIn("%.4g" % seg[g]["rms"][1], page)
         self.assertIn("%.4g" % seg["all"]["max"][2], page)
-        self.assertIn("0.1732", page)        # noise floor
+        self.assertIn("0.1732", page)        # true-model reference, all
+        self.assertIn("0.1763", page)        # true-model reference, moving force
+        self.assertIn("0.08123", page)       # sensor floor, all
+        self.assertIn("0.004345", page)      # sensor floor, moving torque
+        self.assertIn("True-model reference", page)
+        self.assertIn("Sensor floor", page)
+        self.assertNotIn("noise floor", page.lower())
         self.assertIn("7.875", page)         # worst bin RMS
         self.assertIn("412.5", page)         # ladder step 0
         self.assertIn("0.2125", page)        # ladder step 3 / best candidate
@@ -249,7 +274,7 @@ class ReportTest(unittest.TestCase):
         make_bundle(self.bundle, floor=False, optional=False, ladder=False, diagnosis=False)
         page, pngs = self.assertReportOk(run(self.bundle, self.out))
         self.assertEqual(pngs, {"timeseries.png", "residual_hist.png", "joint_bins.png"})
-        self.assertIn("No noise floor", page)
+        self.assertIn("No true-model reference and no sensor floor", page)
         self.assertNotIn('id="ladder"', page)
         self.assertNotIn('id="verdict"', page)
 
@@ -274,11 +299,11 @@ class ReportTest(unittest.TestCase):
         s["compare"]["samples"]["total"] = 301       # mismatch: a warning, not an error
         s["compare"]["joint_bins"] = []
         s["compare"]["worst"] = None
-        s["ladder"] = {"steps": [], "noise_floor": None}
+        s["ladder"] = {"steps": [], "true_model_reference": None, "sensor_floor": None}
         s["diagnosis"]["candidates"] = []
         s["diagnosis"]["correlated_signals"] = []
         s["diagnosis"]["verdict"] = {"kind": "nothing_left", "effect": None,
-                                     "text": "The residual is at the noise floor.",
+                                     "text": "The residual is at the noise level.",
                                      "command": None}
         with open(os.path.join(self.bundle, "summary.json"), "w") as f:
             json.dump(s, f)
@@ -286,7 +311,7 @@ class ReportTest(unittest.TestCase):
         page, pngs = self.assertReportOk(p)
         self.assertIn("warning", p.stderr)
         self.assertIn("301", page)
-        self.assertIn("The residual is at the noise floor.", page)
+        self.assertIn("The residual is at the noise level.", page)
         self.assertIn("The ladder has no steps", page)
         self.assertIn("No joint-angle bins", page)
         self.assertNotIn("ladder.png", pngs)
@@ -319,7 +344,7 @@ class ReportTest(unittest.TestCase):
             f.write("previous report")
         with open(os.path.join(self.bundle, "summary.json")) as f:
             s = json.load(f)
-        s["version"] = 2
+        s["version"] = 1
         with open(os.path.join(self.bundle, "summary.json"), "w") as f:
             json.dump(s, f)
         p = run(self.bundle, self.out)
@@ -346,10 +371,74 @@ class ReportTest(unittest.TestCase):
         path = os.path.join(self.bundle, "summary.json")
         with open(path) as f:
             s = json.load(f)
-        s["version"] = 2
+        s["version"] = 1  # before the two floors: noise_floor is gone
         with open(path, "w") as f:
             json.dump(s, f)
-        self.assertFailsCleanly(run(self.bundle, self.out), "summary.json", "version", "2")
+        self.assertFailsCleanly(run(self.bundle, self.out), "summary.json", "version", "1")
+
+    def test_reference_without_sensor_floor(self):
+        # A truth that names no noise-free log: the reference only, and the page says why.
+        s = make_bundle(self.bundle, sensor=False)
+        page, _ = self.assertReportOk(run(self.bundle, self.out))
+        self.assertIn("0.1732", page)
+        self.assertNotIn("0.08123", page)
+        self.assertNotIn("sensor floor RMS", page)
+        self.assertIn("No sensor floor: " + s["sensor_floor_note"], page)
+
+    def test_floors_computed_from_columns(self):
+        # Without the floors in summary.json or the ladder, both come from the _true columns.
+        make_bundle(self.bundle, ladder=False)
+        path = os.path.join(self.bundle, "summary.json")
+        with open(path) as f:
+            s = json.load(f)
+        s["true_model_reference"] = s["sensor_floor"] = None
+        with open(path, "w") as f:
+            json.dump(s, f)
+        page, _ = self.assertReportOk(run(self.bundle, self.out))
+        self.assertEqual(page.count('<td class="l">computed from data.csv</td>'), 2)
+        self.assertNotIn("0.1732", page)
+        with open(os.path.join(self.bundle, "data.csv")) as f:
+            rows = f.read().splitlines()
+        h = rows[0].split(",")
+        for suffix in ("_true", "_true_clean"):
+            ss = 0.0
+            for line in rows[1:]:
+                c = [float(x) for x in line.split(",")]
+                ss += sum((c[h.index(a + "_meas")] - c[h.index(a + suffix)]) ** 2
+                          for a in AXES[:3])
+            self.assertIn("%.4g" % math.sqrt(ss / (3 * (len(rows) - 1))), page, suffix)
+
+    def test_true_columns_all_six_or_none(self):
+        make_bundle(self.bundle)
+        path = os.path.join(self.bundle, "data.csv")
+        with open(path) as f:
+            lines = f.read().splitlines()
+        drop = lines[0].split(",").index("Mz_true_clean")
+        with open(path, "w") as f:
+            for line in lines:
+                cells = line.split(",")
+                del cells[drop]
+                f.write(",".join(cells) + "\n")
+        self.assertFailsCleanly(run(self.bundle, self.out), "data.csv", "_true_clean",
+                                "Mz_true_clean")
+
+    def test_ladder_plot_reads_both_floors_and_version_1(self):
+        # zerog ladder --plot: version 2 has both floors; a version-1 ladder's noise_floor is
+        # read as the true-model reference.
+        s = make_bundle(self.bundle)
+        png = os.path.join(self.tmp, "ladder.png")
+        for doc in ({"kind": "zerog-ladder", "version": 2, **s["ladder"]},
+                    {"kind": "zerog-ladder", "version": 1, "steps": s["ladder"]["steps"],
+                     "noise_floor": s["ladder"]["true_model_reference"]["all"]}):
+            path = os.path.join(self.tmp, "ladder.json")
+            with open(path, "w") as f:
+                json.dump(doc, f)
+            p = subprocess.run([PYTHON, SCRIPT, "--ladder-plot", path, png],
+                               capture_output=True, text=True, timeout=120)
+            self.assertEqual(p.returncode, 0, p.stderr)
+            with open(png, "rb") as f:
+                self.assertEqual(f.read(8), PNG_MAGIC)
+            os.remove(png)
 
     def test_missing_file(self):
         make_bundle(self.bundle)

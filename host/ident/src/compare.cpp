@@ -4,6 +4,10 @@
 #include <cmath>
 #include <cstdio>
 #include <sstream>
+#include <stdexcept>
+
+#include "zerog/io/log.hpp"
+#include "zerog/io/model_file.hpp"
 
 namespace zerog::ident {
 
@@ -97,6 +101,71 @@ Comparison compare(const std::vector<Wrench>& res, const Dataset& data,
   return c;
 }
 
+SegmentStats segment_stats(const std::vector<Wrench>& res, const Dataset& data,
+                           const std::vector<std::uint8_t>* mask) {
+  ErrorAccumulator all, stat, moving;
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    if (mask != nullptr && (*mask)[i] == 0) continue;
+    all.add(res[i]);
+    (data.moving[i] ? moving : stat).add(res[i]);
+  }
+  return {all.stats(), stat.stats(), moving.stats()};
+}
+
+Floors floors(const model::ModelParams& truth, const Dataset& data, const Dataset* clean,
+              const std::vector<std::uint8_t>* mask) {
+  Floors f;
+  f.reference_residuals = residuals(truth, data);
+  f.reference = segment_stats(f.reference_residuals, data, mask);
+  if (clean == nullptr) return f;
+  if (clean->size() != data.size())
+    throw std::runtime_error("the noise-free log has " + std::to_string(clean->size()) +
+                             " rows, the log " + std::to_string(data.size()) +
+                             ": they are not of the same run");
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    const double dw = (clean->measured[i] - data.measured[i]).cwiseAbs().maxCoeff();
+    if (std::abs(clean->t_s[i] - data.t_s[i]) > 1e-9 * (1.0 + std::abs(data.t_s[i])) ||
+        dw > 1e-9 * (1.0 + data.measured[i].cwiseAbs().maxCoeff()))
+      throw std::runtime_error("the noise-free log differs from the log in row " +
+                               std::to_string(i + 1) + " (t_s " + std::to_string(data.t_s[i]) +
+                               "): time or wrench; they are not of the same run");
+  }
+  // The noisy wrench of the log against the true model on the noise-free signals; the log's own
+  // motion flags (the same poses, so the same flags).
+  f.sensor_residuals.resize(data.size());
+  for (std::size_t i = 0; i < data.size(); ++i)
+    f.sensor_residuals[i] = data.measured[i] - predict(truth, *clean, i);
+  f.sensor = segment_stats(f.sensor_residuals, data, mask);
+  return f;
+}
+
+Floors floors(const std::filesystem::path& truth_path, const Dataset& data,
+              const std::vector<std::uint8_t>* mask) {
+  const io::ModelFile t = io::read_model(truth_path);
+  const auto it = t.extra.find("clean_signals_log");
+  if (it == t.extra.end() || !it->is_string() || it->get<std::string>().empty()) {
+    Floors f = floors(t.params, data, nullptr, mask);
+    f.sensor_note = truth_path.string() +
+                    " names no noise-free log (extra.clean_signals_log: a truth from an older "
+                    "zerog sim, or not simulated)";
+    return f;
+  }
+  const std::filesystem::path clean_path = truth_path.parent_path() / it->get<std::string>();
+  const Dataset clean = make_dataset(io::read_log(clean_path));
+  try {
+    Floors f = floors(t.params, data, &clean, mask);
+    f.clean_log = clean_path.string();
+    return f;
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(clean_path.string() + " (named by " + truth_path.string() +
+                             "): " + e.what());
+  }
+}
+
+nlohmann::json to_json(const SegmentStats& s) {
+  return {{"all", to_json(s.all)}, {"static", to_json(s.stat)}, {"moving", to_json(s.moving)}};
+}
+
 nlohmann::json to_json(const ErrorStats& s) {
   return {{"count", s.count},
           {"rms", s.rms},
@@ -140,19 +209,25 @@ nlohmann::json to_json(const Comparison& c) {
   return j;
 }
 
-std::string format_comparison(const Comparison& c, const Comparison* floor) {
+std::string format_comparison(const Comparison& c, const Floors* floors) {
   std::ostringstream os;
   char line[256];
-  std::snprintf(line, sizeof line, "%-8s %8s | %9s %9s | %9s %9s | %9s %9s%s\n", "axis", "unit",
-                "all rms", "max", "static", "max", "moving", "max", floor ? " | floor rms" : "");
+  const bool sensor = floors != nullptr && floors->sensor.has_value();
+  std::snprintf(line, sizeof line, "%-8s %8s | %9s %9s | %9s %9s | %9s %9s%s%s\n", "axis", "unit",
+                "all rms", "max", "static", "max", "moving", "max", floors ? " | reference" : "",
+                sensor ? " |    sensor" : "");
   os << line;
   for (int k = 0; k < 6; ++k) {
     std::snprintf(line, sizeof line, "%-8s %8s | %9.3f %9.3f | %9.3f %9.3f | %9.3f %9.3f",
                   kAxisNames[k], kAxisUnits[k], c.all.rms[k], c.all.max_abs[k], c.stat.rms[k],
                   c.stat.max_abs[k], c.moving.rms[k], c.moving.max_abs[k]);
     os << line;
-    if (floor) {
-      std::snprintf(line, sizeof line, " | %9.3f", floor->all.rms[k]);
+    if (floors) {
+      std::snprintf(line, sizeof line, " | %9.3f", floors->reference.all.rms[k]);
+      os << line;
+    }
+    if (sensor) {
+      std::snprintf(line, sizeof line, " | %9.3f", floors->sensor->all.rms[k]);
       os << line;
     }
     os << "\n";
@@ -163,13 +238,7 @@ std::string format_comparison(const Comparison& c, const Comparison* floor) {
                 c.all.force_rms, c.stat.force_rms, c.moving.force_rms, c.all.torque_rms,
                 c.stat.torque_rms, c.moving.torque_rms);
   os << line;
-  if (floor) {
-    std::snprintf(
-        line, sizeof line,
-        "noise floor (true model, true parameters, same signals): force %.3f N, torque %.3f N*m\n",
-        floor->all.force_rms, floor->all.torque_rms);
-    os << line;
-  }
+  if (floors) os << format_floors(*floors);
   if (c.worst.joint >= 0) {
     std::snprintf(
         line, sizeof line,
@@ -179,6 +248,29 @@ std::string format_comparison(const Comparison& c, const Comparison* floor) {
     os << line;
   }
   return os.str();
+}
+
+std::string format_floors(const Floors& f, const std::string& scope) {
+  const std::string in = scope.empty() ? "" : " (" + scope + ")";
+  auto numbers = [](const SegmentStats& s) {
+    char line[256];
+    std::snprintf(line, sizeof line,
+                  "force %.3f N (static %.3f, moving %.3f), torque %.3f N*m (static %.3f, moving "
+                  "%.3f)",
+                  s.all.force_rms, s.stat.force_rms, s.moving.force_rms, s.all.torque_rms,
+                  s.stat.torque_rms, s.moving.torque_rms);
+    return std::string(line);
+  };
+  std::string out = "true-model reference" + in + ": " + numbers(f.reference) +
+                    "\n  (true model, true parameters, the same noisy signals)\n";
+  if (f.sensor) {
+    out += "sensor floor" + in + ": " + numbers(*f.sensor) +
+           "\n  (true model on noise-free signals against the noisy wrench: F/T noise and "
+           "quantisation)\n";
+  } else {
+    out += "sensor floor: not known: " + f.sensor_note + "\n";
+  }
+  return out;
 }
 
 }  // namespace zerog::ident

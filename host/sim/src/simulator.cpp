@@ -592,6 +592,9 @@ SimOutput RigSimulator::run(const std::function<void(double)>& progress) const {
   out.log.rig = rig();
   out.log.columns = {true, true, true};
   out.log.samples.reserve(n);
+  out.clean_log.rig = out.log.rig;
+  out.clean_log.columns = out.log.columns;
+  out.clean_log.samples.reserve(n);
   out.angular_accel_imu_radps2.reserve(n);
   out.truth = truth();
   out.stats.samples = n;
@@ -632,9 +635,10 @@ SimOutput RigSimulator::run(const std::function<void(double)>& progress) const {
     const ImuTruth& imu = m.imu;
     s.specific_force_imu_mps2 = imu.specific_force_imu_mps2;
     s.angular_rate_imu_radps = imu.angular_rate_imu_radps;
+    s.temperature_C = c.temperature.at(t);
+    out.clean_log.samples.push_back(s);  // noise-free signals, the noisy wrench
     for (int i = 0; i < 3; ++i) s.specific_force_imu_mps2[i] += c.noise.accel_mps2 * noise.normal();
     for (int i = 0; i < 3; ++i) s.angular_rate_imu_radps[i] += c.noise.gyro_radps * noise.normal();
-    s.temperature_C = c.temperature.at(t);
 
     const double z = lowest_point_z(js.q_rad, ws);
     out.stats.lowest_point_z_m = std::min(out.stats.lowest_point_z_m, z);

@@ -1,14 +1,20 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+#include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
 #include "zerog/ident/compare.hpp"
 #include "zerog/ident/diagnose.hpp"
 #include "zerog/ident/fit.hpp"
+#include "zerog/io/model_file.hpp"
 #include "zerog/model/predict.hpp"
+#include "zerog/sim/design.hpp"
+#include "zerog/sim/simulator.hpp"
 
 namespace zerog::ident {
 namespace {
@@ -134,6 +140,113 @@ TEST(Compare, StatsOfKnownResiduals) {
   EXPECT_DOUBLE_EQ(c.all.torque_rms, std::sqrt(1.0 / 3.0));
   EXPECT_EQ(c.stat.count + c.moving.count, d.size());
   ASSERT_EQ(c.joints.size(), 3u);  // A2, A3 and A5 do not move in this log
+}
+
+// The default simulated run (OA design, cable hidden, seed 42: the demo's) with its clean log.
+const sim::SimOutput& demo_run() {
+  static const sim::SimOutput out = [] {
+    sim::SimConfig c = sim::default_sim_config(42);
+    c.effects = sim::parse_sim_effects("cable");
+    return sim::RigSimulator(c, sim::make_design(sim::DesignOptions{}).points_rad).run();
+  }();
+  return out;
+}
+
+// The sensor floor is the F/T sensor's noise: per axis sqrt(σ² + q²/12), white noise σ (0.25 N,
+// 0.03 N·m) plus the Omega191's rounding to steps q (uniform over a step: the signal moves across
+// many steps during the run). Within 3 %: the RMS of ~72,000 samples scatters by 0.3 %, and the
+// rounding error is only close to uniform where the wrench stays within a step during a dwell.
+// The true-model reference lies well above it: the IMU's noise enters through the model.
+TEST(Floors, SensorFloorIsTheFtNoiseAndTheReferenceLiesAbove) {
+  const sim::SimOutput& out = demo_run();
+  const Dataset data = make_dataset(out.log);
+  const Dataset clean = make_dataset(out.clean_log);
+  const Floors f = floors(out.truth.params, data, &clean);
+  ASSERT_TRUE(f.sensor.has_value());
+  const sim::NoiseConfig noise;
+  for (int k = 0; k < 6; ++k) {
+    const double sigma = k < 3 ? noise.force_N : noise.torque_Nm;
+    const double q = sim::kOmega191Resolution[static_cast<std::size_t>(k)];
+    const double expected = std::sqrt(sigma * sigma + q * q / 12.0);
+    EXPECT_NEAR(f.sensor->all.rms[k], expected, 0.03 * expected) << kAxisNames[k];
+    EXPECT_NEAR(f.sensor->moving.rms[k], expected, 0.03 * expected) << kAxisNames[k];
+  }
+  EXPECT_EQ(f.sensor->all.count, data.size());
+  EXPECT_EQ(f.sensor->moving.count, f.reference.moving.count);
+  // The IMU noise (×100 kg, × inertia) makes the reference several times the sensor floor.
+  for (const auto& [sensor, reference] :
+       {std::pair{f.sensor->moving, f.reference.moving}, {f.sensor->stat, f.reference.stat}}) {
+    EXPECT_LT(2.0 * sensor.force_rms, reference.force_rms);
+    EXPECT_LT(2.0 * sensor.torque_rms, reference.torque_rms);
+  }
+  // Without the clean log there is only the reference, the same numbers.
+  const Floors only = floors(out.truth.params, data, nullptr);
+  EXPECT_FALSE(only.sensor.has_value());
+  EXPECT_TRUE(only.sensor_residuals.empty());
+  EXPECT_DOUBLE_EQ(only.reference.moving.force_rms, f.reference.moving.force_rms);
+  // A mask (the ladder's held-out blocks) selects the samples of both.
+  const auto mask = heldout_mask(data);
+  const Floors held = floors(out.truth.params, data, &clean, &mask);
+  EXPECT_EQ(held.sensor->all.count,
+            static_cast<std::size_t>(std::count(mask.begin(), mask.end(), 1)));
+  EXPECT_EQ(held.reference.all.count, held.sensor->all.count);
+}
+
+TEST(Floors, RefusesACleanLogOfAnotherRun) {
+  sim::SimConfig c = sim::default_sim_config(3);
+  c.duration_limit_s = 20.0;
+  const sim::SimOutput out =
+      sim::RigSimulator(c, sim::make_design(sim::DesignOptions{}).points_rad).run();
+  const Dataset data = make_dataset(out.log);
+  io::Log shorter = out.clean_log;
+  shorter.samples.pop_back();
+  const Dataset short_clean = make_dataset(shorter);
+  EXPECT_THROW(floors(out.truth.params, data, &short_clean), std::runtime_error);
+  io::Log other_wrench = out.clean_log;
+  other_wrench.samples[100].force_sensor_N.x() += 0.375;
+  const Dataset other = make_dataset(other_wrench);
+  try {
+    floors(out.truth.params, data, &other);
+    FAIL() << "no error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("row 101"));
+  }
+}
+
+// From files, as compare, ladder and report --truth read them: the truth names the clean log
+// (relative to its folder); a truth that names none gives the reference and says why.
+TEST(Floors, FromTheTruthFileAndItsCleanLog) {
+  namespace fs = std::filesystem;
+  const fs::path dir =
+      fs::temp_directory_path() / ("zerog_floors_test_" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  sim::SimConfig c = sim::default_sim_config(4);
+  c.duration_limit_s = 60.0;
+  const sim::SimOutput out =
+      sim::RigSimulator(c, sim::make_design(sim::DesignOptions{}).points_rad).run();
+  io::write_log(out.log, dir / "run.csv");
+  io::write_log(out.clean_log, dir / "run.clean.csv");
+  io::ModelFile truth = out.truth;
+  io::write_model(truth, dir / "old.truth.json");
+  truth.extra["clean_signals_log"] = "run.clean.csv";
+  io::write_model(truth, dir / "run.truth.json");
+  const Dataset data = make_dataset(io::read_log(dir / "run.csv"));
+
+  const Floors f = floors(dir / "run.truth.json", data);
+  ASSERT_TRUE(f.sensor.has_value());
+  EXPECT_EQ(fs::path(f.clean_log), dir / "run.clean.csv");
+  const Dataset clean = make_dataset(out.clean_log);
+  const Floors in_process = floors(out.truth.params, make_dataset(out.log), &clean);
+  EXPECT_NEAR(f.sensor->all.force_rms, in_process.sensor->all.force_rms, 1e-6);
+  EXPECT_NEAR(f.reference.all.torque_rms, in_process.reference.all.torque_rms, 1e-6);
+
+  const Floors old = floors(dir / "old.truth.json", data);
+  EXPECT_FALSE(old.sensor.has_value());
+  EXPECT_THAT(old.sensor_note, HasSubstr("names no noise-free log"));
+  EXPECT_NEAR(old.reference.all.force_rms, f.reference.all.force_rms, 1e-12);
+  EXPECT_THAT(format_floors(old), HasSubstr("sensor floor: not known"));
+  EXPECT_THAT(format_floors(f), HasSubstr("sensor floor: force"));
+  fs::remove_all(dir);
 }
 
 TEST(Docs, EffectsTableNamesEveryEffectAndParameterOfTheCode) {

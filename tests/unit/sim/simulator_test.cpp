@@ -462,6 +462,48 @@ TEST(Simulator, OaRunLengthAndFloor) {
   EXPECT_GT(out.stats.max_force_N, 900.0);
 }
 
+// The clean log (the sensor floor's input): the same rows with every signal noise-free and the
+// noisy wrench. Checked against a run of the same seed without noise: its signals are the clean
+// ones exactly, and the noisy log's IMU differs from them by the configured noise.
+TEST(Simulator, CleanLogHasNoiseFreeSignalsAndTheNoisyWrench) {
+  SimConfig c = default_sim_config(7);
+  c.effects = parse_sim_effects("cable,imu_time_offset");
+  const SimOutput out = RigSimulator(c, short_path()).run();
+  SimConfig quiet = c;
+  quiet.noise = NoiseConfig::none();
+  const SimOutput ref = RigSimulator(quiet, short_path()).run();
+  ASSERT_EQ(out.clean_log.samples.size(), out.log.samples.size());
+  ASSERT_EQ(ref.log.samples.size(), out.log.samples.size());
+  EXPECT_EQ(out.clean_log.columns.imu, out.log.columns.imu);
+  EXPECT_EQ(out.clean_log.rig.name, out.log.rig.name);
+  double ss_acc = 0, ss_gyro = 0, ss_force = 0;
+  const std::size_t n = out.log.samples.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    const io::Sample &clean = out.clean_log.samples[i], &noisy = out.log.samples[i],
+                     &quiet_s = ref.log.samples[i];
+    // Noise-free signals: those of the run without noise, bit for bit.
+    ASSERT_TRUE(clean.specific_force_imu_mps2 == quiet_s.specific_force_imu_mps2) << i;
+    ASSERT_TRUE(clean.angular_rate_imu_radps == quiet_s.angular_rate_imu_radps) << i;
+    ASSERT_EQ(clean.t_s, noisy.t_s);
+    ASSERT_EQ(clean.joints_rad, noisy.joints_rad);
+    ASSERT_TRUE(clean.p_base_sensor_m == noisy.p_base_sensor_m);
+    ASSERT_TRUE(clean.q_base_sensor.coeffs() == noisy.q_base_sensor.coeffs());
+    ASSERT_EQ(clean.temperature_C, noisy.temperature_C);
+    // The wrench: the noisy one of the log, bit for bit.
+    ASSERT_TRUE(clean.force_sensor_N == noisy.force_sensor_N) << i;
+    ASSERT_TRUE(clean.torque_sensor_Nm == noisy.torque_sensor_Nm) << i;
+    ss_acc += (noisy.specific_force_imu_mps2 - clean.specific_force_imu_mps2).squaredNorm();
+    ss_gyro += (noisy.angular_rate_imu_radps - clean.angular_rate_imu_radps).squaredNorm();
+    ss_force += (noisy.force_sensor_N - quiet_s.force_sensor_N).squaredNorm();
+  }
+  // What separates the logs is the IMU noise; what separates the wrench from the noise-free one
+  // is the F/T noise and quantisation (0.25 N and steps of 3/8..5/8 N: about 0.29 N).
+  const double dn = 3.0 * static_cast<double>(n);
+  EXPECT_NEAR(std::sqrt(ss_acc / dn), c.noise.accel_mps2, 0.05 * c.noise.accel_mps2);
+  EXPECT_NEAR(std::sqrt(ss_gyro / dn), c.noise.gyro_radps, 0.05 * c.noise.gyro_radps);
+  EXPECT_NEAR(std::sqrt(ss_force / dn), 0.29, 0.03);
+}
+
 TEST(Simulator, WritesALogThatReadsBack) {
   const fs::path dir = fs::temp_directory_path() / "zerog_sim_log_test";
   fs::create_directories(dir);

@@ -1,7 +1,8 @@
 #pragma once
 // The results table: the paper methods, the physics model, physics + residual network (float and
-// quantised) and the noise floor, on one simulated KR210/100 kg run and the same time-blocked
-// held-out data, static and moving separately; with the papers' own figures quoted beside them.
+// quantised), the true-model reference and the sensor floor, on one simulated KR210/100 kg run
+// and the same time-blocked held-out data, static and moving separately; with the papers' own
+// figures quoted beside them.
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -27,7 +28,9 @@ struct ResultsOptions {
 };
 
 struct MethodResult {
-  std::string key;    ///< paper-bp, paper-zp, physics, residual, residual-quantised, noise-floor
+  /// paper-bp, paper-zp, physics, residual, residual-quantised, true-model-reference,
+  /// sensor-floor
+  std::string key;
   std::string label;  ///< plain words for the table
   bool available = true;
   std::string note;                     ///< why not available, or a remark

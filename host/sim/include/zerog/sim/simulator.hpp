@@ -81,8 +81,8 @@ std::string sim_effect_list_string(const SimEffectSet& effects);
 /// 0.15 °/√h = 4.4e-5 rad/s/√Hz → 4.0e-4 rad/s, accelerometer VRW 0.07 m/s/√h =
 /// 1.2e-3 m/s²/√Hz → 1.1e-2 m/s². Rounded up to 5e-4 rad/s and 0.01 m/s². (Logging a single
 /// raw 2 kHz sample instead, through the STIM300's 262 Hz filter, would give N·√(262·π/2) ≈
-/// 9e-4 rad/s and 0.024 m/s².) With the IMU in the model, σ_acc · m ≈ 1 N is the force noise
-/// floor of a fit, four times the F/T noise.
+/// 9e-4 rad/s and 0.024 m/s².) With the IMU in the model, σ_acc · m ≈ 1 N enters the
+/// true-model reference, four times the F/T noise of the sensor floor.
 struct NoiseConfig {
   double force_N = 0.25;
   double torque_Nm = 0.03;
@@ -217,6 +217,13 @@ struct SimStats {
 
 struct SimOutput {
   io::Log log;
+  /// The same rows as `log` with every kinematic signal noise-free (IMU specific force and rate
+  /// without noise; joints, pose, temperature and time are noise-free in `log` already) and the
+  /// wrench columns equal to `log`'s noisy, quantised wrench. The true model on these signals
+  /// against that wrench leaves only the F/T sensor's own noise and quantisation: the sensor
+  /// floor (README "Sensor floor and true-model reference"). `zerog sim` writes it as
+  /// NAME.clean.csv.
+  io::Log clean_log;
   io::ModelFile truth;
   /// Noise-free analytic angular acceleration in I for each row, delayed like the IMU (not logged).
   std::vector<Eigen::Vector3d> angular_accel_imu_radps2;
