@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The model-insight loop end to end, on a simulated KR210 + Omega191 + STIM300 rig with one
 # effect hidden in the truth: fit the default model, see where it fails, diagnose the missing
-# effect, add it, watch the error fall to the noise floor, write the report. Then live:
+# effect (or discover its law in the signal dictionary), add it, watch the error fall to the
+# true-model reference, write the report. Then live:
 # zerog-rt floats the part in a hardware-in-the-loop run against the emulated rig.
 # Usage: scripts/demo.sh [HIDDEN_EFFECT]   (default: cable; `zerog sim --list-effects` lists them)
 set -euo pipefail
@@ -55,7 +56,7 @@ if [ -z "$effects" ]; then echo "diagnose found nothing to add ($kind); stopping
 step "6. Add it and refit: $effects"
 $zerog fit "$out/run.csv" --effects "$effects" --out "$out/fit_fixed.json" --truth "$out/run.truth.json" -q
 
-step "7. Compare again: the error falls to the noise floor"
+step "7. Compare again: the error falls to the true-model reference"
 $zerog compare "$out/run.csv" --model "$out/fit_fixed.json" --truth "$out/run.truth.json" -q
 
 step "8. The ladder: from bias + gravity, add the best effect while it pays"

@@ -233,15 +233,27 @@ def load_summary(path):
                           "delta_bic": c.num(cd["delta_bic"], w + ".delta_bic")})
         v = c.obj(dg["verdict"], "diagnosis.verdict", ("kind", "text"))
         kind = c.string(v["kind"], "diagnosis.verdict.kind")
-        if kind not in ("effect", "none", "nothing_left"):
+        if kind not in ("effect", "none", "nothing_left", "discovered"):
             c.fail("diagnosis.verdict.kind",
-                   "expected \"effect\", \"none\" or \"nothing_left\", got %s" % json.dumps(kind))
+                   "expected \"effect\", \"none\", \"nothing_left\" or \"discovered\", got %s"
+                   % json.dumps(kind))
         verdict = {"kind": kind,
                    "effect": c.string(v.get("effect"), "diagnosis.verdict.effect", True),
                    "text": c.string(v["text"], "diagnosis.verdict.text"),
                    "command": c.string(v.get("command"), "diagnosis.verdict.command", True)}
         if kind == "effect" and not verdict["effect"]:
             c.fail("diagnosis.verdict.effect", "must name the effect when kind is \"effect\"")
+        # A law found in the signal dictionary (proto/user_effects.md): its terms in plain text.
+        laws = []
+        found = dg.get("discovery")
+        if found is not None:
+            c.obj(found, "diagnosis.discovery", ("terms",))
+            for i, t in enumerate(c.lst(found["terms"], "diagnosis.discovery.terms")):
+                c.obj(t, "diagnosis.discovery.terms[%d]" % i, ("law",))
+                laws.append(c.string(t["law"], "diagnosis.discovery.terms[%d].law" % i))
+        if kind == "discovered" and not laws:
+            c.fail("diagnosis.discovery", "must hold the law's terms when kind is \"discovered\"")
+        verdict["laws"] = laws
         corr = []
         for i, cs in enumerate(c.lst(dg.get("correlated_signals", []),
                                      "diagnosis.correlated_signals")):
@@ -945,6 +957,7 @@ tr.pool td{font-weight:600;background:#fafafa}
 .verdict.effect{border-color:#2e8b3a;background:#eef8ef}
 .verdict.none{border-color:#c98a12;background:#fdf6e7}
 .verdict.nothing_left{border-color:#3a6fb0;background:#edf3fb}
+.verdict.discovered{border-color:#7a3ab0;background:#f5eefb}
 code,pre{background:#f1f1f1;border-radius:3px;padding:1px 4px;font-size:.95em}
 pre{padding:6px 10px;white-space:pre-wrap}
 figure{margin:10px 0 18px}
@@ -1036,7 +1049,9 @@ def build_html(s, cols, figs, notes, warnings):
         v = dg["verdict"]
         head = {"effect": "Missing effect: <b>%s</b>" % esc(v["effect"] or ""),
                 "none": "No single effect explains the rest",
-                "nothing_left": "Nothing left to explain"}[v["kind"]]
+                "nothing_left": "Nothing left to explain",
+                "discovered": "No library effect; discovered law: <b>%s</b>"
+                              % esc("; ".join(v.get("laws", [])))}[v["kind"]]
         w('<div class="verdict %s" id="verdict"><div>%s</div><div>%s</div>' % (
             v["kind"], head, esc(v["text"])))
         if v["command"]:

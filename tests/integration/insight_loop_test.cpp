@@ -1,7 +1,7 @@
 // Acceptance of the model-insight loop (issue: Foundation and the model-insight loop), on data
 // from the independent rig simulator:
 //  - for each hidden effect, diagnose ranks it first, and adding it brings held-out force and
-//    torque RMS within 1.2 × the noise floor;
+//    torque RMS within 1.2 × the true-model reference, and at most 10 % of the effect is left;
 //  - a hidden effect outside the library is not blamed on a library effect, and the correlated
 //    signal is named;
 //  - on a clean run every fitted parameter lies within 3 standard deviations of the truth.

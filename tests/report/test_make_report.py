@@ -5,6 +5,7 @@ Run: /usr/bin/python3 tests/report/test_make_report.py   (registered with ctest 
 Set ZEROG_REPORT_KEEP=DIR to keep the rendered full report in DIR for a look.
 """
 
+import html
 import json
 import math
 import os
@@ -315,6 +316,31 @@ class ReportTest(unittest.TestCase):
         self.assertIn("The ladder has no steps", page)
         self.assertIn("No joint-angle bins", page)
         self.assertNotIn("ladder.png", pngs)
+
+    def test_discovered_law_in_the_verdict(self):
+        # The verdict "discovered" (proto/json_output.md): its law is shown; without terms it is
+        # an error that names the key.
+        make_bundle(self.bundle)
+        with open(os.path.join(self.bundle, "summary.json")) as f:
+            s = json.load(f)
+        law = "Mz += 1.499 ± 0.00053 N*m · tanh(qd6/0.02)"
+        s["diagnosis"]["verdict"] = {"kind": "discovered", "effect": None,
+                                     "effect_file": "discovered.toml",
+                                     "text": "No library effect explains the remaining structure.",
+                                     "command": "zerog fit run.csv --effects bias,@discovered.toml"}
+        s["diagnosis"]["discovery"] = {"terms": [{"law": law}]}
+        with open(os.path.join(self.bundle, "summary.json"), "w") as f:
+            json.dump(s, f)
+        page, _ = self.assertReportOk(run(self.bundle, self.out))
+        self.assertIn('class="verdict discovered"', page)
+        self.assertIn(html.escape(law), page)
+        self.assertIn("bias,@discovered.toml", page)
+        s["diagnosis"]["discovery"] = None
+        with open(os.path.join(self.bundle, "summary.json"), "w") as f:
+            json.dump(s, f)
+        p = run(self.bundle, self.out + "2")
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("diagnosis.discovery", p.stderr)
 
     def test_decimation_and_speed(self):
         make_bundle(self.bundle, n=30000)
