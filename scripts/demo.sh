@@ -60,7 +60,11 @@ step "7. Compare again: the error falls to the true-model reference"
 $zerog compare "$out/run.csv" --model "$out/fit_fixed.json" --truth "$out/run.truth.json" -q
 
 step "8. The ladder: from bias + gravity, add the best effect while it pays"
-$zerog ladder "$out/run.csv" --truth "$out/run.truth.json" --out "$out/ladder.json" -q
+# A discovered law is a candidate too: the ladder climbs with it like with a library effect.
+candidates=()
+if [ "$kind" = discovered ]; then candidates=(--candidates "@$out/discovered.toml"); fi
+$zerog ladder "$out/run.csv" --truth "$out/run.truth.json" --out "$out/ladder.json" \
+  "${candidates[@]}" -q
 
 step "9. The report"
 $zerog report "$out/run.csv" --model "$out/fit_fixed.json" --truth "$out/run.truth.json" \
