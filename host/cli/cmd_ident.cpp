@@ -275,12 +275,7 @@ void run_compare(const Common& c, const std::string& model_path, const std::stri
 // "@a.toml,@b.toml": each file one candidate (diagnose and ladder --candidates).
 std::vector<ident::UserCandidate> user_candidates(const std::string& list) {
   std::vector<ident::UserCandidate> out;
-  std::stringstream ss(list);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    while (!item.empty() && item.front() == ' ') item.erase(item.begin());
-    while (!item.empty() && item.back() == ' ') item.pop_back();
-    if (item.empty()) continue;
+  for (const std::string& item : io::split_list(list)) {
     if (item.front() != '@')
       throw std::invalid_argument("--candidates takes effect files as @FILE, not '" + item + "'");
     ident::UserCandidate c;

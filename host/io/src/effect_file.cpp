@@ -240,15 +240,22 @@ void append_user_effects(model::UserEffects& into, const model::UserEffects& fro
   into = u;
 }
 
-ModelSpec parse_model_spec(const std::string& list) {
-  ModelSpec spec;
-  std::string library;
+std::vector<std::string> split_list(const std::string& list) {
+  std::vector<std::string> out;
   std::stringstream ss(list);
   std::string item;
   while (std::getline(ss, item, ',')) {
     while (!item.empty() && item.front() == ' ') item.erase(item.begin());
     while (!item.empty() && item.back() == ' ') item.pop_back();
-    if (item.empty()) continue;
+    if (!item.empty()) out.push_back(item);
+  }
+  return out;
+}
+
+ModelSpec parse_model_spec(const std::string& list) {
+  ModelSpec spec;
+  std::string library;
+  for (const std::string& item : split_list(list)) {
     if (item.front() == '@') {
       const fs::path file = item.substr(1);
       if (file.empty())

@@ -47,6 +47,9 @@ struct ModelSpec {
   model::UserEffects user;
   std::vector<std::filesystem::path> files;  ///< the effect files read, in order
 };
+/// The items of a comma-separated list, blanks around them removed, empty ones dropped.
+std::vector<std::string> split_list(const std::string& list);
+
 /// Parses the list; '@PATH' reads an effect file, or, for a PATH ending in .json, takes the user
 /// effects of a model file (zerog fit's output). Throws naming an unknown effect or the file's
 /// error.
