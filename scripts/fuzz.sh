@@ -14,7 +14,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$(pwd)
 seconds=${FUZZ_SECONDS:-7}
-all_targets=(rsi stim300_stream netcanoem_frames candump modbus_request log_csv rig_toml
+all_targets=(rsi stim300_stream netcanoem_frames candump modbus_request log_csv rig_toml effect_file
              import_mapping model_file deploy_file rt_config)
 if [ $# -gt 0 ]; then targets=("$@"); else targets=("${all_targets[@]}"); fi
 for t in "${targets[@]}"; do
