@@ -109,8 +109,10 @@ void BM_DiagnoseWithDiscovery(benchmark::State& state) {
   for (auto _ : state) {
     auto d = ident::diagnose(data, o);
     benchmark::DoNotOptimize(d.candidates);
-    if (!d.discovery) state.SkipWithError("nothing discovered");
-    if (!d.discovery) break;
+    if (!d.discovery) {
+      state.SkipWithError("nothing discovered");
+      break;
+    }
     state.counters["discovery_search_s"] = d.discovery->search_seconds;
     state.counters["discovery_s"] = d.discovery->seconds;
     state.counters["columns"] = d.discovery->dictionary_size;

@@ -390,9 +390,6 @@ struct Column {
 std::string law_text(const model::UserEffects& u, int j, double sd) {
   const model::UserTerm& t = u.terms[static_cast<std::size_t>(j)];
   std::ostringstream os;
-  const std::string unit = t.axis < 3 ? "N" : "N*m";
-  char basis_unit[64];
-  model::basis_unit(t.basis, basis_unit, sizeof basis_unit);
   os << io::term_axis_name(t) << " += " << fmt("%.4g", u.coeff[static_cast<std::size_t>(j)]);
   if (std::isfinite(sd)) os << " ± " << fmt("%.2g", sd);
   os << " " << io::coefficient_unit(t) << " · " << io::basis_text(t.basis);
