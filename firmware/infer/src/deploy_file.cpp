@@ -125,7 +125,7 @@ ordered_json to_json(const DeployedModel& m) {
       char basis[128];
       model::format_basis(term.basis, basis, sizeof basis);
       terms.push_back({{"effect", std::string(u.names[term.effect].data())},
-                       {"axis", kAxisNames[term.axis]},
+                       {"axis", model::kWrenchAxisNames[term.axis]},
                        {"frame", term.frame == model::TermFrame::base ? "base" : "sensor"},
                        {"basis", basis},
                        {"value", u.coeff[static_cast<std::size_t>(t)]}});
@@ -255,10 +255,9 @@ model::ModelParams physics_from_json(const json& j) {
         ++u.num_effects;
       }
       term.effect = static_cast<std::uint8_t>(k);
-      const std::string axis = text(at(terms[t], "axis", where), where + ".axis");
-      int a = 0;
-      while (a < 6 && axis != kAxisNames[a]) ++a;
-      if (a == 6) fail(LoadError::invalid_value, where + ".axis: not one of Fx Fy Fz Mx My Mz");
+      const int a =
+          model::wrench_axis_from_name(text(at(terms[t], "axis", where), where + ".axis"));
+      if (a < 0) fail(LoadError::invalid_value, where + ".axis: not one of Fx Fy Fz Mx My Mz");
       term.axis = static_cast<std::uint8_t>(a);
       const std::string frame = text(at(terms[t], "frame", where), where + ".frame");
       if (frame != "sensor" && frame != "base")

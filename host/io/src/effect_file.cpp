@@ -14,7 +14,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr const char* kAxes[6] = {"Fx", "Fy", "Fz", "Mx", "My", "Mz"};
 constexpr const char* kDoc = "proto/user_effects.md";
 
 std::string unit_in_parentheses(const std::string& u) {
@@ -50,7 +49,8 @@ int add_effect_name(model::UserEffects& u, const std::string& name) {
 }  // namespace
 
 std::string term_axis_name(const model::UserTerm& t) {
-  return std::string(kAxes[t.axis]) + (t.frame == model::TermFrame::base ? "_B" : "");
+  return std::string(model::kWrenchAxisNames[t.axis]) +
+         (t.frame == model::TermFrame::base ? "_B" : "");
 }
 
 std::string basis_text(const model::Basis& b) {
@@ -132,10 +132,7 @@ void read_effect_file(const fs::path& path, model::UserEffects& into) {
       t.fail(has_axis ? "vector" : "axis",
              "give either 'axis' (Fx, Fy, Fz, Mx, My, Mz) or 'vector' (force, torque)");
     if (has_axis) {
-      const std::string a = t.string("axis");
-      int k = -1;
-      for (int q = 0; q < 6; ++q)
-        if (a == kAxes[q]) k = q;
+      const int k = model::wrench_axis_from_name(t.string("axis"));
       if (k < 0) t.fail("axis", "must be one of Fx, Fy, Fz, Mx, My, Mz");
       axes.push_back(k);
     } else {
@@ -205,7 +202,7 @@ std::string effect_file_text(const model::UserEffects& u, int k, const std::vect
     const model::UserTerm& t = u.terms[static_cast<std::size_t>(j)];
     if (t.effect != k) continue;
     os << "\n[[term]]\n";
-    os << "axis = \"" << kAxes[t.axis] << "\"\n";
+    os << "axis = \"" << model::kWrenchAxisNames[t.axis] << "\"\n";
     if (t.frame == model::TermFrame::base) os << "frame = \"base\"\n";
     os << "basis = \"" << basis_text(t.basis) << "\"\n";
     os << "unit = \"" << coefficient_unit(t) << "\"\n";

@@ -44,11 +44,7 @@ void read_user_effects(const nlohmann::json& list, ModelFile& m, const Fail& fai
           !tj["value"].is_number())
         fail("'" + tw + "' needs strings 'axis', 'basis' and a number 'value'");
       model::UserTerm term;
-      const std::string axis = tj["axis"].get<std::string>();
-      static constexpr const char* kAxes[6] = {"Fx", "Fy", "Fz", "Mx", "My", "Mz"};
-      int a = -1;
-      for (int q = 0; q < 6; ++q)
-        if (axis == kAxes[q]) a = q;
+      const int a = model::wrench_axis_from_name(tj["axis"].get<std::string>());
       if (a < 0) fail("'" + tw + ".axis' must be one of Fx, Fy, Fz, Mx, My, Mz");
       term.axis = static_cast<std::uint8_t>(a);
       const std::string frame = tj.contains("frame") && tj["frame"].is_string()

@@ -370,8 +370,9 @@ io::ModelFile RigSimulator::truth() const {
       std::size_t pos = 0;
       if (!model::parse_basis(t.basis, term.basis, error, pos))
         throw std::logic_error("outside term basis '" + t.basis + "': " + error);
-      static constexpr const char* kAxes[6] = {"Fx", "Fy", "Fz", "Mx", "My", "Mz"};
-      term.axis = static_cast<std::uint8_t>(std::find(kAxes, kAxes + 6, t.axis) - kAxes);
+      const int axis = model::wrench_axis_from_name(t.axis);
+      if (axis < 0) throw std::logic_error("outside term axis '" + t.axis + "'");
+      term.axis = static_cast<std::uint8_t>(axis);
       term.effect = static_cast<std::uint8_t>(u.num_effects);
       u.terms[static_cast<std::size_t>(u.num_terms)] = term;
       u.coeff[static_cast<std::size_t>(u.num_terms)] = t.coefficient;

@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
+#include <string_view>
 
 #include "zerog/model/dictionary.hpp"
 
@@ -17,6 +18,15 @@ namespace zerog::model {
 inline constexpr int kMaxUserTerms = 48;
 inline constexpr int kMaxUserEffects = 8;
 inline constexpr int kUserNameSize = 48;  ///< bytes of an effect name, with its terminating zero
+
+/// Names of the wrench axes, index 0..5: Fx Fy Fz (N), Mx My Mz (N·m).
+inline constexpr std::array<const char*, 6> kWrenchAxisNames = {"Fx", "Fy", "Fz", "Mx", "My", "Mz"};
+/// The index of an axis name, or −1. Real-time safe.
+constexpr int wrench_axis_from_name(std::string_view name) {
+  for (int k = 0; k < 6; ++k)
+    if (name == kWrenchAxisNames[static_cast<std::size_t>(k)]) return k;
+  return -1;
+}
 
 /// Which frame a term's axis is in.
 enum class TermFrame : std::uint8_t {
