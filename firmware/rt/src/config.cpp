@@ -13,6 +13,7 @@
 #include <utility>
 
 #include "zerog/io/toml_table.hpp"
+#include "zerog/rtio/local_can_bus.hpp"
 #include "zerog/rtio/serial_port.hpp"
 
 namespace zerog::rt {
@@ -29,6 +30,57 @@ void check_ipv4(const TomlTable& t, std::string_view key, const std::string& val
     t.fail(key, "must be an IPv4 address in dotted-quad form (e.g. \"192.168.1.10\"), is \"" +
                     value + "\"");
   }
+}
+
+// [ft] transport and the key of the bus it names: interface (socketcan) or local_path (local).
+void read_ft_bus(const TomlTable& ft, FtSection& out) {
+  const std::string transport = ft.optional_string("transport", "socketcan");
+  if (transport == "socketcan") {
+    out.transport = CanTransport::socketcan;
+  } else if (transport == "local") {
+    out.transport = CanTransport::local;
+  } else {
+    ft.fail("transport",
+            "must be \"socketcan\" (a CAN interface) or \"local\" (zerog-emu's bus "
+            "socket), is \"" +
+                transport + "\"");
+  }
+  // The other transport's key would be ignored: say so rather than run on the wrong bus.
+  const char* unused = out.transport == CanTransport::socketcan ? "local_path" : "interface";
+  if (ft.find(unused) != nullptr) {
+    ft.fail(unused, std::string("applies only to transport = \"") +
+                        (out.transport == CanTransport::socketcan ? "local" : "socketcan") +
+                        "\" (transport is \"" + transport + "\")");
+  }
+  if (out.transport == CanTransport::socketcan) {
+    if (ft.present() && ft.find("interface") == nullptr) {  // absent [ft]: string() says so
+      ft.fail("interface",
+              "is required with transport = \"socketcan\" (the default): the CAN interface "
+              "(e.g. \"can0\")");
+    }
+    out.interface = ft.string("interface");
+    if (out.interface.empty() || out.interface.size() > 15)
+      ft.fail("interface", "must be a network interface name of 1..15 characters (e.g. \"can0\")");
+    return;
+  }
+  if (ft.find("local_path") == nullptr) {
+    ft.fail("local_path",
+            "is required with transport = \"local\": the absolute path of the bus socket "
+            "zerog-emu serves (--can-local PATH)");
+  }
+  const std::string local_path = ft.string("local_path");
+  if (local_path.empty() || local_path.front() != '/') {
+    ft.fail("local_path",
+            "must be an absolute path (the bus socket zerog-emu --can-local serves, e.g. "
+            "\"/run/zerog/can.sock\"), is \"" +
+                local_path + "\"");
+  }
+  if (local_path.size() > rtio::LocalCanBus::kMaxPathBytes) {
+    ft.fail("local_path", "must be at most " + std::to_string(rtio::LocalCanBus::kMaxPathBytes) +
+                              " bytes (an AF_UNIX socket's sun_path), is " +
+                              std::to_string(local_path.size()));
+  }
+  out.local_path = local_path;
 }
 
 RtConfig read_tables(const toml::table& root, const fs::path& path) {
@@ -82,11 +134,9 @@ RtConfig read_tables(const toml::table& root, const fs::path& path) {
   c.robot.receive_timeout_ms = robot.optional_number("receive_timeout_ms", 1.5 * c.robot.cycle_ms,
                                                      {0.0, true, 1000.0, false});
 
-  const TomlTable ft =
-      file.sub_table("ft", {"interface", "base_id", "calibration", "rate_hz", "sample_timeout_ms"});
-  c.ft.interface = ft.string("interface");
-  if (c.ft.interface.empty() || c.ft.interface.size() > 15)
-    ft.fail("interface", "must be a network interface name of 1..15 characters (e.g. \"can0\")");
+  const TomlTable ft = file.sub_table("ft", {"transport", "interface", "local_path", "base_id",
+                                             "calibration", "rate_hz", "sample_timeout_ms"});
+  read_ft_bus(ft, c.ft);
   c.ft.base_id = static_cast<int>(ft.optional_integer("base_id", 0x20, 0, 127));
   c.ft.calibration = static_cast<int>(ft.optional_integer("calibration", 0, 0, 15));
   c.ft.rate_hz = ft.optional_number("rate_hz", 500.0, {0.0, true, 2000.0, false});
@@ -288,6 +338,16 @@ RtConfig read_tables(const toml::table& root, const fs::path& path) {
 }
 
 }  // namespace
+
+const char* can_transport_name(CanTransport transport) {
+  switch (transport) {
+    case CanTransport::socketcan:
+      return "socketcan";
+    case CanTransport::local:
+      return "local";
+  }
+  return "?";
+}
 
 ConfigError::ConfigError(fs::path file, std::string key, int line, int column,
                          const std::string& why)

@@ -22,6 +22,7 @@
 #include "zerog/rt/runtime.hpp"
 #include "zerog/rt/setup.hpp"
 #include "zerog/rtio/can_socket.hpp"
+#include "zerog/rtio/local_can_bus.hpp"
 #include "zerog/rtio/netcanoem_sensor.hpp"
 #include "zerog/rtio/rsi_endpoint.hpp"
 #include "zerog/rtio/stim300_imu.hpp"
@@ -86,7 +87,20 @@ struct Options {
   std::string summary_out;
   std::string commands;
   bool check_config = false;
+  std::string lockstep;     // the emulator's lockstep socket (proto/lockstep.md)
+  std::string test_mutant;  // a deliberately broken zerog-rt, for the HIL tests' own test
 };
+
+/// Test-only mutants (tests/hil/CMakeLists.txt: the HIL checks must fail on each).
+void apply_mutant(const std::string& name, loop::CycleConfig& cycle) {
+  if (name == "gate_never_opens") {
+    cycle.limits.contact_confirm_cycles = 1'000'000;  // no push is ever confirmed
+  } else if (name == "watchdog_doubled") {
+    for (int* w : {&cycle.watchdog.ft_fault_cycles, &cycle.watchdog.imu_fault_cycles,
+                   &cycle.watchdog.robot_fault_cycles, &cycle.watchdog.robot_late_cycles})
+      *w *= 2;
+  }
+}
 
 /// [record] per_run: run-YYYYmmddTHHMMSSZ (UTC), so a restarted service never meets its last run.
 std::string run_folder_name(std::chrono::system_clock::time_point now) {
@@ -134,6 +148,11 @@ int run(const Options& opt) {
                     : std::string()));
     return kExitOk;
   }
+  if (!opt.test_mutant.empty()) {
+    apply_mutant(opt.test_mutant, setup.cycle);
+    print_err("zerog-rt: WARNING: test mutant '" + opt.test_mutant +
+              "': this zerog-rt is broken on purpose (HIL tests only)");
+  }
   if (opt.enable_zero_g && path) {
     print_err("zerog-rt: --enable-zero-g and --collect exclude each other: choose one");
     return kExitStartup;
@@ -147,29 +166,48 @@ int run(const Options& opt) {
   ::pthread_sigmask(SIG_BLOCK, &signals, nullptr);
   const int signal_fd = ::signalfd(-1, &signals, SFD_CLOEXEC);
 
-  // Devices (start-up: may block, bounded by their timeouts).
-  rtio::CanSocket can;
-  const rtio::CanOpenResult opened =
-      can.open(config.ft.interface,
-               rtio::NetcanoemSensor::socket_config(static_cast<std::uint8_t>(config.ft.base_id)));
-  if (!opened.ok()) {
-    print_err("zerog-rt: F/T sensor: cannot open CAN interface '" + config.ft.interface +
-              "': " + rtio::can_open_status_name(opened.status) + " (" + opened.what + ": " +
-              errno_text(opened.error_number) + ")");
-    return kExitStartup;
-  }
-  if (can.receive_buffer_capped()) {
-    print_err("zerog-rt: WARNING: the CAN receive buffer was capped by net.core.rmem_max (" +
-              std::to_string(can.receive_buffer_bytes()) + " bytes)");
+  // Devices (start-up: may block, bounded by their timeouts). The F/T board's bus: a SocketCAN
+  // interface, or zerog-emu's bus socket ([ft] transport); everything above it is the same.
+  const rtio::CanSocketConfig can_config =
+      rtio::NetcanoemSensor::socket_config(static_cast<std::uint8_t>(config.ft.base_id));
+  rtio::CanSocket can_socket;
+  rtio::LocalCanBus can_local;
+  rtio::CanBus* can = &can_socket;
+  // Names the bus in messages: "can0", or "local:/run/zerog/can.sock".
+  std::string ft_bus = config.ft.interface;
+  if (config.ft.transport == rt::CanTransport::local) {
+    ft_bus = "local:" + config.ft.local_path.string();
+    const rtio::CanOpenResult opened =
+        can_local.open_client(config.ft.local_path.string(), can_config);
+    if (!opened.ok()) {
+      print_err("zerog-rt: F/T sensor: cannot connect to the local CAN bus '" +
+                config.ft.local_path.string() + "': " + rtio::can_open_status_name(opened.status) +
+                " (" + opened.what + ": " + errno_text(opened.error_number) +
+                "); start zerog-emu --can-local first");
+      return kExitStartup;
+    }
+    can = &can_local;
+  } else {
+    const rtio::CanOpenResult opened = can_socket.open(config.ft.interface, can_config);
+    if (!opened.ok()) {
+      print_err("zerog-rt: F/T sensor: cannot open CAN interface '" + config.ft.interface +
+                "': " + rtio::can_open_status_name(opened.status) + " (" + opened.what + ": " +
+                errno_text(opened.error_number) + ")");
+      return kExitStartup;
+    }
+    if (can_socket.receive_buffer_capped()) {
+      print_err("zerog-rt: WARNING: the CAN receive buffer was capped by net.core.rmem_max (" +
+                std::to_string(can_socket.receive_buffer_bytes()) + " bytes)");
+    }
   }
   rtio::NetcanoemConfig ft_config;
   ft_config.base_id = static_cast<std::uint8_t>(config.ft.base_id);
   ft_config.calibration_index = static_cast<std::uint8_t>(config.ft.calibration);
   ft_config.sample_timeout =
       std::chrono::nanoseconds(static_cast<std::int64_t>(config.ft.sample_timeout_ms * 1e6 + 0.5));
-  rtio::NetcanoemSensor ft(can, ft_config);
+  rtio::NetcanoemSensor ft(*can, ft_config);
   if (const rtio::FtStartStatus st = ft.start(); st != rtio::FtStartStatus::ok) {
-    print_err("zerog-rt: F/T sensor on " + config.ft.interface + " (base id " +
+    print_err("zerog-rt: F/T sensor on " + ft_bus + " (base id " +
               std::to_string(config.ft.base_id) +
               "): start failed: " + rtio::ft_start_status_name(st));
     return kExitStartup;
@@ -201,9 +239,24 @@ int run(const Options& opt) {
     return kExitStartup;
   }
 
+  rtio::LockstepClient lockstep;
+  if (!opt.lockstep.empty()) {
+    if (const char* why = lockstep.open(opt.lockstep); *why != '\0') {
+      print_err("zerog-rt: --lockstep " + opt.lockstep + ": " + why + " (" +
+                errno_text(lockstep.last_errno()) + "); start zerog-emu --lockstep first");
+      return kExitStartup;
+    }
+  }
+
   rt::RuntimeOptions options;
   options.ft_rate_hz = config.ft.rate_hz;
   options.realtime = config.realtime;
+  if (!opt.lockstep.empty() && options.realtime.priority > 0) {
+    // The emulator is the clock; real-time threads polling for its events would only take the
+    // CPU from it.
+    print_err("zerog-rt: lockstep: [realtime] priority ignored (threads run SCHED_OTHER)");
+    options.realtime.priority = 0;
+  }
   options.auto_enable_zero_g = opt.enable_zero_g;
   options.auto_collect = path != nullptr;
   options.recorder.dir = config.record_dir;
@@ -212,7 +265,8 @@ int run(const Options& opt) {
   options.modbus = config.modbus;
   options.telemetry = config.telemetry;
   options.model_file_name = config.model_file.filename().string();
-  rt::Runtime runtime(options, rt::RuntimeDevices{&robot, &ft, &imu});
+  rt::Runtime runtime(
+      options, rt::RuntimeDevices{&robot, &ft, &imu, opt.lockstep.empty() ? nullptr : &lockstep});
   if (std::string why = runtime.configure(setup.cycle, std::move(setup.model), path.get());
       !why.empty()) {
     print_err("zerog-rt: " + config.file.string() + ": the loop refuses the configuration: " + why);
@@ -225,10 +279,19 @@ int run(const Options& opt) {
     print_err("zerog-rt: " + started);
     return kExitStartup;
   }
+  // Lockstep: hello once the threads wait for the emulator's events (start() dropped what had
+  // queued on the RSI socket before).
+  if (!opt.lockstep.empty() &&
+      lockstep.hello(robot_config.receive_timeout, config.ft.rate_hz) != rtio::LockstepStatus::ok) {
+    print_err("zerog-rt: --lockstep " + opt.lockstep + ": cannot send hello (" +
+              errno_text(lockstep.last_errno()) + ")");
+    runtime.stop();
+    return kExitStartup;
+  }
   print_err(
       "zerog-rt: running: RSI on " + config.robot.bind_address + ":" +
       std::to_string(robot.local_port()) + " for " + config.robot.address + ", cycle " +
-      std::to_string(config.robot.cycle_ms) + " ms; F/T " + config.ft.interface + " at " +
+      std::to_string(config.robot.cycle_ms) + " ms; F/T " + ft_bus + " at " +
       std::to_string(static_cast<int>(config.ft.rate_hz)) + " Hz; IMU " + config.imu.device +
       (config.record_dir ? "; recording to " + config.record_dir->string() : std::string()) +
       (config.telemetry ? "; telemetry on DDS domain " + std::to_string(config.telemetry->domain_id)
@@ -272,6 +335,7 @@ int run(const Options& opt) {
     for (const std::string& line : events.out) print_out(line);
     for (const std::string& line : events.err) print_err(line);
     if (runtime.collection_finished()) quit = true;
+    if (runtime.lockstep_finished()) quit = true;  // the emulator ended the run (or failed)
     const auto now = std::chrono::steady_clock::now();
     if (opt.duration_s > 0.0 && now - t_start >= std::chrono::duration<double>(opt.duration_s))
       quit = true;
@@ -332,6 +396,13 @@ int main(int argc, char** argv) {
   app.add_option("--commands", opt.commands,
                  "read commands (enable, stop, reset, collect, quit), one per line")
       ->check(CLI::IsMember({"stdin"}));
+  app.add_option("--lockstep", opt.lockstep,
+                 "run in lockstep with zerog-emu --lockstep at this socket: the emulator is the "
+                 "clock (acceptance tests; proto/lockstep.md)");
+  app.add_option("--test-mutant", opt.test_mutant,
+                 "TEST ONLY: run a deliberately broken zerog-rt (gate_never_opens: no push is "
+                 "confirmed; watchdog_doubled: every watchdog threshold doubled)")
+      ->check(CLI::IsMember({"gate_never_opens", "watchdog_doubled"}));
   app.add_flag("--check-config", opt.check_config,
                "check the configuration, the model and the rig (and --collect's design), then "
                "exit 0 (all good) or 1");

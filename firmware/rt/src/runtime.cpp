@@ -203,8 +203,15 @@ void Runtime::discard_samples() noexcept {
 }
 
 void Runtime::cycle_once() noexcept {
+  if (devices_.lockstep != nullptr) {
+    lockstep_once();
+    return;
+  }
+  handle_received(devices_.robot->receive(message_));
+}
+
+void Runtime::handle_received(rtio::RobotReceiveStatus received) noexcept {
   rtio::RobotLink& robot = *devices_.robot;
-  const rtio::RobotReceiveStatus received = robot.receive(message_);
   if (received != rtio::RobotReceiveStatus::message) {
     switch (received) {
       case rtio::RobotReceiveStatus::timeout:
@@ -218,7 +225,7 @@ void Runtime::cycle_once() noexcept {
       default:  // io_error, not_started: nothing came; do not spin
         ++cycle_counters_.receive_errors;
         cycle_.robot_lost(loop::RobotLoss::timeout);
-        sleep_ns(1'000'000);
+        if (devices_.lockstep == nullptr) sleep_ns(1'000'000);
         break;
     }
     // Samples of a lost cycle would make the next row a mean over a longer, older window.
@@ -345,10 +352,210 @@ modbus::SupervisorSnapshot Runtime::snapshot() const {
   return supervisor_read_;
 }
 
+// --- lockstep (proto/lockstep.md) -----------------------------------------------------------
+
+namespace {
+// How long the cycle thread waits for the emulator's next event, and for the sensor threads to
+// read an event's production, before it calls the lockstep broken. Generous: the emulator may
+// be slow (a loaded host), never wrong.
+constexpr std::chrono::seconds kLockstepGuard{60};
+constexpr std::int64_t kSensorGuardNs = 30'000'000'000;
+constexpr std::int64_t kDatagramGuardNs = 5'000'000'000;
+}  // namespace
+
+void Runtime::lockstep_fail(const char* what) noexcept {
+  ++lockstep_counters_.errors;
+  if (lockstep_counters_.error == nullptr) lockstep_counters_.error = what;
+  lockstep_finished_.store(true, std::memory_order_release);
+}
+
+void Runtime::lockstep_sensors(const rtio::LockstepEvent& event) noexcept {
+  lockstep_event_ = event;
+  const std::uint32_t tick = lockstep_tick_.load(std::memory_order_relaxed) + 1;
+  lockstep_tick_.store(tick, std::memory_order_release);
+  lockstep_tick_.notify_all();
+  const std::int64_t deadline = monotonic_ns() + kSensorGuardNs;
+  auto done = [&] {
+    return (devices_.ft == nullptr || ft_done_tick_.load(std::memory_order_acquire) == tick) &&
+           (devices_.imu == nullptr || imu_done_tick_.load(std::memory_order_acquire) == tick);
+  };
+  while (!done()) {
+    if (monotonic_ns() > deadline) {
+      ++lockstep_counters_.sensor_waits_over;
+      return;
+    }
+    sleep_ns(20'000);
+  }
+}
+
+void Runtime::lockstep_auto_request() noexcept {
+  // What supervise() does in real time, here in the cycle thread so that the cycle it takes
+  // effect in is the emulator's, not the main thread's polling.
+  if (!(options_.auto_enable_zero_g || options_.auto_collect) || lockstep_auto_done_) return;
+  const loop::State target =
+      options_.auto_enable_zero_g ? loop::State::zero_g : loop::State::collecting;
+  const loop::State state = cycle_.state_machine().state();
+  if (state == target || state == loop::State::fault) {
+    lockstep_auto_done_ = true;
+    return;
+  }
+  const std::uint64_t cycle = cycle_.last().cycle;
+  if (state == loop::State::idle && cycle_.ready() &&
+      (!lockstep_requested_ || cycle > lockstep_requested_at_) &&
+      cycle_.request(options_.auto_enable_zero_g ? loop::Command::enable_zero_g
+                                                 : loop::Command::start_collection) != 0) {
+    lockstep_requested_ = true;
+    lockstep_requested_at_ = cycle;
+  }
+}
+
+void Runtime::lockstep_once() noexcept {
+  rtio::LockstepClient& link = *devices_.lockstep;
+  if (lockstep_finished_.load(std::memory_order_acquire)) {
+    sleep_ns(1'000'000);  // waiting for stop()
+    return;
+  }
+  rtio::LockstepEvent event;
+  const rtio::LockstepStatus st = link.wait(event, kLockstepGuard);
+  if (st != rtio::LockstepStatus::ok) {
+    lockstep_fail(st == rtio::LockstepStatus::timeout ? "no event from the emulator within 60 s"
+                                                      : "the lockstep socket failed");
+    return;
+  }
+  if (event.kind == rtio::LockstepKind::end) {
+    lockstep_counters_.ended = true;
+    lockstep_finished_.store(true, std::memory_order_release);
+    return;
+  }
+  lockstep_sensors(event);
+  ++lockstep_counters_.events;
+  if (event.kind == rtio::LockstepKind::timeout) {
+    ++lockstep_counters_.timeout_events;
+    handle_received(rtio::RobotReceiveStatus::timeout);
+  } else {
+    ++lockstep_counters_.datagram_events;
+    // The datagram was sent before the event: it is on its way through loopback.
+    rtio::RobotReceiveStatus received = devices_.robot->receive(message_);
+    const std::int64_t deadline = monotonic_ns() + kDatagramGuardNs;
+    while (received == rtio::RobotReceiveStatus::timeout) {
+      if (monotonic_ns() > deadline) {
+        lockstep_fail("the robot's datagram did not arrive within 5 s of its event");
+        return;
+      }
+      ++lockstep_counters_.receive_retries;
+      received = devices_.robot->receive(message_);
+    }
+    handle_received(received);
+  }
+  lockstep_auto_request();
+  if (link.done(event.seq, devices_.robot->counters().replies) != rtio::LockstepStatus::ok)
+    lockstep_fail("cannot acknowledge an event to the emulator");
+}
+
 // --- sensor threads -------------------------------------------------------------------------
+
+void Runtime::ft_loop_lockstep() {
+  // Exactly as many requests as the board has produced samples: the board answers each with
+  // the next one, so every row gets the samples of its emulated interval.
+  rtio::FtSensor& ft = *devices_.ft;
+  rtio::FtSample sample;
+  std::uint32_t seen = 0;
+  std::uint64_t requested = 0;
+  while (true) {
+    lockstep_tick_.wait(seen, std::memory_order_acquire);
+    if (stop_sensors_.load(std::memory_order_relaxed)) return;
+    const std::uint32_t tick = lockstep_tick_.load(std::memory_order_acquire);
+    const std::uint64_t target = lockstep_event_.ft_samples;
+    for (; requested < target && !stop_sensors_.load(std::memory_order_relaxed); ++requested) {
+      const rtio::FtReadStatus st = ft.read_sample(sample);
+      ++sensor_counters_.ft_reads;
+      if (st == rtio::FtReadStatus::sample) ft_ring_->try_push(sample);  // full: counted drop
+    }
+    seen = tick;
+    ft_done_tick_.store(tick, std::memory_order_release);
+  }
+}
+
+void Runtime::imu_loop_lockstep() {
+  // Read until the bytes the emulator wrote since it (re)plugged the IMU are read, then what they
+  // complete. After a re-open the bytes written before it may be gone (the tty was flushed):
+  // the first interval is read until a read times out and the count is re-based on it.
+  rtio::Imu& imu = *devices_.imu;
+  rtio::ImuSample sample;
+  std::uint32_t seen = 0;
+  bool connected = true;
+  std::uint32_t epoch = 0;                         // the plug our tty belongs to
+  std::uint64_t base = imu.counters().bytes_read;  // bytes_read when it was opened
+  std::int64_t offset = 0;  // emulator bytes − ours (bytes lost before the open)
+  bool rebase = false;
+  std::int64_t last_attempt_ns = 0;
+  const std::int64_t reopen_ns =
+      std::chrono::duration_cast<std::chrono::nanoseconds>(options_.imu_reopen_interval).count();
+  auto disconnected = [&](std::int64_t now_ns) {
+    ++sensor_counters_.imu_disconnects;
+    connected = false;
+    last_attempt_ns = now_ns;
+  };
+  while (true) {
+    lockstep_tick_.wait(seen, std::memory_order_acquire);
+    if (stop_sensors_.load(std::memory_order_relaxed)) return;
+    const std::uint32_t tick = lockstep_tick_.load(std::memory_order_acquire);
+    const rtio::LockstepEvent ev = lockstep_event_;
+    if (!connected && ev.imu_plugged != 0 && ev.time_ns - last_attempt_ns >= reopen_ns) {
+      last_attempt_ns = ev.time_ns;
+      ++sensor_counters_.imu_reopen_attempts;
+      ++lockstep_counters_.imu_reopen_attempts;
+      if (imu.start() == rtio::ImuStartStatus::ok) {
+        ++sensor_counters_.imu_reopens;
+        connected = true;
+        epoch = ev.imu_epoch;
+        base = imu.counters().bytes_read;
+        rebase = true;
+      }
+    }
+    if (connected && (ev.imu_plugged == 0 || ev.imu_epoch != epoch)) {
+      // Unplugged since the last event: the tty hangs up.
+      const rtio::ImuReadStatus st = imu.read_sample(sample);
+      ++sensor_counters_.imu_reads;
+      if (st == rtio::ImuReadStatus::disconnected) disconnected(ev.time_ns);
+    } else if (connected) {
+      while (!stop_sensors_.load(std::memory_order_relaxed)) {
+        const auto ours = static_cast<std::int64_t>(imu.counters().bytes_read - base);
+        if (!rebase && ours + offset >= static_cast<std::int64_t>(ev.imu_bytes)) break;
+        const rtio::ImuReadStatus st = imu.read_sample(sample);
+        ++sensor_counters_.imu_reads;
+        if (st == rtio::ImuReadStatus::sample) {
+          imu_ring_->try_push(sample);
+        } else if (st == rtio::ImuReadStatus::timeout) {
+          // Every byte written so far read, and no complete datagram in them (garbage, a bad
+          // CRC) — or, after a re-open, the bytes before it gone.
+          const auto read = static_cast<std::int64_t>(imu.counters().bytes_read - base);
+          if (rebase || read + offset != static_cast<std::int64_t>(ev.imu_bytes)) {
+            ++lockstep_counters_.imu_rebases;
+            offset = static_cast<std::int64_t>(ev.imu_bytes) - read;
+          }
+          rebase = false;
+          break;
+        } else if (st == rtio::ImuReadStatus::disconnected) {
+          disconnected(ev.time_ns);
+          break;
+        } else {
+          break;  // io_error: counted by the device
+        }
+      }
+      while (connected && imu.pop_buffered(sample)) imu_ring_->try_push(sample);
+    }
+    seen = tick;
+    imu_done_tick_.store(tick, std::memory_order_release);
+  }
+}
 
 void Runtime::ft_loop() {
   prefault_stack();
+  if (devices_.lockstep != nullptr) {
+    ft_loop_lockstep();
+    return;
+  }
   rtio::FtSensor& ft = *devices_.ft;
   const auto period_ns = static_cast<std::int64_t>(1e9 / options_.ft_rate_hz + 0.5);
   std::int64_t next = monotonic_ns();
@@ -373,6 +580,10 @@ void Runtime::ft_loop() {
 
 void Runtime::imu_loop() {
   prefault_stack();
+  if (devices_.lockstep != nullptr) {
+    imu_loop_lockstep();
+    return;
+  }
   rtio::Imu& imu = *devices_.imu;
   rtio::ImuSample sample;
   const std::int64_t reopen_ns =
@@ -501,7 +712,7 @@ SupervisorEvents Runtime::supervise() {
                        (options_.auto_enable_zero_g ? "--enable-zero-g" : "--collect") +
                        " gave up: fault " + loop::fault_name(s.fault) + " before it started");
       auto_gave_up_ = true;
-    } else if (s.state == loop::State::idle && s.ready &&
+    } else if (devices_.lockstep == nullptr && s.state == loop::State::idle && s.ready &&
                (!requested_ || s.cycle > requested_at_)) {
       if (cycle_.request(options_.auto_enable_zero_g ? loop::Command::enable_zero_g
                                                      : loop::Command::start_collection)) {
@@ -551,6 +762,8 @@ std::string Runtime::stop() {
   stop_cycle_.store(true, std::memory_order_relaxed);
   cycle_thread_.join();
   stop_sensors_.store(true, std::memory_order_relaxed);
+  lockstep_tick_.fetch_add(1, std::memory_order_release);  // wakes lockstep sensor threads
+  lockstep_tick_.notify_all();
   ft_thread_.join();
   imu_thread_.join();
   stop_recorder_.store(true, std::memory_order_release);
@@ -699,6 +912,20 @@ std::string Runtime::summary_json() const {
                         {"dropped", tc.telemetry_drops},
                         {"write_errors", tc.write_errors},
                         {"health_published", tc.health_published}};
+  }
+  if (devices_.lockstep != nullptr) {
+    const LockstepCounters& l = lockstep_counters_;
+    out["lockstep"] = {{"events", l.events},
+                       {"datagram_events", l.datagram_events},
+                       {"timeout_events", l.timeout_events},
+                       {"receive_retries", l.receive_retries},
+                       {"sensor_waits_over", l.sensor_waits_over},
+                       {"imu_rebases", l.imu_rebases},
+                       {"imu_reopen_attempts", l.imu_reopen_attempts},
+                       {"bad_messages", devices_.lockstep->bad_messages()},
+                       {"errors", l.errors},
+                       {"ended", l.ended},
+                       {"error", l.error != nullptr ? l.error : ""}};
   }
   if (modbus_ != nullptr) {
     const modbus::ServerCounters m = modbus_->counters();

@@ -14,16 +14,14 @@
 #include <cstring>
 #include <ctime>
 
+#include "linux_can_frame.hpp"
 #include "wait.hpp"
 
 namespace zerog::rtio {
 
-static_assert(sizeof(can_frame) == CAN_MTU, "struct can_frame is the classic CAN MTU");
 static_assert(CAN_ERR_TX_TIMEOUT == 1u << static_cast<int>(CanErrorClass::tx_timeout));
 static_assert(CAN_ERR_BUSOFF == 1u << static_cast<int>(CanErrorClass::bus_off));
 static_assert(CAN_ERR_RESTARTED == 1u << static_cast<int>(CanErrorClass::restarted));
-static_assert(proto::kCanErrorFlag == CAN_ERR_FLAG && proto::kCanExtendedFlag == CAN_EFF_FLAG &&
-              proto::kCanRemoteFlag == CAN_RTR_FLAG);
 
 const char* can_error_class_name(CanErrorClass error_class) {
   switch (error_class) {
@@ -73,6 +71,8 @@ const char* can_open_status_name(CanOpenStatus status) {
       return "option_failed";
     case CanOpenStatus::bind_failed:
       return "bind_failed";
+    case CanOpenStatus::connect_failed:
+      return "connect_failed";
   }
   return "?";
 }
@@ -185,13 +185,10 @@ CanReadStatus CanSocket::read(CanRxFrame& out, std::chrono::nanoseconds timeout)
         }
       }
       // Exactly one classic frame (candump's check); CAN FD is not enabled on this socket.
-      if (n != static_cast<ssize_t>(sizeof frame) || frame.len > CAN_MAX_DLEN) {
+      if (!detail::from_can_frame(frame, static_cast<std::size_t>(n), out.frame)) {
         ++counters_.bad_length;
         return CanReadStatus::bad_length;
       }
-      out.frame.id = frame.can_id;
-      out.frame.len = frame.len;
-      std::memcpy(out.frame.data.data(), frame.data, proto::kCanMaxDataLength);
       if ((frame.can_id & CAN_ERR_FLAG) != 0) {
         count_error_frame(out.frame, counters_);
         return CanReadStatus::error_frame;
@@ -225,10 +222,7 @@ CanReadStatus CanSocket::read(CanRxFrame& out, std::chrono::nanoseconds timeout)
 CanWriteStatus CanSocket::write(const proto::CanFrame& frame) {
   if (fd_ < 0) return CanWriteStatus::not_open;
   if (frame.len > proto::kCanMaxDataLength) return CanWriteStatus::bad_frame;
-  can_frame raw{};
-  raw.can_id = frame.id;
-  raw.len = frame.len;
-  std::memcpy(raw.data, frame.data.data(), frame.len);
+  const can_frame raw = detail::to_can_frame(frame);
   while (true) {
     const ssize_t n = ::write(fd_, &raw, sizeof raw);
     if (n == static_cast<ssize_t>(sizeof raw)) {

@@ -25,12 +25,9 @@ ImuStartStatus Stim300Imu::start() {
   return ImuStartStatus::ok;
 }
 
-ImuReadStatus Stim300Imu::read_sample(ImuSample& out) {
-  if (disconnected_) return ImuReadStatus::disconnected;
-  if (!started_) return ImuReadStatus::not_started;
-  const std::int64_t deadline = detail::monotonic_ns() + config_.read_timeout.count();
+bool Stim300Imu::pop_buffered(ImuSample& out) {
+  if (disconnected_ || !started_) return false;
   stim300::Sample sample;
-  bool have_read = false;  // bounded even when garbage streams in faster than the deadline
   while (true) {
     if (decoder_.pop(sample)) {
       out.rate_rad_s = sample.rate_rad_s;
@@ -47,17 +44,25 @@ ImuReadStatus Stim300Imu::read_sample(ImuSample& out) {
       out.latency_s = sample.latency_s;
       out.receive_time_ns = chunk_time_ns_;
       out.sequence = ++sequence_;
-      return ImuReadStatus::sample;
+      return true;
     }
-    if (chunk_used_ < chunk_size_) {
-      const std::size_t taken = decoder_.push(
-          std::span<const std::uint8_t>(chunk_.data() + chunk_used_, chunk_size_ - chunk_used_));
-      chunk_used_ += taken;
-      // The decoder's buffer holds more than two datagrams and pop() leaves less than one in
-      // it, so push() always takes something; if not, start over rather than spin.
-      if (taken == 0) decoder_.reset();
-      continue;
-    }
+    if (chunk_used_ >= chunk_size_) return false;
+    const std::size_t taken = decoder_.push(
+        std::span<const std::uint8_t>(chunk_.data() + chunk_used_, chunk_size_ - chunk_used_));
+    chunk_used_ += taken;
+    // The decoder's buffer holds more than two datagrams and pop() leaves less than one in it,
+    // so push() always takes something; if not, start over rather than spin.
+    if (taken == 0) decoder_.reset();
+  }
+}
+
+ImuReadStatus Stim300Imu::read_sample(ImuSample& out) {
+  if (disconnected_) return ImuReadStatus::disconnected;
+  if (!started_) return ImuReadStatus::not_started;
+  const std::int64_t deadline = detail::monotonic_ns() + config_.read_timeout.count();
+  bool have_read = false;  // bounded even when garbage streams in faster than the deadline
+  while (true) {
+    if (pop_buffered(out)) return ImuReadStatus::sample;
     const std::int64_t left = deadline - detail::monotonic_ns();
     if (left <= 0 && have_read) {
       ++own_.timeouts;

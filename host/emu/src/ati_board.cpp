@@ -153,7 +153,7 @@ std::array<double, 6> AtiBoard::full_scale_si() const {
   return range;
 }
 
-void AtiBoard::set_wrench(const std::array<double, 6>& wrench_sensor_si) {
+std::array<double, 6> AtiBoard::gauges_of(const std::array<double, 6>& wrench_sensor_si) const {
   if (!si_known_) {
     throw std::logic_error("AtiBoard::set_wrench: unknown unit codes (force " +
                            std::to_string(config_.force_unit) + ", torque " +
@@ -169,8 +169,28 @@ void AtiBoard::set_wrench(const std::array<double, 6>& wrench_sensor_si) {
     w(i) = wrench_sensor_si[i];
   }
   const Eigen::Matrix<double, 6, 1> g = inverse_ * w;
+  std::array<double, 6> out{};
+  for (int j = 0; j < 6; ++j) out[j] = config_.gauge_bias[j] + g(j);
+  return out;
+}
+
+void AtiBoard::set_wrench(const std::array<double, 6>& wrench_sensor_si) {
+  const std::array<double, 6> g = gauges_of(wrench_sensor_si);
   const std::lock_guard lock(mutex_);
-  for (int j = 0; j < 6; ++j) gauges_exact_[j] = config_.gauge_bias[j] + g(j);
+  gauges_exact_ = g;
+}
+
+void AtiBoard::queue_sample(const std::array<double, 6>& wrench_sensor_si) {
+  const std::array<double, 6> g = gauges_of(wrench_sensor_si);
+  const std::lock_guard lock(mutex_);
+  lockstep_ = true;
+  queue_.push_back(g);
+  ++counters_.queued;
+}
+
+std::size_t AtiBoard::samples_queued() const {
+  const std::lock_guard lock(mutex_);
+  return queue_.size();
 }
 
 void AtiBoard::set_gauges(const std::array<std::int16_t, 6>& gauges) {
@@ -237,7 +257,15 @@ AtiBoard::Step AtiBoard::respond_locked(const proto::CanFrame& request, Response
   }
   const auto opcode = static_cast<netcanoem::Opcode>(netcanoem::opcode_of(request.id));
   ++counters_.requests;
-  if (opcode == netcanoem::Opcode::sample_a) ++counters_.sample_requests;
+  if (opcode == netcanoem::Opcode::sample_a) {
+    ++counters_.sample_requests;
+    if (lockstep_ && queue_.empty()) {
+      ++counters_.queue_underruns;
+    } else if (lockstep_) {
+      gauges_exact_ = queue_.front();
+      queue_.pop_front();
+    }
+  }
   if (fault_ == FtFault::silent || quirks_.ignore_requests > 0) {
     if (fault_ != FtFault::silent) --quirks_.ignore_requests;
     ++counters_.ignored;

@@ -22,6 +22,7 @@
 #include "zerog/io/log.hpp"
 #include "zerog/io/model_file.hpp"
 #include "zerog/rtio/can_socket.hpp"
+#include "zerog/rtio/local_can_bus.hpp"
 
 namespace {
 
@@ -42,18 +43,39 @@ void install_signal_handlers() {
 }
 
 struct Args {
-  std::string scenario, can, imu_link;
+  std::string scenario, can, can_local, imu_link;
   std::string robot_bind = "127.0.0.1:49153", rt_address = "127.0.0.1:49152";
   double duration_s = 20.0;
   std::string truth_out, summary_out, write_model, write_rig;
   bool list_faults = false;
   bool write_only = false;
+  std::string lockstep;
+  bool lockstep_paced = false;
 };
 
 void list_faults() {
   std::printf("%-16s  %-8s  %s\n", "kind", "counted", "what it does");
   for (const emu::FaultKindInfo& i : emu::fault_kind_infos())
     std::printf("%-16s  %-8s  %s\n", i.name, i.robot ? "cycles" : "seconds", i.description);
+}
+
+// --can-local PATH: a socket file nobody serves (left by a zerog-emu that was killed) is removed;
+// a socket someone serves, or anything that is not a socket, is refused.
+void clear_stale_can_socket(const std::string& path) {
+  std::error_code ec;
+  const fs::file_status status = fs::symlink_status(path, ec);
+  if (status.type() == fs::file_type::not_found) return;
+  if (ec) throw std::runtime_error("--can-local " + path + ": " + ec.message());
+  if (status.type() != fs::file_type::socket)
+    throw std::runtime_error("--can-local " + path +
+                             ": exists and is not a socket; refusing to replace it");
+  rtio::LocalCanBus probe;
+  if (probe.open_client(path).ok())
+    throw std::runtime_error("--can-local " + path +
+                             ": another process serves this socket (a zerog-emu still running?)");
+  if (!fs::remove(path, ec) && ec)
+    throw std::runtime_error("--can-local " + path +
+                             ": cannot remove the stale socket: " + ec.message());
 }
 
 // Every output path distinct, none the scenario.
@@ -81,9 +103,15 @@ int run(const Args& a) {
   check_outputs(a);
   const std::vector<fs::path> inputs = {a.scenario};
 
-  const emu::RigEmulatorOptions options{a.robot_bind, a.rt_address, a.duration_s, a.imu_link};
+  emu::RigEmulatorOptions options;
+  options.robot_bind = a.robot_bind;
+  options.rt_address = a.rt_address;
+  options.duration_s = a.duration_s;
+  options.imu_link = a.imu_link;
+  options.lockstep_path = a.lockstep;
+  options.lockstep_paced = a.lockstep_paced;
   std::unique_ptr<emu::AtiBoard> board;
-  if (!a.can.empty()) {
+  if (!a.can.empty() || !a.can_local.empty()) {
     emu::AtiBoardConfig c;
     c.base_id = scenario.ft.base_id;
     c.counts_per_force = scenario.ft.counts_per_force;
@@ -106,16 +134,31 @@ int run(const Args& a) {
     io::write_rig(emu::emulator_rig(scenario, emulator.physics().simulator()), a.write_rig, inputs);
   if (a.write_only) return 0;
 
-  // Devices ready before the first datagram.
+  // Devices ready before the first datagram. The board's bus: a SocketCAN interface (--can) or
+  // a LocalCanBus server at --can-local PATH, unlinked again when can_local closes (at exit).
   rtio::CanSocket can;
+  rtio::LocalCanBus can_local;
+  rtio::CanBus* can_bus = &can;
   if (board) {
-    const rtio::CanOpenResult r = can.open(a.can);
-    if (!r.ok())
-      throw std::runtime_error("--can " + a.can + ": " + rtio::can_open_status_name(r.status) +
-                               " (" + r.what + ": " + std::strerror(r.error_number) + ")");
+    std::string where = a.can;
+    if (!a.can_local.empty()) {
+      clear_stale_can_socket(a.can_local);
+      const rtio::CanOpenResult r = can_local.open_server(a.can_local);
+      if (!r.ok())
+        throw std::runtime_error("--can-local " + a.can_local + ": " +
+                                 rtio::can_open_status_name(r.status) + " (" + r.what + ": " +
+                                 std::strerror(r.error_number) + ")");
+      can_bus = &can_local;
+      where = "local:" + a.can_local;
+    } else {
+      const rtio::CanOpenResult r = can.open(a.can);
+      if (!r.ok())
+        throw std::runtime_error("--can " + a.can + ": " + rtio::can_open_status_name(r.status) +
+                                 " (" + r.what + ": " + std::strerror(r.error_number) + ")");
+    }
     const std::array<double, 6> range = board->full_scale_si();
     std::fprintf(stderr, "zerog-emu: F/T board 0x%02x on %s, range +-%.0f N, +-%.0f N*m\n",
-                 scenario.ft.base_id, a.can.c_str(), std::min({range[0], range[1], range[2]}),
+                 scenario.ft.base_id, where.c_str(), std::min({range[0], range[1], range[2]}),
                  std::min({range[3], range[4], range[5]}));
   }
   if (imu) {
@@ -127,7 +170,7 @@ int run(const Args& a) {
   emulator.bind();
   std::atomic<bool> devices_stop{false};
   std::thread can_thread;
-  if (board) can_thread = std::thread([&] { board->serve(can, devices_stop); });
+  if (board) can_thread = std::thread([&] { board->serve(*can_bus, devices_stop); });
 
   install_signal_handlers();
   std::printf("zerog-emu: ready\n");
@@ -140,6 +183,7 @@ int run(const Args& a) {
   }
   devices_stop = true;
   if (can_thread.joinable()) can_thread.join();
+  can_local.close();  // unlinks --can-local's socket
   if (error) std::rethrow_exception(error);
 
   if (!a.truth_out.empty()) io::write_file_atomic(a.truth_out, emulator.truth_csv(), inputs);
@@ -165,7 +209,12 @@ int main(int argc, char** argv) {
   Args a;
   app.add_option("--scenario", a.scenario, "Scenario file (TOML, proto/emulator.md)")
       ->check(CLI::ExistingFile);
-  app.add_option("--can", a.can, "CAN interface for the F/T board (e.g. vcan0); none: no board");
+  CLI::Option* can = app.add_option("--can", a.can,
+                                    "CAN interface for the F/T board (e.g. vcan0); none: no board");
+  app.add_option("--can-local", a.can_local,
+                 "Serve the F/T board on a local CAN bus socket at this path instead (no kernel "
+                 "CAN needed; zerog-rt [ft] transport = \"local\", local_path = this path)")
+      ->excludes(can);
   app.add_option("--imu-link", a.imu_link,
                  "Symlink to create to the STIM300's pty (e.g. /tmp/zerog/imu); none: no IMU");
   app.add_option("--robot-bind", a.robot_bind, "The controller's UDP address:port")
@@ -180,6 +229,14 @@ int main(int argc, char** argv) {
   app.add_option("--write-model", a.write_model,
                  "Also write the payload's truth model file (JSON, what zerog export reads)");
   app.add_option("--write-rig", a.write_rig, "Also write the rig (.rig.toml) zerog-rt runs on");
+  app.add_option(
+      "--lockstep", a.lockstep,
+      "Run in lockstep with zerog-rt --lockstep over this unix socket: emulated time, "
+      "one robot cycle per exchange, independent of the host's load (proto/lockstep.md)");
+  app.add_flag("--lockstep-paced", a.lockstep_paced,
+               "With --lockstep: emulated time never runs ahead of the wall clock (peers that "
+               "act on the wall clock: the cell PLC, fault_peer.py)")
+      ->needs("--lockstep");
   app.add_flag("--write-only", a.write_only,
                "Write --write-model and --write-rig, then exit without running (so zerog export "
                "can run before the timed run starts)");

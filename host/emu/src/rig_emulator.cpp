@@ -4,6 +4,8 @@
 #include <fcntl.h>
 #include <poll.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/un.h>
 #include <unistd.h>
 
 #include <Eigen/Geometry>
@@ -164,6 +166,7 @@ RigEmulator::RigEmulator(const Scenario& scenario, const RigEmulatorOptions& opt
       imu_(imu),
       robot_(robot_config(scenario)),
       physics_(scenario.sim, scenario.pushes, scenario.robot.physics_rate_hz) {
+  lockstep_ = !options_.lockstep_path.empty();
   bind_addr_ = parse_endpoint(options_.robot_bind, "--robot-bind");
   rt_addr_ = parse_endpoint(options_.rt_address, "--rt-address");
   if (rt_addr_.sin_port == 0) throw std::invalid_argument("--rt-address: port 0 is not a port");
@@ -195,6 +198,8 @@ RigEmulator::RigEmulator(const Scenario& scenario, const RigEmulatorOptions& opt
 RigEmulator::~RigEmulator() {
   if (fd_ >= 0) ::close(fd_);
   if (foreign_fd_ >= 0) ::close(foreign_fd_);
+  if (lockstep_fd_ >= 0) ::close(lockstep_fd_);
+  if (!lockstep_bound_.empty()) ::unlink(lockstep_bound_.c_str());
 }
 
 void RigEmulator::bind() {
@@ -217,6 +222,29 @@ void RigEmulator::bind() {
   sockaddr_in other = bind_addr_;
   other.sin_port = 0;
   foreign_fd_ = open_bound(other, "robot_foreign socket");
+  if (lockstep_) {
+    const std::string& path = options_.lockstep_path;
+    sockaddr_un a{};
+    a.sun_family = AF_UNIX;
+    if (path.size() >= sizeof a.sun_path)
+      throw std::invalid_argument("--lockstep " + path + ": longer than a socket path may be");
+    std::memcpy(a.sun_path, path.c_str(), path.size());
+    struct stat st {};
+    if (::lstat(path.c_str(), &st) == 0) {
+      if (!S_ISSOCK(st.st_mode))
+        throw std::runtime_error("--lockstep " + path + ": exists and is not a socket; remove it");
+      ::unlink(path.c_str());  // a stale socket of an earlier run
+    }
+    lockstep_fd_ = ::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+    if (lockstep_fd_ < 0 ||
+        ::bind(lockstep_fd_, reinterpret_cast<const sockaddr*>(&a), sizeof a) != 0)
+      throw std::runtime_error("--lockstep " + path + ": cannot bind: " + errno_text(errno));
+    lockstep_bound_ = path;
+  }
+}
+
+std::chrono::steady_clock::time_point RigEmulator::now() const {
+  return lockstep_ ? lockstep_now_ : Clock::now();
 }
 
 std::uint16_t RigEmulator::robot_port() const { return robot_port_; }
@@ -283,6 +311,11 @@ bool RigEmulator::physics_step(std::uint64_t k, const std::atomic<bool>& stop) {
   }
   if (ft_ != nullptr) ft_->set_wrench(s.wrench_sensor_noisy);
   const double rate = physics_.physics_rate_hz();
+  if (lockstep_ && ft_ != nullptr) {  // the samples zerog-rt will request, at its rate
+    const auto ft_due =
+        static_cast<std::uint64_t>(std::floor(static_cast<double>(k) * ft_rate_hz_ / rate + 1e-9));
+    for (; ft_produced_ < ft_due; ++ft_produced_) ft_->queue_sample(s.wrench_sensor_noisy);
+  }
   const auto imu_due =
       static_cast<std::uint64_t>(std::floor(static_cast<double>(k + 1) * kImuRateHz / rate + 1e-9));
   while (imu_samples_ < imu_due) {
@@ -593,16 +626,20 @@ void RigEmulator::start_cycle(std::uint64_t n) {
   }
   records_.push_back(r);
   counts_.good_sent += r.sent;
-  send_due(Clock::now());
+  if (!lockstep_) send_due(Clock::now());  // lockstep: lockstep_events_before sends them
   if (reorder_held_ >= 0 && reorder_held_ < static_cast<std::int64_t>(n)) {
-    sends_.push_back({Clock::now(), held_bytes_, false});
+    sends_.push_back({now(), held_bytes_, false});
     reorder_held_ = -1;
-    send_due(Clock::now());
+    if (!lockstep_) send_due(Clock::now());
   }
 }
 
 void RigEmulator::run(const std::atomic<bool>& stop) {
   if (fd_ < 0) throw std::logic_error("RigEmulator::run before bind()");
+  if (lockstep_) {
+    run_lockstep(stop);
+    return;
+  }
   t0_ = Clock::now();
   physics_step(0, stop);
   device_faults(0.0);
@@ -681,6 +718,185 @@ void RigEmulator::run(const std::atomic<bool>& stop) {
   if (physics_error) std::rethrow_exception(physics_error);
 }
 
+// --- Lockstep (proto/lockstep.md) ------------------------------------------------------------
+
+namespace {
+// Real-time guards: how long zerog-rt may take to start (hello) and to handle one event. They
+// only catch a hung zerog-rt; the result never depends on them.
+constexpr std::chrono::seconds kHelloGuard{120};
+constexpr std::chrono::seconds kEventGuard{60};
+
+// Receives one LockstepReply within `guard`; throws naming `what` otherwise.
+rtio::LockstepReply lockstep_receive(int fd, std::chrono::seconds guard, const std::string& what,
+                                     std::vector<char>* peer, const std::atomic<bool>* stop) {
+  const Clock::time_point give_up = Clock::now() + guard;
+  while (true) {
+    if (stop != nullptr && stop->load())
+      throw std::runtime_error("lockstep: stopped (signal) while waiting for " + what);
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(give_up - Clock::now()).count();
+    if (left <= 0)
+      throw std::runtime_error("lockstep: " + what + " did not come within " +
+                               std::to_string(guard.count()) +
+                               " s (is zerog-rt --lockstep "
+                               "running and alive?)");
+    pollfd p{fd, POLLIN, 0};
+    if (::poll(&p, 1, static_cast<int>(std::min<long long>(left, 1000))) <= 0) continue;
+    rtio::LockstepReply r;
+    sockaddr_un from{};
+    socklen_t length = sizeof from;
+    const ssize_t n = ::recvfrom(fd, &r, sizeof r, MSG_TRUNC | MSG_DONTWAIT,
+                                 reinterpret_cast<sockaddr*>(&from), &length);
+    if (n < 0) continue;
+    if (n != static_cast<ssize_t>(sizeof r) || r.magic != rtio::kLockstepMagic ||
+        r.version != rtio::kLockstepVersion)
+      throw std::runtime_error("lockstep: a message of " + std::to_string(n) +
+                               " bytes that is not zerog-rt's (magic, size or version differ: "
+                               "zerog-emu and zerog-rt from different builds?)");
+    if (peer != nullptr)
+      peer->assign(reinterpret_cast<const char*>(&from),
+                   reinterpret_cast<const char*>(&from) + length);
+    return r;
+  }
+}
+}  // namespace
+
+void RigEmulator::lockstep_exchange(rtio::LockstepKind kind, Clock::time_point at,
+                                    std::uint64_t window) {
+  // Every byte of the IMU's datagrams so far in the pty (a partly written one completed).
+  const Clock::time_point give_up = Clock::now() + kEventGuard;
+  while (imu_ != nullptr && !imu_->flush_pending()) {
+    if (Clock::now() > give_up)
+      throw std::runtime_error("lockstep: the IMU's pty stayed full for 60 s (nobody reads it)");
+    std::this_thread::sleep_for(std::chrono::microseconds(100));
+  }
+  rtio::LockstepEvent ev;
+  ev.kind = kind;
+  ev.seq = ++lockstep_counts_.events;
+  ev.time_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(at - t0_).count();
+  ev.ft_samples = ft_produced_;
+  if (imu_ != nullptr) {
+    ev.imu_bytes = imu_->bytes_since_plug();
+    ev.imu_epoch = imu_->unplugs();
+    ev.imu_plugged = imu_->plugged() ? 1 : 0;
+  }
+  if (kind == rtio::LockstepKind::timeout) ++lockstep_counts_.timeout_events;
+  if (kind == rtio::LockstepKind::datagram) ++lockstep_counts_.datagram_events;
+  const Clock::time_point sent = Clock::now();
+  if (::sendto(lockstep_fd_, &ev, sizeof ev, 0,
+               reinterpret_cast<const sockaddr*>(lockstep_peer_.data()),
+               static_cast<socklen_t>(lockstep_peer_.size())) != static_cast<ssize_t>(sizeof ev))
+    throw std::runtime_error("lockstep: cannot send to zerog-rt: " + errno_text(errno));
+  if (kind == rtio::LockstepKind::end) return;
+  const rtio::LockstepReply r = lockstep_receive(
+      lockstep_fd_, kEventGuard, "zerog-rt's answer to event " + std::to_string(ev.seq), nullptr,
+      lockstep_stop_);
+  if (r.kind != rtio::LockstepKind::done || r.seq != ev.seq)
+    throw std::runtime_error("lockstep: zerog-rt answered event " + std::to_string(r.seq) +
+                             " while " + std::to_string(ev.seq) + " was due");
+  lockstep_counts_.slowest_ack_s = std::max(
+      lockstep_counts_.slowest_ack_s, std::chrono::duration<double>(Clock::now() - sent).count());
+  // The RSI replies were sent before the answer; wait until loopback has delivered them.
+  while (counts_.reply_datagrams < r.replies_sent) {
+    if (Clock::now() > give_up)
+      throw std::runtime_error("lockstep: zerog-rt sent " + std::to_string(r.replies_sent) +
+                               " replies, " + std::to_string(counts_.reply_datagrams) +
+                               " arrived within 60 s");
+    pollfd p{fd_, POLLIN, 0};
+    ::poll(&p, 1, 10);
+    receive_pending(window);
+  }
+  receive_pending(window);
+}
+
+void RigEmulator::lockstep_events_before(Clock::time_point limit, std::uint64_t window) {
+  while (true) {
+    auto next = sends_.end();
+    for (auto it = sends_.begin(); it != sends_.end(); ++it)
+      if (next == sends_.end() || it->at < next->at) next = it;
+    const Clock::time_point deadline = last_rt_event_ + rt_receive_timeout_;
+    if (next != sends_.end() && next->at < limit && next->at <= deadline) {
+      const ScheduledSend s = *next;
+      sends_.erase(next);
+      const int fd = s.foreign ? foreign_fd_ : fd_;
+      const ssize_t n = ::sendto(fd, s.bytes.data(), s.bytes.size(), 0,
+                                 reinterpret_cast<const sockaddr*>(&rt_addr_), sizeof rt_addr_);
+      if (n != static_cast<ssize_t>(s.bytes.size())) ++counts_.send_errors;
+      ++counts_.datagrams_sent;
+      if (!s.foreign) {  // zerog-rt skips foreign datagrams inside receive(): no event
+        lockstep_exchange(rtio::LockstepKind::datagram, s.at, window);
+        last_rt_event_ = s.at;
+      }
+    } else if (deadline < limit) {
+      lockstep_exchange(rtio::LockstepKind::timeout, deadline, window);
+      last_rt_event_ = deadline;
+    } else {
+      return;
+    }
+  }
+}
+
+void RigEmulator::run_lockstep(const std::atomic<bool>& stop) {
+  if (cycles_total_ == 0) throw std::invalid_argument("lockstep needs a duration (--duration > 0)");
+  lockstep_stop_ = &stop;
+  const rtio::LockstepReply hello =
+      lockstep_receive(lockstep_fd_, kHelloGuard, "zerog-rt's hello", &lockstep_peer_, &stop);
+  if (hello.kind != rtio::LockstepKind::hello || hello.receive_timeout_ns <= 0 ||
+      !(hello.ft_rate_hz > 0.0) || hello.ft_rate_hz > physics_.physics_rate_hz())
+    throw std::runtime_error(
+        "lockstep: zerog-rt's hello is not one (kind, receive timeout or an "
+        "F/T rate above the physics rate)");
+  rt_receive_timeout_ = std::chrono::nanoseconds(hello.receive_timeout_ns);
+  ft_rate_hz_ = hello.ft_rate_hz;
+  std::fprintf(stderr,
+               "zerog-emu: lockstep with zerog-rt (receive timeout %.1f ms, F/T %.0f Hz): "
+               "emulated time\n",
+               static_cast<double>(hello.receive_timeout_ns) * 1e-6, ft_rate_hz_);
+
+  t0_ = Clock::time_point{} + std::chrono::hours(1);
+  const double h = 1.0 / physics_.physics_rate_hz();
+  auto step_time = [&](std::uint64_t k) {
+    return t0_ + std::chrono::duration_cast<Clock::duration>(
+                     std::chrono::duration<double>(static_cast<double>(k) * h));
+  };
+  lockstep_now_ = t0_;
+  last_rt_event_ = t0_;
+  physics_step(0, stop);
+  device_faults(0.0);
+  start_cycle(0);
+  lockstep_events_before(step_time(1), 0);
+  std::uint64_t k = 0;
+  const Clock::time_point wall0 = Clock::now();
+  for (std::uint64_t n = 1; n <= cycles_total_ && !stop.load(); ++n) {
+    if (options_.lockstep_paced) std::this_thread::sleep_until(wall0 + (cycle_start(n) - t0_));
+    // Cycle n−1's window: physics steps up to tick n, and the events between them.
+    const std::uint64_t tick = tick_step(n);
+    while (k < tick) {
+      ++k;
+      lockstep_now_ = step_time(k);
+      physics_step(k, stop);
+      device_faults(static_cast<double>(k) * h);
+      if (k < tick) lockstep_events_before(step_time(k + 1), n - 1);
+    }
+    if (records_[n - 1].reply != ReplyStatus::ok) ++delay_count_;
+    hand_over(n);  // tick n's correction, applied from physics step tick + 1
+    if (n == cycles_total_) break;
+    start_cycle(n);
+    lockstep_events_before(step_time(k + 1), n);
+  }
+  sends_.clear();  // a held or late datagram due after the run: never sent
+  lockstep_exchange(rtio::LockstepKind::end, lockstep_now_, 0);
+  for (std::size_t i = 0; i < records_.size() && i < tick_truth_.size(); ++i) {
+    const TickTruth& t = tick_truth_[i];
+    CycleRecord& r = records_[i];
+    r.q_rad = t.q_rad;
+    r.tcp = t.tcp;
+    r.v_com_base_mps = t.v_com_base_mps;
+    r.push_force_base_N = t.push_force_base_N;
+    r.push_torque_com_base_Nm = t.push_torque_com_base_Nm;
+  }
+}
+
 // --- Outputs ---------------------------------------------------------------------------------
 
 std::string RigEmulator::truth_csv() const {
@@ -729,6 +945,19 @@ nlohmann::json RigEmulator::summary() const {
       {"malformed", counts_.malformed_sent}, {"duplicated", counts_.duplicates_sent},
       {"foreign", counts_.foreign_sent},     {"cycles_without_good_datagram", not_sent},
       {"send_errors", counts_.send_errors}};
+  if (lockstep_) {
+    const AtiBoard::Counters b = ft_ != nullptr ? ft_->counters() : AtiBoard::Counters{};
+    s["lockstep"] = {
+        {"events", lockstep_counts_.events},
+        {"datagram_events", lockstep_counts_.datagram_events},
+        {"timeout_events", lockstep_counts_.timeout_events},
+        {"rt_receive_timeout_s", 1e-9 * static_cast<double>(rt_receive_timeout_.count())},
+        {"ft_rate_hz", ft_rate_hz_},
+        {"ft_samples_produced", ft_produced_},
+        {"ft_queue_underruns", b.queue_underruns},
+        {"ft_samples_left", ft_ != nullptr ? ft_->samples_queued() : 0},
+        {"slowest_answer_s", lockstep_counts_.slowest_ack_s}};
+  }
   s["replies"] = {{"datagrams", counts_.reply_datagrams},
                   {"ok", counts_.ok},
                   {"late", counts_.late},

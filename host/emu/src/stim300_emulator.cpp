@@ -104,6 +104,17 @@ void Stim300Emulator::close_locked() {
 void Stim300Emulator::unplug() {
   const std::lock_guard lock(mutex_);
   close_locked();
+  unplugs_.fetch_add(1, std::memory_order_acq_rel);
+}
+
+bool Stim300Emulator::plugged() const {
+  const std::lock_guard lock(mutex_);
+  return master_ >= 0;
+}
+
+bool Stim300Emulator::flush_pending() {
+  const std::lock_guard lock(mutex_);
+  return master_ < 0 || flush_pending_locked();
 }
 
 std::string Stim300Emulator::open(const std::string& link_path) {
@@ -116,6 +127,7 @@ std::string Stim300Emulator::open(const std::string& link_path) {
     slave_path_.clear();
     return message;
   };
+  bytes_.store(0, std::memory_order_release);
   master_ = ::posix_openpt(O_RDWR | O_NOCTTY | O_CLOEXEC);
   if (master_ < 0) return fail("Stim300Emulator: posix_openpt failed: " + errno_text(errno));
   const int flags = ::fcntl(master_, F_GETFL);
@@ -159,6 +171,7 @@ bool Stim300Emulator::flush_pending_locked() {
         ::write(master_, pending_.data() + pending_begin_, pending_end_ - pending_begin_);
     if (n > 0) {
       pending_begin_ += static_cast<std::size_t>(n);
+      bytes_.fetch_add(static_cast<std::uint64_t>(n), std::memory_order_acq_rel);
     } else if (n < 0 && errno == EINTR) {
       continue;
     } else {
@@ -221,6 +234,7 @@ bool Stim300Emulator::write_sample(const ImuTruthSample& truth) {
     dropped_.fetch_add(1, std::memory_order_relaxed);
     return false;
   }
+  bytes_.fetch_add(static_cast<std::uint64_t>(n), std::memory_order_acq_rel);
   if (static_cast<std::size_t>(n) < size) {  // the rest goes first next time
     std::copy(buffer_.begin() + n, buffer_.begin() + static_cast<std::ptrdiff_t>(size),
               pending_.begin());

@@ -1,16 +1,21 @@
 // zerog-rt's configuration: the sample file passes (read, model and rig loaded, and the program's
 // --check-config exits 0 against a model and rig made here); each kind of error names the file,
-// the dotted key, line:column and why; start-up failures exit 2 naming the file.
+// the dotted key, line:column and why; start-up failures exit 2 naming the file; [ft] transport
+// "local" reaches an emulated board (emu::AtiBoard) on a LocalCanBus.
 #include "zerog/rt/config.hpp"
 
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <atomic>
 #include <cstdlib>
 #include <string>
+#include <thread>
 
 #include "rt_fixtures.hpp"
+#include "zerog/emu/ati_board.hpp"
 #include "zerog/rt/setup.hpp"
+#include "zerog/rtio/local_can_bus.hpp"
 #include "zerog/sim/design.hpp"
 
 namespace zerog::rt {
@@ -180,6 +185,68 @@ TEST(RtConfig, EachErrorNamesFileKeyPositionAndWhy) {
                {"", line_of(s, "port = 0"), 0, "TOML syntax"});
 }
 
+/// The sample with [ft] on zerog-emu's bus socket instead of a CAN interface.
+std::string with_local_transport(const std::string& text) {
+  return with_line(with_line(text, "transport = ", "transport = \"local\""),
+                   "interface = ", "local_path = \"/run/zerog/can.sock\"");
+}
+
+TEST(RtConfig, FtTransportIsSocketCanByDefaultOrTheLocalBusSocket) {
+  const std::string s = sample_text();
+  const RtConfig sample = parse_config(s, "rt.toml");
+  EXPECT_EQ(sample.ft.transport, CanTransport::socketcan);
+  EXPECT_EQ(sample.ft.interface, "can0");
+  // Without the key (every configuration written before it): SocketCAN.
+  const RtConfig old = parse_config(with_line(s, "transport = ", ""), "rt.toml");
+  EXPECT_EQ(old.ft.transport, CanTransport::socketcan);
+  EXPECT_EQ(old.ft.interface, "can0");
+  EXPECT_TRUE(old.ft.local_path.empty());
+
+  const std::string local = with_local_transport(s);
+  const RtConfig c = parse_config(local, "/etc/zerog/zerog-rt.toml");
+  EXPECT_EQ(c.ft.transport, CanTransport::local);
+  EXPECT_EQ(c.ft.local_path, fs::path("/run/zerog/can.sock"));
+  EXPECT_STREQ(can_transport_name(c.ft.transport), "local");
+  EXPECT_EQ(c.ft.base_id, 0x20);  // the rest of [ft] as before
+  EXPECT_DOUBLE_EQ(c.ft.rate_hz, 500.0);
+}
+
+TEST(RtConfig, FtTransportErrorsNameTheKeyAndWhy) {
+  const std::string s = sample_text();
+  const std::string local = with_local_transport(s);
+  const int ft = line_of(s, "[ft]");
+  // Unknown transport: both choices listed.
+  expect_error(with_line(s, "transport = ", "transport = \"vcan\""),
+               {"ft.transport", line_of(s, "transport = "), 13,
+                "must be \"socketcan\" (a CAN interface) or \"local\" (zerog-emu's bus socket), "
+                "is \"vcan\""});
+  expect_error(with_line(s, "transport = ", "transport = 1"),
+               {"ft.transport", line_of(s, "transport = "), 13, "must be a string"});
+  // local: local_path required, absolute, short enough for sun_path.
+  expect_error(with_line(local, "local_path = ", ""),
+               {"ft.local_path", ft, 1, "is required with transport = \"local\""});
+  expect_error(with_line(local, "local_path = ", "local_path = \"run/zerog/can.sock\""),
+               {"ft.local_path", line_of(local, "local_path = "), 14,
+                "must be an absolute path (the bus socket zerog-emu --can-local serves"});
+  expect_error(with_line(local, "local_path = ", "local_path = \"\""),
+               {"ft.local_path", line_of(local, "local_path = "), 14, "must be an absolute path"});
+  expect_error(with_line(local, "local_path = ", "local_path = \"/" + std::string(107, 'x') + "\""),
+               {"ft.local_path", line_of(local, "local_path = "), 14,
+                "must be at most 107 bytes (an AF_UNIX socket's sun_path), is 108"});
+  // socketcan: interface required.
+  expect_error(with_line(s, "interface = ", ""),
+               {"ft.interface", ft, 1, "is required with transport = \"socketcan\" (the default)"});
+  expect_error(with_line(with_line(s, "transport = ", ""), "interface = ", ""),
+               {"ft.interface", ft, 1, "is required with transport = \"socketcan\""});
+  // The other transport's key is an error, not silently ignored.
+  expect_error(with_line(local, "local_path = ", "local_path = \"/x.sock\"\ninterface = \"can0\""),
+               {"ft.interface", line_of(local, "local_path = ") + 1, 13,
+                "applies only to transport = \"socketcan\" (transport is \"local\")"});
+  expect_error(with_line(s, "interface = ", "interface = \"can0\"\nlocal_path = \"/x.sock\""),
+               {"ft.local_path", line_of(s, "interface = ") + 1, 14,
+                "applies only to transport = \"local\" (transport is \"socketcan\")"});
+}
+
 /// The sample with its commented-out [modbus] and [telemetry] tables switched on.
 std::string with_supervision(std::string text) {
   for (const char* key :
@@ -306,6 +373,50 @@ TEST(ZerogRt, StartUpFailsWithTwoWhenTheFtSensorCannotBeOpened) {
   EXPECT_NE(r.err.find("zerog-rt: F/T sensor: cannot open CAN interface 'zerogcan9'"),
             std::string::npos)
       << r.err;
+}
+
+TEST(ZerogRt, StartUpFailsWithTwoWhenNobodyServesTheLocalCanBus) {
+  test::TempDir dir;
+  const fs::path bus = dir.path() / "can.sock";
+  test::write_text(dir.path() / "zerog-rt.toml",
+                   with_line(with_local_transport(sample_text()),
+                             "local_path = ", "local_path = \"" + bus.string() + "\""));
+  test::write_model_and_rig(dir.path());
+  const ProgramRun r =
+      run_rt(dir.path(), "--config " + (dir.path() / "zerog-rt.toml").string() + " --duration 1");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("zerog-rt: F/T sensor: cannot connect to the local CAN bus '" +
+                       bus.string() + "': connect_failed (connect: No such file or directory)"),
+            std::string::npos)
+      << r.err;
+}
+
+// zerog-rt's F/T sensor on zerog-emu's board over the local bus: the calibration is read (the
+// start-up gets as far as the IMU, which this test does not provide).
+TEST(ZerogRt, TheFtSensorStartsOnTheLocalCanBus) {
+  test::TempDir dir;
+  const fs::path bus = dir.path() / "can.sock";
+  emu::AtiBoard board;
+  rtio::LocalCanBus server;
+  ASSERT_TRUE(server.open_server(bus.string()).ok());
+  std::atomic<bool> stop{false};
+  std::thread serving([&] { board.serve(server, stop); });
+  test::write_text(dir.path() / "zerog-rt.toml",
+                   with_line(with_line(with_local_transport(sample_text()),
+                                       "local_path = ", "local_path = \"" + bus.string() + "\""),
+                             "device = ", "device = \"" + (dir.path() / "no-imu").string() + "\""));
+  test::write_model_and_rig(dir.path());
+  const ProgramRun r =
+      run_rt(dir.path(), "--config " + (dir.path() / "zerog-rt.toml").string() + " --duration 1");
+  stop.store(true);
+  serving.join();
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.err.find("F/T sensor"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("zerog-rt: IMU on " + (dir.path() / "no-imu").string()), std::string::npos)
+      << r.err;
+  const emu::AtiBoard::Counters counters = board.counters();
+  EXPECT_GE(counters.requests, 10u);  // calibration, firmware, serial, 6 rows, counts, units
+  EXPECT_EQ(counters.tx_failed, 0u);
 }
 
 TEST(ZerogRt, AModelFittedAtTwelveMillisecondRowsIsRefusedAtAFourMillisecondCycle) {

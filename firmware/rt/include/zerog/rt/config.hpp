@@ -43,12 +43,21 @@ struct RobotSection {
   double cycle_s() const { return cycle_ms * 1e-3; }
 };
 
+/// How zerog-rt reaches the F/T board's CAN bus ([ft] transport).
+enum class CanTransport : std::uint8_t {
+  socketcan,  ///< a SocketCAN interface (rtio::CanSocket on [ft] interface): the real bus
+  local,      ///< zerog-emu's bus socket (rtio::LocalCanBus client of [ft] local_path)
+};
+const char* can_transport_name(CanTransport transport);
+
 struct FtSection {
-  std::string interface = "can0";  ///< SocketCAN interface
-  int base_id = 0x20;              ///< NETCANOEM board base id, 0..127
-  int calibration = 0;             ///< active calibration, 0..15
-  double rate_hz = 500.0;          ///< sample requests per second
-  double sample_timeout_ms = 2.0;  ///< request → both response frames
+  CanTransport transport = CanTransport::socketcan;
+  std::string interface = "can0";    ///< SocketCAN interface (transport socketcan)
+  std::filesystem::path local_path;  ///< absolute path of the bus socket (transport local)
+  int base_id = 0x20;                ///< NETCANOEM board base id, 0..127
+  int calibration = 0;               ///< active calibration, 0..15
+  double rate_hz = 500.0;            ///< sample requests per second
+  double sample_timeout_ms = 2.0;    ///< request → both response frames
 };
 
 struct ImuSection {

@@ -33,6 +33,7 @@
 #include "zerog/rtio/ft_sensor.hpp"
 #include "zerog/rtio/imu.hpp"
 #include "zerog/rtio/latest_value.hpp"
+#include "zerog/rtio/lockstep.hpp"
 #include "zerog/rtio/robot_link.hpp"
 #include "zerog/rtio/spsc_ring.hpp"
 #include "zerog/telemetry/channel.hpp"
@@ -60,6 +61,24 @@ struct RuntimeDevices {
   rtio::RobotLink* robot = nullptr;  ///< required, started
   rtio::FtSensor* ft = nullptr;      ///< started; null: no F/T thread (tests feed ft_ring())
   rtio::Imu* imu = nullptr;          ///< started; null: no IMU thread
+  /// Lockstep with the emulated rig (proto/lockstep.md), opened and hello sent; null: real time.
+  /// The cycle thread then handles the emulator's events, and the sensor threads read what the
+  /// emulator says was produced before each event instead of pacing themselves.
+  rtio::LockstepClient* lockstep = nullptr;
+};
+
+/// Lockstep counters (cycle and sensor threads; read after stop()).
+struct LockstepCounters {
+  std::uint64_t events = 0;  ///< datagram + timeout events handled
+  std::uint64_t datagram_events = 0;
+  std::uint64_t timeout_events = 0;
+  std::uint64_t receive_retries = 0;    ///< receive() timed out although a datagram was sent
+  std::uint64_t sensor_waits_over = 0;  ///< sensor threads not done within the guard (must be 0)
+  std::uint64_t errors = 0;             ///< wait/ack failures (the run ends)
+  std::uint64_t imu_rebases = 0;        ///< IMU byte count re-based after a re-open
+  std::uint64_t imu_reopen_attempts = 0;
+  bool ended = false;           ///< the emulator sent `end`
+  const char* error = nullptr;  ///< the first failure (a static text), if any
 };
 
 /// Published by the cycle thread after every cycle (LatestValue), read by the main thread.
@@ -177,6 +196,8 @@ class Runtime final : public modbus::SupervisorTarget {
   SupervisorEvents supervise();
   /// True once a --collect path has been followed to its end.
   bool collection_finished() const { return collection_finished_; }
+  /// Lockstep: true once the emulator ended the run or the lockstep failed (see summary).
+  bool lockstep_finished() const { return lockstep_finished_.load(std::memory_order_acquire); }
   /// The once-a-second status line (main thread).
   std::string status_line();
 
@@ -209,6 +230,17 @@ class Runtime final : public modbus::SupervisorTarget {
   void recorder_loop();
   void discard_samples() noexcept;
   void after_cycle() noexcept;
+  /// The cycle's body once receive() has returned (real time and lockstep).
+  void handle_received(rtio::RobotReceiveStatus received) noexcept;
+  /// Lockstep: one emulator event (proto/lockstep.md).
+  void lockstep_once() noexcept;
+  void lockstep_fail(const char* what) noexcept;
+  /// Lockstep: hands the event's production to the sensor threads and waits until they read it.
+  void lockstep_sensors(const rtio::LockstepEvent& event) noexcept;
+  /// Lockstep: --enable-zero-g / --collect requested by the cycle thread (deterministic).
+  void lockstep_auto_request() noexcept;
+  void ft_loop_lockstep();
+  void imu_loop_lockstep();
 
   RuntimeOptions options_;
   RuntimeDevices devices_;
@@ -247,6 +279,17 @@ class Runtime final : public modbus::SupervisorTarget {
 
   // Sensor threads.
   SensorThreadCounters sensor_counters_;
+
+  // Lockstep: the cycle thread publishes an event's production, then bumps lockstep_tick_; each
+  // sensor thread reads it up to that production and stores the tick in its done flag.
+  rtio::LockstepEvent lockstep_event_{};
+  std::atomic<std::uint32_t> lockstep_tick_{0};
+  std::atomic<std::uint32_t> ft_done_tick_{0}, imu_done_tick_{0};
+  std::atomic<bool> lockstep_finished_{false};
+  LockstepCounters lockstep_counters_;
+  bool lockstep_requested_ = false;
+  bool lockstep_auto_done_ = false;
+  std::uint64_t lockstep_requested_at_ = 0;
 
   // Recorder thread.
   std::unique_ptr<Recorder> recorder_;

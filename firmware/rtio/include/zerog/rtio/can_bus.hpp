@@ -1,6 +1,8 @@
 #pragma once
 // A CAN bus as the devices see it: read one frame with a timeout, write one frame, counters.
-// Real implementation: CanSocket (SocketCAN, can_socket.hpp); fake: FakeCanBus (fake_can_bus.hpp).
+// Implementations: CanSocket (SocketCAN raw socket, can_socket.hpp: the real bus); LocalCanBus
+// (classic frames over an AF_UNIX datagram socket between two processes, local_can_bus.hpp: for
+// zerog-rt against zerog-emu on a kernel without CAN); fake: FakeCanBus (fake_can_bus.hpp).
 #include <array>
 #include <chrono>
 #include <cstddef>
@@ -63,6 +65,9 @@ struct CanBusCounters {
   /// when the next frame after the drops is read.
   std::uint64_t kernel_drops = 0;
   std::uint64_t control_truncated = 0;  ///< ancillary data cut (MSG_CTRUNC): timestamp lost
+  /// Frames the acceptance filters or the error mask dropped (LocalCanBus, which filters in
+  /// user space; SocketCAN filters in the kernel, uncounted, so CanSocket leaves this 0).
+  std::uint64_t filtered = 0;
   std::uint64_t io_errors = 0;
   std::uint64_t frames_sent = 0;
   std::uint64_t tx_would_block = 0;

@@ -34,13 +34,17 @@ struct CanSocketConfig {
   bool timestamps = true;  ///< SO_TIMESTAMPNS
 };
 
+/// How opening a CanSocket or a LocalCanBus (local_can_bus.hpp) went.
 enum class CanOpenStatus : std::uint8_t {
   ok,
-  bad_argument,       ///< interface name empty or too long, too many filters
+  /// Interface name empty or too long, too many filters; LocalCanBus: path empty, with a NUL or
+  /// longer than LocalCanBus::kMaxPathBytes (sun_path).
+  bad_argument,
   no_such_interface,  ///< if_nametoindex failed
   socket_failed,      ///< socket(PF_CAN, SOCK_RAW, CAN_RAW) failed: no CAN in this kernel?
   option_failed,      ///< a setsockopt failed (`what` names it)
-  bind_failed,
+  bind_failed,        ///< LocalCanBus server: e.g. the path exists (EADDRINUSE)
+  connect_failed,     ///< LocalCanBus client: nobody serves the path (ECONNREFUSED, ENOENT)
 };
 struct CanOpenResult {
   CanOpenStatus status = CanOpenStatus::ok;

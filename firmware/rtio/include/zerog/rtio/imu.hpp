@@ -64,6 +64,9 @@ class Imu {
   /// The next sample, waiting at most the device's configured read timeout. Real-time safe: no
   /// allocation, no exceptions, no locks.
   virtual ImuReadStatus read_sample(ImuSample& out) = 0;
+  /// The next sample if the bytes already read from the device complete one; never waits and
+  /// never reads the device (lockstep drains with it, proto/lockstep.md). Real-time safe.
+  virtual bool pop_buffered(ImuSample& /*out*/) { return false; }
   /// A snapshot of the counters (call from the thread that reads samples).
   virtual ImuCounters counters() const = 0;
 };

@@ -35,6 +35,8 @@ class Stim300Imu final : public Imu {
   /// Returns the next datagram from the decoder, reading the tty only when none is buffered.
   /// Garbage, bad CRCs and counter gaps are counted and skipped. Real-time safe.
   ImuReadStatus read_sample(ImuSample& out) override;
+  /// A sample from the bytes already read (none read from the tty). Real-time safe.
+  bool pop_buffered(ImuSample& out) override;
   ImuCounters counters() const override;
 
   /// errno of the last failed open or read.

@@ -14,6 +14,7 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <deque>
 #include <mutex>
 #include <random>
 
@@ -107,6 +108,12 @@ class AtiBoard {
   /// when sent (a clamped value is a saturated gauge, as on the real sensor). Throws
   /// std::logic_error when the unit codes are unknown.
   void set_wrench(const std::array<double, 6>& wrench_sensor_si);
+  /// Lockstep (proto/lockstep.md): queues the wrench of one sample produced in emulated time.
+  /// From the first call on, each sample request takes the next queued sample (a silent board
+  /// takes it too: its time passed); an empty queue answers with the last one (counted).
+  void queue_sample(const std::array<double, 6>& wrench_sensor_si);
+  /// Samples queued and not yet requested.
+  std::size_t samples_queued() const;
   /// Sets the gauges directly (raw counts; replaced by the next set_wrench).
   void set_gauges(const std::array<std::int16_t, 6>& gauges);
   /// The gauges the next sample carries, before noise and faults.
@@ -144,6 +151,8 @@ class AtiBoard {
     std::uint64_t critical_samples = 0;   ///< samples sent with a critical status bit
     std::uint64_t other_frames = 0;       ///< frames that were not requests to this board
     std::uint64_t tx_failed = 0;          ///< serve(): responses the bus refused
+    std::uint64_t queued = 0;             ///< lockstep: samples queued
+    std::uint64_t queue_underruns = 0;    ///< lockstep: sample requests with an empty queue
   };
   Counters counters() const;
 
@@ -153,6 +162,7 @@ class AtiBoard {
     bool sample = false;  // a sample response (delayed by serve())
   };
   Step respond_locked(const proto::CanFrame& request, Response& out);
+  std::array<double, 6> gauges_of(const std::array<double, 6>& wrench_sensor_si) const;
 
   AtiBoardConfig config_;
   proto::netcanoem::Calibration calibration_{};
@@ -161,7 +171,9 @@ class AtiBoard {
   Eigen::Matrix<double, 6, 6> inverse_;  // G = A⁻¹
 
   mutable std::mutex mutex_;
-  std::array<double, 6> gauges_exact_{};  // bias + G · wrench, before rounding
+  std::array<double, 6> gauges_exact_{};     // bias + G · wrench, before rounding
+  bool lockstep_ = false;                    // queue_sample() was called
+  std::deque<std::array<double, 6>> queue_;  // lockstep: gauges of the samples to come
   std::uint16_t status_word_ = 0;
   FtFault fault_ = FtFault::none;
   std::chrono::microseconds delay_{0};

@@ -33,6 +33,7 @@
 #include "zerog/emu/scenario.hpp"
 #include "zerog/io/log.hpp"
 #include "zerog/io/model_file.hpp"
+#include "zerog/rtio/lockstep.hpp"
 #include "zerog/sim/simulator.hpp"
 
 namespace zerog::emu {
@@ -49,6 +50,13 @@ struct RigEmulatorOptions {
   double duration_s = 20.0;                    ///< run length; 0: until stopped
   std::string imu_link;  ///< the IMU's symlink, to re-plug after imu_unplug (may be empty)
   std::uint64_t first_ipoc = 1'000'000;
+  /// Lockstep (proto/lockstep.md): the unix datagram socket zerog-rt --lockstep connects to;
+  /// empty: real time. In lockstep the emulator is zerog-rt's clock: one thread, emulated time.
+  std::string lockstep_path;
+  /// Lockstep: never let emulated time run ahead of the wall clock (for peers that act on the
+  /// wall clock beside zerog-rt: the cell PLC over Modbus, a DDS subscriber). The loop's
+  /// exchanges stay exact; only when a peer's action lands depends on the host.
+  bool lockstep_paced = false;
 };
 
 enum class ReplyStatus : std::uint8_t {
@@ -128,6 +136,17 @@ class RigEmulator {
     std::string note;              // e.g. "no device"
   };
   void physics_loop(const std::atomic<bool>& stop);
+  /// Lockstep: the whole run in this thread, on emulated time.
+  void run_lockstep(const std::atomic<bool>& stop);
+  /// Lockstep: the sends and zerog-rt receive timeouts due before `limit`, in time order; the
+  /// replies they bring go to cycle `window`.
+  void lockstep_events_before(std::chrono::steady_clock::time_point limit, std::uint64_t window);
+  /// Lockstep: tells zerog-rt of one event at `at` and waits until it has handled it and its
+  /// replies are in.
+  void lockstep_exchange(rtio::LockstepKind kind, std::chrono::steady_clock::time_point at,
+                         std::uint64_t window);
+  /// Emulated time in lockstep, else the steady clock.
+  std::chrono::steady_clock::time_point now() const;
   /// Physics step k (k = 0: the start state). False if the run stopped while it waited.
   bool physics_step(std::uint64_t k, const std::atomic<bool>& stop);
   void device_faults(double t_s);
@@ -221,6 +240,22 @@ class RigEmulator {
   std::uint64_t largest_batch_ = 0;
   std::uint64_t imu_samples_ = 0;
   std::uint64_t imu_dropped_ = 0;
+
+  // Lockstep.
+  bool lockstep_ = false;
+  int lockstep_fd_ = -1;
+  std::string lockstep_bound_;       // the socket file this emulator made (removed at destruction)
+  std::vector<char> lockstep_peer_;  // zerog-rt's address (sockaddr_un bytes)
+  std::chrono::steady_clock::time_point lockstep_now_{};
+  std::chrono::steady_clock::time_point last_rt_event_{};  // zerog-rt's last receive returned
+  std::chrono::nanoseconds rt_receive_timeout_{0};
+  double ft_rate_hz_ = 0.0;
+  std::uint64_t ft_produced_ = 0;
+  const std::atomic<bool>* lockstep_stop_ = nullptr;  // run()'s stop flag
+  struct LockstepCounts {
+    std::uint64_t events = 0, datagram_events = 0, timeout_events = 0;
+    double slowest_ack_s = 0.0;  ///< real time zerog-rt took for one event (information)
+  } lockstep_counts_;
 };
 
 }  // namespace zerog::emu

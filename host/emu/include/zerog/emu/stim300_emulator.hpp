@@ -104,6 +104,14 @@ class Stim300Emulator {
   /// destruction.
   void unplug();
 
+  /// Lockstep (proto/lockstep.md): bytes the pty accepted since the last open(), how often it
+  /// was unplugged, whether it is open, and a flush of a partly written datagram (true when
+  /// nothing is pending).
+  std::uint64_t bytes_since_plug() const { return bytes_.load(std::memory_order_acquire); }
+  std::uint32_t unplugs() const { return unplugs_.load(std::memory_order_acquire); }
+  bool plugged() const;
+  bool flush_pending();
+
   struct Counters {
     std::uint64_t written = 0;        ///< datagrams written (including bad-CRC and status ones)
     std::uint64_t dropped = 0;        ///< datagrams dropped: pty full or not open
@@ -120,7 +128,7 @@ class Stim300Emulator {
   bool flush_pending_locked();
 
   Stim300EmulatorConfig config_;
-  std::mutex mutex_;
+  mutable std::mutex mutex_;
   int master_ = -1;
   int slave_ = -1;
   std::string slave_path_;
@@ -133,6 +141,8 @@ class Stim300Emulator {
   std::array<std::uint8_t, kBufferSize> pending_{};
   std::size_t pending_begin_ = 0;
   std::size_t pending_end_ = 0;
+  std::atomic<std::uint64_t> bytes_{0};
+  std::atomic<std::uint32_t> unplugs_{0};
   std::atomic<std::uint64_t> written_{0};
   std::atomic<std::uint64_t> dropped_{0};
   std::atomic<std::uint64_t> garbage_bytes_{0};
