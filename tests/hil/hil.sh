@@ -1,54 +1,84 @@
 #!/usr/bin/env bash
-# hil.sh --bin BUILD_DIR --out DIR CASE...
+# hil.sh --bin BUILD_DIR --out DIR [--mode lockstep|realtime] [--bus local|vcan] [--seed N]
+#        [--mutant NAME --expect-fail TEXT] CASE...
 #
 # Hardware-in-the-loop run of zerog-rt against the rig emulator (zerog-emu: KR 210 controller
-# over RSI/UDP with servo lag, ATI NETCANOEM board on vcan0, STIM300 on a pty, all driven by the
-# rig simulator). Needs a kernel with vcan (tests/vm/run_in_vm.sh provides one). For each CASE
-# (tests/hil/cases/CASE.toml = the emulator's scenario; zerog-rt's configuration template is
-# cases/zerog-rt.base.toml, extended or replaced by CASE.rt.toml if there is one) it starts the
-# emulator, deploys the emulated payload's exact model with `zerog export`, runs zerog-rt with
-# --enable-zero-g and checks the run with check_hil.py.
+# over RSI/UDP with servo lag, ATI NETCANOEM board on a CAN bus, STIM300 on a pty, all driven by
+# the rig simulator). For each CASE (tests/hil/cases/CASE.toml = the emulator's scenario;
+# zerog-rt's configuration template is cases/zerog-rt.base.toml, extended or replaced by
+# CASE.rt.toml if there is one) it starts the emulator, deploys the emulated payload's exact
+# model with `zerog export`, runs zerog-rt with --enable-zero-g and checks the run with
+# check_hil.py.
+#
+#   --mode lockstep (default): zerog-emu is zerog-rt's clock (proto/lockstep.md): the result
+#       depends on the seed only, not on the host's load; the checks are exact.
+#   --mode realtime: both on the wall clock, as on the cabinet PC; a timing benchmark (the
+#       checks' tolerances are those of a real rig).
+#   --bus local (default): the F/T board on the user-space CAN transport (a unix datagram
+#       socket, [ft] transport = "local"); --bus vcan: on vcan0 (a kernel with vcan, e.g. in
+#       tests/vm/run_in_vm.sh).
+#   --seed N: the scenario's [payload] seed replaced by N (results in DIR/CASE-seedN/).
+#   --mutant NAME: zerog-rt --test-mutant NAME (broken on purpose); with --expect-fail TEXT the
+#       run passes only if every case fails a check whose line contains TEXT.
 # A scenario with a `# plc = SCRIPT` line has no --enable-zero-g: SCRIPT (in tests/hil/, the
 # cell PLC over Modbus) runs beside zerog-rt and enables zero-g itself. A template with
 # @DDS_DOMAIN@ gets DDS telemetry: the independent Python subscriber (the repository's .venv)
 # records every topic during the run and check_telemetry.py compares it with cycles.csv.
-# Results per case in DIR/CASE/. Exit status: 0 if every case passed, 77 if none failed but some
-# were inconclusive (the VM could not keep the rig in real time), else 1.
+# Results per case in DIR/CASE/. Exit status 0 if every case passed, else 1. A failed check is a
+# failure: there is no retry and no "inconclusive".
 set -uo pipefail
 
 here=$(cd "$(dirname "$0")" && pwd)
-bin= out=
+bin= out= mode=lockstep bus=local seed= mutant= expect_fail=
 cases=()
 while [ $# -gt 0 ]; do
   case "$1" in
     --bin) bin=$2; shift 2 ;;
     --out) out=$2; shift 2 ;;
+    --mode) mode=$2; shift 2 ;;
+    --bus) bus=$2; shift 2 ;;
+    --seed) seed=$2; shift 2 ;;
+    --mutant) mutant=$2; shift 2 ;;
+    --expect-fail) expect_fail=$2; shift 2 ;;
     -*) echo "hil.sh: unknown option $1" >&2; exit 2 ;;
     *) cases+=("$1"); shift ;;
   esac
 done
 [ -n "$bin" ] && [ -n "$out" ] && [ ${#cases[@]} -gt 0 ] || {
-  echo "usage: hil.sh --bin BUILD_DIR --out DIR CASE..." >&2; exit 2; }
+  echo "usage: hil.sh --bin BUILD_DIR --out DIR [--mode lockstep|realtime] [--bus local|vcan]" \
+    "[--seed N] [--mutant NAME --expect-fail TEXT] CASE..." >&2; exit 2; }
+case "$mode" in lockstep|realtime) ;; *) echo "hil.sh: --mode lockstep or realtime" >&2; exit 2 ;; esac
+case "$bus" in local|vcan) ;; *) echo "hil.sh: --bus local or vcan" >&2; exit 2 ;; esac
+[ -z "$expect_fail" ] || [ -n "$mutant" ] || { echo "hil.sh: --expect-fail needs --mutant" >&2; exit 2; }
 emu=$bin/host/emu/zerog-emu
 rt=$bin/firmware/rt/zerog-rt
 zerog=$bin/host/cli/zerog
 for p in "$emu" "$rt" "$zerog"; do
   [ -x "$p" ] || { echo "hil.sh: $p not built" >&2; exit 2; }
 done
-ip link show vcan0 >/dev/null 2>&1 || { echo "hil.sh: no vcan0 (run inside tests/vm/run_in_vm.sh)" >&2; exit 2; }
-# Warm the guest's page cache before the first, timed case: cold (binaries and libraries read
-# over 9p, Python's numpy), zerog-rt's start-up took 1.4 s longer in the first case of each VM,
-# which then met its fault at 3 s with fewer cycles in zero-g than the checks want.
+if [ "$bus" = vcan ]; then
+  ip link show vcan0 >/dev/null 2>&1 || {
+    echo "hil.sh: --bus vcan needs vcan0 (run inside tests/vm/run_in_vm.sh)" >&2; exit 2; }
+fi
+# Warm the page cache before the first case (in the VM, binaries and libraries come over 9p).
 cat "$emu" "$rt" "$zerog" >/dev/null
 for p in "$emu" "$rt" "$zerog"; do "$p" --help >/dev/null 2>&1; done
 /usr/bin/python3 -c 'import numpy' 2>/dev/null
 
-# One run of case $1 into folder $2 (attempt $3); 0 if it ran and every check passed.
+# One run of case $1 into folder $2; 0 if it ran and every check passed.
 run_case() {
-  local c=$1 w=$2 attempt=$3
-  local scenario=$here/cases/$c.toml own=$here/cases/$c.rt.toml base=$here/cases/zerog-rt.base.toml
-  [ -f "$scenario" ] || { echo "hil.sh: no case $c" >&2; return 1; }
+  local c=$1 w=$2
+  local source=$here/cases/$c.toml own=$here/cases/$c.rt.toml base=$here/cases/zerog-rt.base.toml
+  [ -f "$source" ] || { echo "hil.sh: no case $c" >&2; return 1; }
   rm -rf "$w" && mkdir -p "$w/rec"
+  # The scenario, with the seed of this run.
+  local scenario=$w/scenario.toml
+  if [ -n "$seed" ]; then
+    grep -q '^seed = ' "$source" || { echo "hil.sh: $source has no 'seed = ' line" >&2; return 1; }
+    sed "s/^seed = .*/seed = $seed/" "$source" >"$scenario"
+  else
+    cp "$source" "$scenario"
+  fi
   # zerog-rt's configuration template: the shared one, the shared one and the case's tables, or
   # the case's own (cases/zerog-rt.base.toml says when which).
   local template=$w/zerog-rt.template.toml
@@ -61,16 +91,15 @@ run_case() {
   fi
   local duration
   duration=$(sed -n 's/^# duration_s = \([0-9.]*\)$/\1/p' "$scenario")
-  [ -n "$duration" ] || { echo "hil.sh: $scenario lacks a '# duration_s = N' line" >&2; return 1; }
-  echo "=== $c: ${duration} s (attempt $attempt) ==="
-  local emu_start emu_pid rt_duration rt_status emu_status
-  # The DDS subscriber first: Python and its imports can take seconds in the VM, and the
-  # emulator's run is timed.
-  local domain=$((150 + attempt)) dds= sub_pid=
+  [ -n "$duration" ] || { echo "hil.sh: $source lacks a '# duration_s = N' line" >&2; return 1; }
+  echo "=== $c: ${duration} s, $mode, F/T on $bus${seed:+, seed $seed}${mutant:+, MUTANT $mutant} ==="
+  local emu_pid rt_status emu_status
+  # The DDS subscriber first: Python and its imports take a while.
+  local domain=$((150 + ${seed:-0} % 50)) dds= sub_pid=
   if grep -q '@DDS_DOMAIN@' "$template"; then
     dds=$here/../../.venv/bin/python
     "$dds" "$here/../telemetry/dds_subscriber.py" --domain $domain --interface lo \
-      --peer 127.0.0.1 --no-multicast --duration $((${duration%.*} + 60)) --idle 3 \
+      --peer 127.0.0.1 --no-multicast --duration $((${duration%.*} * 20 + 120)) --idle 3 \
       --out "$w/telemetry.jsonl" --ready "$w/telemetry.ready" 2>"$w/telemetry.err" &
     sub_pid=$!
     for _ in $(seq 1 300); do
@@ -78,23 +107,46 @@ run_case() {
       kill -0 $sub_pid 2>/dev/null || break
       sleep 0.1
     done
-    [ -f "$w/telemetry.ready" ] || echo "hil.sh: $c: the DDS subscriber did not start" >&2
+    [ -f "$w/telemetry.ready" ] || { echo "hil.sh: $c: the DDS subscriber did not start:" >&2;
+                                      cat "$w/telemetry.err" >&2; kill $sub_pid 2>/dev/null;
+                                      return 1; }
   fi
   # The payload's truth model and the rig first, and zerog export, before the emulator's clock
-  # starts: in the VM the export alone takes about a second, which every scenario's event times
-  # would otherwise have to leave for start-up.
+  # starts.
   "$emu" --scenario "$scenario" --write-model "$w/truth-model.json" --write-rig "$w/rig.rig.toml" \
     --write-only >"$w/emu-write.out" 2>&1 \
     || { echo "hil.sh: $c: zerog-emu --write-only failed:" >&2; cat "$w/emu-write.out" >&2;
          kill $sub_pid 2>/dev/null; return 1; }
   "$zerog" export --model "$w/truth-model.json" --rig "$w/rig.rig.toml" --out "$w/model.zgm" -q \
     || { echo "hil.sh: $c: zerog export failed" >&2; kill $sub_pid 2>/dev/null; return 1; }
+  local can_args=(--can vcan0) ft_bus=
+  if [ "$bus" = local ]; then
+    can_args=(--can-local "$w/can.sock")
+    ft_bus="transport = \"local\"\nlocal_path = \"$w/can.sock\""
+  fi
   sed -e "s|@MODEL@|$w/model.zgm|" -e "s|@RIG@|$w/rig.rig.toml|" -e "s|@IMU@|$w/imu-tty|" \
     -e "s|@DDS_DOMAIN@|$domain|" "$template" >"$w/zerog-rt.toml"
+  if [ -n "$ft_bus" ]; then
+    grep -q '^interface = "vcan0"$' "$w/zerog-rt.toml" \
+      || { echo "hil.sh: $c: the template has no [ft] interface = \"vcan0\" line" >&2; return 1; }
+    sed -i "s|^interface = \"vcan0\"\$|$ft_bus|" "$w/zerog-rt.toml"
+  fi
+  local step_args=() rt_step_args=()
+  if [ "$mode" = lockstep ]; then
+    step_args=(--lockstep "$w/lockstep.sock")
+    rt_step_args=(--lockstep "$w/lockstep.sock")
+    # A PLC script acts on the wall clock: emulated time must not outrun it.
+    grep -q '^# plc = ' "$scenario" && step_args+=(--lockstep-paced)
+  fi
+  local emu_start
   emu_start=$(date +%s.%N)
-  "$emu" --scenario "$scenario" --can vcan0 --imu-link "$w/imu-tty" \
+  # A guard against a hung program only (lockstep runs take a few times the scenario's length
+  # at most): never part of a result.
+  local guard=$(( ${duration%.*} * 30 + 120 ))
+  timeout -s INT -k 10 $guard "$emu" --scenario "$scenario" "${can_args[@]}" --imu-link "$w/imu-tty" \
     --robot-bind 127.0.0.1:49153 --rt-address 127.0.0.1:49152 --duration "$duration" \
-    --truth-out "$w/truth.csv" --summary-out "$w/emu.json" >"$w/emu.out" 2>"$w/emu.err" &
+    "${step_args[@]}" --truth-out "$w/truth.csv" --summary-out "$w/emu.json" \
+    >"$w/emu.out" 2>"$w/emu.err" &
   emu_pid=$!
   for _ in $(seq 1 300); do
     grep -q "zerog-emu: ready" "$w/emu.out" 2>/dev/null && break
@@ -108,32 +160,40 @@ run_case() {
   local plc enable=--enable-zero-g plc_pid= plc_status=0
   plc=$(sed -n 's/^# plc = \(.*\)$/\1/p' "$scenario")
   [ -z "$plc" ] || enable=
-  # zerog-rt stops 0.7 s before the emulator does, so the robot never goes silent on it: at an
-  # absolute deadline from the emulator's start (SIGINT: it stops and writes its files), not
-  # after a --duration counted from its own start, which its start-up (DDS, Modbus, the F/T
-  # calibration read-out) would push past the emulator's end under the VM's emulation.
-  "$rt" --config "$w/zerog-rt.toml" $enable --record "$w/rec" --duration "$duration" \
-    --summary-out "$w/rt.json" >"$w/rt.out" 2>"$w/rt.err" &
-  local rt_pid=$!
-  # Start-up figures: zerog-rt started this long after the emulator (its first reply is in
-  # truth.csv, on the emulator's clock).
+  local mutant_args=()
+  [ -z "$mutant" ] || mutant_args=(--test-mutant "$mutant")
+  local rt_pid stopper=
+  if [ "$mode" = lockstep ]; then
+    # zerog-rt stops when the emulator ends the run (the lockstep's `end`).
+    timeout -s INT -k 10 $guard "$rt" --config "$w/zerog-rt.toml" $enable "${rt_step_args[@]}" \
+      "${mutant_args[@]}" --record "$w/rec" --summary-out "$w/rt.json" >"$w/rt.out" 2>"$w/rt.err" &
+    rt_pid=$!
+  else
+    # zerog-rt stops 0.7 s before the emulator does, so the robot never goes silent on it: at
+    # an absolute deadline from the emulator's start (SIGINT: it stops and writes its files).
+    "$rt" --config "$w/zerog-rt.toml" $enable "${mutant_args[@]}" --record "$w/rec" \
+      --duration "$duration" --summary-out "$w/rt.json" >"$w/rt.out" 2>"$w/rt.err" &
+    rt_pid=$!
+    local rt_duration
+    rt_duration=$(awk -v d="$duration" -v s="$emu_start" -v n="$(date +%s.%N)" \
+      'BEGIN { t = d - (n - s) - 0.7; print (t > 0 ? t : 0) }')
+    (sleep "$rt_duration" && kill -INT $rt_pid 2>/dev/null) &
+    stopper=$!
+  fi
   awk -v s="$emu_start" -v n="$(date +%s.%N)" 'BEGIN { printf "zerog_rt_started_s = %.3f\n", n - s }' \
     >"$w/start.txt"
   if [ -n "$plc" ]; then
     /usr/bin/python3 "$here/$plc" --port 1502 --out "$w/plc.json" >"$w/plc.out" 2>&1 &
     plc_pid=$!
   fi
-  rt_duration=$(awk -v d="$duration" -v s="$emu_start" -v n="$(date +%s.%N)" \
-    'BEGIN { t = d - (n - s) - 0.7; print (t > 0 ? t : 0) }')
-  (sleep "$rt_duration" && kill -INT $rt_pid 2>/dev/null) &
-  local stopper=$!
   wait $rt_pid
   rt_status=$?
-  kill $stopper 2>/dev/null
-  wait $stopper 2>/dev/null
+  if [ -n "$stopper" ]; then kill $stopper 2>/dev/null; wait $stopper 2>/dev/null; fi
   if [ -n "$plc_pid" ]; then wait $plc_pid; plc_status=$?; fi
   wait $emu_pid
   emu_status=$?
+  awk -v s="$emu_start" -v n="$(date +%s.%N)" 'BEGIN { printf "wall_s = %.3f\n", n - s }' \
+    >>"$w/start.txt"
   if [ -n "$sub_pid" ]; then
     wait $sub_pid
     local crc
@@ -149,32 +209,29 @@ run_case() {
     return 1
   fi
   /usr/bin/python3 "$here/check_hil.py" --case "$c" --dir "$w" --scenario "$scenario" \
-    --rt-config "$w/zerog-rt.toml" --attempt "$attempt"
+    --rt-config "$w/zerog-rt.toml" \
+    | tee "$w/check.txt"
+  return "${PIPESTATUS[0]}"
 }
 
-# A case that fails is run once more (its first run kept in CASE.attempt1/, the retry recorded in
-# check.json): under qemu's software emulation the guest sometimes freezes for 30 ms or more,
-# which a real cabinet PC does not, and a late reply then really jolts the emulated robot. A
-# behaviour that is broken fails both times. A retry that fails while the emulated rig itself
-# fell more than two cycles behind real time (check_hil.py, exit status 3) is inconclusive: the
-# VM could not emulate the rig, which says nothing about zerog-rt. Then, if nothing failed, the
-# exit status is 77 (ctest: skipped) and the inconclusive cases are listed.
 status=0
-inconclusive=()
 for c in "${cases[@]}"; do
-  if ! run_case "$c" "$out/$c" 1; then
-    rm -rf "$out/$c.attempt1" && mv "$out/$c" "$out/$c.attempt1"
-    run_case "$c" "$out/$c" 2
-    case $? in
-      0) ;;
-      3) inconclusive+=("$c") ;;
-      *) status=1 ;;
-    esac
+  w=$out/$c${seed:+-seed$seed}${mutant:+-$mutant}
+  run_case "$c" "$w"
+  st=$?
+  if [ -n "$expect_fail" ]; then
+    # A mutant must be caught: the case fails, and by the check named.
+    if [ $st -eq 0 ]; then
+      echo "hil.sh: $c: the mutant $mutant PASSED the checks: they cannot see what it breaks" >&2
+      status=1
+    elif ! grep -F -- "FAIL" "$w/check.txt" 2>/dev/null | grep -qF -- "$expect_fail"; then
+      echo "hil.sh: $c: the mutant $mutant failed, but not the check '$expect_fail'" >&2
+      status=1
+    else
+      echo "hil.sh: $c: mutant $mutant caught by '$expect_fail'"
+    fi
+  elif [ $st -ne 0 ]; then
+    status=1
   fi
 done
-if [ $status -eq 0 ] && [ ${#inconclusive[@]} -gt 0 ]; then
-  echo "hil.sh: inconclusive, the emulated rig could not keep real time in this VM:" \
-    "${inconclusive[*]} (check.json: rig_worst_lag_s); the other cases passed" >&2
-  exit 77
-fi
 exit $status

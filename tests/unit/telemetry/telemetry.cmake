@@ -8,6 +8,9 @@ zerog_add_test(telemetry_test SOURCES telemetry/convert_test.cpp telemetry/chann
 # writes in the recorder's format. Skipped (exit 77) without the venv unless
 # ZEROG_REQUIRE_PY_DDS is ON (CI), where a missing venv fails the test.
 option(ZEROG_REQUIRE_PY_DDS "Fail (not skip) the dds tests when the Python cyclonedds venv is missing" OFF)
+if("$ENV{CI}" STREQUAL "true")  # in CI a missing capability is a failure, never a skip
+  set(ZEROG_REQUIRE_PY_DDS ON)
+endif()
 set(ZEROG_PY_DDS "${PROJECT_SOURCE_DIR}/.venv/bin/python")
 # One domain id per build tree (100..159; the watch test +60; unit tests use 10..99).
 string(RANDOM LENGTH 2 ALPHABET 0123456789 _zerog_dds_domain)
