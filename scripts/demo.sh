@@ -2,7 +2,7 @@
 # The model-insight loop end to end, on a simulated KR210 + Omega191 + STIM300 rig with one
 # effect hidden in the truth: fit the default model, see where it fails, diagnose the missing
 # effect (or discover its law in the signal dictionary), add it, watch the error fall to the
-# true-model reference, write the report. Then live:
+# true-model reference, write the report of the final model with its own diagnosis. Then live:
 # zerog-rt floats the part in a hardware-in-the-loop run against the emulated rig.
 # Usage: scripts/demo.sh [HIDDEN_EFFECT]   (default: cable; `zerog sim --list-effects` lists them)
 set -euo pipefail
@@ -66,9 +66,15 @@ if [ "$kind" = discovered ]; then candidates=(--candidates "@$out/discovered.tom
 $zerog ladder "$out/run.csv" --truth "$out/run.truth.json" --out "$out/ladder.json" \
   "${candidates[@]}" -q
 
-step "9. The report"
+step "9. The report, with the final model's own diagnosis"
+# zerog report takes only a diagnosis made for the model it shows (step 5's was of the default
+# model): diagnose the final model, then report on it.
+$zerog diagnose "$out/run.csv" --model "$out/fit_fixed.json" \
+  --discovered-out "$out/discovered_fixed.toml" --json -q > "$out/diagnosis_fixed.json"
+/usr/bin/python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["verdict"]["text"])' \
+  "$out/diagnosis_fixed.json"
 $zerog report "$out/run.csv" --model "$out/fit_fixed.json" --truth "$out/run.truth.json" \
-  --ladder "$out/ladder.json" --diagnosis "$out/diagnosis.json" --out "$out/report"
+  --ladder "$out/ladder.json" --diagnosis "$out/diagnosis_fixed.json" --out "$out/report"
 echo "open $out/report/index.html in a browser"
 
 step "10. Live: zerog-rt floats the part (hardware in the loop against the emulated rig)"

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "commands.hpp"
+#include "made_for.hpp"
 #include "report_script.hpp"
 #include "zerog/ident/compare.hpp"
 #include "zerog/ident/diagnose.hpp"
@@ -419,9 +420,16 @@ void add_ident_commands(CLI::App& app) {
         o.fit.user = spec.user;
         o.model_text = io::model_spec_string(spec.effects, spec.user, spec.files);
       }
+      // What this diagnosis is of (zerog report checks it): the model, its file, the log.
+      nlohmann::json made_for = {
+          {"model", model_identity(o.fit.effects, o.fit.user, m ? *model_path : std::string())},
+          {"log", log_identity(c->log)}};
       const ident::Diagnosis d = ident::diagnose(data, o);
       if (c->json) {
-        std::cout << ident::to_json(d).dump(2) << "\n";
+        nlohmann::json j = ident::to_json(d);
+        j["version"] = 2;  // "made_for" (proto/json_output.md)
+        j["made_for"] = std::move(made_for);
+        std::cout << j.dump(2) << "\n";
       } else {
         std::printf("%s", ident::format_diagnosis(d).c_str());
       }
@@ -476,8 +484,12 @@ void add_ident_commands(CLI::App& app) {
         const auto mask = ident::heldout_mask(data, *block);
         floors = ident::floors(*truth, data, &mask);
       }
-      j["version"] = 2;  // the floors' keys below (proto/json_output.md)
+      j["version"] = 3;  // the floors' keys below, "made_for" (proto/json_output.md)
       floors_into(j, floors ? &*floors : nullptr);
+      // A ladder is made for its log; it climbs from its own start, not from one model.
+      j["made_for"] = {{"model", nullptr},
+                       {"start", model_identity(spec.effects, spec.user)["effects"]},
+                       {"log", log_identity(c->log)}};
       const std::vector<std::filesystem::path> inputs = {c->log, io::rig_path_for(c->log)};
       if (!out->empty()) io::write_file_atomic(*out, j.dump(2) + "\n", inputs);
       if (!plot->empty()) {

@@ -1,6 +1,7 @@
 // zerog report: measured vs predicted, residuals, the ladder and the diagnosis as an HTML page.
 // C++ computes everything into a bundle (proto/report_bundle.md); matplotlib draws it
-// (host/report/make_report.py).
+// (host/report/make_report.py). A diagnosis or ladder made for another model or log is refused
+// (or, when allowed, labelled as such): their "made_for" (made_for.hpp) must match.
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -12,6 +13,7 @@
 #include <string>
 
 #include "commands.hpp"
+#include "made_for.hpp"
 #include "report_script.hpp"
 #include "zerog/ident/compare.hpp"
 #include "zerog/ident/dataset.hpp"
@@ -36,12 +38,65 @@ nlohmann::json read_json(const std::string& path) {
 
 struct ReportOptions {
   std::string log, model, truth, ladder, diagnosis, out = "report", title;
+  bool allow_other_diagnosis = false, allow_other_ladder = false;
 };
+
+// A diagnosis or ladder document (zerog diagnose --json, zerog ladder --out) and what it was
+// made for against the report's model and log (made_for.hpp). One made for another model or log
+// is refused (exit status 2, naming both) unless `allow`; then the bundle labels it
+// (proto/report_bundle.md, "diagnosis_for"), and the report never shows it as the verdict.
+struct Document {
+  nlohmann::json doc = nullptr;
+  nlohmann::json made_for = nullptr;  // the bundle's {"match", "text"}
+};
+
+Document read_checked(const std::string& path, const char* kind, const char* what, bool check_model,
+                      const nlohmann::json& model_id, const nlohmann::json& log_id, bool allow,
+                      const std::string& rerun, const char* flag) {
+  Document d;
+  if (path.empty()) return d;
+  d.doc = read_json(path);
+  if (!d.doc.is_object() || (d.doc.contains("kind") && d.doc["kind"] != kind))
+    throw io::InputError(path, 0, 0,
+                         std::string("not a ") + kind + " document (" + what + " of zerog)");
+  const MadeForCheck c = check_made_for(d.doc, path, model_id, log_id, check_model);
+  std::string text;
+  const std::string which = check_model ? "model and log" : "log";
+  switch (c.match) {
+    case Match::same:
+      text = "made " + c.made_for + ", the " + which + " of this report";
+      break;
+    case Match::other:
+      if (!allow)
+        throw io::InputError(path, 0, 0,
+                             std::string("this ") + what + " was made " + c.made_for +
+                                 ", the report is " + c.report_for + ": run `" + rerun +
+                                 "` again, or pass " + flag + " to include it labelled");
+      text = "made " + c.made_for + "; this report is " + c.report_for;
+      break;
+    case Match::unknown:
+      text = "it does not say which " + which +
+             " it was made for (written by an older zerog); this report is " + c.report_for;
+      break;
+  }
+  const char* match[] = {"same", "other", "unknown"};
+  d.made_for = {{"match", match[static_cast<int>(c.match)]}, {"text", text}};
+  return d;
+}
 
 void run_report(const ReportOptions& o) {
   const io::Log log = io::read_log(o.log);
   const ident::Dataset data = ident::make_dataset(log);
   const io::ModelFile m = io::read_model(o.model);
+  const nlohmann::json model_id = model_identity(m.params.effects, m.params.user, o.model);
+  const nlohmann::json log_id = log_identity(o.log);
+  const Document diagnosis = read_checked(
+      o.diagnosis, "zerog-diagnosis", "diagnosis", true, model_id, log_id, o.allow_other_diagnosis,
+      "zerog diagnose " + o.log + " --model " + o.model + " --json > " + o.diagnosis,
+      "--allow-other-diagnosis");
+  const Document ladder = read_checked(
+      o.ladder, "zerog-ladder", "ladder", false, model_id, log_id, o.allow_other_ladder,
+      "zerog ladder " + o.log + " --out " + o.ladder, "--allow-other-ladder");
   ident::check_signals(m.params.effects, data);
   ident::check_signals(m.params.user, data);
   const auto res = ident::residuals(m.params, data);
@@ -113,7 +168,7 @@ void run_report(const ReportOptions& o) {
   }
   nlohmann::json summary;
   summary["kind"] = "zerog-report-bundle";
-  summary["version"] = 2;
+  summary["version"] = 3;
   summary["title"] =
       o.title.empty() ? "zerog report: " + fs::path(o.log).filename().string() : o.title;
   summary["log"] = o.log;
@@ -132,8 +187,10 @@ void run_report(const ReportOptions& o) {
     summary["effects"].push_back("@" + io::user_effect_name(m.params.user, k) + " (" + terms + ")");
   }
   summary["compare"] = ident::to_json(cmp);
-  summary["ladder"] = o.ladder.empty() ? nlohmann::json(nullptr) : read_json(o.ladder);
-  summary["diagnosis"] = o.diagnosis.empty() ? nlohmann::json(nullptr) : read_json(o.diagnosis);
+  summary["ladder"] = ladder.doc;
+  summary["ladder_for"] = ladder.made_for;
+  summary["diagnosis"] = diagnosis.doc;
+  summary["diagnosis_for"] = diagnosis.made_for;
   summary["true_model_reference"] =
       floors ? ident::to_json(floors->reference) : nlohmann::json(nullptr);
   summary["sensor_floor"] = with_sensor ? ident::to_json(*floors->sensor) : nlohmann::json(nullptr);
@@ -161,10 +218,17 @@ void add_report_command(CLI::App& app) {
   s->add_option("--truth", o->truth,
                 "Truth model (from zerog sim), for the true-model reference and the sensor floor")
       ->check(CLI::ExistingFile);
-  s->add_option("--ladder", o->ladder, "Ladder JSON (zerog ladder --out)")
+  s->add_option("--ladder", o->ladder, "Ladder JSON (zerog ladder --out) on the same log")
       ->check(CLI::ExistingFile);
-  s->add_option("--diagnosis", o->diagnosis, "Diagnosis JSON (zerog diagnose --json)")
+  s->add_option("--diagnosis", o->diagnosis,
+                "Diagnosis JSON (zerog diagnose --json) of the same model (--model) on the same "
+                "log; one made for another model or log is refused")
       ->check(CLI::ExistingFile);
+  s->add_flag("--allow-other-diagnosis", o->allow_other_diagnosis,
+              "Include a diagnosis made for another model or log, labelled as such (never as "
+              "this model's verdict) instead of refusing it");
+  s->add_flag("--allow-other-ladder", o->allow_other_ladder,
+              "Include a ladder made on another log, labelled as such, instead of refusing it");
   s->add_option("--title", o->title, "Report title");
   s->add_option("-o,--out", o->out, "Report folder (replaced atomically)")->capture_default_str();
   s->callback([o] { run_report(*o); });

@@ -19,7 +19,9 @@ import sys
 import tempfile
 
 BUNDLE_KIND = "zerog-report-bundle"
-BUNDLE_VERSION = 2
+BUNDLE_VERSION = 3
+# What a diagnosis or ladder was made for, against the model and log of the report.
+MATCHES = ("same", "other", "unknown")
 AXES = ["Fx", "Fy", "Fz", "Mx", "My", "Mz"]
 # Column suffixes of the true model's predictions: on the log's signals (meas − it: the
 # true-model reference) and on noise-free signals (meas − it: the sensor floor).
@@ -216,7 +218,8 @@ def load_summary(path):
                           "heldout": c.rms6(st["heldout"], w + ".heldout"),
                           "bic": c.num(st["bic"], w + ".bic")})
         ref, sensor = _ladder_floors(lad, c)
-        lad = {"steps": steps, "true_model_reference": ref, "sensor_floor": sensor}
+        lad = {"steps": steps, "true_model_reference": ref, "sensor_floor": sensor,
+               "made_for": _made_for(doc, "ladder_for", c)}
     s["ladder"] = lad
 
     # diagnosis
@@ -267,13 +270,27 @@ def load_summary(path):
                          "correlation": c.num(cs["correlation"], w + ".correlation")})
         dg = {"model": c.strings(dg["model"], "diagnosis.model"),
               "baseline": c.rms6(dg["baseline"], "diagnosis.baseline"),
-              "candidates": cands, "verdict": verdict, "correlated_signals": corr}
+              "candidates": cands, "verdict": verdict, "correlated_signals": corr,
+              "made_for": _made_for(doc, "diagnosis_for", c)}
     s["diagnosis"] = dg
     s["true_model_reference"] = c.floors(doc.get("true_model_reference"),
                                          "true_model_reference")
     s["sensor_floor"] = c.floors(doc.get("sensor_floor"), "sensor_floor")
     s["sensor_floor_note"] = c.string(doc.get("sensor_floor_note"), "sensor_floor_note", True)
     return s
+
+
+def _made_for(doc, key, c):
+    """{"match": "same" | "other" | "unknown", "text": str}: whether the diagnosis (ladder) was
+    made for the model and log of the report (zerog report checked it). Only "same" makes the
+    diagnosis the report's verdict."""
+    c.obj(doc, "top level", (key,))
+    f = c.obj(doc[key], key, ("match", "text"))
+    match = c.string(f["match"], key + ".match")
+    if match not in MATCHES:
+        c.fail(key + ".match", "expected \"same\", \"other\" or \"unknown\", got %s"
+               % json.dumps(match))
+    return {"match": match, "text": c.string(f["text"], key + ".text")}
 
 
 def _ladder_floors(lad, c):
@@ -958,6 +975,7 @@ tr.pool td{font-weight:600;background:#fafafa}
 .verdict.none{border-color:#c98a12;background:#fdf6e7}
 .verdict.nothing_left{border-color:#3a6fb0;background:#edf3fb}
 .verdict.discovered{border-color:#7a3ab0;background:#f5eefb}
+.foreign{border-left:6px dashed #8a8a8a;background:#f4f4f4;padding:8px 14px;margin:14px 0}
 code,pre{background:#f1f1f1;border-radius:3px;padding:1px 4px;font-size:.95em}
 pre{padding:6px 10px;white-space:pre-wrap}
 figure{margin:10px 0 18px}
@@ -973,6 +991,23 @@ nav a{margin-right:14px}
 def _img(name, alt, caption):
     return ('<figure><a href="%s"><img src="%s" alt="%s"></a><figcaption>%s</figcaption>'
             "</figure>" % (esc(name), esc(name), esc(alt), caption))
+
+
+def _label(what, made_for):
+    """The heading of a diagnosis or ladder: its own when made for this model and log, else
+    one that says it is not."""
+    return {("diagnosis", "same"): "Diagnosis: which effect is missing",
+            ("diagnosis", "other"): "Diagnosis of another model or log",
+            ("diagnosis", "unknown"): "Diagnosis made for an unknown model",
+            ("ladder", "same"): "Ladder of effects",
+            ("ladder", "other"): "Ladder of another log",
+            ("ladder", "unknown"): "Ladder made for an unknown log"}[(what, made_for["match"])]
+
+
+def _foreign_box(what, made_for, tail=""):
+    """The label of a diagnosis or ladder not made for this model and log."""
+    return '<div class="foreign"><b>%s</b>: %s.%s</div>' % (
+        esc(_label(what, made_for)), esc(made_for["text"]), tail)
 
 
 def _ratio_class(r):
@@ -1045,7 +1080,8 @@ def build_html(s, cols, figs, notes, warnings):
     w("</table>")
 
     dg = s["diagnosis"]
-    if dg:
+    own = bool(dg) and dg["made_for"]["match"] == "same"
+    if own:
         v = dg["verdict"]
         head = {"effect": "Missing effect: <b>%s</b>" % esc(v["effect"] or ""),
                 "none": "No single effect explains the rest",
@@ -1057,6 +1093,9 @@ def build_html(s, cols, figs, notes, warnings):
         if v["command"]:
             w('<div style="margin-top:6px">Next: <pre>%s</pre></div>' % esc(v["command"]))
         w("</div>")
+    elif dg:  # not this model's verdict: labelled, never the "Missing effect" box
+        w(_foreign_box("diagnosis", dg["made_for"], ' Shown under <a href="#diagnosis">'
+                       "Diagnosis</a>, not as this model's verdict."))
     if warnings:
         w('<div class="warn"><b>Warnings</b><ul>%s</ul></div>' % "".join(
             "<li>%s</li>" % esc(x) for x in warnings))
@@ -1064,9 +1103,10 @@ def build_html(s, cols, figs, notes, warnings):
     nav = [("residuals", "Residual table"), ("time", "Time series"), ("hist", "Histograms"),
            ("where", "Where it fails")]
     if s["ladder"]:
-        nav.append(("ladder", "Ladder"))
+        nav.append(("ladder", "Ladder" if s["ladder"]["made_for"]["match"] == "same"
+                     else _label("ladder", s["ladder"]["made_for"])))
     if dg:
-        nav.append(("diagnosis", "Diagnosis"))
+        nav.append(("diagnosis", "Diagnosis" if own else _label("diagnosis", dg["made_for"])))
     w("<nav>%s</nav>" % "".join('<a href="#%s">%s</a>' % (a, b) for a, b in nav))
 
     # (2) residual table
@@ -1175,10 +1215,14 @@ def build_html(s, cols, figs, notes, warnings):
     if dg:
         if figs.get("diag_signals"):
             w(_img(figs["diag_signals"], "residual vs correlated signals",
-                   "Residual of the flagged axis against the signals the diagnosis found most "
-                   "correlated with it (scatter of at most %d random samples, binned mean ± std "
-                   "in red%s)." % (MAX_SCATTER_POINTS,
-                                   ", green band ± true-model reference" if floor else "")))
+                   "Residual of the flagged axis against the signals the diagnosis%s found "
+                   "most correlated with it (scatter of at most %d random samples, binned mean "
+                   "± std in red%s)." % (
+                       "" if own else {"other": " (made for another model or log, see below)",
+                                       "unknown": " (made for an unknown model, see below)"}[
+                                           dg["made_for"]["match"]],
+                       MAX_SCATTER_POINTS,
+                       ", green band ± true-model reference" if floor else "")))
         elif not dg["correlated_signals"]:
             w("<p class=\"muted\">The diagnosis lists no correlated signals.</p>")
         if notes["diag_skipped"]:
@@ -1208,7 +1252,9 @@ def build_html(s, cols, figs, notes, warnings):
     # (7) ladder
     lad = s["ladder"]
     if lad:
-        w('<h2 id="ladder">Ladder of effects</h2>')
+        w('<h2 id="ladder">%s</h2>' % esc(_label("ladder", lad["made_for"])))
+        if lad["made_for"]["match"] != "same":
+            w(_foreign_box("ladder", lad["made_for"], " Its floors are not used in this report."))
         if figs.get("ladder"):
             lf = lad["true_model_reference"] or floor
             ls = lad["sensor_floor"] or sensor
@@ -1238,7 +1284,14 @@ def build_html(s, cols, figs, notes, warnings):
 
     # (8) diagnosis
     if dg:
-        w('<h2 id="diagnosis">Diagnosis: which effect is missing</h2>')
+        w('<h2 id="diagnosis">%s</h2>' % esc(_label("diagnosis", dg["made_for"])))
+        if not own:
+            v = dg["verdict"]
+            w(_foreign_box("diagnosis", dg["made_for"]))
+            w("<p>Its verdict, for the model it was made for and not necessarily for this one: "
+              "%s</p>" % esc(v["text"]))
+            if v["command"]:
+                w("<p>It suggested, for that model:</p><pre>%s</pre>" % esc(v["command"]))
         w("<p>Diagnosed model: %s. Held-out baseline RMS: force %s N, torque %s N·m.</p>" % (
             " ".join('<span class="chip">%s</span>' % esc(e) for e in dg["model"]) or "—",
             fmt(dg["baseline"]["force_rms"]), fmt(dg["baseline"]["torque_rms"])))
@@ -1302,7 +1355,7 @@ def render(bundle, outdir_tmp, s, cols, np, plt):
                               ("_sensor", "sensor_floor", "_true_clean")):
         if s[name]:
             s[key], s[key + "_source"] = s[name], "summary.json"
-        elif s["ladder"] and s["ladder"][name]:
+        elif s["ladder"] and s["ladder"]["made_for"]["match"] == "same" and s["ladder"][name]:
             s[key], s[key + "_source"] = s["ladder"][name], "the ladder (held-out blocks)"
         elif (AXES[0] + suffix) in cols:
             s[key], s[key + "_source"] = from_columns(suffix), "computed from data.csv"

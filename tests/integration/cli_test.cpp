@@ -90,6 +90,15 @@ TEST_F(Cli, FitCompareDiagnoseLadderPrintJsonOfTheDocumentedKinds) {
   EXPECT_EQ(j["verdict"]["effect"], "cable");
   EXPECT_THAT(j["verdict"]["command"].get<std::string>(),
               HasSubstr("--effects bias,gravity,linear_inertia,rotational_inertia,cable"));
+  // What it was made for: the model (sorted names, its file and CRC-32) and the log.
+  EXPECT_EQ(j["version"], 2);
+  EXPECT_EQ(j["made_for"]["model"]["effects"],
+            nlohmann::json({"bias", "gravity", "linear_inertia", "rotational_inertia"}));
+  EXPECT_EQ(j["made_for"]["model"]["file"], model);
+  EXPECT_EQ(j["made_for"]["model"]["crc32"].get<std::string>().size(), 8u);
+  EXPECT_EQ(j["made_for"]["log"]["file"], log());
+  EXPECT_EQ(j["made_for"]["log"]["crc32"].get<std::string>().size(), 8u);
+  EXPECT_EQ(j["made_for"]["log"]["rig_file"], (dir() / "run.rig.toml").string());
 
   r = run("ladder " + log() + " --block 20 --json -q");
   ASSERT_EQ(r.status, 0) << r.err;
@@ -97,6 +106,9 @@ TEST_F(Cli, FitCompareDiagnoseLadderPrintJsonOfTheDocumentedKinds) {
   EXPECT_EQ(j["kind"], "zerog-ladder");
   ASSERT_GE(j["steps"].size(), 3u);
   EXPECT_TRUE(j["steps"][0]["added"].is_null());
+  EXPECT_TRUE(j["made_for"]["model"].is_null());  // a ladder is made for its log
+  EXPECT_EQ(j["made_for"]["start"], nlohmann::json({"bias", "gravity"}));
+  EXPECT_EQ(j["made_for"]["log"]["file"], log());
 }
 
 // zerog sim writes the clean log beside the log and names it in the truth; compare and ladder
@@ -143,7 +155,7 @@ TEST_F(Cli, SimWritesTheCleanLogAndCompareAndLadderGiveBothFloors) {
   ASSERT_EQ(r.status, 0) << r.err;
   j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j["kind"], "zerog-ladder");
-  EXPECT_EQ(j["version"], 2);
+  EXPECT_EQ(j["version"], 3);
   EXPECT_LT(j["sensor_floor"]["moving"]["force_rms"].get<double>(),
             j["true_model_reference"]["moving"]["force_rms"].get<double>());
 
@@ -180,6 +192,139 @@ TEST_F(Cli, ReportShowsBothFloors) {
   EXPECT_THAT(page, HasSubstr("sensor floor RMS"));
   EXPECT_THAT(page, HasSubstr("<b>Sensor floor</b>"));
   EXPECT_THAT(page, ::testing::Not(HasSubstr("No sensor floor")));
+}
+
+// zerog report takes a diagnosis as its verdict only when it was made for the model and log it
+// reports on ("made_for"); one of another model or log is refused with exit status 2 naming both,
+// or, with --allow-other-diagnosis, shown labelled and never as the "Missing effect" box; one
+// without "made_for" (an older zerog) is labelled as made for an unknown model. Likewise a ladder
+// of another log.
+class CliReportMadeFor : public Cli {
+ protected:
+  static void SetUpTestSuite() {
+    Cli::SetUpTestSuite();
+    // run.csv hides `cable`: the default model's diagnosis names it; the model with it does not.
+    Result r = run("fit " + log() + " -q --out " + path("default.json"));
+    ASSERT_EQ(r.status, 0) << r.err;
+    r = run("fit " + log() +
+            " -q --effects bias,gravity,linear_inertia,rotational_inertia,cable --out " +
+            path("cable.json"));
+    ASSERT_EQ(r.status, 0) << r.err;
+    for (const char* m : {"default", "cable"}) {
+      r = run("diagnose " + log() + " --model " + path(std::string(m) + ".json") +
+              " --block 20 --no-discover --json -q");
+      ASSERT_EQ(r.status, 0) << r.err;
+      std::ofstream(path(std::string("diag_") + m + ".json")) << r.out;
+    }
+    r = run("ladder " + log() + " --block 20 -q --out " + path("ladder.json"));
+    ASSERT_EQ(r.status, 0) << r.err;
+  }
+  static std::string path(const std::string& name) { return (dir() / name).string(); }
+  static nlohmann::json doc(const std::string& name) {
+    return nlohmann::json::parse(slurp(path(name)));
+  }
+  static void write(const std::string& name, const nlohmann::json& j) {
+    std::ofstream(path(name)) << j.dump(2);
+  }
+  // zerog report on the model with cable; `extra` adds --diagnosis/--ladder and flags.
+  static Result report(const std::string& out, const std::string& extra) {
+    return run("report " + log() + " --model " + path("cable.json") + " --out " + path(out) + " " +
+               extra);
+  }
+};
+
+TEST_F(CliReportMadeFor, TheDiagnosisOfItsOwnModelIsTheVerdict) {
+  const auto d = doc("diag_cable.json");
+  ASSERT_NE(d["verdict"]["kind"], "effect") << d["verdict"]["text"];
+  const Result r = report(
+      "rep_own", "--diagnosis " + path("diag_cable.json") + " --ladder " + path("ladder.json"));
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string page = slurp(dir() / "rep_own" / "index.html");
+  EXPECT_THAT(page, HasSubstr("id=\"verdict\""));
+  EXPECT_THAT(page, HasSubstr("Diagnosis: which effect is missing"));
+  EXPECT_THAT(page, HasSubstr("Ladder of effects"));
+  EXPECT_THAT(page, ::testing::Not(HasSubstr("class=\"foreign\"")));
+  EXPECT_THAT(page, ::testing::Not(HasSubstr("Missing effect: <b>cable")));
+}
+
+TEST_F(CliReportMadeFor, ADiagnosisOfAnotherModelIsRefusedNamingBoth) {
+  const Result r = report("rep_refused", "--diagnosis " + path("diag_default.json"));
+  EXPECT_EQ(r.status, 2) << r.err;
+  EXPECT_THAT(r.err, HasSubstr(path("diag_default.json") + ": this diagnosis was made for model " +
+                               path("default.json") +
+                               " [bias,gravity,linear_inertia,rotational_inertia] on " + log()));
+  EXPECT_THAT(r.err,
+              HasSubstr("the report is for model " + path("cable.json") +
+                        " [bias,cable,gravity,linear_inertia,rotational_inertia] on " + log()));
+  EXPECT_THAT(r.err, HasSubstr("zerog diagnose " + log() + " --model " + path("cable.json")));
+  EXPECT_THAT(r.err, HasSubstr("--allow-other-diagnosis"));
+  EXPECT_FALSE(fs::exists(dir() / "rep_refused"));
+
+  // Same effects, another fit (the model file's bytes differ): refused, the CRC-32s tell them
+  // apart. Another log: refused, naming it.
+  auto d = doc("diag_cable.json");
+  d["made_for"]["model"]["crc32"] = "00000000";
+  write("diag_refit.json", d);
+  Result r2 = report("rep_refused", "--diagnosis " + path("diag_refit.json"));
+  EXPECT_EQ(r2.status, 2) << r2.err;
+  EXPECT_THAT(r2.err, HasSubstr("(crc32 00000000)"));
+  d = doc("diag_cable.json");
+  d["made_for"]["log"]["file"] = "elsewhere/run7.csv";
+  d["made_for"]["log"]["crc32"] = "00000000";
+  write("diag_run7.json", d);
+  r2 = report("rep_refused", "--diagnosis " + path("diag_run7.json"));
+  EXPECT_EQ(r2.status, 2) << r2.err;
+  EXPECT_THAT(r2.err, HasSubstr("on elsewhere/run7.csv (crc32 00000000"));
+  EXPECT_FALSE(fs::exists(dir() / "rep_refused"));
+}
+
+TEST_F(CliReportMadeFor, WithTheFlagADiagnosisOfAnotherModelIsLabelledNotTheVerdict) {
+  const auto d = doc("diag_default.json");
+  ASSERT_EQ(d["verdict"]["effect"], "cable") << d["verdict"]["text"];
+  const Result r =
+      report("rep_other", "--diagnosis " + path("diag_default.json") + " --allow-other-diagnosis");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string page = slurp(dir() / "rep_other" / "index.html");
+  EXPECT_THAT(
+      page, HasSubstr("<b>Diagnosis of another model or log</b>: made for model " +
+                      path("default.json") + " [bias,gravity,linear_inertia,rotational_inertia]"));
+  EXPECT_THAT(page, HasSubstr("<h2 id=\"diagnosis\">Diagnosis of another model or log</h2>"));
+  EXPECT_THAT(page, ::testing::Not(HasSubstr("id=\"verdict\"")));
+  EXPECT_THAT(page, ::testing::Not(HasSubstr("Missing effect: <b>cable")));
+  EXPECT_THAT(page, ::testing::Not(HasSubstr("Diagnosis: which effect is missing")));
+}
+
+TEST_F(CliReportMadeFor, AnOlderDiagnosisWithoutMadeForIsLabelledUnknown) {
+  auto d = doc("diag_default.json");
+  d.erase("made_for");
+  d["version"] = 1;
+  write("diag_old.json", d);
+  const Result r = report("rep_old", "--diagnosis " + path("diag_old.json"));
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string page = slurp(dir() / "rep_old" / "index.html");
+  EXPECT_THAT(page, HasSubstr("<b>Diagnosis made for an unknown model</b>: it does not say"));
+  EXPECT_THAT(page, ::testing::Not(HasSubstr("id=\"verdict\"")));
+  EXPECT_THAT(page, ::testing::Not(HasSubstr("Missing effect: <b>cable")));
+}
+
+TEST_F(CliReportMadeFor, ALadderOfAnotherLogIsRefusedOrLabelled) {
+  auto l = doc("ladder.json");
+  l["made_for"]["log"]["rig_crc32"] = "00000000";
+  write("ladder_other.json", l);
+  Result r = report("rep_ladder", "--ladder " + path("ladder_other.json"));
+  EXPECT_EQ(r.status, 2) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("this ladder was made on " + log() + " (crc32 "));
+  EXPECT_THAT(r.err, HasSubstr("rig 00000000)"));
+  EXPECT_THAT(r.err, HasSubstr("--allow-other-ladder"));
+  EXPECT_FALSE(fs::exists(dir() / "rep_ladder"));
+  r = report("rep_ladder", "--ladder " + path("ladder_other.json") + " --allow-other-ladder");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_THAT(slurp(dir() / "rep_ladder" / "index.html"),
+              HasSubstr("<h2 id=\"ladder\">Ladder of another log</h2>"));
+  // A diagnosis is not a ladder.
+  r = report("rep_ladder2", "--ladder " + path("diag_cable.json"));
+  EXPECT_EQ(r.status, 2) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("not a zerog-ladder document"));
 }
 
 TEST_F(Cli, NeverOverwritesItsInput) {

@@ -122,7 +122,7 @@ def make_bundle(path, n=1500, floor=True, optional=True, ladder=True, diagnosis=
     sen = {"all": rms6(0.08123, 0.004321), "static": rms6(0.08011, 0.004298),
            "moving": rms6(0.08234, 0.004345)}
     summary = {
-        "kind": "zerog-report-bundle", "version": 2,
+        "kind": "zerog-report-bundle", "version": 3,
         "title": "Test report <KR210 & payload>",
         "log": "logs/sim_payload100.csv", "model": "fits/payload100.model.json",
         "effects": ["bias", "gravity", "linear_inertia"],
@@ -134,7 +134,7 @@ def make_bundle(path, n=1500, floor=True, optional=True, ladder=True, diagnosis=
             "worst": {"axis": "Fy", "segment": "moving", "joint": "A5",
                       "bin_rad": [-math.pi / 6, 0.0], "rms": 7.875},
         },
-        "ladder": None, "diagnosis": None,
+        "ladder": None, "diagnosis": None, "ladder_for": None, "diagnosis_for": None,
         "true_model_reference": ref if floor else None,
         "sensor_floor": sen if sensor else None,
         "sensor_floor_note": None if sensor or not floor else
@@ -156,6 +156,8 @@ def make_bundle(path, n=1500, floor=True, optional=True, ladder=True, diagnosis=
                           "bic": 90000.5 - 20000 * k})
         summary["ladder"] = {"steps": steps, "true_model_reference": ref,
                              "sensor_floor": sen if sensor else None}
+        summary["ladder_for"] = {"match": "same",
+                                 "text": "made for this log: on logs/sim_payload100.csv"}
     if diagnosis:
         def h(f, t):
             return {"force_rms": f, "torque_rms": t, "rms": [f] * 3 + [t] * 3}
@@ -180,6 +182,10 @@ def make_bundle(path, n=1500, floor=True, optional=True, ladder=True, diagnosis=
                 {"signal": "not_a_column", "axis": "Mz", "correlation": 0.2},
             ],
         }
+        summary["diagnosis_for"] = {
+            "match": "same",
+            "text": "made for this model and log: model fits/payload100.model.json "
+                    "[bias,gravity,linear_inertia] on logs/sim_payload100.csv"}
     with open(os.path.join(path, "summary.json"), "w") as f:
         json.dump(summary, f, indent=1)
     return summary
@@ -248,6 +254,11 @@ class ReportTest(unittest.TestCase):
         self.assertIn("linear_inertia", page)
         self.assertIn(s["diagnosis"]["verdict"]["text"], page)
         self.assertIn(s["diagnosis"]["verdict"]["command"], page)
+        # made for this model and log: the diagnosis is the verdict, nothing is labelled foreign
+        self.assertIn('<div class="verdict effect" id="verdict">', page)
+        self.assertIn("Missing effect: <b>rotational_inertia</b>", page)
+        self.assertIn("Diagnosis: which effect is missing", page)
+        self.assertNotIn('class="foreign"', page)
         # key numbers (formatted with 4 significant digits)
         seg = s["compare"]["segments"]
         for g in ("all", "static", "moving"):
@@ -341,6 +352,68 @@ class ReportTest(unittest.TestCase):
         p = run(self.bundle, self.out + "2")
         self.assertNotEqual(p.returncode, 0)
         self.assertIn("diagnosis.discovery", p.stderr)
+
+    def _with(self, **keys):
+        """The full bundle with `keys` of summary.json replaced; returns the rendered page."""
+        make_bundle(self.bundle)
+        path = os.path.join(self.bundle, "summary.json")
+        with open(path) as f:
+            s = json.load(f)
+        s.update(keys)
+        with open(path, "w") as f:
+            json.dump(s, f)
+        page, _ = self.assertReportOk(run(self.bundle, self.out))
+        return page
+
+    def test_diagnosis_of_another_model_is_labelled_not_the_verdict(self):
+        text = ("made for model fits/other.json [bias,gravity] on logs/sim_payload100.csv; "
+                "this report is for model fits/payload100.model.json "
+                "[bias,gravity,linear_inertia] on logs/sim_payload100.csv")
+        page = self._with(diagnosis_for={"match": "other", "text": text})
+        self.assertNotIn('id="verdict"', page)
+        self.assertNotIn('class="verdict', page)
+        self.assertNotIn("Missing effect: <b>", page)
+        self.assertNotIn("Diagnosis: which effect is missing", page)
+        self.assertIn('<div class="foreign"><b>Diagnosis of another model or log</b>: '
+                      + html.escape(text, quote=True), page)
+        self.assertIn('<h2 id="diagnosis">Diagnosis of another model or log</h2>', page)
+        # its verdict, labelled as that model's
+        self.assertIn("Its verdict, for the model it was made for and not necessarily for this "
+                      "one: Residual follows the angular acceleration", page)
+        self.assertIn("made for another model or log, see below", page)
+
+    def test_diagnosis_made_for_an_unknown_model_is_labelled(self):
+        text = ("it does not say which model and log it was made for (written by an older "
+                "zerog); this report is for model fits/payload100.model.json "
+                "[bias,gravity,linear_inertia] on logs/sim_payload100.csv")
+        page = self._with(diagnosis_for={"match": "unknown", "text": text})
+        self.assertNotIn('id="verdict"', page)
+        self.assertNotIn("Missing effect: <b>", page)
+        self.assertIn("<b>Diagnosis made for an unknown model</b>: " + html.escape(text), page)
+        self.assertIn('<h2 id="diagnosis">Diagnosis made for an unknown model</h2>', page)
+
+    def test_ladder_of_another_log_is_labelled_and_gives_no_floors(self):
+        # Without floors in summary.json the ladder's are the report's yardsticks, but only when
+        # the ladder was made on this log; else they come from data.csv.
+        for match, source in (("same", "the ladder (held-out blocks)"),
+                              ("other", "computed from data.csv")):
+            page = self._with(true_model_reference=None, sensor_floor=None,
+                              ladder_for={"match": match, "text": "made on logs/x.csv"})
+            self.assertEqual(page.count('<td class="l">%s</td>' % source), 2, match)
+            self.assertEqual("Ladder of another log" in page, match == "other")
+            shutil.rmtree(self.out)
+
+    def test_diagnosis_for_is_required_with_a_diagnosis(self):
+        make_bundle(self.bundle)
+        path = os.path.join(self.bundle, "summary.json")
+        with open(path) as f:
+            s = json.load(f)
+        for bad, words in ((None, ("diagnosis_for", "expected an object")),
+                           ({"match": "mine", "text": "x"}, ("diagnosis_for.match", "mine"))):
+            s["diagnosis_for"] = bad
+            with open(path, "w") as f:
+                json.dump(s, f)
+            self.assertFailsCleanly(run(self.bundle, self.out), *words)
 
     def test_decimation_and_speed(self):
         make_bundle(self.bundle, n=30000)
