@@ -966,6 +966,10 @@ def lockstep_checks(run, case):
                                             f"production in time ({ls.get('sensor_waits_over')} late)")
     check(le["ft_queue_underruns"] == 0,
           f"lockstep: every F/T request had its sample ({le['ft_queue_underruns']} without)")
+    ft = run.rt["devices"]["ft"]
+    check(ft["timeouts"] == le["ft_requests_ignored"] and ft["stale_frames"] == 0,
+          f"lockstep: an F/T request timed out only when the board ignored it ({ft['timeouts']} "
+          f"timeouts, {le['ft_requests_ignored']} ignored, {ft['stale_frames']} stale frames)")
     if case != "fault_imu_unplug":
         check(ls.get("imu_rebases") == 0,
               f"lockstep: the IMU bytes read = the bytes written ({ls.get('imu_rebases')} re-based)")

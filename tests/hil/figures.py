@@ -1,20 +1,34 @@
-#!/usr/bin/env python3
-"""Tables of the hardware-in-the-loop figures from the check.json files of HIL runs
-(tests/hil/check_hil.py writes one per case), for the README.
+#!/usr/bin/python3
+"""The README's hardware-in-the-loop figures from the check.json files of HIL runs
+(tests/hil/check_hil.py writes one per case).
 
-    tests/hil/figures.py RESULTS_DIR...                 # print the Markdown
-    tests/hil/figures.py --readme README.md RESULTS_DIR...   # replace the hil and faults blocks
+    tests/hil/figures.py RESULTS_DIR...                          # print the blocks
+    tests/hil/figures.py --readme README.md RESULTS_DIR...       # write them into the README
+    tests/hil/figures.py --check [--readme README.md] RESULTS_DIR...   # compare (ctest
+                                                                 # hil_readme_figures)
 
-The hil:begin/end block gets the motion cases, the faults:begin/end block ("Fault injection")
-one row per fault of issue 6; a block is left as it is when the runs have no case for it.
+Blocks: hil (the motion cases: the figures of seed 11, the lowest seed in the runs, and the
+range over all seeds), faults ("Fault injection": one row per fault of issue 6) and supervisor
+(the PLC and telemetry run). A block is written only when the runs have every case it needs.
 
-RESULTS_DIR: a folder with one sub-folder per case (e.g. build/ci/tests/hil/results/hil_motion).
+--check compares exactly: a lockstep run depends on its seed only (tests/hil/determinism.sh).
+The cases with a peer on the wall clock (a `# plc =` scenario: the Modbus and DDS peers, the PLC
+supervisor; hil.sh runs them --lockstep-paced) are not reproducible to the number: in their rows
+any number stands for a number (the text around it, the thresholds in the reaction column and
+the verdict must agree).
+
+RESULTS_DIR: a folder with one sub-folder per case (<build>/tests/hil/results/hil_motion_seed11).
 """
 import argparse
 import glob
 import json
 import os
+import re
 import sys
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(HERE, "..", "..", "scripts"))
+import figures as blocks  # noqa: E402  (scripts/figures.py: the README's blocks)
 
 # The README's "Fault injection" table: one row per fault of issue 6, in this order. Per case:
 # the fault, how the emulator or tests/hil/fault_peer.py injects it, and the reaction that
@@ -71,111 +85,171 @@ FAULTS = [
 
 
 def load(dirs):
+    """{case: {seed: check.json}}; a run without --seed has seed None (the scenario's own)."""
     cases = {}
     for d in dirs:
         for f in sorted(glob.glob(os.path.join(d, "*", "check.json"))):
             with open(f) as fh:
                 c = json.load(fh)
-            cases[c["case"]] = c
+            m = re.fullmatch(re.escape(c["case"]) + r"(?:-seed(\d+))?",
+                             os.path.basename(os.path.dirname(f)))
+            if not m:
+                continue  # a mutant's run (CASE-MUTANT) is no figure
+            cases.setdefault(c["case"], {})[int(m.group(1)) if m.group(1) else None] = c
     return cases
 
 
-def verdict(c):
-    if c.get("inconclusive"):
-        return f"not verified: the emulated rig stood still {1e3 * c['rig_worst_lag_s']:.0f} ms"
-    if not c["passed"]:
-        return "**no**"
-    return "yes" if c.get("attempt", 1) == 1 else "yes, on the retry"
+def wall_clock(case):
+    """A case with a peer on the wall clock (hil.sh: --lockstep-paced)."""
+    with open(os.path.join(HERE, "cases", case + ".toml")) as f:
+        return any(line.startswith("# plc = ") for line in f)
+
+
+def verdict(runs):
+    failed = [s for s, c in runs.items() if not c["passed"]]
+    if not failed:
+        return "yes" if len(runs) == 1 else f"yes, all {len(runs)}"
+    return "**no**" + (f" (seed {', '.join(str(s) for s in failed)})" if len(runs) > 1 else "")
 
 
 def pct(x):
     return f"{100 * x:.2f} %"
 
 
-def markdown(cases):
-    out = []
-    motion = []
-    if "push" in cases:
-        c = cases["push"]
-        J = c["push_impulse_N_s"]
-        v = c["push_velocity_measured_mps"]
-        e = c["push_velocity_expected_mps"]
-        motion.append(("push: velocity after an impulse J on 100 kg vs J/m",
-                       f"J = ({J[0]:.2f}, {J[1]:.2f}, {J[2]:.2f}) N·s; v = ({v[0]:.4f}, {v[1]:.4f}, "
-                       f"{v[2]:.4f}) m/s vs J/m = ({e[0]:.4f}, {e[1]:.4f}, {e[2]:.4f}); "
-                       f"error {pct(c['push_velocity_error'])}", "3 %", verdict(c)))
-    if "drift" in cases:
-        c = cases["drift"]
-        motion.append(("drift: no push, 10 s of zero-g", f"{c['drift_mm_in_10s']:.3f} mm", "1 mm",
-                       verdict(c)))
-    if "spin" in cases:
-        c = cases["spin"]
-        motion.append(("spin: angular momentum (world) over 10 s of free rotation",
-                       f"largest deviation {pct(c['spin_L_deviation'])}, turned "
-                       f"{c['spin_turned_rad']:.1f} rad", "2 %", verdict(c)))
-    if "tumble" in cases:
-        c = cases["tumble"]
-        motion.append(("tumble: ω in body axes vs Euler's equations, 10 s",
-                       f"RMS error {pct(c['tumble_rms_error'])}; off-axis part ×"
-                       f"{c['tumble_off_axis_growth_measured']:.2f} (predicted ×"
-                       f"{c['tumble_off_axis_growth_predicted']:.2f})", "10 %", verdict(c)))
-    if motion:
-        out.append("| case | measured | limit | passed |")
-        out.append("|---|---|---|---|")
-        for name, measured, limit, ok in motion:
-            out.append(f"| {name} | {measured} | {limit} | {ok} |")
-        out.append("")
+def mode_of(runs):
+    modes = {c["mode"] for c in runs.values()}
+    if len(modes) != 1:
+        raise SystemExit(f"figures.py: runs of modes {sorted(modes)} mixed")
+    return modes.pop()
+
+
+# The limits of tests/hil/check_hil.py, in lockstep / in real time.
+LIMITS = {"lockstep": {"push": "1 %", "drift": "0 (none at all)", "spin": "0.5 %",
+                       "tumble": "10 %"},
+          "realtime": {"push": "3 %", "drift": "1 mm", "spin": "2 %", "tumble": "10 %"}}
+
+
+def motion_markdown(cases):
+    """The hil block: one row per motion case, the figures of the lowest seed and the range over
+    all seeds."""
+    if not all(k in cases for k in ("push", "drift", "spin", "tumble")):
+        return None
+    runs = {k: cases[k] for k in ("push", "drift", "spin", "tumble")}
+    seeds = sorted(runs["push"])
+    if any(sorted(r) != seeds for r in runs.values()):
+        raise SystemExit("figures.py: the motion cases ran with different seeds")
+    first = seeds[0]
+    mode = mode_of(runs["push"])
+    limits = LIMITS[mode]
+
+    def over(k, key, scale, decimals, unit):
+        return blocks.span([scale * runs[k][s][key] for s in seeds],
+                           lambda x: f"{x:.{decimals}f}") + unit
+
+    push_all = "error " + over("push", "push_velocity_error", 100, 2, " %")
+    drift_all = over("drift", "drift_mm_in_10s", 1, 3, " mm")
+    spin_all = "largest deviation " + over("spin", "spin_L_deviation", 100, 2, " %")
+    tumble_all = "RMS error " + over("tumble", "tumble_rms_error", 100, 2, " %")
+
+    rows = []
+    c = runs["push"][first]
+    J, v, e = (c["push_impulse_N_s"], c["push_velocity_measured_mps"],
+               c["push_velocity_expected_mps"])
+    rows.append(("push: velocity after an impulse J on 100 kg vs J/m",
+                 f"J = ({J[0]:.2f}, {J[1]:.2f}, {J[2]:.2f}) N·s; v = ({v[0]:.4f}, {v[1]:.4f}, "
+                 f"{v[2]:.4f}) m/s vs J/m = ({e[0]:.4f}, {e[1]:.4f}, {e[2]:.4f}); error "
+                 f"{pct(c['push_velocity_error'])}",
+                 push_all, limits["push"], "push"))
+    rows.append(("drift: no push, 10 s of zero-g",
+                 f"{runs['drift'][first]['drift_mm_in_10s']:.3f} mm", drift_all, limits["drift"],
+                 "drift"))
+    c = runs["spin"][first]
+    rows.append(("spin: angular momentum (world) over 10 s of free rotation",
+                 f"largest deviation {pct(c['spin_L_deviation'])}, turned "
+                 f"{c['spin_turned_rad']:.2f} rad", spin_all, limits["spin"], "spin"))
+    c = runs["tumble"][first]
+    rows.append(("tumble: ω in body axes vs Euler's equations, 10 s",
+                 f"RMS error {pct(c['tumble_rms_error'])}; off-axis part ×"
+                 f"{c['tumble_off_axis_growth_measured']:.2f} (predicted ×"
+                 f"{c['tumble_off_axis_growth_predicted']:.2f})", tumble_all, limits["tumble"],
+                 "tumble"))
+    seed_text = f"seed {first}" if first is not None else "the scenario's seed"
+    contiguous = None not in seeds and seeds == list(range(seeds[0], seeds[-1] + 1))
+    seed_list = (f"{seeds[0]}–{seeds[-1]}" if contiguous and len(seeds) > 2
+                 else ", ".join(str(s) for s in seeds))
+    out = [f"| case | measured ({seed_text}, {mode}) | seeds {seed_list} | limit | passed |",
+           "|---|---|---|---|---|"]
+    for name, measured, all_seeds, limit, k in rows:
+        out.append(f"| {name} | {measured} | {all_seeds} | {limit} | {verdict(runs[k])} |")
     return "\n".join(out)
 
 
 def fault_markdown(cases):
-    rows = [f for f in FAULTS if f[0] in cases]
-    if not rows:
-        return ""
+    """The faults block: one row per fault of issue 6 (every case needed)."""
+    if not all(f[0] in cases for f in FAULTS):
+        return None
     out = ["| fault | injected how | documented reaction (proto/loop.md) | measured | black box "
            "| passed |", "|---|---|---|---|---|---|"]
-    for k, fault, how, reaction in rows:
-        c = cases[k]
+    for k, fault, how, reaction in FAULTS:
+        runs = cases[k]
+        c = runs[min(runs, key=lambda s: -1 if s is None else s)]
         reaction = reaction.format(thr=c.get("fault_threshold_cycles", "?"))
         measured = c.get("measured", "(not measured: the check failed early)")
         box = c.get("black_box", "?")
-        out.append(f"| {fault} | {how} | {reaction} | {measured} | {box} | {verdict(c)} |")
-    missing = [f[1] for f in FAULTS if f[0] not in cases]
-    if missing:
-        out.append("")
-        out.append("Not in these runs: " + ", ".join(missing) + ".")
-    out.append("")
+        if wall_clock(k):
+            measured, box = blocks.vary_numbers(measured), blocks.vary_numbers(box)
+        out.append(f"| {fault} | {how} | {reaction} | {measured} | {box} | {verdict(runs)} |")
     return "\n".join(out)
 
 
-def replace_block(readme, name, text):
-    begin, end = f"<!-- {name}:begin -->", f"<!-- {name}:end -->"
-    i, j = readme.index(begin) + len(begin), readme.index(end)
-    return readme[:i] + "\n" + text + "\n" + readme[j:]
+def supervisor_markdown(cases):
+    """The supervisor block: the PLC session, the push with the PLC's mass, the telemetry."""
+    if "supervisor" not in cases:
+        return None
+    runs = cases["supervisor"]
+    c = runs[min(runs, key=lambda s: -1 if s is None else s)]
+    J = c["push_impulse_N_s"]
+    e = c["push_velocity_expected_mps"]
+    mass = (sum(x * x for x in J) / sum(x * x for x in e)) ** 0.5
+    topics = c["telemetry_samples_by_topic"]
+    per_cycle = [n for t, n in topics.items() if t not in ("health", "model")]
+    limit = LIMITS[mode_of(runs)]["push"]
+    v = blocks.vary_numbers
+    text = (f"A push of J = ({J[0]:.2f}, {J[1]:.2f}, {J[2]:.2f}) N·s then moves the part at "
+            f"J / {mass:.0f} kg (error {v(pct(c['push_velocity_error']))}, limit {limit}), and the "
+            f"independent subscriber received every topic, "
+            f"{v(blocks.span(per_cycle, lambda n: f'{n:,}'))} samples per per-cycle topic "
+            f"({len(per_cycle)} topics), each value matching zerog-rt's `cycles.csv`; passed: "
+            f"{verdict(runs)}.")
+    return text
+
+
+def markdown(cases):
+    """{block: text} of the blocks these runs have every case for."""
+    out = {"hil": motion_markdown(cases), "faults": fault_markdown(cases),
+           "supervisor": supervisor_markdown(cases)}
+    return {k: v for k, v in out.items() if v is not None}
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--readme")
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--readme", help="README.md to write (or, with --check, to compare)")
+    ap.add_argument("--check", action="store_true",
+                    help="compare the README's blocks with these runs; exit 1 on a difference")
     ap.add_argument("dirs", nargs="+")
     a = ap.parse_args()
     cases = load(a.dirs)
-    text, faults = markdown(cases), fault_markdown(cases)
+    texts = markdown(cases)
+    if not texts:
+        raise SystemExit(f"figures.py: no block has all its cases in {' '.join(a.dirs)}")
+    if a.check:
+        return blocks.check_readme(a.readme or blocks.README, texts,
+                                   "exact; rows of wall-clock peers: any number")
     if not a.readme:
-        print(text)
-        print(faults)
+        for name, text in texts.items():
+            print(f"<!-- {name} -->\n{blocks.plain(text)}\n")
         return 0
-    with open(a.readme) as f:
-        readme = f.read()
-    # A block is replaced only when these runs have something for it.
-    if text:
-        readme = replace_block(readme, "hil", text)
-    if faults:
-        readme = replace_block(readme, "faults", faults)
-    tmp = a.readme + ".tmp"
-    with open(tmp, "w") as f:
-        f.write(readme)
-    os.replace(tmp, a.readme)
+    blocks.write_readme(a.readme, texts)
     return 0
 
 

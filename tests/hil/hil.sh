@@ -119,10 +119,14 @@ run_case() {
          kill $sub_pid 2>/dev/null; return 1; }
   "$zerog" export --model "$w/truth-model.json" --rig "$w/rig.rig.toml" --out "$w/model.zgm" -q \
     || { echo "hil.sh: $c: zerog export failed" >&2; kill $sub_pid 2>/dev/null; return 1; }
+  # The sockets in a folder of their own under /tmp: a socket cannot be bound on every file
+  # system (the VM's results folder is 9p) and its path is limited to 107 bytes.
+  local sockets
+  sockets=$(mktemp -d /tmp/zerog-hil.XXXXXX)
   local can_args=(--can vcan0) ft_bus=
   if [ "$bus" = local ]; then
-    can_args=(--can-local "$w/can.sock")
-    ft_bus="transport = \"local\"\nlocal_path = \"$w/can.sock\""
+    can_args=(--can-local "$sockets/can")
+    ft_bus="transport = \"local\"\nlocal_path = \"$sockets/can\""
   fi
   sed -e "s|@MODEL@|$w/model.zgm|" -e "s|@RIG@|$w/rig.rig.toml|" -e "s|@IMU@|$w/imu-tty|" \
     -e "s|@DDS_DOMAIN@|$domain|" "$template" >"$w/zerog-rt.toml"
@@ -133,8 +137,8 @@ run_case() {
   fi
   local step_args=() rt_step_args=()
   if [ "$mode" = lockstep ]; then
-    step_args=(--lockstep "$w/lockstep.sock")
-    rt_step_args=(--lockstep "$w/lockstep.sock")
+    step_args=(--lockstep "$sockets/lockstep")
+    rt_step_args=(--lockstep "$sockets/lockstep")
     # A PLC script acts on the wall clock: emulated time must not outrun it.
     grep -q '^# plc = ' "$scenario" && step_args+=(--lockstep-paced)
   fi
@@ -194,6 +198,7 @@ run_case() {
   emu_status=$?
   awk -v s="$emu_start" -v n="$(date +%s.%N)" 'BEGIN { printf "wall_s = %.3f\n", n - s }' \
     >>"$w/start.txt"
+  rm -rf "$sockets"
   if [ -n "$sub_pid" ]; then
     wait $sub_pid
     local crc

@@ -282,7 +282,8 @@ int run(const Options& opt) {
   // Lockstep: hello once the threads wait for the emulator's events (start() dropped what had
   // queued on the RSI socket before).
   if (!opt.lockstep.empty() &&
-      lockstep.hello(robot_config.receive_timeout, config.ft.rate_hz) != rtio::LockstepStatus::ok) {
+      lockstep.hello(robot_config.receive_timeout, config.ft.rate_hz, ft_config.sample_timeout) !=
+          rtio::LockstepStatus::ok) {
     print_err("zerog-rt: --lockstep " + opt.lockstep + ": cannot send hello (" +
               errno_text(lockstep.last_errno()) + ")");
     runtime.stop();

@@ -361,6 +361,7 @@ namespace {
 constexpr std::chrono::seconds kLockstepGuard{60};
 constexpr std::int64_t kSensorGuardNs = 30'000'000'000;
 constexpr std::int64_t kDatagramGuardNs = 5'000'000'000;
+constexpr std::chrono::nanoseconds kFtAnswerGuard = std::chrono::seconds(5);
 }  // namespace
 
 void Runtime::lockstep_fail(const char* what) noexcept {
@@ -466,8 +467,12 @@ void Runtime::ft_loop_lockstep() {
     if (stop_sensors_.load(std::memory_order_relaxed)) return;
     const std::uint32_t tick = lockstep_tick_.load(std::memory_order_acquire);
     const std::uint64_t target = lockstep_event_.ft_samples;
+    // An answer the emulator's board gives in time (emulated) is waited for however long the
+    // host takes; a silent board's request waits the configured timeout.
+    const std::chrono::nanoseconds wait =
+        lockstep_event_.ft_answers != 0 ? kFtAnswerGuard : std::chrono::nanoseconds(0);
     for (; requested < target && !stop_sensors_.load(std::memory_order_relaxed); ++requested) {
-      const rtio::FtReadStatus st = ft.read_sample(sample);
+      const rtio::FtReadStatus st = ft.read_sample_waiting(sample, wait);
       ++sensor_counters_.ft_reads;
       if (st == rtio::FtReadStatus::sample) ft_ring_->try_push(sample);  // full: counted drop
     }

@@ -69,8 +69,10 @@ LockstepStatus LockstepClient::send(const LockstepReply& reply) {
   }
 }
 
-LockstepStatus LockstepClient::hello(std::chrono::nanoseconds receive_timeout, double ft_rate_hz) {
+LockstepStatus LockstepClient::hello(std::chrono::nanoseconds receive_timeout, double ft_rate_hz,
+                                     std::chrono::nanoseconds ft_sample_timeout) {
   LockstepReply r;
+  r.ft_sample_timeout_ns = ft_sample_timeout.count();
   r.kind = LockstepKind::hello;
   r.receive_timeout_ns = receive_timeout.count();
   r.ft_rate_hz = ft_rate_hz;

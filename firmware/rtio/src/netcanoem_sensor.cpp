@@ -96,6 +96,11 @@ FtStartStatus NetcanoemSensor::start() {
 }
 
 FtReadStatus NetcanoemSensor::read_sample(FtSample& out) {
+  return read_sample_waiting(out, config_.sample_timeout);
+}
+
+FtReadStatus NetcanoemSensor::read_sample_waiting(FtSample& out,
+                                                  std::chrono::nanoseconds at_least) {
   if (!started_) return FtReadStatus::not_started;
   // A response to an earlier, timed-out request must not pass for the answer to this one.
   drain_stale();
@@ -110,7 +115,8 @@ FtReadStatus NetcanoemSensor::read_sample(FtSample& out) {
     return FtReadStatus::io_error;
   }
   ++own_.requests;
-  const std::int64_t deadline = detail::monotonic_ns() + config_.sample_timeout.count();
+  const std::int64_t deadline =
+      detail::monotonic_ns() + std::max(config_.sample_timeout, at_least).count();
   CanRxFrame rx;
   netcanoem::GaugeSample gauges;
   while (true) {

@@ -188,6 +188,12 @@ void AtiBoard::queue_sample(const std::array<double, 6>& wrench_sensor_si) {
   ++counters_.queued;
 }
 
+bool AtiBoard::answers_within(std::chrono::nanoseconds timeout) const {
+  const std::lock_guard lock(mutex_);
+  return fault_ != FtFault::silent && quirks_.ignore_requests == 0 && !quirks_.no_sample_response &&
+         delay_ < timeout;
+}
+
 std::size_t AtiBoard::samples_queued() const {
   const std::lock_guard lock(mutex_);
   return queue_.size();

@@ -775,6 +775,7 @@ void RigEmulator::lockstep_exchange(rtio::LockstepKind kind, Clock::time_point a
   ev.seq = ++lockstep_counts_.events;
   ev.time_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(at - t0_).count();
   ev.ft_samples = ft_produced_;
+  ev.ft_answers = ft_ != nullptr && ft_->answers_within(rt_ft_sample_timeout_) ? 1 : 0;
   if (imu_ != nullptr) {
     ev.imu_bytes = imu_->bytes_since_plug();
     ev.imu_epoch = imu_->unplugs();
@@ -847,6 +848,7 @@ void RigEmulator::run_lockstep(const std::atomic<bool>& stop) {
         "lockstep: zerog-rt's hello is not one (kind, receive timeout or an "
         "F/T rate above the physics rate)");
   rt_receive_timeout_ = std::chrono::nanoseconds(hello.receive_timeout_ns);
+  rt_ft_sample_timeout_ = std::chrono::nanoseconds(hello.ft_sample_timeout_ns);
   ft_rate_hz_ = hello.ft_rate_hz;
   std::fprintf(stderr,
                "zerog-emu: lockstep with zerog-rt (receive timeout %.1f ms, F/T %.0f Hz): "
@@ -955,6 +957,7 @@ nlohmann::json RigEmulator::summary() const {
         {"ft_rate_hz", ft_rate_hz_},
         {"ft_samples_produced", ft_produced_},
         {"ft_queue_underruns", b.queue_underruns},
+        {"ft_requests_ignored", b.ignored},
         {"ft_samples_left", ft_ != nullptr ? ft_->samples_queued() : 0},
         {"slowest_answer_s", lockstep_counts_.slowest_ack_s}};
   }

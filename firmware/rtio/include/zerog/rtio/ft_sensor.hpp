@@ -2,6 +2,7 @@
 // A force/torque sensor as the loop sees it. Real: NetcanoemSensor (ATI NETCANOEM over CAN);
 // fake: FakeFtSensor (scripted results, below).
 #include <array>
+#include <chrono>
 #include <cstddef>
 #include <cstdint>
 
@@ -78,6 +79,12 @@ class FtSensor {
   /// Gets one sample. Real-time safe: no allocation, no exceptions, no locks; returns within the
   /// device's configured sample timeout.
   virtual FtReadStatus read_sample(FtSample& out) = 0;
+  /// As read_sample, but waits for the answer up to `at_least` when that is longer than the
+  /// device's own timeout: in lockstep (proto/lockstep.md) the emulator says which requests its
+  /// board answers in time, and those must not miss the answer on a slow host.
+  virtual FtReadStatus read_sample_waiting(FtSample& out, std::chrono::nanoseconds /*at_least*/) {
+    return read_sample(out);
+  }
   /// A snapshot of the counters (call from the thread that reads samples).
   virtual FtCounters counters() const = 0;
 };

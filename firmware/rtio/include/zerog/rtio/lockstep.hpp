@@ -19,7 +19,7 @@
 namespace zerog::rtio {
 
 inline constexpr std::uint32_t kLockstepMagic = 0x5a474c53;  // "ZGLS"
-inline constexpr std::uint32_t kLockstepVersion = 1;
+inline constexpr std::uint32_t kLockstepVersion = 2;
 
 enum class LockstepKind : std::uint32_t {
   hello = 1,     ///< zerog-rt → emulator, once: its receive timeout and F/T rate
@@ -39,16 +39,21 @@ struct LockstepEvent {
   std::uint64_t imu_bytes = 0;    ///< bytes written to the IMU's pty since it was (re)plugged
   std::uint32_t imu_epoch = 0;    ///< +1 each time the IMU is unplugged (0: never)
   std::uint32_t imu_plugged = 1;  ///< 0 while the IMU is unplugged
+  /// 1: the F/T board answers this event's sample requests within zerog-rt's sample timeout
+  /// (emulated time), so zerog-rt waits for each answer however slow the host; 0: it does not
+  /// (silent), and zerog-rt waits its configured timeout only.
+  std::uint32_t ft_answers = 1;
 };
 
 /// zerog-rt → emulator.
 struct LockstepReply {
   std::uint32_t magic = kLockstepMagic;
   LockstepKind kind = LockstepKind::done;
-  std::uint64_t seq = 0;                ///< the event handled (0 for hello)
-  std::uint64_t replies_sent = 0;       ///< RSI replies sent so far (the emulator waits for them)
-  std::int64_t receive_timeout_ns = 0;  ///< hello: zerog-rt's robot receive timeout
-  double ft_rate_hz = 0.0;              ///< hello: F/T samples requested per second
+  std::uint64_t seq = 0;                  ///< the event handled (0 for hello)
+  std::uint64_t replies_sent = 0;         ///< RSI replies sent so far (the emulator waits for them)
+  std::int64_t receive_timeout_ns = 0;    ///< hello: zerog-rt's robot receive timeout
+  double ft_rate_hz = 0.0;                ///< hello: F/T samples requested per second
+  std::int64_t ft_sample_timeout_ns = 0;  ///< hello: F/T request → answer timeout
   std::uint32_t version = kLockstepVersion;
 };
 
@@ -73,7 +78,8 @@ class LockstepClient {
   /// "" or why not (path too long, no emulator listening there).
   const char* open(std::string_view path);
   /// Announces zerog-rt (after its devices started, before the first cycle).
-  LockstepStatus hello(std::chrono::nanoseconds receive_timeout, double ft_rate_hz);
+  LockstepStatus hello(std::chrono::nanoseconds receive_timeout, double ft_rate_hz,
+                       std::chrono::nanoseconds ft_sample_timeout);
   /// Waits up to `guard` for the emulator's next event.
   LockstepStatus wait(LockstepEvent& out, std::chrono::nanoseconds guard);
   /// Acknowledges event `seq`.

@@ -47,6 +47,7 @@ class NetcanoemSensor final : public FtSensor {
   /// gauges become a wrench in N and N·m. Error frames, stray and wrong-length frames are
   /// counted and waited past. Real-time safe; returns within sample_timeout.
   FtReadStatus read_sample(FtSample& out) override;
+  FtReadStatus read_sample_waiting(FtSample& out, std::chrono::nanoseconds at_least) override;
   FtCounters counters() const override;
 
   /// Valid after a successful start().

@@ -114,6 +114,9 @@ class AtiBoard {
   void queue_sample(const std::array<double, 6>& wrench_sensor_si);
   /// Samples queued and not yet requested.
   std::size_t samples_queued() const;
+  /// Whether a sample request now gets its answer within `timeout` (not silent, no ignored
+  /// requests, a response delay below it): what lockstep tells zerog-rt.
+  bool answers_within(std::chrono::nanoseconds timeout) const;
   /// Sets the gauges directly (raw counts; replaced by the next set_wrench).
   void set_gauges(const std::array<std::int16_t, 6>& gauges);
   /// The gauges the next sample carries, before noise and faults.

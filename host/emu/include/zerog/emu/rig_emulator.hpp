@@ -249,6 +249,7 @@ class RigEmulator {
   std::chrono::steady_clock::time_point lockstep_now_{};
   std::chrono::steady_clock::time_point last_rt_event_{};  // zerog-rt's last receive returned
   std::chrono::nanoseconds rt_receive_timeout_{0};
+  std::chrono::nanoseconds rt_ft_sample_timeout_{0};
   double ft_rate_hz_ = 0.0;
   std::uint64_t ft_produced_ = 0;
   const std::atomic<bool>* lockstep_stop_ = nullptr;  // run()'s stop flag
