@@ -94,8 +94,20 @@ run_case() {
   [ -n "$duration" ] || { echo "hil.sh: $source lacks a '# duration_s = N' line" >&2; return 1; }
   echo "=== $c: ${duration} s, $mode, F/T on $bus${seed:+, seed $seed}${mutant:+, MUTANT $mutant} ==="
   local emu_pid rt_status emu_status
+  # Free ports for this run (RSI: zerog-rt's and the controller's; Modbus) and a DDS domain of
+  # its own: runs of other build trees may be going on beside this one.
+  local ports rt_port robot_port modbus_port
+  ports=$(/usr/bin/python3 -c '
+import socket
+held = []
+for kind in (socket.SOCK_DGRAM, socket.SOCK_DGRAM, socket.SOCK_STREAM):
+    s = socket.socket(socket.AF_INET, kind)
+    s.bind(("127.0.0.1", 0))
+    held.append(s)
+print(" ".join(str(s.getsockname()[1]) for s in held))')
+  read -r rt_port robot_port modbus_port <<<"$ports"
   # The DDS subscriber first: Python and its imports take a while.
-  local domain=$((150 + ${seed:-0} % 50)) dds= sub_pid=
+  local domain=$((160 + rt_port % 70)) dds= sub_pid=
   if grep -q '@DDS_DOMAIN@' "$template"; then
     dds=$here/../../.venv/bin/python
     "$dds" "$here/../telemetry/dds_subscriber.py" --domain $domain --interface lo \
@@ -129,7 +141,9 @@ run_case() {
     ft_bus="transport = \"local\"\nlocal_path = \"$sockets/can\""
   fi
   sed -e "s|@MODEL@|$w/model.zgm|" -e "s|@RIG@|$w/rig.rig.toml|" -e "s|@IMU@|$w/imu-tty|" \
-    -e "s|@DDS_DOMAIN@|$domain|" "$template" >"$w/zerog-rt.toml"
+    -e "s|@DDS_DOMAIN@|$domain|" -e "s|^bind_port = 49152\$|bind_port = $rt_port|" \
+    -e "s|^port = 49153\$|port = $robot_port|" -e "s|^port = 1502\$|port = $modbus_port|" \
+    "$template" >"$w/zerog-rt.toml"
   if [ -n "$ft_bus" ]; then
     grep -q '^interface = "vcan0"$' "$w/zerog-rt.toml" \
       || { echo "hil.sh: $c: the template has no [ft] interface = \"vcan0\" line" >&2; return 1; }
@@ -148,7 +162,7 @@ run_case() {
   # at most): never part of a result.
   local guard=$(( ${duration%.*} * 30 + 120 ))
   timeout -s INT -k 10 $guard "$emu" --scenario "$scenario" "${can_args[@]}" --imu-link "$w/imu-tty" \
-    --robot-bind 127.0.0.1:49153 --rt-address 127.0.0.1:49152 --duration "$duration" \
+    --robot-bind 127.0.0.1:$robot_port --rt-address 127.0.0.1:$rt_port --duration "$duration" \
     "${step_args[@]}" --truth-out "$w/truth.csv" --summary-out "$w/emu.json" \
     >"$w/emu.out" 2>"$w/emu.err" &
   emu_pid=$!
@@ -187,7 +201,7 @@ run_case() {
   awk -v s="$emu_start" -v n="$(date +%s.%N)" 'BEGIN { printf "zerog_rt_started_s = %.3f\n", n - s }' \
     >"$w/start.txt"
   if [ -n "$plc" ]; then
-    /usr/bin/python3 "$here/$plc" --port 1502 --out "$w/plc.json" >"$w/plc.out" 2>&1 &
+    /usr/bin/python3 "$here/$plc" --port "$modbus_port" --out "$w/plc.json" >"$w/plc.out" 2>&1 &
     plc_pid=$!
   fi
   wait $rt_pid
