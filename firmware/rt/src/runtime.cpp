@@ -362,6 +362,7 @@ constexpr std::chrono::seconds kLockstepGuard{60};
 constexpr std::int64_t kSensorGuardNs = 30'000'000'000;
 constexpr std::int64_t kDatagramGuardNs = 5'000'000'000;
 constexpr std::chrono::nanoseconds kFtAnswerGuard = std::chrono::seconds(5);
+constexpr std::chrono::nanoseconds kImuBytesGuard = std::chrono::seconds(5);
 }  // namespace
 
 void Runtime::lockstep_fail(const char* what) noexcept {
@@ -524,31 +525,33 @@ void Runtime::imu_loop_lockstep() {
       ++sensor_counters_.imu_reads;
       if (st == rtio::ImuReadStatus::disconnected) disconnected(ev.time_ns);
     } else if (connected) {
+      // Up to the bytes written (waiting for them however slow the host is), or, to re-base,
+      // until a read times out.
+      const auto target = static_cast<std::int64_t>(ev.imu_bytes) - offset;
+      const std::uint64_t limit =
+          rebase ? UINT64_MAX
+                 : base + static_cast<std::uint64_t>(std::max<std::int64_t>(target, 0));
+      const std::chrono::nanoseconds wait = rebase ? std::chrono::nanoseconds(0) : kImuBytesGuard;
       while (!stop_sensors_.load(std::memory_order_relaxed)) {
-        const auto ours = static_cast<std::int64_t>(imu.counters().bytes_read - base);
-        if (!rebase && ours + offset >= static_cast<std::int64_t>(ev.imu_bytes)) break;
-        const rtio::ImuReadStatus st = imu.read_sample(sample);
+        const rtio::ImuReadStatus st =
+            rebase ? imu.read_sample(sample) : imu.read_sample_upto(sample, limit, wait);
         ++sensor_counters_.imu_reads;
         if (st == rtio::ImuReadStatus::sample) {
           imu_ring_->try_push(sample);
-        } else if (st == rtio::ImuReadStatus::timeout) {
-          // Every byte written so far read, and no complete datagram in them (garbage, a bad
-          // CRC) — or, after a re-open, the bytes before it gone.
+          continue;
+        }
+        if (st == rtio::ImuReadStatus::timeout) {
+          // After a re-open: the bytes before it may be gone. Otherwise the bytes written did
+          // not come within the guard (counted: the run is not exact any more).
           const auto read = static_cast<std::int64_t>(imu.counters().bytes_read - base);
-          if (rebase || read + offset != static_cast<std::int64_t>(ev.imu_bytes)) {
-            ++lockstep_counters_.imu_rebases;
-            offset = static_cast<std::int64_t>(ev.imu_bytes) - read;
-          }
+          ++lockstep_counters_.imu_rebases;
+          offset = static_cast<std::int64_t>(ev.imu_bytes) - read;
           rebase = false;
-          break;
         } else if (st == rtio::ImuReadStatus::disconnected) {
           disconnected(ev.time_ns);
-          break;
-        } else {
-          break;  // io_error: counted by the device
         }
+        break;  // drained, or io_error (counted by the device)
       }
-      while (connected && imu.pop_buffered(sample)) imu_ring_->try_push(sample);
     }
     seen = tick;
     imu_done_tick_.store(tick, std::memory_order_release);

@@ -26,6 +26,8 @@ const char* imu_read_status_name(ImuReadStatus status) {
       return "io_error";
     case ImuReadStatus::not_started:
       return "not_started";
+    case ImuReadStatus::drained:
+      return "drained";
   }
   return "?";
 }
@@ -73,6 +75,7 @@ ImuReadStatus FakeImu::read_sample(ImuSample& out) {
       ++counters_.io_errors;
       break;
     case ImuReadStatus::not_started:
+    case ImuReadStatus::drained:
       break;
   }
   return step.status;

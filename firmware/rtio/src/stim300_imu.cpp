@@ -1,6 +1,8 @@
 #include "zerog/rtio/stim300_imu.hpp"
 
+#include <algorithm>
 #include <cerrno>
+#include <cstdint>
 
 #include "wait.hpp"
 
@@ -57,19 +59,28 @@ bool Stim300Imu::pop_buffered(ImuSample& out) {
 }
 
 ImuReadStatus Stim300Imu::read_sample(ImuSample& out) {
+  return read_sample_upto(out, UINT64_MAX, config_.read_timeout);
+}
+
+ImuReadStatus Stim300Imu::read_sample_upto(ImuSample& out, std::uint64_t bytes_limit,
+                                           std::chrono::nanoseconds timeout) {
   if (disconnected_) return ImuReadStatus::disconnected;
   if (!started_) return ImuReadStatus::not_started;
-  const std::int64_t deadline = detail::monotonic_ns() + config_.read_timeout.count();
+  const std::int64_t deadline = detail::monotonic_ns() + timeout.count();
   bool have_read = false;  // bounded even when garbage streams in faster than the deadline
   while (true) {
     if (pop_buffered(out)) return ImuReadStatus::sample;
+    if (own_.bytes_read >= bytes_limit) return ImuReadStatus::drained;
     const std::int64_t left = deadline - detail::monotonic_ns();
     if (left <= 0 && have_read) {
       ++own_.timeouts;
       return ImuReadStatus::timeout;
     }
     have_read = true;
-    const SerialReadResult r = port_.read(chunk_, std::chrono::nanoseconds(left > 0 ? left : 0));
+    const std::size_t room = static_cast<std::size_t>(
+        std::min<std::uint64_t>(chunk_.size(), bytes_limit - own_.bytes_read));
+    const SerialReadResult r = port_.read(std::span<std::uint8_t>(chunk_.data(), room),
+                                          std::chrono::nanoseconds(left > 0 ? left : 0));
     switch (r.status) {
       case SerialReadStatus::data:
         chunk_size_ = r.size;

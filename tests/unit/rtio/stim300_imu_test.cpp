@@ -130,6 +130,33 @@ TEST_F(Stim300ImuTest, DecodesDatagramsPastGarbageBadCrcAndCounterGaps) {
   EXPECT_EQ(c.timeouts, 1u);
 }
 
+// Lockstep's read (proto/lockstep.md): up to a byte count, never past it, `drained` at once when
+// the bytes up to it complete no further datagram (garbage), without waiting for the timeout.
+TEST_F(Stim300ImuTest, ReadUpToAByteCountStopsThereAndSaysDrained) {
+  Stim300Imu imu(config(200ms));
+  ASSERT_EQ(imu.start(), ImuStartStatus::ok);
+  std::vector<std::uint8_t> first;
+  append(first, datagram(1, motion(1)));
+  append(first, {0x00, 0x11, 0x22, 0x33});  // garbage after it
+  const std::vector<std::uint8_t> second = datagram(2, motion(2));
+  std::vector<std::uint8_t> stream = first;
+  append(stream, second);
+  ASSERT_TRUE(pty_.write(stream));
+
+  ImuSample s;
+  ASSERT_EQ(imu.read_sample_upto(s, first.size(), 5s), ImuReadStatus::sample);
+  expect_motion(s, motion(1));
+  const auto before = std::chrono::steady_clock::now();
+  EXPECT_EQ(imu.read_sample_upto(s, first.size(), 5s), ImuReadStatus::drained);
+  EXPECT_LT(std::chrono::steady_clock::now() - before, 1s);  // not the 5 s wait
+  EXPECT_EQ(imu.counters().bytes_read, first.size());        // nothing of the second read
+  EXPECT_EQ(imu.counters().timeouts, 0u);
+  ASSERT_EQ(imu.read_sample_upto(s, stream.size(), 5s), ImuReadStatus::sample);
+  expect_motion(s, motion(2));
+  EXPECT_EQ(imu.read_sample_upto(s, stream.size(), 5s), ImuReadStatus::drained);
+  EXPECT_FALSE(imu.pop_buffered(s));
+}
+
 TEST_F(Stim300ImuTest, DatagramSplitAcrossReads) {
   Stim300Imu imu(config(50ms));
   ASSERT_EQ(imu.start(), ImuStartStatus::ok);

@@ -2,6 +2,7 @@
 // An IMU as the loop sees it. Real: Stim300Imu (Sensonor STIM300 on a serial port); fake:
 // FakeImu (scripted results, below).
 #include <array>
+#include <chrono>
 #include <cstddef>
 #include <cstdint>
 
@@ -39,6 +40,7 @@ enum class ImuReadStatus : std::uint8_t {
   disconnected,  ///< the device hung up (unplugged); call start() again outside the cycle
   io_error,      ///< a read error (counted)
   not_started,
+  drained,  ///< read_sample_upto: the bytes asked for are read and complete no further sample
 };
 const char* imu_read_status_name(ImuReadStatus status);
 
@@ -67,6 +69,13 @@ class Imu {
   /// The next sample if the bytes already read from the device complete one; never waits and
   /// never reads the device (lockstep drains with it, proto/lockstep.md). Real-time safe.
   virtual bool pop_buffered(ImuSample& /*out*/) { return false; }
+  /// Lockstep: the next sample from the device's bytes up to byte `bytes_limit` (counted as
+  /// counters().bytes_read), waiting up to `timeout` for them; `drained` once they are read and
+  /// complete no further sample. Never reads past the limit. Real-time safe.
+  virtual ImuReadStatus read_sample_upto(ImuSample& out, std::uint64_t /*bytes_limit*/,
+                                         std::chrono::nanoseconds /*timeout*/) {
+    return read_sample(out);
+  }
   /// A snapshot of the counters (call from the thread that reads samples).
   virtual ImuCounters counters() const = 0;
 };

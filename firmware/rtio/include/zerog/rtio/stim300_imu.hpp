@@ -37,6 +37,8 @@ class Stim300Imu final : public Imu {
   ImuReadStatus read_sample(ImuSample& out) override;
   /// A sample from the bytes already read (none read from the tty). Real-time safe.
   bool pop_buffered(ImuSample& out) override;
+  ImuReadStatus read_sample_upto(ImuSample& out, std::uint64_t bytes_limit,
+                                 std::chrono::nanoseconds timeout) override;
   ImuCounters counters() const override;
 
   /// errno of the last failed open or read.
