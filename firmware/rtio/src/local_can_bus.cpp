@@ -182,26 +182,13 @@ CanReadStatus LocalCanBus::read(CanRxFrame& out, std::chrono::nanoseconds timeou
       ++counters_.frames_received;
       return CanReadStatus::frame;
     }
-    if (errno == EINTR) continue;
-    if (errno != EAGAIN && errno != EWOULDBLOCK) {
+    const detail::AfterEmptyRead next = detail::wait_after_empty_read(fd_, errno, deadline);
+    if (next == detail::AfterEmptyRead::timeout) return CanReadStatus::timeout;
+    if (next == detail::AfterEmptyRead::error) {
       last_errno_ = errno;
       ++counters_.io_errors;
       return CanReadStatus::io_error;
     }
-    const std::int64_t left = deadline - detail::monotonic_ns();
-    if (left <= 0) {
-      return CanReadStatus::timeout;
-    }
-    const int revents = detail::wait_fd(fd_, POLLIN, left);
-    if (revents < 0) {
-      last_errno_ = errno;
-      ++counters_.io_errors;
-      return CanReadStatus::io_error;
-    }
-    if (revents == 0) {
-      return CanReadStatus::timeout;
-    }
-    // Readable (or an error the next recvmsg reports): go round once more.
   }
 }
 

@@ -104,15 +104,9 @@ LockstepStatus LockstepClient::wait(LockstepEvent& out, std::chrono::nanoseconds
       ++bad_messages_;
       return LockstepStatus::bad_message;
     }
-    if (errno == EINTR) continue;
-    if (errno != EAGAIN && errno != EWOULDBLOCK) {
-      last_errno_ = errno;
-      return LockstepStatus::io_error;
-    }
-    const std::int64_t left = deadline - detail::monotonic_ns();
-    if (left <= 0) return LockstepStatus::timeout;
-    const int r = detail::wait_fd(fd_, POLLIN, left);
-    if (r < 0) {
+    const detail::AfterEmptyRead next = detail::wait_after_empty_read(fd_, errno, deadline);
+    if (next == detail::AfterEmptyRead::timeout) return LockstepStatus::timeout;
+    if (next == detail::AfterEmptyRead::error) {
       last_errno_ = errno;
       return LockstepStatus::io_error;
     }

@@ -22,4 +22,18 @@ int wait_fd(int fd, short events, std::int64_t timeout_ns) {
   }
 }
 
+AfterEmptyRead wait_after_empty_read(int fd, int read_errno, std::int64_t deadline_ns) {
+  if (read_errno == EINTR) return AfterEmptyRead::retry;
+  if (read_errno != EAGAIN && read_errno != EWOULDBLOCK) {
+    errno = read_errno;
+    return AfterEmptyRead::error;
+  }
+  const std::int64_t left = deadline_ns - monotonic_ns();
+  if (left <= 0) return AfterEmptyRead::timeout;
+  const int revents = wait_fd(fd, POLLIN, left);
+  if (revents < 0) return AfterEmptyRead::error;
+  // Readable (or an error the next read reports): go round once more.
+  return revents == 0 ? AfterEmptyRead::timeout : AfterEmptyRead::retry;
+}
+
 }  // namespace zerog::rtio::detail

@@ -706,6 +706,12 @@ void RigEmulator::run(const std::atomic<bool>& stop) {
   for (const std::optional<rsi::Reply>& reply : handed_)
     if (reply) apply_correction(*reply);
   handed_.clear();
+  merge_tick_truth();
+  if (physics_error) std::rethrow_exception(physics_error);
+}
+
+void RigEmulator::merge_tick_truth() {
+  // Each truth row as the physics took it at its tick (the datagram carried the latest state).
   for (std::size_t i = 0; i < records_.size() && i < tick_truth_.size(); ++i) {
     const TickTruth& t = tick_truth_[i];
     CycleRecord& r = records_[i];
@@ -715,7 +721,6 @@ void RigEmulator::run(const std::atomic<bool>& stop) {
     r.push_force_base_N = t.push_force_base_N;
     r.push_torque_com_base_Nm = t.push_torque_com_base_Nm;
   }
-  if (physics_error) std::rethrow_exception(physics_error);
 }
 
 // --- Lockstep (proto/lockstep.md) ------------------------------------------------------------
@@ -888,15 +893,7 @@ void RigEmulator::run_lockstep(const std::atomic<bool>& stop) {
   }
   sends_.clear();  // a held or late datagram due after the run: never sent
   lockstep_exchange(rtio::LockstepKind::end, lockstep_now_, 0);
-  for (std::size_t i = 0; i < records_.size() && i < tick_truth_.size(); ++i) {
-    const TickTruth& t = tick_truth_[i];
-    CycleRecord& r = records_[i];
-    r.q_rad = t.q_rad;
-    r.tcp = t.tcp;
-    r.v_com_base_mps = t.v_com_base_mps;
-    r.push_force_base_N = t.push_force_base_N;
-    r.push_torque_com_base_Nm = t.push_torque_com_base_Nm;
-  }
+  merge_tick_truth();
 }
 
 // --- Outputs ---------------------------------------------------------------------------------

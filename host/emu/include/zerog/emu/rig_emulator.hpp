@@ -145,6 +145,8 @@ class RigEmulator {
   /// replies are in.
   void lockstep_exchange(rtio::LockstepKind kind, std::chrono::steady_clock::time_point at,
                          std::uint64_t window);
+  /// The truth of each tick (tick_truth_) into its record, after the run.
+  void merge_tick_truth();
   /// Emulated time in lockstep, else the steady clock.
   std::chrono::steady_clock::time_point now() const;
   /// Physics step k (k = 0: the start state). False if the run stopped while it waited.
