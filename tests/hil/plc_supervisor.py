@@ -40,6 +40,15 @@ def step(name, host, port, args, values=()):
     return code, vals
 
 
+def poll_until(name, host, port, args, done, deadline):
+    """Reads until done(values) or the deadline; the last read is the step's result."""
+    while True:
+        code, vals = step(name, host, port, args)
+        if (code == 0 and done(vals)) or time.monotonic() >= deadline:
+            return vals
+        time.sleep(0.05)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--host", default="127.0.0.1")
@@ -65,15 +74,21 @@ def main():
         _, state0 = step("read state (idle)", h, p, ["-t", "3", "-r", "1"])
         _, mass0 = step("read mass", h, p, ["-t", "4:int", "-B", "-r", "0"])
         w1, _ = step("write mass while idle", h, p, ["-t", "4:int", "-B", "-r", "0"], [a.mass_raw])
+        # As a PLC does: wait for the loop to take the write (proposal status no longer 1
+        # pending), and for the state to follow the command, rather than read once and hope a
+        # cycle has passed (the loop's cycles are the emulated rig's, not this script's clock).
+        status1 = poll_until("read proposal status", h, p, ["-t", "3", "-r", "4"],
+                             lambda v: v != [1], deadline)
         _, mass1 = step("read mass back", h, p, ["-t", "4:int", "-B", "-r", "0"])
-        _, status1 = step("read proposal status", h, p, ["-t", "3", "-r", "4"])
         en, _ = step("enable zero-g (coil 0)", h, p, ["-t", "0", "-r", "0"], [1])
-        _, state1 = step("read state (zero_g)", h, p, ["-t", "3", "-r", "1"])
+        state1 = poll_until("read state (zero_g)", h, p, ["-t", "3", "-r", "1"],
+                            lambda v: v == [2], deadline)
         w2, _ = step("write mass during zero-g", h, p, ["-t", "4:int", "-B", "-r", "0"],
                      [a.refused_mass_raw])
         _, mass2 = step("read mass after the refusal", h, p, ["-t", "4:int", "-B", "-r", "0"])
-        _, status2 = step("read proposal status", h, p, ["-t", "3", "-r", "4"])
-        refusal = STEPS[-3]["output"]
+        status2 = poll_until("read proposal status", h, p, ["-t", "3", "-r", "4"],
+                             lambda v: v != [1], deadline)
+        refusal = next(st["output"] for st in STEPS if st["step"] == "write mass during zero-g")
         result.update({
             "state_idle": state0, "mass_raw_before": mass0, "write_idle_exit": w1,
             "mass_raw_after_write": mass1, "proposal_status_after_write": status1,
