@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs the dependencies, builds zerog with warnings as errors, and runs every test (ctest):
-#   1. the CI build (RelWithDebInfo): the whole suite, VM and hardware-in-the-loop tests included;
+#   1. the CI build (RelWithDebInfo): the whole suite, the hardware-in-the-loop tests (natively, in
+#      lockstep with the emulated rig) and the VM tests (SocketCAN in qemu) included;
 #   2. AddressSanitizer + UndefinedBehaviorSanitizer: the suite again except the VM tests (they
 #      run the same programs in qemu) and the long numeric end-to-end cases beyond one of each
 #      kind (other seeds and effects of HiddenEffect and the discovery acceptance, Results), which
@@ -32,7 +33,7 @@ cmake --preset ci
 cmake --build --preset ci -j "$jobs"
 stage_done "build ci"
 ctest --preset ci -j "$jobs"
-stage_done "tests ci (VM included)"
+stage_done "tests ci (HIL, VM included)"
 
 cmake --preset asan
 cmake --build --preset asan -j "$jobs"
