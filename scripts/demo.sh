@@ -113,14 +113,14 @@ step "10. Live: zerog-rt floats the part (hardware in the loop against the emula
 # In lockstep (proto/lockstep.md): the emulator is zerog-rt's clock, so the result is the same on
 # any machine, however loaded; the run is checked (J/m within 1 %).
 echo "lockstep run (the emulator is zerog-rt's clock: the same result on any machine):"
-tests/hil/hil.sh --bin build/release --out "$out/hil" push \
+tests/hil/hil.sh --bin "$bin" --out "$out/hil" push \
   || { echo "the hardware-in-the-loop run failed; see $out/hil/push/check.txt and *.err"; exit 1; }
 echo "hardware-in-the-loop run: $out/hil/push (truth.csv, rec/run.csv, rt.json, check.json)"
 # Then once on the wall clock, as on the cabinet PC: a timing benchmark of this machine, not a
 # check (its pass or fail depends on what else the machine does).
 echo
 echo "the same push on the wall clock (a timing benchmark of this machine, not a check):"
-if tests/hil/hil.sh --bin build/release --out "$out/hil-realtime" --mode realtime push \
+if tests/hil/hil.sh --bin "$bin" --out "$out/hil-realtime" --mode realtime push \
     >"$out/hil-realtime.log" 2>&1; then
   echo "  (its checks passed too)"
 else

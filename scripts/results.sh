@@ -3,42 +3,35 @@
 # physics + residual network float/quantised, true-model reference and sensor floor on one
 # simulated KR210/100 kg run), writes out/results/results.{md,json} and replaces the part of
 # README.md between the markers <!-- results:begin --> and <!-- results:end --> with the table
-# (atomically: a temporary file beside README.md, then rename). Extra arguments go to
-# `zerog results` (e.g. --seed 7).
-# Takes about 2 minutes after the build on a 2-core machine.
+# (atomically: a temporary file beside README.md, then rename; scripts/figures.py results). Extra
+# arguments go to `zerog results` (e.g. --seed 7).
+# Options first: --check: write nothing, compare the README's table with this run instead
+# (exactly but for the training times; exit 1 on a difference); --bin DIR: the zerog built in
+# DIR (no install, no build).
+# Takes about 3 minutes after the build on a 2-core machine.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-if [ "${ZEROG_SKIP_INSTALL:-0}" != 1 ]; then bash scripts/install-deps.sh; fi
-cmake --preset release >/dev/null
-cmake --build --preset release -j "$(nproc)" --target zerog
-zerog=build/release/host/cli/zerog
+check=0 bin=
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --check) check=1; shift ;;
+    --bin) bin=$2; shift 2 ;;
+    *) break ;;
+  esac
+done
+if [ -z "$bin" ]; then
+  if [ "${ZEROG_SKIP_INSTALL:-0}" != 1 ]; then bash scripts/install-deps.sh; fi
+  cmake --preset release >/dev/null
+  cmake --build --preset release -j "$(nproc)" --target zerog
+  bin=build/release
+fi
+zerog=$bin/host/cli/zerog
 out=out/results
 mkdir -p "$out"
 "$zerog" results --json-out "$out/results.json" "$@" > "$out/results.md.tmp"
 mv "$out/results.md.tmp" "$out/results.md"
-/usr/bin/python3 - "$out/results.md" README.md <<'PY'
-import os, sys, tempfile
-table_path, readme_path = sys.argv[1], sys.argv[2]
-begin, end = "<!-- results:begin -->", "<!-- results:end -->"
-table = open(table_path, encoding="utf-8").read().strip("\n")
-text = open(readme_path, encoding="utf-8").read()
-if text.count(begin) != 1 or text.count(end) != 1 or text.index(begin) > text.index(end):
-    sys.exit(f"results.sh: {readme_path} needs exactly one '{begin}' followed by one '{end}'; "
-             f"the table is in {table_path}")
-head, rest = text.split(begin, 1)
-_, tail = rest.split(end, 1)
-new = f"{head}{begin}\n{table}\n{end}{tail}"
-folder = os.path.dirname(os.path.abspath(readme_path))
-fd, tmp = tempfile.mkstemp(prefix=".README.", dir=folder)
-try:
-    with os.fdopen(fd, "w", encoding="utf-8") as f:
-        f.write(new)
-        f.flush()
-        os.fsync(f.fileno())
-    os.chmod(tmp, os.stat(readme_path).st_mode & 0o777)
-    os.replace(tmp, readme_path)
-except BaseException:
-    os.unlink(tmp)
-    raise
-print(f"results.sh: wrote {table_path} and the table in {readme_path}")
-PY
+if [ "$check" = 1 ]; then
+  /usr/bin/python3 scripts/figures.py --check results "$out/results.md"
+else
+  /usr/bin/python3 scripts/figures.py results "$out/results.md"
+fi

@@ -3,6 +3,7 @@
 //  - zerog diagnose over all candidates on the same log (aim: under 20 s);
 //  - a reference in the same run: one double evaluation of the model over all samples, so the
 //    ratio fit / evaluation is comparable across machines.
+// The README's tables are written from its JSON output: scripts/figures.py speed.
 #include <benchmark/benchmark.h>
 
 #include <string>
@@ -66,6 +67,7 @@ void BM_FitFullEffectList(benchmark::State& state) {
     auto r = ident::fit(data, o);
     benchmark::DoNotOptimize(r.params);
     state.counters["iterations"] = r.iterations;
+    state.counters["parameters"] = r.num_params;
   }
   state.counters["samples"] = static_cast<double>(data.size());
 }
@@ -83,6 +85,7 @@ void BM_FitDefaultModel(benchmark::State& state) {
   for (auto _ : state) {
     auto r = ident::fit(data, o);
     benchmark::DoNotOptimize(r.params);
+    state.counters["parameters"] = r.num_params;
   }
 }
 BENCHMARK(BM_FitDefaultModel)->Unit(benchmark::kSecond)->Iterations(1);

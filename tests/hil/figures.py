@@ -243,6 +243,10 @@ def main():
     if not texts:
         raise SystemExit(f"figures.py: no block has all its cases in {' '.join(a.dirs)}")
     if a.check:
+        missing = [b for b in ("hil", "faults", "supervisor") if b not in texts]
+        if missing:
+            print(f"figures.py: the runs lack cases of the block(s) {', '.join(missing)}")
+            return 1
         return blocks.check_readme(a.readme or blocks.README, texts,
                                    "exact; rows of wall-clock peers: any number")
     if not a.readme:

@@ -107,7 +107,7 @@ for kind in (socket.SOCK_DGRAM, socket.SOCK_DGRAM, socket.SOCK_STREAM):
 print(" ".join(str(s.getsockname()[1]) for s in held))')
   read -r rt_port robot_port modbus_port <<<"$ports"
   # The DDS subscriber first: Python and its imports take a while.
-  local domain=$((160 + rt_port % 70)) dds= sub_pid=
+  local domain=$((220 + rt_port % 12)) dds= sub_pid=  # 220..231: the telemetry tests use 10..219
   if grep -q '@DDS_DOMAIN@' "$template"; then
     dds=$here/../../.venv/bin/python
     "$dds" "$here/../telemetry/dds_subscriber.py" --domain $domain --interface lo \

@@ -19,6 +19,14 @@ namespace {
 using model::Effect;
 constexpr double kDeg = std::numbers::pi / 180.0;
 
+// A figure of the README's "Tool change" paragraph, in the test's JSON output
+// (--gtest_output=json: scripts/figures.py tool-change writes and checks the paragraph from it).
+void record_figure(const std::string& key, double value) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.17g", value);
+  ::testing::Test::RecordProperty("fig_" + key, text);
+}
+
 bool has_warning(const FitResult& r, const std::string& kind) {
   for (const auto& w : r.warnings)
     if (w.kind == kind) return true;
@@ -51,6 +59,14 @@ TEST(ToolChange, RecoversMassAndCentreOfMassWithTheSensorModelFrozen) {
   sim::DesignOptions oa;
   oa.kind = sim::DesignKind::oa;
   const auto calibration_points = sim::make_design(oa).points_rad;
+  {
+    const sim::SimConfig tool = tool_config(sim::default_sim_config(1), 1);
+    const Eigen::Vector3d shift =
+        tool.payload.com_sensor_m - sim::default_sim_config(1).payload.com_sensor_m;
+    record_figure("tool_mass_kg", tool.payload.mass_kg);
+    for (int k = 0; k < 3; ++k)
+      record_figure(std::string("com_shift_") + "xyz"[k] + "_mm", 1000.0 * shift[k]);
+  }
   for (std::uint64_t seed : {1u, 2u, 3u}) {
     SCOPED_TRACE("seed " + std::to_string(seed));
     // 1. The sensor model from a normal calibration run with the 100 kg payload.
@@ -85,6 +101,9 @@ TEST(ToolChange, RecoversMassAndCentreOfMassWithTheSensorModelFrozen) {
         "%+.4f) mm; paper 001: 8.5 %%\n",
         static_cast<unsigned long long>(seed), g[0], 100.0 * mass_error, 1000.0 * com_error.x(),
         1000.0 * com_error.y(), 1000.0 * com_error.z());
+    const std::string key = "seed" + std::to_string(seed) + "_";
+    record_figure(key + "mass_error_pct", 100.0 * mass_error);
+    record_figure(key + "com_error_mm", 1000.0 * com_error.cwiseAbs().maxCoeff());
     EXPECT_LT(std::abs(mass_error), 0.01);              // the acceptance: 1 %
     EXPECT_LT(com_error.cwiseAbs().maxCoeff(), 0.002);  // and 2 mm
     ASSERT_TRUE(tc.fit.std.has_value());
@@ -121,6 +140,10 @@ TEST(ToolChange, RecoversMassAndCentreOfMassWithTheSensorModelFrozen) {
         "%+.4f %%, centre of mass error (%+.4f, %+.4f, %+.4f) mm\n",
         static_cast<unsigned long long>(seed), 100.0 * drift_mass_error,
         1000.0 * drift_com_error.x(), 1000.0 * drift_com_error.y(), 1000.0 * drift_com_error.z());
+    record_figure(key + "drift_mass_error_pct", 100.0 * drift_mass_error);
+    record_figure(key + "drift_com_error_mm", 1000.0 * drift_com_error.cwiseAbs().maxCoeff());
+    record_figure("drift_force_N", drift[0]);
+    record_figure("drift_torque_Nm", drift[3]);
     // Measured over seeds 1-3: 0.232-0.245 % and 0.354-0.377 mm (largest component).
     EXPECT_NEAR(100.0 * drift_mass_error, 0.24, 0.02);
     EXPECT_NEAR(1000.0 * drift_com_error.cwiseAbs().maxCoeff(), 0.37, 0.04);

@@ -1,0 +1,849 @@
+#!/usr/bin/python3
+"""The README's figures, written from the runs that produce them, and checked against fresh runs.
+
+Every number in README.md that comes from a run stands between <!-- NAME:begin --> and
+<!-- NAME:end --> and is written by this module (or by tests/hil/figures.py, which uses its block
+functions) from the JSON that run wrote. With --check nothing is written: the blocks are
+computed from the given (fresh) run and compared with README.md's; any difference is printed and
+the exit status is 1.
+
+    scripts/figures.py demo OUT_DIR             # scripts/demo.sh's run (demo.sh --write-readme)
+    scripts/figures.py discovery ZEROG          # runs zerog sim + diagnose itself (about a minute)
+    scripts/figures.py speed --run BENCH_DIR    # runs the Google Benchmark programs (a few minutes)
+    scripts/figures.py speed BENCH_JSON...      # or takes their --benchmark_format=json output
+    scripts/figures.py speed --check --bench-dir BENCH_DIR   # the README's timings, see below
+    scripts/figures.py tool-change --gtest IDENT_TEST   # ident_test's ToolChange case
+    scripts/figures.py soak SOAK_JSON           # zerog-soak --report (ctest soak_hour)
+    scripts/figures.py results RESULTS_MD       # zerog results' table and JSON (scripts/results.sh)
+  options: --readme README.md (default: the repository's), --check
+
+How a block is compared (--check):
+  - Figures of deterministic runs (simulation and fit with a fixed seed, lockstep HIL) are
+    compared exactly, as printed: the runs are bit-reproducible (the same JSON twice).
+  - Times (wall clock: how long a step or a benchmark took) and figures of a run paced by the wall
+    clock are marked where they are generated; --check requires the same text with any number in
+    their place.
+  - Benchmark timings cannot be compared across machines or runs on a shared machine, so the speed
+    blocks carry the values they were written from (an HTML comment, the JSON's own numbers):
+    --check rewrites each block from those values and requires the same text, and requires every
+    benchmark they name to exist, under that name, in the built benchmark programs (the same
+    benchmark set).
+"""
+import argparse
+import difflib
+import json
+import math
+import os
+import re
+import subprocess
+import sys
+import tempfile
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+README = os.path.join(HERE, "..", "README.md")
+
+# --- Blocks between markers -------------------------------------------------------------------
+
+# A varying figure (a time, or a value of a run on the wall clock) is generated between these two
+# characters: written without them, matched as "any number" by --check.
+VARY_BEGIN, VARY_END = "\x01", "\x02"
+NUMBER = r"(?<![\w.])[-+−]?[0-9][0-9,]*(?:\.[0-9]+)?"
+
+
+def vary(value, spec=""):
+    """`value` formatted with `spec`, marked as varying from run to run."""
+    return f"{VARY_BEGIN}{format(value, spec)}{VARY_END}"
+
+
+def vary_numbers(text):
+    """Marks every number in `text` as varying."""
+    return re.sub(NUMBER, lambda m: vary(m.group(0)), text)
+
+
+def plain(text):
+    return text.replace(VARY_BEGIN, "").replace(VARY_END, "")
+
+
+def matches(expected, actual):
+    """True if `actual` is `expected` with any numbers in place of its varying parts."""
+    parts = re.split(f"{VARY_BEGIN}(.*?){VARY_END}", expected, flags=re.S)
+    pattern = []
+    for i, part in enumerate(parts):
+        if i % 2 == 0:
+            pattern.append(re.escape(part))
+        else:  # the varying part: its numbers may be any numbers, the rest as it is
+            pattern.append(NUMBER.join(re.escape(p) for p in re.split(NUMBER, part)))
+    return re.fullmatch("".join(pattern), actual, flags=re.S) is not None
+
+
+def markers(name):
+    return f"<!-- {name}:begin -->", f"<!-- {name}:end -->"
+
+
+def read_block(text, name, readme="README.md"):
+    """The text between a block's markers (without the newlines next to them)."""
+    begin, end = markers(name)
+    if text.count(begin) != 1 or text.count(end) != 1 or text.index(begin) > text.index(end):
+        raise SystemExit(f"{readme}: needs exactly one '{begin}' followed by one '{end}'")
+    return text.split(begin, 1)[1].split(end, 1)[0].strip("\n")
+
+
+def replace_block(text, name, body, readme="README.md"):
+    read_block(text, name, readme)
+    begin, end = markers(name)
+    head, rest = text.split(begin, 1)
+    tail = rest.split(end, 1)[1]
+    return f"{head}{begin}\n{plain(body).strip(chr(10))}\n{end}{tail}"
+
+
+def write_readme(readme, blocks):
+    """Replaces the blocks {name: text} in `readme`, atomically (a temporary file, then rename).
+    The file is read just before it is written: other parts of it may be edited meanwhile."""
+    with open(readme, encoding="utf-8") as f:
+        text = f.read()
+    for name, body in blocks.items():
+        text = replace_block(text, name, body, readme)
+    folder = os.path.dirname(os.path.abspath(readme))
+    fd, tmp = tempfile.mkstemp(prefix=".README.", dir=folder)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.chmod(tmp, os.stat(readme).st_mode & 0o777)
+        os.replace(tmp, readme)
+    except BaseException:
+        os.unlink(tmp)
+        raise
+    print(f"figures.py: wrote {', '.join(blocks)} in {readme}")
+
+
+def check_readme(readme, blocks, how):
+    """Compares the blocks {name: text} with `readme`'s; prints what differs. `how` says how the
+    figures are compared (printed with the verdict). Returns the exit status."""
+    with open(readme, encoding="utf-8") as f:
+        text = f.read()
+    shown_name = os.path.basename(readme)
+    status = 0
+    for name, body in blocks.items():
+        have = read_block(text, name, readme)
+        want = body.strip("\n")
+        if matches(want, have):
+            print(f"figures.py: {name}: {shown_name} agrees with the run ({how})")
+            continue
+        status = 1
+        print(f"figures.py: {name}: {shown_name} DIFFERS from the run ({how}); "
+              f"-{shown_name} +run (varying figures marked «»):")
+        shown = want.replace(VARY_BEGIN, "«").replace(VARY_END, "»")
+        have_lines, want_lines = have.splitlines(), want.splitlines()
+        if len(have_lines) == len(want_lines):
+            # Line by line: only the lines that differ (a varying figure matches any number).
+            for i, (h, w) in enumerate(zip(have_lines, want_lines)):
+                if not matches(w, h):
+                    print(f"  line {i + 1}:\n  -{h}\n  +{shown.splitlines()[i]}")
+            continue
+        for line in difflib.unified_diff(have_lines, shown.splitlines(), shown_name, "run",
+                                         lineterm="", n=0):
+            print("  " + line)
+    return status
+
+
+def finish(args, blocks, how):
+    if args.check:
+        return check_readme(args.readme, blocks, how)
+    write_readme(args.readme, blocks)
+    return 0
+
+
+# --- Number formatting -------------------------------------------------------------------------
+
+def sig(x, n=4):
+    """`x` with `n` significant digits, trailing zeros kept, never in exponent notation."""
+    if x == 0:
+        return "0"
+    decimals = max(0, n - 1 - math.floor(math.log10(abs(x))))
+    return f"{x:.{decimals}f}"
+
+
+def pct(x, n=2):
+    return f"{sig(100 * x, n)} %" if abs(100 * x) >= 1 else f"{100 * x:.{n - 1}f} %"
+
+
+def span(values, fmt):
+    lo, hi = fmt(min(values)), fmt(max(values))
+    return lo if lo == hi else f"{lo}–{hi}"
+
+
+def load(path):
+    with open(path, encoding="utf-8") as f:
+        return json.load(f)
+
+
+# --- demo: scripts/demo.sh's run ----------------------------------------------------------------
+
+def wrench(stats):
+    return f"{sig(stats['force_rms'])} N / {sig(stats['torque_rms'])} N·m"
+
+
+def truth_value(truth, effect, name):
+    """The true value of a library parameter (0 where the truth lacks the effect, as zerog fit
+    --truth prints it)."""
+    return truth["parameters"].get(effect, {}).get(name, {}).get("value", 0.0)
+
+
+def parameter_z(fit, truth):
+    """(est − truth)/std of every fitted parameter: library parameters, then user-effect terms
+    against the truth's outside-the-library laws (0 where the truth has no such term)."""
+    z = []
+    for effect, params in fit["parameters"].items():
+        for name, p in params.items():
+            if p.get("std"):
+                z.append((p["value"] - truth_value(truth, effect, name)) / p["std"])
+    outside = [t for e in truth["extra"].get("outside_model", {}).values() if e["enabled"]
+               for t in e["terms"]]
+    for u in fit.get("user_effects", []):
+        for term in u["terms"]:
+            true = next((t["coefficient"] for t in outside
+                         if t["axis"] == term["axis"] and t["basis"] == term["basis"]), 0.0)
+            if term.get("std"):
+                z.append((term["value"] - true) / term["std"])
+    return z
+
+
+def value_pm(value, std, unit):
+    decimals = max(0, -math.floor(math.log10(std)))
+    return f"{value:.{decimals}f} ± {std:.{decimals}f} {unit}"
+
+
+def demo_blocks(out):
+    """The blocks of scripts/demo.sh's run in `out` (out/demo): the table, the ladder and
+    parameters, the yardsticks in "Sensor floor and true-model reference" and the noise
+    estimates in "Calibrating a real rig"."""
+    diag = load(os.path.join(out, "diagnosis.json"))
+    diag_fixed = load(os.path.join(out, "diagnosis_fixed.json"))
+    ladder = load(os.path.join(out, "ladder.json"))
+    fit = load(os.path.join(out, "fit_fixed.json"))
+    truth = load(os.path.join(out, "run.truth.json"))
+    timing = load(os.path.join(out, "timing.json"))
+    hidden = timing["hidden"]
+    verdict = diag["verdict"]
+    if verdict["kind"] == "effect":
+        added = verdict["effect"]
+        ranked = diag["candidates"]
+        chosen = next(c for c in ranked if c["effect"] == added)
+        others = [c for c in ranked if c["effect"] != added]
+        after = chosen["heldout"]
+        named = (f"`{added}`, {pct(chosen['gain'], 2)} of the error removed"
+                 + (f"; next best `{others[0]['effect']}` {pct(others[0]['gain'], 1)}"
+                    if others else ""))
+    elif verdict["kind"] == "discovered":
+        added = "@" + os.path.splitext(os.path.basename(verdict["effect_file"]))[0]
+        after = diag["discovery"]["heldout"]
+        named = (f"the law discovery found, "
+                 f"{'; '.join(t['law'] for t in diag['discovery']['terms'])}: "
+                 f"{pct(diag['discovery']['gain'], 2)} of the error removed")
+    else:
+        raise SystemExit(f"figures.py: {out}: diagnose named nothing to add ({verdict['kind']})")
+    reference = ladder["true_model_reference"]
+    floor = ladder["sensor_floor"]
+    if reference is None or floor is None:
+        raise SystemExit(f"figures.py: {out}/ladder.json has no true-model reference or sensor "
+                         f"floor (zerog ladder --truth, with the clean log)")
+    table = "\n".join([
+        "| step | held-out force RMS | held-out torque RMS |",
+        "|---|---|---|",
+        f"| default model (`{hidden}` hidden in the truth) | "
+        f"{sig(diag['baseline']['force_rms'])} N | {sig(diag['baseline']['torque_rms'])} N·m |",
+        f"| after adding what diagnose named ({named}) | {sig(after['force_rms'])} N | "
+        f"{sig(after['torque_rms'])} N·m |",
+        f"| true-model reference (true model, true parameters, same noisy signals) | "
+        f"{sig(reference['all']['force_rms'])} N | {sig(reference['all']['torque_rms'])} N·m |",
+        f"| sensor floor (true model on noise-free signals against the same noisy wrench: the F/T "
+        f"sensor's noise and quantisation) | {sig(floor['all']['force_rms'])} N | "
+        f"{sig(floor['all']['torque_rms'])} N·m |",
+    ])
+    steps = ladder["steps"]
+    climb = [f"{' + '.join(steps[0]['effects'])} {wrench(steps[0]['heldout'])}"]
+    climb += [f"`+ {s['added']}` {wrench(s['heldout'])}" for s in steps[1:]]
+    z = parameter_z(fit, truth)
+    mass = fit["parameters"]["gravity"]["mass"]
+    true_mass = truth_value(truth, "gravity", "mass")
+    ladder_text = (
+        f"The ladder from bias + gravity on the same run (held-out RMS): {' → '.join(climb)}. "
+        f"With `{added}` added, every one of the {len(z)} fitted parameters lies within "
+        f"{max(abs(v) for v in z):.2f} standard deviations of the truth (mass "
+        f"{value_pm(mass['value'], mass['std'], 'kg')} against {true_mass:g}). Steps 1–9 of the "
+        f"demo took {vary(timing['steps_1_to_9_s'], '.0f')} s after the build.")
+
+    def segment(s, name):
+        return f"{name} {wrench(s)}"
+
+    floors = (
+        f"On the demo's run (held-out blocks, `zerog ladder --truth`): sensor floor "
+        f"{wrench(floor['all'])} ({segment(floor['static'], 'static')}, "
+        f"{segment(floor['moving'], 'moving')}), true-model reference {wrench(reference['all'])} "
+        f"({segment(reference['static'], 'static')}, {segment(reference['moving'], 'moving')}).")
+    noise = diag_fixed["noise_rms"]
+    pooled = [math.sqrt(sum(v * v for v in noise[k:k + 3]) / 3) for k in (0, 3)]
+    sigma = fit["extra"]["fit"]["sigma"]
+    estimates = (
+        f"On the demo's run, with `{added}` added (`zerog diagnose` of that model): the "
+        f"diagnosis's noise estimate is {sig(pooled[0])} N / {sig(pooled[1])} N·m against a "
+        f"true-model reference of {wrench(reference['all'])} and a sensor floor of "
+        f"{wrench(floor['all'])}; the fit's estimate from the dwells is "
+        f"{span(sigma[:3], lambda v: sig(v, 2))} N and {span(sigma[3:], lambda v: sig(v, 2))} N·m "
+        f"per axis.")
+    return {"demo": table, "demo-ladder": ladder_text, "demo-floors": floors,
+            "demo-noise": estimates}
+
+
+def cmd_demo(args):
+    return finish(args, demo_blocks(args.out),
+                  "exact; the demo's run time: any number")
+
+
+# --- discovery: laws outside the library --------------------------------------------------------
+
+OUTSIDE_EFFECTS = ["joint6_friction", "swivel_viscous", "hose_drag", "dress_pack_bend"]
+
+
+def run(*cmd):
+    return subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
+
+
+def law(terms):
+    return "; ".join(f"{t['axis']} += {t['coefficient']:.4g} · {t['basis']}" for t in terms)
+
+
+def discovery_blocks(zerog):
+    """The discovery table: for each simulated effect outside the library, the demo's calibration
+    run (seed 42) with it hidden, the default model diagnosed; and the signals the residual of the
+    first follows (before discovery)."""
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        design = os.path.join(tmp, "design.csv")
+        run(zerog, "design", "--kind", "oa", "--out", design)
+        for effect in OUTSIDE_EFFECTS:
+            log = os.path.join(tmp, effect + ".csv")
+            run(zerog, "sim", "--design", design, "--effects", effect, "--seed", "42", "--out", log,
+                "-q")
+            truth = load(os.path.join(tmp, effect + ".truth.json"))
+            true_terms = truth["extra"]["outside_model"][effect]["terms"]
+            d = json.loads(run(zerog, "diagnose", log, "--json", "-q", "--discovered-out",
+                               os.path.join(tmp, effect + ".toml")))
+            if effect == OUTSIDE_EFFECTS[0]:
+                first = d
+            found = d["discovery"]
+            base = d["baseline"]
+            if found is None:
+                rows.append(f"| `{effect}` | {law(true_terms)} | (nothing: verdict "
+                            f"{d['verdict']['kind']}) | {base['force_rms']:.3f} N / "
+                            f"{base['torque_rms']:.3f} N·m | | |")
+                continue
+            laws = "; ".join(t["law"] for t in found["terms"])
+            after = found["heldout"]
+            rows.append(f"| `{effect}` | {law(true_terms)} | {laws} | {base['force_rms']:.3f} N / "
+                        f"{base['torque_rms']:.3f} N·m | {after['force_rms']:.3f} N / "
+                        f"{after['torque_rms']:.3f} N·m | {vary(found['seconds'], '.1f')} s |")
+            columns = found["dictionary_size"]
+            z = found["z_threshold"]
+    table = "\n".join([
+        f"Written by `scripts/figures.py discovery` from `zerog sim` (seed 42, the demo's path) "
+        f"and `zerog diagnose --json` of the default model; {columns} basis-axis columns searched, "
+        f"every term |z| > {z:.1f}. Errors are held-out RMS (force pooled over Fx, Fy, Fz; torque "
+        f"likewise); \"after\" is the model refitted with the discovered effect on the training "
+        f"blocks.",
+        "",
+        "| hidden effect | true law | discovered (± std) | before | after | discovery |",
+        "|---|---|---|---|---|---|",
+        *rows,
+    ])
+    signals = first["correlated_signals"]
+    top = signals[0]
+    follows = (
+        f"With `{OUTSIDE_EFFECTS[0]}` hidden (a torque that flips with the direction of joint A6, "
+        f"not in the library; the demo's run, seed 42), diagnose says "
+        + ("no library effect explains it"
+           if first["verdict"]["kind"] in ("discovered", "none") else
+           f"`{first['verdict']['effect']}` explains it")
+        + f" and that the {top['axis']} residual follows \"{top['signal']}\" "
+        f"(ρ = {top['correlation']:.2f}) — and then finds the law itself (next section).")
+    return {"discovery": table, "discovery-signals": follows}
+
+
+def cmd_discovery(args):
+    return finish(args, discovery_blocks(args.zerog),
+                  "exact; the discovery's run time: any number")
+
+
+# --- speed: Google Benchmark programs -----------------------------------------------------------
+
+BENCH_PROGRAMS = ["ident_bench", "infer_bench", "rtio_bench", "loop_bench", "telemetry_bench",
+                  "modbus_bench"]
+UNIT_S = {"ns": 1e-9, "us": 1e-6, "ms": 1e-3, "s": 1.0}
+
+
+class Bench:
+    """The values of Google Benchmark runs ({program: JSON}); records which values a text uses,
+    so that a block can carry them (and be rewritten from them by --check)."""
+
+    def __init__(self, runs):
+        self.runs = runs
+        self.used = {}
+
+    @staticmethod
+    def from_json(docs):
+        runs = {}
+        for doc in docs:
+            program = os.path.basename(doc["context"]["executable"])
+            entries = {}
+            for b in doc["benchmarks"]:
+                if b.get("run_type", "iteration") != "iteration":
+                    continue
+                e = {k: v for k, v in b.items() if isinstance(v, (int, float, str))}
+                e["real_time_s"] = b["real_time"] * UNIT_S[b["time_unit"]]
+                e["cpu_time_s"] = b["cpu_time"] * UNIT_S[b["time_unit"]]
+                entries[b["name"]] = e
+            ctx = doc["context"]
+            runs[program] = {"date": ctx["date"], "num_cpus": ctx["num_cpus"],
+                             "build": doc.get("zerog_build", ""), "benchmarks": entries}
+        return Bench(runs)
+
+    def _find(self, program, name):
+        entries = self.runs[program]["benchmarks"]
+        hits = [n for n in entries if n == name or n.startswith(name + "/")]
+        if len(hits) != 1:
+            raise SystemExit(f"figures.py: {program}: {len(hits)} benchmarks named {name}")
+        return hits[0]
+
+    def __call__(self, program, name, field):
+        if program not in self.runs:
+            raise SystemExit(f"figures.py: no run of {program} given")
+        full = self._find(program, name)
+        value = self.runs[program]["benchmarks"][full][field]
+        run_ = self.used.setdefault(program, {k: v for k, v in self.runs[program].items()
+                                              if k != "benchmarks"})
+        run_.setdefault("benchmarks", {}).setdefault(full, {})[field] = value
+        return value
+
+    def context(self, program, key):
+        self.used.setdefault(program, {k: v for k, v in self.runs[program].items()
+                                       if k != "benchmarks"}).setdefault("benchmarks", {})
+        return self.runs[program][key]
+
+    def data_line(self):
+        return ("<!-- figures.py speed: written from these values of the benchmark runs "
+                "(Google Benchmark JSON, times in s): "
+                + json.dumps(self.used, sort_keys=True, ensure_ascii=False,
+                             separators=(",", ":")) + " -->")
+
+
+def ns(x):
+    return f"{x * 1e9:,.0f} ns"
+
+
+def us(x):
+    return f"{x:.1f} µs" if x < 100 else f"{x:,.0f} µs"
+
+
+def seconds(x):
+    return f"{x * 1e3:.1f} ms" if x < 0.1 else f"{x:.2f} s"
+
+
+def ratio(x):
+    return f"{x:.2f}×"
+
+
+def speed_ident(b):
+    ref = b("ident_bench", "BM_ModelEvaluationAllSamples", "real_time_s")
+    samples = b("ident_bench", "BM_ModelEvaluationAllSamples", "samples")
+    fit0 = b("ident_bench", "BM_FitFullEffectList/covariance:0", "real_time_s")
+    fit1 = b("ident_bench", "BM_FitFullEffectList/covariance:1", "real_time_s")
+    full_params = b("ident_bench", "BM_FitFullEffectList/covariance:0", "parameters")
+    default = b("ident_bench", "BM_FitDefaultModel", "real_time_s")
+    default_params = b("ident_bench", "BM_FitDefaultModel", "parameters")
+    diag = b("ident_bench", "BM_DiagnoseAllCandidates", "real_time_s")
+    candidates = b("ident_bench", "BM_DiagnoseAllCandidates", "candidates")
+    aim = 2.0
+    return "\n".join([
+        f"`ident_bench` ({b.context('ident_bench', 'build')} build, "
+        f"{b.context('ident_bench', 'num_cpus')} CPUs, {b.context('ident_bench', 'date')[:10]}): "
+        f"{samples:,.0f} simulated samples with every truth effect on. The reference in the same "
+        f"run is one `double` evaluation of the full model over all samples.",
+        "",
+        "| benchmark | time | aim | × reference |",
+        "|---|---|---|---|",
+        f"| model evaluation, {samples:,.0f} samples (reference) | {seconds(ref)} | | 1 |",
+        f"| `zerog fit`, full effect list ({full_params:.0f} parameters), without / with "
+        f"covariance | {seconds(fit0)} / {seconds(fit1)} | under {aim:g} s | {fit0 / ref:.0f} / "
+        f"{fit1 / ref:.0f} |",
+        f"| `zerog fit`, default model ({default_params:.0f} parameters) | {seconds(default)} | | "
+        f"{default / ref:.0f} |",
+        f"| `zerog diagnose`, default model, all {candidates:.0f} candidates | {seconds(diag)} | "
+        f"under 20 s | {diag / ref:.0f} |",
+        "",
+        (f"The full fit misses its {aim:g} s aim ({fit0 / aim:.1f} times as long)."
+         if fit0 > aim else f"The full fit meets its {aim:g} s aim."),
+    ])
+
+
+def discovery_speed(b):
+    ref = b("ident_bench", "BM_ModelEvaluationAllSamples", "real_time_s")
+    disc = "BM_DiagnoseWithDiscovery"
+    disc_s = b("ident_bench", disc, "discovery_s")
+    return (
+        f"Measured by `ident_bench` (`{disc}`, the same run): on "
+        f"{b('ident_bench', disc, 'samples'):,.0f} samples, discovery over the full dictionary "
+        f"({b('ident_bench', disc, 'columns'):,.0f} columns) took "
+        f"{b('ident_bench', disc, 'discovery_search_s'):.2f} s for the search and {disc_s:.2f} s "
+        f"with the final refit (aim: under 5 s), {disc_s / ref:.0f}× the model-evaluation "
+        f"reference of the same run ({ref * 1e3:.1f} ms); the whole diagnose (library candidates "
+        f"first) took {b('ident_bench', disc, 'real_time_s'):.1f} s.")
+
+
+INFER_NAMES = {"bp_21_8_sigmoid": "21-8-6 sigmoid (paper-bp size)",
+               "residual_24_32_32_tanh": "24-32-32-6 tanh (residual size)",
+               "zp_9_45_90_leaky_relu": "9-45-90-6 leaky ReLU (paper-zp size)",
+               "max_50_128x3_leaky_relu": "50-128-128-128-6 leaky ReLU (the widest allowed)"}
+
+
+def speed_infer(b):
+    rows = [f"| physics only | {ns(b('infer_bench', 'BM_PhysicsOnly/0', 'real_time_s'))} | | |"]
+    for i in range(4):
+        label = b("infer_bench", f"BM_Ratio/{i}", "label")
+        rows.append(f"| {INFER_NAMES.get(label, label)} | "
+                    f"{ns(b('infer_bench', f'BM_Quantised/{i}', 'real_time_s'))} | "
+                    f"{ns(b('infer_bench', f'BM_FloatReference/{i}', 'real_time_s'))} | "
+                    f"{b('infer_bench', f'BM_Ratio/{i}', 'quantised/float'):.2f} |")
+    return "\n".join([
+        f"`infer_bench` ({b.context('infer_bench', 'date')[:10]}), per sample; the last column "
+        f"times both on the same samples (`BM_Ratio`):",
+        "",
+        "| network | physics + quantised (int16) | physics + float reference | quantised / float |",
+        "|---|---|---|---|",
+        *rows,
+    ])
+
+
+def speed_rsi(b):
+    rsi = "BM_RsiEndpointRoundTrip"
+    echo_p50 = b("rtio_bench", "BM_BareUdpEcho", "p50_us")
+    return (
+        f"**RSI round trip** (`rtio_bench`, {b('rtio_bench', rsi, 'iterations'):,.0f} loopback "
+        f"datagrams): `RsiEndpoint` (parse, reply with the IPOC) against a bare UDP echo in the "
+        f"same run: {ratio(b('rtio_bench', rsi, 'ratio_p50'))} at the median, "
+        f"{ratio(b('rtio_bench', rsi, 'ratio_p999'))} at the 99.9th percentile (the tail is the "
+        f"machine's, not the parser's); the echo's median was {us(echo_p50)} in this run.")
+
+
+def speed_loop(b):
+    rt0 = "BM_ZerogRtRoundTrip/0"
+    echo_p50 = b("rtio_bench", "BM_BareUdpEcho", "p50_us")
+    physics = b("loop_bench", "BM_CycleStep/0", "real_time_s")
+    residual = b("loop_bench", "BM_CycleStep/1", "real_time_s")
+    share = 100 * max(physics, residual) / 0.012
+    return (
+        f"**zerog-rt's cycle.** `loop_bench` ({b.context('loop_bench', 'build')} build): one "
+        f"`Cycle::step` in zero-g after 6 F/T and 24 IMU samples were handed in takes "
+        f"{ns(physics)} with the physics model (the model evaluation alone: "
+        f"{ns(b('loop_bench', 'BM_ModelOnly/0', 'real_time_s'))}; the rest is the virtual body's "
+        f"RK4 attitude, the limits, the corrections and the 0.7 KB black-box record) and "
+        f"{ns(residual)} with a 24-32-32 tanh residual (model alone "
+        f"{ns(b('loop_bench', 'BM_ModelOnly/1', 'real_time_s'))}): {share:.2g} % of a 12 ms cycle "
+        f"at most. `rtio_bench`'s `BM_ZerogRtRoundTrip` times zerog-rt's whole cycle thread on "
+        f"loopback (datagram in, samples taken from the rings, `Cycle::step` in zero-g, reply out) "
+        f"against the bare UDP echo of the same run: "
+        f"**{ratio(b('rtio_bench', rt0, 'ratio_p50'))} at the median and "
+        f"{ratio(b('rtio_bench', rt0, 'ratio_p999'))} at the 99.9th percentile** (aim: within 2×; "
+        f"{us(b('rtio_bench', rt0, 'p50_us'))} median, the echo {us(echo_p50)}).")
+
+
+def speed_peers(b):
+    modes = [f"BM_ZerogRtRoundTrip/{m}" for m in range(5)]
+    reply = [b("rtio_bench", m, "reply_p50_us") for m in modes]
+    to_plain = [b("rtio_bench", m, "plain_reply_p50") for m in modes[1:]]
+    p99 = [b("rtio_bench", m, "plain_reply_p99") for m in modes[1:]]
+    compute = [b("rtio_bench", m, "plain_compute_p99") for m in modes[1:]]
+    no_server = b("modbus_bench", "BM_CycleNoServer", "real_time_s")
+    flood = b("modbus_bench", "BM_CycleModbusFlood", "real_time_s")
+    rate = b("modbus_bench", "BM_CycleModbusFlood", "modbus_req_per_s")
+    offer = b("telemetry_bench", "BM_OfferNoDds", "real_time_s")
+    offer_dds = b("telemetry_bench", "BM_OfferWithPublisher", "real_time_s")
+    push = b("telemetry_bench", "BM_ReferenceRingPush", "real_time_s")
+    return (
+        f"Reply median {span(reply, lambda v: f'{v:.1f}')} µs in all five (ratios "
+        f"{span(to_plain, lambda v: f'{v:.2f}')} to the plain cycle), reply p99 "
+        f"{span(p99, lambda v: f'{v:.2f}')}×, compute p99 {span(compute, lambda v: f'{v:.2f}')}× "
+        f"({us(b('rtio_bench', modes[0], 'compute_p99_us'))} plain; single-µs noise on this "
+        f"shared machine). `offer()` itself costs {ns(offer)} without DDS and {ns(offer_dds)} "
+        f"with the publisher on the other core, against {ns(push)} for a plain ring push "
+        f"(`telemetry_bench`); a Modbus client flooding {rate:,.0f} "
+        f"requests/s changed one cycle's time from {ns(no_server)} to {ns(flood)} "
+        f"(`modbus_bench`).")
+
+
+# The speed blocks and their texts; each block carries the values its own text uses.
+SPEED_BLOCKS = {"speed-ident": speed_ident, "discovery-speed": discovery_speed,
+                "speed-infer": speed_infer, "speed-rsi": speed_rsi, "speed-loop": speed_loop,
+                "speed-peers": speed_peers}
+DATA = re.compile(r"<!-- figures\.py speed: [^{]*(\{.*\}) -->")
+
+
+def speed_blocks(runs, names=SPEED_BLOCKS):
+    """{block: text}, each block's first line the values it was written from."""
+    blocks = {}
+    for name in names:
+        b = Bench(runs)
+        text = SPEED_BLOCKS[name](b)
+        blocks[name] = b.data_line() + "\n" + text
+    return blocks
+
+
+def bench_build(bench_dir):
+    """'RelWithDebInfo' or the like, from the CMake cache of the build holding `bench_dir`."""
+    d = os.path.abspath(bench_dir)
+    while d != "/":
+        cache = os.path.join(d, "CMakeCache.txt")
+        if os.path.exists(cache):
+            with open(cache) as f:
+                for line in f:
+                    if line.startswith("CMAKE_BUILD_TYPE:"):
+                        return line.split("=", 1)[1].strip() or "default"
+        d = os.path.dirname(d)
+    return "unknown"
+
+
+def run_benchmarks(bench_dir, save):
+    os.makedirs(save, exist_ok=True)
+    docs = []
+    for program in BENCH_PROGRAMS:
+        path = os.path.join(save, program + ".json")
+        print(f"figures.py: running {program} (its JSON in {path})", file=sys.stderr)
+        subprocess.run([os.path.join(bench_dir, program), "--benchmark_format=json",
+                        f"--benchmark_out={path}", "--benchmark_out_format=json"], check=True,
+                       stdout=subprocess.DEVNULL)
+        doc = load(path)
+        doc["zerog_build"] = bench_build(bench_dir)
+        with open(path, "w") as f:
+            json.dump(doc, f, indent=1)
+        docs.append(doc)
+    return docs
+
+
+def check_speed(args):
+    """Each block rewritten from the values it carries must be the README's text, and each
+    benchmark it names must exist in the built programs (the same benchmark set)."""
+    with open(args.readme, encoding="utf-8") as f:
+        text = f.read()
+    status = 0
+    listed = {}
+    for program in BENCH_PROGRAMS:
+        out = run(os.path.join(args.bench_dir, program), "--benchmark_list_tests=true")
+        listed[program] = set(out.split())
+    for name in SPEED_BLOCKS:
+        have = read_block(text, name, args.readme)
+        m = DATA.match(have.splitlines()[0])
+        if not m:
+            print(f"figures.py: {name}: the block's first line does not carry its values")
+            status = 1
+            continue
+        data = json.loads(m.group(1))
+        for program, run_ in data.items():
+            missing = sorted(set(run_["benchmarks"]) - listed[program])
+            if missing:
+                print(f"figures.py: {name}: {program} has no benchmark {', '.join(missing)} "
+                      f"(written from another benchmark set: run figures.py speed --run again)")
+                status = 1
+        try:
+            want = speed_blocks(data, [name])
+        except (KeyError, SystemExit) as e:
+            print(f"figures.py: {name}: cannot be rewritten from the values it carries ({e})")
+            status = 1
+            continue
+        status |= check_readme(args.readme, want, "rewritten from the values it carries; "
+                               "their benchmarks exist in the built programs")
+    return status
+
+
+def cmd_speed(args):
+    if args.check:
+        if not args.bench_dir:
+            raise SystemExit("figures.py speed --check needs --bench-dir")
+        return check_speed(args)
+    if args.run:
+        docs = run_benchmarks(args.run, args.save)
+    else:
+        docs = [load(p) for p in args.json]
+        for doc, path in zip(docs, args.json):
+            doc.setdefault("zerog_build", bench_build(os.path.dirname(path)))
+    return finish(args, speed_blocks(Bench.from_json(docs).runs), "")
+
+
+# --- tool change: ident_test's ToolChange case --------------------------------------------------
+
+TOOL_CHANGE_TEST = "ToolChange.RecoversMassAndCentreOfMassWithTheSensorModelFrozen"
+
+
+def tool_change_blocks(gtest_json):
+    doc = load(gtest_json)
+    case = next(t for s in doc["testsuites"] for t in s["testsuite"]
+                if f"{s['name']}.{t['name']}" == TOOL_CHANGE_TEST)
+    if case.get("failures"):
+        raise SystemExit(f"figures.py: {TOOL_CHANGE_TEST} failed")
+    p = {k: float(v) for k, v in case.items() if k.startswith("fig_")}
+    seeds = sorted({int(k.split("_")[1][4:]) for k in p if k.startswith("fig_seed")})
+
+    def worst(what):
+        return max(abs(p[f"fig_seed{s}_{what}"]) for s in seeds)
+
+    def spread(what):
+        return [abs(p[f"fig_seed{s}_{what}"]) for s in seeds]
+
+    shift = [p[f"fig_com_shift_{a}_mm"] for a in "xyz"]
+    text = (
+        f"A simulated {p['fig_tool_mass_kg']:g} kg tool, centre of mass moved by "
+        f"({', '.join(f'{v:g}' for v in shift)}) mm, seeds {seeds[0]}–{seeds[-1]}: mass within "
+        f"{worst('mass_error_pct'):.2g} %, centre of mass within {worst('com_error_mm'):.2g} mm "
+        f"(largest component; acceptance 1 % and 2 mm; the paper: 8.5 %). The error grows with how "
+        f"wrong the frozen zero point is: a zero drift of {p['fig_drift_force_N']:g} N / "
+        f"{p['fig_drift_torque_Nm']:g} N·m per axis since the calibration (signs for the largest "
+        f"mass error) gives {span(spread('drift_mass_error_pct'), lambda v: f'{v:.2f}')} % and "
+        f"{span(spread('drift_com_error_mm'), lambda v: f'{v:.2f}')} mm.")
+    return {"tool-change": text}
+
+
+def cmd_tool_change(args):
+    with tempfile.TemporaryDirectory() as tmp:
+        path = args.json or os.path.join(tmp, "tool_change.json")
+        if args.gtest:
+            subprocess.run([args.gtest, f"--gtest_filter={TOOL_CHANGE_TEST}",
+                            f"--gtest_output=json:{path}"], check=True, stdout=subprocess.DEVNULL)
+        return finish(args, tool_change_blocks(path), "exact")
+
+
+# --- soak: zerog-soak --report -----------------------------------------------------------------
+
+def soak_blocks(report):
+    """The soak's figures. zerog-soak's pushes, faults and disturbances come from its seed, but
+    when they land depends on how its threads and the recorder keep up on the wall clock, so two
+    runs of the same seed count differently: only the configuration (seed, length, cycle, robot
+    periods, bounds) is compared exactly, every count and time is marked as varying; that every
+    injected fault was raised as itself is the soak's own check (it must have passed)."""
+    s = load(report)
+    if not s["passed"]:
+        raise SystemExit(f"figures.py: {report}: the soak failed: {s['failures']}")
+    v = vary
+    mem = s["memory"]
+    injected = s["faults_injected"]
+    raised = sum(s["faults_raised"].values())
+    stale = s["messages"] - s["run_csv_rows"]
+    length = "hour" if s["simulated_s"] == 3600 else f"{s['simulated_s']:g} s"
+    text = (
+        f"`zerog-soak` (ctest `soak_hour`, seed {s['seed']}) runs a simulated {length} at "
+        f"{1e3 * s['cycle_s']:g} ms through zerog-rt's own threads and the real RSI endpoint: "
+        f"{s['robot_periods']:,} robot periods in {v(s['wall_s'], '.1f')} s "
+        f"({v(s['speed_up'], '.0f')}× real time), {v(s['messages'], ',')} messages, "
+        f"{v(s['sessions'])} zero-g sessions, {v(s['pushes'])} pushes, "
+        f"{v(sum(injected.values()))} injected faults of {v(len(injected))} kinds and "
+        f"{v(sum(s['disturbances'].values()))} disturbances that must not fault; {v(raised)} "
+        f"faults raised, each the injected one, with {v(s['black_boxes'])} black boxes. "
+        f"cycles.csv has {v(s['cycles_csv_rows'], ',')} rows in order, "
+        f"{v(s['records_dropped'])} dropped, run.csv {v(s['run_csv_rows'], ',')} (the {v(stale)} "
+        f"stale IPOCs have no row). Heap grew {v(mem['heap_growth_mib'], '.2f')} MiB and RSS "
+        f"{v(mem['rss_growth_mib'], '.2f')} MiB after the warm-up minute (bounds "
+        f"{mem['heap_bound_mib']:g} and {mem['rss_bound_mib']:g} MiB); `Cycle::step` took "
+        f"{v(s['compute_ns']['median'] / 1e3, '.2f')} µs median, "
+        f"{v(s['compute_ns']['p99'] / 1e3, '.1f')} µs p99. Two runs of the same seed differ in "
+        f"these counts: when a push or fault lands depends on the threads' timing.")
+    return {"soak": text}
+
+
+def cmd_soak(args):
+    return finish(args, soak_blocks(args.report),
+                  "the configuration exactly; counts, times and memory growth: any number")
+
+
+# --- results: zerog results' table --------------------------------------------------------------
+
+def results_blocks(table_md, results_json):
+    """zerog results' Markdown (its training times, the last column of the methods' table,
+    marked as varying) and, from its JSON, paper-zp's least-squares tool load."""
+    with open(table_md, encoding="utf-8") as f:
+        lines = f.read().strip("\n").splitlines()
+    out = []
+    training = False  # in the table whose last column is "training"
+    for line in lines:
+        cells = line.split("|")
+        if not line.startswith("|"):
+            training = False
+        elif cells[-2].strip() == "training":
+            training = True
+        elif training:
+            cells[-2] = vary_numbers(cells[-2])
+        out.append("|".join(cells))
+    r = load(results_json)
+    tool = r["details"]["tool_load"]
+    cog = tool["cog_sensor_m"]
+    where = ", ".join(f"{c:.3g}" for c in cog)
+    load_text = (
+        f"paper-zp's least-squares tool load (001_… eq. 13–14) on this run: "
+        f"{tool['mass_kg']:.2g} kg with its centre of gravity at ({where}) m in the sensor frame, "
+        f"{math.sqrt(sum(c * c for c in cog)):.2g} m away: the zero-point network took up the "
+        f"payload's gravity.")
+    return {"results": "\n".join(out), "results-tool-load": load_text}
+
+
+def cmd_results(args):
+    results_json = args.json or os.path.splitext(args.table)[0] + ".json"
+    return finish(args, results_blocks(args.table, results_json),
+                  "exact; training times: any number")
+
+
+# --- command line -------------------------------------------------------------------------------
+
+def main():
+    # --readme and --check before or after the subcommand.
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--readme", default=argparse.SUPPRESS, help="README.md to write or check")
+    common.add_argument("--check", action="store_true", default=argparse.SUPPRESS,
+                        help="compare with the README instead of writing it; exit 1 on a "
+                             "difference")
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0], parents=[common])
+    sub = ap.add_subparsers(dest="what", required=True)
+    p = sub.add_parser("demo", parents=[common],
+                       help="scripts/demo.sh's figures")
+    p.add_argument("out", help="the demo's output folder (out/demo)")
+    p.set_defaults(func=cmd_demo)
+    p = sub.add_parser("discovery", parents=[common],
+                       help="the discovery table (runs zerog)")
+    p.add_argument("zerog", help="the zerog program")
+    p.set_defaults(func=cmd_discovery)
+    p = sub.add_parser("speed", parents=[common],
+                       help="the speed figures (Google Benchmark)")
+    p.add_argument("json", nargs="*", help="--benchmark_format=json output of the programs")
+    p.add_argument("--run", metavar="BENCH_DIR", help="run the programs in BENCH_DIR first")
+    p.add_argument("--save", default="out/bench", help="with --run: where their JSON goes")
+    p.add_argument("--bench-dir", help="with --check: the built programs")
+    p.set_defaults(func=cmd_speed)
+    p = sub.add_parser("tool-change", parents=[common],
+                       help="the tool-change figures (ident_test)")
+    p.add_argument("--gtest", help="the ident_test program: run its ToolChange case")
+    p.add_argument("--json", help="or its --gtest_output=json file")
+    p.set_defaults(func=cmd_tool_change)
+    p = sub.add_parser("soak", parents=[common],
+                       help="the soak's figures (zerog-soak --report)")
+    p.add_argument("report")
+    p.set_defaults(func=cmd_soak)
+    p = sub.add_parser("results", parents=[common],
+                       help="the results table (zerog results' Markdown)")
+    p.add_argument("table", help="zerog results' Markdown (out/results/results.md)")
+    p.add_argument("--json", help="its --json-out (default: beside it, .json)")
+    p.set_defaults(func=cmd_results)
+    args = ap.parse_args()
+    args.readme = getattr(args, "readme", README)
+    args.check = getattr(args, "check", False)
+    return args.func(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
