@@ -401,13 +401,18 @@ void Runtime::lockstep_auto_request() noexcept {
     lockstep_auto_done_ = true;
     return;
   }
-  const std::uint64_t cycle = cycle_.last().cycle;
-  if (state == loop::State::idle && cycle_.ready() &&
-      (!lockstep_requested_ || cycle > lockstep_requested_at_) &&
-      cycle_.request(options_.auto_enable_zero_g ? loop::Command::enable_zero_g
+  auto_request(state, cycle_.ready(), cycle_.last().cycle, lockstep_requested_,
+               lockstep_requested_at_);
+}
+
+void Runtime::auto_request(loop::State state, bool ready, std::uint64_t cycle, bool& requested,
+                           std::uint64_t& requested_at) noexcept {
+  // Once per cycle while idle and ready (a request the cycle refused is asked again).
+  if (state != loop::State::idle || !ready || (requested && cycle <= requested_at)) return;
+  if (cycle_.request(options_.auto_enable_zero_g ? loop::Command::enable_zero_g
                                                  : loop::Command::start_collection) != 0) {
-    lockstep_requested_ = true;
-    lockstep_requested_at_ = cycle;
+    requested = true;
+    requested_at = cycle;
   }
 }
 
@@ -720,13 +725,8 @@ SupervisorEvents Runtime::supervise() {
                        (options_.auto_enable_zero_g ? "--enable-zero-g" : "--collect") +
                        " gave up: fault " + loop::fault_name(s.fault) + " before it started");
       auto_gave_up_ = true;
-    } else if (devices_.lockstep == nullptr && s.state == loop::State::idle && s.ready &&
-               (!requested_ || s.cycle > requested_at_)) {
-      if (cycle_.request(options_.auto_enable_zero_g ? loop::Command::enable_zero_g
-                                                     : loop::Command::start_collection)) {
-        requested_ = true;
-        requested_at_ = s.cycle;
-      }
+    } else if (devices_.lockstep == nullptr) {
+      auto_request(s.state, s.ready, s.cycle, requested_, requested_at_);
     }
   }
   if (s.commands_refused != refused_seen_) {

@@ -239,6 +239,10 @@ class Runtime final : public modbus::SupervisorTarget {
   void lockstep_sensors(const rtio::LockstepEvent& event) noexcept;
   /// Lockstep: --enable-zero-g / --collect requested by the cycle thread (deterministic).
   void lockstep_auto_request() noexcept;
+  /// --enable-zero-g / --collect: requests the command when idle and ready, once per cycle.
+  /// One rule for the main thread (real time) and the cycle thread (lockstep).
+  void auto_request(loop::State state, bool ready, std::uint64_t cycle, bool& requested,
+                    std::uint64_t& requested_at) noexcept;
   void ft_loop_lockstep();
   void imu_loop_lockstep();
 
