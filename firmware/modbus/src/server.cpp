@@ -418,7 +418,7 @@ class Loop {
     for (;;) {
       switch (target_.command_outcome(ticket)) {
         case loop::CommandOutcome::accepted:
-          return ExceptionCode::none;
+          return await_snapshot_after(deadline);
         case loop::CommandOutcome::refused:
           return ExceptionCode::server_device_failure;
         case loop::CommandOutcome::unknown:  // 8 later commands while this server waited
@@ -429,6 +429,18 @@ class Loop {
       if (Clock::now() > deadline) return ExceptionCode::acknowledge;  // queued, not yet run
       std::this_thread::sleep_for(std::chrono::microseconds(200));
     }
+  }
+
+  /// The cycle records a command's outcome during step() and publishes the snapshot after it:
+  /// a PLC that reads the state right after the write's reply must see the command applied, so
+  /// the reply waits for a snapshot newer than the one current now (at most one cycle late).
+  ExceptionCode await_snapshot_after(Clock::time_point deadline) {
+    const std::uint64_t seen = target_.snapshot().cycle;
+    while (target_.snapshot().cycle <= seen) {
+      if (Clock::now() > deadline) return ExceptionCode::acknowledge;  // applied, not yet shown
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+    }
+    return ExceptionCode::none;
   }
 
   const ServerConfig& config_;

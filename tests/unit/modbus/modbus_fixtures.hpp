@@ -27,12 +27,17 @@ class CycleTarget : public SupervisorTarget {
     thread_ = std::thread([this] {
       while (running_.load()) {
         robot_.quiet(cycle_);
+        // zerog-rt publishes after the cycle's other work (records, telemetry): a delay here
+        // widens that window so tests can show a reply does not run ahead of the snapshot.
+        if (publish_delay_.count() > 0) std::this_thread::sleep_for(publish_delay_);
         publish();
         steps_.fetch_add(1);
         std::this_thread::sleep_for(period_);
       }
     });
   }
+  /// Time between a step and the publication of its snapshot (default none).
+  void set_publish_delay(std::chrono::microseconds d) { publish_delay_ = d; }
   /// Stops stepping (the cycle is then the caller's: cycle() may be read).
   void stop() {
     running_ = false;
@@ -80,6 +85,7 @@ class CycleTarget : public SupervisorTarget {
   }
 
   std::chrono::microseconds period_;
+  std::chrono::microseconds publish_delay_{0};
   loop::Cycle cycle_;
   loop::test::StaticRobot robot_;
   loop::Tunables initial_;

@@ -160,6 +160,22 @@ TEST_F(ModbusServerTest, LibmodbusReadsTheStateAndWritesTheMassWhileIdle) {
   EXPECT_EQ(n.exceptions_total(), 0u);
 }
 
+// A PLC reads the state right after the coil write's reply: it must see the command applied,
+// even when the snapshot is published well after the step that decided it (CI once read idle).
+TEST_F(ModbusServerTest, AReadRightAfterACommandReplyShowsTheNewState) {
+  target_.set_publish_delay(std::chrono::milliseconds(30));
+  start();
+  Client c(server_->port());
+  ASSERT_TRUE(c.connected());
+  for (int round = 0; round < 3; ++round) {
+    ASSERT_EQ(modbus_write_bit(c.ctx(), 0, 1), 1) << modbus_strerror(errno);
+    EXPECT_EQ(c.read_input(kStateRegister, ValueType::uint16),
+              static_cast<int>(loop::State::zero_g));
+    ASSERT_EQ(modbus_write_bit(c.ctx(), 0, 0), 1) << modbus_strerror(errno);
+    EXPECT_EQ(c.read_input(kStateRegister, ValueType::uint16), static_cast<int>(loop::State::idle));
+  }
+}
+
 TEST_F(ModbusServerTest, TheSameWriteDuringZeroGIsRefusedAndChangesNothing) {
   start();
   Client c(server_->port());
