@@ -1,0 +1,26 @@
+#pragma once
+// Forward kinematics of a RobotModel: joint angles → pose of the flange F and of the F/T sensor
+// frame S in the robot base frame B (proto/frames.md, proto/robot_kinematics.md).
+// Real-time safe: no allocation, no exceptions, bounded time (at most kMaxJoints links).
+#include <Eigen/Core>
+#include <span>
+
+#include "zerog/robot/robot_model.hpp"
+
+namespace zerog::robot {
+
+/// A pose in the base frame B: R_base_x (axes of x in B) and p_base_x_m (origin of x in B, m).
+struct Pose {
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d p_m = Eigen::Vector3d::Zero();
+};
+
+/// Pose of the flange F in B. `q_rad` holds the recorded joint angles (rad) in the recording's
+/// order (RobotModel::input_index maps them to DH rows); it must have at least
+/// model.joint_count values (precondition; `model` must have passed validate()).
+Pose flange_pose(const RobotModel& model, std::span<const double> q_rad);
+
+/// Pose of the F/T sensor frame S in B: flange_pose · flange_sensor. Same preconditions.
+Pose sensor_pose(const RobotModel& model, std::span<const double> q_rad);
+
+}  // namespace zerog::robot

@@ -1,0 +1,85 @@
+#pragma once
+// The robot arm as zerog needs it (proto/robot_kinematics.md): a Denavit–Hartenberg chain of
+// revolute joints from the robot base frame B to the flange frame F, and the F/T sensor frame S
+// in F (the rig's `flange_sensor`, proto/frames.md). Any number of joints up to kMaxJoints
+// (a 6-axis KR 210 R2700 and a 7-axis LBR iiwa are both described in calib/robots/).
+//
+// A pure value type: no parsing here (the host reads it from TOML with
+// zerog/io/robot_toml.hpp), no allocation; validate() once at configuration.
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <string>
+
+namespace zerog::robot {
+
+/// Most joints a RobotModel can hold (fixed capacity: the cycle passes fixed-size values).
+inline constexpr int kMaxJoints = 8;
+
+/// Which DH convention the table is written in.
+///   dh  (standard, distal; Siciliano et al., Robotics, 2009, §2.8.2, eq. 2.52):
+///        T_{i−1,i} = Rz(θ_i) Tz(d_i) Tx(a_i) Rx(α_i)
+///   mdh (modified, proximal; Craig, Introduction to Robotics, 3rd ed., §3.4, eq. 3.6):
+///        T_{i−1,i} = Rx(α_{i−1}) Tx(a_{i−1}) Rz(θ_i) Tz(d_i)
+/// For mdh, row i holds a_{i−1} and α_{i−1} (the values written on joint i's row of Craig's
+/// table), so that each row is one joint either way.
+enum class DhConvention : std::uint8_t { dh, mdh };
+
+/// One revolute joint's row of the table. The joint angle q (rad, as the controller reports
+/// it) enters as θ_i = sign · q + theta_offset_rad.
+struct DhJoint {
+  double a_m = 0.0;               ///< link length, m
+  double alpha_rad = 0.0;         ///< link twist, rad
+  double d_m = 0.0;               ///< link offset, m
+  double theta_offset_rad = 0.0;  ///< θ_i at q = 0, rad
+  double sign = 1.0;              ///< +1 or −1: the controller's joint direction against z
+};
+
+/// A rigid transform: the pose of a child frame in a parent frame.
+struct FrameTransform {
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();  ///< child axes in parent (R_parent_child)
+  Eigen::Vector3d p_m = Eigen::Vector3d::Zero();    ///< child origin in parent, m
+};
+
+struct RobotModel {
+  DhConvention convention = DhConvention::dh;
+  int joint_count = 0;  ///< 1..kMaxJoints
+  std::array<DhJoint, kMaxJoints> joints{};
+  /// Joint order: DH row i takes the recorded joint value q[input_index[i]] (0-based column of
+  /// the recording's joint vector). A permutation of 0..joint_count−1; identity by default.
+  std::array<int, kMaxJoints> input_index{0, 1, 2, 3, 4, 5, 6, 7};
+  /// Flange frame F in the last DH frame (identity when the table ends at the flange).
+  FrameTransform last_flange;
+  /// F/T sensor frame S in the flange frame F (the rig's `flange_sensor`).
+  FrameTransform flange_sensor;
+};
+
+/// What validate() found wrong.
+enum class RobotError : std::uint8_t {
+  ok,
+  joint_count,  ///< joint_count outside 1..kMaxJoints
+  not_finite,   ///< a NaN or infinite number
+  sign,         ///< a joint sign that is not +1 or −1
+  joint_order,  ///< input_index is not a permutation of 0..joint_count−1
+  rotation,     ///< a rotation matrix that is not orthonormal with determinant +1 (1e-9)
+};
+
+/// Typed status: a code to branch on, the field it concerns and the joint (−1: none), and a
+/// sentence for a person.
+struct RobotStatus {
+  RobotError code = RobotError::ok;
+  std::string field;  ///< "joint_count", "joints[2].sign", "flange_sensor.R", …
+  int joint = -1;     ///< 0-based DH row, or −1
+  std::string message;
+  bool ok() const { return code == RobotError::ok; }
+};
+
+/// Checks a model before use. Configuration time: allocates the message.
+RobotStatus validate(const RobotModel& model);
+
+/// The KUKA KR 210 R2700 as calib/robots/kr210_r2700.robot.toml describes it (standard DH,
+/// KUKA's joint directions, joint order A1..A6), with `flange_sensor` as given. For tests and
+/// tools; the file is the source a rig should use.
+RobotModel kr210_r2700(const FrameTransform& flange_sensor = {});
+
+}  // namespace zerog::robot

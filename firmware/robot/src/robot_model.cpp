@@ -1,0 +1,74 @@
+#include "zerog/robot/robot_model.hpp"
+
+#include <Eigen/LU>
+#include <cmath>
+#include <numbers>
+#include <string>
+#include <utility>
+
+namespace zerog::robot {
+namespace {
+
+bool is_rotation(const Eigen::Matrix3d& R) {
+  return (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-9 &&
+         std::abs(R.determinant() - 1.0) < 1e-9;
+}
+
+RobotStatus fail(RobotError code, std::string field, int joint, std::string message) {
+  return {code, std::move(field), joint, std::move(message)};
+}
+
+}  // namespace
+
+RobotStatus validate(const RobotModel& model) {
+  if (model.joint_count < 1 || model.joint_count > kMaxJoints)
+    return fail(RobotError::joint_count, "joint_count", -1,
+                "a robot has 1 to " + std::to_string(kMaxJoints) + " joints, this one " +
+                    std::to_string(model.joint_count));
+  std::array<bool, kMaxJoints> used{};
+  for (int i = 0; i < model.joint_count; ++i) {
+    const DhJoint& j = model.joints[i];
+    // Messages are built on failure only: the check itself does not allocate.
+    const auto row = [i] { return "joints[" + std::to_string(i) + "]"; };
+    if (!std::isfinite(j.a_m) || !std::isfinite(j.alpha_rad) || !std::isfinite(j.d_m) ||
+        !std::isfinite(j.theta_offset_rad))
+      return fail(RobotError::not_finite, row(), i,
+                  row() + " has a value that is not a finite number");
+    if (j.sign != 1.0 && j.sign != -1.0)
+      return fail(RobotError::sign, row() + ".sign", i, row() + ".sign must be +1 or -1");
+    const int k = model.input_index[i];
+    if (k < 0 || k >= model.joint_count || used[k])
+      return fail(RobotError::joint_order, "input_index[" + std::to_string(i) + "]", i,
+                  "the joint order must name each of the " + std::to_string(model.joint_count) +
+                      " recorded joints once");
+    used[k] = true;
+  }
+  const std::pair<const FrameTransform*, const char*> frames[] = {
+      {&model.last_flange, "last_flange"}, {&model.flange_sensor, "flange_sensor"}};
+  for (const auto& [f, name] : frames) {
+    if (!f->R.allFinite() || !f->p_m.allFinite())
+      return fail(RobotError::not_finite, name, -1,
+                  std::string(name) + " has a value that is not a finite number");
+    if (!is_rotation(f->R))
+      return fail(RobotError::rotation, std::string(name) + ".R", -1,
+                  std::string(name) + " is not a rotation (orthonormal, determinant +1)");
+  }
+  return {};
+}
+
+RobotModel kr210_r2700(const FrameTransform& flange_sensor) {
+  constexpr double kHalfPi = std::numbers::pi / 2.0;
+  RobotModel m;
+  m.convention = DhConvention::dh;
+  m.joint_count = 6;
+  m.joints[0] = {0.350, -kHalfPi, 0.675, 0.0, -1.0};
+  m.joints[1] = {1.150, 0.0, 0.0, 0.0, 1.0};
+  m.joints[2] = {-0.041, -kHalfPi, 0.0, -kHalfPi, 1.0};
+  m.joints[3] = {0.0, kHalfPi, 1.200, 0.0, -1.0};
+  m.joints[4] = {0.0, -kHalfPi, 0.0, 0.0, 1.0};
+  m.joints[5] = {0.0, 0.0, 0.215, std::numbers::pi, -1.0};
+  m.flange_sensor = flange_sensor;
+  return m;
+}
+
+}  // namespace zerog::robot
