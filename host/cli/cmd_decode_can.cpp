@@ -1,6 +1,8 @@
-// zerog decode-can: recorded NETCANOEM traffic (candump -L) → an F/T recording in N and N·m.
+// zerog decode-can: recorded NETCANOEM traffic (candump text in any of its forms) → an F/T
+// recording in N and N·m.
 #include <cstdio>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "commands.hpp"
@@ -13,29 +15,52 @@ void add_decode_can_command(CLI::App& app) {
   struct Args {
     std::string log, out;
     int base_id = 0x20;
+    std::string timestamps = "auto";
+    std::optional<double> assume_rate_hz;
   };
   auto a = std::make_shared<Args>();
   CLI::App* s = app.add_subcommand(
       "decode-can",
-      "Decode a candump -L log of an ATI NETCANOEM F/T sensor into wrenches (N, N*m, sensor "
-      "frame). "
+      "Decode candump text of an ATI NETCANOEM F/T sensor's bus into wrenches (N, N*m, sensor "
+      "frame). Reads candump -L logs and candump's default output, with -ta, -tz, -td or -tA "
+      "timestamps or none (then give --assume-rate); the form is detected (proto/candump.md). "
       "The calibration comes from the start-up read-out recorded in the log; other traffic on the "
       "bus is ignored; critical and saturated samples are dropped and counted. Writes an F/T "
       "recording (t_s, Fx_N .. Mz_Nm, status) that zerog import merges with pose and IMU files.");
-  s->add_option("candump", a->log, "candump -L text log")->required()->check(CLI::ExistingFile);
+  s->add_option("candump", a->log, "candump text: -L log or default output (-ta/-tz/-td/-tA)")
+      ->required()
+      ->check(CLI::ExistingFile);
   s->add_option("-o,--out", a->out, "F/T recording to write (CSV, atomically)")->required();
   s->add_option("--base-id", a->base_id,
                 "The board's 7-bit CAN base id (CAN id = base << 4 | opcode)")
       ->check(CLI::Range(0, 0x7F))
       ->capture_default_str();
+  s->add_option("--timestamps", a->timestamps,
+                "How to read the timestamps: auto (detect), absolute (-L, -ta), zero (-tz), delta "
+                "(-td), date (-tA), none")
+      ->check(CLI::IsMember({"auto", "absolute", "zero", "delta", "date", "none"}))
+      ->capture_default_str();
+  s->add_option("--assume-rate", a->assume_rate_hz,
+                "Sample rate of the sensor, Hz, for a log without timestamps (candump's default "
+                "output): sample k gets t = k / HZ")
+      ->check(CLI::PositiveNumber);
   s->callback([a] {
     io::CanDecodeOptions o;
     o.base_id = static_cast<std::uint8_t>(a->base_id);
+    proto::parse_candump_clock(a->timestamps, o.clock);
+    o.assume_rate_hz = a->assume_rate_hz;
     const io::CanDecodeResult r = io::decode_netcanoem_log(a->log, o);
     io::write_ft_recording(r, a->out, {a->log});
     const auto& c = r.counters;
     std::printf("%zu frames: %zu usable samples written to %s\n", r.records, r.samples.size(),
                 a->out.c_str());
+    std::printf(
+        "format: %s; time: %s (%s)%s\n",
+        r.log.form == proto::CandumpForm::log ? "candump -L log file" : "candump default output",
+        proto::to_string(r.log.clock), r.log.clock_reason.c_str(),
+        r.time_assumed ? ", times assumed from --assume-rate (t = k / rate)" : "");
+    if (r.log.fd_frames > 0)
+      std::printf("%zu CAN FD frames skipped (the sensor speaks classical CAN)\n", r.log.fd_frames);
     std::printf("calibration: %s, serial '%s', counts per force %u, per torque %u%s\n",
                 r.calibration_from_log ? "read from the log" : "given",
                 r.calibration.serial_number.data(), r.calibration.counts_per_force,

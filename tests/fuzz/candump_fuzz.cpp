@@ -1,9 +1,10 @@
-// candump -L logs (firmware/proto candump.hpp), as `zerog decode-can` reads a user's recording.
+// candump text (firmware/proto candump.hpp: the -L log form and the default columns with every
+// timestamp form), as `zerog decode-can` reads a user's recording.
 // The parser reports errors as a CandumpError (line, column, reason) and never throws.
 //
 // Properties: the text and the stream overloads agree (same records, same error); an error names
 // a line of the input; every record formats back (format_candump_line) into a line that parses
-// to the same record.
+// to the same record (a CAN FD record without its payload, which the parser does not keep).
 #include <cstddef>
 #include <cstdint>
 #include <sstream>
@@ -22,7 +23,7 @@ namespace {
 
 bool same_record(const CandumpRecord& a, const CandumpRecord& b) {
   return a.timestamp_ns == b.timestamp_ns && a.interface == b.interface && a.frame == b.frame &&
-         a.direction == b.direction;
+         a.direction == b.direction && a.fd == b.fd;
 }
 
 }  // namespace

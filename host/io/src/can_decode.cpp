@@ -1,5 +1,6 @@
 #include "zerog/io/can_decode.hpp"
 
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <sstream>
@@ -66,13 +67,26 @@ CanDecodeResult decode_netcanoem_log(const std::filesystem::path& candump,
   if (!in) throw InputError(candump, 0, 0, "cannot open");
   std::vector<proto::CandumpRecord> records;
   proto::CandumpError error;
-  if (!proto::parse_candump(in, proto::CanFilter{}, records, error))
-    throw InputError(candump, error.line, error.column, error.reason);
-
   CanDecodeResult r;
+  if (!proto::parse_candump(in, proto::CanFilter{}, records, error, &r.log, o.clock))
+    throw InputError(candump, error.line, error.column, error.reason);
+  if (o.assume_rate_hz && !(*o.assume_rate_hz > 0.0 && std::isfinite(*o.assume_rate_hz)))
+    throw std::runtime_error("--assume-rate must be a positive rate in Hz");
+  if (r.log.clock == proto::CandumpClock::none && !records.empty() && !o.assume_rate_hz)
+    throw std::runtime_error(
+        candump.string() + ": the log has no timestamps (" + r.log.clock_reason +
+        "), so the wrenches would have no time. Give the sensor's sample rate with --assume-rate "
+        "HZ (each complete sample k gets t = k / HZ; gaps in the recording then shift the "
+        "times), or record again with timestamps: candump -L, or candump -ta");
+  if (r.log.clock != proto::CandumpClock::none && o.assume_rate_hz)
+    throw std::runtime_error(candump.string() + ": the log has timestamps (" + r.log.clock_reason +
+                             "): drop --assume-rate");
+  r.time_assumed = r.log.clock == proto::CandumpClock::none;
+
   r.records = records.size();
   CalibrationTracker tracker{o.base_id, {}, -1, {}, false};
-  for (const auto& rec : records) tracker.feed(rec.frame);
+  for (const auto& rec : records)
+    if (!rec.fd) tracker.feed(rec.frame);
   if (o.calibration) {
     r.calibration = *o.calibration;
   } else if (tracker.complete()) {
@@ -96,19 +110,24 @@ CanDecodeResult decode_netcanoem_log(const std::filesystem::path& candump,
                              std::to_string(r.calibration.torque_unit));
 
   nc::SampleAssembler assembler(o.base_id);
+  std::size_t complete = 0;  // complete samples, usable or not (the clock of assume_rate_hz)
   for (const auto& rec : records) {
+    if (rec.fd) continue;  // CAN FD traffic: counted in r.log.fd_frames
     if (nc::base_id_of(rec.frame.id) != o.base_id) {
       ++r.other_traffic;
       continue;
     }
     nc::GaugeSample g;
     if (assembler.feed(rec.frame, g) != nc::FeedResult::sample) continue;
+    const double t_s = r.time_assumed ? static_cast<double>(complete) / *o.assume_rate_hz
+                                      : static_cast<double>(rec.timestamp_ns) * 1e-9;
+    ++complete;
     if (!g.usable()) {
       ++r.unusable;
       continue;
     }
     const auto w = nc::gauges_to_wrench_si(r.calibration, g.gauges, o.bias_gauges);
-    r.samples.push_back({static_cast<double>(rec.timestamp_ns) * 1e-9, *w, g.status});
+    r.samples.push_back({t_s, *w, g.status});
   }
   r.counters = assembler.counters();
   return r;

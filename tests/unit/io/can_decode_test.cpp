@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -24,14 +25,29 @@ constexpr std::uint8_t kBase = 0x20;
 
 struct Recording {
   std::string text;
+  std::vector<proto::CandumpRecord> records;
   double t = 1700000000.0;
   void add(const proto::CanFrame& f, const char* iface = "can0") {
     proto::CandumpRecord r;
-    r.timestamp_ns = static_cast<std::int64_t>(t * 1e9);
+    r.timestamp_ns = std::llround(t * 1e6) * 1000;  // candump's stamps are whole microseconds
     r.interface = iface;
     r.frame = f;
     text += proto::format_candump_line(r) + "\n";
+    records.push_back(r);
     t += 0.0005;
+  }
+  // The same frames as candump prints them in its default output with timestamps `clock`.
+  std::string columns(proto::CandumpClock clock) const {
+    std::string out;
+    std::int64_t previous = records.front().timestamp_ns;
+    for (proto::CandumpRecord r : records) {
+      const std::int64_t absolute = r.timestamp_ns;
+      if (clock == proto::CandumpClock::zero) r.timestamp_ns = absolute - records[0].timestamp_ns;
+      if (clock == proto::CandumpClock::delta) r.timestamp_ns = absolute - previous;
+      previous = absolute;
+      out += proto::format_candump_columns(r, clock) + "\n";
+    }
+    return out;
   }
 };
 
@@ -137,6 +153,80 @@ TEST(DecodeCan, WithoutTheStartUpItAsksForACalibration) {
     FAIL() << "no error";
   } catch (const std::runtime_error& e) {
     EXPECT_THAT(e.what(), ::testing::HasSubstr("no complete calibration"));
+  }
+  fs::remove(log);
+}
+
+// The same bus traffic in every form candump writes decodes to the same samples: the same
+// wrenches, and the same times on each form's clock (-L, -ta, -tA since 1970; -tz, -td since
+// the first frame; no timestamps: k / --assume-rate).
+TEST(DecodeCan, EveryCandumpFormDecodesToTheSameSamples) {
+  const Fixture fx = make(true);
+  const fs::path reference_log = write_temp("ref.log", fx.rec.text);
+  const CanDecodeResult reference = decode_netcanoem_log(reference_log, {});
+  ASSERT_EQ(reference.samples.size(), fx.gauges.size());
+  EXPECT_EQ(reference.log.form, proto::CandumpForm::log);
+  EXPECT_EQ(reference.log.clock, proto::CandumpClock::absolute);
+  const double t_first_frame = static_cast<double>(fx.rec.records.front().timestamp_ns) * 1e-9;
+  struct Form {
+    const char* name;
+    proto::CandumpClock clock;
+    double t_offset_s;  // what the form's clock subtracts from the time since 1970
+  };
+  for (const Form& f :
+       {Form{"ta", proto::CandumpClock::absolute, 0.0}, Form{"tA", proto::CandumpClock::date, 0.0},
+        Form{"tz", proto::CandumpClock::zero, t_first_frame},
+        Form{"td", proto::CandumpClock::delta, t_first_frame},
+        Form{"none", proto::CandumpClock::none, 0.0}}) {
+    SCOPED_TRACE(f.name);
+    const fs::path log = write_temp(std::string(f.name) + ".log", fx.rec.columns(f.clock));
+    CanDecodeOptions o;
+    if (f.clock == proto::CandumpClock::none) {
+      // Without timestamps the wrenches would have no time: refused unless a rate is given.
+      try {
+        decode_netcanoem_log(log, o);
+        FAIL() << "no error";
+      } catch (const std::runtime_error& e) {
+        EXPECT_THAT(e.what(), ::testing::HasSubstr("no timestamps"));
+        EXPECT_THAT(e.what(), ::testing::HasSubstr("--assume-rate"));
+      }
+      o.assume_rate_hz = 500.0;
+    }
+    const CanDecodeResult r = decode_netcanoem_log(log, o);
+    EXPECT_EQ(r.log.form, proto::CandumpForm::columns);
+    EXPECT_EQ(r.log.clock, f.clock) << r.log.clock_reason;  // detected, not given
+    EXPECT_EQ(r.time_assumed, f.clock == proto::CandumpClock::none);
+    ASSERT_EQ(r.samples.size(), reference.samples.size());
+    EXPECT_EQ(r.other_traffic, reference.other_traffic);
+    EXPECT_EQ(r.unusable, reference.unusable);
+    for (std::size_t k = 0; k < r.samples.size(); ++k) {
+      EXPECT_EQ(r.samples[k].wrench, reference.samples[k].wrench) << k;
+      EXPECT_EQ(r.samples[k].status, reference.samples[k].status) << k;
+      const double t = f.clock == proto::CandumpClock::none
+                           ? static_cast<double>(k) / 500.0
+                           : reference.samples[k].t_s - f.t_offset_s;
+      EXPECT_NEAR(r.samples[k].t_s, t, 2e-6) << k;
+    }
+    fs::remove(log);
+  }
+  // A rate for a log that has times is refused too.
+  CanDecodeOptions o;
+  o.assume_rate_hz = 500.0;
+  EXPECT_THROW(decode_netcanoem_log(reference_log, o), std::runtime_error);
+  fs::remove(reference_log);
+}
+
+TEST(DecodeCan, ALineInAnotherFormIsNamedWithFileLineAndColumn) {
+  const fs::path log = write_temp(
+      "mixed.log", "  can0  201   [2]  01 02\n\n (1700000000.000000)  can0  201   [2]  01 02\n");
+  try {
+    decode_netcanoem_log(log, {});
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.line(), 3);
+    EXPECT_EQ(e.column(), 1);
+    EXPECT_THAT(e.what(), ::testing::HasSubstr(log.string()));
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("one form"));
   }
   fs::remove(log);
 }

@@ -1,8 +1,9 @@
 #pragma once
-// `zerog decode-can`: recorded CAN traffic (can-utils `candump -L` text) of an ATI NETCANOEM
-// F/T sensor → wrenches in N and N·m (proto/netcanoem.md). The calibration comes from the
-// start-up read-out recorded in the log (matrix rows, counts, units), or from a file.
-// Other traffic on the bus is ignored; every sample that cannot be used is counted.
+// `zerog decode-can`: recorded CAN traffic (can-utils candump text: the -L log-file form or the
+// default screen output, with or without -ta/-tz/-td/-tA timestamps; proto/candump.hpp) of an
+// ATI NETCANOEM F/T sensor → wrenches in N and N·m (proto/netcanoem.md). The calibration comes from
+// the start-up read-out recorded in the log (matrix rows, counts, units), or from a file. Other
+// traffic on the bus is ignored; every sample that cannot be used is counted.
 #include <array>
 #include <cstdint>
 #include <filesystem>
@@ -10,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "zerog/proto/candump.hpp"
 #include "zerog/proto/netcanoem.hpp"
 
 namespace zerog::io {
@@ -19,10 +21,17 @@ struct CanDecodeOptions {
   /// Use this calibration instead of the one recorded in the log.
   std::optional<proto::netcanoem::Calibration> calibration;
   std::array<double, proto::netcanoem::kGaugeCount> bias_gauges{};  ///< SG_bias, raw counts
+  /// How to read the log's timestamps (default: decided from the log).
+  proto::CandumpClock clock = proto::CandumpClock::automatic;
+  /// The sensor's sample rate, Hz, for a log without timestamps (candump's default output):
+  /// the k-th complete sample (usable or not) gets t = k / rate. Refused for a log with times.
+  std::optional<double> assume_rate_hz;
 };
 
 struct DecodedWrench {
-  double t_s = 0.0;                ///< candump timestamp of the second (0x1) response
+  /// Time of the second (0x1) response, s: on the log's clock (since 1970 for -L/-ta/-tA,
+  /// since the first frame for -tz/-td), or k / assume_rate_hz without timestamps.
+  double t_s = 0.0;
   std::array<double, 6> wrench{};  ///< Fx Fy Fz (N), Mx My Mz (N·m), sensor frame
   std::uint16_t status = 0;        ///< raw status word (non-critical bits may be set)
 };
@@ -34,11 +43,15 @@ struct CanDecodeResult {
   proto::netcanoem::AssemblerCounters counters;  ///< stray, wrong length, critical, saturated…
   std::size_t records = 0;                       ///< frames in the log
   std::size_t other_traffic = 0;                 ///< frames of other ids (ignored)
-  std::size_t unusable = 0;  ///< samples dropped: critical status or saturated gauge
+  std::size_t unusable = 0;   ///< samples dropped: critical status or saturated gauge
+  proto::CandumpLogInfo log;  ///< the log's form and clock (and why), frames, CAN FD frames
+  bool time_assumed = false;  ///< t_s from assume_rate_hz (the log has no time)
 };
 
-/// Decodes a candump log. Throws io::InputError (file, line, column) on a malformed line, and
-/// std::runtime_error when the log holds no complete calibration and none is given.
+/// Decodes a candump log. Throws io::InputError (file, line, column) on a malformed line or a
+/// line in another form than the log's first, and std::runtime_error when the log holds no
+/// complete calibration and none is given, or has no timestamps and no assume_rate_hz (or has
+/// timestamps and an assume_rate_hz). CAN FD frames are skipped (counted in `log.fd_frames`).
 CanDecodeResult decode_netcanoem_log(const std::filesystem::path& candump,
                                      const CanDecodeOptions& options);
 
