@@ -25,8 +25,10 @@ $SUDO apt-get install -y -qq --no-install-recommends "${packages[@]}"
 
 # The independent DDS subscriber of the telemetry tests: Python's cyclonedds from PyPI (its wheel
 # bundles its own Cyclone C library, so the wire types are checked against a second build).
+# `zerog import --bag` reads ROS 2 bags (sqlite3, MCAP) with PyPI's pure-Python rosbags (no ROS
+# installation; host/io/bag_to_csv.py).
 venv="$(cd "$(dirname "$0")/.." && pwd)/.venv"
-if ! "$venv/bin/python" -c 'import cyclonedds' 2>/dev/null; then
-  /usr/bin/python3 -m venv "$venv"
-  "$venv/bin/pip" install -q --disable-pip-version-check 'cyclonedds==11.0.1'
+if ! "$venv/bin/python" -c 'import cyclonedds, rosbags' 2>/dev/null; then
+  [ -x "$venv/bin/python" ] || /usr/bin/python3 -m venv "$venv"
+  "$venv/bin/pip" install -q --disable-pip-version-check 'cyclonedds==11.0.1' 'rosbags==0.11.9'
 fi

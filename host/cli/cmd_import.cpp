@@ -3,8 +3,10 @@
 #include <filesystem>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string>
 
+#include "bag_import.hpp"
 #include "commands.hpp"
 #include "zerog/io/import.hpp"
 #include "zerog/io/log.hpp"
@@ -18,13 +20,29 @@ struct ImportOptions {
   std::string out;
   std::string rig;
   bool dry_run = false;
+  BagTopics bag;        // --bag: a ROS 2 bag instead of a mapping (bag_import.hpp)
+  std::string bag_csv;  // keep the bag's CSV files and mapping here
 };
 
 void run_import(const ImportOptions& o) {
   if (o.out.empty() && !o.dry_run) throw CLI::RequiredError("--out (or --dry-run)");
   std::optional<std::filesystem::path> rig;
   if (!o.rig.empty()) rig = o.rig;
-  const io::ImportResult result = io::import_recordings(o.mapping, rig);
+  if (o.mapping.empty() == o.bag.bag.empty()) throw CLI::ValidationError("give --mapping or --bag");
+  std::optional<BagConversion> bag;
+  if (!o.bag.bag.empty()) bag.emplace(o.bag, o.bag_csv);
+  io::ImportResult result;
+  try {
+    result = io::import_recordings(bag ? bag->mapping() : std::filesystem::path(o.mapping), rig);
+  } catch (const std::runtime_error& e) {
+    if (!bag) throw;
+    // The files named in the message were made from the bag (and go with it).
+    throw std::runtime_error(
+        std::string(e.what()) + "\n(in the files made from the bag " + o.bag.bag +
+        ": --bag-csv DIR keeps them" +
+        (o.bag.tf.empty() ? "; the sensor's pose comes from --tf BASE:SENSOR" : "") + ")");
+  }
+  if (bag) result.inputs.push_back(o.bag.bag);
   if (!o.dry_run) io::write_log(result.log, o.out, result.inputs);
   std::fputs(result.report.summary().c_str(), stdout);
   if (o.dry_run) {
@@ -44,8 +62,23 @@ void add_import_command(CLI::App& app) {
       "Turn your own recordings (delimited text files, any rates and units) into a zerog log");
   cmd->add_option("-m,--mapping", options->mapping,
                   "mapping file (TOML), format in proto/import_mapping.md")
-      ->required()
       ->check(CLI::ExistingFile);
+  BagTopics& b = options->bag;
+  auto* bag = cmd->add_option("--bag", b.bag,
+                              "or: a ROS 2 bag (sqlite3 or MCAP directory), read with PyPI's "
+                              "rosbags (proto/ros2_bags.md)");
+  cmd->add_option("--wrench", b.wrench, "--bag: geometry_msgs/msg/WrenchStamped topic")->needs(bag);
+  cmd->add_option("--imu", b.imu, "--bag: sensor_msgs/msg/Imu topic")->needs(bag);
+  cmd->add_option("--joints", b.joints, "--bag: sensor_msgs/msg/JointState topic")->needs(bag);
+  cmd->add_option("--joint-names", b.joint_names,
+                  "--bag: the joints A1..A6 by name, comma-separated (default: the first six)")
+      ->needs(bag);
+  cmd->add_option("--tf", b.tf, "--bag: BASE:SENSOR, the sensor's pose from /tf and /tf_static")
+      ->needs(bag);
+  cmd->add_option("--bag-csv", options->bag_csv,
+                  "--bag: keep the CSV files and mapping.toml made from the bag in this directory")
+      ->needs(bag);
+  bag->excludes(cmd->get_option("--mapping"));
   cmd->add_option("-o,--out", options->out,
                   "output log NAME.csv; its rig NAME.rig.toml is written beside it. Both are "
                   "written atomically and never over an input file");
@@ -65,8 +98,16 @@ void add_import_command(CLI::App& app) {
       "the file, line and column. Format: proto/import_mapping.md.\n"
       "\n"
       "Example (calib/import_example/):\n"
-      "  zerog import --mapping calib/import_example/mapping.toml --out run.csv");
-  cmd->callback([options] { run_import(*options); });
+      "  zerog import --mapping calib/import_example/mapping.toml --out run.csv\n"
+      "\n"
+      "A ROS 2 bag (needs rosbags in .venv: scripts/install-deps.sh):\n"
+      "  zerog import --bag run_bag --wrench /ft --imu /imu --joints /joint_states \\\n"
+      "      --tf base_link:ft_sensor --rig my.rig.toml --out run.csv");
+  cmd->callback([options] {
+    if (!options->bag.bag.empty() && options->bag.wrench.empty())
+      throw CLI::RequiredError("--wrench (the WrenchStamped topic of --bag)");
+    run_import(*options);
+  });
 }
 
 }  // namespace zerog::cli
