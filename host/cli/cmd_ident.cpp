@@ -14,6 +14,7 @@
 #include "zerog/ident/compare.hpp"
 #include "zerog/ident/diagnose.hpp"
 #include "zerog/ident/fit.hpp"
+#include "zerog/ident/kinematics_sources.hpp"
 #include "zerog/io/effect_file.hpp"
 #include "zerog/io/log.hpp"
 #include "zerog/io/model_file.hpp"
@@ -110,7 +111,7 @@ std::string param_table(const model::ModelParams& p, const std::optional<ident::
 
 // A usable fit as a model file; an unusable one is refused, so nothing gets written.
 io::ModelFile fitted_model_file(const ident::FitResult& r, const io::Log& log,
-                                const std::string& log_path) {
+                                const std::string& log_path, const ident::Dataset& data) {
   if (!r.usable)
     throw std::runtime_error("the fit is not usable (" + r.termination + "); nothing written");
   io::ModelFile m;
@@ -120,6 +121,9 @@ io::ModelFile fitted_model_file(const ident::FitResult& r, const io::Log& log,
   m.rig_name = log.rig.name;
   m.extra["fit"] = fit_json(r);
   m.extra["fit"]["log"] = log_path;
+  // Which source (IMU, or the robot's joints or pose) fed which effect (proto/json_output.md).
+  m.extra["fit"]["kinematics_sources"] =
+      ident::kinematics_json(ident::kinematics_feeds(r.params.effects, data), data);
   return m;
 }
 
@@ -152,7 +156,7 @@ void run_fit(const Common& c, const std::string& effects, const std::string& out
   o.threads = c.threads;
   o.progress = progress(c);
   const ident::FitResult r = ident::fit(data, o);
-  const io::ModelFile m = fitted_model_file(r, log, c.log);
+  const io::ModelFile m = fitted_model_file(r, log, c.log, data);
   std::optional<io::ModelFile> truth;
   if (!truth_path.empty()) truth = io::read_model(truth_path);
   if (write_fitted_model(c, m, out, {c.log, io::rig_path_for(c.log)})) return;
@@ -164,6 +168,9 @@ void run_fit(const Common& c, const std::string& effects, const std::string& out
   std::printf("residual RMS: Fx %.3f  Fy %.3f  Fz %.3f N   Mx %.3f  My %.3f  Mz %.3f N*m\n",
               r.residual_rms[0], r.residual_rms[1], r.residual_rms[2], r.residual_rms[3],
               r.residual_rms[4], r.residual_rms[5]);
+  std::printf(
+      "%s",
+      ident::format_kinematics(ident::kinematics_feeds(r.params.effects, data), data).c_str());
   for (const auto& w : r.warnings)
     std::printf("warning (%s): %s\n", w.kind.c_str(), w.message.c_str());
   if (!out.empty()) std::printf("wrote %s\n", out.c_str());
@@ -190,7 +197,7 @@ void run_tool_change(const Common& c, const std::string& base_path, const std::s
   o.progress = progress(c);
   const ident::ToolChangeResult tc = ident::fit_tool_change(data, base.params, o);
   const ident::FitResult& r = tc.fit;
-  io::ModelFile m = fitted_model_file(r, log, c.log);
+  io::ModelFile m = fitted_model_file(r, log, c.log, data);
   std::optional<io::ModelFile> truth;
   if (!truth_path.empty()) truth = io::read_model(truth_path);
   // Frozen effects carry the base fit's values and so its standard deviations.
@@ -366,7 +373,7 @@ void add_ident_commands(CLI::App& app) {
     auto c = std::make_shared<Common>();
     auto model_path = std::make_shared<std::string>();
     auto effects = std::make_shared<std::string>();
-    auto block = std::make_shared<double>(60.0);
+    auto block = std::make_shared<double>(0.0);  // 0: chosen from the log
     auto no_discover = std::make_shared<bool>(false);
     auto candidates = std::make_shared<std::string>();
     auto discovered_out = std::make_shared<std::string>("discovered.toml");
@@ -389,8 +396,9 @@ void add_ident_commands(CLI::App& app) {
                   "Where to write a discovered law as an effect file (proto/user_effects.md)")
         ->capture_default_str();
     s->add_option("--block", *block,
-                  "Length of the held-out time blocks, s (every 4th block is held out)")
-        ->capture_default_str();
+                  "Length of the held-out time blocks, s (every 4th block is held out); default: "
+                  "60 s when the log holds 8 such blocks, else the log's length / 8 (at least "
+                  "0.5 s)");
     s->callback([=] {
       const io::Log log = io::read_log(c->log);
       const ident::Dataset data = ident::make_dataset(log);
@@ -440,7 +448,7 @@ void add_ident_commands(CLI::App& app) {
     auto c = std::make_shared<Common>();
     auto start = std::make_shared<std::string>(io::effect_list_string(model::kMinimalModel));
     auto min_gain = std::make_shared<double>(0.02);
-    auto block = std::make_shared<double>(60.0);
+    auto block = std::make_shared<double>(0.0);  // 0: chosen from the log
     auto out = std::make_shared<std::string>();
     auto truth = std::make_shared<std::string>();
     auto plot = std::make_shared<std::string>();
@@ -456,8 +464,9 @@ void add_ident_commands(CLI::App& app) {
     s->add_option("--min-gain", *min_gain,
                   "Smallest share of held-out error an effect must remove to be added")
         ->capture_default_str();
-    s->add_option("--block", *block, "Length of the held-out time blocks, s")
-        ->capture_default_str();
+    s->add_option("--block", *block,
+                  "Length of the held-out time blocks, s; default: 60 s when the log holds 8 "
+                  "such blocks, else the log's length / 8 (at least 0.5 s)");
     s->add_option("-o,--out", *out, "Write the ladder as JSON (for zerog report)");
     s->add_option("--truth", *truth,
                   "Truth model (from zerog sim): add the true-model reference and the sensor "
@@ -477,11 +486,14 @@ void add_ident_commands(CLI::App& app) {
       o.diagnose.fit.effects = spec.effects;
       o.diagnose.fit.user = spec.user;
       o.diagnose.user_candidates = user_candidates(*candidates);
+      const ident::BlockChoice split = ident::choose_blocks(data, *block);
+      if (o.diagnose.progress) o.diagnose.progress("ladder: held-out split: " + split.text);
       const auto steps = ident::ladder(data, o);
       nlohmann::json j = ident::to_json(steps);
+      j["split"] = ident::to_json(split);
       std::optional<ident::Floors> floors;
       if (!truth->empty()) {
-        const auto mask = ident::heldout_mask(data, *block);
+        const auto mask = ident::heldout_mask(data, split.block_s);
         floors = ident::floors(*truth, data, &mask);
       }
       j["version"] = 3;  // the floors' keys below, "made_for" (proto/json_output.md)
@@ -510,6 +522,7 @@ void add_ident_commands(CLI::App& app) {
         std::cout << j.dump(2) << "\n";
         return;
       }
+      std::printf("held-out split: %s\n", split.text.c_str());
       std::printf("%s", ident::format_ladder(steps).c_str());
       if (floors) std::printf("%s", ident::format_floors(*floors, "held-out").c_str());
       if (!out->empty()) std::printf("wrote %s\n", out->c_str());

@@ -134,7 +134,8 @@ void run_report(const ReportOptions& o) {
       for (int j = 1; j <= 6; ++j) csv << ",q" << j << "_rad";
       for (int j = 1; j <= 6; ++j) csv << ",qd" << j << "_radps";
     }
-    if (data.columns.imu) csv << ",omega_norm_radps,omega_dot_norm_radps2,accel_norm_mps2";
+    if (data.columns.angular_rate) csv << ",omega_norm_radps,omega_dot_norm_radps2";
+    if (data.columns.specific_force) csv << ",accel_norm_mps2";
     if (data.columns.temperature) csv << ",temp_C";
     csv << ",heldout\n";
     char buf[64];
@@ -155,12 +156,13 @@ void run_report(const ReportOptions& o) {
         for (int j = 0; j < 6; ++j) put(data.pose[i].joints_rad[j]);
         for (int j = 0; j < 6; ++j) put(data.joint_vel_radps[i][j]);
       }
-      if (data.columns.imu) {
-        const double* r = &data.imu[i * 9];
+      const double* r = &data.imu[i * 9];
+      if (data.columns.angular_rate) {
         put(Eigen::Map<const Eigen::Vector3d>(r + 3).norm());
         put(Eigen::Map<const Eigen::Vector3d>(r + 6).norm());
-        put(Eigen::Map<const Eigen::Vector3d>(r).norm() - model::kStandardGravity);
       }
+      if (data.columns.specific_force)
+        put(Eigen::Map<const Eigen::Vector3d>(r).norm() - model::kStandardGravity);
       if (data.columns.temperature) put(data.pose[i].temperature_C);
       csv << "," << int(heldout[i]) << "\n";
     }

@@ -40,8 +40,11 @@ bool same_sample(const io::Sample& a, const io::Sample& b, const io::Columns& co
     for (int j = 0; j < 6; ++j)
       if (!near(a.joints_rad[j], b.joints_rad[j], 1e-300, k9Digits)) return false;
   }
-  if (columns.imu && (!near_vec(a.specific_force_imu_mps2, b.specific_force_imu_mps2, k9Digits) ||
-                      !near_vec(a.angular_rate_imu_radps, b.angular_rate_imu_radps, k9Digits)))
+  if (columns.specific_force &&
+      !near_vec(a.specific_force_imu_mps2, b.specific_force_imu_mps2, k9Digits))
+    return false;
+  if (columns.angular_rate &&
+      !near_vec(a.angular_rate_imu_radps, b.angular_rate_imu_radps, k9Digits))
     return false;
   if (columns.temperature && !near(a.temperature_C, b.temperature_C, 1e-300, k9Digits))
     return false;

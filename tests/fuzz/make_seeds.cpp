@@ -162,6 +162,17 @@ void candump_seeds() {
       "\r\n"
       "(2.000000) can0 123#R4\n"
       "(3.123456789) can0 20000004#0000000000000000\n");
+  put("candump", "default_output",
+      "  can1  7F6   [1]  00\n"
+      "  can0  12345678   [2]  01 02\n"
+      "  can0       201   [0]  remote request\n"
+      "  can0  RX - -  123  [12]  00 11 22 33 44 55 66 77 88 99 AA BB\n"
+      "  can0  20000004   [8]  00 04 00 00 00 00 00 00   ERRORFRAME\n");
+  put("candump", "default_ta", " (1700000000.123456)  can0  201   [2]  AB CD\n");
+  put("candump", "default_td",
+      " (000.000000)  can0  201   [2]  AB CD\n (000.000700)  can0  201   [0] \n");
+  put("candump", "default_tA",
+      " (2023-11-14 22:13:20.123456)  can0  201   [4]  41 42 43 44   'ABCD'\n");
   proto::CandumpRecord r;
   r.timestamp_ns = 1700000000123456000;
   r.interface = "can0";
@@ -219,7 +230,7 @@ void io_seeds(const fs::path& source) {
   io::Log log;
   log.rig = rig;
   for (bool all : {true, false}) {
-    log.columns = {all, all, all};
+    log.columns = {.joints = all, .specific_force = all, .angular_rate = all, .temperature = all};
     log.samples.clear();
     for (int i = 0; i < 4; ++i) {
       io::Sample s;

@@ -18,6 +18,7 @@ Dataset make_dataset(const io::Log& log) {
   d.columns = log.columns;
   d.rig.R_sensor_imu = log.rig.sensor_imu.q.normalized().toRotationMatrix();
   d.rig.p_sensor_imu_m = log.rig.sensor_imu.p_m;
+  d.kinematics = log.rig.kinematics;
   d.dt_s = (log.samples.back().t_s - log.samples.front().t_s) / static_cast<double>(n - 1);
   d.t_s.resize(n);
   d.pose.resize(n);
@@ -31,7 +32,7 @@ Dataset make_dataset(const io::Log& log) {
     d.t_s[i] = s.t_s;
     model::PoseSignals& p = d.pose[i];
     p.R_base_sensor = s.q_base_sensor.normalized().toRotationMatrix();
-    p.t_rel_s = s.t_s - t0;
+    p.t_rel_s = log.columns.static_rows ? 0.0 : s.t_s - t0;
     p.temperature_C = log.columns.temperature ? s.temperature_C : model::kTemperatureReferenceC;
     p.joints_rad = s.joints_rad;
     d.measured[i] << s.force_sensor_N, s.torque_sensor_Nm;
@@ -41,14 +42,25 @@ Dataset make_dataset(const io::Log& log) {
       row[3 + k] = s.angular_rate_imu_radps[k];
     }
   }
+  // Rows without time are independent held poses: nothing is differenced across them, rates and
+  // accelerations not measured stay zero, and no row moves.
+  if (log.columns.static_rows) {
+    d.p_base_sensor_m.resize(n);
+    for (std::size_t i = 0; i < n; ++i) d.p_base_sensor_m[i] = log.samples[i].p_base_sensor_m;
+    d.v_base_sensor_mps.assign(n, Eigen::Vector3d::Zero());
+    d.joint_vel_central_radps.assign(n, {});
+    d.joint_acc_radps2.assign(n, {});
+    return d;
+  }
   // Angular acceleration: 5-point central differences (4th order), 3-point one row from the
   // ends, zero on the first and last row.
-  for (std::size_t i = 1; i + 1 < n; ++i) {
+  for (std::size_t i = 1; i + 1 < n && log.columns.angular_rate; ++i) {
     const int order = (i >= 2 && i + 2 < n) ? 4 : 2;
     Eigen::Map<Eigen::Vector3d>(&d.imu[i * 9 + 6]) =
         model::angular_accel_central(&d.imu[i * 9 + 3], 9, order, d.dt_s);
   }
-  // Motion: from the logged pose (always present). Speeds by differencing, dilated by 3 rows.
+  // Motion: from the logged pose (the orientation always, the position if logged). Speeds by
+  // differencing, dilated by 3 rows.
   std::vector<std::uint8_t> raw(n, 0);
   for (std::size_t i = 1; i < n; ++i) {
     const io::Sample& s0 = log.samples[i - 1];
@@ -127,7 +139,9 @@ std::vector<std::uint8_t> heldout_mask(const Dataset& data, double block_s, int 
   std::vector<std::uint8_t> mask(data.size(), 0);
   const double t0 = data.t_s.front();
   for (std::size_t i = 0; i < data.size(); ++i) {
-    const long block = static_cast<long>(std::floor((data.t_s[i] - t0) / block_s));
+    const long block = data.columns.static_rows
+                           ? static_cast<long>(i)
+                           : static_cast<long>(std::floor((data.t_s[i] - t0) / block_s));
     mask[i] = (block % every) == offset ? 1 : 0;
   }
   return mask;
@@ -136,18 +150,26 @@ std::vector<std::uint8_t> heldout_mask(const Dataset& data, double block_s, int 
 unsigned available_sources(const Dataset& data) {
   using model::SignalSource;
   auto bit = [](SignalSource s) { return 1u << static_cast<unsigned>(s); };
-  unsigned m = bit(SignalSource::position) | bit(SignalSource::pose) | bit(SignalSource::time);
+  unsigned m = bit(SignalSource::pose);
+  if (data.columns.position) m |= bit(SignalSource::position);
+  if (!data.columns.static_rows) m |= bit(SignalSource::time);
   if (data.columns.joints) m |= bit(SignalSource::joints);
-  if (data.columns.imu) m |= bit(SignalSource::imu);
+  // The dictionary's IMU signals combine specific force, rate and its derivative.
+  if (data.columns.full_imu() && !data.columns.static_rows) m |= bit(SignalSource::imu);
   if (data.columns.temperature) m |= bit(SignalSource::temperature);
   return m;
 }
 
 void check_signals(const model::UserEffects& user, const Dataset& data) {
   const unsigned have = available_sources(data);
-  static constexpr const char* kColumns[] = {"joint angles (q1_rad..q6_rad)", "sensor position",
-                                             "IMU columns (imu_f*, imu_w*)",  "sensor attitude",
-                                             "temperature (temp_C)",          "time"};
+  static constexpr const char* kColumns[] = {
+      "joint angles (q1_rad..q6_rad)",
+      "sensor position (px_m..pz_m; 'position' in the import mapping)",
+      "IMU columns (imu_f*_mps2, imu_w*_radps, with t_s; 'specific_force' and 'angular_rate' "
+      "in the import mapping)",
+      "sensor attitude",
+      "temperature (temp_C)",
+      "time (t_s; 'time' in the import mapping)"};
   for (int j = 0; j < user.num_terms; ++j) {
     const unsigned need = model::basis_sources(user.terms[static_cast<std::size_t>(j)].basis);
     for (unsigned s = 0; s < 6; ++s) {
@@ -162,11 +184,34 @@ void check_signals(const model::EffectSet& effects, const Dataset& data) {
   for (Effect e : model::kAllEffects) {
     if (!effects.has(e)) continue;
     const auto& ei = model::info(e);
-    const bool needs_imu = e == Effect::linear_inertia || e == Effect::rotational_inertia ||
-                           e == Effect::imu_time_offset;
-    if (needs_imu && !data.columns.imu)
-      throw std::runtime_error(std::string("effect '") + ei.name +
-                               "' needs IMU columns (imu_f*, imu_w*) that the log lacks");
+    const std::string effect = std::string("effect '") + ei.name + "' ";
+    const io::Columns& c = data.columns;
+    // linear_inertia: the accelerometer (a rate, if logged, adds the lever-arm terms).
+    if (e == Effect::linear_inertia && !c.specific_force)
+      throw std::runtime_error(
+          effect +
+          "needs the accelerometer columns imu_fx_mps2..imu_fz_mps2 that the log lacks (map "
+          "'specific_force' in the import, or derive it there with kinematics = \"auto\" from "
+          "the joints and the rig's robot, or from the pose with position)");
+    // rotational_inertia: the gyroscope and time, to differentiate it into ω̇.
+    if (e == Effect::rotational_inertia && !c.angular_rate)
+      throw std::runtime_error(
+          effect +
+          "needs the gyroscope columns imu_wx_radps..imu_wz_radps that the log lacks (map "
+          "'angular_rate' in the import, or derive it there with kinematics = \"auto\" from "
+          "the joints and the rig's robot, or from the orientation)");
+    if (e == Effect::rotational_inertia && c.static_rows)
+      throw std::runtime_error(effect +
+                               "needs angular acceleration, which rows without time (static "
+                               "samples) do not give: log time (t_s) while the payload moves");
+    if (e == Effect::imu_time_offset && !c.any_imu())
+      throw std::runtime_error(effect +
+                               "needs IMU columns (imu_f*_mps2 or imu_w*_radps) that the log "
+                               "lacks (map 'specific_force' or 'angular_rate' in the import)");
+    if ((e == Effect::imu_time_offset || e == Effect::bias_drift) && c.static_rows)
+      throw std::runtime_error(effect +
+                               "needs time (t_s), which this log of static rows lacks (map "
+                               "'time' in the import)");
     if (e == Effect::temperature_bias && !data.columns.temperature)
       throw std::runtime_error(
           "effect 'temperature_bias' needs the temp_C column that the log lacks");

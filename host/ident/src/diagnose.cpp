@@ -58,25 +58,110 @@ std::array<double, 6> noise_estimate(const std::vector<Wrench>& res,
   return out;
 }
 
+std::string fmt(const char* f, double a) {
+  char b[64];
+  std::snprintf(b, sizeof b, f, a);
+  return b;
+}
+
 struct Split {
   std::vector<std::uint8_t> heldout, train;
+  BlockChoice blocks;
 };
+
+struct SplitCount {
+  std::size_t heldout = 0, train = 0;
+};
+
+SplitCount count_split(const Dataset& data, double block_s, int every, int offset,
+                       const std::vector<std::uint8_t>* exclude) {
+  const auto mask = heldout_mask(data, block_s, every, offset);
+  SplitCount n;
+  for (std::size_t i = 0; i < mask.size(); ++i) {
+    if (exclude && (*exclude)[i]) continue;
+    (mask[i] ? n.heldout : n.train) += 1;
+  }
+  return n;
+}
+
+BlockChoice choose_blocks_excluding(const Dataset& data, double block_s, int every, int offset,
+                                    const std::vector<std::uint8_t>* exclude) {
+  BlockChoice c;
+  const double duration = data.size() > 1 ? data.t_s.back() - data.t_s.front() : 0.0;
+  const std::string log_words =
+      std::to_string(data.size()) + " samples over " + fmt("%.1f", duration) + " s";
+  const int keep = every > 0 ? every : 4;
+  if (data.columns.static_rows) {
+    c.block_s = 0.0;
+    c.blocks = static_cast<int>(data.size());
+    c.text = "rows without time: each row is its own block (every " + std::to_string(keep) +
+             "th row held out)";
+  } else if (block_s > 0.0) {
+    c.block_s = block_s;
+    c.automatic = false;
+  } else if (duration >= kMinBlocks * kDefaultBlockS) {
+    c.block_s = kDefaultBlockS;
+  } else if (duration >= kMinBlocks * kMinBlockS) {
+    // A hair longer than duration / 8, so that the last sample falls in block 8, not a 9th.
+    c.block_s = duration / kMinBlocks * (1.0 + 1e-9);
+  } else {
+    throw std::runtime_error(
+        "log too short for a time-blocked held-out split (" + log_words + "): it needs at least " +
+        std::to_string(kMinBlocks) + " blocks of at least " + fmt("%.1f", kMinBlockS) +
+        " s, i.e. " + fmt("%.0f", kMinBlocks * kMinBlockS) + " s of recording with at least " +
+        std::to_string(kMinSplitSamples) +
+        " samples held out; record longer, or import the poses as rows without time (static "
+        "samples, one block each)");
+  }
+  if (!data.columns.static_rows) c.blocks = static_cast<int>(std::floor(duration / c.block_s)) + 1;
+  const SplitCount n = count_split(data, c.block_s, keep, offset, exclude);
+  c.heldout_samples = n.heldout;
+  c.training_samples = n.train;
+  if (n.heldout < kMinSplitSamples || n.train < kMinSplitSamples) {
+    // What would work: the longest block that still gives both sides enough samples.
+    std::string hint = "record longer";
+    if (!data.columns.static_rows) {
+      for (double b = std::min(block_s > 0 ? block_s : kDefaultBlockS, duration / 2);
+           b >= kMinBlockS * 0.999; b *= 0.9) {
+        const SplitCount m = count_split(data, b, keep, offset, exclude);
+        if (m.heldout >= kMinSplitSamples && m.train >= kMinSplitSamples) {
+          hint = "use --block " + fmt("%.3g", b) + " or shorter (or omit --block: zerog chooses)";
+          break;
+        }
+      }
+    }
+    throw std::runtime_error("log too short for a time-blocked held-out split (" + log_words +
+                             ", " +
+                             (c.block_s > 0 ? "blocks of " + fmt("%.3g", c.block_s) + " s"
+                                            : std::string("one row each")) +
+                             ": " + std::to_string(n.heldout) + " held-out and " +
+                             std::to_string(n.train) + " training samples, at least " +
+                             std::to_string(kMinSplitSamples) + " each are needed): " + hint);
+  }
+  if (c.text.empty()) {
+    c.text = "blocks of " + fmt("%.3g", c.block_s) + " s (" + std::to_string(c.blocks) +
+             " blocks in " + fmt("%.1f", duration) + " s, every " + std::to_string(keep) +
+             "th held out: " + std::to_string(n.heldout) + " held-out samples); " +
+             (c.automatic ? (c.block_s == kDefaultBlockS
+                                 ? std::string("the default")
+                                 : "chosen for this short log (" + std::to_string(kMinBlocks) +
+                                       " blocks; 60 s needs a log of " +
+                                       fmt("%.0f", kMinBlocks * kDefaultBlockS) + " s)")
+                          : std::string("given with --block"));
+  }
+  return c;
+}
 
 Split make_split(const Dataset& data, const DiagnoseOptions& o) {
   Split s;
-  s.heldout = heldout_mask(data, o.block_s, o.every, o.heldout_offset);
+  s.blocks = choose_blocks_excluding(data, o.block_s, o.every, o.heldout_offset, o.exclude);
+  s.heldout = heldout_mask(data, s.blocks.block_s, o.every, o.heldout_offset);
   s.train = invert(s.heldout);
   if (o.exclude) {
     for (std::size_t i = 0; i < data.size(); ++i) {
       if ((*o.exclude)[i]) s.heldout[i] = 0, s.train[i] = 0;
     }
   }
-  const std::size_t nh = std::count(s.heldout.begin(), s.heldout.end(), 1);
-  const std::size_t nt = std::count(s.train.begin(), s.train.end(), 1);
-  if (nh < 100 || nt < 100)
-    throw std::runtime_error("log too short for a time-blocked held-out split (" +
-                             std::to_string(data.size()) + " samples, blocks of " +
-                             std::to_string(o.block_s) + " s): record longer or use --block");
   return s;
 }
 
@@ -212,7 +297,8 @@ std::vector<Feature> features(const Dataset& data) {
     for (std::size_t i = 0; i < n; ++i) x.v[i] = fn(i);
     f.push_back(std::move(x));
   };
-  add("time since start", [&](std::size_t i) { return data.pose[i].t_rel_s; });
+  if (!data.columns.static_rows)
+    add("time since start", [&](std::size_t i) { return data.pose[i].t_rel_s; });
   if (data.columns.temperature)
     add("sensor temperature", [&](std::size_t i) { return data.pose[i].temperature_C; });
   if (data.columns.joints) {
@@ -222,6 +308,7 @@ std::vector<Feature> features(const Dataset& data) {
           [&, j](std::size_t i) { return std::sin(data.pose[i].joints_rad[j]); });
       add(a + " angle (cosine)",
           [&, j](std::size_t i) { return std::cos(data.pose[i].joints_rad[j]); });
+      if (data.columns.static_rows) continue;  // held poses: no velocities
       add(a + " velocity", [&, j](std::size_t i) { return data.joint_vel_radps[i][j]; });
       add(a + " velocity direction (sign)", [&, j](std::size_t i) {
         const double v = data.joint_vel_radps[i][j];
@@ -229,19 +316,24 @@ std::vector<Feature> features(const Dataset& data) {
       });
     }
   }
-  if (data.columns.imu) {
+  if (data.columns.any_imu()) {
     const char* ax = "xyz";
     for (int k = 0; k < 3; ++k) {
-      add(std::string("angular rate about IMU ") + ax[k],
-          [&, k](std::size_t i) { return data.imu[i * 9 + 3 + k]; });
-      add(std::string("angular acceleration about IMU ") + ax[k],
-          [&, k](std::size_t i) { return data.imu[i * 9 + 6 + k]; });
-      add(std::string("specific force along IMU ") + ax[k],
-          [&, k](std::size_t i) { return data.imu[i * 9 + k]; });
+      if (data.columns.angular_rate) {
+        add(std::string("angular rate about IMU ") + ax[k],
+            [&, k](std::size_t i) { return data.imu[i * 9 + 3 + k]; });
+        if (!data.columns.static_rows)
+          add(std::string("angular acceleration about IMU ") + ax[k],
+              [&, k](std::size_t i) { return data.imu[i * 9 + 6 + k]; });
+      }
+      if (data.columns.specific_force)
+        add(std::string("specific force along IMU ") + ax[k],
+            [&, k](std::size_t i) { return data.imu[i * 9 + k]; });
     }
-    add("squared angular rate", [&](std::size_t i) {
-      return Eigen::Map<const Eigen::Vector3d>(&data.imu[i * 9 + 3]).squaredNorm();
-    });
+    if (data.columns.angular_rate)
+      add("squared angular rate", [&](std::size_t i) {
+        return Eigen::Map<const Eigen::Vector3d>(&data.imu[i * 9 + 3]).squaredNorm();
+      });
   }
   for (int k = 0; k < 3; ++k) {
     const char* ax = "xyz";
@@ -274,12 +366,6 @@ std::vector<SignalCorrelation> correlate(const Dataset& data, const std::vector<
   });
   if (out.size() > 8) out.resize(8);
   return out;
-}
-
-std::string fmt(const char* f, double a) {
-  char b[64];
-  std::snprintf(b, sizeof b, f, a);
-  return b;
 }
 
 std::string param_summary(const Candidate& c) {
@@ -669,7 +755,12 @@ std::vector<Effect> candidate_effects(const model::EffectSet& m, const Dataset& 
 Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
   Diagnosis d;
   d.model = o.fit.effects;
+  d.kinematics = kinematics_feeds(d.model, data);
+  d.kinematics_json = kinematics_json(d.kinematics, data);
+  d.kinematics_text = format_kinematics(d.kinematics, data);
   const Split split = make_split(data, o);
+  d.split = split.blocks;
+  if (o.progress) o.progress("diagnose: held-out split: " + split.blocks.text);
   if (o.progress)
     o.progress("diagnose: fitting " + io::effect_list_string(d.model) + " on the training blocks");
   Baseline base = fit_baseline(data, d.model, o.fit.user, split, o, o.fit.initial);
@@ -857,10 +948,25 @@ nlohmann::json names(const model::EffectSet& s, const model::UserEffects& user =
 }
 }  // namespace
 
+BlockChoice choose_blocks(const Dataset& data, double block_s, int every, int offset) {
+  return choose_blocks_excluding(data, block_s, every, offset, nullptr);
+}
+
+nlohmann::json to_json(const BlockChoice& b) {
+  return {{"block_s", b.block_s},
+          {"blocks", b.blocks},
+          {"chosen", b.automatic ? "auto" : "given"},
+          {"heldout_samples", b.heldout_samples},
+          {"training_samples", b.training_samples},
+          {"text", b.text}};
+}
+
 nlohmann::json to_json(const Diagnosis& d) {
   nlohmann::json j;
   j["kind"] = "zerog-diagnosis";
   j["version"] = 1;
+  j["split"] = to_json(d.split);
+  j["kinematics_sources"] = d.kinematics_json;
   j["model"] = names(d.model, d.baseline.params.user);
   j["baseline"] = heldout_json(d.baseline_heldout);
   j["noise_rms"] = d.noise_rms;
@@ -949,6 +1055,8 @@ nlohmann::json to_json(const std::vector<LadderStep>& steps) {
 std::string format_diagnosis(const Diagnosis& d) {
   std::ostringstream os;
   os << "model: " << io::effect_list_string(d.model) << "\n";
+  os << "held-out split: " << d.split.text << "\n";
+  os << d.kinematics_text;
   os << "held-out error: force RMS " << fmt("%.3f", d.baseline_heldout.stats.force_rms)
      << " N, torque RMS " << fmt("%.3f", d.baseline_heldout.stats.torque_rms)
      << " N*m; white-noise estimate force "

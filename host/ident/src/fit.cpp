@@ -361,7 +361,9 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
   // Whitening: per-axis noise of the block residuals. Estimated before solving from the
   // scatter of consecutive block means inside dwells (there the residual of any model is a
   // constant plus noise), so one solve suffices; without dwells, a second pass reweights.
-  const auto blocks_of_samples = make_blocks(data, o, std::max(1, o.block_samples));
+  // Static rows (no time) are independent poses: each row is a block of its own.
+  const int block_samples = data.columns.static_rows ? 1 : std::max(1, o.block_samples);
+  const auto blocks_of_samples = make_blocks(data, o, block_samples);
   // User terms are linear: each block's mean design (6 × num_user) is computed once.
   std::vector<double> user_design(blocks_of_samples.size() * 6 *
                                   static_cast<std::size_t>(num_user));
@@ -380,7 +382,10 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
   }
   int passes = 1;
   if (!o.sigma) {
-    const auto est = static_noise_of_block_means(data, r.params, blocks_of_samples);
+    // Consecutive static rows are different poses, not one dwell: no noise estimate from them.
+    const auto est = data.columns.static_rows
+                         ? std::nullopt
+                         : static_noise_of_block_means(data, r.params, blocks_of_samples);
     if (est) {
       sigma = *est;
     } else {
@@ -429,7 +434,7 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
     if (o.progress) {
       o.progress("fit pass " + std::to_string(pass + 1) + "/" + std::to_string(passes) + ": " +
                  std::to_string(problem->NumResidualBlocks()) + " blocks of " +
-                 std::to_string(o.block_samples) + " samples, " + std::to_string(r.num_params) +
+                 std::to_string(block_samples) + " samples, " + std::to_string(r.num_params) +
                  " parameters");
       cb = std::make_unique<ProgressCallback>(o.progress);
       so.callbacks.push_back(cb.get());
@@ -623,7 +628,11 @@ ToolChangeResult fit_tool_change(const Dataset& data, const model::ModelParams& 
       scatter += u * u.transpose();
       continue;
     }
-    if (run >= static_cast<std::size_t>(std::max(1, opt.block_samples))) ++out.dwells;
+    // Every static row (no time) is a pose of its own.
+    if (data.columns.static_rows)
+      out.dwells += run;
+    else if (run >= static_cast<std::size_t>(std::max(1, opt.block_samples)))
+      ++out.dwells;
     run = 0;
   }
   if (out.static_samples == 0)

@@ -11,8 +11,10 @@
 
 #include "csv_scan.hpp"
 #include "toml_table.hpp"
+#include "zerog/io/robot_toml.hpp"
 #include "zerog/model/effects.hpp"
 #include "zerog/model/rotation.hpp"
+#include "zerog/robot/derive_kinematics.hpp"
 
 namespace zerog::io {
 
@@ -39,6 +41,11 @@ enum class Quantity : int {
 constexpr int kQuantityCount = 8;
 
 enum class Orientation { quaternion, matrix, kuka_abc };
+
+/// The axes a vector quantity's columns are written in: its own frame (S for force and torque,
+/// I for the IMU), the robot base B (rotated into S or I per row with the row's orientation), or
+/// a fixed frame D given by its rotation in the own frame.
+enum class VectorFrame { own, base, fixed };
 
 struct Unit {
   std::string_view name;
@@ -108,7 +115,8 @@ std::string where_text(const fs::path& file, const toml::source_region& where) {
 // The mapping, read.
 
 struct ColumnRef {
-  std::string name;           ///< header name in the data file
+  std::string name;           ///< header name in the data file ("column N" if by number)
+  int number = 0;             ///< 1-based column number if the mapping gives a number
   toml::source_region where;  ///< where the mapping names it
   std::string key;            ///< mapping key naming it, e.g. "files.ft.force"
   int cell = -1;              ///< resolved cell index in the data file
@@ -121,7 +129,10 @@ struct QuantitySpec {
   double scale = 1.0;
   double offset = 0.0;
   Orientation orientation = Orientation::quaternion;
+  VectorFrame frame = VectorFrame::own;
+  Eigen::Matrix3d R_own_fixed = Eigen::Matrix3d::Identity();  ///< VectorFrame::fixed: D in own
   toml::source_region where;
+  toml::source_region frame_where;
 };
 
 struct FileSpec {
@@ -132,11 +143,14 @@ struct FileSpec {
   char decimal = '.';
   std::string comment = "#";
   int skip_lines = 0;
+  bool header = true;    ///< the first data line names the columns
+  bool has_time = true;  ///< a time column is mapped (else rows are static samples)
+  toml::source_region where;
   std::string time_unit;
   double time_scale = 1.0;
   double time_offset_s = 0.0;
   double max_gap_s = std::numeric_limits<double>::infinity();
-  std::vector<ColumnRef> refs;  ///< refs[0] is the time column
+  std::vector<ColumnRef> refs;  ///< refs[0] is the time column if has_time
   std::vector<QuantitySpec> quantities;
 };
 
@@ -146,6 +160,11 @@ struct Mapping {
   std::optional<Rig> rig;      ///< from the [rig] table
   bool rig_has_period = true;  ///< the [rig] table gave sample_period_s
   std::optional<fs::path> rig_file;
+  /// `kinematics`: where ω, ω̇ and the specific force come from (proto/import_mapping.md).
+  robot::KinematicsMode kinematics = robot::KinematicsMode::imu;
+  std::string kinematics_text = "imu";
+  toml::source_region kinematics_where;
+  double kinematics_bandwidth_hz = 5.0;  ///< the differentiator's bandwidth (choose_sg_window)
 };
 
 const Unit& find_unit(const TomlTable& t, const std::vector<Unit>& units) {
@@ -158,12 +177,81 @@ const Unit& find_unit(const TomlTable& t, const std::vector<Unit>& units) {
                unit_list(units) + ")");
 }
 
-void add_ref(FileSpec& file, const TomlTable& t, std::string_view key, std::string name) {
+// One column of the data file named by `node` (an element of `key` or its value): a header name
+// (string) or a 1-based column number (integer); only numbers when the file has no header.
+void add_ref(FileSpec& file, const TomlTable& t, std::string_view key, const toml::node& node) {
   ColumnRef ref;
-  ref.name = std::move(name);
-  ref.where = t.require(key).source();
+  ref.where = node.source();
   ref.key = t.name(key);
+  if (node.is_integer()) {
+    const std::int64_t n = *node.value<std::int64_t>();
+    if (n < 1 || n > 100000) {
+      throw_at(t.file(), node.source(),
+               "'" + t.name(key) + "': column number " + std::to_string(n) +
+                   " is out of range (columns are counted from 1)");
+    }
+    ref.number = static_cast<int>(n);
+    ref.name = "column " + std::to_string(n);
+  } else if (node.is_string()) {
+    if (!file.header) {
+      throw_at(t.file(), node.source(),
+               "'" + t.name(key) + "' names column '" +
+                   std::string(*node.value<std::string_view>()) + "', but files." + file.name +
+                   " has header = false: give the 1-based column number instead, e.g. 2");
+    }
+    ref.name = *node.value<std::string_view>();
+  } else {
+    throw_at(t.file(), node.source(),
+             "'" + t.name(key) +
+                 "' must name a column: its header name (a string) or its 1-based number");
+  }
   file.refs.push_back(std::move(ref));
+}
+
+// `count` columns listed under `key`, by header name or 1-based number.
+void add_refs(FileSpec& file, const TomlTable& t, std::string_view key, std::size_t count) {
+  const toml::node& node = t.require(key);
+  const toml::array* array = node.as_array();
+  if (array == nullptr || array->size() != count) {
+    throw_at(t.file(), node.source(),
+             "'" + t.name(key) + "' must be a list of " + std::to_string(count) +
+                 " columns (header names, or 1-based column numbers)");
+  }
+  for (const toml::node& element : *array) add_ref(file, t, key, element);
+}
+
+bool is_vector(Quantity q) {
+  return q == Quantity::force || q == Quantity::torque || q == Quantity::specific_force ||
+         q == Quantity::angular_rate;
+}
+
+// The optional `frame` of a vector quantity: "sensor"/"imu" (its own frame), "base", or
+// { q_wxyz = [w, x, y, z] } (a fixed frame D: its axes in the own frame).
+void read_frame(QuantitySpec& q, const TomlTable& t) {
+  const toml::node* node = t.find("frame");
+  if (node == nullptr) return;
+  q.frame_where = node->source();
+  const bool imu = q.what == Quantity::specific_force || q.what == Quantity::angular_rate;
+  const std::string own = imu ? "imu" : "sensor";
+  if (node->is_string()) {
+    const std::string f = t.string("frame");
+    if (f == own) return;
+    if (f == "base") {
+      q.frame = VectorFrame::base;
+      return;
+    }
+    throw_at(t.file(), node->source(),
+             "'" + t.name("frame") + "' must be \"" + own + "\" (the default), \"base\" or " +
+                 "{ q_wxyz = [w, x, y, z] } (a fixed frame's axes in the " +
+                 (imu ? "IMU" : "sensor") + " frame), is \"" + f + "\"");
+  }
+  const TomlTable ft(t.table("frame"), t.file(), t.name("frame") + ".", {"q_wxyz"});
+  const auto v = ft.numbers("q_wxyz", 4);
+  const Eigen::Quaterniond quat(v[0], v[1], v[2], v[3]);
+  if (std::abs(quat.norm() - 1.0) > 1e-3)
+    ft.fail("q_wxyz", "has norm " + num(quat.norm()) + ", off from 1 by more than 1e-3");
+  q.frame = VectorFrame::fixed;
+  q.R_own_fixed = quat.normalized().toRotationMatrix();
 }
 
 void read_quantity(FileSpec& file, Quantity what, const TomlTable& parent) {
@@ -180,7 +268,7 @@ void read_quantity(FileSpec& file, Quantity what, const TomlTable& parent) {
   q.first_ref = static_cast<int>(file.refs.size());
   if (what == Quantity::temperature) {
     const TomlTable t(*node.as_table(), parent.file(), prefix, {"column", "unit"});
-    add_ref(file, t, "column", t.string("column"));
+    add_ref(file, t, "column", t.require("column"));
     const Unit& u = find_unit(t, qi.units);
     q.scale = u.scale;
     q.offset = u.offset;
@@ -196,15 +284,17 @@ void read_quantity(FileSpec& file, Quantity what, const TomlTable& parent) {
         throw_at(t.file(), t.require("order").source(),
                  "'" + t.name("order") + "' must be \"wxyz\" or \"xyzw\"");
       }
-      auto names = t.strings("columns", 4);
-      if (order == "xyzw") std::rotate(names.begin(), names.begin() + 3, names.end());
-      for (auto& n : names) add_ref(file, t, "columns", n);
+      add_refs(file, t, "columns", 4);
+      if (order == "xyzw") {
+        const auto first = file.refs.begin() + q.first_ref;
+        std::rotate(first, first + 3, first + 4);
+      }
     } else if (type == "matrix") {
       q.orientation = Orientation::matrix;
-      for (auto& n : t.strings("columns", 9)) add_ref(file, t, "columns", n);
+      add_refs(file, t, "columns", 9);
     } else if (type == "kuka_abc") {
       q.orientation = Orientation::kuka_abc;
-      for (auto& n : t.strings("columns", 3)) add_ref(file, t, "columns", n);
+      add_refs(file, t, "columns", 3);
       q.scale = find_unit(t, qi.units).scale;
     } else {
       throw_at(t.file(), type_where,
@@ -219,10 +309,11 @@ void read_quantity(FileSpec& file, Quantity what, const TomlTable& parent) {
                "'" + t.name("order") + "' applies to type = \"quaternion\" only");
     }
   } else {
-    const TomlTable t(*node.as_table(), parent.file(), prefix, {"columns", "unit"});
-    for (auto& n : t.strings("columns", static_cast<std::size_t>(qi.width))) {
-      add_ref(file, t, "columns", n);
-    }
+    std::vector<std::string_view> keys = {"columns", "unit"};
+    if (is_vector(what)) keys.push_back("frame");
+    const TomlTable t(*node.as_table(), parent.file(), prefix, keys);
+    add_refs(file, t, "columns", static_cast<std::size_t>(qi.width));
+    read_frame(q, t);
     const Unit& u = find_unit(t, qi.units);
     q.scale = u.scale;
     q.offset = u.offset;
@@ -232,26 +323,33 @@ void read_quantity(FileSpec& file, Quantity what, const TomlTable& parent) {
 }
 
 char read_delimiter(const TomlTable& t) {
-  const std::string d = t.optional_string("delimiter", "comma");
+  const std::string given = t.optional_string("delimiter", "comma");
+  // Blanks around a separator (", ", " ; ") are the same separator: cells are trimmed anyway.
+  const std::string_view core = detail::trim(given);
+  const std::string d = core.empty() && !given.empty() ? std::string(" ") : std::string(core);
   if (d == "comma" || d == ",") return ',';
   if (d == "semicolon" || d == ";") return ';';
   if (d == "tab" || d == "\t") return '\t';
   if (d == "whitespace" || d == " ") return ' ';
   throw_at(t.file(), t.require("delimiter").source(),
            "'" + t.name("delimiter") +
-               "' must be \"comma\", \"semicolon\", \"tab\" or \"whitespace\", is \"" + d + "\"");
+               "' must be \"comma\", \"semicolon\", \"tab\" or \"whitespace\" (or \",\", \";\", " +
+               "blanks around them allowed), is \"" + given + "\"");
 }
 
 FileSpec read_file_spec(const std::string& name, const toml::node& node, const fs::path& mapping) {
   const std::string prefix = "files." + name + ".";
   if (!node.is_table()) throw_at(mapping, node.source(), "'files." + name + "' must be a table");
-  std::vector<std::string_view> known = {"path",       "delimiter", "decimal",       "comment",
-                                         "skip_lines", "time",      "time_offset_s", "max_gap_s"};
+  std::vector<std::string_view> known = {"path",    "delimiter",     "decimal",
+                                         "comment", "skip_lines",    "header",
+                                         "time",    "time_offset_s", "max_gap_s"};
   for (const auto& qi : quantity_infos()) known.push_back(qi.key);
   const TomlTable t(*node.as_table(), mapping, prefix, known);
 
   FileSpec file;
   file.name = name;
+  file.where = node.source();
+  file.header = t.optional_boolean("header", true);
   fs::path path = t.string("path");
   file.path = path.is_absolute() ? path : mapping.parent_path() / path;
   file.path_where = t.require("path").source();
@@ -274,16 +372,26 @@ FileSpec read_file_spec(const std::string& name, const toml::node& node, const f
     file.skip_lines = static_cast<int>(n);
   }
 
-  const toml::node& time_node = t.require("time");
-  if (!time_node.is_table()) {
-    throw_at(mapping, time_node.source(),
-             "'" + t.name("time") + "' must be a table, e.g. { column = \"t\", unit = \"s\" }");
+  const toml::node* time_node = t.find("time");
+  file.has_time = time_node != nullptr;
+  if (time_node != nullptr) {
+    if (!time_node->is_table()) {
+      throw_at(mapping, time_node->source(),
+               "'" + t.name("time") + "' must be a table, e.g. { column = \"t\", unit = \"s\" }");
+    }
+    const TomlTable time(*time_node->as_table(), mapping, prefix + "time.", {"column", "unit"});
+    add_ref(file, time, "column", time.require("column"));
+    const Unit& time_unit = find_unit(time, kTimeUnits);
+    file.time_unit = time_unit.name;
+    file.time_scale = time_unit.scale;
+  } else {
+    for (std::string_view key : {"time_offset_s", "max_gap_s"}) {
+      if (t.find(key) != nullptr) {
+        throw_at(mapping, t.require(key).source(),
+                 "'" + t.name(key) + "' needs a time column: add time = { column = …, unit = … }");
+      }
+    }
   }
-  const TomlTable time(*time_node.as_table(), mapping, prefix + "time.", {"column", "unit"});
-  add_ref(file, time, "column", time.string("column"));
-  const Unit& time_unit = find_unit(time, kTimeUnits);
-  file.time_unit = time_unit.name;
-  file.time_scale = time_unit.scale;
   if (t.find("time_offset_s") != nullptr) {
     file.time_offset_s = t.number(t.require("time_offset_s"), "time_offset_s");
   }
@@ -298,7 +406,8 @@ FileSpec read_file_spec(const std::string& name, const toml::node& node, const f
 Mapping read_mapping(const fs::path& mapping, bool rig_given) {
   const toml::table root = detail::parse_toml_file(mapping);
   const TomlTable top(root, mapping, "",
-                      {"format", "version", "master", "pose_of", "rig_file", "rig", "files"});
+                      {"format", "version", "master", "pose_of", "rig_file", "rig", "files",
+                       "kinematics", "kinematics_bandwidth_hz"});
   if (top.string("format") != "zerog-import") {
     throw_at(mapping, top.require("format").source(),
              "'format' must be \"zerog-import\" (this is not an import mapping)");
@@ -345,6 +454,21 @@ Mapping read_mapping(const fs::path& mapping, bool rig_given) {
   }
   m.pose_of_flange = pose_of == "flange";
 
+  m.kinematics_text = top.optional_string("kinematics", "imu");
+  m.kinematics_where = top.where("kinematics");
+  if (m.kinematics_text == "robot")
+    m.kinematics = robot::KinematicsMode::robot;
+  else if (m.kinematics_text == "auto")
+    m.kinematics = robot::KinematicsMode::automatic;
+  else if (m.kinematics_text != "imu")
+    top.fail("kinematics",
+             "must be \"imu\" (the default: the IMU columns as logged), \"robot\" (ω, ω̇ and "
+             "the specific force derived from the joints with the rig's robot, or from the "
+             "pose) or \"auto\" (each from the IMU where it has it, else from the robot), is \"" +
+                 m.kinematics_text + "\"");
+  m.kinematics_bandwidth_hz =
+      top.optional_number("kinematics_bandwidth_hz", 5.0, NumberRange{0.0, true});
+
   if (top.find("rig") != nullptr && top.find("rig_file") != nullptr) {
     throw_at(mapping, top.require("rig_file").source(),
              "give either 'rig_file' or a [rig] table, not both");
@@ -374,22 +498,22 @@ Mapping read_mapping(const fs::path& mapping, bool rig_given) {
       where[i] = q.where;
     }
   }
-  for (Quantity q :
-       {Quantity::force, Quantity::torque, Quantity::position, Quantity::orientation}) {
+  for (Quantity q : {Quantity::force, Quantity::torque, Quantity::orientation}) {
     if (source[static_cast<int>(q)] == nullptr) {
       throw_at(mapping, files.source(),
                "no file maps '" + std::string(info(q).key) + "' (" + std::string(info(q).meaning) +
-                   "); a log needs force, torque, position and orientation");
+                   "); a log needs force, torque and orientation (position, the IMU, joints "
+                   "and temperature are optional)");
     }
   }
-  const int f = static_cast<int>(Quantity::specific_force);
-  const int w = static_cast<int>(Quantity::angular_rate);
-  if ((source[f] == nullptr) != (source[w] == nullptr)) {
-    const int given = source[f] != nullptr ? f : w;
-    throw_at(mapping, where[given],
-             "'" + std::string(info(Quantity(given)).key) + "' needs '" +
-                 std::string(info(Quantity(given == f ? w : f)).key) +
-                 "' too (the IMU columns go together)");
+  // Rows without time are static samples: they cannot be put on another file's time base.
+  for (const FileSpec& file : m.files) {
+    if (file.has_time || m.files.size() == 1) continue;
+    throw_at(mapping, file.where,
+             "files." + file.name +
+                 " has no 'time': a file without time holds static samples (one row per pose) "
+                 "and cannot be merged with other files; give every file time = { column = …, "
+                 "unit = … }, or put all quantities of the static table into one file");
   }
   return m;
 }
@@ -413,6 +537,7 @@ std::string_view unquote(std::string_view s) {
   return s;
 }
 
+// `line` is the header (or, with header = false, the first data row, which sets the width).
 void resolve_columns(FileSpec& spec, const fs::path& mapping, std::string_view line,
                      int header_line) {
   std::vector<detail::Cell> cells;
@@ -420,6 +545,18 @@ void resolve_columns(FileSpec& spec, const fs::path& mapping, std::string_view l
   std::vector<std::string_view> names;
   for (const auto& c : cells) names.push_back(unquote(c.text));
   for (ColumnRef& ref : spec.refs) {
+    if (ref.number > 0) {
+      if (ref.number > static_cast<int>(cells.size())) {
+        throw InputError(spec.path, header_line, detail::char_column(line, line.size()),
+                         "column " + std::to_string(ref.number) + " (named by " + ref.key + " at " +
+                             where_text(mapping, ref.where) + ") is beyond the " +
+                             std::to_string(cells.size()) + " cells of this " +
+                             (spec.header ? "header" : "first row") +
+                             "; columns are counted from 1 (check the delimiter)");
+      }
+      ref.cell = ref.number - 1;
+      continue;
+    }
     for (std::size_t i = 0; i < names.size(); ++i) {
       if (names[i] != ref.name) continue;
       if (ref.cell >= 0) {
@@ -496,19 +633,23 @@ Series read_series(FileSpec& spec, const fs::path& mapping) {
     break;
   }
   if (!have_header) {
-    throw InputError(spec.path, lines.number() + 1, 1, "no header row (column names)");
+    throw InputError(spec.path, lines.number() + 1, 1,
+                     spec.header ? "no header row (column names)" : "no data rows");
   }
   const int header_line = lines.number();
   resolve_columns(spec, mapping, line, header_line);
   std::vector<detail::Cell> cells;
   detail::split_cells(line, spec.delimiter, cells);
   const std::size_t num_cells = cells.size();
+  // Without a header the line just read is the first data row.
+  bool pending_row = !spec.header;
 
   Series series;
   std::vector<double> raw(spec.refs.size());
   int previous_line = 0;
   double previous_raw_t = 0.0;
-  while (lines.next(line)) {
+  while (pending_row || lines.next(line)) {
+    pending_row = false;
     if (skippable(line, spec.comment)) continue;
     const int n = lines.number();
     detail::split_cells(line, spec.delimiter, cells);
@@ -516,7 +657,8 @@ Series read_series(FileSpec& spec, const fs::path& mapping) {
       const bool extra = cells.size() > num_cells;
       throw InputError(spec.path, n,
                        detail::char_column(line, extra ? cells[num_cells].offset : line.size()),
-                       "row has " + std::to_string(cells.size()) + " cells but the header has " +
+                       "row has " + std::to_string(cells.size()) + " cells but the " +
+                           (spec.header ? "header has " : "first row has ") +
                            std::to_string(num_cells) + " (delimiter: " +
                            (spec.delimiter == ' '    ? std::string("whitespace")
                             : spec.delimiter == '\t' ? std::string("tab")
@@ -530,8 +672,9 @@ Series read_series(FileSpec& spec, const fs::path& mapping) {
       const std::string why = detail::number_error(status, unquote(cell.text), spec.refs[j].name);
       throw InputError(spec.path, n, detail::char_column(line, cell.offset), why);
     }
-    const double t = raw[0] * spec.time_scale + spec.time_offset_s;
-    if (!series.t.empty() && !(t > series.t.back())) {
+    const double t = spec.has_time ? raw[0] * spec.time_scale + spec.time_offset_s
+                                   : static_cast<double>(series.t.size());
+    if (spec.has_time && !series.t.empty() && !(t > series.t.back())) {
       throw InputError(spec.path, n, detail::char_column(line, cells[spec.refs[0].cell].offset),
                        std::string("time ") +
                            (raw[0] < previous_raw_t ? "goes backwards" : "stands still") +
@@ -546,6 +689,11 @@ Series read_series(FileSpec& spec, const fs::path& mapping) {
     for (const QuantitySpec& q : spec.quantities) {
       auto& out = series.values[static_cast<int>(q.what)];
       const double* r = raw.data() + q.first_ref;
+      if (q.frame == VectorFrame::fixed) {  // v_own = R_own,D v_D (constant: before merging)
+        const Eigen::Vector3d v = q.R_own_fixed * (Eigen::Vector3d(r[0], r[1], r[2]) * q.scale);
+        out.insert(out.end(), {v.x(), v.y(), v.z()});
+        continue;
+      }
       if (q.what != Quantity::orientation) {
         for (int k = 0; k < q.num_refs; ++k) out.push_back(r[k] * q.scale + q.offset);
         continue;
@@ -566,7 +714,8 @@ Series read_series(FileSpec& spec, const fs::path& mapping) {
     }
   }
   if (series.t.empty()) {
-    throw InputError(spec.path, header_line + 1, 1, "no data rows after the header");
+    throw InputError(spec.path, header_line + 1, 1,
+                     spec.header ? "no data rows after the header" : "no data rows");
   }
   return series;
 }
@@ -600,6 +749,185 @@ double median_period(const std::vector<double>& t) {
   for (std::size_t i = 1; i < t.size(); ++i) dt[i - 1] = t[i] - t[i - 1];
   std::nth_element(dt.begin(), dt.begin() + static_cast<std::ptrdiff_t>(dt.size() / 2), dt.end());
   return dt[dt.size() / 2];
+}
+
+// ---------------------------------------------------------------------------------------------
+// Kinematics from the robot (proto/import_mapping.md "kinematics", proto/robot_kinematics.md):
+// ω, ω̇ and the specific force of S derived from the joint stream (forward kinematics through
+// the rig's robot) or the pose stream, at that stream's own samples, then interpolated onto the
+// log's rows and expressed at the IMU (the rig's sensor_imu), so that fit and diagnose read them
+// as IMU columns. The rig's [kinematics] records which column came from where.
+
+std::string quantity_file(const Mapping& m, const std::array<int, kQuantityCount>& source,
+                          Quantity q) {
+  return "files." + m.files[static_cast<std::size_t>(source[static_cast<int>(q)])].name + "." +
+         std::string(info(q).key);
+}
+
+void derive_from_robot(const Mapping& m, const fs::path& mapping_path,
+                       const std::vector<Series>& series,
+                       const std::array<int, kQuantityCount>& source, ImportResult& result) {
+  Log& log = result.log;
+  const auto has = [&](Quantity q) { return source[static_cast<int>(q)] >= 0; };
+  const auto file_of = [&](Quantity q) {
+    return static_cast<std::size_t>(source[static_cast<int>(q)]);
+  };
+  const auto refuse = [&](const std::string& why) {
+    throw_at(mapping_path, m.kinematics_where,
+             "'kinematics = \"" + m.kinematics_text + "\"': " + why);
+  };
+  KinematicsRecord& record = log.rig.kinematics;
+  record.mode = m.kinematics_text;
+  const bool timed = !log.columns.static_rows;
+  const bool joints_mapped = has(Quantity::joints);
+  const bool joints_ok = timed && joints_mapped && log.rig.robot_model.has_value();
+  const bool pose_position =
+      has(Quantity::position) && file_of(Quantity::position) == file_of(Quantity::orientation);
+  const bool robot_motion = joints_ok || timed;  // the orientation is always mapped
+  const bool robot_linear = joints_ok || (timed && pose_position);
+  const bool robot_mode = m.kinematics == robot::KinematicsMode::robot;
+
+  if (robot_mode && !timed)
+    refuse(
+        "rows without time (a static table) have no motion to differentiate; use kinematics "
+        "= \"imu\" (the default) or record time");
+  if (robot_mode && joints_mapped && !log.rig.robot_model)
+    refuse(quantity_file(m, source, Quantity::joints) + " is mapped, but the rig (" +
+           result.report.rig_source +
+           ") does not describe the robot: give it robot_file = \"…/calib/robots/"
+           "kr210_r2700.robot.toml\" or a [robot] table with the DH chain (proto/log_format.md), "
+           "or remove 'joints' to derive from the pose");
+  if (robot_mode && !robot_linear)
+    refuse(
+        "the sensor's linear acceleration needs the joints (with the rig's robot) or the "
+        "position beside the orientation (" +
+        quantity_file(m, source, Quantity::orientation) +
+        "); the orientation alone gives ω and ω̇ only: map 'joints' or 'position', or use "
+        "kinematics = \"auto\" to take ω and ω̇ from the orientation and the specific force "
+        "from the accelerometer");
+
+  robot::SourceChoices choice =
+      robot::choose_sources(m.kinematics, {.gyro = log.columns.angular_rate,
+                                           .accelerometer = log.columns.specific_force,
+                                           .robot = robot_motion});
+  if (choice.specific_force.source == robot::KinematicSource::robot && !robot_linear)
+    choice.specific_force = {robot::KinematicSource::none,
+                             "the orientation alone gives ω and ω̇, not the linear acceleration "
+                             "(map 'position' beside it, or 'joints' with the rig's robot)"};
+  record.angular_rate_reason = choice.omega.reason;
+  record.specific_force_reason = choice.specific_force.reason;
+  const bool derive_rate = choice.omega.source == robot::KinematicSource::robot;
+  const bool derive_force = choice.specific_force.source == robot::KinematicSource::robot;
+  if (!derive_rate && !derive_force) return;
+
+  // The stream: the joints through the robot if possible, else the pose.
+  const KinematicsOrigin origin = joints_ok ? KinematicsOrigin::joints : KinematicsOrigin::pose;
+  const Quantity stream_quantity = joints_ok ? Quantity::joints : Quantity::orientation;
+  const std::size_t f = file_of(stream_quantity);
+  const std::vector<double>& t = series[f].t;
+  const double period_s = median_period(t);
+  const robot::SgSettings sg =
+      robot::choose_sg_window(period_s, m.kinematics_bandwidth_hz, robot::kMaxSgOrder, 2);
+  const std::size_t window = static_cast<std::size_t>(2 * sg.half_width + 1);
+  if (t.size() < window)
+    refuse(quantity_file(m, source, stream_quantity) + " has " + std::to_string(t.size()) +
+           " rows; the differentiator needs at least " + std::to_string(window) + " (2M+1 at " +
+           num(period_s) + " s, " + num(m.kinematics_bandwidth_hz) +
+           " Hz): record longer or raise kinematics_bandwidth_hz");
+  robot::DifferentiatorSettings settings;
+  settings.sg = sg;
+  std::vector<robot::SensorKinematics> motion(t.size());
+  robot::DeriveStatus status;
+  if (joints_ok) {
+    robot::RobotModel model = *log.rig.robot_model;
+    model.flange_sensor = to_frame_transform(log.rig.flange_sensor);
+    if (model.joint_count != 6)
+      refuse("the rig's robot has " + std::to_string(model.joint_count) +
+             " joints; a log records 6 (q1_rad..q6_rad, 'joints' in the mapping)");
+    status = robot::derive_kinematics(
+        model, t, series[f].values[static_cast<int>(Quantity::joints)], 6, settings, motion);
+  } else {
+    const std::vector<double>& q = series[f].values[static_cast<int>(Quantity::orientation)];
+    const std::vector<double>* p =
+        pose_position ? &series[f].values[static_cast<int>(Quantity::position)] : nullptr;
+    std::vector<robot::Pose> poses(t.size());
+    for (std::size_t i = 0; i < t.size(); ++i) {
+      Eigen::Quaterniond R(q[4 * i], q[4 * i + 1], q[4 * i + 2], q[4 * i + 3]);
+      Eigen::Vector3d position =
+          p ? Eigen::Vector3d((*p)[3 * i], (*p)[3 * i + 1], (*p)[3 * i + 2]) : Eigen::Vector3d();
+      if (p == nullptr) position.setZero();
+      if (m.pose_of_flange) {  // p_BS = p_BF + R_BF p_FS, R_BS = R_BF R_FS (frames.md)
+        position += R * log.rig.flange_sensor.p_m;
+        R = R * log.rig.flange_sensor.q;
+      }
+      poses[i].R = R.normalized().toRotationMatrix();
+      poses[i].p_m = position;
+    }
+    status = robot::derive_kinematics(t, poses, settings, motion);
+  }
+  if (!status.ok())  // the reader checked times and sizes: only a broken model remains
+    refuse("deriving the motion failed (code " + std::to_string(static_cast<int>(status.code)) +
+           ", sample " + std::to_string(status.sample) + ")");
+
+  // Onto the log's rows (linear interpolation; every row lies within the stream's span), at
+  // the IMU: ω_I = R_SIᵀ ω_S, f_I = R_SIᵀ (f_S + ω̇ × r + ω × (ω × r)), r = p_SI.
+  const Eigen::Matrix3d R_sensor_imu = log.rig.sensor_imu.q.normalized().toRotationMatrix();
+  const Eigen::Vector3d p_sensor_imu = log.rig.sensor_imu.p_m;
+  std::size_t k = 0;
+  for (Sample& s : log.samples) {
+    while (k + 1 < t.size() && t[k + 1] <= s.t_s) ++k;
+    const std::size_t k1 = std::min(k + 1, t.size() - 1);
+    const double alpha = k1 == k ? 0.0 : std::clamp((s.t_s - t[k]) / (t[k1] - t[k]), 0.0, 1.0);
+    robot::SensorKinematics at;
+    const robot::SensorKinematics& a = motion[k];
+    const robot::SensorKinematics& b = motion[k1];
+    at.omega_sensor_radps =
+        a.omega_sensor_radps + alpha * (b.omega_sensor_radps - a.omega_sensor_radps);
+    at.omega_dot_sensor_radps2 =
+        a.omega_dot_sensor_radps2 + alpha * (b.omega_dot_sensor_radps2 - a.omega_dot_sensor_radps2);
+    at.specific_force_sensor_mps2 =
+        a.specific_force_sensor_mps2 +
+        alpha * (b.specific_force_sensor_mps2 - a.specific_force_sensor_mps2);
+    if (derive_rate) s.angular_rate_imu_radps = R_sensor_imu.transpose() * at.omega_sensor_radps;
+    if (derive_force)
+      s.specific_force_imu_mps2 =
+          R_sensor_imu.transpose() * robot::specific_force_at_point(at, p_sensor_imu);
+  }
+  if (derive_rate) {
+    log.columns.angular_rate = true;
+    record.angular_rate = origin;
+  }
+  if (derive_force) {
+    log.columns.specific_force = true;
+    record.specific_force = origin;
+  }
+  record.sg_half_width = sg.half_width;
+  record.sg_order = sg.order;
+  record.period_s = period_s;
+  record.bandwidth_hz = m.kinematics_bandwidth_hz;
+  record.lag_s = 0.0;  // centred window
+  record.noise_gain_rate_per_s = robot::sg_noise_gain(sg, 1, period_s);
+  record.noise_gain_accel_per_s2 = robot::sg_noise_gain(sg, 2, period_s);
+  record.cutoff_rate_hz = robot::sg_cutoff_hz(sg, 1, period_s);
+  record.cutoff_accel_hz = robot::sg_cutoff_hz(sg, 2, period_s);
+
+  char buffer[400];
+  std::snprintf(buffer, sizeof buffer,
+                "%s from the %s of files.%s (%zu rows, median period %.4g s%s): Savitzky-Golay "
+                "M = %d, order %d, lag 0, -3 dB %.3g Hz (rate) / %.3g Hz (acceleration), noise "
+                "gain %.3g 1/s (rate) / %.3g 1/s^2 (acceleration)\n",
+                derive_rate && derive_force ? "angular rate and specific force"
+                : derive_rate               ? "angular rate"
+                                            : "specific force",
+                joints_ok ? "joints" : "pose", m.files[f].name.c_str(), t.size(), period_s,
+                joints_ok ? (", through " + log.rig.robot + "'s forward kinematics").c_str() : "",
+                sg.half_width, sg.order, record.cutoff_rate_hz, record.cutoff_accel_hz,
+                record.noise_gain_rate_per_s, record.noise_gain_accel_per_s2);
+  result.report.kinematics += buffer;
+  if (!joints_ok && joints_mapped)
+    result.report.kinematics +=
+        "  (the joints are mapped but the rig describes no robot: give it robot_file or a "
+        "[robot] table to derive from them)\n";
 }
 
 }  // namespace
@@ -643,6 +971,7 @@ ImportResult import_recordings(const fs::path& mapping_path,
     log.rig = *mapping.rig;
     result.report.rig_source = "the mapping's [rig] table";
     if (!mapping.rig_has_period) {
+      // Static rows count 0, 1, …: their "period" is 1 (the rig needs a positive value).
       log.rig.sample_period_s = median_period(series.front().t);
       if (!(log.rig.sample_period_s > 0.0)) log.rig.sample_period_s = 1.0;
       result.report.rig_source +=
@@ -650,18 +979,29 @@ ImportResult import_recordings(const fs::path& mapping_path,
     }
   }
 
-  // Which file provides each quantity.
+  // Which file provides each quantity, and how.
   std::array<int, kQuantityCount> source;
+  std::array<const QuantitySpec*, kQuantityCount> spec_of{};
   source.fill(-1);
   for (std::size_t f = 0; f < mapping.files.size(); ++f) {
     for (const QuantitySpec& q : mapping.files[f].quantities) {
       source[static_cast<int>(q.what)] = static_cast<int>(f);
+      spec_of[static_cast<int>(q.what)] = &q;
     }
   }
   auto has = [&](Quantity q) { return source[static_cast<int>(q)] >= 0; };
+  auto in_base = [&](Quantity q) {
+    return has(q) && spec_of[static_cast<int>(q)]->frame == VectorFrame::base;
+  };
   log.columns.joints = has(Quantity::joints);
-  log.columns.imu = has(Quantity::specific_force);
+  log.columns.specific_force = has(Quantity::specific_force);
+  log.columns.angular_rate = has(Quantity::angular_rate);
   log.columns.temperature = has(Quantity::temperature);
+  log.columns.position = has(Quantity::position);
+  log.columns.static_rows = !mapping.files.front().has_time;
+  result.report.static_rows = log.columns.static_rows;
+  // IMU axes in the sensor frame, for IMU quantities given in the base frame.
+  const Eigen::Matrix3d R_sensor_imu = log.rig.sensor_imu.q.normalized().toRotationMatrix();
 
   const std::vector<double>& t_master = series.front().t;
   result.report.master_rows = t_master.size();
@@ -710,22 +1050,36 @@ ImportResult import_recordings(const fs::path& mapping_path,
     };
     s.force_sensor_N = at<3>(values(Quantity::force), bracket(Quantity::force));
     s.torque_sensor_Nm = at<3>(values(Quantity::torque), bracket(Quantity::torque));
-    s.p_base_sensor_m = at<3>(values(Quantity::position), bracket(Quantity::position));
+    if (log.columns.position)
+      s.p_base_sensor_m = at<3>(values(Quantity::position), bracket(Quantity::position));
     s.q_base_sensor = quaternion_at(values(Quantity::orientation), bracket(Quantity::orientation));
     if (mapping.pose_of_flange) {  // p_BS = p_BF + R_BF p_FS, R_BS = R_BF R_FS (frames.md)
-      s.p_base_sensor_m += s.q_base_sensor * log.rig.flange_sensor.p_m;
+      if (log.columns.position) s.p_base_sensor_m += s.q_base_sensor * log.rig.flange_sensor.p_m;
       s.q_base_sensor = (s.q_base_sensor * log.rig.flange_sensor.q).normalized();
     }
+    // Vectors logged with base-frame axes: v_S = R_BSᵀ v_B (torque stays about the S origin);
+    // IMU quantities v_I = R_SIᵀ R_BSᵀ v_B (frames.md).
+    const Eigen::Matrix3d R_sensor_base = s.q_base_sensor.toRotationMatrix().transpose();
+    if (in_base(Quantity::force)) s.force_sensor_N = R_sensor_base * s.force_sensor_N;
+    if (in_base(Quantity::torque)) s.torque_sensor_Nm = R_sensor_base * s.torque_sensor_Nm;
     if (log.columns.joints) {
       const Eigen::Matrix<double, 6, 1> q =
           at<6>(values(Quantity::joints), bracket(Quantity::joints));
       for (int j = 0; j < 6; ++j) s.joints_rad[j] = q[j];
     }
-    if (log.columns.imu) {
+    if (log.columns.specific_force) {
       s.specific_force_imu_mps2 =
           at<3>(values(Quantity::specific_force), bracket(Quantity::specific_force));
+      if (in_base(Quantity::specific_force))
+        s.specific_force_imu_mps2 =
+            R_sensor_imu.transpose() * R_sensor_base * s.specific_force_imu_mps2;
+    }
+    if (log.columns.angular_rate) {
       s.angular_rate_imu_radps =
           at<3>(values(Quantity::angular_rate), bracket(Quantity::angular_rate));
+      if (in_base(Quantity::angular_rate))
+        s.angular_rate_imu_radps =
+            R_sensor_imu.transpose() * R_sensor_base * s.angular_rate_imu_radps;
     }
     if (log.columns.temperature) {
       s.temperature_C = at<1>(values(Quantity::temperature), bracket(Quantity::temperature))[0];
@@ -738,6 +1092,18 @@ ImportResult import_recordings(const fs::path& mapping_path,
                              "time units and time_offset_s)\n" +
                              result.report.summary());
   }
+  log.rig.kinematics = {};  // whatever a rig file says: this import's columns decide
+  if (mapping.kinematics == robot::KinematicsMode::imu) return result;  // the columns as logged
+  derive_from_robot(mapping, mapping_path, series, source, result);
+  const KinematicsRecord& k = log.rig.kinematics;
+  result.report.kinematics =
+      "kinematics = \"" + k.mode + "\": angular rate " +
+      (log.columns.angular_rate ? std::string("from ") + to_string(k.angular_rate) : "none") +
+      (k.angular_rate_reason.empty() ? "" : " (" + k.angular_rate_reason + ")") +
+      "; specific force " +
+      (log.columns.specific_force ? std::string("from ") + to_string(k.specific_force) : "none") +
+      (k.specific_force_reason.empty() ? "" : " (" + k.specific_force_reason + ")") + "\n" +
+      result.report.kinematics;
   return result;
 }
 
@@ -752,6 +1118,16 @@ std::string ImportReport::summary() const {
   std::string out;
   char buffer[512];
   const std::string master = files.empty() ? std::string("?") : files.front().name;
+  if (static_rows) {
+    std::snprintf(buffer, sizeof buffer,
+                  "static table '%s' (%s): %zu rows without time, each an independent held "
+                  "pose\n",
+                  master.c_str(), files.empty() ? "?" : files.front().path.filename().c_str(),
+                  rows_out);
+    out += buffer;
+    if (!rig_source.empty()) out += "rig: " + rig_source + "\n";
+    return out;
+  }
   std::snprintf(buffer, sizeof buffer, "%zu file%s merged onto the time base of '%s':\n",
                 files.size(), files.size() == 1 ? "" : "s", master.c_str());
   out += buffer;
@@ -786,6 +1162,7 @@ std::string ImportReport::summary() const {
     }
   }
   if (!rig_source.empty()) out += "rig: " + rig_source + "\n";
+  out += kinematics;
   return out;
 }
 

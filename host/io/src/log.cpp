@@ -17,6 +17,7 @@
 
 #include "csv_scan.hpp"
 #include "toml_table.hpp"
+#include "zerog/io/robot_toml.hpp"
 
 namespace zerog::io {
 
@@ -60,19 +61,27 @@ constexpr std::array<std::string_view, kNumCols> kColumnNames = {
 struct Group {
   int first;
   int count;
-  bool required;
+  int required_until;  ///< required in format versions up to this one (0: optional)
 };
 
-constexpr std::array<Group, 8> kGroups = {{
-    {kT, 1, true},
-    {kQ1, 6, false},
-    {kPx, 3, true},
-    {kQw, 4, true},
-    {kImuFx, 6, false},
-    {kFx, 3, true},
-    {kMx, 3, true},
-    {kTemp, 1, false},
+// Version 1 requires t_s and the position and has one IMU group of six; version 2 makes t_s
+// and the position optional and splits the IMU into specific force and angular rate.
+constexpr std::array<Group, 9> kGroups = {{
+    {kT, 1, 1},
+    {kQ1, 6, 0},
+    {kPx, 3, 1},
+    {kQw, 4, kLogFormatVersion},
+    {kImuFx, 3, 0},
+    {kImuWx, 3, 0},
+    {kFx, 3, kLogFormatVersion},
+    {kMx, 3, kLogFormatVersion},
+    {kTemp, 1, 0},
 }};
+
+// The oldest format version that can hold a log with these columns.
+int version_for(const Columns& c) {
+  return c.position && !c.static_rows && c.specific_force == c.angular_rate ? 1 : 2;
+}
 
 std::vector<std::string_view> known_column_names() {
   return {kColumnNames.begin(), kColumnNames.end()};
@@ -80,10 +89,12 @@ std::vector<std::string_view> known_column_names() {
 
 constexpr std::string_view kVersionPrefix = "# zerog-log";
 
-void check_version_line(const fs::path& csv, detail::LineCursor& lines) {
+int check_version_line(const fs::path& csv, detail::LineCursor& lines) {
   std::string_view line;
-  const std::string expected =
-      std::string(kVersionPrefix) + " " + std::to_string(kLogFormatVersion);
+  // Version 1 is the common case; version 2 adds optional time, position and IMU groups.
+  const std::string expected = std::string(kVersionPrefix) + " 1' or '" +
+                               std::string(kVersionPrefix) + " " +
+                               std::to_string(kLogFormatVersion);
   if (!lines.next(line)) {
     throw InputError(csv, 1, 1, "empty file: the first line must be '" + expected + "'");
   }
@@ -102,27 +113,27 @@ void check_version_line(const fs::path& csv, detail::LineCursor& lines) {
         csv, 1, column,
         "bad version line: expected '" + expected + "', found '" + detail::shorten(line) + "'");
   }
-  if (version != kLogFormatVersion) {
+  if (version < 1 || version > kLogFormatVersion) {
     throw InputError(csv, 1, column,
                      "log format version " + std::to_string(version) +
-                         " is not supported (this zerog reads version " +
+                         " is not supported (this zerog reads versions 1 to " +
                          std::to_string(kLogFormatVersion) + ")");
   }
+  return version;
 }
 
 bool is_comment(std::string_view line) { return !line.empty() && line.front() == '#'; }
 
-void fill_sample(const std::array<double, kNumCols>& v, const Columns& columns, Sample& s) {
-  s.t_s = v[kT];
+void fill_sample(const std::array<double, kNumCols>& v, const Columns& columns, std::size_t row,
+                 Sample& s) {
+  s.t_s = columns.static_rows ? static_cast<double>(row) : v[kT];
   if (columns.joints) {
     for (int i = 0; i < 6; ++i) s.joints_rad[i] = v[kQ1 + i];
   }
-  s.p_base_sensor_m = {v[kPx], v[kPy], v[kPz]};
+  if (columns.position) s.p_base_sensor_m = {v[kPx], v[kPy], v[kPz]};
   s.q_base_sensor = Eigen::Quaterniond(v[kQw], v[kQx], v[kQy], v[kQz]).normalized();
-  if (columns.imu) {
-    s.specific_force_imu_mps2 = {v[kImuFx], v[kImuFy], v[kImuFz]};
-    s.angular_rate_imu_radps = {v[kImuWx], v[kImuWy], v[kImuWz]};
-  }
+  if (columns.specific_force) s.specific_force_imu_mps2 = {v[kImuFx], v[kImuFy], v[kImuFz]};
+  if (columns.angular_rate) s.angular_rate_imu_radps = {v[kImuWx], v[kImuWy], v[kImuWz]};
   s.force_sensor_N = {v[kFx], v[kFy], v[kFz]};
   s.torque_sensor_Nm = {v[kMx], v[kMy], v[kMz]};
   if (columns.temperature) s.temperature_C = v[kTemp];
@@ -152,8 +163,11 @@ std::array<double, kNumCols> sample_values(const Sample& s) {
 }
 
 bool column_written(int c, const Columns& columns) {
+  if (c == kT) return !columns.static_rows;
   if (c >= kQ1 && c <= kQ6) return columns.joints;
-  if (c >= kImuFx && c <= kImuWz) return columns.imu;
+  if (c >= kPx && c <= kPz) return columns.position;
+  if (c >= kImuFx && c <= kImuFz) return columns.specific_force;
+  if (c >= kImuWx && c <= kImuWz) return columns.angular_rate;
   if (c == kTemp) return columns.temperature;
   return true;
 }
@@ -202,6 +216,11 @@ void check_rig_finite(const Rig& rig) {
     throw std::invalid_argument("write_rig: rig '" + rig.name +
                                 "' has a non-finite value or sample_period_s <= 0");
   }
+  if (rig.robot_model) {
+    const robot::RobotStatus status = robot::validate(*rig.robot_model);
+    if (!status.ok())
+      throw std::invalid_argument("write_rig: rig '" + rig.name + "': robot: " + status.message);
+  }
 }
 
 // Rig numbers are few: written exactly (shortest round-trip text).
@@ -217,15 +236,38 @@ std::string format_rig(const Rig& rig) {
   std::string out;
   out += "# zerog rig (proto/log_format.md)\n";
   out += "format = \"zerog-rig\"\n";
-  out += "version = " + std::to_string(kLogFormatVersion) + "\n";
+  out += "version = " + std::to_string(kRigFormatVersion) + "\n";
   out += "name = " + toml_string(rig.name) + "\n";
-  out += "robot = " + toml_string(rig.robot) + "\n";
+  // With kinematics the robot is a [robot] table (below): TOML cannot hold both forms.
+  if (!rig.robot_model) out += "robot = " + toml_string(rig.robot) + "\n";
   out += "sample_period_s = " + toml_float(rig.sample_period_s) + "\n";
   out += "ft_rate_hz = " + toml_float(rig.ft_rate_hz) + "\n";
   out += "imu_rate_hz = " + toml_float(rig.imu_rate_hz) + "\n";
   out += "floor_z_m = " + toml_float(rig.floor_z_m) + "\n";
   out += transform("flange_sensor", "sensor frame S in the flange frame F", rig.flange_sensor);
   out += transform("sensor_imu", "IMU frame I in the sensor frame S", rig.sensor_imu);
+  // Inline, whether it came from a table or a robot_file: the log's rig stands alone.
+  if (rig.robot_model) out += robot_toml_text("robot", rig.robot, *rig.robot_model);
+  const KinematicsRecord& k = rig.kinematics;
+  if (k.mode != "imu" || k.derived()) {
+    out += "\n[kinematics]  # where the IMU columns came from (zerog import)\n";
+    out += "mode = " + toml_string(k.mode) + "\n";
+    out += std::string("angular_rate = \"") + to_string(k.angular_rate) + "\"\n";
+    out += std::string("specific_force = \"") + to_string(k.specific_force) + "\"\n";
+    out += "angular_rate_reason = " + toml_string(k.angular_rate_reason) + "\n";
+    out += "specific_force_reason = " + toml_string(k.specific_force_reason) + "\n";
+    if (k.derived()) {
+      out += "sg_half_width = " + std::to_string(k.sg_half_width) + "\n";
+      out += "sg_order = " + std::to_string(k.sg_order) + "\n";
+      out += "period_s = " + toml_float(k.period_s) + "\n";
+      out += "bandwidth_hz = " + toml_float(k.bandwidth_hz) + "\n";
+      out += "lag_s = " + toml_float(k.lag_s) + "\n";
+      out += "noise_gain_rate_per_s = " + toml_float(k.noise_gain_rate_per_s) + "\n";
+      out += "noise_gain_accel_per_s2 = " + toml_float(k.noise_gain_accel_per_s2) + "\n";
+      out += "cutoff_rate_hz = " + toml_float(k.cutoff_rate_hz) + "\n";
+      out += "cutoff_accel_hz = " + toml_float(k.cutoff_accel_hz) + "\n";
+    }
+  }
   return out;
 }
 
@@ -330,7 +372,7 @@ class PendingFile {
 // -------------------------------------------------------------------------------------------------
 
 void LogCsvWriter::append_header(std::string& out) const {
-  out += std::string(kVersionPrefix) + " " + std::to_string(kLogFormatVersion) + "\n";
+  out += std::string(kVersionPrefix) + " " + std::to_string(version_for(columns_)) + "\n";
   bool first = true;
   for (int c = 0; c < kNumCols; ++c) {
     if (!column_written(c, columns_)) continue;
@@ -347,7 +389,7 @@ void LogCsvWriter::append_header(std::string& out) const {
 void LogCsvWriter::append_row(const Sample& sample, std::string& out) {
   const auto v = sample_values(sample);
   const std::size_t i = rows_;
-  if (i > 0 && !(v[kT] > previous_t_)) {
+  if (!columns_.static_rows && i > 0 && !(v[kT] > previous_t_)) {
     throw std::invalid_argument("write_log: sample " + std::to_string(i) +
                                 ": t_s = " + number_text(v[kT]) + " does not increase (previous " +
                                 number_text(previous_t_) + ")");
@@ -376,6 +418,18 @@ InputError::InputError(fs::path file, int line, int column, const std::string& w
       line_(line),
       column_(column) {}
 
+const char* to_string(KinematicsOrigin origin) {
+  switch (origin) {
+    case KinematicsOrigin::joints:
+      return "joints";
+    case KinematicsOrigin::pose:
+      return "pose";
+    case KinematicsOrigin::imu:
+      break;
+  }
+  return "imu";
+}
+
 fs::path rig_path_for(const fs::path& csv) {
   fs::path rig = csv;
   rig.replace_extension(".rig.toml");
@@ -385,7 +439,7 @@ fs::path rig_path_for(const fs::path& csv) {
 Log read_log(const fs::path& csv) {
   const std::string text = detail::read_whole_file(csv);
   detail::LineCursor lines(text);
-  check_version_line(csv, lines);
+  const int version = check_version_line(csv, lines);
 
   std::string_view line;
   bool have_header = false;
@@ -437,9 +491,12 @@ Log read_log(const fs::path& csv) {
       if (cell_of[c] < 0 && missing < 0) missing = c;
     }
     if (missing < 0) continue;
-    if (g.required) {
-      throw InputError(csv, header_line, 1,
-                       "missing required column '" + std::string(kColumnNames[missing]) + "'");
+    if (version <= g.required_until) {
+      std::string why = "missing required column '" + std::string(kColumnNames[missing]) + "'";
+      if (version < kLogFormatVersion && kLogFormatVersion > g.required_until)
+        why += " (optional from format version " + std::to_string(g.required_until + 1) +
+               " on: write '# zerog-log " + std::to_string(kLogFormatVersion) + "' on line 1)";
+      throw InputError(csv, header_line, 1, why);
     }
     if (present >= 0) {
       throw InputError(csv, header_line, detail::char_column(line, cells[cell_of[present]].offset),
@@ -452,8 +509,21 @@ Log read_log(const fs::path& csv) {
 
   Log log;
   log.columns.joints = cell_of[kQ1] >= 0;
-  log.columns.imu = cell_of[kImuFx] >= 0;
+  log.columns.specific_force = cell_of[kImuFx] >= 0;
+  log.columns.angular_rate = cell_of[kImuWx] >= 0;
   log.columns.temperature = cell_of[kTemp] >= 0;
+  log.columns.position = cell_of[kPx] >= 0;
+  log.columns.static_rows = cell_of[kT] < 0;
+  if (version == 1 && log.columns.specific_force != log.columns.angular_rate) {
+    const int present = log.columns.specific_force ? kImuFx : kImuWx;
+    const int missing = log.columns.specific_force ? kImuWx : kImuFx;
+    throw InputError(csv, header_line, detail::char_column(line, cells[cell_of[present]].offset),
+                     "incomplete column group: '" + std::string(kColumnNames[present]) +
+                         "' is present but '" + std::string(kColumnNames[missing]) +
+                         "' is missing (format version 1 needs all six IMU columns or none; "
+                         "from version 2 on each group of three may come alone: write '# "
+                         "zerog-log 2' on line 1)");
+  }
   log.samples.reserve(text.size() / (cells.size() * 8 + 1));
 
   std::array<double, kNumCols> values{};
@@ -483,7 +553,8 @@ Log read_log(const fs::path& csv) {
       const std::string why = detail::number_error(status, cells[i].text, kColumnNames[c]);
       throw InputError(csv, n, detail::char_column(line, cells[i].offset), why);
     }
-    if (!log.samples.empty() && !(values[kT] > log.samples.back().t_s)) {
+    if (!log.columns.static_rows && !log.samples.empty() &&
+        !(values[kT] > log.samples.back().t_s)) {
       const double before = log.samples.back().t_s;
       throw InputError(csv, n, detail::char_column(line, cells[cell_of[kT]].offset),
                        std::string("time ") +
@@ -499,7 +570,8 @@ Log read_log(const fs::path& csv) {
                        "quaternion (qw, qx, qy, qz) has norm " + number_text(norm) +
                            ", off from 1 by more than 1e-3");
     }
-    fill_sample(values, log.columns, log.samples.emplace_back());
+    const std::size_t row = log.samples.size();
+    fill_sample(values, log.columns, row, log.samples.emplace_back());
     previous_line = n;
   }
   log.rig = read_rig(rig_path_for(csv));
@@ -550,29 +622,100 @@ Transform transform_from_toml(const TomlTable& parent, std::string_view key) {
   return out;
 }
 
+// The robot: `robot = "NAME"` (the name only), a [robot] table (name and DH chain), or
+// `robot_file = "PATH"` (a calib/robots/*.robot.toml, relative to this file; with an optional
+// `robot = "NAME"` that overrides the file's name). The rig's flange_sensor joins the chain.
+void read_robot(const TomlTable& t, Rig& rig) {
+  const toml::node* robot = t.find("robot");
+  const toml::node* file = t.find("robot_file");
+  if (robot != nullptr && robot->is_table()) {
+    if (file != nullptr)
+      t.fail("robot_file",
+             "give either a [robot] table or robot_file, not both (the table describes the arm)");
+    const toml::table& table = *robot->as_table();
+    rig.robot = table["name"].value_or(std::string("unnamed robot"));
+    rig.robot_model = robot_from_toml(table, t.file(), rig.flange_sensor, t.name("robot") + ".");
+    return;
+  }
+  if (robot != nullptr && !robot->is_string())
+    t.fail("robot",
+           "must be the robot's name (a string, e.g. \"KR 210 R2700\") or a [robot] table with "
+           "its DH chain (proto/robot_kinematics.md)");
+  if (file == nullptr) {
+    rig.robot = t.string("robot");  // a missing key is named here
+    return;
+  }
+  const fs::path given = t.string("robot_file");
+  const fs::path path = given.is_absolute() ? given : t.file().parent_path() / given;
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec))
+    t.fail("robot_file", "robot file not found: " + path.string() +
+                             " (a relative path is taken from the folder of " +
+                             t.file().filename().string() + "; examples in calib/robots/)");
+  const RobotDescription d = read_robot_file(path, rig.flange_sensor);
+  rig.robot = robot != nullptr ? t.string("robot") : d.name.empty() ? "unnamed robot" : d.name;
+  rig.robot_model = d.model;
+}
+
+KinematicsOrigin origin_from_toml(const TomlTable& k, std::string_view key) {
+  const std::string v = k.optional_string(key, "imu");
+  for (KinematicsOrigin o :
+       {KinematicsOrigin::imu, KinematicsOrigin::joints, KinematicsOrigin::pose}) {
+    if (v == to_string(o)) return o;
+  }
+  k.fail(key, "must be \"imu\", \"joints\" or \"pose\", is \"" + v + "\"");
+}
+
+KinematicsRecord kinematics_from_toml(const TomlTable& t) {
+  const TomlTable k =
+      t.sub_table("kinematics", {"mode", "angular_rate", "specific_force", "angular_rate_reason",
+                                 "specific_force_reason", "sg_half_width", "sg_order", "period_s",
+                                 "bandwidth_hz", "lag_s", "noise_gain_rate_per_s",
+                                 "noise_gain_accel_per_s2", "cutoff_rate_hz", "cutoff_accel_hz"});
+  KinematicsRecord r;
+  r.mode = k.optional_string("mode", "imu");
+  if (r.mode != "imu" && r.mode != "robot" && r.mode != "auto")
+    k.fail("mode", "must be \"imu\", \"robot\" or \"auto\", is \"" + r.mode + "\"");
+  r.angular_rate = origin_from_toml(k, "angular_rate");
+  r.specific_force = origin_from_toml(k, "specific_force");
+  r.angular_rate_reason = k.optional_string("angular_rate_reason", "");
+  r.specific_force_reason = k.optional_string("specific_force_reason", "");
+  r.sg_half_width = static_cast<int>(k.optional_integer("sg_half_width", 0, 0, 100000));
+  r.sg_order = static_cast<int>(k.optional_integer("sg_order", 0, 0, 10));
+  const NumberRange non_negative{0.0, false};
+  r.period_s = k.optional_number("period_s", 0.0, non_negative);
+  r.bandwidth_hz = k.optional_number("bandwidth_hz", 0.0, non_negative);
+  r.lag_s = k.optional_number("lag_s", 0.0, non_negative);
+  r.noise_gain_rate_per_s = k.optional_number("noise_gain_rate_per_s", 0.0, non_negative);
+  r.noise_gain_accel_per_s2 = k.optional_number("noise_gain_accel_per_s2", 0.0, non_negative);
+  r.cutoff_rate_hz = k.optional_number("cutoff_rate_hz", 0.0, non_negative);
+  r.cutoff_accel_hz = k.optional_number("cutoff_accel_hz", 0.0, non_negative);
+  return r;
+}
+
 }  // namespace
 
 Rig rig_from_toml(const toml::table& table, const fs::path& file, bool embedded,
                   const std::string& key_prefix, bool* has_period) {
-  const TomlTable t(table, file, key_prefix,
-                    {"format", "version", "name", "robot", "sample_period_s", "ft_rate_hz",
-                     "imu_rate_hz", "floor_z_m", "flange_sensor", "sensor_imu"});
+  const TomlTable t(
+      table, file, key_prefix,
+      {"format", "version", "name", "robot", "robot_file", "sample_period_s", "ft_rate_hz",
+       "imu_rate_hz", "floor_z_m", "flange_sensor", "sensor_imu", "kinematics"});
   if (!embedded || t.find("format") != nullptr) {
     const std::string format = t.string("format");
     if (format != "zerog-rig") t.fail("format", "must be \"zerog-rig\", is \"" + format + "\"");
   }
   if (!embedded || t.find("version") != nullptr) {
     const std::int64_t version = t.integer("version");
-    if (version != kLogFormatVersion) {
+    if (version != kRigFormatVersion) {
       throw_at(file, t.require("version").source(),
                "rig version " + std::to_string(version) +
                    " is not supported (this zerog reads version " +
-                   std::to_string(kLogFormatVersion) + ")");
+                   std::to_string(kRigFormatVersion) + ")");
     }
   }
   Rig rig;
   rig.name = t.string("name");
-  rig.robot = t.string("robot");
   const bool period_given = !embedded || t.find("sample_period_s") != nullptr;
   if (period_given) rig.sample_period_s = t.number("sample_period_s", {0.0, true});
   if (has_period != nullptr) *has_period = period_given;
@@ -581,6 +724,8 @@ Rig rig_from_toml(const toml::table& table, const fs::path& file, bool embedded,
   rig.floor_z_m = t.optional_number("floor_z_m", 0.0);
   rig.flange_sensor = transform_from_toml(t, "flange_sensor");
   rig.sensor_imu = transform_from_toml(t, "sensor_imu");
+  read_robot(t, rig);
+  if (t.find("kinematics") != nullptr) rig.kinematics = kinematics_from_toml(t);
   return rig;
 }
 

@@ -60,7 +60,10 @@ void check_feature_signals(std::span<const Feature> features, const ident::Datas
   for (Feature f : features) {
     const char* missing = nullptr;
     if (f <= Feature::sign_qd6 && !data.columns.joints) missing = "joint angles (q1..q6)";
-    if (f >= Feature::fx && f <= Feature::wdz && !data.columns.imu) missing = "IMU (imu_*)";
+    if (f >= Feature::fx && f <= Feature::fz && !data.columns.specific_force)
+      missing = "accelerometer (imu_f*_mps2)";
+    if (f >= Feature::wx && f <= Feature::wdz && !data.columns.angular_rate)
+      missing = "gyroscope (imu_w*_radps)";
     if (f == Feature::temperature && !data.columns.temperature) missing = "temperature";
     if (missing)
       throw std::runtime_error(std::string("feature '") + model::feature_name(f) +

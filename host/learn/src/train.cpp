@@ -126,8 +126,10 @@ struct BpTrained {
 
 // 000_… §3–4: one hidden sigmoid layer, random 60/20/20 split into training, validation and test.
 BpTrained train_paper_bp(const ident::Dataset& data, const io::Log& log, const TrainOptions& o) {
-  if (!data.columns.imu)
-    throw std::runtime_error("paper-bp needs the IMU columns; the log lacks them");
+  if (!data.columns.full_imu() || data.columns.static_rows)
+    throw std::runtime_error(
+        "paper-bp needs both IMU groups (imu_f*_mps2 and imu_w*_radps) and time (t_s); the log "
+        "lacks them");
   const int hidden = hidden_or(o, 8);
   std::mt19937_64 gen(o.seed);
   std::vector<std::size_t> all = indices_where(o.usable, data.size());

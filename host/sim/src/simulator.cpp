@@ -591,7 +591,8 @@ SimOutput RigSimulator::run(const std::function<void(double)>& progress) const {
 
   SimOutput out;
   out.log.rig = rig();
-  out.log.columns = {true, true, true};
+  out.log.columns = {
+      .joints = true, .specific_force = true, .angular_rate = true, .temperature = true};
   out.log.samples.reserve(n);
   out.clean_log.rig = out.log.rig;
   out.clean_log.columns = out.log.columns;

@@ -26,7 +26,8 @@ using ::testing::HasSubstr;
 // independent simulator): the sensor tumbles slowly, bias + gravity only, small noise.
 io::Log model_log(std::size_t n, double noise, bool temperature) {
   io::Log log;
-  log.columns = {true, true, temperature};
+  log.columns = {
+      .joints = true, .specific_force = true, .angular_rate = true, .temperature = temperature};
   log.rig.sample_period_s = 0.012;
   model::ModelParams truth;
   truth.effects = {Effect::bias, Effect::gravity};

@@ -53,7 +53,7 @@ Log reference_log(std::size_t rows) {
   log.rig.name = "round-trip";
   log.rig.sample_period_s = 0.001;
   log.rig.flange_sensor.p_m = {0.0, 0.0, 0.06};
-  log.columns = {true, true, true};
+  log.columns = {.joints = true, .specific_force = true, .angular_rate = true, .temperature = true};
   for (std::size_t i = 0; i < rows; ++i) {
     Sample s;
     s.t_s = 10.0 + 0.001 * static_cast<double>(i);
@@ -316,7 +316,7 @@ TEST_F(MergeTest, InterpolatesOntoTheMasterAndCountsDroppedRows) {
 
   const Log& log = result.log;
   ASSERT_EQ(log.samples.size(), r.rows_out);
-  EXPECT_EQ(log.columns, (Columns{true, true, false}));
+  EXPECT_EQ(log.columns, (Columns{.joints = true, .specific_force = true, .angular_rate = true}));
   EXPECT_EQ(log.rig.name, "import-test");
   EXPECT_NEAR(log.rig.sample_period_s, 0.001, 1e-12);  // median of the master
   const double h_imu = 0.0005;
@@ -532,14 +532,13 @@ TEST_F(ImportErrorTest, MappingErrors) {
   expect_error(path("map.toml"), 3, 10, "master 'sensor' is not one of the files");
   with("force = { columns = [\"fx\", \"fy\", \"fz\"], unit = \"N\" }\n", "");
   expect_error(path("map.toml"), 13, 1, "no file maps 'force'");
-  with("angular_rate = { columns = [\"wx\", \"wy\", \"wz\"], unit = \"rad/s\" }\n", "");
-  expect_error(path("map.toml"), 23, 18, "'specific_force' needs 'angular_rate' too");
   with("[files.robot]\n",
        "[files.robot]\nforce = { columns = [\"x\", \"y\", \"z\"], unit = \"N\" }\n");
   expect_error(path("map.toml"), 26, 9, "'force' is mapped twice: here and in files.ft (line 16)");
   with("columns = [\"fx\", \"fy\", \"fz\"]", "columns = [\"fx\", \"fy\"]");
   expect_error(path("map.toml"), 16, 21,
-               "'files.ft.force.columns' must be a list of 3 column names");
+               "'files.ft.force.columns' must be a list of 3 columns (header names, or "
+               "1-based column numbers)");
   with(rig_table(), "");
   expect_error(path("map.toml"), 1, 1, "no rig");
   with("version = 1", "version = 7");
@@ -577,7 +576,9 @@ TEST_F(ImportTest, WorkedExampleImports) {
   EXPECT_EQ(report.files[2].master_rows_before, 4u);
   EXPECT_EQ(report.files[2].master_rows_after, 15u);
   const Log log = read_log(path("run.csv"));
-  EXPECT_EQ(log.columns, (Columns{true, true, true}));
+  EXPECT_EQ(
+      log.columns,
+      (Columns{.joints = true, .specific_force = true, .angular_rate = true, .temperature = true}));
   EXPECT_EQ(log.rig.name, "kr210-import-example");
   for (const Sample& s : log.samples) {
     EXPECT_NEAR(s.specific_force_imu_mps2.z(), -kG, 1e-9);
@@ -589,5 +590,269 @@ TEST_F(ImportTest, WorkedExampleImports) {
   }
 }
 
+// ---- partial recordings: static tables, no header, partial IMU, no position, base frame -------
+
+// 1-based line and character column of the first `needle` in `text` (ASCII text).
+std::pair<int, int> line_column_of(const std::string& text, const std::string& needle) {
+  const std::size_t at = text.find(needle);
+  EXPECT_NE(at, std::string::npos) << needle;
+  const std::size_t line_start =
+      text.rfind('\n', at) == std::string::npos ? 0 : text.rfind('\n', at) + 1;
+  const int line = 1 + static_cast<int>(std::count(text.begin(), text.begin() + at, '\n'));
+  return {line, static_cast<int>(at - line_start) + 1};
+}
+
+// Poses held still: orientation only (a rotation matrix), wrench, accelerometer in g.
+struct StaticRow {
+  Eigen::Matrix3d R_base_sensor;
+  Eigen::Vector3d force_sensor_N, torque_sensor_Nm, specific_force_imu_mps2;
+};
+
+std::vector<StaticRow> static_rows(int n) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<StaticRow> rows;
+  for (int i = 0; i < n; ++i) {
+    StaticRow r;
+    r.R_base_sensor = Eigen::Quaterniond(u(rng), u(rng), u(rng), u(rng)).normalized().matrix();
+    const Eigen::Vector3d g_S = r.R_base_sensor.transpose() * Eigen::Vector3d(0, 0, -kG);
+    r.force_sensor_N = 50.0 * g_S + Eigen::Vector3d(1, -2, 3);
+    r.torque_sensor_Nm = Eigen::Vector3d(0.01, 0.02, 0.1).cross(r.force_sensor_N);
+    r.specific_force_imu_mps2 = -g_S;  // at rest the accelerometer reads −g
+    rows.push_back(r);
+  }
+  return rows;
+}
+
+// A headerless comma-space table: F (N), M (N*m), r11..r33, accelerometer (g).
+std::string static_table_text(const std::vector<StaticRow>& rows) {
+  std::string text = "# held poses, no header\n";
+  for (const StaticRow& r : rows) {
+    std::string line;
+    auto put = [&](double v) { line += (line.empty() ? "" : ", ") + fmt("%.17g", v); };
+    for (int k = 0; k < 3; ++k) put(r.force_sensor_N[k]);
+    for (int k = 0; k < 3; ++k) put(r.torque_sensor_Nm[k]);
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) put(r.R_base_sensor(a, b));
+    for (int k = 0; k < 3; ++k) put(r.specific_force_imu_mps2[k] / kG);
+    text += line + "\n";
+  }
+  return text;
+}
+
+std::string static_mapping(const std::string& force_columns = "[1, 2, 3]") {
+  return "format = \"zerog-import\"\nversion = 1\n" + rig_table() +
+         "[files.table]\npath = \"table.csv\"\nheader = false\ndelimiter = \", \"\n"
+         "force = { columns = " +
+         force_columns +
+         ", unit = \"N\" }\n"
+         "torque = { columns = [4, 5, 6], unit = \"N*m\" }\n"
+         "orientation = { type = \"matrix\", columns = [7, 8, 9, 10, 11, 12, 13, 14, 15] }\n"
+         "specific_force = { columns = [16, 17, 18], unit = \"g\" }\n";
+}
+
+TEST_F(ImportTest, StaticTableWithoutHeaderOrTime) {
+  const auto rows = static_rows(15);
+  write_text(path("table.csv"), static_table_text(rows));
+  write_text(path("map.toml"), static_mapping());
+  const ImportResult result = import_recordings(path("map.toml"));
+  const Log& log = result.log;
+  EXPECT_EQ(log.columns, (Columns{.specific_force = true, .position = false, .static_rows = true}));
+  ASSERT_EQ(log.samples.size(), rows.size());
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const Sample& s = log.samples[i];
+    EXPECT_EQ(s.t_s, static_cast<double>(i));  // the row index stands in for time
+    EXPECT_LT((s.force_sensor_N - rows[i].force_sensor_N).norm(), 1e-9) << i;
+    EXPECT_LT((s.torque_sensor_Nm - rows[i].torque_sensor_Nm).norm(), 1e-9) << i;
+    EXPECT_LT((s.specific_force_imu_mps2 - rows[i].specific_force_imu_mps2).norm(), 1e-9) << i;
+    EXPECT_LT((s.q_base_sensor.toRotationMatrix() - rows[i].R_base_sensor).norm(), 1e-9) << i;
+    EXPECT_EQ(s.p_base_sensor_m, Eigen::Vector3d::Zero());
+  }
+  EXPECT_TRUE(result.report.static_rows);
+  EXPECT_NE(result.report.summary().find("15 rows without time"), std::string::npos)
+      << result.report.summary();
+
+  // Written as format version 2 (no t_s, no position, accelerometer alone) and read back.
+  write_log(log, path("static.csv"));
+  const std::string text = read_text(path("static.csv"));
+  EXPECT_EQ(text.rfind("# zerog-log 2\nqw,qx,qy,qz,imu_fx_mps2,imu_fy_mps2,imu_fz_mps2,Fx_N,", 0),
+            0u)
+      << text.substr(0, 120);
+  const Log back = read_log(path("static.csv"));
+  EXPECT_EQ(back.columns, log.columns);
+  ASSERT_EQ(back.samples.size(), log.samples.size());
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    EXPECT_EQ(back.samples[i].t_s, static_cast<double>(i));
+    EXPECT_LT((back.samples[i].force_sensor_N - rows[i].force_sensor_N).norm(), 1e-5);
+  }
+}
+
+TEST_F(ImportTest, StaticTableWithHeaderAndBlanksAroundSeparators) {
+  // Header names with blanks after the separator, columns named and numbered in one mapping.
+  write_text(path("t.csv"),
+             "Fx ; Fy ; Fz ; Mx ; My ; Mz ; A ; B ; C\n"
+             "1 ; 2 ; 3 ; 0.1 ; 0.2 ; 0.3 ; 90 ; 0 ; 0\n"
+             "4 ; 5 ; 6 ; 0.4 ; 0.5 ; 0.6 ; 0 ; 90 ; 0\n");
+  write_text(path("m.toml"),
+             "format = \"zerog-import\"\nversion = 1\n" + rig_table() +
+                 "[files.t]\npath = \"t.csv\"\ndelimiter = \" ; \"\n"
+                 "force = { columns = [\"Fx\", \"Fy\", 3], unit = \"N\" }\n"
+                 "torque = { columns = [4, \"My\", \"Mz\"], unit = \"N*m\" }\n"
+                 "orientation = { type = \"kuka_abc\", columns = [\"A\", \"B\", \"C\"], unit = "
+                 "\"deg\" }\n");
+  const ImportResult result = import_recordings(path("m.toml"));
+  ASSERT_EQ(result.log.samples.size(), 2u);
+  EXPECT_TRUE(result.log.columns.static_rows);
+  EXPECT_LT((result.log.samples[1].force_sensor_N - Eigen::Vector3d(4, 5, 6)).norm(), 1e-12);
+  EXPECT_LT((result.log.samples[1].torque_sensor_Nm - Eigen::Vector3d(0.4, 0.5, 0.6)).norm(),
+            1e-12);
+}
+
+TEST_F(MergeTest, PartialImuAndNoPosition) {
+  // Accelerometer only.
+  std::string m = mapping();
+  m.erase(m.find("angular_rate = {"),
+          m.find('\n', m.find("angular_rate = {")) + 1 - m.find("angular_rate = {"));
+  write_text(path("map.toml"), m);
+  Log log = import_recordings(path("map.toml")).log;
+  EXPECT_TRUE(log.columns.specific_force);
+  EXPECT_FALSE(log.columns.angular_rate);
+  for (const Sample& s : log.samples) {
+    EXPECT_LT((s.specific_force_imu_mps2 - specific_force_at(s.t_s)).norm(), 1e-9);
+    EXPECT_EQ(s.angular_rate_imu_radps, Eigen::Vector3d::Zero());
+  }
+  // Gyroscope only, and no position (orientation alone).
+  m = mapping();
+  m.erase(m.find("specific_force = {"),
+          m.find('\n', m.find("specific_force = {")) + 1 - m.find("specific_force = {"));
+  m.erase(m.find("position = {"),
+          m.find('\n', m.find("position = {")) + 1 - m.find("position = {"));
+  write_text(path("map.toml"), m);
+  log = import_recordings(path("map.toml")).log;
+  EXPECT_FALSE(log.columns.specific_force);
+  EXPECT_TRUE(log.columns.angular_rate);
+  EXPECT_FALSE(log.columns.position);
+  EXPECT_FALSE(log.columns.static_rows);
+  for (const Sample& s : log.samples) {
+    EXPECT_EQ(s.p_base_sensor_m, Eigen::Vector3d::Zero());
+    EXPECT_NEAR(s.angular_rate_imu_radps.z(), rate_z_at(s.t_s), 1e-6);
+    EXPECT_LT(s.q_base_sensor.angularDistance(orientation_at(s.t_s)), 1e-3);
+  }
+  write_log(log, path("gyro_only.csv"));
+  EXPECT_EQ(read_text(path("gyro_only.csv")).rfind("# zerog-log 2\nt_s,q1_rad,", 0), 0u);
+  const Log back = read_log(path("gyro_only.csv"));
+  EXPECT_EQ(back.columns, log.columns);
+  EXPECT_EQ(back.samples.size(), log.samples.size());
+}
+
+TEST_F(ImportTest, BaseFrameAndFixedFrameVectors) {
+  // The sensor S and the IMU I are turned against each other and against the base B; the files
+  // give the wrench and the IMU with base-frame axes, and a second wrench in a fixed frame D.
+  Rig rig;
+  rig.name = "frames";
+  rig.sensor_imu.q =
+      Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()));
+  write_rig(rig, path("frames.rig.toml"));
+  const Eigen::Quaterniond q_S_D(Eigen::AngleAxisd(-1.1, Eigen::Vector3d(0, 1, 1).normalized()));
+  const Eigen::Matrix3d R_SI = rig.sensor_imu.q.toRotationMatrix();
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::string text = "t,fx,fy,fz,mx,my,mz,ax,ay,az,wx,wy,wz,qw,qx,qy,qz,dx,dy,dz\n";
+  struct Want {
+    Eigen::Vector3d F_S, M_S, f_I, w_I;
+  };
+  std::vector<Want> want;
+  for (int i = 0; i < 20; ++i) {
+    const Eigen::Quaterniond q_BS = Eigen::Quaterniond(u(rng), u(rng), u(rng), u(rng)).normalized();
+    const Eigen::Matrix3d R_BS = q_BS.toRotationMatrix();
+    Want w{Eigen::Vector3d(u(rng), u(rng), u(rng)) * 100, Eigen::Vector3d(u(rng), u(rng), u(rng)),
+           Eigen::Vector3d(u(rng), u(rng), u(rng)) * 10, Eigen::Vector3d(u(rng), u(rng), u(rng))};
+    const Eigen::Vector3d F_B = R_BS * w.F_S, M_B = R_BS * w.M_S;
+    const Eigen::Vector3d f_B = R_BS * R_SI * w.f_I, w_B = R_BS * R_SI * w.w_I;
+    const Eigen::Vector3d F_D = q_S_D.conjugate() * w.F_S;
+    text += fmt("%d", i);
+    for (const Eigen::Vector3d* v : {&F_B, &M_B, &f_B, &w_B})
+      text += fmt(",%.17g,%.17g,%.17g", v->x(), v->y(), v->z());
+    text += fmt(",%.17g,%.17g,%.17g,%.17g", q_BS.w(), q_BS.x(), q_BS.y(), q_BS.z());
+    text += fmt(",%.17g,%.17g,%.17g\n", F_D.x(), F_D.y(), F_D.z());
+    want.push_back(w);
+  }
+  write_text(path("b.csv"), text);
+  const std::string head =
+      "format = \"zerog-import\"\nversion = 1\nrig_file = \"frames.rig.toml\"\n"
+      "[files.b]\npath = \"b.csv\"\ntime = { column = \"t\", unit = \"s\" }\n"
+      "orientation = { type = \"quaternion\", columns = [\"qw\", \"qx\", \"qy\", \"qz\"] }\n"
+      "torque = { columns = [\"mx\", \"my\", \"mz\"], unit = \"N*m\", frame = \"base\" }\n"
+      "specific_force = { columns = [\"ax\", \"ay\", \"az\"], unit = \"m/s^2\", frame = \"base\" "
+      "}\n"
+      "angular_rate = { columns = [\"wx\", \"wy\", \"wz\"], unit = \"rad/s\", frame = \"base\" }\n";
+  write_text(
+      path("m.toml"),
+      head + "force = { columns = [\"fx\", \"fy\", \"fz\"], unit = \"N\", frame = \"base\" }\n");
+  Log log = import_recordings(path("m.toml")).log;
+  ASSERT_EQ(log.samples.size(), want.size());
+  for (std::size_t i = 0; i < want.size(); ++i) {
+    const Sample& s = log.samples[i];
+    EXPECT_LT((s.force_sensor_N - want[i].F_S).norm(), 1e-9) << i;
+    EXPECT_LT((s.torque_sensor_Nm - want[i].M_S).norm(), 1e-9) << i;
+    EXPECT_LT((s.specific_force_imu_mps2 - want[i].f_I).norm(), 1e-9) << i;
+    EXPECT_LT((s.angular_rate_imu_radps - want[i].w_I).norm(), 1e-9) << i;
+  }
+  // A fixed frame D, given by its axes in S.
+  write_text(path("m.toml"),
+             head + fmt("force = { columns = [\"dx\", \"dy\", \"dz\"], unit = \"N\", frame = { "
+                        "q_wxyz = [%.17g, %.17g, %.17g, %.17g] } }\n",
+                        q_S_D.w(), q_S_D.x(), q_S_D.y(), q_S_D.z()));
+  log = import_recordings(path("m.toml")).log;
+  for (std::size_t i = 0; i < want.size(); ++i)
+    EXPECT_LT((log.samples[i].force_sensor_N - want[i].F_S).norm(), 1e-9) << i;
+}
+
+TEST_F(ImportTest, RefusalsNameFileLineColumnAndTheFix) {
+  write_text(path("table.csv"), static_table_text(static_rows(4)));
+  auto expect_mapping_error = [&](const std::string& map, const std::string& at,
+                                  const std::string& part) {
+    write_text(path("map.toml"), map);
+    const auto [line, column] = line_column_of(map, at);
+    expect_input_error([&] { (void)import_recordings(path("map.toml")); }, path("map.toml"), line,
+                       column, part);
+  };
+  // A header name in a file without header.
+  expect_mapping_error(static_mapping("[1, 2, \"Fz\"]"), "\"Fz\"",
+                       "'files.table.force.columns' names column 'Fz', but files.table has "
+                       "header = false: give the 1-based column number instead");
+  // Column numbers count from 1.
+  expect_mapping_error(static_mapping("[0, 2, 3]"), "0, 2, 3",
+                       "column number 0 is out of range (columns are counted from 1)");
+  // An unknown frame.
+  std::string map = static_mapping();
+  map.replace(map.find("unit = \"N\" }"), 12, "unit = \"N\", frame = \"tool\" }");
+  expect_mapping_error(map, "\"tool\"", "must be \"sensor\" (the default), \"base\" or");
+  // time_offset_s without a time column.
+  map = static_mapping() + "time_offset_s = 0.5\n";
+  expect_mapping_error(map, "0.5", "'files.table.time_offset_s' needs a time column");
+  // A second file, and one of them has no time: they cannot be merged.
+  map = static_mapping();
+  map.insert(map.find("[rig]"), "master = \"more\"\n");
+  map +=
+      "[files.more]\npath = \"table.csv\"\nheader = false\n"
+      "time = { column = 1, unit = \"s\" }\ntemperature = { column = 2, unit = \"C\" }\n";
+  expect_mapping_error(map, "[files.table]",
+                       "files.table has no 'time': a file without time holds static samples");
+  // A column number beyond the row: reported at the first data row (line 2, after the comment),
+  // just past its end.
+  write_text(path("map.toml"), static_mapping("[1, 2, 30]"));
+  const std::string text = read_text(path("table.csv"));
+  const std::string first_row =
+      text.substr(text.find('\n') + 1, text.find('\n', text.find('\n') + 1) - text.find('\n') - 1);
+  expect_input_error([&] { (void)import_recordings(path("map.toml")); }, path("table.csv"), 2,
+                     static_cast<int>(first_row.size()) + 1,
+                     "column 30 (named by files.table.force.columns at map.toml:");
+  // A short row in a headerless file.
+  write_text(path("map.toml"), static_mapping());
+  write_text(path("table.csv"), text + "1, 2, 3\n");
+  expect_input_error([&] { (void)import_recordings(path("map.toml")); }, path("table.csv"), 6, 8,
+                     "row has 3 cells but the first row has 18");
+}
 }  // namespace
 }  // namespace zerog::io

@@ -78,7 +78,7 @@ void expect_logs_equal(const Log& got, const Log& want) {
       expect_near_rel(g.p_base_sensor_m[k], w.p_base_sensor_m[k], "p", i);
       expect_near_rel(g.force_sensor_N[k], w.force_sensor_N[k], "F", i);
       expect_near_rel(g.torque_sensor_Nm[k], w.torque_sensor_Nm[k], "M", i);
-      if (want.columns.imu) {
+      if (want.columns.full_imu()) {
         expect_near_rel(g.specific_force_imu_mps2[k], w.specific_force_imu_mps2[k], "f", i);
         expect_near_rel(g.angular_rate_imu_radps[k], w.angular_rate_imu_radps[k], "w", i);
       }
@@ -117,7 +117,8 @@ TEST_F(LogTest, RigPathForReplacesTheExtension) {
 }
 
 TEST_F(LogTest, RoundTripWithAllColumns) {
-  const Log log = example_log(500, {true, true, true});
+  const Log log = example_log(
+      500, {.joints = true, .specific_force = true, .angular_rate = true, .temperature = true});
   write_log(log, path("run.csv"));
   const std::string text = read_text(path("run.csv"));
   EXPECT_EQ(text.rfind("# zerog-log 1\nt_s,q1_rad,", 0), 0u) << text.substr(0, 80);
@@ -128,7 +129,7 @@ TEST_F(LogTest, RoundTripWithAllColumns) {
 }
 
 TEST_F(LogTest, RoundTripWithRequiredColumnsOnly) {
-  const Log log = example_log(50, {false, false, false}, 0.0);
+  const Log log = example_log(50, {}, 0.0);
   write_log(log, path("plain.csv"));
   const std::string text = read_text(path("plain.csv"));
   EXPECT_EQ(text.rfind("# zerog-log 1\n"
@@ -141,10 +142,10 @@ TEST_F(LogTest, RoundTripWithRequiredColumnsOnly) {
 }
 
 TEST_F(LogTest, WriteLogRejectsNonIncreasingTimeAndNonFiniteValues) {
-  Log log = example_log(5, {false, false, false});
+  Log log = example_log(5, {});
   log.samples[3].t_s = log.samples[2].t_s;
   EXPECT_THROW(write_log(log, path("bad.csv")), std::invalid_argument);
-  log = example_log(5, {false, false, false});
+  log = example_log(5, {});
   log.samples[1].force_sensor_N.y() = std::nan("");
   EXPECT_THROW(write_log(log, path("bad.csv")), std::invalid_argument);
   EXPECT_TRUE(listing(dir_).empty());
@@ -175,7 +176,7 @@ TEST_F(LogReadErrorTest, GoodFileReads) {
   ASSERT_EQ(log.samples.size(), 2u);
   EXPECT_EQ(log.samples[1].t_s, 0.1);
   EXPECT_EQ(log.samples[1].torque_sensor_Nm.z(), 0.3);
-  EXPECT_EQ(log.columns, (Columns{false, false, false}));
+  EXPECT_EQ(log.columns, (Columns{}));
 }
 
 TEST_F(LogReadErrorTest, NonNumericCell) {
@@ -244,8 +245,9 @@ TEST_F(LogReadErrorTest, HeaderErrors) {
 TEST_F(LogReadErrorTest, VersionLine) {
   const fs::path csv = path("v.csv");
   write_rig(example_rig(), rig_path_for(csv));
-  write_text(csv, "# zerog-log 2\n" + kHeader + "\n");
-  expect_error(csv, 1, 13, "log format version 2 is not supported");
+  write_text(csv, "# zerog-log 3\n" + kHeader + "\n");
+  expect_error(csv, 1, 13,
+               "log format version 3 is not supported (this zerog reads versions 1 to 2)");
   write_text(csv, "# zerog-log one\n" + kHeader + "\n");
   expect_error(csv, 1, 13, "bad version line");
   write_text(csv, kHeader + "\n" + row("0") + "\n");
@@ -254,6 +256,52 @@ TEST_F(LogReadErrorTest, VersionLine) {
   expect_error(csv, 1, 1, "empty file");
   write_text(csv, "# zerog-log 1\n# only comments\n");
   expect_error(csv, 3, 1, "no header line");
+}
+
+// Format version 2 (proto/log_format.md): t_s, the position and either IMU group may be absent;
+// version-1 files keep their rules, so existing logs read exactly as before.
+TEST_F(LogReadErrorTest, Version2OptionalGroupsAndVersion1Rules) {
+  const fs::path csv = path("v2.csv");
+  write_rig(example_rig(), rig_path_for(csv));
+  // No t_s, no position, accelerometer only: static rows, t_s = row index.
+  const std::string header =
+      "qw,qx,qy,qz,imu_fx_mps2,imu_fy_mps2,imu_fz_mps2,Fx_N,Fy_N,Fz_N,"
+      "Mx_Nm,My_Nm,Mz_Nm";
+  const std::string body =
+      "1,0,0,0,0,0,9.8,1,2,3,0.1,0.2,0.3\n0,1,0,0,0,0,-9.8,4,5,6,0.4,0.5,0.6\n";
+  write_text(csv, "# zerog-log 2\n" + header + "\n" + body);
+  Log log = read_log(csv);
+  EXPECT_EQ(log.columns, (Columns{.specific_force = true, .position = false, .static_rows = true}));
+  ASSERT_EQ(log.samples.size(), 2u);
+  EXPECT_EQ(log.samples[0].t_s, 0.0);
+  EXPECT_EQ(log.samples[1].t_s, 1.0);
+  EXPECT_EQ(log.samples[1].specific_force_imu_mps2.z(), -9.8);
+  EXPECT_EQ(log.samples[1].angular_rate_imu_radps, Eigen::Vector3d::Zero());
+  // Round trip: written as version 2 with the same columns.
+  write_log(log, path("again.csv"));
+  EXPECT_EQ(read_text(path("again.csv")), "# zerog-log 2\n" + header + "\n" + body);
+  // The same columns under version 1: t_s and the position are required there, and the IMU
+  // comes as one group of six; each error says which version would take the file.
+  write_text(csv, "# zerog-log 1\n" + header + "\n" + body);
+  expect_error(csv, 2, 1, "missing required column 't_s' (optional from format version 2 on");
+  write_text(csv, "# zerog-log 1\n" + kHeader + ",imu_wx_radps,imu_wy_radps,imu_wz_radps\n" +
+                      row("0") + ",0,0,1\n");
+  expect_error(csv, 2, static_cast<int>(kHeader.size()) + 2,
+               "'imu_wx_radps' is present but 'imu_fx_mps2' is missing");
+  expect_error(csv, 2, static_cast<int>(kHeader.size()) + 2, "write '# zerog-log 2' on line 1");
+  write_text(csv, "# zerog-log 2\n" + kHeader + ",imu_wx_radps,imu_wy_radps,imu_wz_radps\n" +
+                      row("0") + ",0,0,1\n");
+  log = read_log(csv);
+  EXPECT_EQ(log.columns, (Columns{.angular_rate = true}));
+  EXPECT_EQ(log.samples[0].angular_rate_imu_radps.z(), 1.0);
+  // Still required in version 2: the orientation and the wrench.
+  write_text(csv, "# zerog-log 2\nt_s,Fx_N,Fy_N,Fz_N,Mx_Nm,My_Nm,Mz_Nm\n0,1,2,3,4,5,6\n");
+  expect_error(csv, 2, 1, "missing required column 'qw'");
+  // A version-1 log with every column reads as before and is written back as version 1.
+  write_log(example_log(5, {.joints = true, .specific_force = true, .angular_rate = true}), csv);
+  EXPECT_EQ(read_text(csv).rfind("# zerog-log 1\n", 0), 0u);
+  EXPECT_EQ(read_log(csv).columns,
+            (Columns{.joints = true, .specific_force = true, .angular_rate = true}));
 }
 
 TEST_F(LogReadErrorTest, MissingFiles) {
@@ -439,7 +487,8 @@ TEST_F(LogTest, ModelFileWithWrongTypesIsAnErrorNamingTheFile) {
 }
 
 TEST_F(LogTest, ReadsAHundredThousandRowsQuickly) {
-  const Log log = example_log(100000, {true, true, true});
+  const Log log = example_log(
+      100000, {.joints = true, .specific_force = true, .angular_rate = true, .temperature = true});
   write_log(log, path("big.csv"));
   const auto start = std::chrono::steady_clock::now();
   const Log back = read_log(path("big.csv"));

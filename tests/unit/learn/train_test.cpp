@@ -153,7 +153,8 @@ TEST(Train, BadOptionsGiveClearErrors) {
   }
   // A log without IMU columns cannot feed paper-bp.
   io::Log no_imu = r.log;
-  no_imu.columns.imu = false;
+  no_imu.columns.specific_force = false;
+  no_imu.columns.angular_rate = false;
   const ident::Dataset d = ident::make_dataset(no_imu);
   try {
     learn::train(d, no_imu, quick(learn::NetworkKind::paper_bp));

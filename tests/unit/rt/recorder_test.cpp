@@ -132,7 +132,7 @@ TEST(Recorder, WritesALogThatReadsBackAndCyclesCsvAndRenamesOnlyAtTheEnd) {
   const io::Log log = io::read_log(dir.path() / "run1" / "run.csv");
   ASSERT_EQ(log.samples.size(), 49u);
   EXPECT_TRUE(log.columns.joints);
-  EXPECT_TRUE(log.columns.imu);
+  EXPECT_TRUE(log.columns.full_imu());
   EXPECT_EQ(log.rig.name, test::test_rig().name);
   EXPECT_DOUBLE_EQ(log.samples[0].t_s, 0.012);
   EXPECT_NEAR(log.samples[0].force_sensor_N.x(), 12.0, 1e-9);

@@ -474,7 +474,7 @@ TEST(Simulator, CleanLogHasNoiseFreeSignalsAndTheNoisyWrench) {
   const SimOutput ref = RigSimulator(quiet, short_path()).run();
   ASSERT_EQ(out.clean_log.samples.size(), out.log.samples.size());
   ASSERT_EQ(ref.log.samples.size(), out.log.samples.size());
-  EXPECT_EQ(out.clean_log.columns.imu, out.log.columns.imu);
+  EXPECT_EQ(out.clean_log.columns, out.log.columns);
   EXPECT_EQ(out.clean_log.rig.name, out.log.rig.name);
   double ss_acc = 0, ss_gyro = 0, ss_force = 0;
   const std::size_t n = out.log.samples.size();
@@ -515,7 +515,7 @@ TEST(Simulator, WritesALogThatReadsBack) {
   io::write_model(out.truth, dir / "run.truth.json");
   const io::Log back = io::read_log(dir / "run.csv");
   ASSERT_EQ(back.samples.size(), out.log.samples.size());
-  EXPECT_TRUE(back.columns.joints && back.columns.imu && back.columns.temperature);
+  EXPECT_TRUE(back.columns.joints && back.columns.full_imu() && back.columns.temperature);
   EXPECT_TRUE(back.rig.sensor_imu.p_m.isApprox(c.imu_lever_arm_m, 1e-12));
   EXPECT_NEAR(back.samples.back().force_sensor_N.z(), out.log.samples.back().force_sensor_N.z(),
               1e-5);

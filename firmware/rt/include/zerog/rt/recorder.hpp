@@ -86,7 +86,8 @@ class Recorder {
   RecorderCounters counters_;
   PartialFile log_;
   PartialFile cycles_;
-  io::LogCsvWriter log_writer_{io::Columns{true, true, false}};
+  io::LogCsvWriter log_writer_{
+      io::Columns{.joints = true, .specific_force = true, .angular_rate = true}};
   std::string row_;
   bool seen_ft_ = false, seen_imu_ = false;
 };

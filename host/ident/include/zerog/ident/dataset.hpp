@@ -17,13 +17,17 @@ using Wrench = Eigen::Matrix<double, 6, 1>;
 struct Dataset {
   model::RigGeometry rig;
   io::Columns columns;
+  /// Where the IMU columns came from (logged, or derived at import from joints or pose).
+  io::KinematicsRecord kinematics;
   double dt_s = 0.012;  ///< mean row period (IMU time shifts interpolate on this grid)
   std::vector<double> t_s;
   std::vector<model::PoseSignals> pose;
   /// n rows of 9: specific force (3), angular rate (3), angular acceleration (3), IMU frame.
+  /// A group the log lacks is zero (taken as at rest); so is the angular acceleration of a log
+  /// without angular rate or without time (columns.static_rows).
   std::vector<double> imu;
   std::vector<Wrench> measured;
-  std::vector<std::uint8_t> moving;                    ///< 1 while the sensor moves
+  std::vector<std::uint8_t> moving;  ///< 1 while the sensor moves (always 0 for static rows)
   std::vector<std::array<double, 6>> joint_vel_radps;  ///< from differencing the joint angles
   // For the signal dictionary (model/dictionary.hpp): central differences (3-point; one-sided
   // at the ends), so that they carry no delay.
@@ -40,7 +44,7 @@ struct Dataset {
   template <typename T>
   model::ImuSignals<T> imu_at(std::size_t i, const T* tau) const {
     model::ImuSignals<T> s;
-    if (!columns.imu) return s;
+    if (!columns.any_imu()) return s;
     if (tau == nullptr) {
       const double* row = &imu[i * 9];
       for (int k = 0; k < 3; ++k) {
@@ -68,11 +72,13 @@ Dataset make_dataset(const io::Log& log);
 Wrench predict(const model::ModelParams& params, const Dataset& data, std::size_t i);
 
 /// Time-blocked split: blocks of `block_s` seconds; block k is held out when k mod `every` ==
-/// `offset` (default every − 1). Returns 1 for held-out samples.
+/// `offset` (default every − 1). Returns 1 for held-out samples. Static rows (no time) are
+/// independent samples: each row is its own block, `block_s` does not apply.
 std::vector<std::uint8_t> heldout_mask(const Dataset& data, double block_s = 60.0, int every = 4,
                                        int offset = -1);
 
-/// Throws std::runtime_error if the log lacks a signal an effect needs (names both).
+/// Throws std::runtime_error if the log lacks a signal an effect needs (names both, and the
+/// column or import-mapping key that would make it work).
 void check_signals(const model::EffectSet& effects, const Dataset& data);
 /// The same for user terms (names the term and the missing columns).
 void check_signals(const model::UserEffects& user, const Dataset& data);

@@ -10,6 +10,7 @@
 
 #include "zerog/ident/compare.hpp"
 #include "zerog/ident/fit.hpp"
+#include "zerog/ident/kinematics_sources.hpp"
 
 namespace zerog::ident {
 
@@ -62,7 +63,39 @@ struct UserCandidate {
   std::string source;
 };
 
+/// The time blocks of the held-out split (every `every`-th block held out), as used for a log.
+struct BlockChoice {
+  double block_s = 60.0;  ///< block length, s (0 for rows without time: one row per block)
+  int blocks = 0;         ///< blocks in the log
+  bool automatic = true;  ///< chosen from the log's length, not given (--block)
+  std::size_t heldout_samples = 0, training_samples = 0;
+  std::string text;  ///< in words, e.g. "blocks of 0.75 s (8 blocks; the log is 6.0 s)"
+};
+
+/// Default block length; used whenever the log holds at least kMinBlocks of them.
+inline constexpr double kDefaultBlockS = 60.0;
+/// Blocks a log must hold when the length is chosen: with every 4th held out, 2 held-out blocks.
+inline constexpr int kMinBlocks = 8;
+/// Shortest block chosen: far longer than the 5-row difference stencils and the 3-row motion
+/// dilation at any rate zerog reads (≥ 100 Hz), so a held-out block is not predicted by its
+/// neighbours' samples.
+inline constexpr double kMinBlockS = 0.5;
+/// Samples each side of the split needs (held-out and training).
+inline constexpr std::size_t kMinSplitSamples = 100;
+
+/// The blocks of the held-out split. `block_s` > 0: that length (refused, naming what works, if
+/// the log then lacks kMinSplitSamples on a side). `block_s` <= 0: chosen from the log: 60 s if
+/// it holds at least 8 blocks of 60 s, else its duration / 8, not below 0.5 s. Throws
+/// std::runtime_error (naming the log's length and what would work) when no split fits: a log
+/// shorter than 8 × 0.5 s = 4 s, or with fewer than 100 samples on a side.
+BlockChoice choose_blocks(const Dataset& data, double block_s, int every = 4, int offset = -1);
+
 struct Diagnosis {
+  BlockChoice split;  ///< the held-out split's blocks
+  /// Which source fed which effect of the model (JSON "kinematics_sources").
+  std::vector<EffectFeeds> kinematics;
+  nlohmann::json kinematics_json;  ///< kinematics_json() of the log
+  std::string kinematics_text;     ///< format_kinematics() of the log
   model::EffectSet model;
   FitResult baseline;
   HeldOut baseline_heldout;
@@ -81,7 +114,8 @@ struct Diagnosis {
 };
 
 struct DiagnoseOptions {
-  double block_s = 60.0;    ///< time-block length for the held-out split
+  /// Time-block length for the held-out split, s; 0: chosen from the log (choose_blocks()).
+  double block_s = 0.0;
   int every = 4;            ///< every n-th block is held out
   int heldout_offset = -1;  ///< which block of each `every` is held out (default the last)
   /// Samples neither fitted nor scored (e.g. a final test set kept for a later comparison).
@@ -132,6 +166,7 @@ struct LadderOptions {
 /// pays.
 std::vector<LadderStep> ladder(const Dataset& data, const LadderOptions& options);
 
+nlohmann::json to_json(const BlockChoice& b);
 nlohmann::json to_json(const Diagnosis& d);
 nlohmann::json to_json(const std::vector<LadderStep>& steps);
 std::string format_diagnosis(const Diagnosis& d);

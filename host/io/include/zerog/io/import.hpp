@@ -2,7 +2,8 @@
 // `zerog import`: turns a user's own recordings — one or several delimited text files, recorded
 // at any rates and in common units — into a zerog log (proto/log_format.md). A TOML mapping file
 // (proto/import_mapping.md) names the files, their columns and units; all files are merged onto
-// the time base of one "master" file by linear interpolation (slerp for orientations).
+// the time base of one "master" file by linear interpolation (slerp for orientations). A single
+// file without a time column is a static table: every row an independent held pose.
 #include <cstddef>
 #include <filesystem>
 #include <optional>
@@ -35,7 +36,10 @@ struct ImportReport {
   std::vector<ImportFileReport> files;  ///< master first
   std::size_t master_rows = 0;          ///< rows of the master file
   std::size_t rows_out = 0;             ///< rows of the log (master rows covered by every file)
+  bool static_rows = false;             ///< no time column: rows are static samples
   std::string rig_source;               ///< where the rig came from, for the summary
+  /// Where the IMU columns came from (kinematics = …) and the differentiator, for the summary.
+  std::string kinematics;
   /// A few lines of plain text for the console.
   std::string summary() const;
 };

@@ -1,0 +1,93 @@
+#include "zerog/ident/kinematics_sources.hpp"
+
+#include <cstdio>
+
+namespace zerog::ident {
+
+namespace {
+
+std::string source_of(bool present, io::KinematicsOrigin origin) {
+  return present ? io::to_string(origin) : "none";
+}
+
+constexpr const char* kOmegaDotMethod =
+    "5-point central difference of the angular-rate column (host/ident), whatever its source";
+
+}  // namespace
+
+std::vector<EffectFeeds> kinematics_feeds(const model::EffectSet& effects, const Dataset& data) {
+  using model::Effect;
+  const io::Columns& c = data.columns;
+  const io::KinematicsRecord& k = data.kinematics;
+  const SignalFeed omega{"omega", source_of(c.angular_rate, k.angular_rate)};
+  // No rate or no time: no ω̇ (taken as zero).
+  const SignalFeed omega_dot{"omega_dot",
+                             source_of(c.angular_rate && !c.static_rows, k.angular_rate)};
+  const SignalFeed force{"specific_force", source_of(c.specific_force, k.specific_force)};
+  std::vector<EffectFeeds> out;
+  for (Effect e : model::kAllEffects) {
+    if (!effects.has(e)) continue;
+    EffectFeeds f{model::info(e).name, {}};
+    if (e == Effect::linear_inertia) f.signals = {force, omega, omega_dot};
+    if (e == Effect::rotational_inertia) f.signals = {omega, omega_dot};
+    if (e == Effect::imu_time_offset) {
+      if (c.specific_force) f.signals.push_back(force);
+      if (c.angular_rate) f.signals.push_back(omega);
+    }
+    if (!f.signals.empty()) out.push_back(std::move(f));
+  }
+  return out;
+}
+
+nlohmann::json kinematics_json(const std::vector<EffectFeeds>& feeds, const Dataset& data) {
+  const io::KinematicsRecord& k = data.kinematics;
+  nlohmann::json j;
+  j["mode"] = k.mode;
+  j["omega_dot"] = kOmegaDotMethod;
+  if (k.derived()) {
+    j["differentiator"] = {{"method", "savitzky_golay"},
+                           {"half_width", k.sg_half_width},
+                           {"order", k.sg_order},
+                           {"period_s", k.period_s},
+                           {"bandwidth_hz", k.bandwidth_hz},
+                           {"lag_s", k.lag_s},
+                           {"noise_gain_rate_per_s", k.noise_gain_rate_per_s},
+                           {"noise_gain_accel_per_s2", k.noise_gain_accel_per_s2},
+                           {"cutoff_rate_hz", k.cutoff_rate_hz},
+                           {"cutoff_accel_hz", k.cutoff_accel_hz}};
+  } else {
+    j["differentiator"] = nullptr;
+  }
+  j["effects"] = nlohmann::json::object();
+  for (const EffectFeeds& f : feeds) {
+    nlohmann::json e = nlohmann::json::object();
+    for (const SignalFeed& s : f.signals) e[s.signal] = s.source;
+    j["effects"][f.effect] = std::move(e);
+  }
+  return j;
+}
+
+std::string format_kinematics(const std::vector<EffectFeeds>& feeds, const Dataset& data) {
+  if (feeds.empty()) return {};
+  std::string out;
+  for (const EffectFeeds& f : feeds) {
+    out += "kinematics: " + f.effect + " <-";
+    for (std::size_t i = 0; i < f.signals.size(); ++i)
+      out += std::string(i == 0 ? " " : ", ") + f.signals[i].signal + " " + f.signals[i].source;
+    out += "\n";
+  }
+  const io::KinematicsRecord& k = data.kinematics;
+  if (k.derived()) {
+    char line[300];
+    std::snprintf(line, sizeof line,
+                  "kinematics: derived at import (kinematics = \"%s\"): Savitzky-Golay M = %d, "
+                  "order %d at %.4g s, lag 0, noise gain %.3g 1/s (rate), %.3g 1/s^2 "
+                  "(acceleration)\n",
+                  k.mode.c_str(), k.sg_half_width, k.sg_order, k.period_s, k.noise_gain_rate_per_s,
+                  k.noise_gain_accel_per_s2);
+    out += line;
+  }
+  return out;
+}
+
+}  // namespace zerog::ident

@@ -1,0 +1,524 @@
+// Kinematics from the robot, end to end (issue 13 item 2; proto/import_mapping.md "kinematics",
+// proto/log_format.md "[robot]" and "[kinematics]"): recordings written by the tests from the
+// independent simulator (its own KR 210 kinematics, host/sim) without an IMU or with part of one
+// → zerog import with kinematics = "robot" | "auto" and the rig's robot (calib/robots/
+// kr210_r2700.robot.toml) → fit and diagnose unchanged, against the simulator's truth. Also the
+// rig's three robot forms, and the refusals.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+
+#include "zerog/ident/compare.hpp"
+#include "zerog/ident/diagnose.hpp"
+#include "zerog/ident/fit.hpp"
+#include "zerog/ident/kinematics_sources.hpp"
+#include "zerog/io/import.hpp"
+#include "zerog/io/log.hpp"
+#include "zerog/io/robot_toml.hpp"
+#include "zerog/robot/derive_kinematics.hpp"
+#include "zerog/robot/forward_kinematics.hpp"
+#include "zerog/sim/design.hpp"
+#include "zerog/sim/simulator.hpp"
+
+namespace zerog::ident {
+namespace {
+
+namespace fs = std::filesystem;
+using model::Effect;
+using ::testing::HasSubstr;
+constexpr double kG = model::kStandardGravity;
+
+const fs::path kRobotFile = fs::path(ZEROG_SOURCE_DIR) / "calib/robots/kr210_r2700.robot.toml";
+
+void write_text(const fs::path& p, const std::string& text) {
+  std::ofstream out(p, std::ios::binary);
+  out << text;
+  ASSERT_TRUE(out.good()) << p;
+}
+
+fs::path fresh_dir(const std::string& name) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("zerog_robotkin_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+std::string cell(double v) {
+  char buffer[40];
+  std::snprintf(buffer, sizeof buffer, "%.9g", v);
+  return buffer;
+}
+
+// One simulated stream as a CSV file: the time, then `row`'s cells.
+template <typename Row>
+void write_stream(const fs::path& file, const std::string& header, const io::Log& log, Row row) {
+  std::string text = header + "\n";
+  for (const io::Sample& s : log.samples) text += cell(s.t_s) + "," + row(s) + "\n";
+  write_text(file, text);
+}
+
+std::string wrench_cells(const io::Sample& s) {
+  std::string out;
+  for (int k = 0; k < 3; ++k) out += cell(s.force_sensor_N[k]) + ",";
+  for (int k = 0; k < 3; ++k) out += cell(s.torque_sensor_Nm[k]) + (k < 2 ? "," : "");
+  return out;
+}
+std::string quaternion_cells(const io::Sample& s) {
+  return cell(s.q_base_sensor.w()) + "," + cell(s.q_base_sensor.x()) + "," +
+         cell(s.q_base_sensor.y()) + "," + cell(s.q_base_sensor.z());
+}
+std::string joint_cells(const io::Sample& s) {
+  std::string out;
+  for (int j = 0; j < 6; ++j) out += (j ? "," : "") + cell(s.joints_rad[j]);
+  return out;
+}
+std::string vector_cells(const Eigen::Vector3d& v) {
+  return cell(v.x()) + "," + cell(v.y()) + "," + cell(v.z());
+}
+
+// The simulator's rig as text, its robot given as `robot_line` in place of the name.
+std::string rig_text(const io::Rig& rig, const fs::path& dir, const std::string& robot_line) {
+  io::write_rig(rig, dir / "tmp.rig.toml");
+  std::ifstream in(dir / "tmp.rig.toml");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string name_line = "robot = \"" + rig.robot + "\"\n";
+  const auto at = text.find(name_line);
+  EXPECT_NE(at, std::string::npos);
+  text.replace(at, name_line.size(), robot_line);
+  fs::remove(dir / "tmp.rig.toml");
+  return text;
+}
+
+const std::string kMappingHead = "format = \"zerog-import\"\nversion = 1\n";
+const std::string kWrenchKeys =
+    "force = { columns = [\"Fx\", \"Fy\", \"Fz\"], unit = \"N\" }\n"
+    "torque = { columns = [\"Mx\", \"My\", \"Mz\"], unit = \"N*m\" }\n";
+const std::string kQuaternionKey =
+    "orientation = { type = \"quaternion\", columns = [\"qw\", \"qx\", \"qy\", \"qz\"] }\n";
+const std::string kJointsKey =
+    "joints = { columns = [\"A1\", \"A2\", \"A3\", \"A4\", \"A5\", \"A6\"], unit = \"rad\" }\n";
+
+// The OA design's path points (zerog design's default), as the partial-recordings test uses.
+const std::vector<sim::JointVector>& design_points() {
+  static const std::vector<sim::JointVector> points = [] {
+    sim::DesignOptions oa;
+    oa.kind = sim::DesignKind::oa;
+    return sim::make_design(oa).points_rad;
+  }();
+  return points;
+}
+
+double relative(double value, double truth) { return std::abs(value / truth - 1.0); }
+
+// Held-out error of a fit on the training blocks (every 4th of 8 blocks held out).
+struct Scored {
+  FitResult fit;
+  Comparison heldout;
+};
+Scored fit_heldout(const Dataset& data, const model::EffectSet& effects) {
+  const double duration = data.t_s.back() - data.t_s.front();
+  const auto heldout = heldout_mask(data, duration / 8.0 * (1.0 + 1e-9));
+  std::vector<std::uint8_t> train(heldout.size());
+  for (std::size_t i = 0; i < heldout.size(); ++i) train[i] = heldout[i] ? 0 : 1;
+  FitOptions fo;
+  fo.effects = effects;
+  fo.mask = &train;
+  Scored s;
+  s.fit = fit(data, fo);
+  s.heldout = compare(residuals(s.fit.params, data), data, &heldout);
+  return s;
+}
+
+const model::EffectSet kStaticModel = {Effect::bias, Effect::gravity};
+const model::EffectSet kDynamicModel = {Effect::bias, Effect::gravity, Effect::linear_inertia,
+                                        Effect::rotational_inertia};
+
+// RMS of the norm of the difference of two IMU vectors over the rows.
+template <typename Get>
+double rms_difference(const io::Log& a, const io::Log& b, Get get) {
+  double sum = 0.0;
+  for (std::size_t i = 0; i < a.samples.size(); ++i)
+    sum += (get(a.samples[i]) - get(b.samples[i])).squaredNorm();
+  return std::sqrt(sum / static_cast<double>(a.samples.size()));
+}
+
+// ---- (a) no IMU: joints and wrench only ----------------------------------------------------
+
+// Acceptance of issue 13 for joints only (simulated KR 210 + 100 kg, 12 ms rows): mass within
+// 0.5 %, centre of mass within 2 mm, inertia within 5 % (each diagonal element; products within
+// 5 % of the largest), held-out moving force RMS within 1.3 × the same fit with the simulator's
+// (noisy) IMU, and clearly below bias + gravity's, whose moving segments keep the inertial force.
+TEST(RobotKinematics, JointsOnlyFitsMassAndInertiaOnSeveralSeeds) {
+  const fs::path dir = fresh_dir("joints");
+  for (std::uint64_t seed : {1u, 2u, 3u}) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    sim::SimConfig config = sim::default_sim_config(seed);
+    config.period_s = 0.012;
+    config.duration_limit_s = 120.0;
+    config.effects.add(sim::SimEffect::imu_lever_arm);  // the derived IMU columns include it
+    const sim::RigSimulator simulator(config, design_points());
+    const sim::SimOutput out = simulator.run();
+
+    write_stream(dir / "robot.csv", "t,Fx,Fy,Fz,Mx,My,Mz,qw,qx,qy,qz,A1,A2,A3,A4,A5,A6", out.log,
+                 [](const io::Sample& s) {
+                   return wrench_cells(s) + "," + quaternion_cells(s) + "," + joint_cells(s);
+                 });
+    write_text(dir / "cell.rig.toml",
+               rig_text(out.log.rig, dir, "robot_file = \"" + kRobotFile.string() + "\"\n"));
+    write_text(dir / "mapping.toml",
+               kMappingHead +
+                   "rig_file = \"cell.rig.toml\"\nkinematics = \"robot\"\n[files.robot]\npath = "
+                   "\"robot.csv\"\ntime = { column = \"t\", unit = \"s\" }\n" +
+                   kWrenchKeys + kQuaternionKey + kJointsKey);
+    const io::ImportResult imported = io::import_recordings(dir / "mapping.toml");
+    std::printf("%s", imported.report.summary().c_str());
+    const io::Log& log = imported.log;
+    ASSERT_TRUE(log.columns.angular_rate && log.columns.specific_force);
+    EXPECT_EQ(log.rig.kinematics.angular_rate, io::KinematicsOrigin::joints);
+    EXPECT_EQ(log.rig.kinematics.specific_force, io::KinematicsOrigin::joints);
+    EXPECT_EQ(log.rig.robot, "KR 210 R2700");
+    ASSERT_TRUE(log.rig.robot_model.has_value());
+
+    // The derived columns against the simulator's noise-free IMU (same rows).
+    ASSERT_EQ(log.samples.size(), out.clean_log.samples.size());
+    const double rate_error = rms_difference(
+        log, out.clean_log, [](const io::Sample& s) { return s.angular_rate_imu_radps; });
+    const double force_error = rms_difference(
+        log, out.clean_log, [](const io::Sample& s) { return s.specific_force_imu_mps2; });
+    const double imu_rate_noise = rms_difference(
+        out.log, out.clean_log, [](const io::Sample& s) { return s.angular_rate_imu_radps; });
+    const double imu_force_noise = rms_difference(
+        out.log, out.clean_log, [](const io::Sample& s) { return s.specific_force_imu_mps2; });
+    std::printf(
+        "derived from joints at 12 ms: angular rate error %.2e rad/s (IMU %.2e), specific "
+        "force error %.4f m/s^2 (IMU %.4f), RMS of the 3-axis norm against the truth\n",
+        rate_error, imu_rate_noise, force_error, imu_force_noise);
+    EXPECT_LT(rate_error, 0.2 * imu_rate_noise);
+    EXPECT_LT(force_error, 0.5 * imu_force_noise);  // the lever arm alone is ~0.03 m/s²
+
+    // Through the log format and back: the rig keeps the robot and where the columns came from.
+    io::write_log(log, dir / "run.csv");
+    const io::Log read = io::read_log(dir / "run.csv");
+    EXPECT_EQ(read.rig.kinematics.angular_rate, io::KinematicsOrigin::joints);
+    EXPECT_EQ(read.rig.kinematics.sg_half_width, log.rig.kinematics.sg_half_width);
+    EXPECT_GT(read.rig.kinematics.noise_gain_accel_per_s2, 0.0);
+    ASSERT_TRUE(read.rig.robot_model.has_value());
+    const Dataset data = make_dataset(read);
+
+    const Scored without = fit_heldout(data, kStaticModel);
+    const Scored with = fit_heldout(data, kDynamicModel);
+    const Scored imu = fit_heldout(make_dataset(out.log), kDynamicModel);
+    ASSERT_TRUE(without.fit.usable && with.fit.usable && imu.fit.usable) << with.fit.termination;
+
+    const io::ModelFile& truth = out.truth;
+    const double* g = with.fit.params.block(Effect::gravity);
+    const double* tg = truth.params.block(Effect::gravity);
+    const double* I = with.fit.params.block(Effect::rotational_inertia);
+    const double* tI = truth.params.block(Effect::rotational_inertia);
+    const double mass_error = relative(g[0], tg[0]);
+    const double com_error_m =
+        (Eigen::Vector3d(g[1], g[2], g[3]) - Eigen::Vector3d(tg[1], tg[2], tg[3]))
+            .cwiseAbs()
+            .maxCoeff();
+    double diagonal_error = 0.0, product_error = 0.0;
+    const double largest = std::max({tI[0], tI[1], tI[2]});
+    for (int k = 0; k < 3; ++k) diagonal_error = std::max(diagonal_error, relative(I[k], tI[k]));
+    for (int k = 3; k < 6; ++k)
+      product_error = std::max(product_error, std::abs(I[k] - tI[k]) / largest);
+    std::printf(
+        "joints only, seed %llu: mass %.4f kg (error %.3f %%), centre of mass error %.3f mm, "
+        "inertia error %.2f %% (diagonal), %.2f %% (products, of the largest); held-out moving "
+        "force RMS %.3f N (bias+gravity %.3f N, the same fit with the IMU %.3f N)\n",
+        static_cast<unsigned long long>(seed), g[0], 100.0 * mass_error, 1e3 * com_error_m,
+        100.0 * diagonal_error, 100.0 * product_error, with.heldout.moving.force_rms,
+        without.heldout.moving.force_rms, imu.heldout.moving.force_rms);
+    EXPECT_LT(mass_error, 0.005);
+    EXPECT_LT(com_error_m, 0.002);
+    EXPECT_LT(diagonal_error, 0.05);
+    EXPECT_LT(product_error, 0.05);
+    EXPECT_LT(with.heldout.moving.force_rms, 1.3 * imu.heldout.moving.force_rms);
+    // The inertial force of the moving segments is explained.
+    EXPECT_LT(with.heldout.moving.force_rms, 0.5 * without.heldout.moving.force_rms);
+
+    // Every fit names its sources: both inertia effects from the joints.
+    const auto feeds = kinematics_feeds(kDynamicModel, data);
+    const nlohmann::json j = kinematics_json(feeds, data);
+    EXPECT_EQ(j["mode"], "robot");
+    EXPECT_EQ(j["effects"]["linear_inertia"]["specific_force"], "joints");
+    EXPECT_EQ(j["effects"]["rotational_inertia"]["omega"], "joints");
+    EXPECT_EQ(j["effects"]["rotational_inertia"]["omega_dot"], "joints");
+    EXPECT_EQ(j["differentiator"]["half_width"], read.rig.kinematics.sg_half_width);
+    EXPECT_THAT(format_kinematics(feeds, data), HasSubstr("rotational_inertia <- omega joints"));
+  }
+  fs::remove_all(dir);
+}
+
+// ---- (b) accelerometer only, orientation only (the partial-recordings case) ----------------
+
+// issue 13's first cell: F/T at 700 Hz, accelerometer only at 250 Hz in g, orientation only at
+// 100 Hz. The truth has the IMU off the sensor origin (imu_lever_arm) and the payload's
+// rotational inertia. kinematics = "imu" (the default) leaves the lever-arm terms and the
+// rotational inertia unexplained; "auto" takes ω and ω̇ from the orientation (the
+// accelerometer stays the specific force's source) and both can be fitted.
+TEST(RobotKinematics, AccelerometerOnlyGetsRatesFromTheOrientation) {
+  const fs::path dir = fresh_dir("acc");
+  for (std::uint64_t seed : {5u, 6u}) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    auto config = [&](std::uint64_t noise_seed, double period_s) {
+      sim::SimConfig c = sim::default_sim_config(seed);
+      c.seed = noise_seed;
+      c.effects.add(sim::SimEffect::imu_lever_arm);
+      c.period_s = period_s;
+      c.duration_limit_s = 90.0;
+      return c;
+    };
+    const io::Log ft = sim::RigSimulator(config(seed, 1.0 / 700.0), design_points()).run().log;
+    const io::Log acc = sim::RigSimulator(config(seed + 1, 1.0 / 250.0), design_points()).run().log;
+    const sim::RigSimulator pose_sim(config(seed + 2, 1.0 / 100.0), design_points());
+    const sim::SimOutput pose = pose_sim.run();
+    write_stream(dir / "ft.csv", "t,Fx,Fy,Fz,Mx,My,Mz", ft, wrench_cells);
+    write_stream(dir / "acc.csv", "t,ax_g,ay_g,az_g", acc,
+                 [](const io::Sample& s) { return vector_cells(s.specific_force_imu_mps2 / kG); });
+    write_stream(dir / "pose.csv", "t,r11,r12,r13,r21,r22,r23,r31,r32,r33", pose.log,
+                 [](const io::Sample& s) {
+                   const Eigen::Matrix3d R = s.q_base_sensor.toRotationMatrix();
+                   std::string out;
+                   for (int r = 0; r < 3; ++r)
+                     for (int c = 0; c < 3; ++c) out += (out.empty() ? "" : ",") + cell(R(r, c));
+                   return out;
+                 });
+    io::write_rig(pose.log.rig, dir / "rig.rig.toml");
+    auto mapping = [&](const std::string& kinematics) {
+      write_text(
+          dir / "mapping.toml",
+          kMappingHead + "master = \"ft\"\nrig_file = \"rig.rig.toml\"\n" + kinematics +
+              "[files.ft]\npath = \"ft.csv\"\ntime = { column = \"t\", unit = \"s\" }\n" +
+              kWrenchKeys +
+              "[files.acc]\npath = \"acc.csv\"\ntime = { column = \"t\", unit = \"s\" }\n"
+              "specific_force = { columns = [\"ax_g\", \"ay_g\", \"az_g\"], unit = \"g\" }\n"
+              "[files.pose]\npath = \"pose.csv\"\ntime = { column = \"t\", unit = \"s\" }\n"
+              "orientation = { type = \"matrix\", columns = [\"r11\", \"r12\", \"r13\", \"r21\", "
+              "\"r22\", \"r23\", \"r31\", \"r32\", \"r33\"] }\n");
+      return make_dataset(io::import_recordings(dir / "mapping.toml").log);
+    };
+    const Dataset imu_only = mapping("");
+    EXPECT_FALSE(imu_only.columns.angular_rate);
+    const Dataset with_rates = mapping("kinematics = \"auto\"\n");
+    ASSERT_TRUE(with_rates.columns.angular_rate);
+    EXPECT_EQ(with_rates.kinematics.angular_rate, io::KinematicsOrigin::pose);
+    EXPECT_EQ(with_rates.kinematics.specific_force, io::KinematicsOrigin::imu);
+    EXPECT_THAT(with_rates.kinematics.angular_rate_reason, HasSubstr("no gyro"));
+
+    const model::EffectSet linear = {Effect::bias, Effect::gravity, Effect::linear_inertia};
+    const Scored before = fit_heldout(imu_only, linear);
+    const Scored after_linear = fit_heldout(with_rates, linear);
+    const Scored after = fit_heldout(with_rates, kDynamicModel);
+    ASSERT_TRUE(before.fit.usable && after_linear.fit.usable && after.fit.usable);
+    const double* I = after.fit.params.block(Effect::rotational_inertia);
+    const double* tI = pose.truth.params.block(Effect::rotational_inertia);
+    double diagonal_error = 0.0;
+    for (int k = 0; k < 3; ++k) diagonal_error = std::max(diagonal_error, relative(I[k], tI[k]));
+    std::printf(
+        "accelerometer only, seed %llu: held-out moving force RMS %.3f N / torque %.3f N*m "
+        "(kinematics = \"imu\", linear_inertia without rates) -> %.3f N / %.3f N*m (\"auto\": ω, "
+        "ω̇ from the orientation, linear_inertia) -> %.3f N / %.3f N*m (+ rotational_inertia; "
+        "inertia diagonal error %.1f %%)\n",
+        static_cast<unsigned long long>(seed), before.heldout.moving.force_rms,
+        before.heldout.moving.torque_rms, after_linear.heldout.moving.force_rms,
+        after_linear.heldout.moving.torque_rms, after.heldout.moving.force_rms,
+        after.heldout.moving.torque_rms, 100.0 * diagonal_error);
+    EXPECT_LT(after_linear.heldout.moving.force_rms, 0.7 * before.heldout.moving.force_rms);
+    EXPECT_LT(after.heldout.moving.torque_rms, 0.5 * before.heldout.moving.torque_rms);
+    EXPECT_LT(diagonal_error, 0.10);
+    const nlohmann::json j =
+        kinematics_json(kinematics_feeds(kDynamicModel, with_rates), with_rates);
+    EXPECT_EQ(j["effects"]["linear_inertia"]["specific_force"], "imu");
+    EXPECT_EQ(j["effects"]["linear_inertia"]["omega"], "pose");
+    EXPECT_EQ(j["effects"]["rotational_inertia"]["omega_dot"], "pose");
+  }
+  fs::remove_all(dir);
+}
+
+// ---- (c) auto with both present, and with the gyro only ------------------------------------
+
+TEST(RobotKinematics, AutoPicksPerSignalAndDiagnoseReportsIt) {
+  const fs::path dir = fresh_dir("auto");
+  sim::SimConfig config = sim::default_sim_config(7);
+  config.period_s = 0.012;
+  config.duration_limit_s = 60.0;
+  const sim::SimOutput out = sim::RigSimulator(config, design_points()).run();
+  write_stream(dir / "all.csv",
+               "t,Fx,Fy,Fz,Mx,My,Mz,qw,qx,qy,qz,A1,A2,A3,A4,A5,A6,fx,fy,fz,wx,wy,wz", out.log,
+               [](const io::Sample& s) {
+                 return wrench_cells(s) + "," + quaternion_cells(s) + "," + joint_cells(s) + "," +
+                        vector_cells(s.specific_force_imu_mps2) + "," +
+                        vector_cells(s.angular_rate_imu_radps);
+               });
+  io::Rig rig = out.log.rig;
+  rig.robot_model = io::read_robot_file(kRobotFile);
+  io::write_rig(rig, dir / "rig.rig.toml");  // the robot inline, as a [robot] table
+  const std::string files =
+      "[files.all]\npath = \"all.csv\"\ntime = { column = \"t\", unit = \"s\" }\n" + kWrenchKeys +
+      kQuaternionKey + kJointsKey;
+  const std::string acc =
+      "specific_force = { columns = [\"fx\", \"fy\", \"fz\"], unit = \"m/s2\" }\n";
+  const std::string gyro =
+      "angular_rate = { columns = [\"wx\", \"wy\", \"wz\"], unit = \"rad/s\" }\n";
+  auto import = [&](const std::string& imu_keys) {
+    write_text(
+        dir / "mapping.toml",
+        kMappingHead + "rig_file = \"rig.rig.toml\"\nkinematics = \"auto\"\n" + files + imu_keys);
+    return io::import_recordings(dir / "mapping.toml");
+  };
+  // Both IMU groups: auto keeps the IMU for every signal (choose_sources), and says why.
+  const io::ImportResult both = import(acc + gyro);
+  EXPECT_EQ(both.log.rig.kinematics.mode, "auto");
+  EXPECT_FALSE(both.log.rig.kinematics.derived());
+  EXPECT_EQ(
+      both.log.rig.kinematics.angular_rate_reason,
+      robot::choose_sources(robot::KinematicsMode::automatic, {true, true, true}).omega.reason);
+  for (std::size_t i = 0; i < out.log.samples.size(); i += 997)
+    EXPECT_EQ(both.log.samples[i].angular_rate_imu_radps,
+              Eigen::Vector3d(std::stod(cell(out.log.samples[i].angular_rate_imu_radps.x())),
+                              std::stod(cell(out.log.samples[i].angular_rate_imu_radps.y())),
+                              std::stod(cell(out.log.samples[i].angular_rate_imu_radps.z()))));
+  // The gyro alone: ω and ω̇ from it, the specific force from the joints through the robot.
+  const io::ImportResult gyro_only = import(gyro);
+  EXPECT_EQ(gyro_only.log.rig.kinematics.angular_rate, io::KinematicsOrigin::imu);
+  EXPECT_EQ(gyro_only.log.rig.kinematics.specific_force, io::KinematicsOrigin::joints);
+  EXPECT_THAT(gyro_only.report.summary(), HasSubstr("specific force from the joints"));
+
+  // diagnose names the sources in its JSON and text.
+  const Dataset data = make_dataset(gyro_only.log);
+  DiagnoseOptions o;
+  o.fit.effects = kDynamicModel;
+  o.discover = false;
+  const Diagnosis d = diagnose(data, o);
+  const nlohmann::json j = to_json(d);
+  EXPECT_EQ(j["kinematics_sources"]["mode"], "auto");
+  EXPECT_EQ(j["kinematics_sources"]["effects"]["linear_inertia"]["specific_force"], "joints");
+  EXPECT_EQ(j["kinematics_sources"]["effects"]["linear_inertia"]["omega"], "imu");
+  EXPECT_EQ(j["kinematics_sources"]["effects"]["rotational_inertia"]["omega_dot"], "imu");
+  EXPECT_THAT(format_diagnosis(d), HasSubstr("linear_inertia <- specific_force joints"));
+  fs::remove_all(dir);
+}
+
+// ---- (d) refusals --------------------------------------------------------------------------
+
+TEST(RobotKinematics, RefusalsNameTheKeyAndWhatWouldWork) {
+  const fs::path dir = fresh_dir("refuse");
+  sim::SimConfig config = sim::default_sim_config(3);
+  config.duration_limit_s = 10.0;
+  const sim::SimOutput out = sim::RigSimulator(config, design_points()).run();
+  write_stream(dir / "robot.csv", "t,Fx,Fy,Fz,Mx,My,Mz,qw,qx,qy,qz,A1,A2,A3,A4,A5,A6", out.log,
+               [](const io::Sample& s) {
+                 return wrench_cells(s) + "," + quaternion_cells(s) + "," + joint_cells(s);
+               });
+  io::write_rig(out.log.rig, dir / "rig.rig.toml");  // robot = "KR 210 R2700": a name only
+  auto refusal = [&](const std::string& top, const std::string& keys) {
+    write_text(dir / "mapping.toml",
+               kMappingHead + "rig_file = \"rig.rig.toml\"\n" + top +
+                   "[files.robot]\npath = \"robot.csv\"\ntime = { column = \"t\", unit = \"s\" "
+                   "}\n" +
+                   kWrenchKeys + kQuaternionKey + keys);
+    try {
+      (void)io::import_recordings(dir / "mapping.toml");
+    } catch (const io::InputError& e) {
+      EXPECT_EQ(e.file(), dir / "mapping.toml");
+      EXPECT_EQ(e.line(), 4);  // the kinematics key
+      return std::string(e.what());
+    }
+    ADD_FAILURE() << "no refusal for " << top << keys;
+    return std::string();
+  };
+  // Neither joints nor a position: the orientation gives no linear acceleration.
+  const std::string no_stream = refusal("kinematics = \"robot\"\n", "");
+  EXPECT_THAT(no_stream, HasSubstr("mapping.toml:4"));
+  EXPECT_THAT(no_stream, HasSubstr("map 'joints' or 'position'"));
+  EXPECT_THAT(no_stream, HasSubstr("kinematics = \"auto\""));
+  // Joints, but the rig names the robot only.
+  const std::string no_robot = refusal("kinematics = \"robot\"\n", kJointsKey);
+  EXPECT_THAT(no_robot, HasSubstr("files.robot.joints is mapped"));
+  EXPECT_THAT(no_robot, HasSubstr("rig.rig.toml"));
+  EXPECT_THAT(no_robot, HasSubstr("robot_file ="));
+  // A value it does not know.
+  EXPECT_THAT(refusal("kinematics = \"gyro\"\n", ""), HasSubstr("must be \"imu\" (the default"));
+  // auto with joints but no robot: derived from the pose (with a note), not refused.
+  write_text(dir / "mapping.toml",
+             kMappingHead +
+                 "rig_file = \"rig.rig.toml\"\nkinematics = \"auto\"\n[files.robot]\npath = "
+                 "\"robot.csv\"\ntime = { column = \"t\", unit = \"s\" }\n" +
+                 kWrenchKeys + kQuaternionKey + kJointsKey);
+  const io::ImportResult pose = io::import_recordings(dir / "mapping.toml");
+  EXPECT_EQ(pose.log.rig.kinematics.angular_rate, io::KinematicsOrigin::pose);
+  EXPECT_FALSE(pose.log.columns.specific_force);
+  EXPECT_THAT(pose.report.summary(), HasSubstr("the rig describes no robot"));
+  // The fit's refusal names the import's way out.
+  FitOptions fo;
+  fo.effects = {Effect::bias, Effect::gravity, Effect::linear_inertia};
+  EXPECT_THAT([&] { (void)fit(make_dataset(pose.log), fo); },
+              ::testing::ThrowsMessage<std::runtime_error>(HasSubstr("kinematics = \"auto\"")));
+  fs::remove_all(dir);
+}
+
+// ---- the rig's robot: a name, a [robot] table, a robot_file ---------------------------------
+
+TEST(RigRobot, NameTableAndFileReadAndRoundTrip) {
+  const fs::path dir = fresh_dir("rig");
+  io::Rig rig;
+  rig.name = "cell";
+  rig.flange_sensor.p_m = {0.01, -0.02, 0.07};
+  rig.flange_sensor.q = Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()));
+  // A name only, as every rig before: no kinematics.
+  io::write_rig(rig, dir / "name.rig.toml");
+  const io::Rig name_only = io::read_rig(dir / "name.rig.toml");
+  EXPECT_EQ(name_only.robot, "KR 210 R2700");
+  EXPECT_FALSE(name_only.robot_model.has_value());
+
+  // robot_file, relative to the rig; the rig's flange_sensor replaces the robot file's.
+  fs::create_directories(dir / "robots");
+  fs::copy_file(kRobotFile, dir / "robots/kr.robot.toml");
+  write_text(dir / "file.rig.toml", rig_text(rig, dir, "robot_file = \"robots/kr.robot.toml\"\n"));
+  const io::Rig from_file = io::read_rig(dir / "file.rig.toml");
+  ASSERT_TRUE(from_file.robot_model.has_value());
+  EXPECT_EQ(from_file.robot, "KR 210 R2700");
+  const robot::RobotModel expected = io::read_robot_file(kRobotFile, rig.flange_sensor).model;
+  // Written back, the robot is inline ([robot]) and reads to the same chain.
+  io::write_rig(from_file, dir / "inline.rig.toml");
+  const io::Rig inline_rig = io::read_rig(dir / "inline.rig.toml");
+  ASSERT_TRUE(inline_rig.robot_model.has_value());
+  EXPECT_EQ(inline_rig.robot, "KR 210 R2700");
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> angle(-2.5, 2.5);
+  for (int trial = 0; trial < 200; ++trial) {
+    std::array<double, 6> q{};
+    for (double& v : q) v = angle(rng);
+    const robot::Pose want = robot::sensor_pose(expected, q);
+    for (const io::Rig* r : {&from_file, &inline_rig}) {
+      const robot::Pose got = robot::sensor_pose(*r->robot_model, q);
+      EXPECT_LT((got.p_m - want.p_m).norm(), 1e-12);
+      EXPECT_LT((got.R - want.R).cwiseAbs().maxCoeff(), 1e-12);
+    }
+  }
+  // Both forms at once, and a file that is not there: errors naming the key.
+  std::string both = rig_text(rig, dir, "robot_file = \"robots/kr.robot.toml\"\n");
+  both += "\n[robot]\nconvention = \"dh\"\n[[robot.joint]]\na_m = 0.1\nalpha_deg = 0\nd_m = 0\n";
+  write_text(dir / "both.rig.toml", both);
+  EXPECT_THAT([&] { (void)io::read_rig(dir / "both.rig.toml"); },
+              ::testing::ThrowsMessage<io::InputError>(HasSubstr("'robot_file' give either")));
+  write_text(dir / "missing.rig.toml", rig_text(rig, dir, "robot_file = \"nope.robot.toml\"\n"));
+  EXPECT_THAT([&] { (void)io::read_rig(dir / "missing.rig.toml"); },
+              ::testing::ThrowsMessage<io::InputError>(HasSubstr("robot file not found")));
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace zerog::ident
