@@ -2,11 +2,10 @@
 # Installs the dependencies, builds zerog with warnings as errors, and runs every test (ctest):
 #   1. the CI build (RelWithDebInfo): the whole suite, the hardware-in-the-loop tests (natively, in
 #      lockstep with the emulated rig) and the VM tests (SocketCAN in qemu) included;
-#   2. AddressSanitizer + UndefinedBehaviorSanitizer: the suite again except the VM tests (they
-#      run the same programs in qemu) and the long numeric end-to-end cases beyond one of each
-#      kind (other seeds and effects of HiddenEffect and the discovery acceptance, Results), which
-#      re-run the code of the cases kept on other data; both exclusions are in CMakePresets.json
-#      (test preset `asan`) and run in stage 1;
+#   2. AddressSanitizer + UndefinedBehaviorSanitizer: the unit, socket, device and HIL tests
+#      again, without the VM tests and the host pipeline's end-to-end numeric runs (labels
+#      cli_test, discovery_test, insight_loop_test, results_test) and the other HIL motion seeds;
+#      the exclusions are in CMakePresets.json (test preset `asan`) and all run in stage 1;
 #   3. ThreadSanitizer: the threaded tests (rings, runtime, cycle, Modbus server, telemetry);
 #   4. the fuzz targets, each for a bounded time (scripts/fuzz.sh).
 # Any failure, sanitizer finding or fuzz crash fails the run. Each stage prints its duration, and
