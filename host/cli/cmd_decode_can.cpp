@@ -6,8 +6,8 @@
 #include <string>
 
 #include "commands.hpp"
+#include "zerog/formats/log.hpp"
 #include "zerog/io/can_decode.hpp"
-#include "zerog/io/log.hpp"
 
 namespace zerog::cli {
 
@@ -69,12 +69,14 @@ void add_decode_can_command(CLI::App& app) {
     std::printf(
         "dropped: %zu unusable samples (%llu critical status, %llu saturated); %llu incomplete "
         "pairs, "
-        "%llu out of order, %llu wrong length; %zu frames of other ids ignored\n",
+        "%llu out of order, %llu wrong length, %zu unconfirmed (a 0x1 lost); %zu frames of other "
+        "ids ignored; %llu samples had their 0x1 overtaken (paired in order)\n",
         r.unusable, static_cast<unsigned long long>(c.critical),
         static_cast<unsigned long long>(c.saturated),
         static_cast<unsigned long long>(c.dropped_incomplete),
         static_cast<unsigned long long>(c.out_of_order),
-        static_cast<unsigned long long>(c.wrong_length), r.other_traffic);
+        static_cast<unsigned long long>(c.wrong_length), r.unconfirmed, r.other_traffic,
+        static_cast<unsigned long long>(c.overtaken));
   });
 }
 

@@ -9,11 +9,11 @@
 #include <vector>
 
 #include "commands.hpp"
+#include "zerog/deploy/quantise.hpp"
+#include "zerog/formats/log.hpp"
 #include "zerog/ident/dataset.hpp"
 #include "zerog/infer/deploy_file.hpp"
 #include "zerog/infer/inference.hpp"
-#include "zerog/infer/quantise.hpp"
-#include "zerog/io/log.hpp"
 #include "zerog/io/model_file.hpp"
 #include "zerog/learn/network_file.hpp"
 #include "zerog/learn/predict.hpp"

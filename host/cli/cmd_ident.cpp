@@ -11,12 +11,12 @@
 #include "commands.hpp"
 #include "made_for.hpp"
 #include "report_script.hpp"
+#include "zerog/formats/log.hpp"
 #include "zerog/ident/compare.hpp"
 #include "zerog/ident/diagnose.hpp"
 #include "zerog/ident/fit.hpp"
 #include "zerog/ident/kinematics_sources.hpp"
 #include "zerog/io/effect_file.hpp"
-#include "zerog/io/log.hpp"
 #include "zerog/io/model_file.hpp"
 
 namespace zerog::cli {

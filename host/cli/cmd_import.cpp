@@ -8,8 +8,8 @@
 
 #include "bag_import.hpp"
 #include "commands.hpp"
+#include "zerog/formats/log.hpp"
 #include "zerog/io/import.hpp"
-#include "zerog/io/log.hpp"
 
 namespace zerog::cli {
 

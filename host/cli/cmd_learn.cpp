@@ -6,9 +6,9 @@
 #include <string>
 
 #include "commands.hpp"
+#include "zerog/formats/log.hpp"
 #include "zerog/ident/compare.hpp"
 #include "zerog/ident/dataset.hpp"
-#include "zerog/io/log.hpp"
 #include "zerog/io/model_file.hpp"
 #include "zerog/learn/network_file.hpp"
 #include "zerog/learn/predict.hpp"

@@ -15,10 +15,10 @@
 #include "commands.hpp"
 #include "made_for.hpp"
 #include "report_script.hpp"
+#include "zerog/formats/log.hpp"
 #include "zerog/ident/compare.hpp"
 #include "zerog/ident/dataset.hpp"
 #include "zerog/io/effect_file.hpp"
-#include "zerog/io/log.hpp"
 #include "zerog/io/model_file.hpp"
 
 namespace zerog::cli {

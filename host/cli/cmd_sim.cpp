@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "commands.hpp"
-#include "zerog/io/log.hpp"
+#include "zerog/formats/log.hpp"
 #include "zerog/io/model_file.hpp"
 #include "zerog/sim/design.hpp"
 #include "zerog/sim/simulator.hpp"

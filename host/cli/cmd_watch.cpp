@@ -11,7 +11,7 @@
 
 #include "commands.hpp"
 #include "dds/dds.h"
-#include "zerog/io/log.hpp"
+#include "zerog/formats/log.hpp"
 #include "zerog/telemetry/config.hpp"
 #include "zerog/telemetry/convert.hpp"
 

@@ -7,9 +7,9 @@
 #include <stdexcept>
 #include <vector>
 
+#include "zerog/formats/log.hpp"
 #include "zerog/infer/deploy_file.hpp"
 #include "zerog/io/effect_file.hpp"
-#include "zerog/io/log.hpp"
 
 namespace zerog::cli {
 namespace {

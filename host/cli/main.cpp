@@ -3,7 +3,7 @@
 #include <exception>
 
 #include "commands.hpp"
-#include "zerog/io/log.hpp"
+#include "zerog/formats/log.hpp"
 
 int main(int argc, char** argv) {
   CLI::App app{"zerog: force model of a payload on a wrist F/T sensor; fit, compare, diagnose"};
@@ -15,6 +15,7 @@ int main(int argc, char** argv) {
   zerog::cli::add_ident_commands(app);
   zerog::cli::add_report_command(app);
   zerog::cli::add_decode_can_command(app);
+  zerog::cli::add_decode_rsi_command(app);
   zerog::cli::add_learn_commands(app);
   zerog::cli::add_export_command(app);
   zerog::cli::add_watch_command(app);

@@ -62,8 +62,8 @@ void BM_CycleStep(benchmark::State& state) {
   m.joints_deg = {0.0, -90.0, 90.0, 0.0, 45.0, 0.0};
   m.ipoc = 1000;
   // Sensor samples made up front, so the loop times the cycle and not the random numbers.
-  std::vector<rtio::FtSample> fts(4096);
-  std::vector<rtio::ImuSample> imus(4096);
+  std::vector<samples::FtSample> fts(4096);
+  std::vector<samples::ImuSample> imus(4096);
   for (auto& ft : fts) {
     ft.valid = true;
     for (int k = 0; k < 6; ++k) ft.wrench_si[k] = noise(rng);
@@ -81,7 +81,7 @@ void BM_CycleStep(benchmark::State& state) {
   loop::CycleReply reply;
   auto one_cycle = [&](double push_N) {
     for (int i = 0; i < 6; ++i) {
-      rtio::FtSample ft = fts[next_ft++ & 4095];
+      samples::FtSample ft = fts[next_ft++ & 4095];
       ft.wrench_si[0] += push_N;
       cycle.add_ft(ft);
     }

@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "fuzz_util.hpp"
-#include "zerog/proto/candump.hpp"
+#include "zerog/io/candump.hpp"
 
 using zerog::proto::CandumpError;
 using zerog::proto::CandumpLineKind;

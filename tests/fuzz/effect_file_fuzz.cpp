@@ -10,8 +10,8 @@
 #include <string>
 
 #include "fuzz_util.hpp"
+#include "zerog/formats/log.hpp"
 #include "zerog/io/effect_file.hpp"
-#include "zerog/io/log.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   namespace io = zerog::io;

@@ -17,8 +17,8 @@
 #include <typeinfo>
 
 #include "fuzz_util.hpp"
+#include "zerog/formats/log.hpp"
 #include "zerog/io/import.hpp"
-#include "zerog/io/log.hpp"
 
 namespace fs = std::filesystem;
 namespace io = zerog::io;

@@ -4,7 +4,7 @@
 #include <Eigen/Geometry>
 
 #include "fuzz_util.hpp"
-#include "zerog/io/log.hpp"
+#include "zerog/formats/log.hpp"
 
 namespace zerog::fuzz {
 

@@ -10,7 +10,7 @@
 
 #include "fuzz_util.hpp"
 #include "io_compare.hpp"
-#include "zerog/io/log.hpp"
+#include "zerog/formats/log.hpp"
 
 namespace io = zerog::io;
 using zerog::fuzz::near;

@@ -15,11 +15,11 @@
 #include <vector>
 
 #include "../unit/infer/infer_fixtures.hpp"
+#include "zerog/formats/log.hpp"
 #include "zerog/infer/deploy_file.hpp"
-#include "zerog/io/log.hpp"
+#include "zerog/io/candump.hpp"
 #include "zerog/io/model_file.hpp"
 #include "zerog/model/effects.hpp"
-#include "zerog/proto/candump.hpp"
 #include "zerog/proto/netcanoem.hpp"
 #include "zerog/proto/rsi.hpp"
 #include "zerog/proto/stim300.hpp"
@@ -94,7 +94,7 @@ void stim300_seeds() {
       d.rate.counts = {16384 * i, -5000, 8388607};
       d.accel.counts = {0, 524288, -524288};
       d.incl.counts = {4194304, 0, -1};
-      d.aux = -8388608;
+      d.pps = 0xFFFFFFu;
       d.rate_temperature.counts = {25 * 256, 26 * 256, -10};
       d.accel.status = i == 2 ? 0x01 : 0x00;
       d.counter = static_cast<std::uint8_t>(250 + (i == 3 ? 2 * i : i));  // wraps, one gap
@@ -108,6 +108,7 @@ void stim300_seeds() {
   put("stim300_stream", "fixed_0x93_garbage", stream_of(4, 0x93, 5, false, "\x93\x00junk\r\n"));
   put("stim300_stream", "any_0x90", stream_of(0, 0x90, 4, false, ""));
   put("stim300_stream", "any_0xa7_g80", stream_of(0x60, 0xA7, 4, true, "\xA7"));
+  put("stim300_stream", "any_0xf7_crlf", stream_of(0, 0xF7, 4, true, "\xF7"));
 }
 
 void netcanoem_seeds() {

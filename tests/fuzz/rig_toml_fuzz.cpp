@@ -8,7 +8,7 @@
 
 #include "fuzz_util.hpp"
 #include "io_compare.hpp"
-#include "zerog/io/log.hpp"
+#include "zerog/formats/log.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const auto& dir = zerog::fuzz::scratch_dir();

@@ -31,8 +31,8 @@ bool same_triplet(const stim::Triplet16& a, const stim::Triplet16& b) {
 }
 bool same_raw(const stim::RawDatagram& a, const stim::RawDatagram& b) {
   return a.identifier == b.identifier && same_triplet(a.rate, b.rate) &&
-         same_triplet(a.accel, b.accel) && same_triplet(a.incl, b.incl) && a.aux == b.aux &&
-         a.aux_status == b.aux_status && same_triplet(a.rate_temperature, b.rate_temperature) &&
+         same_triplet(a.accel, b.accel) && same_triplet(a.incl, b.incl) && a.pps == b.pps &&
+         a.pps_status == b.pps_status && same_triplet(a.rate_temperature, b.rate_temperature) &&
          same_triplet(a.accel_temperature, b.accel_temperature) &&
          same_triplet(a.incl_temperature, b.incl_temperature) && a.counter == b.counter &&
          a.latency_us == b.latency_us;

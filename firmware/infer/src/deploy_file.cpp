@@ -12,7 +12,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "quant_math.hpp"
+#include "zerog/infer/quant_math.hpp"
 
 namespace zerog::infer {
 namespace {

@@ -5,8 +5,8 @@
 #include <limits>
 #include <utility>
 
-#include "quant_math.hpp"
 #include "zerog/infer/deploy_file.hpp"
+#include "zerog/infer/quant_math.hpp"
 #include "zerog/model/signals.hpp"
 
 namespace zerog::infer {

@@ -8,6 +8,7 @@
 
 #include "zerog/model/rotation.hpp"
 #include "zerog/model/signals.hpp"
+#include "zerog/robot/forward_kinematics.hpp"
 
 namespace zerog::loop {
 namespace {
@@ -28,6 +29,15 @@ std::string check_config(const CycleConfig& c) {
   if (!positive_finite(c.max_axis_step_rad) || !positive_finite(c.approach_speed_radps) ||
       !positive_finite(c.approach_accel_radps2))
     return "collection step, speed and acceleration must be positive";
+  if (!positive_finite(c.pose_check_position_m) || !positive_finite(c.pose_check_angle_rad))
+    return "pose check tolerances must be positive";
+  if (c.robot) {
+    if (const robot::RobotStatus st = robot::validate(*c.robot); !st.ok())
+      return "robot: " + st.field + ": " + st.message;
+    if (c.robot->joint_count != 6)
+      return "robot: RSI reports 6 axes (AIPos A1..A6); the robot has " +
+             std::to_string(c.robot->joint_count);
+  }
   return {};
 }
 
@@ -86,11 +96,11 @@ std::string Cycle::configure(const CycleConfig& config, infer::DeployedModel mod
   return {};
 }
 
-void Cycle::add_ft(const rtio::FtSample& s) noexcept {
+void Cycle::add_ft(const samples::FtSample& s) noexcept {
   if (!s.valid) {
     ++counters_.ft_invalid;
-    if (s.status == rtio::FtSampleStatus::critical) ++window_.ft_critical;
-    if (s.status == rtio::FtSampleStatus::saturated) ++window_.ft_saturated;
+    if (s.status == samples::FtSampleStatus::critical) ++window_.ft_critical;
+    if (s.status == samples::FtSampleStatus::saturated) ++window_.ft_saturated;
     return;
   }
   if (window_.ft_n >= kMaxWindow) {
@@ -99,10 +109,10 @@ void Cycle::add_ft(const rtio::FtSample& s) noexcept {
   }
   for (int k = 0; k < 6; ++k) window_.ft_sum[k] += s.wrench_si[k];
   ++window_.ft_n;
-  if (s.status == rtio::FtSampleStatus::warning) ++window_.ft_warning;
+  if (s.status == samples::FtSampleStatus::warning) ++window_.ft_warning;
 }
 
-void Cycle::add_imu(const rtio::ImuSample& s) noexcept {
+void Cycle::add_imu(const samples::ImuSample& s) noexcept {
   if (!s.rate_valid || !s.accel_valid) {
     ++counters_.imu_invalid;
     return;
@@ -222,6 +232,57 @@ void Cycle::robot_lost(RobotLoss why) noexcept {
   if (freeze_pending_) {
     box_.freeze();
     freeze_pending_ = false;
+  }
+}
+
+void Cycle::pose_missing() noexcept {
+  ++counters_.poses_missing;
+  if (have_ipoc_) {
+    ++robot_lost_run_;
+    const State s = sm_.state();
+    if ((s == State::zero_g || s == State::collecting) &&
+        robot_lost_run_ >= config_.watchdog.robot_fault_cycles) {
+      raise(Fault::robot_late);
+    }
+  }
+  record_.flags = kPoseMissing;
+  record_.rkorr = proto::rsi::Correction{};
+  record_.state = sm_.state();
+  record_.fault = sm_.fault();
+  box_.push(record_);
+  if (freeze_pending_) {
+    box_.freeze();
+    freeze_pending_ = false;
+  }
+}
+
+void Cycle::sensor_pose(const proto::rsi::RobotMessage& m, const std::array<double, 6>& q_rad,
+                        Eigen::Matrix3d& R_base_sensor, Eigen::Vector3d& p_base_sensor_m,
+                        std::uint32_t& flags) noexcept {
+  record_.pose_check_m = 0.0;
+  record_.pose_check_rad = 0.0;
+  if (m.has_actual_pose) {
+    const proto::rsi::PoseSi pose = proto::rsi::to_si(m.actual_pose);
+    R_base_sensor =
+        model::rotation_from_kuka_abc(pose.abc_rad[0], pose.abc_rad[1], pose.abc_rad[2]);
+    p_base_sensor_m = Eigen::Map<const Eigen::Vector3d>(pose.position_m.data());
+  }
+  if (!config_.robot) return;  // step() has sent a message without RIst to pose_missing()
+  const robot::Pose kinematics = robot::sensor_pose(*config_.robot, q_rad);
+  if (!m.has_actual_pose) {
+    R_base_sensor = kinematics.R;
+    p_base_sensor_m = kinematics.p_m;
+    flags |= kPoseFromJoints;
+    ++counters_.poses_from_joints;
+    return;
+  }
+  record_.pose_check_m = (p_base_sensor_m - kinematics.p_m).norm();
+  record_.pose_check_rad =
+      Eigen::AngleAxisd(Eigen::Matrix3d(R_base_sensor.transpose() * kinematics.R)).angle();
+  if (record_.pose_check_m > config_.pose_check_position_m ||
+      record_.pose_check_rad > config_.pose_check_angle_rad) {
+    flags |= kPoseDisagrees;
+    ++counters_.pose_disagreements;
   }
 }
 
@@ -400,15 +461,20 @@ void Cycle::step(const proto::rsi::RobotMessage& m, CycleReply& reply) noexcept 
   record_.ipoc = m.ipoc;
   record_.limit_flags = 0;
   record_.axis_reply = false;
-  robot_lost_run_ = 0;
   take_proposal();
 
   if (!configured_) {
+    robot_lost_run_ = 0;
     raise(Fault::model_invalid);
     record_.state = sm_.state();
     record_.fault = sm_.fault();
     return;
   }
+  if (!m.has_actual_pose && !config_.robot) {
+    pose_missing();
+    return;
+  }
+  robot_lost_run_ = 0;
 
   // Robot time. Duplicates and reordered datagrams are answered (zero) and change nothing.
   double dt = config_.period_s;
@@ -461,13 +527,13 @@ void Cycle::step(const proto::rsi::RobotMessage& m, CycleReply& reply) noexcept 
     now.signals.joint_vel_radps[k] =
         previous ? (now.signals.joints_rad[k] - previous->signals.joints_rad[k]) / dt : 0.0;
   }
-  const proto::rsi::PoseSi pose = proto::rsi::to_si(m.actual_pose);
-  const Eigen::Matrix3d R =
-      model::rotation_from_kuka_abc(pose.abc_rad[0], pose.abc_rad[1], pose.abc_rad[2]);
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d p = Eigen::Vector3d::Zero();
+  sensor_pose(m, now.signals.joints_rad, R, p, flags);
   for (int r = 0; r < 3; ++r) {
     for (int c = 0; c < 3; ++c) now.signals.R_base_sensor[3 * r + c] = R(r, c);
+    now.signals.p_base_sensor_m[r] = p[r];
   }
-  now.signals.p_base_sensor_m = pose.position_m;
   now.signals.temperature_C = config_.temperature_C;
   now.t_s = static_cast<double>(m.ipoc - first_ipoc_) * config_.ipoc_unit_s;
   now.signals.t_s = now.t_s;

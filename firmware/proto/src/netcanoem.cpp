@@ -78,7 +78,7 @@ std::uint8_t saturated_gauges(const std::array<std::int16_t, kGaugeCount>& gauge
   return mask;
 }
 
-FeedResult SampleAssembler::feed(const CanFrame& frame, GaugeSample& out) {
+FeedResult SampleAssembler::feed(const CanFrame& frame, GaugeSample& out, std::uint64_t tag) {
   // Standard data frame (no flag bits) of this board?
   const bool ours = (frame.id & ~kCanStandardIdMask) == 0 && base_id_of(frame.id) == base_id_;
   const std::uint8_t opcode = opcode_of(frame.id);
@@ -95,11 +95,17 @@ FeedResult SampleAssembler::feed(const CanFrame& frame, GaugeSample& out) {
       ++counters_.wrong_length;
       return FeedResult::wrong_length;
     }
-    const bool dropped = pending_;
-    if (dropped) ++counters_.dropped_incomplete;
-    pending_ = true;
-    pending_status_ = load_u16(&frame.data[0]);
-    for (int i = 0; i < 3; ++i) pending_even_[i] = load_i16(&frame.data[2 + 2 * i]);
+    const bool dropped = pending_count_ == kPendingCapacity;
+    if (dropped) {  // the oldest half never got its 0x1
+      ++counters_.dropped_incomplete;
+      pending_head_ = (pending_head_ + 1) % kPendingCapacity;
+      --pending_count_;
+    }
+    Half& half = pending_[(pending_head_ + pending_count_) % kPendingCapacity];
+    half.status = load_u16(&frame.data[0]);
+    for (int i = 0; i < 3; ++i) half.even[i] = load_i16(&frame.data[2 + 2 * i]);
+    half.tag = tag;
+    ++pending_count_;
     return dropped ? FeedResult::dropped_previous : FeedResult::pending;
   }
   // sample_b
@@ -107,16 +113,20 @@ FeedResult SampleAssembler::feed(const CanFrame& frame, GaugeSample& out) {
     ++counters_.wrong_length;
     return FeedResult::wrong_length;
   }
-  if (!pending_) {
+  if (pending_count_ == 0) {
     ++counters_.out_of_order;
     return FeedResult::out_of_order;
   }
-  pending_ = false;
+  const Half& half = pending_[pending_head_];  // the oldest: pairs in order
+  pending_head_ = (pending_head_ + 1) % kPendingCapacity;
+  --pending_count_;
+  if (pending_count_ != 0) ++counters_.overtaken;
   for (int i = 0; i < 3; ++i) {
-    out.gauges[2 * i] = pending_even_[i];
+    out.gauges[2 * i] = half.even[i];
     out.gauges[2 * i + 1] = load_i16(&frame.data[2 * i]);
   }
-  out.status = pending_status_;
+  out.status = half.status;
+  out.tag = half.tag;
   out.status_class = classify_status(out.status);
   out.saturated_mask = saturated_gauges(out.gauges);
   ++counters_.samples;
@@ -124,6 +134,17 @@ FeedResult SampleAssembler::feed(const CanFrame& frame, GaugeSample& out) {
   if (out.status_class == StatusClass::warning) ++counters_.warning;
   if (out.saturated_mask != 0) ++counters_.saturated;
   return FeedResult::sample;
+}
+
+std::size_t SampleAssembler::drop_pending_before(std::uint64_t tag) {
+  std::size_t dropped = 0;
+  while (pending_count_ != 0 && pending_[pending_head_].tag < tag) {
+    pending_head_ = (pending_head_ + 1) % kPendingCapacity;
+    --pending_count_;
+    ++dropped;
+  }
+  counters_.dropped_incomplete += dropped;
+  return dropped;
 }
 
 std::optional<double> newton_per_force_unit(std::uint8_t code) {

@@ -92,8 +92,11 @@ class Parser {
   bool attributes(bool& self_closing, OnAttribute&& on_attribute);
   bool end_tag(std::string_view expected);
   bool prolog();
+  // An empty element whose attributes are `names`, each at most once, read into `targets`. With
+  // `present` null every attribute is required; otherwise any non-empty subset is accepted and
+  // its bits (1 << index) are written to *present.
   bool numeric_element(std::string_view element, std::span<const std::string_view> names,
-                       std::span<double* const> targets);
+                       std::span<double* const> targets, unsigned* present = nullptr);
   bool ipoc(std::uint64_t& value);
   bool delay(std::uint64_t& value);
   bool skip_element(std::string_view element_name, int depth);
@@ -206,7 +209,7 @@ bool Parser::prolog() {
 }
 
 bool Parser::numeric_element(std::string_view element, std::span<const std::string_view> names,
-                             std::span<double* const> targets) {
+                             std::span<double* const> targets, unsigned* present) {
   unsigned seen = 0;
   bool self_closing = false;
   const bool ok = attributes(self_closing, [&](std::string_view attribute, std::string_view value,
@@ -226,9 +229,10 @@ bool Parser::numeric_element(std::string_view element, std::span<const std::stri
     return fail(ParseStatus::unknown_attribute, name_offset, "unknown attribute on this element");
   });
   if (!ok) return false;
-  if (seen != (1u << names.size()) - 1) {
+  if (present == nullptr ? seen != (1u << names.size()) - 1 : seen == 0) {
     return fail(ParseStatus::missing_attribute, pos_ - 1, "element lacks a required attribute");
   }
+  if (present != nullptr) *present = seen;
   if (!self_closing) {
     skip_space();
     if (pos_ + 1 >= s_.size()) return truncated();
@@ -375,18 +379,23 @@ ParseResult Parser::document(std::string_view root_name, const char* root_reason
 
 constexpr std::array<std::string_view, 6> kPoseNames{"X", "Y", "Z", "A", "B", "C"};
 constexpr std::array<std::string_view, 6> kAxisNames{"A1", "A2", "A3", "A4", "A5", "A6"};
+constexpr std::array<std::string_view, kMaxExternalAxes> kExternalAxisNames{"E1", "E2", "E3",
+                                                                            "E4", "E5", "E6"};
 
 std::array<double*, 6> pose_targets(double& x, double& y, double& z, double& a, double& b,
                                     double& c) {
   return {&x, &y, &z, &a, &b, &c};
 }
-std::array<double*, 6> axis_targets(std::array<double, 6>& axes) {
-  return {&axes[0], &axes[1], &axes[2], &axes[3], &axes[4], &axes[5]};
+template <std::size_t N>
+std::array<double*, N> axis_targets(std::array<double, N>& axes) {
+  std::array<double*, N> targets{};
+  for (std::size_t i = 0; i < N; ++i) targets[i] = &axes[i];
+  return targets;
 }
 
 ParseResult Parser::parse(RobotMessage& out) {
   RobotMessage msg;
-  enum : unsigned { kRIst = 1, kAIPos = 2, kDelay = 4, kIpoc = 8 };
+  enum : unsigned { kRIst = 1, kAIPos = 2, kDelay = 4, kIpoc = 8, kEIPos = 16 };
   unsigned seen = 0;
   auto once = [&](unsigned bit, std::size_t at) {
     if (seen & bit) return fail(ParseStatus::duplicate_element, at, "element given twice");
@@ -397,26 +406,33 @@ ParseResult Parser::parse(RobotMessage& out) {
       pose_targets(msg.actual_pose.x_mm, msg.actual_pose.y_mm, msg.actual_pose.z_mm,
                    msg.actual_pose.a_deg, msg.actual_pose.b_deg, msg.actual_pose.c_deg);
   const std::array<double*, 6> axes = axis_targets(msg.joints_deg);
+  const std::array<double*, kMaxExternalAxes> external = axis_targets(msg.external_axes);
+  unsigned external_present = 0;
   auto on_element = [&](std::string_view element, std::size_t at) {
     bool ok = true;
     if (element == "RIst") {
       ok = once(kRIst, at) && numeric_element(element, kPoseNames, pose);
     } else if (element == "AIPos") {
       ok = once(kAIPos, at) && numeric_element(element, kAxisNames, axes);
+    } else if (element == "EIPos") {
+      ok = once(kEIPos, at) &&
+           numeric_element(element, kExternalAxisNames, external, &external_present);
     } else if (element == "Delay") {
       ok = once(kDelay, at) && delay(msg.delay);
     } else if (element == "IPOC") {
       ok = once(kIpoc, at) && ipoc(msg.ipoc);
     } else {
+      if (msg.skipped_elements < 0xFFFFu) ++msg.skipped_elements;
       return kElementSkip;
     }
     return ok ? kElementRead : kElementFailed;
   };
   auto on_end = [&](std::size_t end_offset) {
-    if (!(seen & kRIst)) return fail(ParseStatus::missing_element, end_offset, "RIst missing");
     if (!(seen & kAIPos)) return fail(ParseStatus::missing_element, end_offset, "AIPos missing");
     if (!(seen & kIpoc)) return fail(ParseStatus::missing_element, end_offset, "IPOC missing");
+    msg.has_actual_pose = (seen & kRIst) != 0;
     msg.has_delay = (seen & kDelay) != 0;
+    msg.external_axes_present = static_cast<std::uint8_t>(external_present);
     return true;
   };
   const ParseResult r = document("Rob", "root element is not Rob", on_element, on_end);
@@ -496,6 +512,40 @@ class Writer {
 
 }  // namespace
 
+const char* to_string(ParseStatus status) {
+  switch (status) {
+    case ParseStatus::ok:
+      return "ok";
+    case ParseStatus::too_long:
+      return "too_long";
+    case ParseStatus::truncated:
+      return "truncated";
+    case ParseStatus::syntax:
+      return "syntax";
+    case ParseStatus::unsupported:
+      return "unsupported";
+    case ParseStatus::wrong_root:
+      return "wrong_root";
+    case ParseStatus::unexpected_content:
+      return "unexpected_content";
+    case ParseStatus::too_deep:
+      return "too_deep";
+    case ParseStatus::duplicate_element:
+      return "duplicate_element";
+    case ParseStatus::missing_element:
+      return "missing_element";
+    case ParseStatus::missing_attribute:
+      return "missing_attribute";
+    case ParseStatus::unknown_attribute:
+      return "unknown_attribute";
+    case ParseStatus::duplicate_attribute:
+      return "duplicate_attribute";
+    case ParseStatus::bad_number:
+      return "bad_number";
+  }
+  return "?";
+}
+
 ParseResult parse_robot_message(std::string_view message, RobotMessage& out) {
   return Parser(message).parse(out);
 }
@@ -561,10 +611,26 @@ FormatResult format_axis_reply(const std::array<double, 6>& akorr_deg, std::uint
 FormatResult format_robot_message(const RobotMessage& m, std::span<char> out) {
   const CartesianPose& p = m.actual_pose;
   const std::array<double, 6> pose{p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg};
-  if (!all_finite(pose) || !all_finite(m.joints_deg)) return {FormatStatus::not_finite, 0};
+  if ((m.has_actual_pose && !all_finite(pose)) || !all_finite(m.joints_deg))
+    return {FormatStatus::not_finite, 0};
+  std::array<std::string_view, kMaxExternalAxes> external_names{};
+  std::array<double, kMaxExternalAxes> external_values{};
+  std::size_t external_count = 0;
+  for (std::size_t i = 0; i < kMaxExternalAxes; ++i) {
+    if ((m.external_axes_present & (1u << i)) == 0) continue;
+    external_names[external_count] = kExternalAxisNames[i];
+    external_values[external_count++] = m.external_axes[i];
+  }
+  if (!all_finite(std::span<const double>(external_values.data(), external_count)))
+    return {FormatStatus::not_finite, 0};
   Writer w(out);
-  bool ok = w.text("<Rob Type=\"KUKA\">") && numeric_element(w, "RIst", kPoseNames, pose) &&
-            numeric_element(w, "AIPos", kAxisNames, m.joints_deg);
+  bool ok = w.text("<Rob Type=\"KUKA\">");
+  if (ok && m.has_actual_pose) ok = numeric_element(w, "RIst", kPoseNames, pose);
+  ok = ok && numeric_element(w, "AIPos", kAxisNames, m.joints_deg);
+  if (ok && external_count > 0) {
+    ok = numeric_element(w, "EIPos", std::span(external_names.data(), external_count),
+                         std::span<const double>(external_values.data(), external_count));
+  }
   if (ok && m.has_delay) ok = w.text("<Delay D=\"") && w.integer(m.delay) && w.text("\"/>");
   ok = ok && ipoc_element(w, m.ipoc) && w.text("</Rob>");
   if (!ok) return {FormatStatus::buffer_too_small, 0};
@@ -582,6 +648,10 @@ std::array<double, 6> joints_to_rad(const std::array<double, 6>& joints_deg) {
   std::array<double, 6> rad{};
   for (std::size_t i = 0; i < rad.size(); ++i) rad[i] = joints_deg[i] * kRadPerDeg;
   return rad;
+}
+
+double external_axis_to_si(double value, ExternalAxisKind kind) {
+  return kind == ExternalAxisKind::linear ? value * 1e-3 : value * kRadPerDeg;
 }
 
 Correction correction_from_si(const std::array<double, 3>& translation_m,

@@ -23,6 +23,7 @@ constexpr std::array<std::uint32_t, 256> kCrcTable = make_crc_table();
 
 constexpr std::int32_t kMax24 = (1 << 23) - 1;
 constexpr std::int32_t kMin24 = -(1 << 23);
+constexpr std::uint32_t kMaxU24 = (1u << 24) - 1;
 
 // CRC of a datagram: everything before the CRC field, then the dummy zero bytes.
 std::uint32_t datagram_crc(const std::uint8_t* p, const DatagramContent& c) {
@@ -94,15 +95,15 @@ DecodeStatus decode_datagram(std::span<const std::uint8_t> bytes, RawDatagram& o
   read_triplet(p, out.rate);
   if (c->accel) read_triplet(p, out.accel);
   if (c->incl) read_triplet(p, out.incl);
-  if (c->aux) {
-    out.aux = detail::load_i24(p);
-    out.aux_status = p[3];
-    p += kAuxBytes;
-  }
   if (c->temperature) {
     read_triplet(p, out.rate_temperature);
     if (c->accel) read_triplet(p, out.accel_temperature);
     if (c->incl) read_triplet(p, out.incl_temperature);
+  }
+  if (c->pps) {  // after the temperatures (Table 5-20)
+    out.pps = static_cast<std::uint32_t>(detail::load_i24(p)) & kMaxU24;
+    out.pps_status = p[3];
+    p += kPpsBytes;
   }
   out.counter = *p++;
   out.latency_us = detail::load_u16(p);
@@ -125,7 +126,7 @@ Sample to_sample(const RawDatagram& raw, const Scale& scale) {
     s.incl_m_s2 = scaled(raw.incl.counts, Scale::incl_m_s2_per_lsb());
     s.incl_valid = raw.incl.status == 0;
   }
-  s.aux_valid = c->aux && raw.aux_status == 0;
+  s.pps_valid = c->pps && raw.pps_status == 0;
   if (c->temperature) {
     s.rate_temperature_c = scaled(raw.rate_temperature.counts, per_c);
     s.rate_temperature_valid = raw.rate_temperature.status == 0;
@@ -148,7 +149,7 @@ EncodeResult encode_datagram(const RawDatagram& raw, bool crlf, std::span<std::u
   const std::size_t length = datagram_length(*c);
   if (out.size() < length + (crlf ? 2 : 0)) return {EncodeStatus::buffer_too_small, 0};
   if (!fits24(raw.rate) || (c->accel && !fits24(raw.accel)) || (c->incl && !fits24(raw.incl)) ||
-      (c->aux && (raw.aux < kMin24 || raw.aux > kMax24))) {
+      (c->pps && raw.pps > kMaxU24)) {
     return {EncodeStatus::value_out_of_range, 0};
   }
   std::uint8_t* p = out.data();
@@ -156,15 +157,15 @@ EncodeResult encode_datagram(const RawDatagram& raw, bool crlf, std::span<std::u
   write_triplet(p, raw.rate);
   if (c->accel) write_triplet(p, raw.accel);
   if (c->incl) write_triplet(p, raw.incl);
-  if (c->aux) {
-    detail::store_i24(p, raw.aux);
-    p[3] = raw.aux_status;
-    p += kAuxBytes;
-  }
   if (c->temperature) {
     write_triplet(p, raw.rate_temperature);
     if (c->accel) write_triplet(p, raw.accel_temperature);
     if (c->incl) write_triplet(p, raw.incl_temperature);
+  }
+  if (c->pps) {
+    detail::store_i24(p, static_cast<std::int32_t>(raw.pps));  // the low 24 bits
+    p[3] = raw.pps_status;
+    p += kPpsBytes;
   }
   *p++ = raw.counter;
   detail::store_u16(p, raw.latency_us);
@@ -274,7 +275,7 @@ bool StreamDecoder::pop(Sample& out) {
     ++counters_.datagrams;
     const DatagramContent& cc = *c;
     if (!out.rate_valid || (cc.accel && !out.accel_valid) || (cc.incl && !out.incl_valid) ||
-        (cc.aux && !out.aux_valid) ||
+        (cc.pps && !out.pps_valid) ||
         (cc.temperature &&
          (!out.rate_temperature_valid || (cc.accel && !out.accel_temperature_valid) ||
           (cc.incl && !out.incl_temperature_valid)))) {

@@ -150,9 +150,11 @@ SourceChoices choose_sources(KinematicsMode mode, const KinematicsAvailable& a) 
     case KinematicsMode::imu:
       c.omega = a.gyro ? SourceChoice{KinematicSource::imu, "kinematics = \"imu\": the gyro"}
                        : none_imu_gyro;
-      c.omega_dot = a.gyro ? SourceChoice{KinematicSource::imu,
-                                          "kinematics = \"imu\": the gyro, differenced (SG)"}
-                           : none_imu_gyro;
+      c.omega_dot =
+          a.gyro ? SourceChoice{KinematicSource::imu,
+                                "kinematics = \"imu\": the gyro, differenced by host/ident's "
+                                "5-point central difference"}
+                 : none_imu_gyro;
       c.specific_force = a.accelerometer ? SourceChoice{KinematicSource::imu,
                                                         "kinematics = \"imu\": the accelerometer"}
                                          : none_imu_acc;
@@ -173,8 +175,9 @@ SourceChoices choose_sources(KinematicsMode mode, const KinematicsAvailable& a) 
             : a.robot ? SourceChoice{KinematicSource::robot, "auto: no gyro, so the robot"}
                       : nothing;
   c.omega_dot = a.gyro    ? SourceChoice{KinematicSource::imu,
-                                      "auto: the differenced gyro, measured less noisy than the "
-                                         "robot's second derivative"}
+                                      "auto: the gyro (the log's one angular-rate column feeds ω "
+                                         "and, by host/ident's 5-point central difference, ω̇; "
+                                         "kinematics = \"robot\" takes both from the robot)"}
                 : a.robot ? SourceChoice{KinematicSource::robot, "auto: no gyro, so the robot"}
                           : nothing;
   c.specific_force =

@@ -12,7 +12,7 @@
 #include <system_error>
 #include <utility>
 
-#include "zerog/io/toml_table.hpp"
+#include "zerog/formats/toml_table.hpp"
 #include "zerog/rtio/local_can_bus.hpp"
 #include "zerog/rtio/serial_port.hpp"
 
@@ -98,9 +98,9 @@ RtConfig read_tables(const toml::table& root, const fs::path& path) {
   const TomlTable rig = file.sub_table("rig", {"file"});
   c.rig_file = rig.path("file");
 
-  const TomlTable robot =
-      file.sub_table("robot", {"bind_address", "bind_port", "address", "port", "sensor_type",
-                               "cycle_ms", "receive_timeout_ms"});
+  const TomlTable robot = file.sub_table(
+      "robot", {"bind_address", "bind_port", "address", "port", "sensor_type", "cycle_ms",
+                "receive_timeout_ms", "pose_check_mm", "pose_check_deg"});
   c.robot.bind_address = robot.optional_string("bind_address", c.robot.bind_address);
   if (robot.find("bind_address") != nullptr)
     check_ipv4(robot, "bind_address", c.robot.bind_address);
@@ -133,6 +133,8 @@ RtConfig read_tables(const toml::table& root, const fs::path& path) {
   }
   c.robot.receive_timeout_ms = robot.optional_number("receive_timeout_ms", 1.5 * c.robot.cycle_ms,
                                                      {0.0, true, 1000.0, false});
+  c.robot.pose_check_mm = robot.optional_number("pose_check_mm", 1.0, {0.0, true, 1000.0, false});
+  c.robot.pose_check_deg = robot.optional_number("pose_check_deg", 0.1, {0.0, true, 180.0, false});
 
   const TomlTable ft = file.sub_table("ft", {"transport", "interface", "local_path", "base_id",
                                              "calibration", "rate_hz", "sample_timeout_ms"});
@@ -388,6 +390,8 @@ loop::CycleConfig cycle_config(const RtConfig& c) {
   out.max_axis_step_rad = c.collection.max_axis_step_rad;
   out.approach_speed_radps = c.collection.approach_speed_radps;
   out.approach_accel_radps2 = c.collection.approach_accel_radps2;
+  out.pose_check_position_m = c.robot.pose_check_mm * 1e-3;
+  out.pose_check_angle_rad = c.robot.pose_check_deg * proto::rsi::kRadPerDeg;
   return out;
 }
 

@@ -17,7 +17,7 @@
 #include <string>
 #include <string_view>
 
-#include "zerog/io/log.hpp"
+#include "zerog/formats/log.hpp"
 #include "zerog/rt/config.hpp"
 #include "zerog/rt/runtime.hpp"
 #include "zerog/rt/setup.hpp"
@@ -143,6 +143,8 @@ int run(const Options& opt) {
     print_out("zerog-rt: " + opt.config + ": OK: model " + config.model_file.string() + " (" +
               effects + (setup.model.network ? " + network" : "") + "), rig '" + setup.rig.name +
               "', RSI cycle " + std::to_string(config.robot.cycle_ms) + " ms" +
+              (setup.cycle.robot ? ", pose from RIst or the rig's robot kinematics"
+                                 : ", pose from RIst only (the rig describes no robot)") +
               (path ? ", design " + opt.collect + " (" + std::to_string(path->num_points()) +
                           " points, " + std::to_string(path->duration_s()) + " s)"
                     : std::string()));

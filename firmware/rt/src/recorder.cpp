@@ -9,7 +9,7 @@
 #include <stdexcept>
 #include <system_error>
 
-#include "zerog/rt/record_csv.hpp"
+#include "zerog/formats/cycles_csv.hpp"
 
 namespace zerog::rt {
 
@@ -117,7 +117,7 @@ Recorder::Recorder(RecorderOptions options) : options_(std::move(options)) {
   log_writer_.append_header(row_);
   log_.append(row_);
   row_.clear();
-  append_record_header(row_);
+  io::append_record_header(row_);
   cycles_.append(row_);
 }
 
@@ -132,7 +132,7 @@ void Recorder::add(const loop::CycleRecord& r) {
   ++counters_.records;
   if (!options_.dir) return;
   row_.clear();
-  append_record_row(r, row_);
+  io::append_record_row(r, row_);
   cycles_.append(row_);
 
   if (r.ft_samples > 0) seen_ft_ = true;
@@ -176,8 +176,8 @@ fs::path Recorder::dump_black_box(const loop::Cycle::Box& box) {
                      " cycles, oldest first; fault " +
                      (last != nullptr ? loop::fault_name(last->fault) : "none") + " at cycle " +
                      std::to_string(cycle) + " (proto/loop.md)\n";
-  append_record_header(text);
-  for (std::size_t i = 0; i < box.size(); ++i) append_record_row(box.at(i), text);
+  io::append_record_header(text);
+  for (std::size_t i = 0; i < box.size(); ++i) io::append_record_row(box.at(i), text);
   io::write_file_atomic(path, text, {}, kRecordFileMode);
   ++counters_.black_boxes;
   return path;

@@ -801,7 +801,10 @@ std::string Runtime::summary_json() const {
                  {"sample_overflow", c.sample_overflow},
                  {"model_saturated", c.model_saturated},
                  {"commands_refused", c.commands_refused},
-                 {"black_boxes_lost", c.black_boxes_lost}};
+                 {"black_boxes_lost", c.black_boxes_lost},
+                 {"poses_from_joints", c.poses_from_joints},
+                 {"pose_disagreements", c.pose_disagreements},
+                 {"poses_missing", c.poses_missing}};
   const CycleThreadCounters& t = cycle_counters_;
   json cycle_thread = {
       {"receive_timeouts", t.receive_timeouts},   {"receive_malformed", t.receive_malformed},
@@ -841,6 +844,8 @@ std::string Runtime::summary_json() const {
                      {"wrong_length", f.wrong_length},
                      {"out_of_order", f.out_of_order},
                      {"dropped_incomplete", f.dropped_incomplete},
+                     {"late_samples", f.late_samples},
+                     {"overtaken", f.overtaken},
                      {"error_frames", f.error_frames},
                      {"kernel_drops", f.kernel_drops},
                      {"bad_length", f.bad_length},

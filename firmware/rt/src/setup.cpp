@@ -9,8 +9,8 @@
 #include <stdexcept>
 #include <system_error>
 
+#include "zerog/formats/design_csv.hpp"
 #include "zerog/infer/deploy_file.hpp"
-#include "zerog/sim/design.hpp"
 
 namespace zerog::rt {
 
@@ -84,6 +84,9 @@ Setup load_setup(const RtConfig& config) {
     s.model_file_crc32 = infer::crc32(bytes);
   }
   s.cycle = cycle_config(config);
+  // The rig's robot (its flange_sensor is the rig's): the pose from AIPos without RIst, and the
+  // check of RIst (proto/rt_config.md, "[robot]").
+  s.cycle.robot = s.rig.robot_model;
   // The loop's own checks, on a scratch cycle (configure takes the model).
   auto scratch = std::make_unique<loop::Cycle>();
   if (std::string why = scratch->configure(s.cycle, s.model); !why.empty()) {
@@ -92,13 +95,13 @@ Setup load_setup(const RtConfig& config) {
   return s;
 }
 
-PtpJointPath::PtpJointPath(std::vector<sim::JointVector> points_rad, double speed_fraction,
+PtpJointPath::PtpJointPath(std::vector<robot::JointVector6> points_rad, double speed_fraction,
                            double dwell_s)
-    : trajectory_(std::move(points_rad), sim::kr210_ptp_limits(speed_fraction), dwell_s) {}
+    : trajectory_(std::move(points_rad), robot::kr210_ptp_limits(speed_fraction), dwell_s) {}
 
 std::unique_ptr<PtpJointPath> load_collection_path(const fs::path& design,
                                                    const CollectionSection& settings) {
-  std::vector<sim::JointVector> points = sim::read_design(design);
+  std::vector<io::DesignPoint> points = io::read_design(design);
   if (points.empty()) throw std::runtime_error(design.string() + ": the design has no points");
   return std::make_unique<PtpJointPath>(std::move(points), settings.speed_fraction,
                                         settings.dwell_s);

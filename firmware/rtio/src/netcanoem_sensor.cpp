@@ -23,14 +23,26 @@ CanSocketConfig NetcanoemSensor::socket_config(std::uint8_t base_id, int buffer_
 
 void NetcanoemSensor::drain_stale() {
   CanRxFrame rx;
+  netcanoem::GaugeSample ignored;
   for (int i = 0; i < config_.max_stale_frames; ++i) {
     const CanReadStatus status = bus_.read(rx, std::chrono::nanoseconds(0));
     if (status == CanReadStatus::frame) {
       ++own_.stale_frames;
+      feed(rx.frame, ignored);  // before the next request: anything it completes is late
     } else if (status != CanReadStatus::error_frame && status != CanReadStatus::bad_length) {
       break;  // empty (or failing: the request path reports it)
     }
   }
+}
+
+bool NetcanoemSensor::feed(const proto::CanFrame& frame, netcanoem::GaugeSample& out) {
+  // A 0x0 half is tagged with the poll that is open when it arrives; its 0x1 completes it in
+  // order, whatever came between.
+  if (assembler_.feed(frame, out, poll_) != netcanoem::FeedResult::sample) return false;
+  if (in_poll_ && out.tag == poll_) return true;
+  ++late_samples_;  // answers an earlier request: its own two frames, but too old
+  late_pairing_ = true;
+  return false;
 }
 
 FtStartStatus NetcanoemSensor::start() {
@@ -102,9 +114,13 @@ FtReadStatus NetcanoemSensor::read_sample(FtSample& out) {
 FtReadStatus NetcanoemSensor::read_sample_waiting(FtSample& out,
                                                   std::chrono::nanoseconds at_least) {
   if (!started_) return FtReadStatus::not_started;
-  // A response to an earlier, timed-out request must not pass for the answer to this one.
+  // A response to an earlier, timed-out request must not pass for the answer to this one: its
+  // frames are fed in order (drain_stale, then below), and only the last poll's first half may
+  // still wait for its 0x1; older ones are dropped (counted dropped_incomplete).
+  in_poll_ = false;
   drain_stale();
-  assembler_.reset();
+  assembler_.drop_pending_before(poll_);
+  late_pairing_ = false;
   const CanWriteStatus written = bus_.write(request_);
   if (written != CanWriteStatus::ok) {
     if (written == CanWriteStatus::would_block) {
@@ -115,6 +131,8 @@ FtReadStatus NetcanoemSensor::read_sample_waiting(FtSample& out,
     return FtReadStatus::io_error;
   }
   ++own_.requests;
+  ++poll_;
+  in_poll_ = true;
   const std::int64_t deadline =
       detail::monotonic_ns() + std::max(config_.sample_timeout, at_least).count();
   CanRxFrame rx;
@@ -129,7 +147,7 @@ FtReadStatus NetcanoemSensor::read_sample_waiting(FtSample& out,
       return FtReadStatus::io_error;
     }
     if (status != CanReadStatus::frame) continue;  // error frame / bad length: counted by the bus
-    if (assembler_.feed(rx.frame, gauges) != netcanoem::FeedResult::sample) continue;
+    if (!feed(rx.frame, gauges)) continue;
 
     // Cannot fail: start() checked the unit codes.
     const auto wrench =
@@ -154,7 +172,10 @@ FtReadStatus NetcanoemSensor::read_sample_waiting(FtSample& out,
     return FtReadStatus::sample;
   }
   ++own_.timeouts;
-  assembler_.reset();
+  // This poll's first half may wait for a 0x1 still on its way. But if a 0x1 completed an older
+  // half in this poll and ours did not come, that 0x1 may have been ours (its own lost): the
+  // pairing cannot be trusted any more, so start over (the halves are counted as dropped).
+  if (late_pairing_) assembler_.drop_pending_before(poll_ + 1);
   return FtReadStatus::timeout;
 }
 
@@ -168,6 +189,8 @@ FtCounters NetcanoemSensor::counters() const {
   c.wrong_length = a.wrong_length;
   c.out_of_order = a.out_of_order;
   c.dropped_incomplete = a.dropped_incomplete;
+  c.overtaken = a.overtaken;
+  c.late_samples = late_samples_;
   const CanBusCounters& bus = bus_.counters();
   c.error_frames = bus.error_frames;
   c.kernel_drops = bus.kernel_drops;

@@ -19,7 +19,7 @@
 #include "zerog/emu/rig_emulator.hpp"
 #include "zerog/emu/scenario.hpp"
 #include "zerog/emu/stim300_emulator.hpp"
-#include "zerog/io/log.hpp"
+#include "zerog/formats/log.hpp"
 #include "zerog/io/model_file.hpp"
 #include "zerog/rtio/can_socket.hpp"
 #include "zerog/rtio/local_can_bus.hpp"

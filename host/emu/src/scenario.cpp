@@ -5,8 +5,8 @@
 #include <stdexcept>
 
 #include "zerog/emu/robot.hpp"
-#include "zerog/io/log.hpp"
-#include "zerog/io/toml_table.hpp"
+#include "zerog/formats/log.hpp"
+#include "zerog/formats/toml_table.hpp"
 
 namespace zerog::emu {
 namespace {

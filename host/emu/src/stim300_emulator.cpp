@@ -86,6 +86,10 @@ Stim300Emulator::Stim300Emulator(const Stim300EmulatorConfig& config)
         "Stim300EmulatorConfig: gyro_noise_radps, accel_noise_mps2 and incl_noise_mps2 must be "
         "finite and >= 0");
   }
+  if (!std::isfinite(config.temperature_c) || config.pps_raw > 0xFFFFFFu) {
+    throw std::invalid_argument(
+        "Stim300EmulatorConfig: temperature_c must be finite and pps_raw fit in 24 bits");
+  }
 }
 
 Stim300Emulator::~Stim300Emulator() {
@@ -196,19 +200,7 @@ bool Stim300Emulator::write_sample(const ImuTruthSample& truth) {
     return true;
   }
 
-  stim300::RawDatagram raw;
-  raw.identifier = config_.identifier;
-  for (int i = 0; i < 3; ++i) {
-    raw.rate.counts[i] =
-        stim300::rate_counts(truth.rate_imu_radps[i] + config_.gyro_noise_radps * normal_(rng_));
-    raw.accel.counts[i] = stim300::accel_counts(
-        truth.specific_force_imu_mps2[i] + config_.accel_noise_mps2 * normal_(rng_), config_.scale);
-    raw.incl.counts[i] = stim300::incl_counts(truth.specific_force_imu_mps2[i] +
-                                              config_.incl_noise_mps2 * normal_(rng_));
-  }
-  if (fault == ImuFault::status_bits) raw.rate.status = kFaultRateStatus;
-  raw.counter = counter;
-  raw.latency_us = config_.latency_us;
+  const stim300::RawDatagram raw = make_raw_locked(truth, config_.identifier, counter, fault);
   const stim300::EncodeResult encoded = stim300::encode_datagram(raw, config_.crlf, buffer_);
   if (encoded.status != stim300::EncodeStatus::ok) {  // cannot happen: identifier checked
     dropped_.fetch_add(1, std::memory_order_relaxed);
@@ -248,6 +240,38 @@ bool Stim300Emulator::write_sample(const ImuTruthSample& truth) {
     if (fault == ImuFault::crc_errors) bad_crc_.fetch_add(1, std::memory_order_relaxed);
   }
   return true;
+}
+
+stim300::RawDatagram Stim300Emulator::make_raw_locked(const ImuTruthSample& truth,
+                                                      std::uint8_t identifier, std::uint8_t counter,
+                                                      ImuFault fault) {
+  stim300::RawDatagram raw;
+  raw.identifier = identifier;
+  for (int i = 0; i < 3; ++i) {  // the same noise draws whatever the identifier carries
+    raw.rate.counts[i] =
+        stim300::rate_counts(truth.rate_imu_radps[i] + config_.gyro_noise_radps * normal_(rng_));
+    raw.accel.counts[i] = stim300::accel_counts(
+        truth.specific_force_imu_mps2[i] + config_.accel_noise_mps2 * normal_(rng_), config_.scale);
+    raw.incl.counts[i] = stim300::incl_counts(truth.specific_force_imu_mps2[i] +
+                                              config_.incl_noise_mps2 * normal_(rng_));
+  }
+  const std::int16_t t = stim300::temperature_counts(config_.temperature_c);
+  raw.rate_temperature.counts = raw.accel_temperature.counts =
+      raw.incl_temperature.counts = {t, t, t};
+  raw.pps = config_.pps_raw;
+  if (fault == ImuFault::status_bits) raw.rate.status = kFaultRateStatus;
+  raw.counter = counter;
+  raw.latency_us = config_.latency_us;
+  return raw;
+}
+
+std::size_t Stim300Emulator::encode_next(const ImuTruthSample& truth, std::uint8_t identifier,
+                                         std::span<std::uint8_t> out) {
+  const std::lock_guard lock(mutex_);
+  if (stim300::find_content(identifier) == nullptr || out.size() < kBufferSize) return 0;
+  const stim300::RawDatagram raw = make_raw_locked(truth, identifier, counter_++, ImuFault::none);
+  const stim300::EncodeResult encoded = stim300::encode_datagram(raw, config_.crlf, out);
+  return encoded.status == stim300::EncodeStatus::ok ? encoded.size : 0;
 }
 
 Stim300Emulator::Counters Stim300Emulator::counters() const {

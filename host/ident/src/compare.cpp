@@ -6,7 +6,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "zerog/io/log.hpp"
+#include "zerog/formats/log.hpp"
 #include "zerog/io/model_file.hpp"
 
 namespace zerog::ident {

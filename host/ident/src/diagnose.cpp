@@ -117,6 +117,18 @@ BlockChoice choose_blocks_excluding(const Dataset& data, double block_s, int eve
   const SplitCount n = count_split(data, c.block_s, keep, offset, exclude);
   c.heldout_samples = n.heldout;
   c.training_samples = n.train;
+  if (data.columns.static_rows && (n.heldout < kMinSplitSamples || n.train < kMinSplitSamples)) {
+    // A static table: no blocks to choose, only more poses (or a fit without a held-out split).
+    throw std::runtime_error(
+        "static table of " + std::to_string(data.size()) + " rows (no time): diagnose holds out " +
+        "every " + std::to_string(keep) + "th row and needs at least " +
+        std::to_string(kMinSplitSamples) + " held-out and " + std::to_string(kMinSplitSamples) +
+        " training rows (here " + std::to_string(n.heldout) + " and " + std::to_string(n.train) +
+        "), about " + std::to_string(static_cast<std::size_t>(keep) * kMinSplitSamples) +
+        " poses: record more poses (a longer design, or several readings per pose), or use "
+        "`zerog fit` on this table (it fits every row: bias, gravity and the payload, without "
+        "a held-out split) and `zerog compare` for the residual of each pose");
+  }
   if (n.heldout < kMinSplitSamples || n.train < kMinSplitSamples) {
     // What would work: the longest block that still gives both sides enough samples.
     std::string hint = "record longer";

@@ -3,11 +3,13 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <utility>
 
-#include "zerog/io/log.hpp"
-#include "zerog/proto/candump.hpp"
+#include "zerog/formats/log.hpp"
+#include "zerog/io/candump.hpp"
 
 namespace zerog::io {
 
@@ -109,8 +111,22 @@ CanDecodeResult decode_netcanoem_log(const std::filesystem::path& candump,
                              std::to_string(r.calibration.force_unit) + "/" +
                              std::to_string(r.calibration.torque_unit));
 
+  // Pairing in order (SampleAssembler): a 0x1 overtaken by later 0x0 frames still completes
+  // its own 0x0. A pairing made while later halves wait is confirmed once the queue of waiting
+  // halves empties again; if it does not within kMaxUnconfirmedRun pairings (or before the log
+  // ends), some 0x1 was lost and the run may pair halves of different polls: its samples are
+  // dropped (counted `unconfirmed`) and the waiting halves with them.
   nc::SampleAssembler assembler(o.base_id);
   std::size_t complete = 0;  // complete samples, usable or not (the clock of assume_rate_hz)
+  std::vector<std::pair<double, nc::GaugeSample>> run;  // paired, not yet confirmed
+  auto commit = [&](double t_s, const nc::GaugeSample& g) {
+    if (!g.usable()) {
+      ++r.unusable;
+      return;
+    }
+    const auto w = nc::gauges_to_wrench_si(r.calibration, g.gauges, o.bias_gauges);
+    r.samples.push_back({t_s, *w, g.status});
+  };
   for (const auto& rec : records) {
     if (rec.fd) continue;  // CAN FD traffic: counted in r.log.fd_frames
     if (nc::base_id_of(rec.frame.id) != o.base_id) {
@@ -122,13 +138,17 @@ CanDecodeResult decode_netcanoem_log(const std::filesystem::path& candump,
     const double t_s = r.time_assumed ? static_cast<double>(complete) / *o.assume_rate_hz
                                       : static_cast<double>(rec.timestamp_ns) * 1e-9;
     ++complete;
-    if (!g.usable()) {
-      ++r.unusable;
-      continue;
+    run.emplace_back(t_s, g);
+    if (!assembler.pending()) {  // every half paired: the run is confirmed
+      for (const auto& [t, s] : run) commit(t, s);
+      run.clear();
+    } else if (run.size() > kMaxUnconfirmedRun) {
+      r.unconfirmed += run.size();
+      run.clear();
+      assembler.drop_pending_before(std::numeric_limits<std::uint64_t>::max());
     }
-    const auto w = nc::gauges_to_wrench_si(r.calibration, g.gauges, o.bias_gauges);
-    r.samples.push_back({t_s, *w, g.status});
   }
+  r.unconfirmed += run.size();  // the log ended with halves still waiting
   r.counters = assembler.counters();
   return r;
 }

@@ -5,9 +5,9 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "zerog/io/log.hpp"
+#include "zerog/formats/log.hpp"
+#include "zerog/formats/toml_table.hpp"
 #include "zerog/io/model_file.hpp"
-#include "zerog/io/toml_table.hpp"
 
 namespace zerog::io {
 namespace {

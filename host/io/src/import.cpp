@@ -7,14 +7,17 @@
 #include <limits>
 #include <map>
 #include <numbers>
+#include <optional>
+#include <span>
 #include <string_view>
 
-#include "csv_scan.hpp"
-#include "toml_table.hpp"
-#include "zerog/io/robot_toml.hpp"
+#include "zerog/formats/detail/csv_scan.hpp"
+#include "zerog/formats/detail/rig_toml.hpp"
+#include "zerog/formats/robot_toml.hpp"
 #include "zerog/model/effects.hpp"
 #include "zerog/model/rotation.hpp"
 #include "zerog/robot/derive_kinematics.hpp"
+#include "zerog/robot/forward_kinematics.hpp"
 
 namespace zerog::io {
 
@@ -57,8 +60,8 @@ constexpr double kDegree = std::numbers::pi / 180.0;
 
 struct QuantityInfo {
   std::string_view key;      ///< key in a [files.NAME] table
-  int width;                 ///< columns in the file (orientation: by type)
-  int stored;                ///< values kept per row
+  int width;                 ///< columns in the file (orientation: by type; joints: 1..8)
+  int stored;                ///< values kept per row (joints: as many as columns)
   std::vector<Unit> units;   ///< accepted units; empty = unitless
   std::string_view meaning;  ///< for messages
 };
@@ -77,7 +80,7 @@ const std::array<QuantityInfo, kQuantityCount>& quantity_infos() {
        4,
        {{"rad", 1.0}, {"deg", kDegree}},
        "sensor (or flange) axes in the base"},
-      {"joints", 6, 6, {{"rad", 1.0}, {"deg", kDegree}}, "joint angles A1..A6"},
+      {"joints", 0, 0, {{"rad", 1.0}, {"deg", kDegree}}, "joint angles A1, A2, …"},
       {"specific_force",
        3,
        3,
@@ -308,6 +311,19 @@ void read_quantity(FileSpec& file, Quantity what, const TomlTable& parent) {
       throw_at(t.file(), t.require("order").source(),
                "'" + t.name("order") + "' applies to type = \"quaternion\" only");
     }
+  } else if (what == Quantity::joints) {
+    // Any number of joints, A1 first: the rig's robot says how many it has (7 for an iiwa).
+    const TomlTable t(*node.as_table(), parent.file(), prefix, {"columns", "unit"});
+    const toml::node& columns = t.require("columns");
+    const toml::array* array = columns.as_array();
+    if (array == nullptr || array->empty() || array->size() > robot::kMaxJoints) {
+      throw_at(t.file(), columns.source(),
+               "'" + t.name("columns") + "' must be a list of 1 to " +
+                   std::to_string(robot::kMaxJoints) +
+                   " joint columns, A1 first (header names, or 1-based column numbers)");
+    }
+    add_refs(file, t, "columns", array->size());
+    q.scale = find_unit(t, qi.units).scale;
   } else {
     std::vector<std::string_view> keys = {"columns", "unit"};
     if (is_vector(what)) keys.push_back("frame");
@@ -498,13 +514,24 @@ Mapping read_mapping(const fs::path& mapping, bool rig_given) {
       where[i] = q.where;
     }
   }
+  const bool joints_mapped = source[static_cast<int>(Quantity::joints)] != nullptr;
   for (Quantity q : {Quantity::force, Quantity::torque, Quantity::orientation}) {
+    // Without an orientation the pose comes from the joints through the rig's robot (checked
+    // once the rig is known).
+    if (q == Quantity::orientation && joints_mapped) continue;
     if (source[static_cast<int>(q)] == nullptr) {
       throw_at(mapping, files.source(),
                "no file maps '" + std::string(info(q).key) + "' (" + std::string(info(q).meaning) +
-                   "); a log needs force, torque and orientation (position, the IMU, joints "
-                   "and temperature are optional)");
+                   "); a log needs force, torque and orientation, or 'joints' with a rig that "
+                   "describes the robot (position, the IMU and temperature are optional)");
     }
+  }
+  // Without an orientation the whole pose comes from the joints: a position alone is no pose.
+  if (source[static_cast<int>(Quantity::orientation)] == nullptr &&
+      source[static_cast<int>(Quantity::position)] != nullptr) {
+    throw_at(mapping, where[static_cast<int>(Quantity::position)],
+             "'position' is mapped without 'orientation': map the orientation too, or remove "
+             "'position' to take the whole pose from the joints through the rig's robot");
   }
   // Rows without time are static samples: they cannot be put on another file's time base.
   for (const FileSpec& file : m.files) {
@@ -764,6 +791,31 @@ std::string quantity_file(const Mapping& m, const std::array<int, kQuantityCount
          std::string(info(q).key);
 }
 
+const QuantitySpec& spec_in(const Mapping& m, const std::array<int, kQuantityCount>& source,
+                            Quantity q) {
+  const FileSpec& file = m.files[static_cast<std::size_t>(source[static_cast<int>(q)])];
+  return *std::find_if(file.quantities.begin(), file.quantities.end(),
+                       [&](const QuantitySpec& s) { return s.what == q; });
+}
+
+// The rig's robot with the rig's flange_sensor, for the mapped joints: one column per joint of
+// the robot, in the recording's order (RobotModel::input_index maps them to DH rows). `use` says
+// what the joints are needed for.
+robot::RobotModel robot_for_joints(const Mapping& m, const fs::path& mapping_path, const Log& log,
+                                   const std::array<int, kQuantityCount>& source,
+                                   const std::string& use) {
+  const QuantitySpec& joints = spec_in(m, source, Quantity::joints);
+  robot::RobotModel model = *log.rig.robot_model;
+  model.flange_sensor = to_frame_transform(log.rig.flange_sensor);
+  if (model.joint_count != joints.num_refs)
+    throw_at(mapping_path, joints.where,
+             "'" + quantity_file(m, source, Quantity::joints) + "' maps " +
+                 std::to_string(joints.num_refs) + " columns, but the rig's robot (" +
+                 log.rig.robot + ") has " + std::to_string(model.joint_count) +
+                 " joints: map one column per joint, A1 first, to " + use);
+  return model;
+}
+
 void derive_from_robot(const Mapping& m, const fs::path& mapping_path,
                        const std::vector<Series>& series,
                        const std::array<int, kQuantityCount>& source, ImportResult& result) {
@@ -781,9 +833,10 @@ void derive_from_robot(const Mapping& m, const fs::path& mapping_path,
   const bool timed = !log.columns.static_rows;
   const bool joints_mapped = has(Quantity::joints);
   const bool joints_ok = timed && joints_mapped && log.rig.robot_model.has_value();
-  const bool pose_position =
-      has(Quantity::position) && file_of(Quantity::position) == file_of(Quantity::orientation);
-  const bool robot_motion = joints_ok || timed;  // the orientation is always mapped
+  const bool pose_position = has(Quantity::position) && has(Quantity::orientation) &&
+                             file_of(Quantity::position) == file_of(Quantity::orientation);
+  // Without an orientation the import took the pose from the joints (the rig has the robot).
+  const bool robot_motion = joints_ok || (timed && has(Quantity::orientation));
   const bool robot_linear = joints_ok || (timed && pose_position);
   const bool robot_mode = m.kinematics == robot::KinematicsMode::robot;
 
@@ -839,13 +892,12 @@ void derive_from_robot(const Mapping& m, const fs::path& mapping_path,
   std::vector<robot::SensorKinematics> motion(t.size());
   robot::DeriveStatus status;
   if (joints_ok) {
-    robot::RobotModel model = *log.rig.robot_model;
-    model.flange_sensor = to_frame_transform(log.rig.flange_sensor);
-    if (model.joint_count != 6)
-      refuse("the rig's robot has " + std::to_string(model.joint_count) +
-             " joints; a log records 6 (q1_rad..q6_rad, 'joints' in the mapping)");
-    status = robot::derive_kinematics(
-        model, t, series[f].values[static_cast<int>(Quantity::joints)], 6, settings, motion);
+    const robot::RobotModel model =
+        robot_for_joints(m, mapping_path, log, source,
+                         "derive the sensor's motion (kinematics = \"" + m.kinematics_text + "\")");
+    status =
+        robot::derive_kinematics(model, t, series[f].values[static_cast<int>(Quantity::joints)],
+                                 static_cast<std::size_t>(model.joint_count), settings, motion);
   } else {
     const std::vector<double>& q = series[f].values[static_cast<int>(Quantity::orientation)];
     const std::vector<double>* p =
@@ -993,11 +1045,44 @@ ImportResult import_recordings(const fs::path& mapping_path,
   auto in_base = [&](Quantity q) {
     return has(q) && spec_of[static_cast<int>(q)]->frame == VectorFrame::base;
   };
-  log.columns.joints = has(Quantity::joints);
+  // Joints: any number drive the robot's forward kinematics; the log holds q1_rad..q6_rad
+  // (proto/log_format.md), so they are written to it only when there are 6.
+  const int joint_columns =
+      has(Quantity::joints) ? spec_of[static_cast<int>(Quantity::joints)]->num_refs : 0;
+  log.columns.joints = joint_columns == 6;
+  // No orientation mapped (read_mapping then allows no position either): the pose of S from the
+  // joints, p_BS and R_BS = sensor_pose(robot, q) with the rig's flange_sensor.
+  const bool pose_from_joints = !has(Quantity::orientation);
+  std::optional<robot::RobotModel> pose_model;
+  if (pose_from_joints) {
+    const std::string joints_key = quantity_file(mapping, source, Quantity::joints);
+    if (!log.rig.robot_model)
+      throw_at(mapping_path, spec_of[static_cast<int>(Quantity::joints)]->where,
+               "no 'orientation' is mapped, so the sensor's pose must come from '" + joints_key +
+                   "' through the robot, but the rig (" + result.report.rig_source +
+                   ") does not describe it: give the rig robot_file = \"…/calib/robots/"
+                   "NAME.robot.toml\" or a [robot] table (proto/log_format.md), or map "
+                   "'orientation'");
+    pose_model = robot_for_joints(mapping, mapping_path, log, source,
+                                  "compute the sensor's pose (no 'orientation' is mapped)");
+  }
+  if (has(Quantity::joints)) {
+    result.report.joints =
+        "joints: " + std::to_string(joint_columns) + " columns (" +
+        quantity_file(mapping, source, Quantity::joints) + ")" +
+        (pose_from_joints ? "; the sensor's pose from them through " + log.rig.robot +
+                                "'s forward kinematics (no orientation mapped)"
+                          : std::string()) +
+        (joint_columns == 6 ? "; written to the log as q1_rad..q6_rad"
+                            : "; not written to the log (it holds q1_rad..q6_rad, 6 joints): "
+                              "they feed the robot's kinematics only, and effects that read "
+                              "joints (cable) cannot be fitted") +
+        "\n";
+  }
   log.columns.specific_force = has(Quantity::specific_force);
   log.columns.angular_rate = has(Quantity::angular_rate);
   log.columns.temperature = has(Quantity::temperature);
-  log.columns.position = has(Quantity::position);
+  log.columns.position = has(Quantity::position) || pose_from_joints;
   log.columns.static_rows = !mapping.files.front().has_time;
   result.report.static_rows = log.columns.static_rows;
   // IMU axes in the sensor frame, for IMU quantities given in the base frame.
@@ -1008,6 +1093,7 @@ ImportResult import_recordings(const fs::path& mapping_path,
   std::vector<Bracket> brackets(mapping.files.size());
   std::vector<std::size_t> cursor(mapping.files.size(), 0);
   log.samples.reserve(t_master.size());
+  std::array<double, robot::kMaxJoints> joints_row{};  // the row's joints, interpolated
   for (std::size_t i = 0; i < t_master.size(); ++i) {
     const double t = t_master[i];
     bool keep = true;
@@ -1050,10 +1136,31 @@ ImportResult import_recordings(const fs::path& mapping_path,
     };
     s.force_sensor_N = at<3>(values(Quantity::force), bracket(Quantity::force));
     s.torque_sensor_Nm = at<3>(values(Quantity::torque), bracket(Quantity::torque));
-    if (log.columns.position)
-      s.p_base_sensor_m = at<3>(values(Quantity::position), bracket(Quantity::position));
-    s.q_base_sensor = quaternion_at(values(Quantity::orientation), bracket(Quantity::orientation));
-    if (mapping.pose_of_flange) {  // p_BS = p_BF + R_BF p_FS, R_BS = R_BF R_FS (frames.md)
+    if (joint_columns > 0) {
+      const std::vector<double>& q = values(Quantity::joints);
+      const Bracket& b = bracket(Quantity::joints);
+      const auto n = static_cast<std::size_t>(joint_columns);
+      for (std::size_t j = 0; j < n; ++j)
+        joints_row[j] = q[b.k0 * n + j] + b.alpha * (q[b.k1 * n + j] - q[b.k0 * n + j]);
+    }
+    if (pose_from_joints) {
+      const robot::Pose pose = robot::sensor_pose(
+          *pose_model,
+          std::span<const double>(joints_row.data(), static_cast<std::size_t>(joint_columns)));
+      s.p_base_sensor_m = pose.p_m;
+      s.q_base_sensor = Eigen::Quaterniond(pose.R).normalized();
+      // keep neighbours in the same hemisphere, as read_series does for logged quaternions
+      if (log.samples.size() >= 2 &&
+          log.samples[log.samples.size() - 2].q_base_sensor.dot(s.q_base_sensor) < 0.0)
+        s.q_base_sensor.coeffs() = -s.q_base_sensor.coeffs();
+    } else {
+      if (log.columns.position)
+        s.p_base_sensor_m = at<3>(values(Quantity::position), bracket(Quantity::position));
+      s.q_base_sensor =
+          quaternion_at(values(Quantity::orientation), bracket(Quantity::orientation));
+    }
+    if (mapping.pose_of_flange && !pose_from_joints) {
+      // p_BS = p_BF + R_BF p_FS, R_BS = R_BF R_FS (frames.md)
       if (log.columns.position) s.p_base_sensor_m += s.q_base_sensor * log.rig.flange_sensor.p_m;
       s.q_base_sensor = (s.q_base_sensor * log.rig.flange_sensor.q).normalized();
     }
@@ -1062,11 +1169,7 @@ ImportResult import_recordings(const fs::path& mapping_path,
     const Eigen::Matrix3d R_sensor_base = s.q_base_sensor.toRotationMatrix().transpose();
     if (in_base(Quantity::force)) s.force_sensor_N = R_sensor_base * s.force_sensor_N;
     if (in_base(Quantity::torque)) s.torque_sensor_Nm = R_sensor_base * s.torque_sensor_Nm;
-    if (log.columns.joints) {
-      const Eigen::Matrix<double, 6, 1> q =
-          at<6>(values(Quantity::joints), bracket(Quantity::joints));
-      for (int j = 0; j < 6; ++j) s.joints_rad[j] = q[j];
-    }
+    if (log.columns.joints) std::copy_n(joints_row.begin(), 6, s.joints_rad.begin());
     if (log.columns.specific_force) {
       s.specific_force_imu_mps2 =
           at<3>(values(Quantity::specific_force), bracket(Quantity::specific_force));
@@ -1126,6 +1229,7 @@ std::string ImportReport::summary() const {
                   rows_out);
     out += buffer;
     if (!rig_source.empty()) out += "rig: " + rig_source + "\n";
+    out += joints;
     return out;
   }
   std::snprintf(buffer, sizeof buffer, "%zu file%s merged onto the time base of '%s':\n",
@@ -1162,6 +1266,7 @@ std::string ImportReport::summary() const {
     }
   }
   if (!rig_source.empty()) out += "rig: " + rig_source + "\n";
+  out += joints;
   out += kinematics;
   return out;
 }

@@ -6,8 +6,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "zerog/formats/log.hpp"
 #include "zerog/io/effect_file.hpp"
-#include "zerog/io/log.hpp"
 
 namespace zerog::io {
 

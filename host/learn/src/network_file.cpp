@@ -5,8 +5,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "zerog/formats/log.hpp"
 #include "zerog/ident/compare.hpp"
-#include "zerog/io/log.hpp"
 
 namespace zerog::learn {
 

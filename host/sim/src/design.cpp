@@ -11,7 +11,8 @@
 #include <stdexcept>
 
 #include "random.hpp"
-#include "zerog/io/log.hpp"
+#include "zerog/formats/design_csv.hpp"
+#include "zerog/formats/log.hpp"
 #include "zerog/model/effects.hpp"
 #include "zerog/model/rotation.hpp"
 
@@ -30,9 +31,6 @@ void split_cells(const std::string& line, std::vector<std::string>& cells,
     start = comma + 1;
   }
 }
-
-constexpr const char* kDesignMagic = "# zerog-design 1";
-constexpr const char* kJointNames[6] = {"q1_rad", "q2_rad", "q3_rad", "q4_rad", "q5_rad", "q6_rad"};
 
 bool is_prime(int n) {
   if (n < 2) return false;
@@ -86,12 +84,6 @@ DirectionTable make_direction_numbers() {
     }
   }
   return v;
-}
-
-std::string format_double(double x) {
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.12g", x);
-  return buf;
 }
 
 }  // namespace
@@ -423,64 +415,12 @@ AttitudeDesign design_from_attitudes(const std::vector<Eigen::Vector3d>& rotvecs
 
 void write_design(const Design& design, const std::filesystem::path& path,
                   const std::vector<std::filesystem::path>& inputs) {
-  std::ostringstream out;
-  out << kDesignMagic << "\n";
-  out << "# kind=" << design_kind_name(design.kind) << " seed=" << design.seed
-      << " points=" << design.points_rad.size() << " candidates=" << design.candidates
-      << " rejected=" << design.rejected;
-  if (design.kind == DesignKind::oa) out << " levels=" << design.levels;
-  out << "\n";
-  for (int j = 0; j < 6; ++j) out << (j ? "," : "") << kJointNames[j];
-  out << "\n";
-  for (const auto& q : design.points_rad) {
-    for (int j = 0; j < 6; ++j) out << (j ? "," : "") << format_double(q[j]);
-    out << "\n";
-  }
-  io::write_file_atomic(path, out.str(), inputs);
-}
-
-std::vector<JointVector> read_design(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  if (!in) throw io::InputError(path, 0, 0, "cannot open design file");
-  std::string line;
-  int line_no = 0;
-  if (!std::getline(in, line) || (++line_no, line != kDesignMagic))
-    throw io::InputError(path, 1, 1, std::string("first line must be '") + kDesignMagic + "'");
-  bool header_seen = false;
-  std::vector<JointVector> points;
-  while (std::getline(in, line)) {
-    ++line_no;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    if (line.empty() || line[0] == '#') continue;
-    std::vector<std::string> cells;
-    std::vector<int> columns;
-    split_cells(line, cells, columns);
-    if (cells.size() != 6)
-      throw io::InputError(path, line_no, 1,
-                           "expected 6 columns, found " + std::to_string(cells.size()));
-    if (!header_seen) {
-      for (int j = 0; j < 6; ++j)
-        if (cells[j] != kJointNames[j])
-          throw io::InputError(path, line_no, columns[j],
-                               "header column " + std::to_string(j + 1) + " must be '" +
-                                   kJointNames[j] + "', found '" + cells[j] + "'");
-      header_seen = true;
-      continue;
-    }
-    JointVector q{};
-    for (int j = 0; j < 6; ++j) {
-      std::istringstream cell(cells[j]);
-      cell.imbue(std::locale::classic());
-      double x = 0.0;
-      if (!(cell >> x) || !(cell >> std::ws).eof() || !std::isfinite(x))
-        throw io::InputError(path, line_no, columns[j], "not a finite number: '" + cells[j] + "'");
-      q[j] = x;
-    }
-    points.push_back(q);
-  }
-  if (!header_seen) throw io::InputError(path, line_no, 0, "no header line");
-  if (points.empty()) throw io::InputError(path, line_no, 0, "no path points");
-  return points;
+  std::ostringstream comment;
+  comment << "kind=" << design_kind_name(design.kind) << " seed=" << design.seed
+          << " points=" << design.points_rad.size() << " candidates=" << design.candidates
+          << " rejected=" << design.rejected;
+  if (design.kind == DesignKind::oa) comment << " levels=" << design.levels;
+  io::write_file_atomic(path, io::design_csv_text(comment.str(), design.points_rad), inputs);
 }
 
 }  // namespace zerog::sim

@@ -531,6 +531,106 @@ TEST(Stim300Emulator, ValuesRoundTripWithinOneLsb) {
   }
 }
 
+// Issue 15 acceptance: a byte stream of every datagram identifier of the TS1524 rev.31 table
+// (0x90–0x94, 0xA5–0xA7, 0xF0–0xF7), as the emulator sends them, with and without CR LF, decodes
+// completely: every datagram recovered in order with its CRC checked, every group it carries.
+TEST(Stim300Emulator, StreamOfEveryRev31IdentifierDecodesCompletely) {
+  namespace stim300 = proto::stim300;
+  constexpr double kTemperatureC = 31.25;  // a multiple of the 2^-8 °C LSB: exact
+  constexpr std::uint32_t kPps = 0xABCDEF;
+  constexpr int kRounds = 3;
+  for (const bool crlf : {false, true}) {
+    SCOPED_TRACE(crlf);
+    Stim300EmulatorConfig config = noiseless();
+    config.crlf = crlf;
+    config.temperature_c = kTemperatureC;
+    config.pps_raw = kPps;
+    Stim300Emulator emulator(config);
+    std::vector<std::uint8_t> stream;
+    std::vector<std::size_t> starts;  // byte offset of each datagram
+    std::vector<std::uint8_t> ids;
+    std::array<std::uint8_t, stim300::kMaxDatagramLength + 2> buf{};
+    for (int round = 0; round < kRounds; ++round) {
+      for (const stim300::DatagramContent& c : stim300::kDatagramTable) {
+        const int k = static_cast<int>(ids.size());
+        const std::size_t n = emulator.encode_next(truth(k), c.identifier, buf);
+        ASSERT_EQ(n, stim300::datagram_length(c) + (crlf ? 2u : 0u)) << int{c.identifier};
+        starts.push_back(stream.size());
+        stream.insert(stream.end(), buf.begin(), buf.begin() + static_cast<std::ptrdiff_t>(n));
+        ids.push_back(c.identifier);
+      }
+    }
+    ASSERT_EQ(ids.size(), 16u * kRounds);
+
+    auto decode = [](const std::vector<std::uint8_t>& bytes, std::size_t chunk,
+                     stim300::StreamDecoder& decoder) {
+      std::vector<stim300::Sample> got;
+      for (std::size_t i = 0; i < bytes.size(); i += chunk) {
+        const std::size_t n = std::min(chunk, bytes.size() - i);
+        decoder.feed(std::span<const std::uint8_t>(bytes.data() + i, n),
+                     [&](const stim300::Sample& s) { got.push_back(s); });
+      }
+      return got;
+    };
+    for (const std::size_t chunk :
+         {std::size_t{1}, std::size_t{7}, std::size_t{64}, stream.size()}) {
+      SCOPED_TRACE(chunk);
+      stim300::StreamDecoder decoder;  // identifier 0: any identifier of the table
+      const std::vector<stim300::Sample> got = decode(stream, chunk, decoder);
+      ASSERT_EQ(got.size(), ids.size());
+      for (std::size_t k = 0; k < got.size(); ++k) {
+        const stim300::Sample& s = got[k];
+        const stim300::DatagramContent& c = *stim300::find_content(ids[k]);
+        const ImuTruthSample t = truth(static_cast<int>(k));
+        ASSERT_EQ(s.raw.identifier, ids[k]) << k;
+        EXPECT_EQ(s.raw.counter, static_cast<std::uint8_t>(k));
+        EXPECT_TRUE(s.rate_valid);
+        EXPECT_EQ(s.accel_valid, c.accel) << k;
+        EXPECT_EQ(s.incl_valid, c.incl) << k;
+        EXPECT_EQ(s.rate_temperature_valid, c.temperature) << k;
+        EXPECT_EQ(s.accel_temperature_valid, c.temperature && c.accel) << k;
+        EXPECT_EQ(s.incl_temperature_valid, c.temperature && c.incl) << k;
+        EXPECT_EQ(s.pps_valid, c.pps) << k;
+        for (int i = 0; i < 3; ++i) {
+          EXPECT_NEAR(s.rate_rad_s[i], t.rate_imu_radps[i], 0.5 * kRateLsb * kSlack) << k;
+          if (c.accel) {
+            EXPECT_NEAR(s.accel_m_s2[i], t.specific_force_imu_mps2[i], 0.5 * kAccelLsb * kSlack);
+          }
+          if (c.incl) {
+            EXPECT_NEAR(s.incl_m_s2[i], t.specific_force_imu_mps2[i], 0.5 * kInclLsb * kSlack);
+          }
+          if (c.temperature) {
+            EXPECT_EQ(s.rate_temperature_c[i], kTemperatureC) << k;
+            EXPECT_EQ(s.accel_temperature_c[i], c.accel ? kTemperatureC : 0.0) << k;
+            EXPECT_EQ(s.incl_temperature_c[i], c.incl ? kTemperatureC : 0.0) << k;
+          }
+        }
+        EXPECT_EQ(s.raw.pps, c.pps ? kPps : 0u) << k;
+        EXPECT_NEAR(s.latency_s, 400e-6, 1e-12);
+      }
+      const stim300::StreamCounters& n = decoder.counters();
+      EXPECT_EQ(n.datagrams, ids.size());
+      EXPECT_EQ(n.bytes_skipped, 0u);
+      EXPECT_EQ(n.crc_failures, 0u);
+      EXPECT_EQ(n.sync_losses, 0u);
+      EXPECT_EQ(n.counter_gaps, 0u);
+      EXPECT_EQ(n.invalid_samples, 0u);
+    }
+
+    // The CRC is checked on every identifier: one flipped bit in datagram j loses exactly j.
+    for (std::size_t j = 0; j < 16; ++j) {
+      std::vector<std::uint8_t> bad = stream;
+      bad[starts[j] + 2] ^= 0x10;  // a rate byte
+      stim300::StreamDecoder decoder;
+      const std::vector<stim300::Sample> got = decode(bad, 64, decoder);
+      ASSERT_EQ(got.size(), ids.size() - 1) << int{ids[j]};
+      EXPECT_EQ(decoder.counters().crc_failures, j == 0 ? 0u : 1u) << int{ids[j]};
+      for (std::size_t k = 0; k < got.size(); ++k)
+        EXPECT_EQ(got[k].raw.counter, static_cast<std::uint8_t>(k < j ? k : k + 1));
+    }
+  }
+}
+
 TEST(Stim300Emulator, NoiseHasTheConfiguredSigmaAndRepeatsWithTheSeed) {
   Stim300EmulatorConfig config;  // the default σ: 9e-4 rad/s, 0.024 m/s²
   config.seed = 5;

@@ -22,7 +22,7 @@
 
 #include "zerog/emu/rig_emulator.hpp"
 #include "zerog/emu/robot.hpp"
-#include "zerog/io/log.hpp"
+#include "zerog/formats/log.hpp"
 #include "zerog/io/model_file.hpp"
 #include "zerog/model/rotation.hpp"
 

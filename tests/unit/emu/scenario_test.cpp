@@ -9,7 +9,7 @@
 
 #include "zerog/emu/robot.hpp"
 #include "zerog/emu/scenario.hpp"
-#include "zerog/io/log.hpp"
+#include "zerog/formats/log.hpp"
 
 namespace zerog::emu {
 namespace {

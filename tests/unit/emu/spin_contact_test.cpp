@@ -14,6 +14,7 @@
 #include "zerog/emu/physics.hpp"
 #include "zerog/emu/robot.hpp"
 #include "zerog/loop/cycle.hpp"
+#include "zerog/samples/sensor_samples.hpp"
 
 namespace zerog::emu {
 namespace {
@@ -81,11 +82,11 @@ ContactStats run(Akorr akorr, double seconds, double settle_s) {
     for (int k = 0; k < steps_per_cycle; ++k, ++step) {
       if (step > 0) robot.step();
       const PhysicsSample s = physics.step(robot.actual());
-      rtio::FtSample ft;
+      samples::FtSample ft;
       ft.valid = true;
       ft.wrench_si = s.wrench_sensor_noisy;
       cycle.add_ft(ft);
-      rtio::ImuSample imu;
+      samples::ImuSample imu;
       imu.rate_valid = imu.accel_valid = true;
       for (int i = 0; i < 3; ++i) {
         imu.rate_rad_s[i] = s.truth.imu.angular_rate_imu_radps[i];

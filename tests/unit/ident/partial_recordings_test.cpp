@@ -18,10 +18,10 @@
 #include <random>
 #include <string>
 
+#include "zerog/formats/log.hpp"
 #include "zerog/ident/compare.hpp"
 #include "zerog/ident/fit.hpp"
 #include "zerog/io/import.hpp"
-#include "zerog/io/log.hpp"
 #include "zerog/sim/design.hpp"
 #include "zerog/sim/simulator.hpp"
 

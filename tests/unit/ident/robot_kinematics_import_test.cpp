@@ -15,13 +15,13 @@
 #include <random>
 #include <string>
 
+#include "zerog/formats/log.hpp"
+#include "zerog/formats/robot_toml.hpp"
 #include "zerog/ident/compare.hpp"
 #include "zerog/ident/diagnose.hpp"
 #include "zerog/ident/fit.hpp"
 #include "zerog/ident/kinematics_sources.hpp"
 #include "zerog/io/import.hpp"
-#include "zerog/io/log.hpp"
-#include "zerog/io/robot_toml.hpp"
 #include "zerog/robot/derive_kinematics.hpp"
 #include "zerog/robot/forward_kinematics.hpp"
 #include "zerog/sim/design.hpp"

@@ -90,6 +90,36 @@ TEST(ShortLog, BelowTheMinimumItSaysWhatWouldWork) {
   }
 }
 
+// A static table (calib/static_table: 15 poses, rows without time) is below the minimum of 100
+// held-out and 100 training rows: the message says what works for a table — more poses, or
+// `zerog fit` without a held-out split — not "record longer" or --block.
+TEST(ShortLog, AStaticTableBelowTheMinimumIsToldToAddPosesOrFit) {
+  auto table = [](int rows) {
+    Dataset d = times_only(rows - 1.0, 1.0);  // static rows count 0, 1, … (proto/log_format.md)
+    d.columns.static_rows = true;
+    return d;
+  };
+  try {
+    choose_blocks(table(15), 0.0);
+    FAIL() << "no error";
+  } catch (const std::runtime_error& e) {
+    const std::string what = e.what();
+    EXPECT_THAT(what, HasSubstr("static table of 15 rows (no time)"));
+    EXPECT_THAT(what, HasSubstr("every 4th row"));
+    EXPECT_THAT(what, HasSubstr("(here 3 and 12)"));
+    EXPECT_THAT(what, HasSubstr("about 400 poses"));
+    EXPECT_THAT(what, HasSubstr("record more poses"));
+    EXPECT_THAT(what, HasSubstr("`zerog fit` on this table"));
+    EXPECT_THAT(what, ::testing::Not(HasSubstr("--block")));
+    EXPECT_THAT(what, ::testing::Not(HasSubstr("record longer")));
+  }
+  // As many poses as the message names: the split is made, one row a block.
+  const BlockChoice c = choose_blocks(table(400), 0.0);
+  EXPECT_EQ(c.blocks, 400);
+  EXPECT_GE(c.heldout_samples, kMinSplitSamples);
+  EXPECT_GE(c.training_samples, kMinSplitSamples);
+}
+
 TEST(ShortLog, LongLogsKeepSixtySecondBlocks) {
   const BlockChoice c = choose_blocks(times_only(610.0, 0.012), 0.0);
   EXPECT_EQ(c.block_s, kDefaultBlockS);

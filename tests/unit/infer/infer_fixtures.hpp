@@ -9,8 +9,8 @@
 #include <random>
 #include <vector>
 
+#include "zerog/deploy/quantise.hpp"
 #include "zerog/infer/deploy_model.hpp"
-#include "zerog/infer/quantise.hpp"
 #include "zerog/model/features.hpp"
 #include "zerog/model/network.hpp"
 

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -12,9 +13,9 @@
 
 #include <unistd.h>
 
+#include "zerog/formats/log.hpp"
 #include "zerog/io/can_decode.hpp"
-#include "zerog/io/log.hpp"
-#include "zerog/proto/candump.hpp"
+#include "zerog/io/candump.hpp"
 
 namespace zerog::io {
 namespace {
@@ -58,9 +59,9 @@ struct Fixture {
   Recording rec;
 };
 
-Fixture make(bool with_startup) {
+// The calibration and, if `with_startup`, its read-out as zerog-rt records it at start-up.
+Fixture make_calibrated(bool with_startup, std::mt19937& rng) {
   Fixture fx;
-  std::mt19937 rng(3);
   std::uniform_real_distribution<float> coef(-2000.0f, 2000.0f);  // float32-exact on the wire
   for (int r = 0; r < 6; ++r)
     for (int c = 0; c < 6; ++c) fx.C(r, c) = coef(rng);
@@ -80,6 +81,23 @@ Fixture make(bool with_startup) {
     fx.rec.add(*nc::encode_units(kBase, static_cast<std::uint8_t>(nc::ForceUnit::N),
                                  static_cast<std::uint8_t>(nc::TorqueUnit::N_m)));
   }
+  return fx;
+}
+
+// The wrench of gauges `sg` (no bias), computed here from the fixture's calibration.
+Eigen::Matrix<double, 6, 1> expected_wrench(const Fixture& fx,
+                                            const std::array<std::int16_t, 6>& g) {
+  Eigen::Matrix<double, 6, 1> sg;
+  for (int i = 0; i < 6; ++i) sg[i] = g[i];
+  Eigen::Matrix<double, 6, 1> w = fx.C * sg;
+  w.head<3>() /= fx.cpf;
+  w.tail<3>() /= fx.cpt;
+  return w;
+}
+
+Fixture make(bool with_startup) {
+  std::mt19937 rng(3);
+  Fixture fx = make_calibrated(with_startup, rng);
   std::uniform_int_distribution<int> g(-20000, 20000);
   for (int k = 0; k < 40; ++k) {
     std::array<std::int16_t, 6> s;
@@ -143,6 +161,100 @@ TEST(DecodeCan, ReproducesIndependentlyComputedWrenches) {
   EXPECT_THROW(write_ft_recording(r, log, {log}), std::runtime_error);  // never over the input
   fs::remove(log);
   fs::remove(out);
+}
+
+// Issue 15 acceptance: a candump log with overtaken 0x1 frames decodes every poll, each from its
+// own two frames. Written from the real bus log's patterns (CANopen traffic beside the board, a
+// host polling without waiting; the board's 0x1 overtaken by the next poll's 0x0 23 times in
+// 808 polls): A1 A2 B1 B2, and twice in a row A1 A2 B1 A3 B2 B3 (A = 0x0, B = 0x1, digit = poll).
+TEST(DecodeCan, OvertakenSecondHalvesDecodeEveryPollFromItsOwnFrames) {
+  std::mt19937 rng(11);
+  Fixture fx = make_calibrated(true, rng);
+  std::uniform_int_distribution<int> g(-20000, 20000);
+  constexpr int kPolls = 808;
+  for (int k = 0; k < kPolls; ++k) {
+    std::array<std::int16_t, 6> s;
+    for (auto& v : s) v = static_cast<std::int16_t>(g(rng));
+    fx.gauges.push_back(s);
+  }
+  // Polls whose 0x1 is overtaken: 15 single (A B' B) and 4 double (A A' B A'' B' B''), 23 in all.
+  std::vector<int> single, twice;
+  for (int i = 0; i < 15; ++i) single.push_back(20 + 50 * i);
+  for (int i = 0; i < 4; ++i) twice.push_back(45 + 200 * i);
+  std::vector<std::pair<int, int>> order;  // (poll, 0 = 0x0 / 1 = 0x1) in bus order
+  for (int k = 0; k < kPolls;) {
+    if (std::find(single.begin(), single.end(), k) != single.end()) {
+      order.insert(order.end(), {{k, 0}, {k + 1, 0}, {k, 1}, {k + 1, 1}});  // A1 A2 B1 B2
+      k += 2;
+    } else if (std::find(twice.begin(), twice.end(), k) != twice.end()) {
+      order.insert(order.end(), {{k, 0}, {k + 1, 0}, {k, 1}, {k + 2, 0}, {k + 1, 1}, {k + 2, 1}});
+      k += 3;
+    } else {
+      order.insert(order.end(), {{k, 0}, {k, 1}});
+      k += 1;
+    }
+  }
+  std::vector<double> t_own_b(kPolls);  // time of each poll's own 0x1 frame
+  proto::CanFrame canopen{};            // lower ids win arbitration: SYNC and a PDO
+  canopen.len = 8;
+  for (std::size_t i = 0; i < order.size(); ++i) {
+    const auto [poll, half] = order[i];
+    if (half == 0) fx.rec.add(*nc::request_sample(kBase));
+    const auto frames = *nc::encode_sample(kBase, fx.gauges[poll], 0);
+    if (half == 1) t_own_b[poll] = static_cast<double>(std::llround(fx.rec.t * 1e6)) * 1e-6;
+    fx.rec.add(frames[half]);
+    canopen.id = i % 2 == 0 ? 0x080 : 0x181;
+    fx.rec.add(canopen);
+  }
+  const fs::path log = write_temp("overtaken.log", fx.rec.text);
+  const CanDecodeResult r = decode_netcanoem_log(log, {});
+  fs::remove(log);
+  ASSERT_EQ(r.samples.size(), static_cast<std::size_t>(kPolls));
+  for (int k = 0; k < kPolls; ++k) {
+    const Eigen::Matrix<double, 6, 1> w = expected_wrench(fx, fx.gauges[k]);
+    for (int i = 0; i < 6; ++i)
+      ASSERT_NEAR(r.samples[k].wrench[i], w[i], 1e-9 * (1 + std::abs(w[i]))) << "poll " << k;
+    EXPECT_NEAR(r.samples[k].t_s, t_own_b[k], 1e-6) << "poll " << k;
+  }
+  EXPECT_EQ(r.counters.overtaken, 23u);
+  EXPECT_EQ(r.counters.dropped_incomplete, 0u);
+  EXPECT_EQ(r.counters.out_of_order, 0u);
+  EXPECT_EQ(r.unconfirmed, 0u);
+  EXPECT_EQ(r.unusable, 0u);
+}
+
+// A 0x1 that never comes (the board reset between its two frames): in-order pairing would shift
+// every later pair by one poll. The run that never empties the queue is dropped, counted, and
+// pairing starts afresh: no sample written mixes two polls.
+TEST(DecodeCan, ALostSecondHalfDropsTheUnconfirmedRunNotMixedSamples) {
+  std::mt19937 rng(12);
+  Fixture fx = make_calibrated(true, rng);
+  std::uniform_int_distribution<int> g(-20000, 20000);
+  constexpr int kPolls = 100, kLost = 10;
+  for (int k = 0; k < kPolls; ++k) {
+    std::array<std::int16_t, 6> s;
+    for (auto& v : s) v = static_cast<std::int16_t>(g(rng));
+    fx.gauges.push_back(s);
+    const auto frames = *nc::encode_sample(kBase, s, 0);
+    fx.rec.add(frames[0]);
+    if (k != kLost) fx.rec.add(frames[1]);
+  }
+  const fs::path log = write_temp("lost.log", fx.rec.text);
+  const CanDecodeResult r = decode_netcanoem_log(log, {});
+  fs::remove(log);
+  ASSERT_EQ(r.unconfirmed, kMaxUnconfirmedRun + 1);
+  // Polls 0–9 and, after the dropped run (and the half waiting with it), polls 44–99.
+  ASSERT_EQ(r.samples.size(), kPolls - r.unconfirmed - 1);
+  EXPECT_EQ(r.counters.dropped_incomplete, 1u);
+  for (const DecodedWrench& s : r.samples) {
+    bool own = false;  // equal to exactly one poll's wrench
+    for (int k = 0; k < kPolls && !own; ++k) {
+      const Eigen::Matrix<double, 6, 1> w = expected_wrench(fx, fx.gauges[k]);
+      own = std::abs(s.wrench[0] - w[0]) <= 1e-9 * (1 + std::abs(w[0])) &&
+            std::abs(s.wrench[5] - w[5]) <= 1e-9 * (1 + std::abs(w[5]));
+    }
+    EXPECT_TRUE(own) << "a sample mixes two polls at t = " << s.t_s;
+  }
 }
 
 TEST(DecodeCan, WithoutTheStartUpItAsksForACalibration) {

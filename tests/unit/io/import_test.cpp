@@ -11,7 +11,7 @@
 #include <random>
 
 #include "test_util.hpp"
-#include "zerog/io/log.hpp"
+#include "zerog/formats/log.hpp"
 
 namespace zerog::io {
 namespace {

@@ -11,7 +11,7 @@
 #include <typeinfo>
 
 #include "test_util.hpp"
-#include "zerog/io/log.hpp"
+#include "zerog/formats/log.hpp"
 #include "zerog/io/model_file.hpp"
 
 namespace zerog::io {

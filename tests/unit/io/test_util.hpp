@@ -10,7 +10,7 @@
 #include <sstream>
 #include <string>
 
-#include "zerog/io/log.hpp"
+#include "zerog/formats/log.hpp"
 
 namespace zerog::io::test {
 

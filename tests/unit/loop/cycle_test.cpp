@@ -5,10 +5,13 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <functional>
 #include <thread>
+#include <vector>
 
 #include "alloc_count.hpp"
 #include "loop_fixtures.hpp"
@@ -22,6 +25,7 @@ using test::payload_model;
 using test::push;
 using test::StaticRobot;
 using test::test_cycle_config;
+using zerog::test::AllocGuard;
 
 void start_zero_g(Cycle& c, StaticRobot& rig) {
   for (int i = 0; i < 6; ++i) rig.quiet(c);
@@ -229,9 +233,11 @@ TEST(Cycle, TunablesAreRefusedOutsideIdleAndTheRunningBodyKeepsItsMass) {
   Tunables t = c.tunables();
   t.body.mass_kg = 50.0;
   ASSERT_TRUE(c.propose(t));
-  const std::size_t before = zerog::test::allocation_count();
+  AllocGuard guard("Cycle::step refusing a proposal");
   rig.cycle(c, push(30.0, 0.0, 0.0));
-  EXPECT_EQ(zerog::test::allocation_count() - before, 0u);
+  guard.stop();
+  EXPECT_EQ(guard.allocations(), 0u) << guard.first_call();
+  EXPECT_EQ(guard.frees(), 0u) << guard.first_call();
   EXPECT_EQ(c.proposal_status(), ProposalStatus::refused_state);
   EXPECT_EQ(c.tunables().body.mass_kg, kMass);
   EXPECT_EQ(c.motion().body().params().mass_kg, kMass);
@@ -276,12 +282,67 @@ TEST(Cycle, StepDoesNotAllocate) {
   ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
   StaticRobot rig;
   start_zero_g(c, rig);
-  const std::size_t before = zerog::test::allocation_count();
+  AllocGuard guard("Cycle::step");
   for (int i = 0; i < 200; ++i) rig.cycle(c, push(i < 50 ? 30.0 : 0.0, 5.0, 0.0));
   for (int i = 0; i < 10; ++i) rig.cycle(c, push(0, 0, 0), 0, 24);  // hold, then fault
   c.robot_lost(RobotLoss::timeout);
-  EXPECT_EQ(zerog::test::allocation_count() - before, 0u);
+  guard.stop();
+  EXPECT_EQ(guard.allocations(), 0u) << guard.first_call();
+  EXPECT_EQ(guard.frees(), 0u) << guard.first_call();
   EXPECT_EQ(c.state_machine().fault(), Fault::ft_stale);
+}
+
+// Issue 15 acceptance: the allocator-level guard passes on the real cycle (in abort mode, so the
+// first allocation or free would end the test with its stack) and catches a deliberate
+// std::vector push, a malloc and an Eigen dynamic allocation made inside the same cycle scope.
+TEST(Cycle, TheAllocationGuardPassesTheRealCycleAndCatchesADeliberatePushInIt) {
+  Cycle c;
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  StaticRobot rig;
+  start_zero_g(c, rig);
+  {
+    AllocGuard guard("Cycle::step (real cycle)", AllocGuard::Mode::abort);
+    for (int i = 0; i < 100; ++i) rig.cycle(c, push(i < 50 ? 30.0 : 0.0, 5.0, 0.0));
+  }
+  std::vector<double> trace;  // what a careless cycle might keep
+  AllocGuard push_guard("Cycle::step + std::vector push");
+  for (int i = 0; i < 10; ++i) {
+    rig.cycle(c, push(10.0, 0.0, 0.0));
+    trace.push_back(c.motion().body().params().mass_kg);
+  }
+  push_guard.stop();
+  EXPECT_GT(push_guard.allocations(), 0u);
+  EXPECT_EQ(trace.size(), 10u);
+
+  AllocGuard malloc_guard("Cycle::step + malloc");
+  rig.cycle(c, push(10.0, 0.0, 0.0));
+  void* volatile scratch = std::malloc(64);
+  malloc_guard.stop();
+  std::free(scratch);
+  EXPECT_EQ(malloc_guard.allocations(), 1u);
+
+  Eigen::VectorXd residuals;  // a dynamic Eigen vector sized in the cycle
+  AllocGuard eigen_guard("Cycle::step + Eigen::VectorXd");
+  rig.cycle(c, push(10.0, 0.0, 0.0));
+  Eigen::internal::set_is_malloc_allowed(true);  // NDEBUG compiles Eigen's check out: the hooks
+  residuals.setZero(12);                         // alone must see it
+  eigen_guard.stop();
+  EXPECT_EQ(eigen_guard.allocations(), 1u);
+}
+
+TEST(CycleDeathTest, AnAbortModeGuardStopsADeliberatePushInsideTheCycle) {
+  Cycle c;
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  StaticRobot rig;
+  start_zero_g(c, rig);
+  std::vector<double> trace;
+  EXPECT_DEATH(
+      {
+        AllocGuard guard("Cycle::step + std::vector push", AllocGuard::Mode::abort);
+        rig.cycle(c, push(10.0, 0.0, 0.0));
+        trace.push_back(c.motion().body().params().mass_kg);
+      },
+      "inside the scope 'Cycle::step \\+ std::vector push', which must not allocate");
 }
 
 // A held sensor value is stale next to fresh ones: the rows that held it drive nothing (zero
@@ -392,8 +453,8 @@ TEST_F(Watchdog, CriticalStatusHoldsThenFaultsNamingIt) {
   expect_hold_then_fault(
       c, rig, c.config().watchdog.ft_fault_cycles, Fault::ft_critical,
       [&] {
-        rtio::FtSample bad;
-        bad.status = rtio::FtSampleStatus::critical;
+        samples::FtSample bad;
+        bad.status = samples::FtSampleStatus::critical;
         bad.valid = false;
         c.add_ft(bad);
         return rig.quiet(c, 0, 24);
@@ -405,8 +466,8 @@ TEST_F(Watchdog, SaturatedGaugesHoldThenFault) {
   expect_hold_then_fault(
       c, rig, c.config().watchdog.ft_fault_cycles, Fault::ft_saturated,
       [&] {
-        rtio::FtSample bad;
-        bad.status = rtio::FtSampleStatus::saturated;
+        samples::FtSample bad;
+        bad.status = samples::FtSampleStatus::saturated;
         c.add_ft(bad);
         return rig.quiet(c, 0, 24);
       },
@@ -417,7 +478,7 @@ TEST_F(Watchdog, GarbledImuHoldsThenFaults) {
   expect_hold_then_fault(
       c, rig, c.config().watchdog.imu_fault_cycles, Fault::imu_stale,
       [&] {
-        rtio::ImuSample bad;  // status bytes set: groups invalid
+        samples::ImuSample bad;  // status bytes set: groups invalid
         c.add_imu(bad);
         return rig.quiet(c, 4, 0);
       },

@@ -12,8 +12,7 @@
 #include "zerog/loop/cycle.hpp"
 #include "zerog/model/rotation.hpp"
 #include "zerog/proto/rsi.hpp"
-#include "zerog/rtio/ft_sensor.hpp"
-#include "zerog/rtio/imu.hpp"
+#include "zerog/samples/sensor_samples.hpp"
 
 namespace zerog::loop::test {
 
@@ -87,8 +86,8 @@ class StaticRobot {
   }
 
   /// An F/T sample: payload + `contact` (sensor frame; torque about the sensor origin).
-  rtio::FtSample ft(const Eigen::Matrix<double, 6, 1>& contact) const {
-    rtio::FtSample s;
+  samples::FtSample ft(const Eigen::Matrix<double, 6, 1>& contact) const {
+    samples::FtSample s;
     s.valid = true;
     for (int k = 0; k < 6; ++k) s.wrench_si[k] = payload[k] + contact[k];
     return s;
@@ -98,7 +97,7 @@ class StaticRobot {
   /// robot message (the next IPOC after it); returns the reply.
   CycleReply cycle(Cycle& c, const Eigen::Matrix<double, 6, 1>& contact, int n_ft = 4,
                    int n_imu = 24) {
-    const rtio::FtSample sample = ft(contact);
+    const samples::FtSample sample = ft(contact);
     for (int i = 0; i < n_ft; ++i) c.add_ft(sample);
     for (int i = 0; i < n_imu; ++i) c.add_imu(imu_sample);
     CycleReply reply;
@@ -114,7 +113,7 @@ class StaticRobot {
   proto::rsi::RobotMessage message;
   Eigen::Matrix3d R;  ///< R_base_sensor of the pose
   std::array<double, 6> payload{};
-  rtio::ImuSample imu_sample;
+  samples::ImuSample imu_sample;
 
  private:
   infer::Inference truth_;

@@ -180,7 +180,7 @@ TEST(UserEffects, TheRealTimePathsAllocateNothing) {
   KinematicInputs in;
   in.features.joint_vel_radps[5] = 0.1;
   const RigGeometry rig;
-  const std::size_t before = test::allocation_count();
+  test::AllocGuard guard("dictionary_signals, user_wrench, parse_basis, format_basis");
   double sum = 0.0;
   for (int i = 0; i < 100; ++i) {
     in.features.t_s = i;
@@ -193,7 +193,9 @@ TEST(UserEffects, TheRealTimePathsAllocateNothing) {
     char buf[64];
     format_basis(b, buf, sizeof buf);
   }
-  EXPECT_EQ(test::allocation_count(), before);
+  guard.stop();
+  EXPECT_EQ(guard.allocations(), 0u) << guard.first_call();
+  EXPECT_EQ(guard.frees(), 0u) << guard.first_call();
   EXPECT_TRUE(std::isfinite(sum));
 }
 

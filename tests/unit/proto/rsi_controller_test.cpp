@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -86,6 +87,25 @@ TEST(RsiController, RobotMessageRoundTrip) {
     EXPECT_EQ(back.delay, m.delay);
     EXPECT_EQ(back.ipoc, m.ipoc);
   }
+}
+
+TEST(RsiController, JointsOnlyAndExternalAxesRoundTrip) {
+  RobotMessage m = sample_message();
+  m.has_actual_pose = false;
+  m.actual_pose.x_mm = std::numeric_limits<double>::quiet_NaN();  // not written: not checked
+  m.external_axes_present = 0x05;                                 // E1 and E3
+  m.external_axes = {1500.25, 99.0, -12.5, 0, 0, 0};
+  const std::string text = format(m);
+  EXPECT_EQ(text.find("RIst"), std::string::npos) << text;
+  EXPECT_NE(text.find("<EIPos E1=\"1500.2500\" E3=\"-12.5000\"/>"), std::string::npos) << text;
+  RobotMessage back;
+  const ParseResult p = parse_robot_message(text, back);
+  ASSERT_TRUE(p.ok()) << p.reason << " at " << p.offset << ": " << text;
+  EXPECT_FALSE(back.has_actual_pose);
+  EXPECT_EQ(back.external_axes_present, 0x05);
+  EXPECT_DOUBLE_EQ(back.external_axes[0], 1500.25);
+  EXPECT_DOUBLE_EQ(back.external_axes[2], -12.5);
+  EXPECT_EQ(back.joints_deg, m.joints_deg);
 }
 
 TEST(RsiController, RobotMessageRefusesNonFiniteAndSmallBuffers) {

@@ -101,11 +101,77 @@ TEST(RsiParse, MissingElements) {
   // The offset is that of "</Rob>".
   std::string s = with("<IPOC>4208157</IPOC>", "");
   expect_error(s, ParseStatus::missing_element, s.size() - 6);
-  s = with("<RIst X=\"445.5\" Y=\"-0.25\" Z=\"900.0001\" A=\"180\" B=\"0.5\" C=\"-179.9\"/>", "");
-  expect_error(s, ParseStatus::missing_element, s.size() - 6);
   s = with("<AIPos A1=\"0\" A2=\"-90\" A3=\"90\" A4=\"0\" A5=\"45.5\" A6=\"-12.25\"/>", "");
   expect_error(s, ParseStatus::missing_element, s.size() - 6);
   expect_error("<Rob Type=\"KUKA\"/>", ParseStatus::missing_element, 16);
+}
+
+// What real controllers send beside the textbook message (issue 15; shapes in
+// tests/data/rsi_capture/README.md): no RIst (joints only), the root attribute spelled TYPE,
+// external axes in EIPos, CR LF line ends, elements we do not know.
+TEST(RsiParse, JointsOnlyMessageHasNoPose) {
+  const std::string s =
+      with("<RIst X=\"445.5\" Y=\"-0.25\" Z=\"900.0001\" A=\"180\" B=\"0.5\" C=\"-179.9\"/>", "");
+  RobotMessage m;
+  const ParseResult r = parse(s, m);
+  ASSERT_TRUE(r.ok()) << r.reason << " at " << r.offset;
+  EXPECT_FALSE(m.has_actual_pose);
+  EXPECT_EQ(m.joints_deg, (std::array<double, 6>{0, -90, 90, 0, 45.5, -12.25}));
+  EXPECT_EQ(m.ipoc, 4208157u);
+  RobotMessage full;
+  ASSERT_TRUE(parse(kMessage, full).ok());
+  EXPECT_TRUE(full.has_actual_pose);
+}
+
+TEST(RsiParse, RootTypeSpellingsExternalAxesCrLfAndUnknownElements) {
+  const std::string text =
+      "<Rob TYPE=\"KUKA\">\r\n"
+      "  <AIPos A1=\"1\" A2=\"-90\" A3=\"90\" A4=\"0\" A5=\"45\" A6=\"0\"/>\r\n"
+      "  <EIPos E1=\"1500.25\" E2=\"-30\" E3=\"0\" E4=\"0\" E5=\"0\" E6=\"0\"/>\r\n"
+      "  <ASPos A1=\"1\" A2=\"-90\" A3=\"90\" A4=\"0\" A5=\"45\" A6=\"0\"/>\r\n"
+      "  <FTC Fx=\"0\"/><Tech T21=\"1\"/><DiL>0</DiL><Digout o1=\"0\"/>\r\n"
+      "  <Delay D=\"0\"/><IPOC>100</IPOC>\r\n"
+      "</Rob>\r\n";
+  RobotMessage m;
+  ParseResult r = parse(text, m);
+  ASSERT_TRUE(r.ok()) << r.reason << " at " << r.offset;
+  EXPECT_FALSE(m.has_actual_pose);
+  EXPECT_EQ(m.external_axes_present, 0x3f);
+  EXPECT_DOUBLE_EQ(m.external_axes[0], 1500.25);
+  EXPECT_DOUBLE_EQ(m.external_axes[1], -30);
+  EXPECT_EQ(m.skipped_elements, 5u);
+  // Type, TYPE or any other root attribute: not checked.
+  for (const char* root : {"<Rob Type=\"KUKA\">", "<Rob TYPE='KUKA'>", "<Rob>"}) {
+    std::string s = text;
+    s.replace(0, s.find('>') + 1, root);
+    EXPECT_TRUE(parse(s, m).ok()) << root;
+  }
+  // EIPos with only some axes (a cell with one track, E1): the others are absent.
+  r = parse(with("<Delay", "<EIPos E1=\"-250.5\"/><Delay"), m);
+  ASSERT_TRUE(r.ok()) << r.reason;
+  EXPECT_EQ(m.external_axes_present, 0x01);
+  EXPECT_DOUBLE_EQ(m.external_axes[0], -250.5);
+  RobotMessage none;
+  ASSERT_TRUE(parse(kMessage, none).ok());
+  EXPECT_EQ(none.external_axes_present, 0);
+  EXPECT_EQ(none.skipped_elements, 6u);  // RSol, ASPos, Digout, ProgStatus, Tech, DiL
+  // EIPos is ours: its attributes are checked like AIPos's.
+  const std::size_t eipos = kMessage.find("<Delay");
+  expect_error(with("<Delay", "<EIPos/><Delay"), ParseStatus::missing_attribute, eipos + 7);
+  expect_error(with("<Delay", "<EIPos E7=\"1\"/><Delay"), ParseStatus::unknown_attribute,
+               eipos + 7);
+  expect_error(with("<Delay", "<EIPos E1=\"1\" E1=\"2\"/><Delay"), ParseStatus::duplicate_attribute,
+               eipos + 14);
+  expect_error(with("<Delay", "<EIPos E1=\"x\"/><Delay"), ParseStatus::bad_number, eipos + 11);
+  expect_error(with("<Delay", "<EIPos E1=\"1\"/><EIPos E1=\"1\"/><Delay"),
+               ParseStatus::duplicate_element, eipos + 15);
+}
+
+TEST(RsiUnits, ExternalAxesToSi) {
+  EXPECT_DOUBLE_EQ(external_axis_to_si(1500.0, ExternalAxisKind::linear), 1.5);
+  EXPECT_DOUBLE_EQ(external_axis_to_si(90.0, ExternalAxisKind::rotary), std::numbers::pi / 2);
+  EXPECT_STREQ(to_string(ParseStatus::missing_element), "missing_element");
+  EXPECT_STREQ(to_string(ParseStatus::bad_number), "bad_number");
 }
 
 TEST(RsiParse, MalformedCases) {
@@ -298,6 +364,12 @@ TEST(RsiRealTime, ParseAndFormatDoNotAllocate) {
     bytes += f.size + r.ok();
     RobotMessage bad;
     (void)parse_robot_message(std::string_view(kMessage).substr(0, 100), bad);
+    RobotMessage joints_only;  // no RIst, with EIPos
+    bytes += parse_robot_message(
+                 "<Rob TYPE=\"KUKA\"><AIPos A1=\"0\" A2=\"0\" A3=\"0\" A4=\"0\" A5=\"0\" "
+                 "A6=\"0\"/><EIPos E1=\"5\"/><IPOC>7</IPOC></Rob>\r\n",
+                 joints_only)
+                 .ok();
   }
   EXPECT_EQ(zerog::test::allocation_count(), before);
   EXPECT_GT(bytes, 0u);

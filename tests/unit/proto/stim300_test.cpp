@@ -38,11 +38,14 @@ RawDatagram random_raw(std::uint8_t identifier, std::mt19937& rng) {
   t24(raw.rate);
   if (c.accel) t24(raw.accel);
   if (c.incl) t24(raw.incl);
-  if (c.aux) raw.aux = i24(rng);
   if (c.temperature) {
     t16(raw.rate_temperature);
     if (c.accel) t16(raw.accel_temperature);
     if (c.incl) t16(raw.incl_temperature);
+  }
+  if (c.pps) {
+    raw.pps = static_cast<std::uint32_t>(i24(rng)) & 0xFFFFFFu;
+    raw.pps_status = static_cast<std::uint8_t>(u8(rng));
   }
   raw.counter = static_cast<std::uint8_t>(u8(rng));
   raw.latency_us = static_cast<std::uint16_t>(u16(rng));
@@ -57,8 +60,8 @@ void expect_same(const RawDatagram& a, const RawDatagram& b) {
   EXPECT_EQ(a.accel.status, b.accel.status);
   EXPECT_EQ(a.incl.counts, b.incl.counts);
   EXPECT_EQ(a.incl.status, b.incl.status);
-  EXPECT_EQ(a.aux, b.aux);
-  EXPECT_EQ(a.aux_status, b.aux_status);
+  EXPECT_EQ(a.pps, b.pps);
+  EXPECT_EQ(a.pps_status, b.pps_status);
   EXPECT_EQ(a.rate_temperature.counts, b.rate_temperature.counts);
   EXPECT_EQ(a.accel_temperature.counts, b.accel_temperature.counts);
   EXPECT_EQ(a.incl_temperature.counts, b.incl_temperature.counts);
@@ -107,26 +110,126 @@ TEST(Stim300Crc, KnownAnswerMpeg2) {
   EXPECT_EQ(crc32_mpeg2({}), 0xFFFFFFFFu);
 }
 
-TEST(Stim300Table, IdentifiersLengthsAndDummyBytes) {
-  for (int id = 0x90; id <= 0x9C; ++id)
-    EXPECT_NE(find_content(static_cast<std::uint8_t>(id)), nullptr);
-  for (int id = 0xA5; id <= 0xA7; ++id)
-    EXPECT_NE(find_content(static_cast<std::uint8_t>(id)), nullptr);
-  EXPECT_EQ(find_content(0x8F), nullptr);
-  EXPECT_EQ(find_content(0x9D), nullptr);
-  EXPECT_EQ(find_content(0xA4), nullptr);
+TEST(Stim300Table, IdentifiersLengthsAndDummyBytesOfRev31) {
+  // TS1524 rev.31 Table 5-21 (identifiers) and Table 5-22 (CRC dummy bytes), as listed in
+  // ../shared/reference/stim300-datagrams.md: {id, acc, incl, temp, pps, dummy bytes}.
+  struct Row {
+    int id;
+    bool acc, incl, temp, pps;
+    std::size_t dummy;
+  };
+  const std::array<Row, 16> rev31{{{0x90, 0, 0, 0, 0, 2},
+                                   {0x91, 1, 0, 0, 0, 0},
+                                   {0x92, 0, 1, 0, 0, 0},
+                                   {0x93, 1, 1, 0, 0, 2},
+                                   {0x94, 0, 0, 1, 0, 3},
+                                   {0xA5, 1, 0, 1, 0, 2},
+                                   {0xA6, 0, 1, 1, 0, 2},
+                                   {0xA7, 1, 1, 1, 0, 1},
+                                   {0xF0, 0, 0, 0, 1, 2},
+                                   {0xF1, 1, 0, 0, 1, 0},
+                                   {0xF2, 0, 1, 0, 1, 0},
+                                   {0xF3, 1, 1, 0, 1, 2},
+                                   {0xF4, 0, 0, 1, 1, 3},
+                                   {0xF5, 1, 0, 1, 1, 2},
+                                   {0xF6, 0, 1, 1, 1, 2},
+                                   {0xF7, 1, 1, 1, 1, 1}}};
+  for (const Row& r : rev31) {
+    const DatagramContent* c = find_content(static_cast<std::uint8_t>(r.id));
+    ASSERT_NE(c, nullptr) << r.id;
+    EXPECT_EQ(c->accel, r.acc) << r.id;
+    EXPECT_EQ(c->incl, r.incl) << r.id;
+    EXPECT_EQ(c->temperature, r.temp) << r.id;
+    EXPECT_EQ(c->pps, r.pps) << r.id;
+    EXPECT_EQ(crc_dummy_bytes(*c), r.dummy) << r.id;  // computed from the layout
+  }
+  int known = 0;
+  for (int id = 0; id < 256; ++id) known += find_content(static_cast<std::uint8_t>(id)) != nullptr;
+  EXPECT_EQ(known, 16);  // nothing else: no 0x95–0x9C, no AUX datagrams in rev.31
+  for (int id = 0x95; id <= 0x9C; ++id)
+    EXPECT_EQ(find_content(static_cast<std::uint8_t>(id)), nullptr) << id;
   for (const DatagramContent& c : kDatagramTable) {
     EXPECT_EQ((datagram_length(c) - 4 + crc_dummy_bytes(c)) % 4, 0u) << int{c.identifier};
-    EXPECT_LE(crc_dummy_bytes(c), 3u);
     EXPECT_LE(datagram_length(c), kMaxDatagramLength);
   }
   EXPECT_EQ(datagram_length(*find_content(0x90)), 18u);  // 1 + 10 + 7
-  EXPECT_EQ(crc_dummy_bytes(*find_content(0x90)), 2u);
   EXPECT_EQ(datagram_length(*find_content(0x93)), 38u);  // 1 + 3×10 + 7
-  EXPECT_EQ(crc_dummy_bytes(*find_content(0x93)), 2u);
-  EXPECT_EQ(datagram_length(*find_content(0x97)), 59u);  // 1 + 3×10 + 3×7 + 7
-  EXPECT_EQ(crc_dummy_bytes(*find_content(0x97)), 1u);
-  EXPECT_EQ(kMaxDatagramLength, 63u);  // rate, acc, incl, aux, temperatures
+  EXPECT_EQ(datagram_length(*find_content(0xA7)), 59u);  // 1 + 3×10 + 3×7 + 7
+  EXPECT_EQ(datagram_length(*find_content(0xF0)), 22u);  // 1 + 10 + 4 + 7
+  EXPECT_EQ(kMaxDatagramLength, 63u);                    // 0xF7: 1 + 3×10 + 3×7 + 4 + 7
+  EXPECT_EQ(datagram_length(*find_content(0xF7)), kMaxDatagramLength);
+}
+
+// Builds a datagram by hand in Table 5-20's order, with the CRC over the body plus `dummy` zero
+// bytes (§5.5.7), independent of the encoder.
+std::vector<std::uint8_t> hand_built(std::vector<std::uint8_t> body, std::size_t dummy) {
+  std::vector<std::uint8_t> crc_input = body;
+  crc_input.resize(body.size() + dummy, 0);
+  const std::uint32_t crc = crc32_mpeg2(crc_input);
+  for (int shift : {24, 16, 8, 0}) body.push_back(static_cast<std::uint8_t>(crc >> shift));
+  return body;
+}
+
+TEST(Stim300Datagram, KnownLayoutOf0xF7PpsAfterTemperatures) {
+  // rate X = +1 °/s; acc Z = 1 g (±10 g); incl Z = 1 g; temperatures 25.5, 1.0, 0.5 °C in the
+  // first field of each cluster; PPS = 0x123456 with status 0; counter 9; latency 400 µs.
+  const std::vector<std::uint8_t> body{
+      0xF7,                                                  // identifier
+      0x00, 0x40, 0x00, 0,    0, 0, 0,    0,    0,    0x00,  // rate + status
+      0,    0,    0,    0,    0, 0, 0x08, 0x00, 0x00, 0x00,  // acc + status
+      0,    0,    0,    0,    0, 0, 0x40, 0x00, 0x00, 0x00,  // incl + status
+      0x19, 0x80, 0,    0,    0, 0, 0x00,                    // rate temperatures + status
+      0x01, 0x00, 0,    0,    0, 0, 0x00,                    // acc temperatures + status
+      0x00, 0x80, 0,    0,    0, 0, 0x00,                    // incl temperatures + status
+      0x12, 0x34, 0x56, 0x00,                                // PPS + status
+      0x09, 0x01, 0x90};                                     // counter, latency
+  ASSERT_EQ(body.size(), 59u);
+  const std::vector<std::uint8_t> d = hand_built(body, 1);  // Table 5-22: 1 dummy byte
+  RawDatagram raw;
+  ASSERT_EQ(decode_datagram(d, raw), DecodeStatus::ok);
+  EXPECT_EQ(raw.rate.counts[0], 16384);
+  EXPECT_EQ(raw.accel.counts[2], 524288);
+  EXPECT_EQ(raw.incl.counts[2], 4194304);
+  EXPECT_EQ(raw.pps, 0x123456u);
+  EXPECT_EQ(raw.counter, 9);
+  EXPECT_EQ(raw.latency_us, 400);
+  const Sample s = to_sample(raw, Scale{});
+  EXPECT_DOUBLE_EQ(s.rate_temperature_c[0], 25.5);
+  EXPECT_DOUBLE_EQ(s.accel_temperature_c[0], 1.0);
+  EXPECT_DOUBLE_EQ(s.incl_temperature_c[0], 0.5);
+  EXPECT_TRUE(s.pps_valid && s.rate_temperature_valid && s.incl_temperature_valid);
+  std::array<std::uint8_t, kMaxDatagramLength + 2> buf{};
+  const EncodeResult e = encode_datagram(raw, false, buf);
+  ASSERT_EQ(e.status, EncodeStatus::ok);
+  EXPECT_EQ(std::vector<std::uint8_t>(buf.begin(), buf.begin() + e.size), d);
+}
+
+TEST(Stim300Datagram, KnownLayoutOf0xA5AndF0) {
+  // 0xA5: rate, acc, their temperatures (2 dummy bytes); 0xF0: rate, PPS (2 dummy bytes).
+  const std::vector<std::uint8_t> a5 = hand_built(
+      {0xA5, 0xFF, 0xC0, 0x00, 0, 0, 0, 0, 0,    0,    0x00, 0, 0, 0, 0, 0,    0,    0xF8, 0x00,
+       0x00, 0x00, 0xFF, 0x00, 0, 0, 0, 0, 0x00, 0x02, 0x00, 0, 0, 0, 0, 0x00, 0x2A, 0x00, 0x10},
+      2);
+  RawDatagram raw;
+  ASSERT_EQ(decode_datagram(a5, raw), DecodeStatus::ok);
+  const Sample s = to_sample(raw, Scale{});
+  EXPECT_DOUBLE_EQ(s.rate_rad_s[0], -std::numbers::pi / 180.0);
+  EXPECT_DOUBLE_EQ(s.accel_m_s2[2], -9.80665);
+  EXPECT_DOUBLE_EQ(s.rate_temperature_c[0], -1.0);
+  EXPECT_DOUBLE_EQ(s.accel_temperature_c[0], 2.0);
+  EXPECT_TRUE(s.accel_valid && s.accel_temperature_valid);
+  EXPECT_FALSE(s.incl_valid || s.incl_temperature_valid || s.pps_valid);
+  EXPECT_EQ(raw.counter, 0x2A);
+  EXPECT_EQ(raw.latency_us, 0x10);
+
+  const std::vector<std::uint8_t> f0 = hand_built(
+      {0xF0, 0, 0, 1, 0, 0, 2, 0, 0, 3, 0x00, 0xFF, 0xFF, 0xFF, 0x80, 0x05, 0x00, 0x20}, 2);
+  ASSERT_EQ(decode_datagram(f0, raw), DecodeStatus::ok);
+  EXPECT_EQ(raw.rate.counts, (std::array<std::int32_t, 3>{1, 2, 3}));
+  EXPECT_EQ(raw.pps, 0xFFFFFFu);
+  EXPECT_EQ(raw.pps_status, 0x80);
+  EXPECT_FALSE(to_sample(raw, Scale{}).pps_valid);
+  EXPECT_EQ(raw.counter, 5);
 }
 
 TEST(Stim300Datagram, KnownLayoutOf0x93) {
@@ -162,7 +265,7 @@ TEST(Stim300Datagram, KnownLayoutOf0x93) {
   EXPECT_DOUBLE_EQ(s.incl_m_s2[2], 9.80665);
   EXPECT_DOUBLE_EQ(s.latency_s, 500e-6);
   EXPECT_TRUE(s.rate_valid && s.accel_valid && s.incl_valid);
-  EXPECT_FALSE(s.aux_valid || s.rate_temperature_valid);
+  EXPECT_FALSE(s.pps_valid || s.rate_temperature_valid);
 
   d[5] ^= 0x01;
   EXPECT_EQ(decode_datagram(d, raw), DecodeStatus::crc_mismatch);
@@ -185,7 +288,7 @@ TEST(Stim300Datagram, ScaleFactors) {
   EXPECT_EQ(rate_counts(std::nan("")), 0);
 
   RawDatagram raw;
-  raw.identifier = 0x97;  // with temperatures
+  raw.identifier = 0xA7;  // with temperatures
   raw.rate_temperature.counts = {6528, -256, 0};
   raw.accel_temperature.counts = {256, 0, 0};
   raw.incl_temperature.counts = {0, 0, 128};
@@ -229,14 +332,14 @@ TEST(Stim300Datagram, EncoderErrors) {
 
 TEST(Stim300Datagram, StatusBytesInvalidateTheirGroupOnly) {
   RawDatagram raw;
-  raw.identifier = 0xA7;  // everything
+  raw.identifier = 0xF7;  // everything
   raw.accel.status = 0x80;
   raw.incl_temperature.status = 0x01;
   const Sample s = to_sample(raw, Scale{});
   EXPECT_TRUE(s.rate_valid);
   EXPECT_FALSE(s.accel_valid);
   EXPECT_TRUE(s.incl_valid);
-  EXPECT_TRUE(s.aux_valid);
+  EXPECT_TRUE(s.pps_valid);
   EXPECT_TRUE(s.rate_temperature_valid);
   EXPECT_TRUE(s.accel_temperature_valid);
   EXPECT_FALSE(s.incl_temperature_valid);

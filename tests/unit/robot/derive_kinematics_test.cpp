@@ -159,9 +159,11 @@ TEST(DeriveKinematics, DoesNotAllocate) {
   DifferentiatorSettings settings;
   settings.sg = {8, 3};
   std::vector<SensorKinematics> out(run.t.size());
-  const std::size_t before = test::allocation_count();
+  test::AllocGuard guard("derive_kinematics");
   const DeriveStatus status = derive_kinematics(model, run.t, run.joints, 6, settings, out);
-  EXPECT_EQ(test::allocation_count(), before);
+  guard.stop();
+  EXPECT_EQ(guard.allocations(), 0u) << guard.first_call();
+  EXPECT_EQ(guard.frees(), 0u) << guard.first_call();
   EXPECT_TRUE(status.ok());
 }
 

@@ -10,7 +10,7 @@
 #include <random>
 
 #include "alloc_count.hpp"
-#include "zerog/io/robot_toml.hpp"
+#include "zerog/formats/robot_toml.hpp"
 #include "zerog/robot/forward_kinematics.hpp"
 #include "zerog/sim/kinematics.hpp"
 

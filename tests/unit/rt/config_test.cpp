@@ -120,6 +120,26 @@ TEST(RtConfig, DefaultsApplyToOptionalKeys) {
   EXPECT_EQ(c.watchdog.robot_fault_cycles, loop::WatchdogConfig{}.robot_fault_cycles);
 }
 
+// The check of RIst against the rig's robot kinematics (issue 15): defaults 1 mm and 0.1°,
+// given in mm and degrees, SI in the loop's configuration; out of range is an error.
+TEST(RtConfig, PoseCheckTolerancesAreReadInMillimetresAndDegrees) {
+  const std::string base =
+      "[model]\nfile = \"m.zgm\"\n[rig]\nfile = \"r.rig.toml\"\n[robot]\ncycle_ms = 4\n"
+      "[ft]\ninterface = \"vcan0\"\n[imu]\ndevice = \"/dev/pts/3\"\n"
+      "[body]\nmass_kg = 60\ninertia_kgm2 = [[2, 0, 0], [0, 2, 0], [0, 0, 2]]\n";
+  const RtConfig defaults = parse_config(base, "rt.toml");
+  EXPECT_DOUBLE_EQ(cycle_config(defaults).pose_check_position_m, 1e-3);
+  EXPECT_NEAR(cycle_config(defaults).pose_check_angle_rad, 0.1 * proto::rsi::kRadPerDeg, 1e-15);
+  const std::string given =
+      with_line(base, "cycle_ms = 4", "cycle_ms = 4\npose_check_mm = 2.5\npose_check_deg = 0.5");
+  const loop::CycleConfig cc = cycle_config(parse_config(given, "rt.toml"));
+  EXPECT_DOUBLE_EQ(cc.pose_check_position_m, 2.5e-3);
+  EXPECT_NEAR(cc.pose_check_angle_rad, 0.5 * proto::rsi::kRadPerDeg, 1e-15);
+  EXPECT_FALSE(cc.robot.has_value());  // the robot comes from the rig (load_setup)
+  expect_error(with_line(base, "cycle_ms = 4", "cycle_ms = 4\npose_check_mm = 0"),
+               {"robot.pose_check_mm", 7, 17, ""});
+}
+
 TEST(RtConfig, EachErrorNamesFileKeyPositionAndWhy) {
   const std::string s = sample_text();
   // Unknown key (a typo), with the suggestion.

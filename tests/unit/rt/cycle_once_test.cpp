@@ -28,13 +28,13 @@ class CycleOnce : public ::testing::Test {
   // fakes into the rings; then the robot's datagram. Not counted (test side).
   void feed(Runtime& rt, const Eigen::Matrix<double, 6, 1>& contact, bool ft_silent = false,
             bool send = true) {
-    rtio::FtSample f;
+    samples::FtSample f;
     for (int i = 0; i < 4 && !ft_silent; ++i) {
       ASSERT_TRUE(ft.push(rtio::FtReadStatus::sample, robot.ft(contact)));
       ASSERT_EQ(ft.read_sample(f), rtio::FtReadStatus::sample);
       ASSERT_TRUE(rt.ft_ring().try_push(f));
     }
-    rtio::ImuSample s;
+    samples::ImuSample s;
     for (int i = 0; i < 24; ++i) {
       ASSERT_TRUE(imu.push(rtio::ImuReadStatus::sample, robot.imu_sample));
       ASSERT_EQ(imu.read_sample(s), rtio::ImuReadStatus::sample);
@@ -49,9 +49,10 @@ class CycleOnce : public ::testing::Test {
 
   // One cycle_once(), counting its allocations.
   void cycle(Runtime& rt) {
-    const std::size_t before = zerog::test::allocation_count();
+    zerog::test::AllocGuard guard("Runtime::cycle_once");
     rt.cycle_once();
-    allocations += zerog::test::allocation_count() - before;
+    guard.stop();
+    allocations += guard.allocations() + guard.frees();
   }
 
   rtio::FakeRobotLink robot_link;

@@ -11,8 +11,8 @@
 #include <string>
 
 #include "../loop/loop_fixtures.hpp"
+#include "zerog/formats/log.hpp"
 #include "zerog/infer/deploy_file.hpp"
-#include "zerog/io/log.hpp"
 #include "zerog/rt/setup.hpp"
 
 namespace zerog::rt::test {

@@ -7,6 +7,9 @@
 #include <cmath>
 #include <cstdint>
 #include <memory>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "netcanoem_board.hpp"
 #include "zerog/emu/ati_board.hpp"
@@ -233,6 +236,88 @@ TEST_F(NetcanoemSensorTest, HalfResponseTimesOutAndLateFramesAreDrainedAsStale) 
   EXPECT_EQ(s.gauges, fresh);  // the fresh answer, not the stale pair
   EXPECT_EQ(sensor.counters().stale_frames, 3u);
   EXPECT_EQ(sensor.counters().timeouts, 1u);
+}
+
+// Answers each sample request with scripted frames (A = 0x0, B = 0x1 of a poll) in a given
+// order, after start-up went through the emulated board.
+class ScriptedBoard final : public CanResponder {
+ public:
+  explicit ScriptedBoard(std::uint8_t base_id) : base_id_(base_id) {}
+  /// Gauges of poll p, distinct in every gauge, so a mixed pair cannot pass for either poll.
+  static std::array<std::int16_t, 6> gauges(int p) {
+    std::array<std::int16_t, 6> g{};
+    for (int i = 0; i < 6; ++i) g[i] = static_cast<std::int16_t>(100 * p + 10 * i + p * i);
+    return g;
+  }
+  /// The frames to queue for the next requests, e.g. {"A2", "B1", "B2"}.
+  void then(std::vector<std::string> frames) { script_.push_back(std::move(frames)); }
+  void on_write(const proto::CanFrame& request, FakeCanBus& bus) override {
+    if (request.len != 0 || next_ >= script_.size()) return;
+    for (const std::string& f : script_[next_]) {
+      const auto pair = netcanoem::encode_sample(base_id_, gauges(std::stoi(f.substr(1))), 0);
+      bus.inject(CanRxFrame{(*pair)[f[0] == 'A' ? 0 : 1], 0});
+    }
+    ++next_;
+  }
+
+ private:
+  std::uint8_t base_id_;
+  std::vector<std::vector<std::string>> script_;
+  std::size_t next_ = 0;
+};
+
+// Issue 15: a re-poll after a timeout while the first poll's 0x1 is still on its way. The late
+// 0x1 completes its own 0x0 (dropped as late, counted), the new poll pairs its own frames.
+TEST_F(NetcanoemSensorTest, RepollWhileASecondHalfIsOnItsWayPairsEachPollWithItsOwnFrames) {
+  NetcanoemSensor sensor(bus_, config());
+  ASSERT_EQ(sensor.start(), FtStartStatus::ok);
+  ScriptedBoard script(board_config_.base_id);
+  bus_.set_responder(&script);
+  script.then({"A1"});              // B1 waits on the bus: timeout
+  script.then({"A2", "B1", "B2"});  // re-poll: A2 overtakes B1
+  script.then({"A3", "A4", "B3"});  // A4: not ours (e.g. a second host); B4 comes next poll
+  script.then({"B4", "A5", "B5"});
+  FtSample s;
+  EXPECT_EQ(sensor.read_sample(s), FtReadStatus::timeout);
+  ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
+  EXPECT_EQ(s.gauges, ScriptedBoard::gauges(2));
+  ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
+  EXPECT_EQ(s.gauges, ScriptedBoard::gauges(3));
+  ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
+  EXPECT_EQ(s.gauges, ScriptedBoard::gauges(5));
+  const FtCounters c = sensor.counters();
+  EXPECT_EQ(c.late_samples, 2u);  // B1 with A1, B4 with A4
+  EXPECT_EQ(c.timeouts, 1u);
+  EXPECT_EQ(c.dropped_incomplete, 0u);
+  EXPECT_EQ(c.overtaken, 2u);  // B1 (A2 queued behind A1), B3 (A4 queued behind A3)
+  EXPECT_EQ(c.samples, 3u);
+  bus_.set_responder(nullptr);
+}
+
+// A 0x1 lost for good (the board reset between its frames): the next poll's 0x1 completes the
+// old half and is dropped as late; that poll times out and, as its pairing cannot be trusted,
+// its own half is dropped too (counted). The poll after is exact again: no sample mixes polls.
+TEST_F(NetcanoemSensorTest, ALostSecondHalfCostsTwoPollsAndMixesNothing) {
+  NetcanoemSensor sensor(bus_, config());
+  ASSERT_EQ(sensor.start(), FtStartStatus::ok);
+  ScriptedBoard script(board_config_.base_id);
+  bus_.set_responder(&script);
+  script.then({"A1"});  // B1 lost
+  script.then({"A2", "B2"});
+  script.then({"A3", "B3"});
+  script.then({"A4", "B4"});
+  FtSample s;
+  EXPECT_EQ(sensor.read_sample(s), FtReadStatus::timeout);
+  EXPECT_EQ(sensor.read_sample(s), FtReadStatus::timeout);
+  ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
+  EXPECT_EQ(s.gauges, ScriptedBoard::gauges(3));
+  ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
+  EXPECT_EQ(s.gauges, ScriptedBoard::gauges(4));
+  const FtCounters c = sensor.counters();
+  EXPECT_EQ(c.late_samples, 1u);
+  EXPECT_EQ(c.dropped_incomplete, 1u);
+  EXPECT_EQ(c.timeouts, 2u);
+  bus_.set_responder(nullptr);
 }
 
 TEST_F(NetcanoemSensorTest, FullTxQueueIsCounted) {

@@ -6,7 +6,7 @@
 #include <set>
 #include <string>
 
-#include "zerog/io/log.hpp"
+#include "zerog/formats/log.hpp"
 #include "zerog/model/rotation.hpp"
 #include "zerog/sim/design.hpp"
 

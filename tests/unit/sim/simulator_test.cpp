@@ -6,7 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 
-#include "zerog/io/log.hpp"
+#include "zerog/formats/log.hpp"
 #include "zerog/io/model_file.hpp"
 #include "zerog/model/predict.hpp"
 #include "zerog/sim/simulator.hpp"

@@ -287,8 +287,8 @@ TEST(TelemetryChannel, OfferDoesNotAllocate) {
   const TelemetryConfig config = loopback_config(4);
   TelemetryChannel channel(config, test_identity(), control::BodyParams{});
   const loop::CycleRecord r = scripted(1);
-  // Before start (nothing but the ring) and with DDS running, the publisher paused so that
-  // only the cycle thread's calls are counted (the counter is process-wide).
+  // Before start (nothing but the ring) and with DDS running, the publisher paused. The count
+  // is the calling (cycle) thread's own: DDS threads do not add to it.
   std::size_t before = zerog::test::allocation_count();
   for (int i = 0; i < 100; ++i) channel.offer(r, i);
   RuntimeHealth h;

@@ -19,6 +19,7 @@
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
 
 #include "zerog/control/motion.hpp"
@@ -26,8 +27,8 @@
 #include "zerog/loop/black_box.hpp"
 #include "zerog/loop/state_machine.hpp"
 #include "zerog/proto/rsi.hpp"
-#include "zerog/rtio/ft_sensor.hpp"
-#include "zerog/rtio/imu.hpp"
+#include "zerog/robot/robot_model.hpp"
+#include "zerog/samples/sensor_samples.hpp"
 
 namespace zerog::loop {
 
@@ -67,6 +68,16 @@ struct CycleConfig {
   double max_axis_step_rad = 0.01;
   double approach_speed_radps = 0.2;
   double approach_accel_radps2 = 0.5;
+  /// The arm (the running rig's robot, proto/robot_kinematics.md; its flange_sensor is the
+  /// rig's, so robot::sensor_pose gives the F/T sensor frame S in the base frame B, the frame
+  /// RIst reports as the TCP). With it, a message without <RIst> takes the sensor pose from
+  /// AIPos by forward kinematics, and a message with both is checked: RIst and the kinematics
+  /// disagree when their positions are further apart than pose_check_position_m or their
+  /// rotations differ by more than pose_check_angle_rad (kPoseDisagrees, counted; RIst is
+  /// used). Without it, a message without RIst carries no pose (kPoseMissing). 6 joints, A1..A6.
+  std::optional<robot::RobotModel> robot;
+  double pose_check_position_m = 1e-3;                         ///< 1 mm
+  double pose_check_angle_rad = 0.1 * proto::rsi::kRadPerDeg;  ///< 0.1°
 };
 
 /// What a supervisor (the cell PLC over Modbus) may change, only while the cycle is idle: the
@@ -117,6 +128,11 @@ enum CycleFlags : std::uint32_t {
   /// The model's row (t_eval_s) had a held sensor value (kFtHeld or kImuHeld when it was this
   /// cycle's row): its contact is not trusted, so `contact` is zero and the body coasts.
   kContactHeld = 1u << 11,
+  kPoseFromJoints = 1u << 12,  ///< no RIst: the sensor pose is the kinematics' of AIPos
+  kPoseDisagrees = 1u << 13,   ///< RIst and the kinematics disagree (CycleConfig::pose_check_*)
+  /// No RIst and no robot configured: the message has no pose. It is answered (zero, its IPOC)
+  /// but counts as a lost robot cycle (robot watchdog), and nothing else changes.
+  kPoseMissing = 1u << 14,
 };
 
 /// Everything one cycle did: the black box, the recorder and telemetry take it. Fixed size.
@@ -132,8 +148,14 @@ struct CycleRecord {
   infer::StatusCode model_status = infer::StatusCode::not_configured;
   // This cycle's row (what is recorded in the log format).
   std::array<double, 6> joints_rad{};
-  Eigen::Vector3d p_base_sensor_m = Eigen::Vector3d::Zero();  ///< from RIst (TCP = sensor frame)
+  /// S in B: from RIst (TCP = sensor frame), or from AIPos by forward kinematics
+  /// (kPoseFromJoints).
+  Eigen::Vector3d p_base_sensor_m = Eigen::Vector3d::Zero();
   Eigen::Quaterniond q_base_sensor = Eigen::Quaterniond::Identity();
+  /// RIst against the kinematics of AIPos when both are there (else 0): distance of the
+  /// origins (m) and angle of the relative rotation (rad).
+  double pose_check_m = 0.0;
+  double pose_check_rad = 0.0;
   std::array<double, 6> wrench_measured{};     ///< mean F/T of the cycle, sensor frame, N / N·m
   std::array<double, 3> specific_force_imu{};  ///< mean IMU, IMU frame, m/s²
   std::array<double, 3> rate_imu{};            ///< mean gyro, IMU frame, rad/s
@@ -180,6 +202,9 @@ struct CycleCounters {
   /// Faults whose cycles could not be kept: the black box still held an earlier fault that had
   /// not been dumped and released yet.
   std::uint64_t black_boxes_lost = 0;
+  std::uint64_t poses_from_joints = 0;   ///< messages without RIst: pose by forward kinematics
+  std::uint64_t pose_disagreements = 0;  ///< RIst and the kinematics disagreed (kPoseDisagrees)
+  std::uint64_t poses_missing = 0;       ///< messages without RIst and no robot (kPoseMissing)
 };
 
 class Cycle {
@@ -202,8 +227,8 @@ class Cycle {
   // --- every cycle (real-time safe) ---------------------------------------------------------
   /// A sample that arrived since the last cycle (valid or not: invalid ones count toward the
   /// watchdog's reason).
-  void add_ft(const rtio::FtSample& s) noexcept;
-  void add_imu(const rtio::ImuSample& s) noexcept;
+  void add_ft(const samples::FtSample& s) noexcept;
+  void add_imu(const samples::ImuSample& s) noexcept;
   /// A command (Modbus, CLI), applied at the start of the next step(). Returns its ticket
   /// (≥ 1) for command_outcome(), or 0 if one is already pending. Any thread, lock-free.
   std::uint64_t request(Command c) noexcept;
@@ -235,7 +260,8 @@ class Cycle {
   /// The last cycle had its model rows and fresh samples of both sensors: enable_zero_g can be
   /// accepted (what zerog-rt's status and the Modbus `ready` input show).
   bool ready() const noexcept {
-    return record_.cycle > 0 && (record_.flags & (kNotReady | kFtHeld | kImuHeld)) == 0;
+    return record_.cycle > 0 &&
+           (record_.flags & (kNotReady | kFtHeld | kImuHeld | kPoseMissing)) == 0;
   }
   /// The program's measured time of the last step(): into its record and, if that cycle is the
   /// black box's newest entry (also the fault cycle of a frozen box), there too.
@@ -271,6 +297,12 @@ class Cycle {
   bool evaluate(std::uint32_t& flags) noexcept;
   void run_zero_g(double dt, CycleReply& reply) noexcept;
   void run_collection(double dt, std::uint32_t& flags, CycleReply& reply) noexcept;
+  /// S in B for this message: RIst, or the kinematics of q_rad; checks one against the other.
+  void sensor_pose(const proto::rsi::RobotMessage& m, const std::array<double, 6>& q_rad,
+                   Eigen::Matrix3d& R_base_sensor, Eigen::Vector3d& p_base_sensor_m,
+                   std::uint32_t& flags) noexcept;
+  /// A message without any pose (kPoseMissing): answered, counted as a lost robot cycle.
+  void pose_missing() noexcept;
 
   CycleConfig config_;
   infer::Inference inference_;

@@ -8,6 +8,7 @@
 // Everything here is real-time safe (no allocation, no exceptions, no locks, bounded time)
 // unless a comment says otherwise. Decoders return a status and fill an output struct.
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <optional>
 
@@ -99,6 +100,9 @@ struct GaugeSample {
   std::uint16_t status = 0;                        ///< raw status word
   StatusClass status_class = StatusClass::ok;
   std::uint8_t saturated_mask = 0;  ///< bit i set: SG i at +32767 or −32768 (saturated)
+  /// The tag the caller gave with the 0x0 frame of this sample (SampleAssembler::feed): e.g. the
+  /// poll it answers (zerog-rt) or its time. 0 when none was given.
+  std::uint64_t tag = 0;
 
   /// False when a critical status bit is set or any gauge is saturated.
   constexpr bool usable() const {
@@ -110,9 +114,9 @@ struct GaugeSample {
 std::uint8_t saturated_gauges(const std::array<std::int16_t, kGaugeCount>& gauges);
 
 enum class FeedResult : std::uint8_t {
-  pending,           ///< first half (0x0) stored, waiting for 0x1
+  pending,           ///< first half (0x0) queued, waiting for its 0x1
   sample,            ///< a complete sample was written to `out`
-  dropped_previous,  ///< a new 0x0 replaced a first half whose 0x1 never came (counted)
+  dropped_previous,  ///< the queue was full: its oldest half was dropped (counted), this one queued
   request,           ///< a zero-length 0x0 frame: a read request (our own, looped back)
   stray,             ///< not a 0x0/0x1 data frame of this board (counted, ignored)
   wrong_length,      ///< a 0x0/0x1 frame of the wrong length (counted, ignored)
@@ -124,32 +128,54 @@ struct AssemblerCounters {
   std::uint64_t stray = 0;
   std::uint64_t wrong_length = 0;
   std::uint64_t out_of_order = 0;
+  /// First halves dropped before their 0x1 came: queue full, or drop_pending_before().
   std::uint64_t dropped_incomplete = 0;
+  /// Samples whose 0x1 was overtaken by a later 0x0 (another half was queued behind theirs).
+  std::uint64_t overtaken = 0;
   std::uint64_t requests = 0;
   std::uint64_t critical = 0;   ///< samples with a critical status bit
   std::uint64_t warning = 0;    ///< samples with only non-critical status bits
   std::uint64_t saturated = 0;  ///< samples with at least one saturated gauge
 };
 
-/// Assembles gauge samples from received frames, one frame at a time. Real-time safe.
-/// A wrong-length frame leaves the state untouched; timeouts are the caller's (call reset()).
+/// Assembles gauge samples from received frames, one frame at a time, pairing in order: the
+/// board sends 0x0 then 0x1 per poll, but its 0x1 can be overtaken on the bus by the next poll's
+/// 0x0 (the lower id wins arbitration while the 0x1 waits: A1 A2 B1 B2 with A = 0x0, B = 0x1,
+/// digit = poll). So first halves wait in a FIFO of kPendingCapacity and each 0x1 completes the
+/// oldest (proto/netcanoem.md). Real-time safe (fixed capacity, no allocation). A wrong-length
+/// frame leaves the state untouched; timeouts and stale halves are the caller's (reset(),
+/// drop_pending_before()).
 class SampleAssembler {
  public:
+  /// First halves waiting at most; one more drops the oldest (counted dropped_incomplete).
+  static constexpr std::size_t kPendingCapacity = 4;
+
   explicit SampleAssembler(std::uint8_t base_id) : base_id_(base_id & kMaxBaseId) {}
 
-  /// Feeds one frame. `out` is written only when the result is FeedResult::sample.
-  FeedResult feed(const CanFrame& frame, GaugeSample& out);
-  /// Forgets a pending first half (not counted as dropped).
-  void reset() { pending_ = false; }
-  bool pending() const { return pending_; }
+  /// Feeds one frame. `out` is written only when the result is FeedResult::sample. `tag` is
+  /// kept with a 0x0 half and handed back in GaugeSample::tag (ignored for other frames).
+  FeedResult feed(const CanFrame& frame, GaugeSample& out, std::uint64_t tag = 0);
+  /// Forgets all waiting first halves (not counted as dropped).
+  void reset() { pending_count_ = 0; }
+  /// Drops (and counts as dropped_incomplete) waiting first halves whose tag is below `tag`;
+  /// returns how many.
+  std::size_t drop_pending_before(std::uint64_t tag);
+  bool pending() const { return pending_count_ != 0; }
+  /// First halves waiting for their 0x1.
+  std::size_t pending_count() const { return pending_count_; }
   const AssemblerCounters& counters() const { return counters_; }
   std::uint8_t base_id() const { return base_id_; }
 
  private:
+  struct Half {
+    std::uint16_t status = 0;
+    std::array<std::int16_t, 3> even{};  // SG0, SG2, SG4
+    std::uint64_t tag = 0;
+  };
   std::uint8_t base_id_;
-  bool pending_ = false;
-  std::uint16_t pending_status_ = 0;
-  std::array<std::int16_t, 3> pending_even_{};  // SG0, SG2, SG4
+  std::array<Half, kPendingCapacity> pending_{};  // ring: oldest at pending_head_
+  std::size_t pending_head_ = 0;
+  std::size_t pending_count_ = 0;
   AssemblerCounters counters_;
 };
 

@@ -5,7 +5,8 @@
 //       <AIPos A1=".." A2=".." A3=".." A4=".." A5=".." A6=".."/><Delay D=".."/>
 //       <IPOC>123</IPOC> ...other elements, ignored... </Rob>
 //
-// in mm and degrees; we answer within the cycle with
+// (RIst, EIPos and Delay optional; the root's attributes, Type or TYPE, are not checked) in mm
+// and degrees; we answer within the cycle with
 //
 //     <Sen Type="zerog"><RKorr X=".." Y=".." Z=".." A=".." B=".." C=".."/><IPOC>123</IPOC></Sen>
 //
@@ -38,13 +39,26 @@ struct CartesianPose {
   double a_deg = 0, b_deg = 0, c_deg = 0;
 };
 
+inline constexpr std::size_t kMaxExternalAxes = 6;  ///< EIPos E1..E6
+
 /// What we read from one controller message.
 struct RobotMessage {
+  /// <RIst> is optional: many RSI configurations send joints only (AIPos). false when the
+  /// message had none; then actual_pose is zero and the pose must come from the robot's
+  /// forward kinematics (zerog::robot). format_robot_message writes RIst only when true.
+  bool has_actual_pose = true;
   CartesianPose actual_pose;           ///< <RIst>: actual TCP pose in the base frame
   std::array<double, 6> joints_deg{};  ///< <AIPos A1..A6>: actual axis positions, degrees
+  /// <EIPos E1..E6> (optional, any non-empty subset of its attributes): actual external axis
+  /// positions in KUKA units, mm for a linear axis and degrees for a rotary one (the robot's
+  /// configuration says which: external_axis_to_si). Bit i of external_axes_present: E(i+1)
+  /// was given.
+  std::array<double, kMaxExternalAxes> external_axes{};
+  std::uint8_t external_axes_present = 0;
   bool has_delay = false;              ///< <Delay> is optional
   std::uint64_t delay = 0;             ///< <Delay D>: late packets counted by the controller
   std::uint64_t ipoc = 0;              ///< <IPOC>: cycle stamp to echo in the reply
+  std::uint16_t skipped_elements = 0;  ///< children we do not read (RSol, ASPos, Tech, …)
 };
 
 enum class ParseStatus : std::uint8_t {
@@ -56,8 +70,8 @@ enum class ParseStatus : std::uint8_t {
   wrong_root,          ///< root element is not <Rob> (<Sen> for parse_reply)
   unexpected_content,  ///< text where only elements may be, or content after </Rob>
   too_deep,            ///< nesting beyond kMaxDepth
-  duplicate_element,   ///< RIst, AIPos, Delay or IPOC twice (RKorr, AKorr, IPOC in a reply)
-  missing_element,     ///< RIst, AIPos or IPOC absent (IPOC in a reply)
+  duplicate_element,   ///< RIst, AIPos, EIPos, Delay or IPOC twice (RKorr, AKorr, IPOC in a reply)
+  missing_element,     ///< AIPos or IPOC absent (IPOC in a reply)
   missing_attribute,   ///< e.g. RIst without Z
   unknown_attribute,   ///< an attribute our elements do not have
   duplicate_attribute,
@@ -70,6 +84,9 @@ struct ParseResult {
   const char* reason = "ok";  ///< static string, human readable
   constexpr bool ok() const { return status == ParseStatus::ok; }
 };
+
+/// The status's name as written here ("ok", "too_long", …, "bad_number"). Real-time safe.
+const char* to_string(ParseStatus status);
 
 /// Parses one controller message. `out` is complete only when the result is ok.
 ParseResult parse_robot_message(std::string_view message, RobotMessage& out);
@@ -105,8 +122,10 @@ FormatResult format_axis_reply(const std::array<double, 6>& akorr_deg, std::uint
 
 // --- The controller side (the robot emulator, host/emu; tests) --------------------------------
 
-/// Writes `<Rob Type="KUKA"><RIst X.. C../><AIPos A1..A6/><Delay D=".."/><IPOC>n</IPOC></Rob>`
-/// (Delay only when m.has_delay), numbers with kReplyDecimals digits: parse_robot_message reads
+/// Writes `<Rob Type="KUKA"><RIst X.. C../><AIPos A1..A6/><EIPos ../><Delay D=".."/>
+/// <IPOC>n</IPOC></Rob>` (RIst only when m.has_actual_pose, EIPos with the attributes of
+/// m.external_axes_present when any, Delay only when m.has_delay), numbers with
+/// kReplyDecimals digits: parse_robot_message reads
 /// it back to within half a unit of the last digit. `not_finite` for a NaN or infinite value,
 /// `buffer_too_small` if it does not fit; never writes past `out`.
 FormatResult format_robot_message(const RobotMessage& m, std::span<char> out);
@@ -136,6 +155,10 @@ struct PoseSi {
 };
 PoseSi to_si(const CartesianPose& pose);
 std::array<double, 6> joints_to_rad(const std::array<double, 6>& joints_deg);
+/// What kind of axis an external axis is: its EIPos value is in mm (linear) or degrees (rotary).
+enum class ExternalAxisKind : std::uint8_t { rotary, linear };
+/// An EIPos value in SI: m (linear) or rad (rotary).
+double external_axis_to_si(double value, ExternalAxisKind kind);
 /// Correction from SI: translation in m, A, B, C in rad.
 Correction correction_from_si(const std::array<double, 3>& translation_m,
                               const std::array<double, 3>& abc_rad);

@@ -1,12 +1,13 @@
 #pragma once
-// Sensonor STIM300 IMU, normal-mode datagrams over the serial port (datasheet TS1524, sections
-// "normal mode" and "datagram content"). Layout, content table and scale factors: proto/stim300.md.
+// Sensonor STIM300 IMU, normal-mode datagrams over the serial port (datasheet TS1524 rev.31,
+// §5.5; the facts we use are summarised in ../shared/reference/stim300-datagrams.md). Layout,
+// content table and scale factors: proto/stim300.md.
 //
-// A datagram: identifier (u8); rate X,Y,Z (3 × 24-bit) + status; [acceleration + status];
-// [inclination + status]; [AUX (24-bit) + status]; [temperatures (3 × 16-bit) + status per group
-// present]; counter (u8); latency (u16, µs); CRC-32 (u32). Big-endian, two's complement. The CRC
-// covers the datagram without the CRC plus 0–3 dummy zero bytes (input length a multiple of 4).
-// Optionally followed by CR LF.
+// A datagram (Table 5-20): identifier (u8); rate X,Y,Z (3 × 24-bit) + status; [acceleration +
+// status]; [inclination + status]; [temperatures (3 × 16-bit) + status per cluster present];
+// [PPS (24-bit) + status]; counter (u8); latency (u16, µs); CRC-32 (u32). Big-endian, two's
+// complement. The CRC covers the datagram without the CRC plus 0–3 dummy zero bytes (Table 5-22;
+// input length a multiple of 4). Optionally followed by CR LF.
 //
 // Everything here is real-time safe (no allocation, no exceptions, no locks, bounded time).
 #include <array>
@@ -21,60 +22,74 @@ namespace zerog::proto::stim300 {
 /// What one datagram identifier carries. Rate is always present.
 struct DatagramContent {
   std::uint8_t identifier;
-  bool accel;        ///< accelerometer X, Y, Z + status
-  bool incl;         ///< inclinometer X, Y, Z + status
-  bool aux;          ///< one AUX value + status
-  bool temperature;  ///< a temperature triplet + status for each sensor group present
+  bool accel;              ///< accelerometer X, Y, Z + status
+  bool incl;               ///< inclinometer X, Y, Z + status
+  bool temperature;        ///< a temperature triplet + status for each cluster present
+  bool pps;                ///< PPS (24-bit) + status, after the temperatures (Table 5-20)
+  std::uint8_t crc_dummy;  ///< CRC dummy bytes as Table 5-22 lists them (checked below)
 };
 
-/// The content table (proto/stim300.md). The only place to change when the datasheet differs.
-/// Only 0x90–0x93 are trusted; the other rows await a check against TS1524, and 0xA8–0xAF are
-/// left out until their content is known (proto/stim300.md).
+/// The normal-mode content table of TS1524 rev.31 (Table 5-21, dummy bytes Table 5-22;
+/// proto/stim300.md). The only place to change when the datasheet differs. There are no
+/// 0x95–0x9C datagrams and no AUX content in rev.31; older revisions' AUX datagrams are left out
+/// (unverified). Service datagrams (0xB1…0xBF, 0xD1/0xD2) are not decoded.
 inline constexpr std::array<DatagramContent, 16> kDatagramTable{{
-    {0x90, false, false, false, false},  // rate
-    {0x91, true, false, false, false},   // rate, acc
-    {0x92, false, true, false, false},   // rate, incl
-    {0x93, true, true, false, false},    // rate, acc, incl
-    {0x94, false, false, false, true},   // rate, temp
-    {0x95, true, false, false, true},    // rate, acc, temp
-    {0x96, false, true, false, true},    // rate, incl, temp
-    {0x97, true, true, false, true},     // rate, acc, incl, temp
-    {0x98, false, false, true, false},   // rate, aux
-    {0x99, true, false, true, false},    // rate, acc, aux
-    {0x9A, false, true, true, false},    // rate, incl, aux
-    {0x9B, true, true, true, false},     // rate, acc, incl, aux
-    {0x9C, false, false, true, true},    // rate, aux, temp
-    {0xA5, true, false, true, true},     // rate, acc, aux, temp
-    {0xA6, false, true, true, true},     // rate, incl, aux, temp
-    {0xA7, true, true, true, true},      // rate, acc, incl, aux, temp
+    {0x90, false, false, false, false, 2},  // rate
+    {0x91, true, false, false, false, 0},   // rate, acc
+    {0x92, false, true, false, false, 0},   // rate, incl
+    {0x93, true, true, false, false, 2},    // rate, acc, incl
+    {0x94, false, false, true, false, 3},   // rate, temp
+    {0xA5, true, false, true, false, 2},    // rate, acc, temp
+    {0xA6, false, true, true, false, 2},    // rate, incl, temp
+    {0xA7, true, true, true, false, 1},     // rate, acc, incl, temp
+    {0xF0, false, false, false, true, 2},   // rate, PPS
+    {0xF1, true, false, false, true, 0},    // rate, acc, PPS
+    {0xF2, false, true, false, true, 0},    // rate, incl, PPS
+    {0xF3, true, true, false, true, 2},     // rate, acc, incl, PPS
+    {0xF4, false, false, true, true, 3},    // rate, temp, PPS
+    {0xF5, true, false, true, true, 2},     // rate, acc, temp, PPS
+    {0xF6, false, true, true, true, 2},     // rate, incl, temp, PPS
+    {0xF7, true, true, true, true, 1},      // rate, acc, incl, temp, PPS
 }};
 
 /// The table entry of `identifier`, or nullptr when it is not a known normal-mode identifier.
 const DatagramContent* find_content(std::uint8_t identifier);
 
 inline constexpr std::size_t kTripletBytes = 9 + 1;      // 3 × 24-bit + status
-inline constexpr std::size_t kAuxBytes = 3 + 1;          // 24-bit + status
+inline constexpr std::size_t kPpsBytes = 3 + 1;          // 24-bit + status
 inline constexpr std::size_t kTemperatureBytes = 6 + 1;  // 3 × 16-bit + status
 inline constexpr std::size_t kTrailerBytes = 1 + 2 + 4;  // counter, latency, CRC
 
-/// Number of sensor groups (rate, acc, incl) in a datagram.
+/// Number of sensor clusters (rate, acc, incl) in a datagram.
 constexpr int group_count(const DatagramContent& c) { return 1 + c.accel + c.incl; }
 /// Datagram length in bytes, identifier to CRC inclusive, without CR LF.
 constexpr std::size_t datagram_length(const DatagramContent& c) {
-  return 1 + group_count(c) * kTripletBytes + (c.aux ? kAuxBytes : 0) +
-         (c.temperature ? group_count(c) * kTemperatureBytes : 0) + kTrailerBytes;
+  return 1 + group_count(c) * kTripletBytes +
+         (c.temperature ? group_count(c) * kTemperatureBytes : 0) + (c.pps ? kPpsBytes : 0) +
+         kTrailerBytes;
 }
-/// Dummy zero bytes appended to the CRC input so its length is a multiple of 4.
+/// Dummy zero bytes appended to the CRC input so its length is a multiple of 4 (§5.5.7).
 constexpr std::size_t crc_dummy_bytes(const DatagramContent& c) {
   return (4 - (datagram_length(c) - 4) % 4) % 4;
 }
-inline constexpr std::size_t kMaxDatagramLength = datagram_length({0, true, true, true, true});
+/// Every row's layout gives the dummy byte count Table 5-22 lists for it.
+constexpr bool table_matches_dummy_bytes() {
+  for (const DatagramContent& c : kDatagramTable) {
+    if (crc_dummy_bytes(c) != c.crc_dummy) return false;
+  }
+  return true;
+}
+static_assert(table_matches_dummy_bytes(), "kDatagramTable disagrees with TS1524 Table 5-22");
+inline constexpr std::size_t kMaxDatagramLength =
+    datagram_length({0, true, true, true, true, 0});  // 0xF7: 63 bytes
 
 /// CRC-32/MPEG-2: polynomial 0x04C11DB7, no reflection, no final XOR. Pass the previous result
 /// as `crc` to continue over several pieces. crc32_mpeg2("123456789") == 0x0376E6E7.
 std::uint32_t crc32_mpeg2(std::span<const std::uint8_t> bytes, std::uint32_t crc = 0xFFFFFFFFu);
 
 // --- Scale factors ---------------------------------------------------------------------------
+// Unverified: not in our datasheet reference (identifiers, layout, CRC and status only); see
+// proto/stim300.md.
 
 inline constexpr double kStandardGravity = 9.80665;  ///< m/s² per g
 inline constexpr double kPi = 3.14159265358979323846;
@@ -125,11 +140,13 @@ struct RawDatagram {
   Triplet24 rate;
   Triplet24 accel;
   Triplet24 incl;
-  std::int32_t aux = 0;  ///< raw counts (scale depends on the AUX configuration)
-  std::uint8_t aux_status = 0;
   Triplet16 rate_temperature;
   Triplet16 accel_temperature;
   Triplet16 incl_temperature;
+  /// PPS field, the raw 24 bits (0 … 2^24 − 1). Its meaning and unit are not in our reference
+  /// (stim300-datagrams.md gives only its position and size): unverified, so no SI value.
+  std::uint32_t pps = 0;
+  std::uint8_t pps_status = 0;
   std::uint8_t counter = 0;
   std::uint16_t latency_us = 0;  ///< from sampling to the start of transmission
 };
@@ -147,7 +164,7 @@ struct Sample {
   bool rate_valid = false;
   bool accel_valid = false;
   bool incl_valid = false;
-  bool aux_valid = false;
+  bool pps_valid = false;  ///< PPS present and its status byte zero (raw.pps holds the value)
   bool rate_temperature_valid = false;
   bool accel_temperature_valid = false;
   bool incl_temperature_valid = false;
@@ -166,7 +183,7 @@ enum class EncodeStatus : std::uint8_t {
   ok,
   unknown_identifier,
   buffer_too_small,
-  value_out_of_range,  ///< a 24-bit field outside [−2^23, 2^23 − 1]
+  value_out_of_range,  ///< a 24-bit field outside [−2^23, 2^23 − 1] (PPS: [0, 2^24 − 1])
 };
 struct EncodeResult {
   EncodeStatus status;

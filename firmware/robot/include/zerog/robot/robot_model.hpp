@@ -5,7 +5,7 @@
 // (a 6-axis KR 210 R2700 and a 7-axis LBR iiwa are both described in calib/robots/).
 //
 // A pure value type: no parsing here (the host reads it from TOML with
-// zerog/io/robot_toml.hpp), no allocation; validate() once at configuration.
+// zerog/formats/robot_toml.hpp), no allocation; validate() once at configuration.
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>

@@ -12,7 +12,7 @@
 
 #include "zerog/control/motion.hpp"
 #include "zerog/control/virtual_body.hpp"
-#include "zerog/io/log.hpp"
+#include "zerog/formats/log.hpp"
 #include "zerog/loop/cycle.hpp"
 #include "zerog/modbus/server.hpp"
 #include "zerog/telemetry/config.hpp"
@@ -40,6 +40,9 @@ struct RobotSection {
   std::string sensor_type = "zerog";       ///< <Sen Type="…">, as in the robot's RSI config
   int cycle_ms = 12;                       ///< RSI interpolation cycle: 4 or 12 (required)
   double receive_timeout_ms = 18.0;        ///< default 1.5 cycles
+  /// RIst against the rig's robot kinematics: further apart than this disagrees (counted).
+  double pose_check_mm = 1.0;
+  double pose_check_deg = 0.1;
   double cycle_s() const { return cycle_ms * 1e-3; }
 };
 
@@ -74,7 +77,7 @@ struct RealtimeSection {
 };
 
 struct CollectionSection {
-  double speed_fraction = 0.3;         ///< PTP override for the design path (sim::kr210_ptp_limits)
+  double speed_fraction = 0.3;         ///< PTP override, design path (robot::kr210_ptp_limits)
   double dwell_s = 2.0;                ///< dwell at each path point
   double max_axis_step_rad = 0.01;     ///< largest axis correction per cycle
   double approach_speed_radps = 0.2;   ///< per axis, to the path's first point

@@ -1,16 +1,16 @@
 #pragma once
 // The recorder thread's work (proto/rt_config.md, "Recording"): every CycleRecord becomes a row
-// of `cycles.csv` (all fields, record_csv.hpp) and, when it is a new robot cycle with sensor data,
-// a row of the log `run.csv` (proto/log_format.md, with `run.rig.toml`), so that `zerog fit`,
-// `compare` and `diagnose` read the run. Both files grow as `<name>.partial` and are renamed at
-// finish(): no half-written file ever carries the final name. Black-box dumps are written
-// atomically. Not real-time safe (allocates, writes files); never called from the cycle.
+// of `cycles.csv` (all fields, zerog/formats/cycles_csv.hpp) and, when it is a new robot cycle with
+// sensor data, a row of the log `run.csv` (proto/log_format.md, with `run.rig.toml`), so that
+// `zerog fit`, `compare` and `diagnose` read the run. Both files grow as `<name>.partial` and are
+// renamed at finish(): no half-written file ever carries the final name. Black-box dumps are
+// written atomically. Not real-time safe (allocates, writes files); never called from the cycle.
 #include <cstdint>
 #include <filesystem>
 #include <optional>
 #include <string>
 
-#include "zerog/io/log.hpp"
+#include "zerog/formats/log.hpp"
 #include "zerog/loop/cycle.hpp"
 
 namespace zerog::rt {

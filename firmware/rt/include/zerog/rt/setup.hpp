@@ -9,11 +9,11 @@
 #include <string>
 #include <vector>
 
+#include "zerog/formats/log.hpp"
 #include "zerog/infer/deploy_model.hpp"
-#include "zerog/io/log.hpp"
 #include "zerog/loop/cycle.hpp"
+#include "zerog/robot/ptp_trajectory.hpp"
 #include "zerog/rt/config.hpp"
-#include "zerog/sim/trajectory.hpp"
 
 namespace zerog::rt {
 
@@ -35,17 +35,17 @@ struct Setup {
 Setup load_setup(const RtConfig& config);
 
 /// Collection mode: a `zerog design` path (proto/design_format.md) as a PTP trajectory
-/// (sim::kr210_ptp_limits(speed_fraction), dwell_s at each point) behind loop::JointPath.
+/// (robot::kr210_ptp_limits(speed_fraction), dwell_s at each point) behind loop::JointPath.
 /// at() evaluates the analytic profile: no allocation (a binary search over the moves).
 class PtpJointPath final : public loop::JointPath {
  public:
-  PtpJointPath(std::vector<sim::JointVector> points_rad, double speed_fraction, double dwell_s);
+  PtpJointPath(std::vector<robot::JointVector6> points_rad, double speed_fraction, double dwell_s);
   double duration_s() const override { return trajectory_.duration_s(); }
   std::array<double, 6> at(double t_s) const override { return trajectory_.at(t_s).q_rad; }
   std::size_t num_points() const { return trajectory_.num_points(); }
 
  private:
-  sim::PtpTrajectory trajectory_;
+  robot::PtpTrajectory trajectory_;
 };
 
 /// Reads a design CSV and builds its path with the configuration's [collection] settings.

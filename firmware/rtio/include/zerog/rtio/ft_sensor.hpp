@@ -6,30 +6,15 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "zerog/samples/sensor_samples.hpp"
+
 namespace zerog::rtio {
 
-enum class FtSampleStatus : std::uint8_t {
-  ok,
-  warning,    ///< non-critical status bits (e.g. the sensor's CAN bus error bit): usable
-  critical,   ///< a critical status bit: the sample must not be used
-  saturated,  ///< a gauge at its rail: the sample must not be used
-};
+// The sample types are the loop's too (zerog/samples/sensor_samples.hpp, no I/O): the same
+// names here.
+using samples::FtSample;
+using samples::FtSampleStatus;
 const char* ft_sample_status_name(FtSampleStatus status);
-
-/// One F/T sample. Fixed size, trivially copyable.
-struct FtSample {
-  /// Fx, Fy, Fz in N and Tx, Ty, Tz in N·m, in the sensor frame, bias subtracted. Computed even
-  /// when !valid (for diagnosis); never use it then.
-  std::array<double, 6> wrench_si{};
-  std::array<std::int16_t, 6> gauges{};  ///< raw strain gauge counts SG0..SG5
-  std::uint16_t status_word = 0;         ///< the sensor's raw status word
-  FtSampleStatus status = FtSampleStatus::ok;
-  std::uint8_t saturated_mask = 0;  ///< bit i: gauge i saturated
-  bool valid = false;               ///< status is ok or warning
-  /// Receive time of the frame that completed the sample, CLOCK_REALTIME ns (0: unknown).
-  std::int64_t timestamp_ns = 0;
-  std::uint64_t sequence = 0;  ///< +1 per sample returned by this device, from 1
-};
 
 enum class FtStartStatus : std::uint8_t {
   ok,
@@ -62,12 +47,16 @@ struct FtCounters {
   std::uint64_t stray_frames = 0;        ///< other frames of the board's id range
   std::uint64_t wrong_length = 0;        ///< sample frames of the wrong length
   std::uint64_t out_of_order = 0;        ///< second half without a first half
-  std::uint64_t dropped_incomplete = 0;  ///< first half replaced before its second half came
-  std::uint64_t error_frames = 0;        ///< bus error frames seen (classes: on the bus)
-  std::uint64_t kernel_drops = 0;        ///< frames the kernel dropped (SO_RXQ_OVFL)
-  std::uint64_t bad_length = 0;          ///< reads that were not one classic CAN frame
-  std::uint64_t tx_would_block = 0;      ///< requests refused by a full TX queue
-  std::uint64_t io_errors = 0;           ///< failed bus reads/writes
+  std::uint64_t dropped_incomplete = 0;  ///< first halves dropped before their second half came
+  /// Complete samples that answer an earlier, timed-out request (their 0x1 was still on its
+  /// way when the next request went out): paired correctly, then dropped as too old.
+  std::uint64_t late_samples = 0;
+  std::uint64_t overtaken = 0;  ///< samples whose second half was overtaken by a later first half
+  std::uint64_t error_frames = 0;    ///< bus error frames seen (classes: on the bus)
+  std::uint64_t kernel_drops = 0;    ///< frames the kernel dropped (SO_RXQ_OVFL)
+  std::uint64_t bad_length = 0;      ///< reads that were not one classic CAN frame
+  std::uint64_t tx_would_block = 0;  ///< requests refused by a full TX queue
+  std::uint64_t io_errors = 0;       ///< failed bus reads/writes
 };
 
 class FtSensor {

@@ -6,26 +6,11 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "zerog/samples/sensor_samples.hpp"
+
 namespace zerog::rtio {
 
-/// One IMU sample in SI units, in the IMU's axes. Fixed size, trivially copyable.
-struct ImuSample {
-  std::array<double, 3> rate_rad_s{};
-  std::array<double, 3> accel_m_s2{};  ///< specific force, as the accelerometers measure it
-  std::array<double, 3> incl_m_s2{};   ///< specific force along the inclinometer axes
-  bool rate_valid = false;             ///< false: group absent or its status byte set
-  bool accel_valid = false;
-  bool incl_valid = false;
-  std::uint8_t rate_status = 0;  ///< raw status bytes (any bit set: group invalid)
-  std::uint8_t accel_status = 0;
-  std::uint8_t incl_status = 0;
-  std::uint8_t counter = 0;        ///< the device's datagram counter
-  std::uint8_t missed_before = 0;  ///< datagrams lost right before this one (counter gap)
-  double latency_s = 0.0;          ///< sampling → start of transmission, as the device reports
-  /// CLOCK_MONOTONIC ns when the bytes completing this sample were read (0: unknown).
-  std::int64_t receive_time_ns = 0;
-  std::uint64_t sequence = 0;  ///< +1 per sample returned by this device, from 1
-};
+using samples::ImuSample;  ///< zerog/samples/sensor_samples.hpp (the loop's too)
 
 enum class ImuStartStatus : std::uint8_t {
   ok,

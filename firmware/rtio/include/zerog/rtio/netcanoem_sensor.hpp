@@ -43,9 +43,13 @@ class NetcanoemSensor final : public FtSensor {
   /// request is retried on timeout (startup_attempts). Not real-time safe (but does not
   /// allocate either).
   FtStartStatus start() override;
-  /// Drains stale frames, sends one sample request and waits for both response frames; the
-  /// gauges become a wrench in N and N·m. Error frames, stray and wrong-length frames are
-  /// counted and waited past. Real-time safe; returns within sample_timeout.
+  /// Feeds frames already queued to the assembler (a late answer to an earlier request
+  /// completes its own first half there and is dropped, counted late_samples), sends one sample
+  /// request and waits for both response frames of this request; the gauges become a wrench in
+  /// N and N·m. First halves pair with second halves in order (SampleAssembler), so a 0x1 still
+  /// on its way from a timed-out request never completes this request's 0x0. Error frames,
+  /// stray and wrong-length frames are counted and waited past. Real-time safe; returns within
+  /// sample_timeout.
   FtReadStatus read_sample(FtSample& out) override;
   FtReadStatus read_sample_waiting(FtSample& out, std::chrono::nanoseconds at_least) override;
   FtCounters counters() const override;
@@ -63,6 +67,8 @@ class NetcanoemSensor final : public FtSensor {
 
  private:
   void drain_stale();
+  // Feeds one received frame; true when it completed a sample of the current poll (in `out`).
+  bool feed(const proto::CanFrame& frame, proto::netcanoem::GaugeSample& out);
 
   CanBus& bus_;
   NetcanoemConfig config_;
@@ -72,6 +78,10 @@ class NetcanoemSensor final : public FtSensor {
   proto::netcanoem::ReadoutError readout_error_ = proto::netcanoem::ReadoutError::none;
   bool started_ = false;
   std::uint64_t sequence_ = 0;
+  std::uint64_t poll_ = 0;     // requests sent since start(); tags this poll's 0x0 halves
+  bool in_poll_ = false;       // a request of poll_ is out and its answer awaited
+  bool late_pairing_ = false;  // this poll completed a sample of an earlier one
+  std::uint64_t late_samples_ = 0;
   std::uint64_t startup_retries_ = 0;
   std::uint32_t startup_ignored_ = 0;
   FtCounters own_;  // requests, samples, timeouts, stale frames, tx/io failures

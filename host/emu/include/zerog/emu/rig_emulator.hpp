@@ -31,7 +31,7 @@
 #include "zerog/emu/physics.hpp"
 #include "zerog/emu/robot.hpp"
 #include "zerog/emu/scenario.hpp"
-#include "zerog/io/log.hpp"
+#include "zerog/formats/log.hpp"
 #include "zerog/io/model_file.hpp"
 #include "zerog/rtio/lockstep.hpp"
 #include "zerog/sim/simulator.hpp"

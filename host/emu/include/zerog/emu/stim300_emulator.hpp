@@ -21,6 +21,7 @@
 #include <cstdint>
 #include <mutex>
 #include <random>
+#include <span>
 #include <string>
 
 #include <Eigen/Core>
@@ -30,8 +31,9 @@
 namespace zerog::emu {
 
 struct Stim300EmulatorConfig {
-  /// Datagram identifier (proto::stim300::kDatagramTable). 0x93 carries rate, acceleration and
-  /// inclination and is what rtio::Stim300Imu's default configuration accepts.
+  /// Datagram identifier (proto::stim300::kDatagramTable, any of the 16 rows of TS1524 rev.31).
+  /// 0x93 carries rate, acceleration and inclination and is what rtio::Stim300Imu's default
+  /// configuration accepts. Every group the identifier carries is filled.
   std::uint8_t identifier = 0x93;
   bool crlf = false;  ///< append CR LF to each datagram (a configuration of the unit)
   /// White noise per datagram, standard deviations in SI. The defaults are the raw 2 kHz sample
@@ -44,6 +46,11 @@ struct Stim300EmulatorConfig {
   /// Accelerometer range of the emulated unit: must match the reader's
   /// Stim300Config::stream.scale (both default to proto::stim300::Scale{}: ±10 g).
   proto::stim300::Scale scale{};
+  /// Written into every temperature field of identifiers that carry temperatures, °C.
+  double temperature_c = 25.0;
+  /// Raw 24-bit PPS field of identifiers that carry PPS (0xF0–0xF7). Its meaning is unverified
+  /// (proto/stim300.md), so the emulator writes this value as it is.
+  std::uint32_t pps_raw = 0;
 };
 
 /// What the IMU experiences, in the IMU frame I, SI.
@@ -69,8 +76,8 @@ class Stim300Emulator {
   /// The rate status byte written by ImuFault::status_bits.
   static constexpr std::uint8_t kFaultRateStatus = 0x01;
 
-  /// Throws std::invalid_argument for an identifier not in the content table or a negative or
-  /// non-finite noise σ.
+  /// Throws std::invalid_argument for an identifier not in the content table, a negative or
+  /// non-finite noise σ, a non-finite temperature or a PPS value beyond 24 bits.
   explicit Stim300Emulator(const Stim300EmulatorConfig& config = {});
   /// Closes the pty; removes the symlink it created if it still points to its slave.
   ~Stim300Emulator();
@@ -96,6 +103,15 @@ class Stim300Emulator {
   /// datagram was dropped: the pty buffer is full (no reader) or the pty is not open (before
   /// open(), after unplug()).
   bool write_sample(const ImuTruthSample& truth);
+
+  /// Encodes the next datagram of `truth` with `identifier` (any row of the content table, not
+  /// only config.identifier) into `out`, as write_sample() would send it (same counter, noise,
+  /// latency, temperatures, PPS and CR LF setting; no fault), without writing it anywhere: for
+  /// byte streams of mixed identifiers in tests. Advances the counter. Returns the size, 0 for
+  /// an identifier not in the table or a buffer shorter than kMaxDatagramLength + 2. Never
+  /// allocates.
+  std::size_t encode_next(const ImuTruthSample& truth, std::uint8_t identifier,
+                          std::span<std::uint8_t> out);
 
   void set_fault(ImuFault fault) { fault_.store(fault, std::memory_order_relaxed); }
   ImuFault fault() const { return fault_.load(std::memory_order_relaxed); }
@@ -124,6 +140,9 @@ class Stim300Emulator {
  private:
   static constexpr std::size_t kBufferSize = proto::stim300::kMaxDatagramLength + 2;
   void close_locked();
+  // The datagram of `truth` plus noise with `identifier`; the fault's status bits if any.
+  proto::stim300::RawDatagram make_raw_locked(const ImuTruthSample& truth, std::uint8_t identifier,
+                                              std::uint8_t counter, ImuFault fault);
   // Writes the rest of a partially written datagram; false if some of it is still pending.
   bool flush_pending_locked();
 

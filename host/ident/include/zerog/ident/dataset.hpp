@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "zerog/io/log.hpp"
+#include "zerog/formats/log.hpp"
 #include "zerog/model/dictionary.hpp"
 #include "zerog/model/predict.hpp"
 #include "zerog/model/signals.hpp"

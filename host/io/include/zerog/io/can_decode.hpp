@@ -1,6 +1,6 @@
 #pragma once
 // `zerog decode-can`: recorded CAN traffic (can-utils candump text: the -L log-file form or the
-// default screen output, with or without -ta/-tz/-td/-tA timestamps; proto/candump.hpp) of an
+// default screen output, with or without -ta/-tz/-td/-tA timestamps; io/candump.hpp) of an
 // ATI NETCANOEM F/T sensor → wrenches in N and N·m (proto/netcanoem.md). The calibration comes from
 // the start-up read-out recorded in the log (matrix rows, counts, units), or from a file. Other
 // traffic on the bus is ignored; every sample that cannot be used is counted.
@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "zerog/proto/candump.hpp"
+#include "zerog/io/candump.hpp"
 #include "zerog/proto/netcanoem.hpp"
 
 namespace zerog::io {
@@ -43,15 +43,24 @@ struct CanDecodeResult {
   proto::netcanoem::AssemblerCounters counters;  ///< stray, wrong length, critical, saturated…
   std::size_t records = 0;                       ///< frames in the log
   std::size_t other_traffic = 0;                 ///< frames of other ids (ignored)
-  std::size_t unusable = 0;   ///< samples dropped: critical status or saturated gauge
+  std::size_t unusable = 0;  ///< samples dropped: critical status or saturated gauge
+  /// Samples dropped because the run of pairings they belong to never emptied the queue of
+  /// waiting 0x0 halves (a 0x1 lost somewhere, or the log ended): they may mix two polls.
+  std::size_t unconfirmed = 0;
   proto::CandumpLogInfo log;  ///< the log's form and clock (and why), frames, CAN FD frames
   bool time_assumed = false;  ///< t_s from assume_rate_hz (the log has no time)
 };
 
-/// Decodes a candump log. Throws io::InputError (file, line, column) on a malformed line or a
-/// line in another form than the log's first, and std::runtime_error when the log holds no
-/// complete calibration and none is given, or has no timestamps and no assume_rate_hz (or has
-/// timestamps and an assume_rate_hz). CAN FD frames are skipped (counted in `log.fd_frames`).
+/// Pairings in a row that may leave 0x0 halves waiting before decode_netcanoem_log takes a 0x1
+/// for lost (proto/netcanoem.md, "pairing in order").
+inline constexpr std::size_t kMaxUnconfirmedRun = 32;
+
+/// Decodes a candump log. 0x0 and 0x1 responses are paired in order (a 0x1 overtaken by later
+/// polls' 0x0 still completes its own 0x0; proto::netcanoem::SampleAssembler). Throws
+/// io::InputError (file, line, column) on a malformed line or a line in another form than the log's
+/// first, and std::runtime_error when the log holds no complete calibration and none is given, or
+/// has no timestamps and no assume_rate_hz (or has timestamps and an assume_rate_hz). CAN FD frames
+/// are skipped (counted in `log.fd_frames`).
 CanDecodeResult decode_netcanoem_log(const std::filesystem::path& candump,
                                      const CanDecodeOptions& options);
 

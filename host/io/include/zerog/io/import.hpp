@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "zerog/io/log.hpp"
+#include "zerog/formats/log.hpp"
 
 namespace zerog::io {
 
@@ -38,6 +38,9 @@ struct ImportReport {
   std::size_t rows_out = 0;             ///< rows of the log (master rows covered by every file)
   bool static_rows = false;             ///< no time column: rows are static samples
   std::string rig_source;               ///< where the rig came from, for the summary
+  /// What the mapped joints fed (the pose, the kinematics) and whether the log holds them (only
+  /// with 6 joints: q1_rad..q6_rad), for the summary.
+  std::string joints;
   /// Where the IMU columns came from (kinematics = …) and the differentiator, for the summary.
   std::string kinematics;
   /// A few lines of plain text for the console.

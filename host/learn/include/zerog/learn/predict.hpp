@@ -4,8 +4,8 @@
 // (001_… eq. 15); residual the physics model plus the network.
 #include <vector>
 
+#include "zerog/formats/log.hpp"
 #include "zerog/ident/dataset.hpp"
-#include "zerog/io/log.hpp"
 #include "zerog/learn/network_file.hpp"
 
 namespace zerog::learn {

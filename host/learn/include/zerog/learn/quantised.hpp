@@ -3,10 +3,10 @@
 // column of the results table that the firmware's quantised inference fills.
 #include <vector>
 
+#include "zerog/deploy/quantise.hpp"
+#include "zerog/formats/log.hpp"
 #include "zerog/ident/dataset.hpp"
 #include "zerog/infer/deploy_model.hpp"
-#include "zerog/infer/quantise.hpp"
-#include "zerog/io/log.hpp"
 #include "zerog/learn/network_file.hpp"
 
 namespace zerog::learn {

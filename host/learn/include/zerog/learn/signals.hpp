@@ -6,8 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "zerog/formats/log.hpp"
 #include "zerog/ident/dataset.hpp"
-#include "zerog/io/log.hpp"
 #include "zerog/model/features.hpp"
 
 namespace zerog::learn {

@@ -7,8 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "zerog/formats/log.hpp"
 #include "zerog/ident/dataset.hpp"
-#include "zerog/io/log.hpp"
 #include "zerog/io/model_file.hpp"
 #include "zerog/learn/network_file.hpp"
 

@@ -11,6 +11,7 @@
 #include <string_view>
 #include <vector>
 
+#include "zerog/formats/design_csv.hpp"
 #include "zerog/sim/kinematics.hpp"
 
 namespace zerog::sim {
@@ -132,7 +133,8 @@ AttitudeDesign design_from_attitudes(const std::vector<Eigen::Vector3d>& rotvecs
 /// Design CSV (proto/design_format.md). Written atomically; refuses to overwrite `inputs`.
 void write_design(const Design& design, const std::filesystem::path& path,
                   const std::vector<std::filesystem::path>& inputs = {});
-/// Reads a design CSV; throws io::InputError naming file, line and column.
-std::vector<JointVector> read_design(const std::filesystem::path& path);
+/// Reads a design CSV; throws io::InputError naming file, line and column. The reader lives with
+/// the writer's format in zerog::formats (zerog-rt reads designs too).
+using io::read_design;
 
 }  // namespace zerog::sim

@@ -16,7 +16,7 @@
 #include <string_view>
 #include <vector>
 
-#include "zerog/io/log.hpp"
+#include "zerog/formats/log.hpp"
 #include "zerog/io/model_file.hpp"
 #include "zerog/model/effects.hpp"
 #include "zerog/sim/design.hpp"

@@ -1,0 +1,28 @@
+#pragma once
+// The CSV form of loop::CycleRecord (every field; proto/loop.md, "Record CSV"): `cycles.csv` of
+// a recording and the black-box dumps, written by zerog-rt's recorder and read back by
+// zerog-telemetry-replay (host/tools). Writer and reader live together so that they cannot drift
+// apart. Formatting allocates: called from the recorder thread, never from the cycle.
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "zerog/loop/cycle.hpp"
+
+namespace zerog::io {
+
+/// Appends the header line (column names, comma separated, '\n').
+void append_record_header(std::string& out);
+/// Appends one row: numbers in C locale, shortest text that reads back exactly; state, fault
+/// and model status by name; flags as decimal integers (bits in loop::CycleFlags and
+/// control::LimitFlags).
+void append_record_row(const loop::CycleRecord& record, std::string& out);
+/// Number of columns of the header and of every row.
+int record_column_count();
+
+/// Reads a cycles.csv (columns found by their header names) back into records. Throws
+/// std::runtime_error naming the file (and line) for an unreadable file, a missing column, too
+/// few cells, a cell that is not a number or an unknown state, fault or model status name.
+std::vector<loop::CycleRecord> read_cycles_csv(const std::filesystem::path& path);
+
+}  // namespace zerog::io

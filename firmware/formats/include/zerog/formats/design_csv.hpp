@@ -1,0 +1,27 @@
+#pragma once
+// The design CSV (proto/design_format.md): the path points of a calibration run, A1..A6 in rad,
+// written by `zerog design` (host/sim makes the design) and read by `zerog sim --design` and by
+// zerog-rt's collection mode. Writer and reader live together. Host and start-up code: allocates
+// and throws; not real-time safe.
+#include <array>
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace zerog::io {
+
+/// Line 1 of every design CSV: the format version.
+inline constexpr std::string_view kDesignMagic = "# zerog-design 1";
+
+/// One path point: the KUKA joint angles A1..A6, rad, as the controller reports them.
+using DesignPoint = std::array<double, 6>;
+
+/// The whole CSV text: the magic line, `# <comment>` (the writer's note on how the design was
+/// made; none if empty), the header and one row per point (C locale, `%.12g`).
+std::string design_csv_text(const std::string& comment, const std::vector<DesignPoint>& points_rad);
+
+/// Reads a design CSV; throws io::InputError naming file, line and column (proto/design_format.md).
+std::vector<DesignPoint> read_design(const std::filesystem::path& path);
+
+}  // namespace zerog::io
