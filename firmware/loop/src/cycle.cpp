@@ -218,35 +218,28 @@ void Cycle::robot_lost(RobotLoss why) noexcept {
     ++counters_.robot_malformed;
   }
   if (!have_ipoc_) return;  // the robot has not started its RSI session yet
+  grow_lost_run();
+  push_lost_record(kRobotLost);
+}
+
+void Cycle::pose_missing() noexcept {
+  ++counters_.poses_missing;
+  if (have_ipoc_) grow_lost_run();
+  record_.rkorr = proto::rsi::Correction{};
+  push_lost_record(kPoseMissing);
+}
+
+void Cycle::grow_lost_run() noexcept {
   ++robot_lost_run_;
   const State s = sm_.state();
   if ((s == State::zero_g || s == State::collecting) &&
       robot_lost_run_ >= config_.watchdog.robot_fault_cycles) {
     raise(Fault::robot_late);
   }
-  // The black box keeps the loss too: the last cycle's record, marked lost, with the state now.
-  record_.flags = kRobotLost;
-  record_.state = sm_.state();
-  record_.fault = sm_.fault();
-  box_.push(record_);
-  if (freeze_pending_) {
-    box_.freeze();
-    freeze_pending_ = false;
-  }
 }
 
-void Cycle::pose_missing() noexcept {
-  ++counters_.poses_missing;
-  if (have_ipoc_) {
-    ++robot_lost_run_;
-    const State s = sm_.state();
-    if ((s == State::zero_g || s == State::collecting) &&
-        robot_lost_run_ >= config_.watchdog.robot_fault_cycles) {
-      raise(Fault::robot_late);
-    }
-  }
-  record_.flags = kPoseMissing;
-  record_.rkorr = proto::rsi::Correction{};
+void Cycle::push_lost_record(std::uint32_t flags) noexcept {
+  record_.flags = flags;
   record_.state = sm_.state();
   record_.fault = sm_.fault();
   box_.push(record_);

@@ -294,6 +294,10 @@ class Cycle {
   void apply_command(std::uint64_t cycle, const Row& now, bool ready,
                      std::uint32_t& flags) noexcept;
   void raise(Fault f) noexcept;
+  /// One more robot cycle without a usable message: the robot_late watchdog's run grows.
+  void grow_lost_run() noexcept;
+  /// The black box keeps a lost cycle too: the last record marked `flags`, with the state now.
+  void push_lost_record(std::uint32_t flags) noexcept;
   bool evaluate(std::uint32_t& flags) noexcept;
   void run_zero_g(double dt, CycleReply& reply) noexcept;
   void run_collection(double dt, std::uint32_t& flags, CycleReply& reply) noexcept;
