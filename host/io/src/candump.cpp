@@ -454,7 +454,8 @@ bool parse_lines(NextLine&& next_line, const CanFilter& filter, std::vector<Cand
   CandumpStamp stamp = CandumpStamp::none;
   std::int64_t first_ns = 0, previous_ns = 0, sum_ns = 0;
   int previous_line = 0;
-  std::string decrease;  // where the printed times first go down
+  bool sum_overflow = false;  // the -td sum left int64 (so the log is not -td)
+  std::string decrease;       // where the printed times first go down
   const std::size_t first_kept = records.size();
   std::vector<std::int64_t> sums;  // the running sum (-td) at each kept record
   for (int number = 1; next_line(line); ++number) {
@@ -483,7 +484,10 @@ bool parse_lines(NextLine&& next_line, const CanFilter& filter, std::vector<Cand
                      (record.timestamp_ns < previous_ns ? " goes below line " : " repeats line ") +
                      std::to_string(previous_line);
         }
-        sum_ns += first_line == number ? 0 : record.timestamp_ns;
+        // Summed only in case the clock is -td: absolute times (-ta) would overflow the sum.
+        if (first_line != number && !sum_overflow &&
+            __builtin_add_overflow(sum_ns, record.timestamp_ns, &sum_ns))
+          sum_overflow = true;
         previous_ns = record.timestamp_ns;
         previous_line = number;
         ++info.frames;
@@ -538,6 +542,8 @@ bool parse_lines(NextLine&& next_line, const CanFilter& filter, std::vector<Cand
         "look the same: give the clock as delta then)";
   }
   if (info.clock == CandumpClock::delta) {
+    if (sum_overflow)
+      return refuse("read as -td deltas, the times add up beyond 292 years: not a -td log");
     for (std::size_t i = first_kept; i < records.size(); ++i)
       records[i].timestamp_ns = sums[i - first_kept];
   }

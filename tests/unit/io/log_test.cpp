@@ -486,7 +486,7 @@ TEST_F(LogTest, ModelFileWithWrongTypesIsAnErrorNamingTheFile) {
   EXPECT_EQ(read_model(model).rig_name, "r");
 }
 
-TEST_F(LogTest, ReadsAHundredThousandRowsQuickly) {
+TEST_F(LogTest, ReadsAHundredThousandRows) {
   const Log log = example_log(
       100000, {.joints = true, .specific_force = true, .angular_rate = true, .temperature = true});
   write_log(log, path("big.csv"));
@@ -497,10 +497,12 @@ TEST_F(LogTest, ReadsAHundredThousandRowsQuickly) {
   ASSERT_EQ(back.samples.size(), 100000u);
   EXPECT_EQ(back.samples.back().t_s, log.samples.back().t_s);
   RecordProperty("read_seconds", std::to_string(seconds));
+  // Printed, not asserted: timings on a shared 2-core machine are noise (a helper's run under
+  // load 11 took 1.04 s against 0.40 s quiet); speed belongs in a benchmark.
   std::printf("read 100000 rows x 27 columns in %.3f s\n", seconds);
-#if defined(__OPTIMIZE__) && !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
-  EXPECT_LT(seconds, 1.0);  // typically ~0.15 s; the bound only holds for optimised builds
-#endif
+  for (std::size_t i = 0; i < log.samples.size(); i += 9973)
+    for (int k = 0; k < 3; ++k)
+      expect_near_rel(back.samples[i].force_sensor_N[k], log.samples[i].force_sensor_N[k], "F", i);
 }
 
 }  // namespace
