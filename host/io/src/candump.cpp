@@ -107,6 +107,8 @@ bool parse_timestamp(Cursor& c, std::int64_t& ns, CandumpStamp& stamp) {
   if (is_digit(c.peek()) && is_digit(c.peek(1)) && is_digit(c.peek(2)) && is_digit(c.peek(3)) &&
       c.peek(4) == '-') {
     if (!parse_date(c, seconds)) return false;
+    if (seconds > kMaxSeconds)  // nanoseconds since 1970 must fit int64
+      return c.fail(seconds_start, "date after the year 2262 (nanoseconds since 1970 overflow)");
     stamp = CandumpStamp::date;
   } else {
     int digits = 0;

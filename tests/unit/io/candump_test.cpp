@@ -300,6 +300,12 @@ TEST(Candump, TimestampBeyondInt64NanosecondsIsAnError) {
   EXPECT_EQ(parse_ok("(9223372035.999999999) can0 123#00").timestamp_ns, 9'223'372'035'999'999'999);
 }
 
+// Found by tests/fuzz (candump_fuzz): a -tA date after 2262 overflowed the same way.
+TEST(Candump, DateBeyondInt64NanosecondsIsAnError) {
+  expect_error(" (4046-11-14 22:13:20.123456)  can0  201   [4]  41 42 43 44", 3, "2262");
+  EXPECT_GT(parse_ok(" (2262-01-01 00:00:00.000000)  can0  201   [1]  41").timestamp_ns, 0);
+}
+
 TEST(Candump, ErrorMessageNamesLineAndColumn) {
   CandumpError e{3, 14, "why"};
   EXPECT_EQ(e.message(), "line 3, column 14: why");
