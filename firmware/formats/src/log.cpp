@@ -608,10 +608,7 @@ void write_file_atomic(const fs::path& path, const std::string& text,
 
 namespace detail {
 
-namespace {
-
-Transform transform_from_toml(const TomlTable& parent, std::string_view key) {
-  const TomlTable t(parent.table(key), parent.file(), parent.name(key) + ".", {"p_m", "q_wxyz"});
+Transform transform_of(const TomlTable& t) {
   Transform out;
   out.p_m = t.vector3("p_m");
   const auto q = t.numbers("q_wxyz", 4);
@@ -620,6 +617,13 @@ Transform transform_from_toml(const TomlTable& parent, std::string_view key) {
     t.fail("q_wxyz", "has norm " + number_text(quat.norm()) + ", off from 1 by more than 1e-3");
   out.q = quat.normalized();
   return out;
+}
+
+namespace {
+
+Transform transform_from_toml(const TomlTable& parent, std::string_view key) {
+  return transform_of(
+      TomlTable(parent.table(key), parent.file(), parent.name(key) + ".", {"p_m", "q_wxyz"}));
 }
 
 // The robot: `robot = "NAME"` (the name only), a [robot] table (name and DH chain), or

@@ -4,21 +4,12 @@
 #include <numbers>
 #include <string>
 
+#include "zerog/formats/detail/rig_toml.hpp"
+
 namespace zerog::io {
 namespace {
 
 constexpr double kRadPerDeg = std::numbers::pi / 180.0;
-
-Transform transform_of(const TomlTable& t) {
-  Transform out;
-  out.p_m = t.vector3("p_m");
-  const auto q = t.numbers("q_wxyz", 4);
-  const Eigen::Quaterniond quat(q[0], q[1], q[2], q[3]);
-  if (std::abs(quat.norm() - 1.0) > 1e-3)
-    t.fail("q_wxyz", "has norm " + number_text(quat.norm()) + ", off from 1 by more than 1e-3");
-  out.q = quat.normalized();
-  return out;
-}
 
 }  // namespace
 
@@ -68,7 +59,7 @@ robot::RobotModel robot_from_toml(const toml::table& table, const std::filesyste
   }
   if (t.find("flange") != nullptr) {
     const TomlTable f(t.table("flange"), t.file(), t.name("flange") + ".", {"p_m", "q_wxyz"});
-    m.last_flange = to_frame_transform(transform_of(f));
+    m.last_flange = to_frame_transform(detail::transform_of(f));
   }
   m.flange_sensor = to_frame_transform(flange_sensor);
   const robot::RobotStatus status = robot::validate(m);
@@ -87,7 +78,7 @@ RobotDescription read_robot(const std::filesystem::path& toml, const Transform* 
   if (top.integer("version") != 1) top.fail("version", "must be 1");
   Transform flange_sensor;
   if (top.find("flange_sensor") != nullptr)
-    flange_sensor = transform_of(
+    flange_sensor = detail::transform_of(
         TomlTable(top.table("flange_sensor"), toml, "flange_sensor.", {"p_m", "q_wxyz"}));
   if (rig_flange_sensor != nullptr) flange_sensor = *rig_flange_sensor;
   const toml::table& robot = top.table("robot");

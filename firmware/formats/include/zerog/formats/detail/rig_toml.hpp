@@ -15,6 +15,10 @@ using io::parse_toml_file;
 using io::throw_at;
 using io::TomlTable;
 
+/// A transform table `{ p_m = [x, y, z], q_wxyz = [w, x, y, z] }` (m; unit quaternion within
+/// 1e-3, returned normalised): the rig's flange_sensor and sensor_imu, a robot's flange.
+Transform transform_of(const TomlTable& t);
+
 /// Reads a rig from a TOML table. `embedded` (the [rig] table of an import mapping): the keys
 /// `format` and `version` are optional and `sample_period_s` may be absent — `*has_period` tells.
 /// `key_prefix` is prepended to key names in messages (e.g. "rig.").
