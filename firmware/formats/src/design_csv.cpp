@@ -12,9 +12,16 @@ namespace {
 
 constexpr const char* kJointNames[6] = {"q1_rad", "q2_rad", "q3_rad", "q4_rad", "q5_rad", "q6_rad"};
 
-// Splits one CSV line at commas into cells and their 1-based starting columns.
-void split_cells(const std::string& line, std::vector<std::string>& cells,
-                 std::vector<int>& columns) {
+std::string format_double(double x) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.12g", x);
+  return buf;
+}
+
+}  // namespace
+
+void split_design_line(const std::string& line, std::vector<std::string>& cells,
+                       std::vector<int>& columns) {
   std::size_t start = 0;
   while (true) {
     const std::size_t comma = line.find(',', start);
@@ -24,14 +31,6 @@ void split_cells(const std::string& line, std::vector<std::string>& cells,
     start = comma + 1;
   }
 }
-
-std::string format_double(double x) {
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.12g", x);
-  return buf;
-}
-
-}  // namespace
 
 std::string design_csv_text(const std::string& comment,
                             const std::vector<DesignPoint>& points_rad) {
@@ -62,7 +61,7 @@ std::vector<DesignPoint> read_design(const std::filesystem::path& path) {
     if (line.empty() || line[0] == '#') continue;
     std::vector<std::string> cells;
     std::vector<int> columns;
-    split_cells(line, cells, columns);
+    split_design_line(line, cells, columns);
     if (cells.size() != 6)
       throw InputError(path, line_no, 1,
                        "expected 6 columns, found " + std::to_string(cells.size()));

@@ -19,19 +19,6 @@
 namespace zerog::sim {
 namespace {
 
-// Splits one CSV line at commas into cells and their 1-based starting columns.
-void split_cells(const std::string& line, std::vector<std::string>& cells,
-                 std::vector<int>& columns) {
-  std::size_t start = 0;
-  while (true) {
-    const std::size_t comma = line.find(',', start);
-    columns.push_back(static_cast<int>(start) + 1);
-    cells.push_back(line.substr(start, comma == std::string::npos ? comma : comma - start));
-    if (comma == std::string::npos) break;
-    start = comma + 1;
-  }
-}
-
 bool is_prime(int n) {
   if (n < 2) return false;
   for (int d = 2; d * d <= n; ++d)
@@ -312,7 +299,7 @@ std::vector<Eigen::Vector3d> read_attitudes(const std::filesystem::path& path) {
     if (line.empty() || line[0] == '#') continue;
     std::vector<std::string> cells;
     std::vector<int> columns;
-    split_cells(line, cells, columns);
+    io::split_design_line(line, cells, columns);
     if (num_cells == 0) {
       constexpr const char* kNames[3] = {"rx_rad", "ry_rad", "rz_rad"};
       for (int k = 0; k < 3; ++k) {

@@ -21,6 +21,11 @@ using DesignPoint = std::array<double, 6>;
 /// made; none if empty), the header and one row per point (C locale, `%.12g`).
 std::string design_csv_text(const std::string& comment, const std::vector<DesignPoint>& points_rad);
 
+/// Splits one line of a design or attitude CSV at commas: the cells, and the 1-based column
+/// where each starts (for InputError).
+void split_design_line(const std::string& line, std::vector<std::string>& cells,
+                       std::vector<int>& columns);
+
 /// Reads a design CSV; throws io::InputError naming file, line and column (proto/design_format.md).
 std::vector<DesignPoint> read_design(const std::filesystem::path& path);
 
