@@ -3,6 +3,8 @@
 //  - zerog diagnose over all candidates on the same log (aim: under 20 s);
 //  - a reference in the same run: one double evaluation of the model over all samples, so the
 //    ratio fit / evaluation is comparable across machines.
+// The fits use the default engine (block sufficient statistics, FitOptions::engine); the
+// *SamplesEngine variants time the per-sample reference engine in the same run.
 // The README's tables are written from its JSON output: scripts/figures.py speed.
 #include <benchmark/benchmark.h>
 
@@ -58,11 +60,12 @@ void BM_ModelEvaluationAllSamples(benchmark::State& state) {
 }
 BENCHMARK(BM_ModelEvaluationAllSamples)->Unit(benchmark::kMillisecond);
 
-void BM_FitFullEffectList(benchmark::State& state) {
+void fit_full_effect_list(benchmark::State& state, const std::string& engine) {
   const auto& data = dataset();
   ident::FitOptions o;
   o.effects = full_list();
   o.covariance = state.range(0) != 0;
+  o.engine = engine;
   for (auto _ : state) {
     auto r = ident::fit(data, o);
     benchmark::DoNotOptimize(r.params);
@@ -71,6 +74,8 @@ void BM_FitFullEffectList(benchmark::State& state) {
   }
   state.counters["samples"] = static_cast<double>(data.size());
 }
+
+void BM_FitFullEffectList(benchmark::State& state) { fit_full_effect_list(state, "block_stats"); }
 BENCHMARK(BM_FitFullEffectList)
     ->Arg(0)
     ->Arg(1)
@@ -78,17 +83,36 @@ BENCHMARK(BM_FitFullEffectList)
     ->Unit(benchmark::kSecond)
     ->Iterations(1);
 
-void BM_FitDefaultModel(benchmark::State& state) {
+void BM_FitFullEffectListSamplesEngine(benchmark::State& state) {
+  fit_full_effect_list(state, "samples");
+}
+BENCHMARK(BM_FitFullEffectListSamplesEngine)
+    ->Arg(0)
+    ->Arg(1)
+    ->ArgName("covariance")
+    ->Unit(benchmark::kSecond)
+    ->Iterations(1);
+
+void fit_default_model(benchmark::State& state, const std::string& engine) {
   const auto& data = dataset();
   ident::FitOptions o;
   o.effects = model::kDefaultModel;
+  o.engine = engine;
   for (auto _ : state) {
     auto r = ident::fit(data, o);
     benchmark::DoNotOptimize(r.params);
+    state.counters["iterations"] = r.iterations;
     state.counters["parameters"] = r.num_params;
   }
 }
+
+void BM_FitDefaultModel(benchmark::State& state) { fit_default_model(state, "block_stats"); }
 BENCHMARK(BM_FitDefaultModel)->Unit(benchmark::kSecond)->Iterations(1);
+
+void BM_FitDefaultModelSamplesEngine(benchmark::State& state) {
+  fit_default_model(state, "samples");
+}
+BENCHMARK(BM_FitDefaultModelSamplesEngine)->Unit(benchmark::kSecond)->Iterations(1);
 
 void BM_DiagnoseAllCandidates(benchmark::State& state) {
   const auto& data = dataset();

@@ -15,6 +15,7 @@
 #include <optional>
 #include <sstream>
 
+#include "zerog/ident/block_stats.hpp"
 #include "zerog/io/effect_file.hpp"
 
 namespace zerog::ident {
@@ -33,6 +34,10 @@ using model::Effect;
 // instead of re-running all of it for every chunk of parameters.
 // The sensor-stage Jet is as wide as the model needs (payload wrench 6, cable 36, crosstalk 36,
 // bias, drift, temperature 6 each: at most 96), chosen from a few instantiations.
+// Engine "samples" (the reference) does exactly that, with stage 1 on every sample. Engine
+// "block_stats" evaluates stage 1's block mean once per block from the block's sufficient
+// statistics (model::payload_wrench_mean, block_stats.hpp) and takes stage 2's derivatives from
+// model::sensor_output_jacobian (stage 2 is affine in each parameter) instead of the wide Jet.
 constexpr int kCoreDim = 16;  // gravity 4, base_tilt 2, rotational_inertia 6, tau 1, rotation 3
 using CoreJet = ceres::Jet<double, kCoreDim>;
 
@@ -43,10 +48,14 @@ class BlockCost : public ceres::CostFunction {
  public:
   // `user_design`: the block mean of the user terms' design (6 × num_user, column-major), the
   // last parameter block (user terms are linear and add after the library effects).
-  BlockCost(const Dataset* data, std::size_t first, std::size_t count, model::EffectSet effects,
-            std::vector<Effect> order, std::array<double, 6> inv_sigma, const double* user_design,
-            int num_user)
+  // `stats`: block `block` of these statistics is the block [first, first + count) (null: the
+  // samples engine).
+  BlockCost(const Dataset* data, const BlockStats* stats, std::size_t block, std::size_t first,
+            std::size_t count, model::EffectSet effects, std::vector<Effect> order,
+            std::array<double, 6> inv_sigma, const double* user_design, int num_user)
       : data_(data),
+        stats_(stats),
+        block_(block),
         first_(first),
         count_(count),
         effects_(effects),
@@ -68,75 +77,68 @@ class BlockCost : public ceres::CostFunction {
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
-    // Parameters as Jets with a unit derivative in their own slot (storage for the active
-    // blocks only: a Jet is zeroed on construction).
-    std::array<CoreJet, kCoreDim> core;
-    std::array<SensorJet, kSensorDim> sensor;
-    model::ParamPointers<CoreJet> pc{};
-    model::ParamPointers<SensorJet> ps{};
-    for (std::size_t b = 0; b < order_.size(); ++b) {
-      const Effect e = order_[b];
-      const int idx = model::index(e), off = offset_[idx];
-      const int n = model::info(e).num_params;
-      if (model::is_payload_effect(e)) {
-        for (int i = 0; i < n; ++i) core[off + i] = CoreJet(parameters[b][i], off + i);
-        pc[idx] = &core[off];
-      } else {
-        for (int i = 0; i < n; ++i) sensor[off + i] = SensorJet(parameters[b][i], off + i);
-        ps[idx] = &sensor[off];
-      }
-    }
-    // Stage 1 per sample; stage 2 once, on the block means of its inputs (exact: stage 2 is
-    // affine in them). Only residuals wanted: plain doubles.
-    const double inv_n = 1.0 / static_cast<double>(count_);
-    model::SensorInputs mean_in;
-    mean_in.temperature_C = 0.0;
-    ident::Wrench meas = ident::Wrench::Zero();
-    for (std::size_t i = first_; i < first_ + count_; ++i) {
-      const model::SensorInputs in = model::sensor_inputs(data_->pose[i]);
-      mean_in.t_rel_s += in.t_rel_s * inv_n;
-      mean_in.temperature_C += in.temperature_C * inv_n;
-      for (int k = 0; k < 6; ++k) mean_in.cable_features[k] += in.cable_features[k] * inv_n;
-      meas += data_->measured[i] * inv_n;
-    }
+    // Stage 1's block mean; stage 2 once, on the block means of its inputs (exact: stage 2 is
+    // affine in them).
+    const BlockSensorMeans computed =
+        stats_ ? BlockSensorMeans{} : block_sensor_means(*data_, first_, count_);
+    const BlockSensorMeans& means = stats_ ? stats_->sensor_means(block_) : computed;
+    const model::SensorInputs& mean_in = means.inputs;
+    const ident::Wrench& meas = means.measured;
+    model::ParamPointers<double> p{};
+    for (std::size_t b = 0; b < order_.size(); ++b) p[model::index(order_[b])] = parameters[b];
     ident::Wrench pred;
-    if (jacobians == nullptr) {
-      model::ParamPointers<double> p{};
-      for (std::size_t b = 0; b < order_.size(); ++b) p[model::index(order_[b])] = parameters[b];
-      const double* tau = effects_.has(Effect::imu_time_offset)
-                              ? p[model::index(Effect::imu_time_offset)]
-                              : nullptr;
-      ident::Wrench w1 = ident::Wrench::Zero();
-      for (std::size_t i = first_; i < first_ + count_; ++i) {
-        w1 += model::payload_wrench<double>(effects_, p, data_->pose[i],
-                                            data_->imu_at<double>(i, tau), data_->rig) *
-              inv_n;
-      }
+    if (jacobians == nullptr) {  // only residuals wanted: plain doubles
+      const ident::Wrench w1 = payload_mean<double>(p);
       pred = model::sensor_output<double>(effects_, p, mean_in, w1);
       add_user(parameters, pred);
       for (int r = 0; r < 6; ++r) residuals[r] = (meas[r] - pred[r]) * inv_sigma_[r];
       return true;
     }
-    const CoreJet* tau =
-        effects_.has(Effect::imu_time_offset) ? pc[model::index(Effect::imu_time_offset)] : nullptr;
-    model::Wrench<CoreJet> w1 = model::Wrench<CoreJet>::Zero();
-    for (std::size_t i = first_; i < first_ + count_; ++i) {
-      w1 += model::payload_wrench<CoreJet>(effects_, pc, data_->pose[i],
-                                           data_->imu_at<CoreJet>(i, tau), data_->rig) *
-            CoreJet(inv_n);
+    // Stage-1 parameters as Jets with a unit derivative in their own slot (storage for the
+    // active blocks only: a Jet is zeroed on construction).
+    std::array<CoreJet, kCoreDim> core;
+    model::ParamPointers<CoreJet> pc{};
+    for (std::size_t b = 0; b < order_.size(); ++b) {
+      const Effect e = order_[b];
+      if (!model::is_payload_effect(e)) continue;
+      const int idx = model::index(e), off = offset_[idx];
+      for (int i = 0; i < model::info(e).num_params; ++i)
+        core[off + i] = CoreJet(parameters[b][i], off + i);
+      pc[idx] = &core[off];
     }
-    model::Wrench<SensorJet> w1s;
-    for (int k = 0; k < 6; ++k) w1s[k] = SensorJet(w1[k].a, k);
-    const model::Wrench<SensorJet> out =
-        model::sensor_output<SensorJet>(effects_, ps, mean_in, w1s);
-    Eigen::Matrix<double, 6, kCoreDim> d_core = Eigen::Matrix<double, 6, kCoreDim>::Zero();
+    const model::Wrench<CoreJet> w1 = payload_mean<CoreJet>(pc);
     Eigen::Matrix<double, 6, kSensorDim> d_sensor;
-    for (int r = 0; r < 6; ++r) {
-      pred[r] = out[r].a;
-      d_sensor.row(r) = out[r].v.transpose();
-      // Chain rule: d out / d core = sum_k d out / d w1_k * d w1_k / d core.
-      for (int k = 0; k < 6; ++k) d_core.row(r) += out[r].v[k] * w1[k].v.transpose();
+    if (stats_) {
+      // Stage 2 with its hand-derived derivatives (model::sensor_output_jacobian).
+      ident::Wrench w1d;
+      for (int k = 0; k < 6; ++k) w1d[k] = w1[k].a;
+      pred = model::sensor_output<double>(effects_, p, mean_in, w1d);
+      model::sensor_output_jacobian<kSensorDim>(effects_, p, mean_in, w1d, offset_, d_sensor);
+    } else {
+      // Stage 2 by autodiff over its parameters and the six payload-wrench components.
+      std::array<SensorJet, kSensorDim> sensor;
+      model::ParamPointers<SensorJet> ps{};
+      for (std::size_t b = 0; b < order_.size(); ++b) {
+        const Effect e = order_[b];
+        if (model::is_payload_effect(e)) continue;
+        const int idx = model::index(e), off = offset_[idx];
+        for (int i = 0; i < model::info(e).num_params; ++i)
+          sensor[off + i] = SensorJet(parameters[b][i], off + i);
+        ps[idx] = &sensor[off];
+      }
+      model::Wrench<SensorJet> w1s;
+      for (int k = 0; k < 6; ++k) w1s[k] = SensorJet(w1[k].a, k);
+      const model::Wrench<SensorJet> out =
+          model::sensor_output<SensorJet>(effects_, ps, mean_in, w1s);
+      for (int r = 0; r < 6; ++r) {
+        pred[r] = out[r].a;
+        d_sensor.row(r) = out[r].v.transpose();
+      }
     }
+    // Chain rule: d out / d core = sum_k d out / d w1_k * d w1_k / d core.
+    Eigen::Matrix<double, 6, kCoreDim> d_core = Eigen::Matrix<double, 6, kCoreDim>::Zero();
+    for (int r = 0; r < 6; ++r)
+      for (int k = 0; k < 6; ++k) d_core.row(r) += d_sensor(r, k) * w1[k].v.transpose();
     add_user(parameters, pred);
     for (int r = 0; r < 6; ++r) residuals[r] = (meas[r] - pred[r]) * inv_sigma_[r];
     if (num_user_ > 0 && jacobians[order_.size()] != nullptr) {
@@ -160,6 +162,12 @@ class BlockCost : public ceres::CostFunction {
   }
 
  private:
+  template <typename T>
+  model::Wrench<T> payload_mean(const model::ParamPointers<T>& p) const {
+    if (stats_) return stats_->payload_mean<T>(effects_, p, block_);
+    return payload_mean_by_samples<T>(*data_, effects_, p, first_, count_);
+  }
+
   void add_user(double const* const* parameters, ident::Wrench& pred) const {
     if (num_user_ == 0) return;
     const double* c = parameters[order_.size()];
@@ -168,6 +176,8 @@ class BlockCost : public ceres::CostFunction {
   }
 
   const Dataset* data_;
+  const BlockStats* stats_;
+  std::size_t block_;
   std::size_t first_, count_;
   model::EffectSet effects_;
   std::vector<Effect> order_;
@@ -178,27 +188,28 @@ class BlockCost : public ceres::CostFunction {
 };
 
 /// The narrowest BlockCost whose sensor-stage Jet holds the model's sensor-stage parameters.
-ceres::CostFunction* make_block_cost(const Dataset* data, std::size_t first, std::size_t count,
+ceres::CostFunction* make_block_cost(const Dataset* data, const BlockStats* stats,
+                                     std::size_t block, std::size_t first, std::size_t count,
                                      model::EffectSet effects, const std::vector<Effect>& order,
                                      std::array<double, 6> inv_sigma, const double* user_design,
                                      int num_user) {
   int sensor_dim = 6;
   for (Effect e : order)
     if (!model::is_payload_effect(e)) sensor_dim += model::info(e).num_params;
-  if (sensor_dim <= 12)
-    return new BlockCost<12>(data, first, count, effects, order, inv_sigma, user_design, num_user);
-  if (sensor_dim <= 24)
-    return new BlockCost<24>(data, first, count, effects, order, inv_sigma, user_design, num_user);
-  if (sensor_dim <= 48)
-    return new BlockCost<48>(data, first, count, effects, order, inv_sigma, user_design, num_user);
-  return new BlockCost<96>(data, first, count, effects, order, inv_sigma, user_design, num_user);
+  const auto make = [&]<int kDim>() -> ceres::CostFunction* {
+    return new BlockCost<kDim>(data, stats, block, first, count, effects, order, inv_sigma,
+                               user_design, num_user);
+  };
+  if (sensor_dim <= 12) return make.template operator()<12>();
+  if (sensor_dim <= 24) return make.template operator()<24>();
+  if (sensor_dim <= 48) return make.template operator()<48>();
+  return make.template operator()<96>();
 }
 
 // Blocks of `m` consecutive used samples, never spanning a gap in the mask (so held-out data
 // never leaks into training); a run's leftover tail shorter than m is not used.
-std::vector<std::pair<std::size_t, std::size_t>> make_blocks(const Dataset& data,
-                                                             const FitOptions& o, int m) {
-  std::vector<std::pair<std::size_t, std::size_t>> blocks;
+SampleBlocks make_blocks(const Dataset& data, const FitOptions& o, int m) {
+  SampleBlocks blocks;
   std::size_t run_start = 0;
   bool in_run = false;
   auto close = [&](std::size_t end) {
@@ -364,6 +375,10 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
   // Static rows (no time) are independent poses: each row is a block of its own.
   const int block_samples = data.columns.static_rows ? 1 : std::max(1, o.block_samples);
   const auto blocks_of_samples = make_blocks(data, o, block_samples);
+  if (o.engine != "block_stats" && o.engine != "samples")
+    throw std::runtime_error("unknown fit engine '" + o.engine + "' (block_stats, samples)");
+  std::optional<BlockStats> stats;
+  if (o.engine == "block_stats") stats.emplace(data, blocks_of_samples, o.effects);
   // User terms are linear: each block's mean design (6 × num_user) is computed once.
   std::vector<double> user_design(blocks_of_samples.size() * 6 *
                                   static_cast<std::size_t>(num_user));
@@ -416,8 +431,9 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
     for (std::size_t b = 0; b < blocks_of_samples.size(); ++b) {
       const auto [first, count] = blocks_of_samples[b];
       problem->AddResidualBlock(
-          make_block_cost(&data, first, count, o.effects, order, inv_sigma,
-                          &user_design[b * 6 * static_cast<std::size_t>(num_user)], num_user),
+          make_block_cost(&data, stats ? &*stats : nullptr, b, first, count, o.effects, order,
+                          inv_sigma, &user_design[b * 6 * static_cast<std::size_t>(num_user)],
+                          num_user),
           loss.get(), blocks);
     }
     if (problem->NumResidualBlocks() == 0) throw std::runtime_error("no samples to fit");

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <random>
 
 namespace zerog::model {
 namespace {
@@ -158,6 +159,133 @@ TEST(Predict, AutodiffDerivativeOfForceWithRespectToMassIsGravity) {
   const Eigen::Vector3d g =
       pose.R_base_sensor.transpose() * Eigen::Vector3d(0, 0, -kStandardGravity);
   for (int k = 0; k < 3; ++k) EXPECT_NEAR(w[k].v[0], g[k], 1e-12);
+}
+
+// payload_wrench_mean on the block means of the signals equals the mean of payload_wrench over
+// the block, for random parameters and signals and every combination of the stage-1 effects
+// (values and derivatives with respect to every parameter).
+TEST(PayloadWrenchMean, EqualsTheMeanOfPayloadWrenchForEveryEffectCombination) {
+  using J = ceres::Jet<double, 16>;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  auto vec = [&](double s) { return Eigen::Vector3d(s * u(rng), s * u(rng), s * u(rng)); };
+  const std::array<Effect, 4> optional = {Effect::base_tilt, Effect::linear_inertia,
+                                          Effect::rotational_inertia, Effect::sensor_rotation};
+  int cases = 0;
+  for (unsigned bits = 0; bits < 16; ++bits) {
+    for (int trial = 0; trial < 5; ++trial) {
+      EffectSet effects{Effect::gravity};
+      for (unsigned k = 0; k < 4; ++k)
+        if (bits >> k & 1u) effects.add(optional[k]);
+      // Random parameters, as Jets with one derivative slot per parameter (16 in all).
+      std::array<std::array<J, kMaxEffectParams>, kEffectCount> values{};
+      ParamPointers<J> ptr{};
+      int slot = 0;
+      for (Effect e : {Effect::gravity, Effect::base_tilt, Effect::rotational_inertia,
+                       Effect::sensor_rotation}) {
+        for (int i = 0; i < info(e).num_params; ++i) {
+          double v = 0.1 * u(rng);
+          if (e == Effect::gravity && i == 0) v = 50.0 + 50.0 * u(rng);
+          if (e == Effect::rotational_inertia && i < 3) v = 2.0 + u(rng);
+          values[index(e)][i] = J(v, slot++);
+        }
+        ptr[index(e)] = values[index(e)].data();
+      }
+      RigGeometry rig;
+      rig.R_sensor_imu = rotation_from_vector<double>(vec(2.0));
+      rig.p_sensor_imu_m = vec(0.1);
+      // A block of 8 samples with random attitudes and IMU signals.
+      constexpr int kCount = 8;
+      Wrench<J> expected = Wrench<J>::Zero();
+      PayloadMeans<J> means;
+      means.R_base_sensor.setZero();
+      for (int s = 0; s < kCount; ++s) {
+        PoseSignals pose;
+        pose.R_base_sensor = rotation_from_vector<double>(vec(3.0));
+        ImuSignals<J> imu;
+        imu.specific_force_imu = vec(15.0).cast<J>();
+        imu.angular_rate_imu = vec(2.0).cast<J>();
+        imu.angular_accel_imu = vec(5.0).cast<J>();
+        expected += payload_wrench<J>(effects, ptr, pose, imu, rig) / J(kCount);
+        means.R_base_sensor += pose.R_base_sensor / kCount;
+        means.specific_force_imu += imu.specific_force_imu / J(kCount);
+        means.angular_accel_imu += imu.angular_accel_imu / J(kCount);
+        means.rate_outer_imu += imu.angular_rate_imu * imu.angular_rate_imu.transpose() / J(kCount);
+      }
+      const Wrench<J> got = payload_wrench_mean<J>(effects, ptr, means, rig);
+      double scale = 0.0, dscale = 0.0;
+      for (int k = 0; k < 6; ++k) {
+        scale = std::max(scale, std::abs(expected[k].a));
+        dscale = std::max(dscale, expected[k].v.cwiseAbs().maxCoeff());
+      }
+      for (int k = 0; k < 6; ++k) {
+        EXPECT_NEAR(got[k].a, expected[k].a, 1e-12 * scale) << "effects " << bits << " row " << k;
+        for (int d = 0; d < 16; ++d)
+          EXPECT_NEAR(got[k].v[d], expected[k].v[d], 1e-12 * dscale)
+              << "effects " << bits << " row " << k << " derivative " << d;
+      }
+      ++cases;
+    }
+  }
+  EXPECT_EQ(cases, 80);
+  // Without gravity there is no payload.
+  PayloadMeans<double> means;
+  means.specific_force_imu = Eigen::Vector3d(1, 2, 3);
+  ModelParams p = payload({Effect::linear_inertia});
+  EXPECT_EQ(payload_wrench_mean<double>(p.effects, pointers(p), means, {}), Wrench<double>::Zero());
+}
+
+// sensor_output_jacobian equals autodiff of sensor_output, for random parameters and inputs and
+// every combination of the stage-2 effects, columns laid out as the fit lays them out.
+TEST(SensorOutputJacobian, EqualsAutodiffForEveryEffectCombination) {
+  constexpr int kCols = 96;
+  using J = ceres::Jet<double, kCols>;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const std::array<Effect, 5> stage2 = {Effect::bias, Effect::bias_drift, Effect::temperature_bias,
+                                        Effect::crosstalk, Effect::cable};
+  for (unsigned bits = 0; bits < 32; ++bits) {
+    EffectSet effects;
+    std::array<int, kEffectCount> column{};
+    std::array<std::array<double, kMaxEffectParams>, kEffectCount> values{};
+    std::array<std::array<J, kMaxEffectParams>, kEffectCount> jets{};
+    ParamPointers<double> p{};
+    ParamPointers<J> pj{};
+    int next = 6;  // the payload wrench first
+    for (unsigned k = 0; k < 5; ++k) {
+      if (!(bits >> k & 1u)) continue;
+      const Effect e = stage2[k];
+      effects.add(e);
+      column[index(e)] = next;
+      for (int i = 0; i < info(e).num_params; ++i) {
+        values[index(e)][i] = (e == Effect::crosstalk ? 0.02 : 3.0) * u(rng);
+        jets[index(e)][i] = J(values[index(e)][i], next + i);
+      }
+      p[index(e)] = values[index(e)].data();
+      pj[index(e)] = jets[index(e)].data();
+      next += info(e).num_params;
+    }
+    SensorInputs in;
+    in.t_rel_s = 500.0 * (1.0 + u(rng));
+    in.temperature_C = 25.0 + 10.0 * u(rng);
+    for (auto& f : in.cable_features) f = u(rng);
+    Wrench<double> payload;
+    Wrench<J> payload_jet;
+    for (int k = 0; k < 6; ++k) {
+      payload[k] = 500.0 * u(rng);
+      payload_jet[k] = J(payload[k], k);
+    }
+    const Wrench<J> out = sensor_output<J>(effects, pj, in, payload_jet);
+    Eigen::Matrix<double, 6, kCols> jac;
+    sensor_output_jacobian<kCols>(effects, p, in, payload, column, jac);
+    const Wrench<double> value = sensor_output<double>(effects, p, in, payload);
+    for (int r = 0; r < 6; ++r) {
+      EXPECT_NEAR(value[r], out[r].a, 1e-12 * std::abs(out[r].a));  // Jet and double round apart
+      for (int c = 0; c < kCols; ++c)
+        EXPECT_NEAR(jac(r, c), out[r].v[c], 1e-12 * (1.0 + std::abs(out[r].v[c])))
+            << "effects " << bits << " row " << r << " column " << c;
+    }
+  }
 }
 
 TEST(Rotation, VectorFormulaMatchesEigenAngleAxisAndKukaAbc) {

@@ -120,6 +120,67 @@ Wrench<T> payload_wrench(const EffectSet& effects, const ParamPointers<T>& p,
   return w;
 }
 
+/// Block means of the signals stage 1 depends on: the sufficient statistics of payload_wrench
+/// over a block of samples that share the parameters. Templated like ImuSignals (with an IMU
+/// time offset the means are interpolated, so they depend on it).
+template <typename T>
+struct PayloadMeans {
+  /// Mean nominal sensor attitude (a mean of rotations, not itself a rotation).
+  Eigen::Matrix3d R_base_sensor = Eigen::Matrix3d::Identity();
+  Vec3<T> specific_force_imu = Vec3<T>::Zero();  ///< mean specific force, IMU frame, m/s²
+  Vec3<T> angular_accel_imu = Vec3<T>::Zero();   ///< mean angular acceleration, IMU frame, rad/s²
+  Mat3<T> rate_outer_imu = Mat3<T>::Zero();  ///< mean ω ωᵀ of the gyroscope, IMU frame, rad²/s²
+};
+
+/// The mean of payload_wrench over a block of samples, from the block means of its signals
+/// (PayloadMeans): exact, because with the parameters fixed stage 1 is affine in R_base_sensor,
+/// specific force and ω̇, and quadratic in ω only through ω ωᵀ. In payload_wrench's notation,
+/// with R = R_sensor_imu (rotated by the sensor rotation) and M = R mean(ω_I ω_Iᵀ) Rᵀ:
+///   mean(ω × (ω × r)) = (M − tr(M) 1) r,
+///   mean(ω × (I ω))_a = ε_abc (I M)_cb,
+/// the other terms are those of payload_wrench on the means (c × F with c constant; gravity_sensor
+/// is linear in R_base_sensor). tests/unit/model/predict_test.cpp checks it against the mean of
+/// payload_wrench. Real-time safe.
+template <typename T>
+Wrench<T> payload_wrench_mean(const EffectSet& effects, const ParamPointers<T>& p,
+                              const PayloadMeans<T>& means, const RigGeometry& rig) {
+  Wrench<T> w = Wrench<T>::Zero();
+  if (!effects.has(Effect::gravity)) return w;
+  Mat3<T> R_nominal_true = Mat3<T>::Identity();
+  if (effects.has(Effect::sensor_rotation)) {
+    R_nominal_true = rotation_from_vector(Vec3<T>(p[index(Effect::sensor_rotation)]));
+  }
+  const Mat3<T> R_sensor_imu = R_nominal_true.transpose() * rig.R_sensor_imu.cast<T>();
+  const Vec3<T> p_sensor_imu = R_nominal_true.transpose() * rig.p_sensor_imu_m.cast<T>();
+  const Vec3<T> omega_dot = R_sensor_imu * means.angular_accel_imu;
+  const Mat3<T> rate_outer = R_sensor_imu * means.rate_outer_imu * R_sensor_imu.transpose();
+
+  const T* grav = p[index(Effect::gravity)];
+  const T mass = grav[0];
+  const Vec3<T> com(grav[1], grav[2], grav[3]);
+  Vec3<T> force;
+  if (effects.has(Effect::linear_inertia)) {
+    const Vec3<T> r = com - p_sensor_imu;
+    const Vec3<T> f_com = R_sensor_imu * means.specific_force_imu + omega_dot.cross(r) +
+                          (rate_outer - rate_outer.trace() * Mat3<T>::Identity()) * r;
+    force = -mass * f_com;
+  } else {
+    force = mass * gravity_sensor(effects, p, means.R_base_sensor, R_nominal_true);
+  }
+  Vec3<T> torque = com.cross(force);
+  if (effects.has(Effect::rotational_inertia)) {
+    const T* I = p[index(Effect::rotational_inertia)];
+    Mat3<T> inertia;
+    inertia << I[0], I[3], I[4], I[3], I[1], I[5], I[4], I[5], I[2];
+    const Mat3<T> N = inertia * rate_outer;
+    const Vec3<T> gyroscopic(N(2, 1) - N(1, 2), N(0, 2) - N(2, 0), N(1, 0) - N(0, 1));
+    torque -= inertia * omega_dot + gyroscopic;
+  }
+  w.template head<3>() = force;
+  w.template tail<3>() = torque;
+  return w;
+}
+
 /// Per-sample inputs of stage 2. Stage 2 is affine in them for fixed parameters, so the mean of
 /// stage 2 over samples equals stage 2 of their mean (the host fit uses that).
 struct SensorInputs {
@@ -169,6 +230,53 @@ Wrench<T> sensor_output(const EffectSet& effects, const ParamPointers<T>& p, con
          T(in.temperature_C - kTemperatureReferenceC);
   }
   return w;
+}
+
+/// The derivatives of sensor_output (the same formula, differentiated by hand: it is affine in
+/// each parameter): with A = 1 + E (E the crosstalk, 1 without it) and u the payload plus the
+/// cable wrench, out = A u + bias + drift t + temperature ΔT, so d out / d payload = A,
+/// d out / d cable (cos, sin of joint j, axis k) = A e_k (cos, sin), d out / d E_rc = e_r u_c,
+/// and 1, t, ΔT for the zero terms. Writes d out / d payload to columns 0..5 of `jacobian` and
+/// the parameters of each stage-2 effect e of `effects` from column `column[index(e)]`; other
+/// columns are zero. tests/unit/model/predict_test.cpp checks it against autodiff.
+/// Real-time safe.
+template <int Cols>
+void sensor_output_jacobian(const EffectSet& effects, const ParamPointers<double>& p,
+                            const SensorInputs& in, const Wrench<double>& payload,
+                            const std::array<int, kEffectCount>& column,
+                            Eigen::Matrix<double, 6, Cols>& jacobian) {
+  jacobian.setZero();
+  Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Identity();
+  if (effects.has(Effect::crosstalk)) {
+    A +=
+        Eigen::Map<const Eigen::Matrix<double, 6, 6, Eigen::RowMajor>>(p[index(Effect::crosstalk)]);
+  }
+  jacobian.template leftCols<6>() = A;
+  Wrench<double> u = payload;
+  if (effects.has(Effect::cable)) {
+    const double* c = p[index(Effect::cable)];
+    const int col = column[index(Effect::cable)];
+    for (int j = 0; j < 3; ++j) {
+      const double cq = in.cable_features[2 * j], sq = in.cable_features[2 * j + 1];
+      for (int k = 0; k < 6; ++k) {
+        u[k] += c[j * 12 + k] * cq + c[j * 12 + 6 + k] * sq;
+        jacobian.col(col + j * 12 + k) = A.col(k) * cq;
+        jacobian.col(col + j * 12 + 6 + k) = A.col(k) * sq;
+      }
+    }
+  }
+  if (effects.has(Effect::crosstalk)) {
+    const int col = column[index(Effect::crosstalk)];
+    for (int r = 0; r < 6; ++r)
+      for (int c = 0; c < 6; ++c) jacobian(r, col + r * 6 + c) = u[c];
+  }
+  const double zero_terms[3] = {1.0, in.t_rel_s, in.temperature_C - kTemperatureReferenceC};
+  const Effect zero_effects[3] = {Effect::bias, Effect::bias_drift, Effect::temperature_bias};
+  for (int z = 0; z < 3; ++z) {
+    if (!effects.has(zero_effects[z])) continue;
+    const int col = column[index(zero_effects[z])];
+    for (int k = 0; k < 6; ++k) jacobian(k, col + k) = zero_terms[z];
+  }
 }
 
 /// Effects whose parameters enter stage 1 (payload_wrench); the others enter stage 2.

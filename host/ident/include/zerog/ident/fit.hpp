@@ -35,6 +35,11 @@ struct FitOptions {
   /// `initial` must then hold every frozen effect. Standard deviations, correlations, the rank
   /// check and the BIC cover the free parameters only; frozen ones get no std (NaN).
   model::EffectSet frozen;
+  /// How the block mean of the prediction is evaluated. "block_stats": from the blocks'
+  /// sufficient statistics, one model evaluation per block (block_stats.hpp; exact);
+  /// "samples": the model on every sample of the block (the reference, slower). Results agree to
+  /// rounding (tests/unit/ident/fit_engine_test.cpp).
+  std::string engine = "block_stats";
   /// Per-axis noise for whitening; if absent, estimated (two passes).
   std::optional<std::array<double, 6>> sigma;
   std::function<void(const std::string&)> progress;  ///< progress lines (may be empty)

@@ -1,0 +1,301 @@
+// The fit's two engines (FitOptions::engine): "block_stats" evaluates each block mean of the
+// prediction from the block's sufficient statistics (block_stats.hpp), "samples" evaluates the
+// model on every sample (the reference). Both must give the same fit: the same parameters and
+// the same standard deviations, on the hidden-effect runs of the simulator.
+#include <ceres/jet.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+
+#include <unistd.h>
+
+#include "zerog/ident/block_stats.hpp"
+#include "zerog/ident/fit.hpp"
+#include "zerog/io/effect_file.hpp"
+#include "zerog/model/predict.hpp"
+#include "zerog/sim/design.hpp"
+#include "zerog/sim/simulator.hpp"
+
+namespace zerog::ident {
+namespace {
+
+using model::Effect;
+
+model::EffectSet full_list() {
+  model::EffectSet all;
+  for (Effect e : model::kAllEffects) all.add(e);
+  return all;
+}
+
+// A random-path run with every effect of the model library hidden in it (none outside it),
+// cut to 130 s (10,800 rows).
+const Dataset& library_run() {
+  static const Dataset data = [] {
+    const double seconds = 130.0;
+    sim::SimConfig cfg = sim::default_sim_config(5);
+    cfg.effects = sim::parse_sim_effects(
+        "all,-joint6_friction,-swivel_viscous,-hose_drag,"
+        "-dress_pack_bend");
+    cfg.duration_limit_s = seconds;
+    sim::DesignOptions d;
+    d.kind = sim::DesignKind::random;
+    d.points = 60;
+    d.workspace.floor_z_m = cfg.floor_z_m;
+    return make_dataset(sim::RigSimulator(cfg, sim::make_design(d).points_rad).run().log);
+  }();
+  return data;
+}
+
+// ---- The statistics against the samples, block by block -------------------------------------
+
+// Every block of 8 rows of the log (the first and the last included), the full payload model with
+// random parameters, the IMU time offset at fractional and whole shifts of either sign (windows
+// that cross the running sums' segments, and that reach the log's ends, where interpolate_uniform
+// clamps and the statistics fall back to the samples): value and every derivative equal.
+TEST(BlockStats, PayloadMeanEqualsTheMeanOverTheInterpolatedSamples) {
+  using J = ceres::Jet<double, 16>;
+  const Dataset& data = library_run();
+  ASSERT_GT(data.size(), 2u * 4096u + 100u);  // two segment boundaries of the running sums
+  const std::size_t m = 8;
+  SampleBlocks blocks;
+  for (std::size_t b = 0; b + m <= data.size(); b += m) blocks.emplace_back(b, m);
+  blocks.emplace_back(data.size() - m, m);  // the very last rows
+  blocks.emplace_back(4093, 5);             // odd start and length across a segment boundary
+
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (const model::EffectSet& effects :
+       {model::EffectSet{Effect::gravity, Effect::linear_inertia, Effect::rotational_inertia,
+                         Effect::imu_time_offset, Effect::sensor_rotation},
+        model::EffectSet{Effect::gravity, Effect::linear_inertia, Effect::rotational_inertia},
+        model::EffectSet{Effect::gravity, Effect::base_tilt, Effect::rotational_inertia,
+                         Effect::sensor_rotation}}) {
+    const BlockStats stats(data, blocks, effects);
+    for (double shift : {0.0, 0.37, -0.81, 3.0, -2.0, 5.49, -7.25}) {
+      SCOPED_TRACE("effects " + std::to_string(effects.bits()) + ", shift " +
+                   std::to_string(shift) + " rows");
+      std::array<std::array<J, model::kMaxEffectParams>, model::kEffectCount> values{};
+      model::ParamPointers<J> p{};
+      int slot = 0;
+      for (Effect e : {Effect::gravity, Effect::base_tilt, Effect::rotational_inertia,
+                       Effect::imu_time_offset, Effect::sensor_rotation}) {
+        for (int i = 0; i < model::info(e).num_params; ++i) {
+          double v = 0.05 * u(rng);
+          if (e == Effect::gravity && i == 0) v = 100.0 + 10.0 * u(rng);
+          if (e == Effect::rotational_inertia && i < 3) v = 5.0 + u(rng);
+          if (e == Effect::imu_time_offset) v = shift * data.dt_s;
+          values[model::index(e)][i] = J(v, slot++);
+        }
+        if (effects.has(e)) p[model::index(e)] = values[model::index(e)].data();
+      }
+      std::size_t fallbacks = 0;
+      double worst = 0.0, worst_d = 0.0;
+      for (std::size_t b = 0; b < blocks.size(); ++b) {
+        const auto [first, count] = blocks[b];
+        const model::Wrench<J> ref = payload_mean_by_samples<J>(data, effects, p, first, count);
+        const model::Wrench<J> got = stats.payload_mean<J>(effects, p, b);
+        model::PayloadMeans<J> means;
+        const J* tau = effects.has(Effect::imu_time_offset)
+                           ? p[model::index(Effect::imu_time_offset)]
+                           : nullptr;
+        if (!stats.payload_means<J>(b, tau, means)) ++fallbacks;
+        double scale = 1e-300, dscale = 1e-300;
+        for (int k = 0; k < 6; ++k) {
+          scale = std::max(scale, std::abs(ref[k].a));
+          dscale = std::max(dscale, ref[k].v.cwiseAbs().maxCoeff());
+        }
+        for (int k = 0; k < 6; ++k) {
+          worst = std::max(worst, std::abs(got[k].a - ref[k].a) / scale);
+          worst_d = std::max(worst_d, (got[k].v - ref[k].v).cwiseAbs().maxCoeff() / dscale);
+        }
+      }
+      EXPECT_LT(worst, 1e-12);
+      EXPECT_LT(worst_d, 1e-12);
+      std::printf(
+          "[ stats    ] effects %4u shift %6.2f: value %.1e, derivatives %.1e, %zu blocks "
+          "by samples\n",
+          effects.bits(), shift, worst, worst_d, fallbacks);
+      // Only the blocks whose shifted window reaches an end of the log fall back to the samples
+      // (with the time offset in the model at least one: the first or the last block).
+      if (effects.has(Effect::imu_time_offset)) {
+        EXPECT_GE(fallbacks, 1u);
+        EXPECT_LE(fallbacks, 3u + static_cast<std::size_t>(std::abs(shift)) / m + 1u);
+      } else {
+        EXPECT_EQ(fallbacks, 0u);
+      }
+    }
+  }
+}
+
+// ---- Whole fits: the engines agree ------------------------------------------------------------
+
+struct Agreement {
+  double params = 0.0;  // largest |a − b| / |b| over the free parameters
+  double stds = 0.0;    // largest relative difference of the standard deviations
+  int stds_compared = 0;
+};
+
+// Where the fit's identifiability check lands (fit.cpp: eigenvalues of the column-scaled JᵀJ
+// below 1e-9 of the largest are a rank deficiency, and the parameters with large entries in
+// their eigenvectors get no std).
+enum class Conditioning {
+  // Every eigenvalue is far from the threshold: the same deficiencies, warnings and NaN stds.
+  clear,
+  // The model has near-degenerate directions (the full list: crosstalk against sensor rotation
+  // and the centre of mass, base tilt against the accelerometer) whose eigenvalues lie within
+  // rounding of the threshold, and a null space of several dimensions whose eigenvector basis is
+  // arbitrary: which parameters each warning names follows rounding (any change in the
+  // summation order of the Jacobian changes it, in either engine). Then the same number of
+  // deficiencies, and the stds of the parameters both fits identify.
+  near_degenerate,
+};
+
+// Fits with both engines and compares every free parameter and every standard deviation.
+Agreement compare_engines(const Dataset& data, FitOptions o, const std::string& what,
+                          Conditioning conditioning = Conditioning::clear) {
+  const bool clear = conditioning == Conditioning::clear;
+  SCOPED_TRACE(what);
+  o.engine = "samples";
+  const FitResult ref = fit(data, o);
+  o.engine = "block_stats";
+  const FitResult got = fit(data, o);
+  Agreement a;
+  EXPECT_TRUE(ref.usable) << ref.termination;
+  EXPECT_TRUE(got.usable) << got.termination;
+  EXPECT_EQ(got.num_params, ref.num_params);
+  EXPECT_EQ(got.samples, ref.samples);
+  EXPECT_EQ(got.std.has_value(), ref.std.has_value());
+  auto rel = [](double x, double y) {
+    if (x == y) return 0.0;
+    return std::abs(x - y) / std::max(std::abs(y), 1e-300);
+  };
+  for (Effect e : model::kAllEffects) {
+    if (!o.effects.has(e)) continue;
+    for (int i = 0; i < model::info(e).num_params; ++i) {
+      const double x = got.params.block(e)[i], y = ref.params.block(e)[i];
+      a.params = std::max(a.params, rel(x, y));
+      EXPECT_NEAR(x, y, 1e-6 * std::abs(y)) << param_label(e, i);
+      if (!ref.std || !got.std) continue;
+      const double sx = (*got.std)[model::index(e)][i], sy = (*ref.std)[model::index(e)][i];
+      if (clear) {
+        EXPECT_EQ(std::isnan(sx), std::isnan(sy)) << param_label(e, i);
+      }
+      if (std::isnan(sy) || std::isnan(sx)) continue;
+      a.stds = std::max(a.stds, rel(sx, sy));
+      ++a.stds_compared;
+      EXPECT_NEAR(sx, sy, 1e-6 * sy) << "std of " << param_label(e, i);
+    }
+  }
+  for (int j = 0; j < o.user.num_terms; ++j) {
+    const auto q = static_cast<std::size_t>(j);
+    const double x = got.params.user.coeff[q], y = ref.params.user.coeff[q];
+    a.params = std::max(a.params, rel(x, y));
+    EXPECT_NEAR(x, y, 1e-6 * std::abs(y)) << "user term " << j;
+    if (q >= ref.user_std.size() || q >= got.user_std.size()) continue;
+    a.stds = std::max(a.stds, rel(got.user_std[q], ref.user_std[q]));
+    ++a.stds_compared;
+    EXPECT_NEAR(got.user_std[q], ref.user_std[q], 1e-6 * ref.user_std[q]) << "user term " << j;
+  }
+  EXPECT_EQ(got.user_std.size(), ref.user_std.size());
+  for (int k = 0; k < 6; ++k) {
+    EXPECT_NEAR(got.sigma[k], ref.sigma[k], 1e-9 * ref.sigma[k]);
+    EXPECT_NEAR(got.residual_rms[k], ref.residual_rms[k], 1e-6 * ref.residual_rms[k]);
+  }
+  EXPECT_NEAR(got.bic, ref.bic, 1e-6 * std::abs(ref.bic));
+  auto count = [](const FitResult& r, const std::string& kind) {
+    return std::count_if(r.warnings.begin(), r.warnings.end(),
+                         [&](const Warning& w) { return w.kind == kind; });
+  };
+  EXPECT_EQ(count(got, "rank_deficient"), count(ref, "rank_deficient"));
+  if (clear) {
+    EXPECT_EQ(got.warnings.size(), ref.warnings.size());
+    for (std::size_t k = 0; k < std::min(got.warnings.size(), ref.warnings.size()); ++k) {
+      EXPECT_EQ(got.warnings[k].kind, ref.warnings[k].kind);
+      EXPECT_EQ(got.warnings[k].message, ref.warnings[k].message);
+    }
+  }
+  std::printf(
+      "[ engines  ] %-36s params %.2e  stds %.2e (%d of %d compared; %ld deficiencies), "
+      "%.2f s vs %.2f s\n",
+      what.c_str(), a.params, a.stds, a.stds_compared, ref.num_params,
+      static_cast<long>(count(ref, "rank_deficient")), got.seconds, ref.seconds);
+  return a;
+}
+
+TEST(FitEngine, BlockStatsEqualsSamplesOnTheFullLibraryList) {
+  const Dataset& data = library_run();
+  FitOptions o;
+  o.effects = full_list();
+  const Agreement a = compare_engines(data, o, "full library list", Conditioning::near_degenerate);
+  EXPECT_GE(a.stds_compared, 60);
+}
+
+TEST(FitEngine, BlockStatsEqualsSamplesOnTheDefaultModel) {
+  const Dataset& data = library_run();
+  FitOptions o;
+  o.effects = model::kDefaultModel;
+  compare_engines(data, o, "default model");
+}
+
+// The masked fits of diagnose and ladder (training blocks only), with a robust loss, a partial
+// model with a user term (proto/user_effects.md), and block means of another length.
+TEST(FitEngine, BlockStatsEqualsSamplesOnAMaskedRobustFit) {
+  const Dataset& data = library_run();
+  const auto held = heldout_mask(data, 20.0, 4);
+  std::vector<std::uint8_t> train(held.size());
+  for (std::size_t i = 0; i < held.size(); ++i) train[i] = held[i] ? 0 : 1;
+  FitOptions o;
+  o.effects = model::kDefaultModel;
+  o.effects.add(Effect::imu_time_offset);
+  o.effects.add(Effect::sensor_rotation);
+  o.effects.add(Effect::cable);
+  namespace fs = std::filesystem;
+  const fs::path file =
+      fs::temp_directory_path() / ("zerog_fit_engine_" + std::to_string(getpid()) + ".toml");
+  std::ofstream(file) << "format = \"zerog-effect\"\nversion = 1\nname = \"swivel\"\n"
+                         "description = \"viscous swivel\"\n\n[[term]]\naxis = \"Mz\"\n"
+                         "basis = \"wz_S\"\nunit = \"N*m/(rad/s)\"\nvalue = 0.0\n";
+  io::read_effect_file(file, o.user);
+  fs::remove(file);
+  ASSERT_EQ(o.user.num_terms, 1);
+  o.mask = &train;
+  o.loss = "huber";
+  o.block_samples = 5;
+  compare_engines(data, o, "masked, huber, user term, blocks of 5");
+}
+
+// A tool change: the sensor model frozen at a fitted model, gravity re-fitted on the static
+// samples (FitOptions::frozen with a mask of the dwells, as fit_tool_change sets it up).
+TEST(FitEngine, BlockStatsEqualsSamplesWithFrozenEffects) {
+  const Dataset& data = library_run();
+  FitOptions base_options;
+  base_options.effects = full_list();
+  base_options.covariance = false;
+  const FitResult base = fit(data, base_options);
+  ASSERT_TRUE(base.usable);
+  const std::vector<std::uint8_t> mask = static_mask(data);
+  FitOptions o;
+  o.effects = base.params.effects;
+  o.frozen = o.effects;
+  o.frozen.remove(Effect::gravity);
+  o.initial = &base.params;
+  o.mask = &mask;
+  compare_engines(data, o, "tool change (frozen, static mask)");
+}
+
+TEST(FitEngine, UnknownEngineIsRefused) {
+  const Dataset& data = library_run();
+  FitOptions o;
+  o.effects = model::kMinimalModel;
+  o.engine = "fast";
+  EXPECT_THROW(fit(data, o), std::runtime_error);
+}
+
+}  // namespace
+}  // namespace zerog::ident
