@@ -491,6 +491,10 @@ void add_ident_commands(CLI::App& app) {
       const auto steps = ident::ladder(data, o);
       nlohmann::json j = ident::to_json(steps);
       j["split"] = ident::to_json(split);
+      // Which source fed which effect of the ladder's last (largest) model.
+      const auto feeds = ident::kinematics_feeds(
+          steps.empty() ? o.diagnose.fit.effects : steps.back().effects, data);
+      j["kinematics_sources"] = ident::kinematics_json(feeds, data);
       std::optional<ident::Floors> floors;
       if (!truth->empty()) {
         const auto mask = ident::heldout_mask(data, split.block_s);
@@ -524,6 +528,7 @@ void add_ident_commands(CLI::App& app) {
       }
       std::printf("held-out split: %s\n", split.text.c_str());
       std::printf("%s", ident::format_ladder(steps).c_str());
+      std::printf("%s", ident::format_kinematics(feeds, data).c_str());
       if (floors) std::printf("%s", ident::format_floors(*floors, "held-out").c_str());
       if (!out->empty()) std::printf("wrote %s\n", out->c_str());
       if (!plot->empty()) std::printf("plotted %s\n", plot->c_str());

@@ -44,6 +44,7 @@ enum Col : int {
   kQw, kQx, kQy, kQz,
   kImuFx, kImuFy, kImuFz,
   kImuWx, kImuWy, kImuWz,
+  kImuDwx, kImuDwy, kImuDwz,
   kFx, kFy, kFz,
   kMx, kMy, kMz,
   kTemp,
@@ -51,12 +52,37 @@ enum Col : int {
 };
 // clang-format on
 
-constexpr std::array<std::string_view, kNumCols> kColumnNames = {
-    "t_s",          "q1_rad",       "q2_rad",      "q3_rad",      "q4_rad",      "q5_rad",
-    "q6_rad",       "px_m",         "py_m",        "pz_m",        "qw",          "qx",
-    "qy",           "qz",           "imu_fx_mps2", "imu_fy_mps2", "imu_fz_mps2", "imu_wx_radps",
-    "imu_wy_radps", "imu_wz_radps", "Fx_N",        "Fy_N",        "Fz_N",        "Mx_Nm",
-    "My_Nm",        "Mz_Nm",        "temp_C"};
+constexpr std::array<std::string_view, kNumCols> kColumnNames = {"t_s",
+                                                                 "q1_rad",
+                                                                 "q2_rad",
+                                                                 "q3_rad",
+                                                                 "q4_rad",
+                                                                 "q5_rad",
+                                                                 "q6_rad",
+                                                                 "px_m",
+                                                                 "py_m",
+                                                                 "pz_m",
+                                                                 "qw",
+                                                                 "qx",
+                                                                 "qy",
+                                                                 "qz",
+                                                                 "imu_fx_mps2",
+                                                                 "imu_fy_mps2",
+                                                                 "imu_fz_mps2",
+                                                                 "imu_wx_radps",
+                                                                 "imu_wy_radps",
+                                                                 "imu_wz_radps",
+                                                                 "imu_dwx_radps2",
+                                                                 "imu_dwy_radps2",
+                                                                 "imu_dwz_radps2",
+                                                                 "Fx_N",
+                                                                 "Fy_N",
+                                                                 "Fz_N",
+                                                                 "Mx_Nm",
+                                                                 "My_Nm",
+                                                                 "Mz_Nm",
+                                                                 "temp_C"};
+static_assert(kColumnNames[kNumCols - 1] == "temp_C" && kColumnNames[kImuDwx] == "imu_dwx_radps2");
 
 struct Group {
   int first;
@@ -66,13 +92,14 @@ struct Group {
 
 // Version 1 requires t_s and the position and has one IMU group of six; version 2 makes t_s
 // and the position optional and splits the IMU into specific force and angular rate.
-constexpr std::array<Group, 9> kGroups = {{
+constexpr std::array<Group, 10> kGroups = {{
     {kT, 1, 1},
     {kQ1, 6, 0},
     {kPx, 3, 1},
     {kQw, 4, kLogFormatVersion},
     {kImuFx, 3, 0},
     {kImuWx, 3, 0},
+    {kImuDwx, 3, 0},
     {kFx, 3, kLogFormatVersion},
     {kMx, 3, kLogFormatVersion},
     {kTemp, 1, 0},
@@ -80,7 +107,8 @@ constexpr std::array<Group, 9> kGroups = {{
 
 // The oldest format version that can hold a log with these columns.
 int version_for(const Columns& c) {
-  return c.position && !c.static_rows && c.specific_force == c.angular_rate ? 1 : 2;
+  return c.position && !c.static_rows && c.specific_force == c.angular_rate && !c.angular_accel ? 1
+                                                                                                : 2;
 }
 
 std::vector<std::string_view> known_column_names() {
@@ -134,6 +162,7 @@ void fill_sample(const std::array<double, kNumCols>& v, const Columns& columns, 
   s.q_base_sensor = Eigen::Quaterniond(v[kQw], v[kQx], v[kQy], v[kQz]).normalized();
   if (columns.specific_force) s.specific_force_imu_mps2 = {v[kImuFx], v[kImuFy], v[kImuFz]};
   if (columns.angular_rate) s.angular_rate_imu_radps = {v[kImuWx], v[kImuWy], v[kImuWz]};
+  if (columns.angular_accel) s.angular_accel_imu_radps2 = {v[kImuDwx], v[kImuDwy], v[kImuDwz]};
   s.force_sensor_N = {v[kFx], v[kFy], v[kFz]};
   s.torque_sensor_Nm = {v[kMx], v[kMy], v[kMz]};
   if (columns.temperature) s.temperature_C = v[kTemp];
@@ -151,6 +180,7 @@ std::array<double, kNumCols> sample_values(const Sample& s) {
     v[kPx + i] = s.p_base_sensor_m[i];
     v[kImuFx + i] = s.specific_force_imu_mps2[i];
     v[kImuWx + i] = s.angular_rate_imu_radps[i];
+    v[kImuDwx + i] = s.angular_accel_imu_radps2[i];
     v[kFx + i] = s.force_sensor_N[i];
     v[kMx + i] = s.torque_sensor_Nm[i];
   }
@@ -168,6 +198,7 @@ bool column_written(int c, const Columns& columns) {
   if (c >= kPx && c <= kPz) return columns.position;
   if (c >= kImuFx && c <= kImuFz) return columns.specific_force;
   if (c >= kImuWx && c <= kImuWz) return columns.angular_rate;
+  if (c >= kImuDwx && c <= kImuDwz) return columns.angular_accel;
   if (c == kTemp) return columns.temperature;
   return true;
 }
@@ -266,6 +297,16 @@ std::string format_rig(const Rig& rig) {
       out += "noise_gain_accel_per_s2 = " + toml_float(k.noise_gain_accel_per_s2) + "\n";
       out += "cutoff_rate_hz = " + toml_float(k.cutoff_rate_hz) + "\n";
       out += "cutoff_accel_hz = " + toml_float(k.cutoff_accel_hz) + "\n";
+    }
+    out += std::string("angular_accel = \"") + to_string(k.angular_accel) + "\"\n";
+    out += "angular_accel_reason = " + toml_string(k.angular_accel_reason) + "\n";
+    if (k.accel_sg_half_width > 0) {
+      out += "accel_sg_half_width = " + std::to_string(k.accel_sg_half_width) + "\n";
+      out += "accel_sg_order = " + std::to_string(k.accel_sg_order) + "\n";
+      out += "accel_period_s = " + toml_float(k.accel_period_s) + "\n";
+      out += "accel_bandwidth_hz = " + toml_float(k.accel_bandwidth_hz) + "\n";
+      out += "accel_noise_gain = " + toml_float(k.accel_noise_gain) + "\n";
+      out += "accel_cutoff_hz = " + toml_float(k.accel_cutoff_hz) + "\n";
     }
   }
   return out;
@@ -511,6 +552,7 @@ Log read_log(const fs::path& csv) {
   log.columns.joints = cell_of[kQ1] >= 0;
   log.columns.specific_force = cell_of[kImuFx] >= 0;
   log.columns.angular_rate = cell_of[kImuWx] >= 0;
+  log.columns.angular_accel = cell_of[kImuDwx] >= 0;
   log.columns.temperature = cell_of[kTemp] >= 0;
   log.columns.position = cell_of[kPx] >= 0;
   log.columns.static_rows = cell_of[kT] < 0;
@@ -523,6 +565,16 @@ Log read_log(const fs::path& csv) {
                          "' is missing (format version 1 needs all six IMU columns or none; "
                          "from version 2 on each group of three may come alone: write '# "
                          "zerog-log 2' on line 1)");
+  }
+  if (log.columns.angular_accel && (version == 1 || !log.columns.angular_rate)) {
+    throw InputError(csv, header_line, detail::char_column(line, cells[cell_of[kImuDwx]].offset),
+                     version == 1 ? std::string("'imu_dwx_radps2' (angular acceleration) is a "
+                                                "format version 2 column: write '# zerog-log 2' "
+                                                "on line 1")
+                                  : std::string("'imu_dwx_radps2' (angular acceleration) needs "
+                                                "the angular rate imu_wx_radps … imu_wz_radps "
+                                                "beside it: add those columns, or drop the "
+                                                "imu_dw*_radps2 columns"));
   }
   log.samples.reserve(text.size() / (cells.size() * 8 + 1));
 
@@ -671,11 +723,28 @@ KinematicsOrigin origin_from_toml(const TomlTable& k, std::string_view key) {
 }
 
 KinematicsRecord kinematics_from_toml(const TomlTable& t) {
-  const TomlTable k =
-      t.sub_table("kinematics", {"mode", "angular_rate", "specific_force", "angular_rate_reason",
-                                 "specific_force_reason", "sg_half_width", "sg_order", "period_s",
-                                 "bandwidth_hz", "lag_s", "noise_gain_rate_per_s",
-                                 "noise_gain_accel_per_s2", "cutoff_rate_hz", "cutoff_accel_hz"});
+  const TomlTable k = t.sub_table("kinematics", {"mode",
+                                                 "angular_rate",
+                                                 "specific_force",
+                                                 "angular_rate_reason",
+                                                 "specific_force_reason",
+                                                 "sg_half_width",
+                                                 "sg_order",
+                                                 "period_s",
+                                                 "bandwidth_hz",
+                                                 "lag_s",
+                                                 "noise_gain_rate_per_s",
+                                                 "noise_gain_accel_per_s2",
+                                                 "cutoff_rate_hz",
+                                                 "cutoff_accel_hz",
+                                                 "angular_accel",
+                                                 "angular_accel_reason",
+                                                 "accel_sg_half_width",
+                                                 "accel_sg_order",
+                                                 "accel_period_s",
+                                                 "accel_bandwidth_hz",
+                                                 "accel_noise_gain",
+                                                 "accel_cutoff_hz"});
   KinematicsRecord r;
   r.mode = k.optional_string("mode", "imu");
   if (r.mode != "imu" && r.mode != "robot" && r.mode != "auto")
@@ -694,6 +763,14 @@ KinematicsRecord kinematics_from_toml(const TomlTable& t) {
   r.noise_gain_accel_per_s2 = k.optional_number("noise_gain_accel_per_s2", 0.0, non_negative);
   r.cutoff_rate_hz = k.optional_number("cutoff_rate_hz", 0.0, non_negative);
   r.cutoff_accel_hz = k.optional_number("cutoff_accel_hz", 0.0, non_negative);
+  r.angular_accel = origin_from_toml(k, "angular_accel");
+  r.angular_accel_reason = k.optional_string("angular_accel_reason", "");
+  r.accel_sg_half_width = static_cast<int>(k.optional_integer("accel_sg_half_width", 0, 0, 100000));
+  r.accel_sg_order = static_cast<int>(k.optional_integer("accel_sg_order", 0, 0, 10));
+  r.accel_period_s = k.optional_number("accel_period_s", 0.0, non_negative);
+  r.accel_bandwidth_hz = k.optional_number("accel_bandwidth_hz", 0.0, non_negative);
+  r.accel_noise_gain = k.optional_number("accel_noise_gain", 0.0, non_negative);
+  r.accel_cutoff_hz = k.optional_number("accel_cutoff_hz", 0.0, non_negative);
   return r;
 }
 

@@ -175,9 +175,9 @@ SourceChoices choose_sources(KinematicsMode mode, const KinematicsAvailable& a) 
             : a.robot ? SourceChoice{KinematicSource::robot, "auto: no gyro, so the robot"}
                       : nothing;
   c.omega_dot = a.gyro    ? SourceChoice{KinematicSource::imu,
-                                      "auto: the gyro (the log's one angular-rate column feeds ω "
-                                         "and, by host/ident's 5-point central difference, ω̇; "
-                                         "kinematics = \"robot\" takes both from the robot)"}
+                                      "auto: the gyro differenced by Savitzky-Golay at import "
+                                         "(measured closer to the truth than the robot's second "
+                                         "derivative and than a 5-point difference)"}
                 : a.robot ? SourceChoice{KinematicSource::robot, "auto: no gyro, so the robot"}
                           : nothing;
   c.specific_force =

@@ -40,6 +40,8 @@ Dataset make_dataset(const io::Log& log) {
     for (int k = 0; k < 3; ++k) {
       row[k] = s.specific_force_imu_mps2[k];
       row[3 + k] = s.angular_rate_imu_radps[k];
+      // ω̇ formed at import (the gyro by Savitzky–Golay, or the robot's): used as logged.
+      if (log.columns.angular_accel) row[6 + k] = s.angular_accel_imu_radps2[k];
     }
   }
   // Rows without time are independent held poses: nothing is differenced across them, rates and
@@ -52,9 +54,11 @@ Dataset make_dataset(const io::Log& log) {
     d.joint_acc_radps2.assign(n, {});
     return d;
   }
-  // Angular acceleration: 5-point central differences (4th order), 3-point one row from the
-  // ends, zero on the first and last row.
-  for (std::size_t i = 1; i + 1 < n && log.columns.angular_rate; ++i) {
+  // Angular acceleration, unless the log has it (imu_dw*_radps2): 5-point central differences
+  // (4th order) of the angular rate, 3-point one row from the ends, zero on the first and last
+  // row.
+  const bool difference_rate = log.columns.angular_rate && !log.columns.angular_accel;
+  for (std::size_t i = 1; i + 1 < n && difference_rate; ++i) {
     const int order = (i >= 2 && i + 2 < n) ? 4 : 2;
     Eigen::Map<Eigen::Vector3d>(&d.imu[i * 9 + 6]) =
         model::angular_accel_central(&d.imu[i * 9 + 3], 9, order, d.dt_s);

@@ -10,8 +10,22 @@ std::string source_of(bool present, io::KinematicsOrigin origin) {
   return present ? io::to_string(origin) : "none";
 }
 
-constexpr const char* kOmegaDotMethod =
-    "5-point central difference of the angular-rate column (host/ident), whatever its source";
+// How the dataset's ω̇ was formed (make_dataset): the log's imu_dw* columns, or host/ident's
+// difference of the angular-rate column.
+std::string omega_dot_method(const Dataset& data) {
+  const io::Columns& c = data.columns;
+  const io::KinematicsRecord& k = data.kinematics;
+  if (!c.angular_rate || c.static_rows) return "none (no angular rate with time: taken as zero)";
+  if (!c.angular_accel)
+    return std::string(
+               "5-point central difference of the angular-rate column (host/ident), "
+               "whose source is ") +
+           io::to_string(k.angular_rate);
+  if (k.angular_accel == io::KinematicsOrigin::imu)
+    return "the gyro differenced at import by Savitzky-Golay (imu_dw*_radps2 columns)";
+  return std::string("the robot's Savitzky-Golay second derivative from the ") +
+         io::to_string(k.angular_accel) + " at import (imu_dw*_radps2 columns)";
+}
 
 }  // namespace
 
@@ -22,7 +36,8 @@ std::vector<EffectFeeds> kinematics_feeds(const model::EffectSet& effects, const
   const SignalFeed omega{"omega", source_of(c.angular_rate, k.angular_rate)};
   // No rate or no time: no ω̇ (taken as zero).
   const SignalFeed omega_dot{"omega_dot",
-                             source_of(c.angular_rate && !c.static_rows, k.angular_rate)};
+                             source_of(c.angular_rate && !c.static_rows,
+                                       c.angular_accel ? k.angular_accel : k.angular_rate)};
   const SignalFeed force{"specific_force", source_of(c.specific_force, k.specific_force)};
   std::vector<EffectFeeds> out;
   for (Effect e : model::kAllEffects) {
@@ -43,7 +58,7 @@ nlohmann::json kinematics_json(const std::vector<EffectFeeds>& feeds, const Data
   const io::KinematicsRecord& k = data.kinematics;
   nlohmann::json j;
   j["mode"] = k.mode;
-  j["omega_dot"] = kOmegaDotMethod;
+  j["omega_dot"] = omega_dot_method(data);
   if (k.derived()) {
     j["differentiator"] = {{"method", "savitzky_golay"},
                            {"half_width", k.sg_half_width},
@@ -57,6 +72,21 @@ nlohmann::json kinematics_json(const std::vector<EffectFeeds>& feeds, const Data
                            {"cutoff_accel_hz", k.cutoff_accel_hz}};
   } else {
     j["differentiator"] = nullptr;
+  }
+  if (data.columns.angular_accel && k.accel_sg_half_width > 0) {
+    const bool gyro = k.angular_accel == io::KinematicsOrigin::imu;
+    j["omega_dot_differentiator"] = {
+        {"method", "savitzky_golay"},
+        {"derivative", gyro ? 1 : 2},
+        {"half_width", k.accel_sg_half_width},
+        {"order", k.accel_sg_order},
+        {"period_s", k.accel_period_s},
+        {"bandwidth_hz", k.accel_bandwidth_hz},
+        {"lag_s", 0.0},
+        {gyro ? "noise_gain_per_s" : "noise_gain_per_s2", k.accel_noise_gain},
+        {"cutoff_hz", k.accel_cutoff_hz}};
+  } else {
+    j["omega_dot_differentiator"] = nullptr;
   }
   j["effects"] = nlohmann::json::object();
   for (const EffectFeeds& f : feeds) {
@@ -86,6 +116,23 @@ std::string format_kinematics(const std::vector<EffectFeeds>& feeds, const Datas
                   k.mode.c_str(), k.sg_half_width, k.sg_order, k.period_s, k.noise_gain_rate_per_s,
                   k.noise_gain_accel_per_s2);
     out += line;
+  }
+  // Said when the import chose (a simulator's log, all from the IMU, reads as before).
+  bool omega_dot_fed = false;
+  for (const EffectFeeds& f : feeds)
+    for (const SignalFeed& s : f.signals) omega_dot_fed |= s.signal == "omega_dot";
+  if (omega_dot_fed && (data.columns.angular_accel || k.mode != "imu")) {
+    out += "kinematics: omega_dot is " + omega_dot_method(data);
+    if (data.columns.angular_accel && k.accel_sg_half_width > 0) {
+      const bool gyro = k.angular_accel == io::KinematicsOrigin::imu;
+      char line[200];
+      std::snprintf(line, sizeof line,
+                    " (M = %d, order %d at %.4g s, lag 0, -3 dB %.3g Hz, noise gain %.3g %s)",
+                    k.accel_sg_half_width, k.accel_sg_order, k.accel_period_s, k.accel_cutoff_hz,
+                    k.accel_noise_gain, gyro ? "1/s" : "1/s^2");
+      out += line;
+    }
+    out += "\n";
   }
   return out;
 }

@@ -521,8 +521,10 @@ bool parse_lines(NextLine&& next_line, const CanFilter& filter, std::vector<Cand
     info.clock = CandumpClock::date;
     info.clock_reason = "-tA: local date and time, read as UTC";
   } else if (clock == CandumpClock::date || clock == CandumpClock::none) {
-    return refuse(std::string("the log has (seconds.fraction) timestamps; cannot read them as ") +
-                  to_string(clock));
+    // Appended rather than added: GCC 12's -Warray-bounds misfires on string&& + const char* here.
+    std::string why = "the log has (seconds.fraction) timestamps; cannot read them as ";
+    why += to_string(clock);
+    return refuse(why);
   } else if (form == CandumpForm::log && clock == CandumpClock::delta) {
     return refuse("candump -L never writes deltas: read it as absolute (or zero)");
   } else if (clock != CandumpClock::automatic) {

@@ -47,7 +47,8 @@ enum class Orientation { quaternion, matrix, kuka_abc };
 
 /// The axes a vector quantity's columns are written in: its own frame (S for force and torque,
 /// I for the IMU), the robot base B (rotated into S or I per row with the row's orientation), or
-/// a fixed frame D given by its rotation in the own frame.
+/// a fixed frame D given by its rotation in the own frame and, for the wrench, its origin in S
+/// (a torque about D's origin is moved to S's with the force: M_S = R_SD M_D + p_SD × F_S).
 enum class VectorFrame { own, base, fixed };
 
 struct Unit {
@@ -134,8 +135,12 @@ struct QuantitySpec {
   Orientation orientation = Orientation::quaternion;
   VectorFrame frame = VectorFrame::own;
   Eigen::Matrix3d R_own_fixed = Eigen::Matrix3d::Identity();  ///< VectorFrame::fixed: D in own
+  /// VectorFrame::fixed with p_m: D's origin in S, m (force and torque only; for the force it
+  /// changes nothing, for the torque it adds p × F_S).
+  std::optional<Eigen::Vector3d> p_own_fixed_m;
   toml::source_region where;
   toml::source_region frame_where;
+  toml::source_region lever_where;  ///< where p_m is given
 };
 
 struct FileSpec {
@@ -157,6 +162,12 @@ struct FileSpec {
   std::vector<QuantitySpec> quantities;
 };
 
+// ω̇ feeds the rotational inertia as a regressor: a differentiator that cuts into the motion's
+// band shrinks it and the fit answers with a larger inertia (errors in variables), while the
+// fit's block means average white noise away. So ω̇ gets a wider band than ω
+// (robot_kinematics.md, "ω̇ for the fit").
+constexpr double kDefaultAccelBandwidthHz = 15.0;
+
 struct Mapping {
   std::vector<FileSpec> files;  ///< master first
   bool pose_of_flange = false;
@@ -168,6 +179,8 @@ struct Mapping {
   std::string kinematics_text = "imu";
   toml::source_region kinematics_where;
   double kinematics_bandwidth_hz = 5.0;  ///< the differentiator's bandwidth (choose_sg_window)
+  /// The bandwidth of ω̇'s differentiator (the gyro's first or the robot's second derivative).
+  double kinematics_accel_bandwidth_hz = kDefaultAccelBandwidthHz;
 };
 
 const Unit& find_unit(const TomlTable& t, const std::vector<Unit>& units) {
@@ -229,7 +242,8 @@ bool is_vector(Quantity q) {
 }
 
 // The optional `frame` of a vector quantity: "sensor"/"imu" (its own frame), "base", or
-// { q_wxyz = [w, x, y, z] } (a fixed frame D: its axes in the own frame).
+// { q_wxyz = [w, x, y, z] } (a fixed frame D: its axes in the own frame), for force and torque
+// optionally with p_m = [x, y, z] (D's origin in S, m; detail::transform_of's convention).
 void read_frame(QuantitySpec& q, const TomlTable& t) {
   const toml::node* node = t.find("frame");
   if (node == nullptr) return;
@@ -248,13 +262,27 @@ void read_frame(QuantitySpec& q, const TomlTable& t) {
                  "{ q_wxyz = [w, x, y, z] } (a fixed frame's axes in the " +
                  (imu ? "IMU" : "sensor") + " frame), is \"" + f + "\"");
   }
-  const TomlTable ft(t.table("frame"), t.file(), t.name("frame") + ".", {"q_wxyz"});
-  const auto v = ft.numbers("q_wxyz", 4);
-  const Eigen::Quaterniond quat(v[0], v[1], v[2], v[3]);
-  if (std::abs(quat.norm() - 1.0) > 1e-3)
-    ft.fail("q_wxyz", "has norm " + num(quat.norm()) + ", off from 1 by more than 1e-3");
+  const TomlTable ft(t.table("frame"), t.file(), t.name("frame") + ".", {"q_wxyz", "p_m"});
   q.frame = VectorFrame::fixed;
-  q.R_own_fixed = quat.normalized().toRotationMatrix();
+  if (ft.find("p_m") == nullptr) {
+    const auto v = ft.numbers("q_wxyz", 4);
+    const Eigen::Quaterniond quat(v[0], v[1], v[2], v[3]);
+    if (std::abs(quat.norm() - 1.0) > 1e-3)
+      ft.fail("q_wxyz", "has norm " + num(quat.norm()) + ", off from 1 by more than 1e-3");
+    q.R_own_fixed = quat.normalized().toRotationMatrix();
+    return;
+  }
+  const Transform transform = detail::transform_of(ft);
+  q.R_own_fixed = transform.q.toRotationMatrix();
+  if (imu && !transform.p_m.isZero())
+    ft.fail("p_m",
+            "an IMU reads at its own position, so its frame takes a rotation only: give the "
+            "IMU's offset from the sensor origin as the rig's [sensor_imu] p_m (the model's "
+            "lever-arm terms use it) and remove p_m here");
+  if (!imu) {
+    q.p_own_fixed_m = transform.p_m;
+    q.lever_where = ft.where("p_m");
+  }
 }
 
 void read_quantity(FileSpec& file, Quantity what, const TomlTable& parent) {
@@ -423,7 +451,7 @@ Mapping read_mapping(const fs::path& mapping, bool rig_given) {
   const toml::table root = detail::parse_toml_file(mapping);
   const TomlTable top(root, mapping, "",
                       {"format", "version", "master", "pose_of", "rig_file", "rig", "files",
-                       "kinematics", "kinematics_bandwidth_hz"});
+                       "kinematics", "kinematics_bandwidth_hz", "kinematics_accel_bandwidth_hz"});
   if (top.string("format") != "zerog-import") {
     throw_at(mapping, top.require("format").source(),
              "'format' must be \"zerog-import\" (this is not an import mapping)");
@@ -484,6 +512,8 @@ Mapping read_mapping(const fs::path& mapping, bool rig_given) {
                  m.kinematics_text + "\"");
   m.kinematics_bandwidth_hz =
       top.optional_number("kinematics_bandwidth_hz", 5.0, NumberRange{0.0, true});
+  m.kinematics_accel_bandwidth_hz = top.optional_number(
+      "kinematics_accel_bandwidth_hz", kDefaultAccelBandwidthHz, NumberRange{0.0, true});
 
   if (top.find("rig") != nullptr && top.find("rig_file") != nullptr) {
     throw_at(mapping, top.require("rig_file").source(),
@@ -512,6 +542,20 @@ Mapping read_mapping(const fs::path& mapping, bool rig_given) {
       }
       source[i] = &f;
       where[i] = q.where;
+    }
+  }
+  // A torque about another point needs the force to move it to the sensor origin.
+  for (const FileSpec& f : m.files) {
+    for (const QuantitySpec& q : f.quantities) {
+      if (q.what != Quantity::torque || !q.p_own_fixed_m ||
+          source[static_cast<int>(Quantity::force)] != nullptr)
+        continue;
+      throw_at(mapping, q.lever_where,
+               "'files." + f.name +
+                   ".torque.frame.p_m' moves the torque from the recording frame's origin to "
+                   "the sensor origin, M_S = R M + p × F_S, which needs the force: map 'force' "
+                   "(in this file or another), or remove p_m if the torque is already about the "
+                   "sensor origin");
     }
   }
   const bool joints_mapped = source[static_cast<int>(Quantity::joints)] != nullptr;
@@ -816,6 +860,63 @@ robot::RobotModel robot_for_joints(const Mapping& m, const fs::path& mapping_pat
   return model;
 }
 
+// ω̇ from the gyro: the Savitzky–Golay first derivative of the angular-rate stream at its own
+// samples (order 3, the widest window that passes kinematics_bandwidth_hz), interpolated onto
+// the log's rows and written as imu_dw*_radps2. A gyro given in the base frame is differenced
+// there and rotated per row like ω: for an angular velocity d/dt(R_BSᵀ ω_B) = R_BSᵀ ω̇_B, as
+// Ṙ_BSᵀ ω_B = −ω_S × ω_S = 0. Too short a stream leaves ω̇ to host/ident (said in the report).
+void differentiate_gyro(const Mapping& m, const std::vector<Series>& series,
+                        const std::array<int, kQuantityCount>& source, ImportResult& result) {
+  Log& log = result.log;
+  KinematicsRecord& record = log.rig.kinematics;
+  const std::size_t f = static_cast<std::size_t>(source[static_cast<int>(Quantity::angular_rate)]);
+  const QuantitySpec& spec = spec_in(m, source, Quantity::angular_rate);
+  const std::vector<double>& t = series[f].t;
+  const std::vector<double>& w = series[f].values[static_cast<int>(Quantity::angular_rate)];
+  const double period_s = median_period(t);
+  const robot::SgSettings sg =
+      robot::choose_sg_window(period_s, m.kinematics_accel_bandwidth_hz, robot::kMaxSgOrder, 1);
+  const std::size_t window = static_cast<std::size_t>(2 * sg.half_width + 1);
+  if (t.size() < window) {
+    record.angular_accel_reason +=
+        "; but " + quantity_file(m, source, Quantity::angular_rate) + " has " +
+        std::to_string(t.size()) + " rows, fewer than the differentiator's " +
+        std::to_string(window) + ": host/ident's 5-point difference of the angular rate instead";
+    result.report.kinematics += "angular acceleration: " + record.angular_accel_reason + "\n";
+    return;
+  }
+  std::vector<Eigen::Vector3d> rate(t.size()), accel(t.size());
+  for (std::size_t i = 0; i < t.size(); ++i) rate[i] = {w[3 * i], w[3 * i + 1], w[3 * i + 2]};
+  if (!robot::sg_differentiate(t, rate, sg, 1, accel)) return;  // checked above: cannot happen
+  const Eigen::Matrix3d R_sensor_imu = log.rig.sensor_imu.q.normalized().toRotationMatrix();
+  std::size_t k = 0;
+  for (Sample& s : log.samples) {
+    while (k + 1 < t.size() && t[k + 1] <= s.t_s) ++k;
+    const std::size_t k1 = std::min(k + 1, t.size() - 1);
+    const double alpha = k1 == k ? 0.0 : std::clamp((s.t_s - t[k]) / (t[k1] - t[k]), 0.0, 1.0);
+    Eigen::Vector3d v = accel[k] + alpha * (accel[k1] - accel[k]);
+    if (spec.frame == VectorFrame::base)
+      v = R_sensor_imu.transpose() * s.q_base_sensor.toRotationMatrix().transpose() * v;
+    s.angular_accel_imu_radps2 = v;
+  }
+  log.columns.angular_accel = true;
+  record.angular_accel = KinematicsOrigin::imu;
+  record.accel_sg_half_width = sg.half_width;
+  record.accel_sg_order = sg.order;
+  record.accel_period_s = period_s;
+  record.accel_bandwidth_hz = m.kinematics_accel_bandwidth_hz;
+  record.accel_noise_gain = robot::sg_noise_gain(sg, 1, period_s);
+  record.accel_cutoff_hz = robot::sg_cutoff_hz(sg, 1, period_s);
+  char buffer[300];
+  std::snprintf(buffer, sizeof buffer,
+                "angular acceleration from the gyro of files.%s (%zu rows, median period %.4g s): "
+                "Savitzky-Golay derivative M = %d, order %d, lag 0, -3 dB %.3g Hz, noise gain "
+                "%.3g 1/s\n",
+                m.files[f].name.c_str(), t.size(), period_s, sg.half_width, sg.order,
+                record.accel_cutoff_hz, record.accel_noise_gain);
+  result.report.kinematics += buffer;
+}
+
 void derive_from_robot(const Mapping& m, const fs::path& mapping_path,
                        const std::vector<Series>& series,
                        const std::array<int, kQuantityCount>& source, ImportResult& result) {
@@ -869,9 +970,19 @@ void derive_from_robot(const Mapping& m, const fs::path& mapping_path,
                              "(map 'position' beside it, or 'joints' with the rig's robot)"};
   record.angular_rate_reason = choice.omega.reason;
   record.specific_force_reason = choice.specific_force.reason;
+  record.angular_accel_reason = choice.omega_dot.reason;
   const bool derive_rate = choice.omega.source == robot::KinematicSource::robot;
   const bool derive_force = choice.specific_force.source == robot::KinematicSource::robot;
-  if (!derive_rate && !derive_force) return;
+  const bool derive_accel = choice.omega_dot.source == robot::KinematicSource::robot;
+  // ω̇ from the gyro under "auto": its Savitzky–Golay derivative, as measured best
+  // (robot_kinematics.md "Choosing the source"); "imu" leaves it to host/ident's 5-point
+  // difference, as before.
+  if (choice.omega_dot.source == robot::KinematicSource::imu &&
+      m.kinematics == robot::KinematicsMode::automatic && timed && log.columns.angular_rate)
+    differentiate_gyro(m, series, source, result);
+  if (!timed && log.columns.angular_rate)
+    record.angular_accel_reason = "rows without time (static samples): no angular acceleration";
+  if (!derive_rate && !derive_force && !derive_accel) return;
 
   // The stream: the joints through the robot if possible, else the pose.
   const KinematicsOrigin origin = joints_ok ? KinematicsOrigin::joints : KinematicsOrigin::pose;
@@ -890,36 +1001,49 @@ void derive_from_robot(const Mapping& m, const fs::path& mapping_path,
   robot::DifferentiatorSettings settings;
   settings.sg = sg;
   std::vector<robot::SensorKinematics> motion(t.size());
-  robot::DeriveStatus status;
-  if (joints_ok) {
-    const robot::RobotModel model =
-        robot_for_joints(m, mapping_path, log, source,
-                         "derive the sensor's motion (kinematics = \"" + m.kinematics_text + "\")");
-    status =
-        robot::derive_kinematics(model, t, series[f].values[static_cast<int>(Quantity::joints)],
-                                 static_cast<std::size_t>(model.joint_count), settings, motion);
-  } else {
-    const std::vector<double>& q = series[f].values[static_cast<int>(Quantity::orientation)];
-    const std::vector<double>* p =
-        pose_position ? &series[f].values[static_cast<int>(Quantity::position)] : nullptr;
-    std::vector<robot::Pose> poses(t.size());
-    for (std::size_t i = 0; i < t.size(); ++i) {
-      Eigen::Quaterniond R(q[4 * i], q[4 * i + 1], q[4 * i + 2], q[4 * i + 3]);
-      Eigen::Vector3d position =
-          p ? Eigen::Vector3d((*p)[3 * i], (*p)[3 * i + 1], (*p)[3 * i + 2]) : Eigen::Vector3d();
-      if (p == nullptr) position.setZero();
-      if (m.pose_of_flange) {  // p_BS = p_BF + R_BF p_FS, R_BS = R_BF R_FS (frames.md)
-        position += R * log.rig.flange_sensor.p_m;
-        R = R * log.rig.flange_sensor.q;
+  auto derive = [&](const robot::DifferentiatorSettings& with,
+                    std::vector<robot::SensorKinematics>& into) {
+    robot::DeriveStatus status;
+    if (joints_ok) {
+      const robot::RobotModel model = robot_for_joints(
+          m, mapping_path, log, source,
+          "derive the sensor's motion (kinematics = \"" + m.kinematics_text + "\")");
+      status =
+          robot::derive_kinematics(model, t, series[f].values[static_cast<int>(Quantity::joints)],
+                                   static_cast<std::size_t>(model.joint_count), with, into);
+    } else {
+      const std::vector<double>& q = series[f].values[static_cast<int>(Quantity::orientation)];
+      const std::vector<double>* p =
+          pose_position ? &series[f].values[static_cast<int>(Quantity::position)] : nullptr;
+      std::vector<robot::Pose> poses(t.size());
+      for (std::size_t i = 0; i < t.size(); ++i) {
+        Eigen::Quaterniond R(q[4 * i], q[4 * i + 1], q[4 * i + 2], q[4 * i + 3]);
+        Eigen::Vector3d position =
+            p ? Eigen::Vector3d((*p)[3 * i], (*p)[3 * i + 1], (*p)[3 * i + 2]) : Eigen::Vector3d();
+        if (p == nullptr) position.setZero();
+        if (m.pose_of_flange) {  // p_BS = p_BF + R_BF p_FS, R_BS = R_BF R_FS (frames.md)
+          position += R * log.rig.flange_sensor.p_m;
+          R = R * log.rig.flange_sensor.q;
+        }
+        poses[i].R = R.normalized().toRotationMatrix();
+        poses[i].p_m = position;
       }
-      poses[i].R = R.normalized().toRotationMatrix();
-      poses[i].p_m = position;
+      status = robot::derive_kinematics(t, poses, with, into);
     }
-    status = robot::derive_kinematics(t, poses, settings, motion);
+    if (!status.ok())  // the reader checked times and sizes: only a broken model remains
+      refuse("deriving the motion failed (code " + std::to_string(static_cast<int>(status.code)) +
+             ", sample " + std::to_string(status.sample) + ")");
+  };
+  derive(settings, motion);
+  // ω̇ with its own, wider window (kinematics_accel_bandwidth_hz), if the stream allows it.
+  robot::DifferentiatorSettings accel_settings;
+  accel_settings.sg =
+      robot::choose_sg_window(period_s, m.kinematics_accel_bandwidth_hz, robot::kMaxSgOrder, 2);
+  std::vector<robot::SensorKinematics> accel_motion;
+  if (derive_accel) {
+    accel_motion.resize(t.size());
+    derive(accel_settings, accel_motion);
   }
-  if (!status.ok())  // the reader checked times and sizes: only a broken model remains
-    refuse("deriving the motion failed (code " + std::to_string(static_cast<int>(status.code)) +
-           ", sample " + std::to_string(status.sample) + ")");
 
   // Onto the log's rows (linear interpolation; every row lies within the stream's span), at
   // the IMU: ω_I = R_SIᵀ ω_S, f_I = R_SIᵀ (f_S + ω̇ × r + ω × (ω × r)), r = p_SI.
@@ -941,6 +1065,12 @@ void derive_from_robot(const Mapping& m, const fs::path& mapping_path,
         a.specific_force_sensor_mps2 +
         alpha * (b.specific_force_sensor_mps2 - a.specific_force_sensor_mps2);
     if (derive_rate) s.angular_rate_imu_radps = R_sensor_imu.transpose() * at.omega_sensor_radps;
+    // ω̇ of a rigid body is the same vector at every point: ω̇_I = R_SIᵀ ω̇_S.
+    if (derive_accel)
+      s.angular_accel_imu_radps2 =
+          R_sensor_imu.transpose() * (accel_motion[k].omega_dot_sensor_radps2 +
+                                      alpha * (accel_motion[k1].omega_dot_sensor_radps2 -
+                                               accel_motion[k].omega_dot_sensor_radps2));
     if (derive_force)
       s.specific_force_imu_mps2 =
           R_sensor_imu.transpose() * robot::specific_force_at_point(at, p_sensor_imu);
@@ -952,6 +1082,24 @@ void derive_from_robot(const Mapping& m, const fs::path& mapping_path,
   if (derive_force) {
     log.columns.specific_force = true;
     record.specific_force = origin;
+  }
+  if (derive_accel) {
+    log.columns.angular_accel = true;
+    record.angular_accel = origin;
+    record.accel_sg_half_width = accel_settings.sg.half_width;
+    record.accel_sg_order = accel_settings.sg.order;
+    record.accel_period_s = period_s;
+    record.accel_bandwidth_hz = m.kinematics_accel_bandwidth_hz;
+    record.accel_noise_gain = robot::sg_noise_gain(accel_settings.sg, 2, period_s);
+    record.accel_cutoff_hz = robot::sg_cutoff_hz(accel_settings.sg, 2, period_s);
+    char line[200];
+    std::snprintf(line, sizeof line,
+                  "angular acceleration: its own Savitzky-Golay second derivative M = %d, order "
+                  "%d (kinematics_accel_bandwidth_hz %.3g Hz), -3 dB %.3g Hz, noise gain %.3g "
+                  "1/s^2\n",
+                  record.accel_sg_half_width, record.accel_sg_order, record.accel_bandwidth_hz,
+                  record.accel_cutoff_hz, record.accel_noise_gain);
+    result.report.kinematics += line;
   }
   record.sg_half_width = sg.half_width;
   record.sg_order = sg.order;
@@ -1085,6 +1233,8 @@ ImportResult import_recordings(const fs::path& mapping_path,
   log.columns.position = has(Quantity::position) || pose_from_joints;
   log.columns.static_rows = !mapping.files.front().has_time;
   result.report.static_rows = log.columns.static_rows;
+  const std::optional<Eigen::Vector3d> torque_lever_arm_m =
+      spec_of[static_cast<int>(Quantity::torque)]->p_own_fixed_m;
   // IMU axes in the sensor frame, for IMU quantities given in the base frame.
   const Eigen::Matrix3d R_sensor_imu = log.rig.sensor_imu.q.normalized().toRotationMatrix();
 
@@ -1169,6 +1319,9 @@ ImportResult import_recordings(const fs::path& mapping_path,
     const Eigen::Matrix3d R_sensor_base = s.q_base_sensor.toRotationMatrix().transpose();
     if (in_base(Quantity::force)) s.force_sensor_N = R_sensor_base * s.force_sensor_N;
     if (in_base(Quantity::torque)) s.torque_sensor_Nm = R_sensor_base * s.torque_sensor_Nm;
+    // A torque about the origin of a fixed frame D at p_SD (its rotation already applied):
+    // M_S = R_SD M_D + p_SD × F_S, with the row's force in S (moment transfer).
+    if (torque_lever_arm_m) s.torque_sensor_Nm += torque_lever_arm_m->cross(s.force_sensor_N);
     if (log.columns.joints) std::copy_n(joints_row.begin(), 6, s.joints_rad.begin());
     if (log.columns.specific_force) {
       s.specific_force_imu_mps2 =
@@ -1205,8 +1358,15 @@ ImportResult import_recordings(const fs::path& mapping_path,
       (k.angular_rate_reason.empty() ? "" : " (" + k.angular_rate_reason + ")") +
       "; specific force " +
       (log.columns.specific_force ? std::string("from ") + to_string(k.specific_force) : "none") +
-      (k.specific_force_reason.empty() ? "" : " (" + k.specific_force_reason + ")") + "\n" +
-      result.report.kinematics;
+      (k.specific_force_reason.empty() ? "" : " (" + k.specific_force_reason + ")") +
+      "; angular acceleration " +
+      (log.columns.angular_accel
+           ? std::string("from ") + to_string(k.angular_accel) +
+                 (k.angular_accel == KinematicsOrigin::imu ? " (Savitzky-Golay)" : "")
+       : log.columns.angular_rate && !log.columns.static_rows
+           ? std::string("by host/ident's 5-point difference of the angular rate")
+           : std::string("none")) +
+      "\n" + result.report.kinematics;
   return result;
 }
 

@@ -808,6 +808,73 @@ TEST_F(ImportTest, BaseFrameAndFixedFrameVectors) {
     EXPECT_LT((log.samples[i].force_sensor_N - want[i].F_S).norm(), 1e-9) << i;
 }
 
+// A wrench recorded in a fixed frame D that is turned and shifted against S (issue 13: a fixed
+// transform with a lever arm): F_S = R_SD F_D, M_S = R_SD M_D + p_SD × F_S. The truth is built
+// the other way round, from a known wrench in S.
+TEST_F(ImportTest, FixedFrameWithLeverArmMovesTheTorqueToTheSensorOrigin) {
+  const Eigen::Quaterniond q_S_D(Eigen::AngleAxisd(0.9, Eigen::Vector3d(1, -2, 0.5).normalized()));
+  const Eigen::Matrix3d R_SD = q_S_D.toRotationMatrix();
+  const Eigen::Vector3d p_SD(0.02, -0.15, 0.3);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::string text = "fx,fy,fz,mx,my,mz\n";
+  std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> want;  // F_S, M_S
+  for (int i = 0; i < 12; ++i) {
+    const Eigen::Vector3d F_S = 100.0 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+    const Eigen::Vector3d M_S = 10.0 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+    // The same wrench about D's origin, in D's axes.
+    const Eigen::Vector3d F_D = R_SD.transpose() * F_S;
+    const Eigen::Vector3d M_D = R_SD.transpose() * (M_S - p_SD.cross(F_S));
+    text += fmt("%.17g,%.17g,%.17g,%.17g,%.17g,%.17g\n", F_D.x(), F_D.y(), F_D.z(), M_D.x(),
+                M_D.y(), M_D.z());
+    want.emplace_back(F_S, M_S);
+  }
+  write_text(path("w.csv"), text);
+  const std::string frame =
+      fmt("frame = { p_m = [%.17g, %.17g, %.17g], q_wxyz = [%.17g, %.17g, "
+          "%.17g, %.17g] }",
+          p_SD.x(), p_SD.y(), p_SD.z(), q_S_D.w(), q_S_D.x(), q_S_D.y(), q_S_D.z());
+  const std::string head = "format = \"zerog-import\"\nversion = 1\n" + rig_table() +
+                           "[files.w]\npath = \"w.csv\"\n"
+                           "orientation = { type = \"kuka_abc\", columns = [1, 2, 3], unit = "
+                           "\"deg\" }\n";
+  write_text(path("m.toml"), head + "force = { columns = [\"fx\", \"fy\", \"fz\"], unit = \"N\", " +
+                                 frame +
+                                 " }\ntorque = { columns = [\"mx\", \"my\", \"mz\"], unit = "
+                                 "\"N*m\", " +
+                                 frame + " }\n");
+  const Log log = import_recordings(path("m.toml")).log;
+  ASSERT_EQ(log.samples.size(), want.size());
+  for (std::size_t i = 0; i < want.size(); ++i) {
+    EXPECT_LT((log.samples[i].force_sensor_N - want[i].first).norm(), 1e-9) << i;
+    EXPECT_LT((log.samples[i].torque_sensor_Nm - want[i].second).norm(), 1e-9) << i;
+  }
+  // The torque's lever arm needs the force; an IMU group takes no lever arm.
+  const std::string torque_only =
+      "[files.w]\npath = \"w.csv\"\n"
+      "torque = { columns = [4, 5, 6], unit = \"N*m\", " +
+      frame + " }\n";
+  const std::string no_force = "format = \"zerog-import\"\nversion = 1\n" + rig_table() +
+                               torque_only +
+                               "orientation = { type = \"kuka_abc\", columns = [1, 2, 3], unit "
+                               "= \"deg\" }\n";
+  write_text(path("m.toml"), no_force);
+  const auto [line, column] = line_column_of(no_force, "[" + fmt("%.17g", p_SD.x()));
+  expect_input_error([&] { (void)import_recordings(path("m.toml")); }, path("m.toml"), line, column,
+                     "'files.w.torque.frame.p_m' moves the torque from the recording frame's "
+                     "origin to the sensor origin, M_S = R M + p × F_S, which needs the force: map "
+                     "'force'");
+  const std::string imu_lever = head +
+                                "force = { columns = [1, 2, 3], unit = \"N\" }\n"
+                                "torque = { columns = [4, 5, 6], unit = \"N*m\" }\n"
+                                "specific_force = { columns = [1, 2, 3], unit = \"g\", " +
+                                frame + " }\n";
+  write_text(path("m.toml"), imu_lever);
+  const auto [imu_line, imu_column] = line_column_of(imu_lever, "[" + fmt("%.17g", p_SD.x()));
+  expect_input_error([&] { (void)import_recordings(path("m.toml")); }, path("m.toml"), imu_line,
+                     imu_column, "the rig's [sensor_imu] p_m");
+}
+
 TEST_F(ImportTest, RefusalsNameFileLineColumnAndTheFix) {
   write_text(path("table.csv"), static_table_text(static_rows(4)));
   auto expect_mapping_error = [&](const std::string& map, const std::string& at,

@@ -304,6 +304,93 @@ TEST_F(LogReadErrorTest, Version2OptionalGroupsAndVersion1Rules) {
             (Columns{.joints = true, .specific_force = true, .angular_rate = true}));
 }
 
+// The angular acceleration columns imu_dw*_radps2 (format version 2, written by zerog import
+// when it formed ω̇): they come with the angular rate, read back exactly, and keep a log that
+// has them at version 2; a log without them is written as before.
+TEST_F(LogReadErrorTest, AngularAccelerationColumns) {
+  const fs::path csv = path("dw.csv");
+  write_rig(example_rig(), rig_path_for(csv));
+  const std::string rate = ",imu_wx_radps,imu_wy_radps,imu_wz_radps";
+  const std::string accel = ",imu_dwx_radps2,imu_dwy_radps2,imu_dwz_radps2";
+  write_text(csv, "# zerog-log 2\n" + kHeader + rate + accel + "\n" + row("0") +
+                      ",0,0,1,0.5,-2,3.25\n" + row("0.01") + ",0,0,1.1,0.25,-1,3\n");
+  Log log = read_log(csv);
+  EXPECT_EQ(log.columns, (Columns{.angular_rate = true, .angular_accel = true}));
+  EXPECT_EQ(log.samples[0].angular_accel_imu_radps2, Eigen::Vector3d(0.5, -2.0, 3.25));
+  EXPECT_EQ(log.samples[1].angular_accel_imu_radps2, Eigen::Vector3d(0.25, -1.0, 3.0));
+  write_log(log, path("dw_again.csv"));
+  EXPECT_EQ(read_text(path("dw_again.csv"))
+                .rfind("# zerog-log 2\nt_s,px_m,py_m,pz_m,qw,qx,qy,qz,imu_wx_radps,imu_wy_radps,"
+                       "imu_wz_radps,imu_dwx_radps2,imu_dwy_radps2,imu_dwz_radps2,Fx_N",
+                       0),
+            0u);
+  const Log again = read_log(path("dw_again.csv"));
+  EXPECT_EQ(again.columns, log.columns);
+  EXPECT_EQ(again.samples[1].angular_accel_imu_radps2, log.samples[1].angular_accel_imu_radps2);
+  // Without the angular rate, or under version 1: refused at the first ω̇ column.
+  write_text(csv, "# zerog-log 2\n" + kHeader + accel + "\n" + row("0") + ",1,2,3\n");
+  expect_error(csv, 2, static_cast<int>(kHeader.size()) + 2,
+               "'imu_dwx_radps2' (angular acceleration) needs the angular rate imu_wx_radps");
+  write_text(csv, "# zerog-log 1\n" + kHeader + ",imu_fx_mps2,imu_fy_mps2,imu_fz_mps2" + rate +
+                      accel + "\n" + row("0") + ",0,0,9.8,0,0,1,1,2,3\n");
+  expect_error(
+      csv, 2,
+      static_cast<int>((kHeader + ",imu_fx_mps2,imu_fy_mps2,imu_fz_mps2" + rate).size()) + 2,
+      "is a format version 2 column: write '# zerog-log 2' on line 1");
+  // The rig records where the columns came from.
+  Rig rig = example_rig();
+  rig.kinematics.mode = "auto";
+  rig.kinematics.angular_accel = KinematicsOrigin::imu;
+  rig.kinematics.angular_accel_reason = "auto: the gyro";
+  rig.kinematics.accel_sg_half_width = 12;
+  rig.kinematics.accel_sg_order = 3;
+  rig.kinematics.accel_period_s = 0.0005;
+  rig.kinematics.accel_noise_gain = 17.5;
+  rig.kinematics.accel_cutoff_hz = 5.25;
+  write_rig(rig, path("k.rig.toml"));
+  const KinematicsRecord k = read_rig(path("k.rig.toml")).kinematics;
+  EXPECT_EQ(k.angular_accel, KinematicsOrigin::imu);
+  EXPECT_EQ(k.angular_accel_reason, "auto: the gyro");
+  EXPECT_EQ(k.accel_sg_half_width, 12);
+  EXPECT_EQ(k.accel_sg_order, 3);
+  EXPECT_EQ(k.accel_period_s, 0.0005);
+  EXPECT_EQ(k.accel_noise_gain, 17.5);
+  EXPECT_EQ(k.accel_cutoff_hz, 5.25);
+  rig.kinematics.angular_accel = KinematicsOrigin::joints;
+  write_rig(rig, path("k.rig.toml"));
+  EXPECT_EQ(read_rig(path("k.rig.toml")).kinematics.angular_accel, KinematicsOrigin::joints);
+}
+
+// Version-1 logs are written byte for byte as before the angular-acceleration columns: the
+// fuzz corpus's seeds (tests/fuzz/make_seeds.cpp) were written by the earlier writer from these
+// samples.
+TEST_F(LogReadErrorTest, Version1LogsAreWrittenAsBefore) {
+  const fs::path corpus = fs::path(ZEROG_SOURCE_DIR) / "tests/fuzz/corpus/log_csv";
+  Log log;
+  log.rig = example_rig();
+  for (bool all : {true, false}) {
+    log.columns = {.joints = all, .specific_force = all, .angular_rate = all, .temperature = all};
+    log.samples.clear();
+    for (int i = 0; i < 4; ++i) {
+      Sample s;
+      s.t_s = 0.012 * i;
+      s.joints_rad = {0.1 * i, -1.5, 1.5, 0.0, 0.5, -0.2};
+      s.p_base_sensor_m = {1.7, 0.3 + 0.001 * i, 1.5};
+      s.q_base_sensor = Eigen::Quaterniond(0.0, 1.0, 0.0, 0.0);
+      s.specific_force_imu_mps2 = {0.0, 0.0, 9.80665};
+      s.angular_rate_imu_radps = {0.01 * i, 0.0, -0.3};
+      s.angular_accel_imu_radps2 = {1.0, 2.0, 3.0};  // not written: no column
+      s.force_sensor_N = {1.5, -0.8, 980.665 + i};
+      s.torque_sensor_Nm = {0.12, -9.58, -0.008};
+      s.temperature_C = 31.5;
+      log.samples.push_back(s);
+    }
+    write_log(log, path("v1.csv"));
+    EXPECT_EQ(read_text(path("v1.csv")),
+              read_text(corpus / (all ? "all_columns.csv" : "required_columns.csv")));
+  }
+}
+
 TEST_F(LogReadErrorTest, MissingFiles) {
   expect_input_error([&] { (void)read_log(path("none.csv")); }, path("none.csv"), 0, 0,
                      "cannot open");

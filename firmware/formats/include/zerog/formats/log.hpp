@@ -53,7 +53,22 @@ struct KinematicsRecord {
   double noise_gain_accel_per_s2 = 0.0;  ///< σ(ω̇, a) per σ(angle or m): 2nd derivative, 1/s²
   double cutoff_rate_hz = 0.0;           ///< −3 dB of the 1st derivative, Hz
   double cutoff_accel_hz = 0.0;          ///< −3 dB of the 2nd derivative, Hz
-  /// True when a column was derived (not logged by an IMU).
+  /// Of the angular-acceleration columns imu_dw*_radps2, if the log has them: the gyro
+  /// differenced by Savitzky–Golay at import (imu), or the robot's second derivative (joints,
+  /// pose; the differentiator above). Without them host/ident differences imu_w*_radps.
+  KinematicsOrigin angular_accel = KinematicsOrigin::imu;
+  std::string angular_accel_reason;  ///< why (robot::choose_sources' sentence)
+  // ω̇'s own Savitzky–Golay differentiator (with the columns; 0 without): the gyro's first
+  // derivative (angular_accel == imu) or the robot stream's second (joints, pose), on a window
+  // chosen for the mapping's kinematics_accel_bandwidth_hz, wider than ω's.
+  int accel_sg_half_width = 0;      ///< M
+  int accel_sg_order = 0;           ///< polynomial order
+  double accel_period_s = 0.0;      ///< median sample period of the differentiated stream, s
+  double accel_bandwidth_hz = 0.0;  ///< the bandwidth asked for, Hz
+  /// σ(ω̇) per σ of the input: 1/s per rad/s (gyro) or 1/s² per rad (robot)
+  double accel_noise_gain = 0.0;
+  double accel_cutoff_hz = 0.0;  ///< −3 dB of the derivative, Hz
+  /// True when imu_w* or imu_f* was derived from the robot (not logged by an IMU).
   bool derived() const {
     return angular_rate != KinematicsOrigin::imu || specific_force != KinematicsOrigin::imu;
   }
@@ -80,8 +95,11 @@ struct Columns {
   bool joints = false;          ///< q1_rad..q6_rad
   bool specific_force = false;  ///< imu_fx_mps2..imu_fz_mps2 (accelerometer)
   bool angular_rate = false;    ///< imu_wx_radps..imu_wz_radps (gyroscope)
-  bool temperature = false;     ///< temp_C
-  bool position = true;         ///< px_m..pz_m; false: the pose is the orientation alone
+  /// imu_dwx_radps2..imu_dwz_radps2: ω̇ formed at import (version 2, only with angular_rate);
+  /// without it host/ident differences the angular-rate column.
+  bool angular_accel = false;
+  bool temperature = false;  ///< temp_C
+  bool position = true;      ///< px_m..pz_m; false: the pose is the orientation alone
   /// No t_s column: every row is an independent static sample (a pose held still; a static
   /// calibration table). Nothing is differenced across rows; Sample::t_s holds the row index.
   bool static_rows = false;
@@ -98,9 +116,10 @@ struct Sample {
   std::array<double, 6> joints_rad{};  ///< A1..A6, rad (if Columns::joints)
   Eigen::Vector3d p_base_sensor_m =
       Eigen::Vector3d::Zero();  ///< sensor origin in base, m (if position)
-  Eigen::Quaterniond q_base_sensor = Eigen::Quaterniond::Identity();  ///< sensor axes in base
-  Eigen::Vector3d specific_force_imu_mps2 = Eigen::Vector3d::Zero();  ///< IMU frame, a − g
-  Eigen::Vector3d angular_rate_imu_radps = Eigen::Vector3d::Zero();   ///< IMU frame
+  Eigen::Quaterniond q_base_sensor = Eigen::Quaterniond::Identity();   ///< sensor axes in base
+  Eigen::Vector3d specific_force_imu_mps2 = Eigen::Vector3d::Zero();   ///< IMU frame, a − g
+  Eigen::Vector3d angular_rate_imu_radps = Eigen::Vector3d::Zero();    ///< IMU frame
+  Eigen::Vector3d angular_accel_imu_radps2 = Eigen::Vector3d::Zero();  ///< IMU frame (if logged)
   // (each IMU vector only if its Columns flag is set; zero otherwise)
   Eigen::Vector3d force_sensor_N = Eigen::Vector3d::Zero();    ///< sensor frame
   Eigen::Vector3d torque_sensor_Nm = Eigen::Vector3d::Zero();  ///< sensor frame, about S

@@ -99,8 +99,9 @@ enum class KinematicsMode : std::uint8_t { imu, robot, automatic };
 /// The three inertial signals of the model: ω (rotational inertia, gyroscopic term), ω̇
 /// (rotational inertia) and specific force (linear inertia, gravity with the IMU).
 enum class KinematicSignal : std::uint8_t { omega, omega_dot, specific_force };
-/// imu: the gyro (ω; ω̇ by host/ident's 5-point central difference of the angular-rate column,
-/// model::angular_accel_central, as zerog-rt's cycle computes it) or the
+/// imu: the gyro (ω; ω̇ differenced: by Savitzky–Golay at import under kinematics = "auto", by
+/// host/ident's 5-point central difference of the angular-rate column,
+/// model::angular_accel_central, as zerog-rt's cycle computes it, under "imu") or the
 /// accelerometer (specific force); robot: derive_kinematics; none: not available.
 enum class KinematicSource : std::uint8_t { none, imu, robot };
 
@@ -130,10 +131,10 @@ struct SourceChoices {
 ///   auto  — each signal from the IMU where the IMU has the sensor, else from the robot:
 ///           ω: the gyro (it measures the motion itself, arm elasticity and all; in the rigid
 ///           simulator the robot is 2.5–5.5× closer, but both stay below 1.2e-3 rad/s, whose
-///           gyroscopic torque is negligible); ω̇: the gyro too, as the log's one
-///           angular-rate column feeds ω and ω̇ (host/ident's 5-point central difference,
-///           measured worse than the robot's second derivative; an SG-differenced gyro would be
-///           2× better — kinematics = "robot" takes both from the robot);
+///           gyroscopic torque is negligible); ω̇: the gyro differenced by Savitzky–Golay at
+///           import (zerog import writes it as the log's imu_dw*_radps2 columns; measured 2×
+///           closer than the robot's second derivative, which host/ident's 5-point difference
+///           of the gyro is not);
 ///           specific force: the accelerometer (it senses the true vertical and the arm's
 ///           deflection; in the rigid simulator the robot is up to 2.7× closer).
 /// Configuration time (allocates the reasons).

@@ -22,7 +22,8 @@ struct Dataset {
   double dt_s = 0.012;  ///< mean row period (IMU time shifts interpolate on this grid)
   std::vector<double> t_s;
   std::vector<model::PoseSignals> pose;
-  /// n rows of 9: specific force (3), angular rate (3), angular acceleration (3), IMU frame.
+  /// n rows of 9: specific force (3), angular rate (3), angular acceleration (3; the log's
+  /// imu_dw* columns, or the angular rate differenced), IMU frame.
   /// A group the log lacks is zero (taken as at rest); so is the angular acceleration of a log
   /// without angular rate or without time (columns.static_rows).
   std::vector<double> imu;
@@ -64,8 +65,10 @@ struct Dataset {
   }
 };
 
-/// Builds the dataset: rotations from quaternions, angular acceleration by 5-point central
-/// differences of the gyroscope (model::angular_accel_central), motion flags, joint velocities.
+/// Builds the dataset: rotations from quaternions, angular acceleration from the log's
+/// imu_dw*_radps2 columns when present (formed at import: the gyro by Savitzky–Golay, or the
+/// robot's), else by 5-point central differences of the gyroscope column
+/// (model::angular_accel_central), motion flags, joint velocities.
 Dataset make_dataset(const io::Log& log);
 
 /// Predicted wrench of sample i with the given parameters (double evaluation of the model).

@@ -29,18 +29,20 @@ struct EffectFeeds {
 
 /// The inertial signals of `effects` that read the IMU columns (linear_inertia: specific force,
 /// and ω, ω̇ for its lever-arm terms; rotational_inertia: ω, ω̇; imu_time_offset: the IMU groups
-/// present), with their sources. ω̇ is host/ident's 5-point central difference of the
-/// angular-rate column (dataset.cpp), so it has the angular rate's source. Effects that read
-/// none are left out.
+/// present), with their sources. ω̇ is the log's imu_dw*_radps2 columns when present (the
+/// rig's [kinematics] angular_accel says from where), else host/ident's 5-point central
+/// difference of the angular-rate column (dataset.cpp), which has the angular rate's source.
+/// Effects that read none are left out.
 std::vector<EffectFeeds> kinematics_feeds(const model::EffectSet& effects, const Dataset& data);
 
-/// {"mode", "omega_dot": how it is formed, "differentiator": {…} when a column was derived,
+/// {"mode", "omega_dot": how it is formed, "differentiator": {…} when a column was derived
+///  from the robot, "gyro_differentiator": {…} when ω̇ is the gyro differenced at import,
 ///  "effects": {effect: {signal: source}}}.
 nlohmann::json kinematics_json(const std::vector<EffectFeeds>& feeds, const Dataset& data);
 
 /// Plain text, one line an effect, e.g. "kinematics: rotational_inertia ω joints, ω̇ joints
-/// (differenced)"; a line about the differentiator when a column was derived. Empty when no
-/// effect reads the IMU columns.
+/// (differenced)"; a line about the differentiator when a column was derived, and one on how
+/// ω̇ was formed when an effect reads it. Empty when no effect reads the IMU columns.
 std::string format_kinematics(const std::vector<EffectFeeds>& feeds, const Dataset& data);
 
 }  // namespace zerog::ident
