@@ -1,14 +1,10 @@
 #include "zerog/loop/cycle.hpp"
 
-#include "zerog/model/dictionary.hpp"
-
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 
-#include "zerog/model/rotation.hpp"
-#include "zerog/model/signals.hpp"
-#include "zerog/robot/forward_kinematics.hpp"
+#include "zerog/proto/rsi_si.hpp"
 
 namespace zerog::loop {
 namespace {
@@ -46,11 +42,6 @@ constexpr std::uint8_t kProposalWriting = 100;  // the proposer is filling propo
 constexpr std::uint8_t kProposalTaking = 101;   // the cycle is reading proposal_
 
 constexpr std::uint8_t status_byte(ProposalStatus s) { return static_cast<std::uint8_t>(s); }
-
-template <std::size_t N>
-void set_zero(std::array<double, N>& a) {
-  a.fill(0.0);
-}
 
 }  // namespace
 
@@ -97,35 +88,37 @@ std::string Cycle::configure(const CycleConfig& config, infer::DeployedModel mod
 }
 
 void Cycle::add_ft(const samples::FtSample& s) noexcept {
+  stages::SensorWindow& window = data_.window;
   if (!s.valid) {
     ++counters_.ft_invalid;
-    if (s.status == samples::FtSampleStatus::critical) ++window_.ft_critical;
-    if (s.status == samples::FtSampleStatus::saturated) ++window_.ft_saturated;
+    if (s.status == samples::FtSampleStatus::critical) ++window.ft_critical;
+    if (s.status == samples::FtSampleStatus::saturated) ++window.ft_saturated;
     return;
   }
-  if (window_.ft_n >= kMaxWindow) {
+  if (window.ft_n >= stages::kMaxWindow) {
     ++counters_.sample_overflow;
     return;
   }
-  for (int k = 0; k < 6; ++k) window_.ft_sum[k] += s.wrench_si[k];
-  ++window_.ft_n;
-  if (s.status == samples::FtSampleStatus::warning) ++window_.ft_warning;
+  for (int k = 0; k < 6; ++k) window.ft_sum[k] += s.wrench_si[k];
+  ++window.ft_n;
+  if (s.status == samples::FtSampleStatus::warning) ++window.ft_warning;
 }
 
 void Cycle::add_imu(const samples::ImuSample& s) noexcept {
+  stages::SensorWindow& window = data_.window;
   if (!s.rate_valid || !s.accel_valid) {
     ++counters_.imu_invalid;
     return;
   }
-  if (window_.imu_n >= kMaxWindow) {
+  if (window.imu_n >= stages::kMaxWindow) {
     ++counters_.sample_overflow;
     return;
   }
   for (int k = 0; k < 3; ++k) {
-    window_.imu_sum[k] += s.accel_m_s2[k];
-    window_.imu_sum[3 + k] += s.rate_rad_s[k];
+    window.imu_sum[k] += s.accel_m_s2[k];
+    window.imu_sum[3 + k] += s.rate_rad_s[k];
   }
-  ++window_.imu_n;
+  ++window.imu_n;
 }
 
 void Cycle::set_compute_ns(std::int64_t ns) noexcept {
@@ -152,7 +145,7 @@ CommandOutcome Cycle::command_outcome(std::uint64_t ticket) const noexcept {
 }
 
 void Cycle::raise(Fault f) noexcept {
-  if (sm_.state() == State::fault) return;
+  if (f == Fault::none || sm_.state() == State::fault) return;
   sm_.raise(f, cycle_);
   // The box still holds an earlier fault that has not been dumped and released: this fault's
   // cycles cannot be kept. Counted, never silent.
@@ -210,6 +203,22 @@ void Cycle::take_proposal() noexcept {
   proposal_state_.store(status_byte(outcome), std::memory_order_release);
 }
 
+void Cycle::raise_all(const stages::FaultRequests& requests) noexcept {
+  for (int i = 0; i < requests.count; ++i) raise(requests.faults[static_cast<std::size_t>(i)]);
+}
+
+stages::PendingCommand Cycle::take_command() noexcept {
+  const std::uint64_t p = pending_.exchange(0, std::memory_order_acq_rel);
+  if (p == 0) return {};
+  return {true, static_cast<Command>((p & 0xffu) - 1), p >> 8};
+}
+
+void Cycle::publish_outcome(const stages::PendingCommand& c, bool accepted) noexcept {
+  if (!c.present) return;
+  outcomes_[c.ticket % kCommandOutcomes].store(c.ticket << 2 | (accepted ? 1u : 2u),
+                                               std::memory_order_release);
+}
+
 void Cycle::robot_lost(RobotLoss why) noexcept {
   take_proposal();
   if (why == RobotLoss::timeout) {
@@ -217,23 +226,31 @@ void Cycle::robot_lost(RobotLoss why) noexcept {
   } else {
     ++counters_.robot_malformed;
   }
-  if (!have_ipoc_) return;  // the robot has not started its RSI session yet
+  if (!data_.clock.have_ipoc) return;  // the robot has not started its RSI session yet
   grow_lost_run();
   push_lost_record(kRobotLost);
 }
 
 void Cycle::pose_missing() noexcept {
   ++counters_.poses_missing;
-  if (have_ipoc_) grow_lost_run();
+  if (data_.clock.have_ipoc) grow_lost_run();
   record_.rkorr = proto::rsi::Correction{};
   push_lost_record(kPoseMissing);
 }
 
+void Cycle::stale_message() noexcept {
+  record_.flags = kIpocStale;
+  record_.rkorr = proto::rsi::Correction{};
+  record_.state = sm_.state();
+  record_.fault = sm_.fault();
+  box_.push(record_);
+}
+
 void Cycle::grow_lost_run() noexcept {
-  ++robot_lost_run_;
+  ++data_.watchdogs.robot_lost_run;
   const State s = sm_.state();
   if ((s == State::zero_g || s == State::collecting) &&
-      robot_lost_run_ >= config_.watchdog.robot_fault_cycles) {
+      data_.watchdogs.robot_lost_run >= config_.watchdog.robot_fault_cycles) {
     raise(Fault::robot_late);
   }
 }
@@ -242,6 +259,10 @@ void Cycle::push_lost_record(std::uint32_t flags) noexcept {
   record_.flags = flags;
   record_.state = sm_.state();
   record_.fault = sm_.fault();
+  keep_record();
+}
+
+void Cycle::keep_record() noexcept {
   box_.push(record_);
   if (freeze_pending_) {
     box_.freeze();
@@ -249,207 +270,28 @@ void Cycle::push_lost_record(std::uint32_t flags) noexcept {
   }
 }
 
-void Cycle::sensor_pose(const proto::rsi::RobotMessage& m, const std::array<double, 6>& q_rad,
-                        Eigen::Matrix3d& R_base_sensor, Eigen::Vector3d& p_base_sensor_m,
-                        std::uint32_t& flags) noexcept {
-  record_.pose_check_m = 0.0;
-  record_.pose_check_rad = 0.0;
-  if (m.has_actual_pose) {
-    const proto::rsi::PoseSi pose = proto::rsi::to_si(m.actual_pose);
-    R_base_sensor =
-        model::rotation_from_kuka_abc(pose.abc_rad[0], pose.abc_rad[1], pose.abc_rad[2]);
-    p_base_sensor_m = Eigen::Map<const Eigen::Vector3d>(pose.position_m.data());
-  }
-  if (!config_.robot) return;  // step() has sent a message without RIst to pose_missing()
-  const robot::Pose kinematics = robot::sensor_pose(*config_.robot, q_rad);
-  if (!m.has_actual_pose) {
-    R_base_sensor = kinematics.R;
-    p_base_sensor_m = kinematics.p_m;
-    flags |= kPoseFromJoints;
-    ++counters_.poses_from_joints;
-    return;
-  }
-  record_.pose_check_m = (p_base_sensor_m - kinematics.p_m).norm();
-  record_.pose_check_rad =
-      Eigen::AngleAxisd(Eigen::Matrix3d(R_base_sensor.transpose() * kinematics.R)).angle();
-  if (record_.pose_check_m > config_.pose_check_position_m ||
-      record_.pose_check_rad > config_.pose_check_angle_rad) {
-    flags |= kPoseDisagrees;
-    ++counters_.pose_disagreements;
-  }
-}
-
-void Cycle::apply_command(std::uint64_t cycle, const Row& now, bool ready,
-                          std::uint32_t& flags) noexcept {
-  const std::uint64_t p = pending_.exchange(0, std::memory_order_acq_rel);
-  if (p == 0) return;
-  const auto c = static_cast<Command>((p & 0xffu) - 1);
-  const std::uint64_t ticket = p >> 8;
-  bool allowed = true;
-  if (c == Command::enable_zero_g && !ready) allowed = false;
-  if (c == Command::start_collection && path_ == nullptr) allowed = false;
-  if (allowed) allowed = sm_.command(c, cycle);
-  outcomes_[ticket % kCommandOutcomes].store(ticket << 2 | (allowed ? 1u : 2u),
-                                             std::memory_order_release);
-  if (!allowed) {
-    flags |= kCommandRefused;
-    ++counters_.commands_refused;
-    return;
-  }
-  if (c == Command::enable_zero_g) {
-    const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> R(
-        now.signals.R_base_sensor.data());
-    motion_.reset(Eigen::Map<const Eigen::Vector3d>(now.signals.p_base_sensor_m.data()),
-                  Eigen::Quaterniond(Eigen::Matrix3d(R)));
-  }
-  if (c == Command::start_collection) {
-    collection_on_path_ = false;
-    collection_t_s_ = 0.0;
-    collection_cmd_rad_ = now.signals.joints_rad;
-    set_zero(collection_v_radps_);
-  }
-  if (c == Command::reset_fault) {
-    robot_lost_run_ = robot_late_run_ = 0;
-    ft_bad_run_ = imu_bad_run_ = model_bad_run_ = 0;
-  }
-}
-
-bool Cycle::evaluate(std::uint32_t& flags) noexcept {
-  const int D = delay_rows();
-  const int n = 2 * D + 1;
-  // Rows centre − D … centre + D (= newest), oldest first, in contiguous arrays.
-  std::array<double, 3 * 5> f{}, w{};
-  const std::uint64_t newest = rows_total_ - 1;
-  for (int j = 0; j < n; ++j) {
-    const Row& r = rows_[(newest - static_cast<std::uint64_t>(n - 1 - j)) % kHistory];
-    for (int k = 0; k < 3; ++k) {
-      f[3 * j + k] = r.signals.imu[k];
-      w[3 * j + k] = r.signals.imu[3 + k];
-    }
-  }
-  Row& centre = rows_[(newest - static_cast<std::uint64_t>(D)) % kHistory];
-  const Row& first = rows_[(newest - static_cast<std::uint64_t>(2 * D)) % kHistory];
-  const Row& last = rows_[newest % kHistory];
-  const double row_dt = (last.t_s - first.t_s) / (2.0 * D);
-  const double dt = row_dt > 0.0 ? row_dt : config_.period_s;
-  const Eigen::Vector3d wdot =
-      model::angular_accel_central(w.data() + 3 * D, 3, config_.angular_accel_order, dt);
-  for (int k = 0; k < 3; ++k) centre.signals.imu[6 + k] = wdot[k];
-
-  // The physics reads the IMU at t + tau (imu_time_offset), within the rows we have.
-  model::ImuSignals<double> physics_imu;
-  const double index = D + inference_.imu_time_offset_s() / dt;
-  physics_imu.specific_force_imu = model::interpolate_uniform<3>(f.data(), n, index);
-  physics_imu.angular_rate_imu = model::interpolate_uniform<3>(w.data(), n, index);
-  physics_imu.angular_accel_imu = wdot;
-
-  // The signal dictionary's kinematics at the centre row (user-defined effects): central
-  // differences of the joints and the sensor position over its neighbours.
-  model::KinematicInputs kinematics;
-  kinematics.features = centre.signals;
-  {
-    const Row& before = rows_[(newest - static_cast<std::uint64_t>(D + 1)) % kHistory];
-    const Row& after = rows_[(newest - static_cast<std::uint64_t>(D - 1)) % kHistory];
-    if (after.t_s > centre.t_s && centre.t_s > before.t_s) {
-      model::central_differences(before.signals.joints_rad.data(), centre.signals.joints_rad.data(),
-                                 after.signals.joints_rad.data(), 6, before.t_s, centre.t_s,
-                                 after.t_s, kinematics.features.joint_vel_radps.data(),
-                                 kinematics.joint_acc_radps2.data());
-      model::central_differences(before.signals.p_base_sensor_m.data(),
-                                 centre.signals.p_base_sensor_m.data(),
-                                 after.signals.p_base_sensor_m.data(), 3, before.t_s, centre.t_s,
-                                 after.t_s, kinematics.v_base_sensor_mps.data(), nullptr);
-    }
-  }
-  infer::Wrench predicted;
-  const infer::Path path = use_network_ ? infer::Path::quantised : infer::Path::physics_only;
-  const infer::Status st =
-      inference_.evaluate(path, centre.signals, physics_imu, predicted, &kinematics);
-  record_.model_status = st.code;
-  record_.t_eval_s = centre.t_s;
-  record_.wrench_at_eval = centre.wrench;
-  if (!st.written()) {
-    set_zero(record_.predicted);
-    set_zero(record_.contact);
-    return false;
-  }
-  if (st.code == infer::StatusCode::saturated) {
-    flags |= kModelSaturated;
-    ++counters_.model_saturated;
-  }
-  for (int k = 0; k < 6; ++k) {
-    record_.predicted[k] = predicted[k];
-    record_.contact[k] = centre.wrench[k] - predicted[k];
-  }
-  // A held sensor value is stale while the other inputs (pose, the other sensor) are fresh:
-  // measured − predicted would then be a contact nobody applied (the motion of the last cycles
-  // missing from one side). Such a row drives nothing: zero contact, the body coasts.
-  if (centre.held != 0) {
-    flags |= kContactHeld;
-    set_zero(record_.contact);
-  }
-  return true;
-}
-
-void Cycle::run_zero_g(double dt, CycleReply& reply) noexcept {
-  const Eigen::Vector3d F(record_.contact[0], record_.contact[1], record_.contact[2]);
-  const Eigen::Vector3d M(record_.contact[3], record_.contact[4], record_.contact[5]);
-  control::PoseCorrection c;
-  record_.limit_flags = motion_.step(F, M, dt, c);
-  if ((record_.limit_flags & (control::kForceOverLimit | control::kTorqueOverLimit)) != 0) {
-    raise(Fault::contact_over_limit);
-    return;
-  }
-  const Eigen::Vector3d abc =
-      model::kuka_abc_from_rotation(model::rotation_from_vector(Eigen::Vector3d(c.rotation_rad)));
-  reply.rkorr = proto::rsi::correction_from_si(
-      {c.translation_m[0], c.translation_m[1], c.translation_m[2]}, {abc[0], abc[1], abc[2]});
-}
-
-void Cycle::run_collection(double dt, std::uint32_t& flags, CycleReply& reply) noexcept {
-  reply.axis = true;
-  std::array<double, 6> delta{};
-  if (!collection_on_path_) {
-    // Approach the path's first point: per axis, brake-distance law v = √(2 a d), ramped.
-    const std::array<double, 6> target = path_->at(0.0);
-    bool arrived = true;
-    for (int k = 0; k < 6; ++k) {
-      const double d = target[k] - collection_cmd_rad_[k];
-      const double v_des =
-          std::copysign(std::min(config_.approach_speed_radps,
-                                 std::sqrt(2.0 * config_.approach_accel_radps2 * std::abs(d))),
-                        d);
-      const double dv =
-          std::clamp(v_des - collection_v_radps_[k], -config_.approach_accel_radps2 * dt,
-                     config_.approach_accel_radps2 * dt);
-      collection_v_radps_[k] += dv;
-      delta[k] = collection_v_radps_[k] * dt;
-      if (std::abs(delta[k]) > std::abs(d)) delta[k] = d;
-      if (std::abs(d - delta[k]) > 1e-6) arrived = false;
-    }
-    if (arrived) collection_on_path_ = true;
-  } else {
-    collection_t_s_ += dt;
-    const std::array<double, 6> target = path_->at(collection_t_s_);
-    for (int k = 0; k < 6; ++k) delta[k] = target[k] - collection_cmd_rad_[k];
-    if (collection_t_s_ >= path_->duration_s()) {
-      sm_.command(Command::stop, cycle_);
-      flags |= kCollectionDone;
-    }
-  }
-  for (int k = 0; k < 6; ++k) {
-    delta[k] = std::clamp(delta[k], -config_.max_axis_step_rad, config_.max_axis_step_rad);
-    collection_cmd_rad_[k] += delta[k];
-    reply.akorr_deg[k] = delta[k] / proto::rsi::kRadPerDeg;
-  }
-}
-
 void Cycle::step(const proto::rsi::RobotMessage& m, CycleReply& reply) noexcept {
-  reply = CycleReply{};
-  reply.ipoc = m.ipoc;
+  samples::RobotCorrection correction;
+  step(proto::rsi::robot_sample_from_message(m), correction);
+  reply.axis = correction.axis();
+  reply.ipoc = correction.ipoc;
+  if (correction.kind == samples::RobotCorrection::Kind::cartesian) {
+    // Only a completed cycle corrects, and its record holds this very correction converted by
+    // reply_from_correction (stages::make_record): not converted twice.
+    reply.rkorr = record_.rkorr;
+    reply.akorr_deg = {};
+    return;
+  }
+  const proto::rsi::Reply r = proto::rsi::reply_from_correction(correction);
+  reply.rkorr = r.rkorr;
+  reply.akorr_deg = r.akorr_deg;
+}
+
+void Cycle::step(const samples::RobotSample& m, samples::RobotCorrection& correction) noexcept {
+  correction = samples::RobotCorrection{};
+  correction.ipoc = m.ipoc;
   ++cycle_;
   ++counters_.messages;
-  std::uint32_t flags = 0;
   record_.cycle = cycle_;
   record_.ipoc = m.ipoc;
   record_.limit_flags = 0;
@@ -457,186 +299,44 @@ void Cycle::step(const proto::rsi::RobotMessage& m, CycleReply& reply) noexcept 
   take_proposal();
 
   if (!configured_) {
-    robot_lost_run_ = 0;
+    data_.watchdogs.robot_lost_run = 0;
     raise(Fault::model_invalid);
     record_.state = sm_.state();
     record_.fault = sm_.fault();
     return;
   }
-  if (!m.has_actual_pose && !config_.robot) {
+  if (!m.has_pose && !config_.robot) {
     pose_missing();
     return;
   }
-  robot_lost_run_ = 0;
+  data_.watchdogs.robot_lost_run = 0;
 
-  // Robot time. Duplicates and reordered datagrams are answered (zero) and change nothing.
-  double dt = config_.period_s;
-  if (!have_ipoc_) {
-    have_ipoc_ = true;
-    first_ipoc_ = last_ipoc_ = m.ipoc;
-  } else if (m.ipoc <= last_ipoc_) {
-    ++counters_.ipoc_stale;
-    record_.flags = kIpocStale;
-    record_.rkorr = reply.rkorr;
-    record_.state = sm_.state();
-    record_.fault = sm_.fault();
-    box_.push(record_);
+  const State state_before = sm_.state();
+  const stages::Timing timing = stages::timing(config_, m, data_.clock, counters_);
+  if (timing.stale) {
+    stale_message();
     return;
-  } else {
-    dt = static_cast<double>(m.ipoc - last_ipoc_) * config_.ipoc_unit_s;
-    const long periods = std::lround(dt / config_.period_s);
-    if (periods > 1) {
-      flags |= kIpocGap;
-      ++counters_.ipoc_gaps;
-      counters_.datagrams_lost += static_cast<std::uint64_t>(periods - 1);
-      const State s = sm_.state();
-      if ((s == State::zero_g || s == State::collecting) &&
-          periods - 1 >= config_.watchdog.robot_fault_cycles)
-        raise(Fault::robot_late);
-    }
-    // A long gap must not throw the virtual body: at most four periods per step.
-    dt = std::min(dt, 4.0 * config_.period_s);
-    last_ipoc_ = m.ipoc;
   }
-  const State active_state = sm_.state();
-  const bool active = active_state == State::zero_g || active_state == State::collecting;
-  if (m.has_delay) {
-    if (have_delay_ && m.delay > last_delay_) {
-      flags |= kRobotDelayGrew;
-      ++robot_late_run_;
-    } else {
-      robot_late_run_ = 0;
-    }
-    have_delay_ = true;
-    last_delay_ = m.delay;
-    if (active && robot_late_run_ >= config_.watchdog.robot_late_cycles) raise(Fault::robot_late);
-  }
-
-  // This cycle's row.
-  Row& now = rows_[rows_total_ % kHistory];
-  const Row* previous = rows_total_ > 0 ? &rows_[(rows_total_ - 1) % kHistory] : nullptr;
-  now.signals.joints_rad = proto::rsi::joints_to_rad(m.joints_deg);
-  for (int k = 0; k < 6; ++k) {
-    now.signals.joint_vel_radps[k] =
-        previous ? (now.signals.joints_rad[k] - previous->signals.joints_rad[k]) / dt : 0.0;
-  }
-  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
-  Eigen::Vector3d p = Eigen::Vector3d::Zero();
-  sensor_pose(m, now.signals.joints_rad, R, p, flags);
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) now.signals.R_base_sensor[3 * r + c] = R(r, c);
-    now.signals.p_base_sensor_m[r] = p[r];
-  }
-  now.signals.temperature_C = config_.temperature_C;
-  now.t_s = static_cast<double>(m.ipoc - first_ipoc_) * config_.ipoc_unit_s;
-  now.signals.t_s = now.t_s;
-
-  // Sensors: the mean of this cycle's valid samples, or hold the last one.
-  if (window_.ft_n > 0) {
-    for (int k = 0; k < 6; ++k) last_wrench_[k] = window_.ft_sum[k] / window_.ft_n;
-    have_ft_ = true;
-    ft_bad_run_ = 0;
-    ft_bad_reason_ = Fault::ft_stale;
-    counters_.ft_samples += static_cast<std::uint64_t>(window_.ft_n);
-    if (window_.ft_warning > 0) flags |= kFtWarning;
-  } else {
-    flags |= kFtHeld;
-    ++counters_.ft_held_cycles;
-    if (ft_bad_run_ == 0 || ft_bad_reason_ == Fault::ft_stale) {
-      ft_bad_reason_ = window_.ft_critical > 0    ? Fault::ft_critical
-                       : window_.ft_saturated > 0 ? Fault::ft_saturated
-                                                  : Fault::ft_stale;
-    }
-    // Before the first valid sample the cycle is only not ready (zero-g cannot be enabled);
-    // invalid samples (critical, saturated) count from the start.
-    const bool counts = have_ft_ || ft_bad_reason_ != Fault::ft_stale;
-    if (counts && ++ft_bad_run_ >= config_.watchdog.ft_fault_cycles) raise(ft_bad_reason_);
-  }
-  if (window_.imu_n > 0) {
-    for (int k = 0; k < 6; ++k) last_imu_[k] = window_.imu_sum[k] / window_.imu_n;
-    have_imu_ = true;
-    imu_bad_run_ = 0;
-    counters_.imu_samples += static_cast<std::uint64_t>(window_.imu_n);
-  } else {
-    flags |= kImuHeld;
-    ++counters_.imu_held_cycles;
-    if (have_imu_ && ++imu_bad_run_ >= config_.watchdog.imu_fault_cycles) raise(Fault::imu_stale);
-  }
-  now.held = flags & (kFtHeld | kImuHeld);
-  record_.ft_samples = static_cast<std::uint16_t>(window_.ft_n);
-  record_.imu_samples = static_cast<std::uint16_t>(window_.imu_n);
-  window_ = Window{};
-  now.wrench = last_wrench_;
-  for (int k = 0; k < 6; ++k) now.signals.imu[k] = last_imu_[k];
-  for (int k = 6; k < 9; ++k) now.signals.imu[k] = 0.0;
-  ++rows_total_;
-
-  // The model, on the row delay_rows() back.
-  const bool rows_ready = rows_total_ >= static_cast<std::uint64_t>(2 * delay_rows() + 1);
-  bool ready = rows_ready && have_ft_ && have_imu_;
-  if (ready) {
-    if (evaluate(flags)) {
-      model_bad_run_ = 0;
-    } else {
-      ready = false;
-      if (++model_bad_run_ >= config_.watchdog.model_fault_cycles) raise(Fault::model_invalid);
-    }
-  } else {
-    flags |= kNotReady;
-    set_zero(record_.predicted);
-    set_zero(record_.contact);
-  }
-  ready = ready && (flags & (kFtHeld | kImuHeld)) == 0;
-
-  apply_command(cycle_, now, ready, flags);
-  switch (sm_.state()) {
-    case State::idle: {
-      motion_.reset(Eigen::Map<const Eigen::Vector3d>(now.signals.p_base_sensor_m.data()),
-                    Eigen::Quaterniond(R));
-      break;
-    }
-    case State::zero_g:
-      if (record_.model_status == infer::StatusCode::ok ||
-          record_.model_status == infer::StatusCode::saturated) {
-        run_zero_g(dt, reply);
-      }
-      break;
-    case State::collecting:
-      run_collection(dt, flags, reply);
-      break;
-    case State::fault:
-      break;
-  }
-  if (sm_.state() == State::fault) {
-    reply.axis = false;
-    reply.rkorr = proto::rsi::Correction{};
-    set_zero(reply.akorr_deg);
-  }
-
-  // The record.
-  record_.t_s = now.t_s;
-  record_.dt_s = dt;
-  record_.flags = flags;
-  record_.state = sm_.state();
-  record_.fault = sm_.fault();
-  record_.joints_rad = now.signals.joints_rad;
-  record_.p_base_sensor_m = Eigen::Map<const Eigen::Vector3d>(now.signals.p_base_sensor_m.data());
-  record_.q_base_sensor = Eigen::Quaterniond(R);
-  record_.wrench_measured = now.wrench;
-  for (int k = 0; k < 3; ++k) {
-    record_.specific_force_imu[k] = now.signals.imu[k];
-    record_.rate_imu[k] = now.signals.imu[3 + k];
-  }
-  record_.axis_reply = reply.axis;
-  record_.rkorr = reply.rkorr;
-  record_.akorr_deg = reply.akorr_deg;
-  record_.body = motion_.body().state();
-  record_.compute_ns = 0;
-  box_.push(record_);
-  if (freeze_pending_) {
-    box_.freeze();
-    freeze_pending_ = false;
-  }
+  const stages::RowResult row =
+      stages::assemble_row(config_, m, timing, data_.window, data_.rows, counters_);
+  raise_all(stages::watch_robot_and_sensors(config_.watchdog, state_before, timing, row.sensors,
+                                            data_.rows, data_.watchdogs));
+  const stages::ModelResult model =
+      stages::evaluate_model(config_, inference_, use_network_, data_.rows, data_.model, counters_);
+  raise_all(stages::watch_model(config_.watchdog, model, data_.watchdogs));
+  const stages::PendingCommand command = take_command();
+  const stages::Row& now = data_.rows.newest();
+  const stages::MotionResult motion =
+      stages::run_motion(config_, path_, cycle_, command, timing, now, row, model, data_.model, sm_,
+                         motion_, data_.collection, data_.watchdogs, counters_);
+  publish_outcome(command, motion.command_accepted);
+  raise(motion.fault);
+  // In fault, every reply is a zero correction (proto/loop.md, "Watchdogs").
+  correction = sm_.state() == State::fault ? samples::RobotCorrection{} : motion.correction;
+  correction.ipoc = m.ipoc;
+  stages::make_record(cycle_, m, timing, now, row, model, data_.model, motion, correction, sm_,
+                      motion_, record_);
+  keep_record();
 }
 
 }  // namespace zerog::loop

@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "zerog/proto/rsi_si.hpp"
+
 namespace zerog::rtio {
 
 const char* robot_start_status_name(RobotStartStatus status) {
@@ -50,6 +52,17 @@ const char* robot_reply_status_name(RobotReplyStatus status) {
       return "not_started";
   }
   return "?";
+}
+
+RobotReceiveStatus RobotLink::receive_sample(samples::RobotSample& out) {
+  const RobotReceiveStatus status = receive(wire_);
+  if (status == RobotReceiveStatus::message) out = proto::rsi::robot_sample_from_message(wire_);
+  return status;
+}
+
+RobotReplyStatus RobotLink::send_correction(const samples::RobotCorrection& correction) {
+  const proto::rsi::Reply r = proto::rsi::reply_from_correction(correction);
+  return r.has_akorr ? reply_axes(r.akorr_deg, r.ipoc) : reply(r.rkorr, r.ipoc);
 }
 
 bool FakeRobotLink::push(const proto::rsi::RobotMessage& message) {

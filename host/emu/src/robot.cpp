@@ -11,6 +11,7 @@
 #include <string>
 
 #include "zerog/model/rotation.hpp"
+#include "zerog/proto/rsi_si.hpp"
 
 namespace zerog::emu {
 namespace {
@@ -115,15 +116,16 @@ CorrectionOutcome RobotEmulator::clamp_command() {
 }
 
 CorrectionOutcome RobotEmulator::apply_rkorr(const proto::rsi::Correction& correction) {
-  const proto::rsi::PoseSi si =
-      proto::rsi::to_si({correction.x_mm, correction.y_mm, correction.z_mm, correction.a_deg,
-                         correction.b_deg, correction.c_deg});
+  proto::rsi::Reply reply;
+  reply.has_rkorr = true;
+  reply.rkorr = correction;
+  const samples::RobotCorrection si = proto::rsi::correction_from_reply(reply);
   const TcpPose old_pose = tcp_pose(q_cmd_rad_);
   const Eigen::Vector3d p_target =
-      old_pose.p_base_tcp_m + Eigen::Map<const Eigen::Vector3d>(si.position_m.data());
-  const Eigen::Matrix3d R_target =
-      model::rotation_from_kuka_abc(si.abc_rad[0], si.abc_rad[1], si.abc_rad[2]) *
-      old_pose.R_base_tcp;
+      old_pose.p_base_tcp_m + Eigen::Map<const Eigen::Vector3d>(si.translation_m.data());
+  const Eigen::Matrix3d R_correction =
+      Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(si.R_correction.data());
+  const Eigen::Matrix3d R_target = R_correction * old_pose.R_base_tcp;
 
   // Damped least squares with damping only near a singularity (Chiaverini, "Singularity-robust
   // task-priority redundancy resolution", IEEE T-RA 13(3), 1997, eq. 12–13):
@@ -227,17 +229,17 @@ void RobotEmulator::step() {
 
 proto::rsi::RobotMessage RobotEmulator::message(std::uint64_t ipoc, std::uint64_t delay) const {
   const TcpPose pose = tcp_pose(actual_.q_rad);
-  const Eigen::Vector3d abc = model::kuka_abc_from_rotation(pose.R_base_tcp);
-  const proto::rsi::Correction c = proto::rsi::correction_from_si(
-      {pose.p_base_tcp_m.x(), pose.p_base_tcp_m.y(), pose.p_base_tcp_m.z()},
-      {abc.x(), abc.y(), abc.z()});
-  proto::rsi::RobotMessage m;
-  m.actual_pose = {c.x_mm, c.y_mm, c.z_mm, c.a_deg, c.b_deg, c.c_deg};
-  for (int i = 0; i < 6; ++i) m.joints_deg[i] = actual_.q_rad[i] / proto::rsi::kRadPerDeg;
-  m.has_delay = true;
-  m.delay = delay;
-  m.ipoc = ipoc;
-  return m;
+  samples::RobotSample s;
+  s.ipoc = ipoc;
+  s.has_delay = true;
+  s.delay = delay;
+  for (int i = 0; i < 6; ++i) s.joints_rad[i] = actual_.q_rad[i];
+  s.has_pose = true;
+  s.p_base_tcp_m = {pose.p_base_tcp_m.x(), pose.p_base_tcp_m.y(), pose.p_base_tcp_m.z()};
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) s.R_base_tcp[3 * r + c] = pose.R_base_tcp(r, c);
+  }
+  return proto::rsi::robot_message_from_sample(s);
 }
 
 }  // namespace zerog::emu

@@ -10,7 +10,7 @@
 #include <sstream>
 
 #include "zerog/formats/log.hpp"
-#include "zerog/model/rotation.hpp"
+#include "zerog/proto/rsi_si.hpp"
 #include "zerog/robot/forward_kinematics.hpp"
 
 namespace zerog::io {
@@ -59,7 +59,8 @@ RsiRow make_row(const rsi::RobotMessage& m, const RsiDecodeOptions& o) {
   RsiRow row;
   row.ipoc = m.ipoc;
   row.t_s = static_cast<double>(m.ipoc) * o.ipoc_unit_s;
-  row.joints_rad = rsi::joints_to_rad(m.joints_deg);
+  const samples::RobotSample si = rsi::robot_sample_from_message(m);
+  row.joints_rad = si.joints_rad;
   row.has_delay = m.has_delay;
   row.delay = m.delay;
   row.external_present = m.external_axes_present;
@@ -68,10 +69,9 @@ RsiRow make_row(const rsi::RobotMessage& m, const RsiDecodeOptions& o) {
   }
   Eigen::Matrix3d R_rist = Eigen::Matrix3d::Identity();
   Eigen::Vector3d p_rist = Eigen::Vector3d::Zero();
-  if (m.has_actual_pose) {
-    const rsi::PoseSi si = rsi::to_si(m.actual_pose);
-    R_rist = model::rotation_from_kuka_abc(si.abc_rad[0], si.abc_rad[1], si.abc_rad[2]);
-    p_rist = Eigen::Vector3d(si.position_m[0], si.position_m[1], si.position_m[2]);
+  if (si.has_pose) {
+    R_rist = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(si.R_base_tcp.data());
+    p_rist = Eigen::Vector3d(si.p_base_tcp_m[0], si.p_base_tcp_m[1], si.p_base_tcp_m[2]);
   }
   std::optional<robot::Pose> kinematics;
   if (o.robot) kinematics = robot::sensor_pose(*o.robot, row.joints_rad);

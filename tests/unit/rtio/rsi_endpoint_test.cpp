@@ -7,8 +7,10 @@
 
 #include <array>
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <limits>
+#include <numbers>
 #include <string>
 #include <string_view>
 
@@ -223,6 +225,100 @@ TEST_F(RsiEndpointTest, BadConfigurationIsRefused) {
   c = config();
   c.bind_address = "192.0.2.1";  // TEST-NET: not an address of this host
   EXPECT_EQ(RsiEndpoint(c).start(), RobotStartStatus::bind_failed);
+}
+
+// SI at the border: the endpoint hands the cycle m, rad and a rotation matrix, and writes the
+// cycle's SI correction in KUKA units.
+TEST_F(RsiEndpointTest, ReceivesInSiAndAnswersSiCorrectionsInKukaUnits) {
+  RsiEndpoint endpoint(config());
+  ASSERT_EQ(endpoint.start(), RobotStartStatus::ok);
+  std::array<char, 1024> buffer{};
+  ASSERT_TRUE(robot_.send_to(endpoint.local_port(), test::robot_message(buffer, 77)));
+  samples::RobotSample s;
+  ASSERT_EQ(endpoint.receive_sample(s), RobotReceiveStatus::message);
+  EXPECT_EQ(s.ipoc, 77u);
+  EXPECT_TRUE(s.has_delay);
+  EXPECT_EQ(s.delay, 0u);
+  EXPECT_TRUE(s.has_pose);
+  // RIst X=445.5 Y=-0.25 Z=900.0 (mm) A=180 B=0.5 C=-179.9 (degrees); A5=45.5°, A6=-12.25°.
+  EXPECT_DOUBLE_EQ(s.p_base_tcp_m[0], 0.4455);
+  EXPECT_DOUBLE_EQ(s.p_base_tcp_m[1], -0.25e-3);
+  EXPECT_DOUBLE_EQ(s.p_base_tcp_m[2], 0.9);
+  EXPECT_NEAR(s.joints_rad[4], 45.5 * std::numbers::pi / 180, 1e-15);
+  EXPECT_NEAR(s.joints_rad[5], -12.25 * std::numbers::pi / 180, 1e-15);
+  // A = 180°, B ≈ 0, C ≈ −180°: T's x axis is −x of B (R(0,0) = cos A cos B ≈ −1), its z
+  // axis about −z of B (R(2,2) = cos B cos C ≈ −1).
+  EXPECT_NEAR(s.R_base_tcp[0], -std::cos(0.5 * std::numbers::pi / 180), 1e-12);
+  EXPECT_NEAR(s.R_base_tcp[8],
+              std::cos(0.5 * std::numbers::pi / 180) * std::cos(-179.9 * std::numbers::pi / 180),
+              1e-12);
+
+  samples::RobotCorrection c;
+  c.ipoc = s.ipoc;
+  c.kind = samples::RobotCorrection::Kind::cartesian;
+  c.translation_m = {1e-4, 0.0, -2e-4};
+  const double a = 0.5 * std::numbers::pi / 180;  // 0.5° about z of B
+  c.R_correction = {std::cos(a), -std::sin(a), 0, std::sin(a), std::cos(a), 0, 0, 0, 1};
+  ASSERT_EQ(endpoint.send_correction(c), RobotReplyStatus::ok);
+  const long n = robot_.receive(buffer, 1000, nullptr);
+  ASSERT_GT(n, 0) << "no reply";
+  rsi::Reply reply;
+  ASSERT_TRUE(
+      rsi::parse_reply(std::string_view(buffer.data(), static_cast<std::size_t>(n)), reply).ok());
+  EXPECT_EQ(reply.ipoc, 77u);
+  ASSERT_TRUE(reply.has_rkorr);
+  EXPECT_FALSE(reply.has_akorr);
+  EXPECT_DOUBLE_EQ(reply.rkorr.x_mm, 0.1);
+  EXPECT_DOUBLE_EQ(reply.rkorr.z_mm, -0.2);
+  EXPECT_DOUBLE_EQ(reply.rkorr.a_deg, 0.5);
+  EXPECT_DOUBLE_EQ(reply.rkorr.b_deg, 0.0);
+
+  c.kind = samples::RobotCorrection::Kind::axes;
+  c.axes_rad = {std::numbers::pi / 180, 0, 0, 0, 0, -0.5 * std::numbers::pi / 180};
+  ASSERT_EQ(endpoint.send_correction(c), RobotReplyStatus::ok);
+  const long m = robot_.receive(buffer, 1000, nullptr);
+  ASSERT_GT(m, 0) << "no reply";
+  ASSERT_TRUE(
+      rsi::parse_reply(std::string_view(buffer.data(), static_cast<std::size_t>(m)), reply).ok());
+  EXPECT_FALSE(reply.has_rkorr);
+  ASSERT_TRUE(reply.has_akorr);
+  EXPECT_DOUBLE_EQ(reply.akorr_deg[0], 1.0);
+  EXPECT_DOUBLE_EQ(reply.akorr_deg[5], -0.5);
+}
+
+TEST(FakeRobotLink, SiCallsConvertAtTheBorder) {
+  FakeRobotLink fake;
+  ASSERT_EQ(fake.start(), RobotStartStatus::ok);
+  rsi::RobotMessage m;
+  m.ipoc = 5;
+  m.has_actual_pose = false;
+  m.joints_deg = {90, 0, 0, 0, 0, -45};
+  fake.push(m);
+  samples::RobotSample s;
+  s.has_pose = true;
+  ASSERT_EQ(fake.receive_sample(s), RobotReceiveStatus::message);
+  EXPECT_EQ(s.ipoc, 5u);
+  EXPECT_FALSE(s.has_pose);
+  EXPECT_DOUBLE_EQ(s.joints_rad[0], std::numbers::pi / 2);
+  EXPECT_DOUBLE_EQ(s.joints_rad[5], -std::numbers::pi / 4);
+  samples::RobotSample untouched;
+  untouched.ipoc = 99;
+  EXPECT_EQ(fake.receive_sample(untouched), RobotReceiveStatus::timeout);
+  EXPECT_EQ(untouched.ipoc, 99u);  // written only when a message came
+
+  samples::RobotCorrection none;  // Kind::none: an RKorr of zeros
+  none.ipoc = 5;
+  ASSERT_EQ(fake.send_correction(none), RobotReplyStatus::ok);
+  ASSERT_EQ(fake.reply_count(), 1u);
+  EXPECT_FALSE(fake.reply_at(0).axis);
+  EXPECT_EQ(fake.reply_at(0).ipoc, 5u);
+  EXPECT_FALSE(std::signbit(fake.reply_at(0).correction.b_deg));  // +0, not −0
+  samples::RobotCorrection axes;
+  axes.kind = samples::RobotCorrection::Kind::axes;
+  axes.axes_rad[1] = -std::numbers::pi / 180;
+  ASSERT_EQ(fake.send_correction(axes), RobotReplyStatus::ok);
+  EXPECT_TRUE(fake.reply_at(1).axis);
+  EXPECT_DOUBLE_EQ(fake.reply_at(1).akorr_deg[1], -1.0);
 }
 
 TEST(FakeRobotLink, RecordsReplies) {

@@ -11,6 +11,17 @@
 // the row `delay_rows()` cycles back (2 for the 5-point stencil, 1 for the 3-point one): the
 // contact wrench is that many cycles late and less noisy (proto/loop.md, "Noise and delay").
 //
+// Units: the cycle sees SI only (STYLE.md habit 13). The robot's message comes in as a
+// samples::RobotSample (m, rad, rotation matrices) and the answer goes out as a
+// samples::RobotCorrection; zerog::rtio converts from and to the wire's KUKA units
+// (zerog/proto/rsi_si.hpp). The record keeps the reply in the log's units (cycles.csv: mm,
+// degrees), converted by the same function.
+//
+// Structure (STYLE.md habit 14): the configuration (CycleConfig, const between configure() and
+// an accepted proposal) and per-cycle data (CycleData: one part per stage), and stage functions
+// (namespace stages) that take both and name their outputs. step() calls them in order: timing
+// → row → watchdogs → model → model watchdog → motion → record.
+//
 // Life cycle (STYLE.md habit 3): construct and configure() at start-up (may allocate, may fail
 // with a message); add_*/robot_* and step() every cycle: no allocation, no exceptions, no locks.
 #include <Eigen/Core>
@@ -28,6 +39,7 @@
 #include "zerog/loop/state_machine.hpp"
 #include "zerog/proto/rsi.hpp"
 #include "zerog/robot/robot_model.hpp"
+#include "zerog/samples/robot_sample.hpp"
 #include "zerog/samples/sensor_samples.hpp"
 
 namespace zerog::loop {
@@ -175,7 +187,8 @@ struct CycleRecord {
   std::int64_t compute_ns = 0;  ///< filled in by the program (time of step())
 };
 
-/// What to send back. Always the IPOC of the message just handled.
+/// What to send back, in the wire's KUKA units (Cycle::step for RSI messages). Always the IPOC
+/// of the message just handled.
 struct CycleReply {
   bool axis = false;             ///< true: AKorr (collection mode); false: RKorr
   proto::rsi::Correction rkorr;  ///< mm, degrees (zero unless zero-g)
@@ -205,6 +218,190 @@ struct CycleCounters {
   std::uint64_t poses_from_joints = 0;   ///< messages without RIst: pose by forward kinematics
   std::uint64_t pose_disagreements = 0;  ///< RIst and the kinematics disagreed (kPoseDisagrees)
   std::uint64_t poses_missing = 0;       ///< messages without RIst and no robot (kPoseMissing)
+};
+
+/// The stages of one cycle and the data each keeps from cycle to cycle (proto/loop.md, "One
+/// cycle"). Every function here is real-time safe (no allocation, no exceptions, no locks); none
+/// touches the state machine, the black box or another stage's data: what a stage decides (a
+/// fault to raise, flags for the record) is in its output, and Cycle::step acts on it.
+namespace stages {
+
+inline constexpr int kHistory = 8;      ///< rows kept (≥ 2 × delay + 1)
+inline constexpr int kMaxWindow = 256;  ///< samples averaged per cycle at most
+
+/// One cycle's row (the log format's row, proto/log_format.md): inputs of the model.
+struct Row {
+  model::FeatureSignals signals;   ///< imu[6..8] (angular acceleration) filled when centred
+  std::array<double, 6> wrench{};  ///< F/T, sensor frame, N / N·m
+  double t_s = 0.0;
+  std::uint32_t held = 0;  ///< kFtHeld | kImuHeld of the cycle that made the row
+};
+
+/// The sums of the samples that arrived since the last row (Cycle::add_ft, add_imu).
+struct SensorWindow {
+  std::array<double, 6> ft_sum{};
+  int ft_n = 0, ft_critical = 0, ft_saturated = 0, ft_warning = 0;
+  std::array<double, 6> imu_sum{};  ///< specific force (3), rate (3)
+  int imu_n = 0;
+};
+
+// --- per-cycle data, one part per stage ---------------------------------------------------------
+
+/// timing(): the robot's clock as the messages tell it.
+struct ClockData {
+  bool have_ipoc = false;
+  std::uint64_t first_ipoc = 0, last_ipoc = 0;
+  bool have_delay = false;
+  std::uint64_t last_delay = 0;
+};
+
+/// assemble_row(): the rows so far and the last good sensor values (held when none came).
+struct RowData {
+  std::array<Row, kHistory> rows{};
+  std::uint64_t total = 0;  ///< rows made so far; the newest is rows[(total − 1) % kHistory]
+  std::array<double, 6> last_wrench{};
+  std::array<double, 6> last_imu{};  ///< specific force (3), rate (3)
+  bool have_ft = false, have_imu = false;
+  Row& newest() { return rows[(total - 1) % kHistory]; }
+  const Row& newest() const { return rows[(total - 1) % kHistory]; }
+};
+
+/// The watchdogs' runs of bad cycles (proto/loop.md, "Watchdogs").
+struct WatchdogData {
+  int robot_lost_run = 0, robot_late_run = 0;
+  int ft_bad_run = 0, imu_bad_run = 0, model_bad_run = 0;
+  Fault ft_bad_reason = Fault::ft_stale;
+};
+
+/// evaluate_model(): the last evaluation (kept while the model is not evaluated).
+struct ModelData {
+  infer::StatusCode status = infer::StatusCode::not_configured;
+  double t_eval_s = 0.0;
+  std::array<double, 6> wrench_at_eval{};
+};
+
+/// run_motion() in collection mode: approach the path's start, then follow it.
+struct CollectionData {
+  bool on_path = false;
+  double t_s = 0.0;
+  std::array<double, 6> cmd_rad{};  ///< joints commanded so far (start + Σ AKorr)
+  std::array<double, 6> v_radps{};  ///< approach speed per axis
+};
+
+// --- stage outputs ------------------------------------------------------------------------------
+
+/// Faults a stage asks for, in the order found (the first one raised wins).
+struct FaultRequests {
+  std::array<Fault, 4> faults{};
+  int count = 0;
+  void add(Fault f) noexcept { faults[static_cast<std::size_t>(count++)] = f; }
+};
+
+struct Timing {
+  bool stale = false;  ///< IPOC not newer than the last one: answer zero, change nothing
+  double dt_s = 0.0;   ///< time step for the body and the row (at most 4 periods)
+  double t_s = 0.0;    ///< robot time since the first message
+  std::uint64_t lost_periods = 0;  ///< periods lost right before this message (IPOC gap)
+  bool has_delay = false;          ///< the message had a Delay
+  bool delay_grew = false;         ///< ... and it grew since the last one
+  std::uint32_t flags = 0;         ///< kIpocStale, kIpocGap, kRobotDelayGrew
+};
+
+/// What the sensors gave this cycle (the watchdogs judge it).
+struct SensorCounts {
+  int ft_n = 0, ft_critical = 0, ft_saturated = 0;
+  int imu_n = 0;
+};
+
+struct RowResult {
+  std::uint32_t flags = 0;  ///< kFtHeld, kImuHeld, kFtWarning, kPoseFromJoints, kPoseDisagrees
+  Eigen::Matrix3d R_base_sensor = Eigen::Matrix3d::Identity();  ///< the new row's, S in B
+  double pose_check_m = 0.0;  ///< RIst against the kinematics (CycleRecord::pose_check_*)
+  double pose_check_rad = 0.0;
+  SensorCounts sensors;
+};
+
+struct ModelResult {
+  bool evaluated = false;   ///< the model was run this cycle (enough rows, both sensors seen)
+  bool written = false;     ///< ... and gave a prediction
+  bool ready = false;       ///< a prediction from fresh samples: enable_zero_g may be accepted
+  std::uint32_t flags = 0;  ///< kNotReady, kModelSaturated, kContactHeld
+  std::array<double, 6> predicted{};  ///< sensor frame, N / N·m (zero unless written)
+  std::array<double, 6> contact{};    ///< measured − predicted (zero unless written, not held)
+};
+
+/// A command taken from Cycle::request() for this cycle.
+struct PendingCommand {
+  bool present = false;
+  Command command = Command::stop;
+  std::uint64_t ticket = 0;
+};
+
+struct MotionResult {
+  samples::RobotCorrection correction;  ///< the answer (zero in fault)
+  std::uint32_t flags = 0;              ///< kCommandRefused, kCollectionDone
+  std::uint32_t limit_flags = 0;        ///< control::LimitFlags of the zero-g step
+  bool command_accepted = false;        ///< for the command's outcome
+  Fault fault = Fault::none;            ///< contact over its limit
+};
+
+// --- the stages, in the order step() calls them -------------------------------------------------
+
+/// The message's time: dt from the IPOC difference (clamped to 4 periods), gaps and stale
+/// messages (counted), the Delay counter. A stale message changes nothing but its counter.
+Timing timing(const CycleConfig& config, const samples::RobotSample& message, ClockData& clock,
+              CycleCounters& counters) noexcept;
+
+/// This cycle's row: joints (rad) and their speed, the sensor pose S in B (RIst, or the
+/// kinematics of the joints; checked against each other), the mean of the window's samples or
+/// the last ones held. Empties the window.
+RowResult assemble_row(const CycleConfig& config, const samples::RobotSample& message,
+                       const Timing& timing, SensorWindow& window, RowData& rows,
+                       CycleCounters& counters) noexcept;
+
+/// Robot (IPOC gap, growing Delay) and sensor (F/T, IMU) watchdogs: runs of bad cycles against
+/// their thresholds. `state` is the state at the start of the cycle.
+FaultRequests watch_robot_and_sensors(const WatchdogConfig& config, State state,
+                                      const Timing& timing, const SensorCounts& sensors,
+                                      const RowData& rows, WatchdogData& runs) noexcept;
+
+/// The model on the row delay_rows() back (angular acceleration by central difference, IMU time
+/// offset, kinematics for the signal dictionary) and the contact wrench.
+ModelResult evaluate_model(const CycleConfig& config, infer::Inference& inference, bool use_network,
+                           RowData& rows, ModelData& model, CycleCounters& counters) noexcept;
+
+/// The model watchdog: runs of cycles whose evaluation failed.
+FaultRequests watch_model(const WatchdogConfig& config, const ModelResult& model,
+                          WatchdogData& runs) noexcept;
+
+/// The command of this cycle (if any) and the state's motion: idle follows the sensor, zero-g
+/// steps the virtual body with the contact wrench, collection follows `path`. A correction only
+/// in zero-g and collection; none in fault.
+MotionResult run_motion(const CycleConfig& config, const JointPath* path, std::uint64_t cycle,
+                        const PendingCommand& command, const Timing& timing, const Row& now,
+                        const RowResult& row, const ModelResult& model, const ModelData& model_data,
+                        StateMachine& sm, control::ZeroGMotion& motion, CollectionData& collection,
+                        WatchdogData& runs, CycleCounters& counters) noexcept;
+
+/// The cycle's record from the stages' outputs and the reply sent (`reply`: the motion's
+/// correction, or none in fault), in the log's units (mm and degrees, by
+/// proto::rsi::reply_from_correction). compute_ns is 0 (the program fills it in).
+void make_record(std::uint64_t cycle, const samples::RobotSample& message, const Timing& timing,
+                 const Row& now, const RowResult& row, const ModelResult& model,
+                 const ModelData& model_data, const MotionResult& motion,
+                 const samples::RobotCorrection& reply, const StateMachine& sm,
+                 const control::ZeroGMotion& zero_g, CycleRecord& record) noexcept;
+
+}  // namespace stages
+
+/// The per-cycle data: what the stages keep from one cycle to the next.
+struct CycleData {
+  stages::SensorWindow window;
+  stages::ClockData clock;
+  stages::RowData rows;
+  stages::WatchdogData watchdogs;
+  stages::ModelData model;
+  stages::CollectionData collection;
 };
 
 class Cycle {
@@ -252,7 +449,12 @@ class Cycle {
   /// No robot message this time (receive timeout or a malformed datagram from the robot).
   /// Counts toward the robot watchdog. Nothing is sent.
   void robot_lost(RobotLoss why) noexcept;
-  /// One robot message: runs the cycle and fills `reply` (always, with message.ipoc).
+  /// One robot message (SI, as zerog::rtio hands it): runs the cycle and fills `correction`
+  /// (always, with message.ipoc; Kind::none unless zero-g or collection is running).
+  void step(const samples::RobotSample& message, samples::RobotCorrection& correction) noexcept;
+  /// The same for a message in the wire's KUKA units, answered in them: converts at the border
+  /// with proto::rsi::robot_sample_from_message and reply_from_correction (for host tools and
+  /// tests that hold RSI messages; zerog-rt's endpoint converts itself).
   void step(const proto::rsi::RobotMessage& message, CycleReply& reply) noexcept;
 
   /// The record of the last step() (or robot_lost()).
@@ -275,66 +477,41 @@ class Cycle {
   const infer::Inference& inference() const { return inference_; }
 
  private:
-  static constexpr int kHistory = 8;      ///< rows kept (≥ 2 × delay + 1)
-  static constexpr int kMaxWindow = 256;  ///< samples averaged per cycle at most
-
-  struct Row {
-    model::FeatureSignals signals;  ///< imu[6..8] (angular acceleration) filled when centred
-    std::array<double, 6> wrench{};
-    double t_s = 0.0;
-    std::uint32_t held = 0;  ///< kFtHeld | kImuHeld of the cycle that made the row
-  };
-  struct Window {  // sums of the samples that arrived this cycle
-    std::array<double, 6> ft_sum{};
-    int ft_n = 0, ft_critical = 0, ft_saturated = 0, ft_warning = 0;
-    std::array<double, 6> imu_sum{};
-    int imu_n = 0;
-  };
-
-  void apply_command(std::uint64_t cycle, const Row& now, bool ready,
-                     std::uint32_t& flags) noexcept;
   void raise(Fault f) noexcept;
+  void raise_all(const stages::FaultRequests& requests) noexcept;
   /// One more robot cycle without a usable message: the robot_late watchdog's run grows.
   void grow_lost_run() noexcept;
   /// The black box keeps a lost cycle too: the last record marked `flags`, with the state now.
   void push_lost_record(std::uint32_t flags) noexcept;
-  bool evaluate(std::uint32_t& flags) noexcept;
-  void run_zero_g(double dt, CycleReply& reply) noexcept;
-  void run_collection(double dt, std::uint32_t& flags, CycleReply& reply) noexcept;
-  /// S in B for this message: RIst, or the kinematics of q_rad; checks one against the other.
-  void sensor_pose(const proto::rsi::RobotMessage& m, const std::array<double, 6>& q_rad,
-                   Eigen::Matrix3d& R_base_sensor, Eigen::Vector3d& p_base_sensor_m,
-                   std::uint32_t& flags) noexcept;
+  /// Into the black box; frozen there if a fault was raised in this cycle.
+  void keep_record() noexcept;
   /// A message without any pose (kPoseMissing): answered, counted as a lost robot cycle.
   void pose_missing() noexcept;
+  /// A message not newer than the last one (kIpocStale): answered (zero), nothing else.
+  void stale_message() noexcept;
+  /// The pending command (request()), taken for this cycle.
+  stages::PendingCommand take_command() noexcept;
+  void publish_outcome(const stages::PendingCommand& c, bool accepted) noexcept;
 
+  // Configuration (const between configure() and an accepted proposal).
   CycleConfig config_;
   infer::Inference inference_;
   bool configured_ = false;
   bool use_network_ = false;
+  const JointPath* path_ = nullptr;
+
+  // Per-cycle data.
+  CycleData data_;
   StateMachine sm_;
   control::ZeroGMotion motion_{control::BodyParams{}, control::MotionLimits{},
                                Eigen::Vector3d::Zero()};
-  const JointPath* path_ = nullptr;
+  std::uint64_t cycle_ = 0;
   Box box_;
+  bool freeze_pending_ = false;
+  /// The last cycle's record: stages::make_record's, or a lost cycle's (robot_lost(), a stale
+  /// message, no pose), which keeps the fields that cycle has nothing new for.
   CycleRecord record_;
   CycleCounters counters_;
-  Window window_;
-
-  std::array<Row, kHistory> rows_{};
-  std::uint64_t rows_total_ = 0;
-  std::array<double, 6> last_wrench_{};
-  std::array<double, 6> last_imu_{};  ///< specific force (3), rate (3)
-  bool have_ft_ = false, have_imu_ = false;
-
-  std::uint64_t cycle_ = 0;
-  bool have_ipoc_ = false;
-  std::uint64_t first_ipoc_ = 0, last_ipoc_ = 0;
-  std::uint64_t last_delay_ = 0;
-  bool have_delay_ = false;
-  int robot_lost_run_ = 0, robot_late_run_ = 0;
-  int ft_bad_run_ = 0, imu_bad_run_ = 0, model_bad_run_ = 0;
-  Fault ft_bad_reason_ = Fault::ft_stale;
 
   /// 0: none, else ticket << 8 | (1 + Command).
   std::atomic<std::uint64_t> pending_{0};
@@ -347,14 +524,6 @@ class Cycle {
   std::atomic<std::uint8_t> proposal_state_{0};
   Tunables proposal_;
   std::uint64_t tunables_accepted_ = 0;
-
-  bool freeze_pending_ = false;
-
-  // Collection mode: approach the path's start, then follow it.
-  bool collection_on_path_ = false;
-  double collection_t_s_ = 0.0;
-  std::array<double, 6> collection_cmd_rad_{};  ///< joints commanded so far (start + Σ AKorr)
-  std::array<double, 6> collection_v_radps_{};  ///< approach speed per axis
 };
 
 }  // namespace zerog::loop

@@ -7,6 +7,7 @@
 #include <cstdint>
 
 #include "zerog/proto/rsi.hpp"
+#include "zerog/samples/robot_sample.hpp"
 
 namespace zerog::rtio {
 
@@ -74,6 +75,19 @@ class RobotLink {
   /// answering them now would be late and pointless). Returns how many; counted as `discarded`.
   /// Not real-time safe in general; call before the cycle starts.
   virtual std::size_t discard_queued() { return 0; }
+
+  // --- SI at the border (what the cycle sees; proto/rsi.md, "Units at the border") -------------
+  /// receive(), the message converted to SI (proto::rsi::robot_sample_from_message): joints in
+  /// rad, RIst as position (m) and rotation matrix, IPOC and Delay as they came. `out` is written
+  /// only when a message came. Real-time safe.
+  RobotReceiveStatus receive_sample(samples::RobotSample& out);
+  /// Answers with an SI correction, converted to KUKA units (proto::rsi::reply_from_correction):
+  /// reply() with RKorr (Kind::cartesian, or zeros for Kind::none) or reply_axes() with AKorr
+  /// (Kind::axes). Real-time safe.
+  RobotReplyStatus send_correction(const samples::RobotCorrection& correction);
+
+ private:
+  proto::rsi::RobotMessage wire_;  ///< receive_sample()'s message, in the wire's units
 };
 
 /// Scripted RobotLink for tests: receive() returns pushed messages in order, then timeout;

@@ -4,7 +4,8 @@
 // accepts datagrams only from the configured robot address (others: counted as foreign and
 // ignored), parses with the codec into the caller's RobotMessage and answers the sender with
 // the formatted <Sen> from a preallocated buffer. Malformed datagrams are counted (by parse
-// status) and never stop the endpoint.
+// status) and never stop the endpoint. RobotLink::receive_sample and send_correction convert at
+// this border, so the cycle sees SI only (proto/rtio.md, proto/rsi.md "Units at the border").
 #include <netinet/in.h>
 
 #include <array>
