@@ -99,8 +99,16 @@ void append_numbers(std::string& out, const double* v, int n) {
 }
 
 int run_watch(const WatchArgs& a) {
-  if (std::string why = telemetry::check_config(a.net); !why.empty())
-    throw std::invalid_argument(why);
+  if (const Status st = telemetry::check_config(a.net); !st.ok()) {
+    // The field as this command's option.
+    const std::string& f = st.setting();
+    const std::string option = f == "domain_id"      ? "--domain"
+                               : f == "interface"    ? "--interface"
+                               : f == "peers"        ? "--peer"
+                               : f == "topic_prefix" ? "--prefix"
+                                                     : "telemetry." + f;
+    throw std::invalid_argument(option + ": " + st.message());
+  }
   if (a.every < 1) throw std::invalid_argument("--every: must be at least 1");
   Participant p(a.net);
   const std::string& prefix = a.net.topic_prefix;

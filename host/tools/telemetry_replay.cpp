@@ -121,8 +121,8 @@ int main(int argc, char** argv) {
     config.nominal_period_s = period_s > 0 ? period_s : 0.004;
     zerog::telemetry::TelemetryChannel channel(
         config, zerog::telemetry::model_identity(model, "replay.zgm", 0x12345678u), body);
-    if (std::string why = channel.start(); !why.empty()) {
-      std::cerr << "zerog-telemetry-replay: " << why << "\n";
+    if (const zerog::Status st = channel.start(); !st.ok()) {
+      std::cerr << "zerog-telemetry-replay: " << st.text() << "\n";
       return 1;
     }
     const auto t_wait = std::chrono::steady_clock::now();

@@ -81,7 +81,7 @@ void run_cycles(benchmark::State& state, Load load) {
   std::vector<std::thread> clients;
   int stalled_fd = -1;
   if (load != Load::none) {
-    if (!server.start().empty()) {
+    if (!server.start().ok()) {
       state.SkipWithError("server did not start");
       return;
     }

@@ -292,12 +292,12 @@ void BM_ZerogRtRoundTrip(benchmark::State& state) {
     options.modbus = m;
   }
   rt::Runtime runtime(options, rt::RuntimeDevices{&endpoint});
-  if (!runtime.configure(rt::test::test_cycle_config(), rt::test::payload_model()).empty()) {
+  if (!runtime.configure(rt::test::test_cycle_config(), rt::test::payload_model()).ok()) {
     state.SkipWithError("Runtime::configure failed");
     return;
   }
   std::vector<std::string> warnings;
-  if (!runtime.start(warnings).empty()) {
+  if (!runtime.start(warnings).ok()) {
     state.SkipWithError("Runtime::start failed");
     return;
   }

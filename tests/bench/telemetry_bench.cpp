@@ -51,7 +51,7 @@ BENCHMARK(BM_OfferNoDds)->Iterations(1000);  // at most a ring's worth: no drops
 
 void BM_OfferWithPublisher(benchmark::State& state) {
   TelemetryChannel channel(config(), {}, zerog::control::BodyParams{});
-  if (!channel.start().empty()) {
+  if (!channel.start().ok()) {
     state.SkipWithError("DDS start failed");
     return;
   }

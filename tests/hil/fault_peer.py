@@ -166,7 +166,7 @@ def enable_zero_g(c):
 # --- the faults -------------------------------------------------------------------------------
 
 def flood(port, ctl, seconds=3.0, depth=16):
-    """Pipelined reads of all 56 input registers on 3 connections (the 4th slot is the PLC's)."""
+    """Pipelined reads of the first 56 input registers on 3 connections (the 4th slot is the PLC's)."""
     conns = [Client(port) for _ in range(3)]
     for c in conns:
         c.sock.setblocking(False)

@@ -439,9 +439,10 @@ std::string Soak::set_up() {
   ro.recorder.dir = dir_;
   ro.recorder.rig = rig_;
   runtime_ = std::make_unique<rt::Runtime>(ro, rt::RuntimeDevices{endpoint_.get()});
-  if (std::string e = runtime_->configure(config_, model); !e.empty()) return "configure: " + e;
+  if (const Status st = runtime_->configure(config_, model); !st.ok())
+    return "configure: " + st.text();
   std::vector<std::string> warnings;
-  if (std::string e = runtime_->start(warnings); !e.empty()) return "start: " + e;
+  if (const Status st = runtime_->start(warnings); !st.ok()) return "start: " + st.text();
   return {};
 }
 

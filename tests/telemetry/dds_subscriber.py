@@ -134,6 +134,9 @@ class Health(IdlStruct, typename="zerog::telemetry::Health"):
     record_drops: t.uint64
     commands_refused: t.uint64
     transitions: t.uint64
+    poses_from_joints: t.uint64
+    pose_disagreements: t.uint64
+    poses_missing: t.uint64
 
 
 @dataclass

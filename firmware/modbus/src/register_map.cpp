@@ -81,7 +81,7 @@ constexpr std::array kMap{
            "a parameter write waits for the cycle"),
   // --- input registers (read) ------------------------------------------------------------------
   input(0, "map_version", ValueType::uint16, 1, "", +[](const S&) { return static_cast<double>(kRegisterMapVersion); },
-        "version of this register map (1)"),
+        "version of this register map (2)"),
   input(1, "state", ValueType::uint16, 1, "", +[](const S& s) { return double(static_cast<int>(s.target.state)); },
         "0 idle, 1 collecting, 2 zero_g, 3 fault (states.md)"),
   input(2, "fault", ValueType::uint16, 1, "", +[](const S& s) { return double(static_cast<int>(s.target.fault)); },
@@ -146,6 +146,12 @@ constexpr std::array kMap{
         "register and coil writes refused (any exception), modulo 2^32"),
   input(54, "modbus_clients_refused", ValueType::uint32, 1, "", +[](const S& s) { return as_double(s.clients_refused); },
         "connections closed at once (allowlist, client limit), modulo 2^32"),
+  input(56, "pose_disagreements", ValueType::uint32, 1, "", +[](const S& s) { return as_double(s.target.pose_disagreements); },
+        "messages whose RIst disagreed with the pose from the robot's kinematics (robot_kinematics.md; a wrong tool or base frame), modulo 2^32"),
+  input(58, "poses_from_joints", ValueType::uint32, 1, "", +[](const S& s) { return as_double(s.target.poses_from_joints); },
+        "messages without RIst, posed by the robot's kinematics from AIPos, modulo 2^32"),
+  input(60, "poses_missing", ValueType::uint32, 1, "", +[](const S& s) { return as_double(s.target.poses_missing); },
+        "messages without RIst and no robot kinematics to pose them, modulo 2^32"),
   // --- holding registers (read/write; every one int32, idle only) ------------------------------
   holding(0, "mass_kg", 1000, "kg", 1.0, 2000.0,
           +[](const Tunables& t) { return t.body.mass_kg; },

@@ -91,48 +91,53 @@ std::uint64_t ServerCounters::exceptions_total() const {
   return n;
 }
 
-std::string check_server_config(const ServerConfig& c) {
+Status check_server_config(const ServerConfig& c) {
   std::uint32_t a = 0;
   if (c.bind_address.empty())
-    return "bind_address: required (the local IPv4 address to listen on, e.g. the cell "
-           "network's; \"0.0.0.0\" listens on every interface)";
+    return Status::invalid("bind_address",
+                           "required (the local IPv4 address to listen on, e.g. the cell "
+                           "network's; \"0.0.0.0\" listens on every interface)");
   if (!parse_ipv4(c.bind_address, a))
-    return "bind_address: '" + c.bind_address + "' is not an IPv4 address";
-  if (c.port < 0 || c.port > 65535) return "port: must be 0..65535, is " + std::to_string(c.port);
+    return Status::invalid("bind_address", "'" + c.bind_address + "' is not an IPv4 address");
+  if (c.port < 0 || c.port > 65535)
+    return Status::invalid("port", "must be 0..65535, is " + std::to_string(c.port));
   Allowlist allow;
-  if (std::string why = allow.parse(c.allow); !why.empty()) return why;
+  if (Status st = allow.parse(c.allow); !st.ok()) return st;
   if (c.max_clients < 1 || c.max_clients > 64)
-    return "max_clients: must be 1..64, is " + std::to_string(c.max_clients);
+    return Status::invalid("max_clients", "must be 1..64, is " + std::to_string(c.max_clients));
   if (!(c.request_timeout_s > 0.0 && c.request_timeout_s <= 10.0))
-    return "request_timeout_s: must be in (0, 10] s";
+    return Status::invalid("request_timeout_s", "must be in (0, 10] s");
   if (!(c.idle_timeout_s >= 0.0 && c.idle_timeout_s <= 86400.0))
-    return "idle_timeout_s: must be 0 (never) or up to 86400 s";
+    return Status::invalid("idle_timeout_s", "must be 0 (never) or up to 86400 s");
   if (!(c.proposal_timeout_s > 0.0 && c.proposal_timeout_s <= 5.0))
-    return "proposal_timeout_s: must be in (0, 5] s";
+    return Status::invalid("proposal_timeout_s", "must be in (0, 5] s");
   return {};
 }
 
-std::string Allowlist::parse(const std::vector<std::string>& entries) {
+Status Allowlist::parse(const std::vector<std::string>& entries) {
   nets_.clear();
   for (std::size_t i = 0; i < entries.size(); ++i) {
     const std::string& e = entries[i];
-    const std::string where = "allow[" + std::to_string(i) + "]: '" + e + "' ";
+    const std::string setting = "allow[" + std::to_string(i) + "]";
+    const std::string quoted = "'" + e + "' ";
     const std::size_t slash = e.find('/');
     std::uint32_t address = 0;
     if (!parse_ipv4(e.substr(0, slash), address))
-      return where + "is not an IPv4 address or network (a.b.c.d or a.b.c.d/n)";
+      return Status::invalid(setting,
+                             quoted + "is not an IPv4 address or network (a.b.c.d or a.b.c.d/n)");
     int bits = 32;
     if (slash != std::string::npos) {
       const std::string n = e.substr(slash + 1);
       if (n.empty() || n.size() > 2 || !std::all_of(n.begin(), n.end(), ::isdigit) ||
           std::stoi(n) > 32)
-        return where + "has a prefix length that is not 0..32";
+        return Status::invalid(setting, quoted + "has a prefix length that is not 0..32");
       bits = std::stoi(n);
     }
     const std::uint32_t mask = bits == 0 ? 0u : ~std::uint32_t{0} << (32 - bits);
     if ((address & ~mask) != 0)
-      return where + "has host bits set (did you mean " + ipv4_text(address & mask) + "/" +
-             std::to_string(bits) + "?)";
+      return Status::invalid(setting, quoted + "has host bits set (did you mean " +
+                                          ipv4_text(address & mask) + "/" + std::to_string(bits) +
+                                          "?)");
     nets_.push_back({address, mask});
   }
   return {};
@@ -451,16 +456,19 @@ class Loop {
 
 }  // namespace
 
-std::string ModbusServer::start() {
-  if (started_) return "Modbus server: already started";
-  if (std::string why = check_server_config(config_); !why.empty()) return why;
+Status ModbusServer::start() {
+  if (started_) return {StatusCode::already_started, "Modbus server: already started"};
+  if (Status st = check_server_config(config_); !st.ok()) return st;
+  const auto failed = [](std::string why) {
+    return Status(StatusCode::system_error, "Modbus server: " + std::move(why));
+  };
   auto impl = std::make_unique<Impl>();
-  impl->allow.parse(config_.allow);
+  (void)impl->allow.parse(config_.allow);  // checked above
   impl->tunables = target_.tunables();
   const std::string where = config_.bind_address + ":" + std::to_string(config_.port);
 
   impl->listen_fd = ::socket(AF_INET, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
-  if (impl->listen_fd < 0) return "Modbus server: socket: " + errno_text(errno);
+  if (impl->listen_fd < 0) return failed("socket: " + errno_text(errno));
   const int one = 1;
   ::setsockopt(impl->listen_fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
   sockaddr_in addr{};
@@ -469,24 +477,24 @@ std::string ModbusServer::start() {
   inet_pton(AF_INET, config_.bind_address.c_str(), &addr.sin_addr);
   if (::bind(impl->listen_fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) {
     const int e = errno;
-    std::string why = "Modbus server: cannot bind " + where + ": " + errno_text(e);
+    std::string why = "cannot bind " + where + ": " + errno_text(e);
     if (e == EACCES && config_.port < 1024)
       why += " (ports below 1024 need root or CAP_NET_BIND_SERVICE)";
-    return why;
+    return failed(std::move(why));
   }
   if (::listen(impl->listen_fd, 16) != 0)
-    return "Modbus server: cannot listen on " + where + ": " + errno_text(errno);
+    return failed("cannot listen on " + where + ": " + errno_text(errno));
   socklen_t len = sizeof addr;
   ::getsockname(impl->listen_fd, reinterpret_cast<sockaddr*>(&addr), &len);
   impl->wake_fd = ::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
-  if (impl->wake_fd < 0) return "Modbus server: eventfd: " + errno_text(errno);
+  if (impl->wake_fd < 0) return failed("eventfd: " + errno_text(errno));
 
   impl->ctx = modbus_new_tcp(config_.bind_address.c_str(), config_.port);
-  if (impl->ctx == nullptr) return "Modbus server: modbus_new_tcp failed";
+  if (impl->ctx == nullptr) return failed("modbus_new_tcp failed");
   impl->mapping = modbus_mapping_new_start_address(
       0, table_extent(Table::coil), 0, table_extent(Table::discrete_input), 0,
       table_extent(Table::holding_register), 0, table_extent(Table::input_register));
-  if (impl->mapping == nullptr) return "Modbus server: cannot allocate the register map";
+  if (impl->mapping == nullptr) return failed("cannot allocate the register map");
 
   port_ = ntohs(addr.sin_port);
   impl_ = std::move(impl);
@@ -496,7 +504,7 @@ std::string ModbusServer::start() {
       loop.run();
     });
   } catch (const std::exception& e) {
-    return std::string("Modbus server: cannot start its thread: ") + e.what();
+    return failed(std::string("cannot start its thread: ") + e.what());
   }
   started_ = true;
   return {};

@@ -15,6 +15,7 @@
 #include "zerog/formats/toml_table.hpp"
 #include "zerog/rtio/local_can_bus.hpp"
 #include "zerog/rtio/serial_port.hpp"
+#include "zerog/status.hpp"
 
 namespace zerog::rt {
 
@@ -83,103 +84,112 @@ void read_ft_bus(const TomlTable& ft, FtSection& out) {
   out.local_path = local_path;
 }
 
-RtConfig read_tables(const toml::table& root, const fs::path& path) {
-  RtConfig c;
-  c.file = path;
-  const TomlTable file(root, path, "",
-                       {"model", "rig", "robot", "ft", "imu", "body", "limits", "watchdog",
-                        "filter", "realtime", "collection", "record", "modbus", "telemetry"},
-                       "proto/rt_config.md");
-
+// [model]: the deployed model and the temperature fed to it.
+void read_model(const TomlTable& file, RtConfig& c) {
   const TomlTable model = file.sub_table("model", {"file", "temperature_C"});
   c.model_file = model.path("file");
   c.temperature_C = model.optional_number("temperature_C", 25.0, {-50.0, false, 150.0, false});
+}
 
+// [rig]: the running rig's file.
+fs::path read_rig(const TomlTable& file) {
   const TomlTable rig = file.sub_table("rig", {"file"});
-  c.rig_file = rig.path("file");
+  return rig.path("file");
+}
 
+// <Sen Type="…">: what the robot's RSI configuration may name (proto/rsi.md).
+bool valid_sensor_type(const std::string& type) {
+  return !type.empty() && type.size() <= 32 && std::all_of(type.begin(), type.end(), [](char ch) {
+    return std::isalnum(static_cast<unsigned char>(ch)) != 0 || ch == '_' || ch == '.' || ch == '-';
+  });
+}
+
+// [robot]: the RSI endpoint and the RSI cycle.
+RobotSection read_robot(const TomlTable& file) {
   const TomlTable robot = file.sub_table(
       "robot", {"bind_address", "bind_port", "address", "port", "sensor_type", "cycle_ms",
                 "receive_timeout_ms", "pose_check_mm", "pose_check_deg"});
-  c.robot.bind_address = robot.optional_string("bind_address", c.robot.bind_address);
-  if (robot.find("bind_address") != nullptr)
-    check_ipv4(robot, "bind_address", c.robot.bind_address);
-  c.robot.bind_port =
-      static_cast<std::uint16_t>(robot.optional_integer("bind_port", 49152, 0, 65535));
-  c.robot.address = robot.optional_string("address", c.robot.address);
-  if (robot.find("address") != nullptr) check_ipv4(robot, "address", c.robot.address);
-  c.robot.port = static_cast<std::uint16_t>(robot.optional_integer("port", 0, 0, 65535));
-  c.robot.sensor_type = robot.optional_string("sensor_type", c.robot.sensor_type);
-  {
-    const std::string& type = c.robot.sensor_type;
-    const bool ok =
-        !type.empty() && type.size() <= 32 && std::all_of(type.begin(), type.end(), [](char ch) {
-          return std::isalnum(static_cast<unsigned char>(ch)) != 0 || ch == '_' || ch == '.' ||
-                 ch == '-';
-        });
-    if (!ok) {
-      robot.fail("sensor_type",
-                 "must be 1..32 characters of [A-Za-z0-9_.-] (the Type of the robot's RSI "
-                 "sensor object), is \"" +
-                     type + "\"");
-    }
+  RobotSection r;
+  r.bind_address = robot.optional_string("bind_address", r.bind_address);
+  if (robot.find("bind_address") != nullptr) check_ipv4(robot, "bind_address", r.bind_address);
+  r.bind_port = static_cast<std::uint16_t>(robot.optional_integer("bind_port", 49152, 0, 65535));
+  r.address = robot.optional_string("address", r.address);
+  if (robot.find("address") != nullptr) check_ipv4(robot, "address", r.address);
+  r.port = static_cast<std::uint16_t>(robot.optional_integer("port", 0, 0, 65535));
+  r.sensor_type = robot.optional_string("sensor_type", r.sensor_type);
+  if (!valid_sensor_type(r.sensor_type)) {
+    robot.fail("sensor_type",
+               "must be 1..32 characters of [A-Za-z0-9_.-] (the Type of the robot's RSI "
+               "sensor object), is \"" +
+                   r.sensor_type + "\"");
   }
-  {
-    const std::int64_t ms = robot.integer("cycle_ms", 1, 1000);
-    if (ms != 4 && ms != 12)
-      robot.fail("cycle_ms",
-                 "must be 4 or 12 (the RSI interpolation cycles), is " + std::to_string(ms));
-    c.robot.cycle_ms = static_cast<int>(ms);
-  }
-  c.robot.receive_timeout_ms = robot.optional_number("receive_timeout_ms", 1.5 * c.robot.cycle_ms,
-                                                     {0.0, true, 1000.0, false});
-  c.robot.pose_check_mm = robot.optional_number("pose_check_mm", 1.0, {0.0, true, 1000.0, false});
-  c.robot.pose_check_deg = robot.optional_number("pose_check_deg", 0.1, {0.0, true, 180.0, false});
+  const std::int64_t ms = robot.integer("cycle_ms", 1, 1000);
+  if (ms != 4 && ms != 12)
+    robot.fail("cycle_ms",
+               "must be 4 or 12 (the RSI interpolation cycles), is " + std::to_string(ms));
+  r.cycle_ms = static_cast<int>(ms);
+  r.receive_timeout_ms =
+      robot.optional_number("receive_timeout_ms", 1.5 * r.cycle_ms, {0.0, true, 1000.0, false});
+  r.pose_check_mm = robot.optional_number("pose_check_mm", 1.0, {0.0, true, 1000.0, false});
+  r.pose_check_deg = robot.optional_number("pose_check_deg", 0.1, {0.0, true, 180.0, false});
+  return r;
+}
 
+// [ft]: the F/T board's bus (read_ft_bus) and its NETCANOEM settings.
+FtSection read_ft(const TomlTable& file) {
   const TomlTable ft = file.sub_table("ft", {"transport", "interface", "local_path", "base_id",
                                              "calibration", "rate_hz", "sample_timeout_ms"});
-  read_ft_bus(ft, c.ft);
-  c.ft.base_id = static_cast<int>(ft.optional_integer("base_id", 0x20, 0, 127));
-  c.ft.calibration = static_cast<int>(ft.optional_integer("calibration", 0, 0, 15));
-  c.ft.rate_hz = ft.optional_number("rate_hz", 500.0, {0.0, true, 2000.0, false});
-  c.ft.sample_timeout_ms =
-      ft.optional_number("sample_timeout_ms", std::min(2.0, 1000.0 / c.ft.rate_hz),
-                         {0.0, true, 1000.0 / c.ft.rate_hz, false});
+  FtSection f;
+  read_ft_bus(ft, f);
+  f.base_id = static_cast<int>(ft.optional_integer("base_id", 0x20, 0, 127));
+  f.calibration = static_cast<int>(ft.optional_integer("calibration", 0, 0, 15));
+  f.rate_hz = ft.optional_number("rate_hz", 500.0, {0.0, true, 2000.0, false});
+  f.sample_timeout_ms = ft.optional_number("sample_timeout_ms", std::min(2.0, 1000.0 / f.rate_hz),
+                                           {0.0, true, 1000.0 / f.rate_hz, false});
+  return f;
+}
 
+// [imu]: the STIM300's tty and datagram.
+ImuSection read_imu(const TomlTable& file) {
   const TomlTable imu = file.sub_table("imu", {"device", "baud", "identifier", "accel_range_g"});
-  c.imu.device = imu.string("device");
-  if (c.imu.device.empty()) imu.fail("device", "must name a tty");
-  c.imu.baud = static_cast<std::uint32_t>(imu.optional_integer("baud", 921600, 1200, 4000000));
-  if (rtio::baud_to_speed(c.imu.baud) == 0) {
-    imu.fail("baud", "must be a standard serial rate (e.g. 460800, 921600), is " +
-                         std::to_string(c.imu.baud));
+  ImuSection i;
+  i.device = imu.string("device");
+  if (i.device.empty()) imu.fail("device", "must name a tty");
+  i.baud = static_cast<std::uint32_t>(imu.optional_integer("baud", 921600, 1200, 4000000));
+  if (rtio::baud_to_speed(i.baud) == 0) {
+    imu.fail("baud",
+             "must be a standard serial rate (e.g. 460800, 921600), is " + std::to_string(i.baud));
   }
-  c.imu.identifier = static_cast<int>(imu.optional_integer("identifier", 0x93, 0, 255));
-  c.imu.accel_range_g = static_cast<int>(imu.optional_integer("accel_range_g", 10, 5, 80));
-  if (c.imu.accel_range_g != 5 && c.imu.accel_range_g != 10 && c.imu.accel_range_g != 30 &&
-      c.imu.accel_range_g != 80) {
+  i.identifier = static_cast<int>(imu.optional_integer("identifier", 0x93, 0, 255));
+  i.accel_range_g = static_cast<int>(imu.optional_integer("accel_range_g", 10, 5, 80));
+  if (i.accel_range_g != 5 && i.accel_range_g != 10 && i.accel_range_g != 30 &&
+      i.accel_range_g != 80) {
     imu.fail("accel_range_g", "must be 5, 10, 30 or 80 (the STIM300's accelerometer range), is " +
-                                  std::to_string(c.imu.accel_range_g));
+                                  std::to_string(i.accel_range_g));
   }
+  return i;
+}
 
+// [body]: the virtual body's mass properties.
+void read_body(const TomlTable& file, RtConfig& c) {
   const TomlTable body = file.sub_table("body", {"mass_kg", "inertia_kgm2", "com_sensor_m"});
   c.body.mass_kg = body.number("mass_kg", {0.0, true, 10000.0, false});
-  {
-    const Eigen::Matrix3d I = body.matrix3(
-        "inertia_kgm2",
-        " (kg·m², about the centre of mass, body axes = sensor axes), e.g. [[4, 0, 0], [0, 5, 0], "
-        "[0, 0, 6]]");
-    if ((I - I.transpose()).norm() > 1e-9 * I.norm())
-      body.fail("inertia_kgm2", "must be symmetric");
-    const double smallest = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(I).eigenvalues()[0];
-    if (!(smallest > 0.0)) {
-      body.fail("inertia_kgm2", "must be positive definite (smallest eigenvalue " +
-                                    number_text(smallest) + " kg·m²)");
-    }
-    c.body.inertia_body_kgm2 = I;
+  const Eigen::Matrix3d I = body.matrix3(
+      "inertia_kgm2",
+      " (kg·m², about the centre of mass, body axes = sensor axes), e.g. [[4, 0, 0], [0, 5, 0], "
+      "[0, 0, 6]]");
+  if ((I - I.transpose()).norm() > 1e-9 * I.norm()) body.fail("inertia_kgm2", "must be symmetric");
+  const double smallest = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(I).eigenvalues()[0];
+  if (!(smallest > 0.0)) {
+    body.fail("inertia_kgm2", "must be positive definite (smallest eigenvalue " +
+                                  number_text(smallest) + " kg·m²)");
   }
+  c.body.inertia_body_kgm2 = I;
   c.com_sensor_m = body.optional_vector3("com_sensor_m", Eigen::Vector3d::Zero());
+}
 
+// [limits]: the motion limits; defaults are control::MotionLimits'.
+control::MotionLimits read_limits(const TomlTable& file) {
   const TomlTable limits = file.sub_table(
       "limits",
       {"force_deadband_N", "torque_deadband_Nm", "contact_confirm_cycles",
@@ -188,7 +198,7 @@ RtConfig read_tables(const toml::table& root, const fs::path& path) {
        "linear_damping_per_s", "angular_damping_per_s", "workspace_min_m", "workspace_max_m"});
   const io::NumberRange at_least_zero{0.0, false};
   const io::NumberRange positive{0.0, true};
-  control::MotionLimits& l = c.limits;
+  control::MotionLimits l;
   l.force_deadband_N =
       limits.optional_number("force_deadband_N", l.force_deadband_N, at_least_zero);
   l.torque_deadband_Nm =
@@ -221,19 +231,24 @@ RtConfig read_tables(const toml::table& root, const fs::path& path) {
     limits.fail("torque_deadband_Nm", "must be below max_contact_torque_Nm (" +
                                           number_text(l.max_contact_torque_Nm) + " N·m)");
   }
+  constexpr const char* kAxes[] = {"x", "y", "z"};
   for (int k = 0; k < 3; ++k) {
     if (!(l.workspace_min_m[k] < l.workspace_max_m[k])) {
       limits.fail(limits.find("workspace_max_m") != nullptr ? "workspace_max_m" : "workspace_min_m",
                   std::string("workspace_min_m must be below workspace_max_m on every axis (") +
-                      "xyz"[k] + ": " + number_text(l.workspace_min_m[k]) + " m, " +
+                      kAxes[k] + ": " + number_text(l.workspace_min_m[k]) + " m, " +
                       number_text(l.workspace_max_m[k]) + " m)");
     }
   }
+  return l;
+}
 
+// [watchdog]: cycles before each fault; defaults are loop::WatchdogConfig's.
+loop::WatchdogConfig read_watchdog(const TomlTable& file) {
   const TomlTable watchdog =
       file.sub_table("watchdog", {"ft_fault_cycles", "imu_fault_cycles", "robot_fault_cycles",
                                   "robot_late_cycles", "model_fault_cycles"});
-  loop::WatchdogConfig& w = c.watchdog;
+  loop::WatchdogConfig w;
   for (auto [key, cycles] : {std::pair{"ft_fault_cycles", &w.ft_fault_cycles},
                              std::pair{"imu_fault_cycles", &w.imu_fault_cycles},
                              std::pair{"robot_fault_cycles", &w.robot_fault_cycles},
@@ -241,23 +256,36 @@ RtConfig read_tables(const toml::table& root, const fs::path& path) {
                              std::pair{"model_fault_cycles", &w.model_fault_cycles}}) {
     *cycles = static_cast<int>(watchdog.optional_integer(key, *cycles, 1, 1000));
   }
+  return w;
+}
 
+// [filter]: the angular-acceleration difference's order.
+int read_filter(const TomlTable& file) {
   const TomlTable filter = file.sub_table("filter", {"angular_accel_order"});
-  c.angular_accel_order = static_cast<int>(filter.optional_integer("angular_accel_order", 4, 2, 4));
-  if (c.angular_accel_order == 3) {
+  const auto order = static_cast<int>(filter.optional_integer("angular_accel_order", 4, 2, 4));
+  if (order == 3) {
     filter.fail("angular_accel_order",
                 "must be 4 (5-point difference, 2 rows late) or 2 (3-point, 1 row late), is 3");
   }
+  return order;
+}
 
+// [realtime]: memory locking, the cycle thread's priority and CPU.
+RealtimeSection read_realtime(const TomlTable& file) {
   const TomlTable realtime = file.sub_table("realtime", {"lock_memory", "priority", "cpu"});
-  c.realtime.lock_memory = realtime.optional_boolean("lock_memory", true);
-  c.realtime.priority = static_cast<int>(realtime.optional_integer("priority", 80, 0, 99));
-  c.realtime.cpu = static_cast<int>(realtime.optional_integer("cpu", -1, -1, 1023));
+  RealtimeSection r;
+  r.lock_memory = realtime.optional_boolean("lock_memory", true);
+  r.priority = static_cast<int>(realtime.optional_integer("priority", 80, 0, 99));
+  r.cpu = static_cast<int>(realtime.optional_integer("cpu", -1, -1, 1023));
+  return r;
+}
 
+// [collection]: the design path's speed and dwell, the approach to its first point.
+CollectionSection read_collection(const TomlTable& file) {
   const TomlTable collection =
       file.sub_table("collection", {"speed_fraction", "dwell_s", "max_axis_step_rad",
                                     "approach_speed_radps", "approach_accel_radps2"});
-  CollectionSection& col = c.collection;
+  CollectionSection col;
   col.speed_fraction = collection.optional_number("speed_fraction", 0.3, {0.0, true, 1.0, false});
   col.dwell_s = collection.optional_number("dwell_s", 2.0, {0.0, false, 3600.0, false});
   col.max_axis_step_rad =
@@ -266,76 +294,102 @@ RtConfig read_tables(const toml::table& root, const fs::path& path) {
       collection.optional_number("approach_speed_radps", 0.2, {0.0, true, 2.0, false});
   col.approach_accel_radps2 =
       collection.optional_number("approach_accel_radps2", 0.5, {0.0, true, 10.0, false});
+  return col;
+}
 
+// [record]: the folder recordings go to, one per run or not.
+void read_record(const TomlTable& file, RtConfig& c) {
   const TomlTable record = file.sub_table("record", {"dir", "per_run"});
   if (record.find("dir") != nullptr) c.record_dir = record.path("dir");
   c.record_per_run = record.optional_boolean("per_run", false);
-
-  // [modbus]: absent, no server (proto/modbus.md, "Connecting", documents the keys).
-  const TomlTable mb =
-      file.sub_table("modbus", {"bind_address", "port", "allow", "max_clients", "request_timeout_s",
-                                "idle_timeout_s", "proposal_timeout_s"});
-  if (mb.present()) {
-    modbus::ServerConfig m;
-    m.bind_address = mb.string("bind_address");
-    m.port = static_cast<int>(mb.optional_integer("port", m.port, 0, 65535));
-    if (const toml::node* allow = mb.find("allow")) {
-      const toml::array* list = allow->as_array();
-      if (list == nullptr || !list->empty()) m.allow = mb.strings("allow", 0);
-    }
-    m.max_clients = static_cast<int>(mb.optional_integer("max_clients", m.max_clients, 1, 64));
-    m.request_timeout_s =
-        mb.optional_number("request_timeout_s", m.request_timeout_s, {0.0, true, 10.0, false});
-    m.idle_timeout_s =
-        mb.optional_number("idle_timeout_s", m.idle_timeout_s, {0.0, false, 86400.0, false});
-    m.proposal_timeout_s =
-        mb.optional_number("proposal_timeout_s", m.proposal_timeout_s, {0.0, true, 5.0, false});
-    if (const std::string why = modbus::check_server_config(m); !why.empty()) {
-      // "allow[1]: …" or "bind_address: …": the setting, then why.
-      const std::size_t colon = why.find(": ");
-      std::string key = colon == std::string::npos ? "bind_address" : why.substr(0, colon);
-      const std::string base = key.substr(0, key.find('['));
-      mb.fail(key, mb.where(base), colon == std::string::npos ? why : why.substr(colon + 2));
-    }
-    c.modbus = std::move(m);
-  }
-
-  // [telemetry]: absent, none (proto/telemetry.md, "Configuration").
-  const TomlTable tel = file.sub_table(
-      "telemetry",
-      {"domain_id", "interface", "peers", "allow_multicast", "topic_prefix", "health_period_s"});
-  if (tel.present()) {
-    telemetry::TelemetryConfig t;
-    t.domain_id = static_cast<int>(tel.optional_integer("domain_id", t.domain_id, 0, 232));
-    // Required, as [modbus] bind_address is: the operator names the network telemetry goes to.
-    if (tel.find("interface") == nullptr) {
-      tel.fail("interface",
-               "is required: the network interface DDS announces and sends on (\"eth1\", "
-               "\"lo\"); note that Cyclone DDS binds its discovery and data ports on every "
-               "address (proto/telemetry.md, \"Network\")");
-    }
-    t.interface = tel.string("interface");
-    if (const toml::node* peers = tel.find("peers")) {
-      const toml::array* list = peers->as_array();
-      if (list == nullptr || !list->empty()) t.peers = tel.strings("peers", 0);
-    }
-    t.allow_multicast = tel.optional_boolean("allow_multicast", t.allow_multicast);
-    t.topic_prefix = tel.optional_string("topic_prefix", t.topic_prefix);
-    t.health_period_s =
-        tel.optional_number("health_period_s", t.health_period_s, {0.0, true, 60.0, false});
-    if (const std::string why = telemetry::check_config(t); !why.empty()) {
-      // "telemetry.peers[0]: …": the setting, then why.
-      const std::size_t colon = why.find(": ");
-      std::string key = colon == std::string::npos ? "domain_id" : why.substr(0, colon);
-      if (key.rfind("telemetry.", 0) == 0) key = key.substr(10);
-      const std::string base = key.substr(0, key.find('['));
-      tel.fail(key, tel.where(base), colon == std::string::npos ? why : why.substr(colon + 2));
-    }
-    c.telemetry = std::move(t);
-  }
   if (c.record_per_run && !c.record_dir) {
     record.fail("per_run", "needs [record] dir (the folder the runs go into)");
   }
+}
+
+// A setting the module's own check refused: the TOML error at that key (the status names the
+// field, e.g. "allow[1]"; its position is that of the key, "allow").
+[[noreturn]] void fail_setting(const TomlTable& table, const Status& st) {
+  const std::string& setting = st.setting();
+  table.fail(setting, table.where(setting.substr(0, setting.find('['))), st.message());
+}
+
+// [modbus]: absent, no server (proto/modbus.md, "Connecting", documents the keys). Checked with
+// modbus::check_server_config, the server's own rules.
+std::optional<modbus::ServerConfig> read_modbus(const TomlTable& file) {
+  const TomlTable mb =
+      file.sub_table("modbus", {"bind_address", "port", "allow", "max_clients", "request_timeout_s",
+                                "idle_timeout_s", "proposal_timeout_s"});
+  if (!mb.present()) return std::nullopt;
+  modbus::ServerConfig m;
+  m.bind_address = mb.string("bind_address");
+  m.port = static_cast<int>(mb.optional_integer("port", m.port, 0, 65535));
+  if (const toml::node* allow = mb.find("allow")) {
+    const toml::array* list = allow->as_array();
+    if (list == nullptr || !list->empty()) m.allow = mb.strings("allow", 0);
+  }
+  m.max_clients = static_cast<int>(mb.optional_integer("max_clients", m.max_clients, 1, 64));
+  m.request_timeout_s =
+      mb.optional_number("request_timeout_s", m.request_timeout_s, {0.0, true, 10.0, false});
+  m.idle_timeout_s =
+      mb.optional_number("idle_timeout_s", m.idle_timeout_s, {0.0, false, 86400.0, false});
+  m.proposal_timeout_s =
+      mb.optional_number("proposal_timeout_s", m.proposal_timeout_s, {0.0, true, 5.0, false});
+  if (const Status st = modbus::check_server_config(m); !st.ok()) fail_setting(mb, st);
+  return m;
+}
+
+// [telemetry]: absent, none (proto/telemetry.md, "Configuration"). Checked with
+// telemetry::check_config, the channel's own rules.
+std::optional<telemetry::TelemetryConfig> read_telemetry(const TomlTable& file) {
+  const TomlTable tel = file.sub_table(
+      "telemetry",
+      {"domain_id", "interface", "peers", "allow_multicast", "topic_prefix", "health_period_s"});
+  if (!tel.present()) return std::nullopt;
+  telemetry::TelemetryConfig t;
+  t.domain_id = static_cast<int>(tel.optional_integer("domain_id", t.domain_id, 0, 232));
+  // Required, as [modbus] bind_address is: the operator names the network telemetry goes to.
+  if (tel.find("interface") == nullptr) {
+    tel.fail("interface",
+             "is required: the network interface DDS announces and sends on (\"eth1\", "
+             "\"lo\"); note that Cyclone DDS binds its discovery and data ports on every "
+             "address (proto/telemetry.md, \"Network\")");
+  }
+  t.interface = tel.string("interface");
+  if (const toml::node* peers = tel.find("peers")) {
+    const toml::array* list = peers->as_array();
+    if (list == nullptr || !list->empty()) t.peers = tel.strings("peers", 0);
+  }
+  t.allow_multicast = tel.optional_boolean("allow_multicast", t.allow_multicast);
+  t.topic_prefix = tel.optional_string("topic_prefix", t.topic_prefix);
+  t.health_period_s =
+      tel.optional_number("health_period_s", t.health_period_s, {0.0, true, 60.0, false});
+  if (const Status st = telemetry::check_config(t); !st.ok()) fail_setting(tel, st);
+  return t;
+}
+
+// The file, table by table (in this order: the first error found is the one reported).
+RtConfig read_tables(const toml::table& root, const fs::path& path) {
+  RtConfig c;
+  c.file = path;
+  const TomlTable file(root, path, "",
+                       {"model", "rig", "robot", "ft", "imu", "body", "limits", "watchdog",
+                        "filter", "realtime", "collection", "record", "modbus", "telemetry"},
+                       "proto/rt_config.md");
+  read_model(file, c);
+  c.rig_file = read_rig(file);
+  c.robot = read_robot(file);
+  c.ft = read_ft(file);
+  c.imu = read_imu(file);
+  read_body(file, c);
+  c.limits = read_limits(file);
+  c.watchdog = read_watchdog(file);
+  c.angular_accel_order = read_filter(file);
+  c.realtime = read_realtime(file);
+  c.collection = read_collection(file);
+  read_record(file, c);
+  c.modbus = read_modbus(file);
+  c.telemetry = read_telemetry(file);
   return c;
 }
 
@@ -392,6 +446,55 @@ loop::CycleConfig cycle_config(const RtConfig& c) {
   out.approach_accel_radps2 = c.collection.approach_accel_radps2;
   out.pose_check_position_m = c.robot.pose_check_mm * 1e-3;
   out.pose_check_angle_rad = c.robot.pose_check_deg * proto::rsi::kRadPerDeg;
+  return out;
+}
+
+namespace {
+
+std::chrono::nanoseconds from_ms(double ms) {
+  return std::chrono::nanoseconds(static_cast<std::int64_t>(ms * 1e6 + 0.5));
+}
+
+proto::stim300::AccelRange accel_range(int g) {
+  switch (g) {
+    case 5:
+      return proto::stim300::AccelRange::g5;
+    case 30:
+      return proto::stim300::AccelRange::g30;
+    case 80:
+      return proto::stim300::AccelRange::g80;
+    default:
+      return proto::stim300::AccelRange::g10;
+  }
+}
+
+}  // namespace
+
+rtio::NetcanoemConfig netcanoem_config(const FtSection& ft) {
+  rtio::NetcanoemConfig out;
+  out.base_id = static_cast<std::uint8_t>(ft.base_id);
+  out.calibration_index = static_cast<std::uint8_t>(ft.calibration);
+  out.sample_timeout = from_ms(ft.sample_timeout_ms);
+  return out;
+}
+
+rtio::Stim300Config stim300_config(const ImuSection& imu) {
+  rtio::Stim300Config out;
+  out.path = imu.device;
+  out.serial.baud = imu.baud;
+  out.stream.identifier = static_cast<std::uint8_t>(imu.identifier);
+  out.stream.scale.accel_range = accel_range(imu.accel_range_g);
+  return out;
+}
+
+rtio::RsiEndpointConfig rsi_endpoint_config(const RobotSection& robot) {
+  rtio::RsiEndpointConfig out;
+  out.bind_address = robot.bind_address;
+  out.bind_port = robot.bind_port;
+  out.robot_address = robot.address;
+  out.robot_port = robot.port;
+  out.sensor_type = robot.sensor_type;
+  out.receive_timeout = from_ms(robot.receive_timeout_ms);
   return out;
 }
 

@@ -26,6 +26,7 @@
 #include "zerog/rtio/netcanoem_sensor.hpp"
 #include "zerog/rtio/rsi_endpoint.hpp"
 #include "zerog/rtio/stim300_imu.hpp"
+#include "zerog/status.hpp"
 
 namespace {
 
@@ -40,19 +41,6 @@ void print_err(const std::string& line) { std::fprintf(stderr, "%s\n", line.c_st
 void print_out(const std::string& line) {
   std::fprintf(stdout, "%s\n", line.c_str());
   std::fflush(stdout);
-}
-
-proto::stim300::AccelRange accel_range(int g) {
-  switch (g) {
-    case 5:
-      return proto::stim300::AccelRange::g5;
-    case 30:
-      return proto::stim300::AccelRange::g30;
-    case 80:
-      return proto::stim300::AccelRange::g80;
-    default:
-      return proto::stim300::AccelRange::g10;
-  }
 }
 
 std::string errno_text(int error) { return error != 0 ? std::strerror(error) : "no errno"; }
@@ -112,144 +100,145 @@ std::string run_folder_name(std::chrono::system_clock::time_point now) {
   return text;
 }
 
-int run(const Options& opt) {
-  const int failure = opt.check_config ? 1 : kExitStartup;
+// What zerog-rt reads before any device opens: the configuration (with --record applied), the
+// rig, the model and the loop's configuration, and --collect's design.
+struct Loaded {
   rt::RtConfig config;
+  rt::Setup setup;
+  std::unique_ptr<rt::PtpJointPath> path;
+};
+
+// Reads everything; false (the reason printed) on any error.
+bool load(const Options& opt, Loaded& out) {
   try {
-    config = rt::read_config(opt.config);
+    out.config = rt::read_config(opt.config);
   } catch (const rt::ConfigError& e) {
     print_err(std::string("zerog-rt: ") + e.what());
-    return failure;
+    return false;
   }
+  rt::RtConfig& config = out.config;
   if (!opt.record.empty()) config.record_dir = fs::path(opt.record);
   if (config.record_dir && config.record_per_run) {
     config.record_dir = *config.record_dir / run_folder_name(std::chrono::system_clock::now());
   }
-  rt::Setup setup;
-  std::unique_ptr<rt::PtpJointPath> path;
   try {
-    setup = rt::load_setup(config);
-    if (!opt.collect.empty()) path = rt::load_collection_path(opt.collect, config.collection);
+    out.setup = rt::load_setup(config);
+    if (!opt.collect.empty()) out.path = rt::load_collection_path(opt.collect, config.collection);
   } catch (const std::exception& e) {
     print_err(std::string("zerog-rt: ") + e.what());
-    return failure;
+    return false;
   }
-  if (opt.check_config) {
-    std::string effects;
-    for (model::Effect e : model::kAllEffects) {
-      if (setup.model.physics.effects.has(e))
-        effects += (effects.empty() ? "" : ",") + std::string(model::info(e).name);
-    }
-    print_out("zerog-rt: " + opt.config + ": OK: model " + config.model_file.string() + " (" +
-              effects + (setup.model.network ? " + network" : "") + "), rig '" + setup.rig.name +
-              "', RSI cycle " + std::to_string(config.robot.cycle_ms) + " ms" +
-              (setup.cycle.robot ? ", pose from RIst or the rig's robot kinematics"
-                                 : ", pose from RIst only (the rig describes no robot)") +
-              (path ? ", design " + opt.collect + " (" + std::to_string(path->num_points()) +
-                          " points, " + std::to_string(path->duration_s()) + " s)"
-                    : std::string()));
-    return kExitOk;
-  }
-  if (!opt.test_mutant.empty()) {
-    apply_mutant(opt.test_mutant, setup.cycle);
-    print_err("zerog-rt: WARNING: test mutant '" + opt.test_mutant +
-              "': this zerog-rt is broken on purpose (HIL tests only)");
-  }
-  if (opt.enable_zero_g && path) {
-    print_err("zerog-rt: --enable-zero-g and --collect exclude each other: choose one");
-    return kExitStartup;
-  }
+  return true;
+}
 
-  // Signals go to the main thread only (signalfd); every thread inherits the mask.
+// --check-config's answer: what was read and checked.
+std::string check_config_line(const Options& opt, const Loaded& loaded) {
+  const rt::Setup& setup = loaded.setup;
+  std::string effects;
+  for (model::Effect e : model::kAllEffects) {
+    if (setup.model.physics.effects.has(e))
+      effects += (effects.empty() ? "" : ",") + std::string(model::info(e).name);
+  }
+  const rt::PtpJointPath* path = loaded.path.get();
+  return "zerog-rt: " + opt.config + ": OK: model " + loaded.config.model_file.string() + " (" +
+         effects + (setup.model.network ? " + network" : "") + "), rig '" + setup.rig.name +
+         "', RSI cycle " + std::to_string(loaded.config.robot.cycle_ms) + " ms" +
+         (setup.cycle.robot ? ", pose from RIst or the rig's robot kinematics"
+                            : ", pose from RIst only (the rig describes no robot)") +
+         (path ? ", design " + opt.collect + " (" + std::to_string(path->num_points()) +
+                     " points, " + std::to_string(path->duration_s()) + " s)"
+               : std::string());
+}
+
+// Signals go to the main thread only (signalfd); every thread started later inherits the mask.
+int block_signals() {
   sigset_t signals;
   sigemptyset(&signals);
   sigaddset(&signals, SIGINT);
   sigaddset(&signals, SIGTERM);
   ::pthread_sigmask(SIG_BLOCK, &signals, nullptr);
-  const int signal_fd = ::signalfd(-1, &signals, SFD_CLOEXEC);
+  return ::signalfd(-1, &signals, SFD_CLOEXEC);
+}
 
-  // Devices (start-up: may block, bounded by their timeouts). The F/T board's bus: a SocketCAN
-  // interface, or zerog-emu's bus socket ([ft] transport); everything above it is the same.
+// The F/T board's bus: a SocketCAN interface, or zerog-emu's bus socket ([ft] transport);
+// everything above it is the same.
+struct FtBus {
+  rtio::CanSocket socket;
+  rtio::LocalCanBus local;
+  rtio::CanBus* bus = nullptr;
+  std::string name;  // in messages: "can0", or "local:/run/zerog/can.sock"
+};
+
+bool open_ft_bus(const rt::FtSection& ft, FtBus& out) {
   const rtio::CanSocketConfig can_config =
-      rtio::NetcanoemSensor::socket_config(static_cast<std::uint8_t>(config.ft.base_id));
-  rtio::CanSocket can_socket;
-  rtio::LocalCanBus can_local;
-  rtio::CanBus* can = &can_socket;
-  // Names the bus in messages: "can0", or "local:/run/zerog/can.sock".
-  std::string ft_bus = config.ft.interface;
-  if (config.ft.transport == rt::CanTransport::local) {
-    ft_bus = "local:" + config.ft.local_path.string();
-    const rtio::CanOpenResult opened =
-        can_local.open_client(config.ft.local_path.string(), can_config);
+      rtio::NetcanoemSensor::socket_config(static_cast<std::uint8_t>(ft.base_id));
+  if (ft.transport == rt::CanTransport::local) {
+    out.name = "local:" + ft.local_path.string();
+    const rtio::CanOpenResult opened = out.local.open_client(ft.local_path.string(), can_config);
     if (!opened.ok()) {
       print_err("zerog-rt: F/T sensor: cannot connect to the local CAN bus '" +
-                config.ft.local_path.string() + "': " + rtio::can_open_status_name(opened.status) +
-                " (" + opened.what + ": " + errno_text(opened.error_number) +
+                ft.local_path.string() + "': " + rtio::can_open_status_name(opened.status) + " (" +
+                opened.what + ": " + errno_text(opened.error_number) +
                 "); start zerog-emu --can-local first");
-      return kExitStartup;
+      return false;
     }
-    can = &can_local;
-  } else {
-    const rtio::CanOpenResult opened = can_socket.open(config.ft.interface, can_config);
-    if (!opened.ok()) {
-      print_err("zerog-rt: F/T sensor: cannot open CAN interface '" + config.ft.interface +
-                "': " + rtio::can_open_status_name(opened.status) + " (" + opened.what + ": " +
-                errno_text(opened.error_number) + ")");
-      return kExitStartup;
-    }
-    if (can_socket.receive_buffer_capped()) {
-      print_err("zerog-rt: WARNING: the CAN receive buffer was capped by net.core.rmem_max (" +
-                std::to_string(can_socket.receive_buffer_bytes()) + " bytes)");
-    }
+    out.bus = &out.local;
+    return true;
   }
-  rtio::NetcanoemConfig ft_config;
-  ft_config.base_id = static_cast<std::uint8_t>(config.ft.base_id);
-  ft_config.calibration_index = static_cast<std::uint8_t>(config.ft.calibration);
-  ft_config.sample_timeout =
-      std::chrono::nanoseconds(static_cast<std::int64_t>(config.ft.sample_timeout_ms * 1e6 + 0.5));
-  rtio::NetcanoemSensor ft(*can, ft_config);
-  if (const rtio::FtStartStatus st = ft.start(); st != rtio::FtStartStatus::ok) {
-    print_err("zerog-rt: F/T sensor on " + ft_bus + " (base id " +
-              std::to_string(config.ft.base_id) +
-              "): start failed: " + rtio::ft_start_status_name(st));
-    return kExitStartup;
+  out.name = ft.interface;
+  const rtio::CanOpenResult opened = out.socket.open(ft.interface, can_config);
+  if (!opened.ok()) {
+    print_err("zerog-rt: F/T sensor: cannot open CAN interface '" + ft.interface +
+              "': " + rtio::can_open_status_name(opened.status) + " (" + opened.what + ": " +
+              errno_text(opened.error_number) + ")");
+    return false;
   }
-  rtio::Stim300Config imu_config;
-  imu_config.path = config.imu.device;
-  imu_config.serial.baud = config.imu.baud;
-  imu_config.stream.identifier = static_cast<std::uint8_t>(config.imu.identifier);
-  imu_config.stream.scale.accel_range = accel_range(config.imu.accel_range_g);
-  rtio::Stim300Imu imu(imu_config);
-  if (const rtio::ImuStartStatus st = imu.start(); st != rtio::ImuStartStatus::ok) {
-    print_err("zerog-rt: IMU on " + config.imu.device + ": " + rtio::imu_start_status_name(st) +
-              " (" + errno_text(imu.last_errno()) + ")");
-    return kExitStartup;
+  if (out.socket.receive_buffer_capped()) {
+    print_err("zerog-rt: WARNING: the CAN receive buffer was capped by net.core.rmem_max (" +
+              std::to_string(out.socket.receive_buffer_bytes()) + " bytes)");
   }
-  rtio::RsiEndpointConfig robot_config;
-  robot_config.bind_address = config.robot.bind_address;
-  robot_config.bind_port = config.robot.bind_port;
-  robot_config.robot_address = config.robot.address;
-  robot_config.robot_port = config.robot.port;
-  robot_config.sensor_type = config.robot.sensor_type;
-  robot_config.receive_timeout = std::chrono::nanoseconds(
-      static_cast<std::int64_t>(config.robot.receive_timeout_ms * 1e6 + 0.5));
-  rtio::RsiEndpoint robot(robot_config);
-  if (const rtio::RobotStartStatus st = robot.start(); st != rtio::RobotStartStatus::ok) {
-    print_err("zerog-rt: RSI endpoint " + config.robot.bind_address + ":" +
-              std::to_string(config.robot.bind_port) + ": " + rtio::robot_start_status_name(st) +
-              " (" + errno_text(robot.last_errno()) + ")");
-    return kExitStartup;
-  }
+  out.bus = &out.socket;
+  return true;
+}
 
-  rtio::LockstepClient lockstep;
-  if (!opt.lockstep.empty()) {
-    if (const char* why = lockstep.open(opt.lockstep); *why != '\0') {
-      print_err("zerog-rt: --lockstep " + opt.lockstep + ": " + why + " (" +
-                errno_text(lockstep.last_errno()) + "); start zerog-emu --lockstep first");
-      return kExitStartup;
-    }
-  }
+// Each device's start(); false (the reason printed) if it failed.
+bool start_ft(rtio::NetcanoemSensor& ft, const FtBus& bus, const rt::FtSection& section) {
+  const rtio::FtStartStatus st = ft.start();
+  if (st == rtio::FtStartStatus::ok) return true;
+  print_err("zerog-rt: F/T sensor on " + bus.name + " (base id " + std::to_string(section.base_id) +
+            "): start failed: " + rtio::ft_start_status_name(st));
+  return false;
+}
 
+bool start_imu(rtio::Stim300Imu& imu, const rt::ImuSection& section) {
+  const rtio::ImuStartStatus st = imu.start();
+  if (st == rtio::ImuStartStatus::ok) return true;
+  print_err("zerog-rt: IMU on " + section.device + ": " + rtio::imu_start_status_name(st) + " (" +
+            errno_text(imu.last_errno()) + ")");
+  return false;
+}
+
+bool start_robot(rtio::RsiEndpoint& robot, const rt::RobotSection& section) {
+  const rtio::RobotStartStatus st = robot.start();
+  if (st == rtio::RobotStartStatus::ok) return true;
+  print_err("zerog-rt: RSI endpoint " + section.bind_address + ":" +
+            std::to_string(section.bind_port) + ": " + rtio::robot_start_status_name(st) + " (" +
+            errno_text(robot.last_errno()) + ")");
+  return false;
+}
+
+bool open_lockstep(rtio::LockstepClient& lockstep, const std::string& socket_path) {
+  if (const Status st = lockstep.open(socket_path); !st.ok()) {
+    print_err("zerog-rt: --lockstep " + socket_path + ": " + st.text() +
+              (st.code() == StatusCode::system_error ? "; start zerog-emu --lockstep first" : ""));
+    return false;
+  }
+  return true;
+}
+
+// The runtime's options from the configuration and the command line.
+rt::RuntimeOptions runtime_options(const Options& opt, const Loaded& loaded) {
+  const rt::RtConfig& config = loaded.config;
   rt::RuntimeOptions options;
   options.ft_rate_hz = config.ft.rate_hz;
   options.realtime = config.realtime;
@@ -260,50 +249,35 @@ int run(const Options& opt) {
     options.realtime.priority = 0;
   }
   options.auto_enable_zero_g = opt.enable_zero_g;
-  options.auto_collect = path != nullptr;
+  options.auto_collect = loaded.path != nullptr;
   options.recorder.dir = config.record_dir;
-  options.recorder.rig = setup.rig;
-  options.model_file_crc32 = setup.model_file_crc32;
+  options.recorder.rig = loaded.setup.rig;
+  options.model_file_crc32 = loaded.setup.model_file_crc32;
   options.modbus = config.modbus;
   options.telemetry = config.telemetry;
   options.model_file_name = config.model_file.filename().string();
-  rt::Runtime runtime(
-      options, rt::RuntimeDevices{&robot, &ft, &imu, opt.lockstep.empty() ? nullptr : &lockstep});
-  if (std::string why = runtime.configure(setup.cycle, std::move(setup.model), path.get());
-      !why.empty()) {
-    print_err("zerog-rt: " + config.file.string() + ": the loop refuses the configuration: " + why);
-    return kExitStartup;
-  }
-  std::vector<std::string> warnings;
-  const std::string started = runtime.start(warnings);
-  for (const std::string& w : warnings) print_err(w);
-  if (!started.empty()) {
-    print_err("zerog-rt: " + started);
-    return kExitStartup;
-  }
-  // Lockstep: hello once the threads wait for the emulator's events (start() dropped what had
-  // queued on the RSI socket before).
-  if (!opt.lockstep.empty() &&
-      lockstep.hello(robot_config.receive_timeout, config.ft.rate_hz, ft_config.sample_timeout) !=
-          rtio::LockstepStatus::ok) {
-    print_err("zerog-rt: --lockstep " + opt.lockstep + ": cannot send hello (" +
-              errno_text(lockstep.last_errno()) + ")");
-    runtime.stop();
-    return kExitStartup;
-  }
-  print_err(
-      "zerog-rt: running: RSI on " + config.robot.bind_address + ":" +
-      std::to_string(robot.local_port()) + " for " + config.robot.address + ", cycle " +
-      std::to_string(config.robot.cycle_ms) + " ms; F/T " + ft_bus + " at " +
-      std::to_string(static_cast<int>(config.ft.rate_hz)) + " Hz; IMU " + config.imu.device +
-      (config.record_dir ? "; recording to " + config.record_dir->string() : std::string()) +
-      (config.telemetry ? "; telemetry on DDS domain " + std::to_string(config.telemetry->domain_id)
-                        : std::string()) +
-      (runtime.modbus_server() != nullptr ? "; Modbus on " + config.modbus->bind_address + ":" +
-                                                std::to_string(runtime.modbus_server()->port())
-                                          : std::string()));
+  return options;
+}
 
-  // Main loop: signals, commands, supervision, status once a second.
+// The announcement once everything runs.
+std::string running_line(const rt::RtConfig& config, const rtio::RsiEndpoint& robot,
+                         const FtBus& ft_bus, const rt::Runtime& runtime) {
+  return "zerog-rt: running: RSI on " + config.robot.bind_address + ":" +
+         std::to_string(robot.local_port()) + " for " + config.robot.address + ", cycle " +
+         std::to_string(config.robot.cycle_ms) + " ms; F/T " + ft_bus.name + " at " +
+         std::to_string(static_cast<int>(config.ft.rate_hz)) + " Hz; IMU " + config.imu.device +
+         (config.record_dir ? "; recording to " + config.record_dir->string() : std::string()) +
+         (config.telemetry
+              ? "; telemetry on DDS domain " + std::to_string(config.telemetry->domain_id)
+              : std::string()) +
+         (runtime.modbus_server() != nullptr ? "; Modbus on " + config.modbus->bind_address + ":" +
+                                                   std::to_string(runtime.modbus_server()->port())
+                                             : std::string());
+}
+
+// Main loop: signals, commands, supervision, status once a second, until a signal, `quit`, the
+// end of --collect's path, the emulator's end of the run or --duration.
+void supervise_until_done(const Options& opt, int signal_fd, rt::Runtime& runtime) {
   const bool commands = opt.commands == "stdin";
   pollfd fds[2] = {{signal_fd, POLLIN, 0}, {commands ? STDIN_FILENO : -1, POLLIN, 0}};
   const auto t_start = std::chrono::steady_clock::now();
@@ -348,7 +322,11 @@ int run(const Options& opt) {
       if (next_status < now) next_status = now + std::chrono::seconds(1);
     }
   }
+}
 
+// Stops the runtime and writes what the run leaves: the recording's line, the summary. The exit
+// code: kExitOk, or kExitOutputFailed when an output could not be written.
+int finish(const Options& opt, const rt::RtConfig& config, rt::Runtime& runtime) {
   int code = kExitOk;
   if (std::string error = runtime.stop(); !error.empty()) {
     print_err("zerog-rt: " + error);
@@ -371,6 +349,70 @@ int run(const Options& opt) {
     }
   }
   return code;
+}
+
+int run(const Options& opt) {
+  Loaded loaded;
+  if (!load(opt, loaded)) return opt.check_config ? 1 : kExitStartup;
+  const rt::RtConfig& config = loaded.config;
+  if (opt.check_config) {
+    print_out(check_config_line(opt, loaded));
+    return kExitOk;
+  }
+  if (!opt.test_mutant.empty()) {
+    apply_mutant(opt.test_mutant, loaded.setup.cycle);
+    print_err("zerog-rt: WARNING: test mutant '" + opt.test_mutant +
+              "': this zerog-rt is broken on purpose (HIL tests only)");
+  }
+  if (opt.enable_zero_g && loaded.path) {
+    print_err("zerog-rt: --enable-zero-g and --collect exclude each other: choose one");
+    return kExitStartup;
+  }
+  const int signal_fd = block_signals();
+
+  // Devices (start-up: may block, bounded by their timeouts).
+  FtBus ft_bus;
+  if (!open_ft_bus(config.ft, ft_bus)) return kExitStartup;
+  const rtio::NetcanoemConfig ft_config = rt::netcanoem_config(config.ft);
+  rtio::NetcanoemSensor ft(*ft_bus.bus, ft_config);
+  if (!start_ft(ft, ft_bus, config.ft)) return kExitStartup;
+  rtio::Stim300Imu imu(rt::stim300_config(config.imu));
+  if (!start_imu(imu, config.imu)) return kExitStartup;
+  const rtio::RsiEndpointConfig robot_config = rt::rsi_endpoint_config(config.robot);
+  rtio::RsiEndpoint robot(robot_config);
+  if (!start_robot(robot, config.robot)) return kExitStartup;
+  rtio::LockstepClient lockstep;
+  const bool lockstepped = !opt.lockstep.empty();
+  if (lockstepped && !open_lockstep(lockstep, opt.lockstep)) return kExitStartup;
+
+  rt::Runtime runtime(runtime_options(opt, loaded),
+                      rt::RuntimeDevices{&robot, &ft, &imu, lockstepped ? &lockstep : nullptr});
+  if (const Status st =
+          runtime.configure(loaded.setup.cycle, std::move(loaded.setup.model), loaded.path.get());
+      !st.ok()) {
+    print_err("zerog-rt: " + config.file.string() +
+              ": the loop refuses the configuration: " + st.text());
+    return kExitStartup;
+  }
+  std::vector<std::string> warnings;
+  const Status started = runtime.start(warnings);
+  for (const std::string& w : warnings) print_err(w);
+  if (!started.ok()) {
+    print_err("zerog-rt: " + started.text());
+    return kExitStartup;
+  }
+  // Lockstep: hello once the threads wait for the emulator's events (start() dropped what had
+  // queued on the RSI socket before).
+  if (lockstepped && lockstep.hello(robot_config.receive_timeout, config.ft.rate_hz,
+                                    ft_config.sample_timeout) != rtio::LockstepStatus::ok) {
+    print_err("zerog-rt: --lockstep " + opt.lockstep + ": cannot send hello (" +
+              errno_text(lockstep.last_errno()) + ")");
+    (void)runtime.stop();
+    return kExitStartup;
+  }
+  print_err(running_line(config, robot, ft_bus, runtime));
+  supervise_until_done(opt, signal_fd, runtime);
+  return finish(opt, config, runtime);
 }
 
 }  // namespace

@@ -51,10 +51,10 @@ std::string affinity_warning(const std::string& thread, int cpu, int error) {
          "the process's cpuset";
 }
 
-std::string Thread::start(const std::string& name, std::function<void()> body, int priority,
-                          int cpu, ThreadSetup& setup, std::size_t stack_bytes) {
+Status Thread::start(const std::string& name, std::function<void()> body, int priority, int cpu,
+                     ThreadSetup& setup, std::size_t stack_bytes) {
   setup = ThreadSetup{};
-  if (started_) return "thread " + name + " already running";
+  if (started_) return {StatusCode::already_started, "thread " + name + " already running"};
   body_ = std::make_unique<std::function<void()>>(std::move(body));
   pthread_attr_t attr;
   ::pthread_attr_init(&attr);
@@ -62,8 +62,10 @@ std::string Thread::start(const std::string& name, std::function<void()> body, i
   const int error = ::pthread_create(&thread_, &attr, trampoline, body_.get());
   ::pthread_attr_destroy(&attr);
   if (error != 0) {
-    return "cannot create the " + name + " thread: " + std::strerror(error) +
-           (error == EAGAIN ? " (with locked memory: is the memlock limit large enough?)" : "");
+    return {
+        StatusCode::system_error,
+        "cannot create the " + name + " thread: " + std::strerror(error) +
+            (error == EAGAIN ? " (with locked memory: is the memlock limit large enough?)" : "")};
   }
   started_ = true;
   ::pthread_setname_np(thread_, ("zerog-" + name).substr(0, 15).c_str());

@@ -42,13 +42,6 @@ constexpr const char* kParseStatusNames[] = {"ok",
 static_assert(std::size(kParseStatusNames) == rtio::kParseStatusCount,
               "a ParseStatus was added: name it here");
 
-std::string transition_text(const loop::Transition& t) {
-  return std::string(loop::state_name(t.from)) + " -> " + loop::state_name(t.to) + " (" +
-         (t.by_fault ? std::string("fault ") + loop::fault_name(t.fault)
-                     : std::string(loop::command_name(t.command))) +
-         ")";
-}
-
 nlohmann::json latency_json(const LatencyHistogram& h) {
   return {{"count", h.count()},
           {"median", h.quantile(0.5)},
@@ -96,37 +89,29 @@ Runtime::Runtime(RuntimeOptions options, RuntimeDevices devices)
       ft_ring_(std::make_unique<FtRing>()),
       imu_ring_(std::make_unique<ImuRing>()),
       record_ring_(std::make_unique<RecordRing>()),
-      popped_(std::make_unique<RecordSlot>()) {
+      popped_(std::make_unique<RecordSlot>()),
+      announcer_(options_.auto_enable_zero_g, options_.auto_collect) {
   compute_window_.reserve(4096);
 }
 
 Runtime::~Runtime() { stop(); }
 
-std::string Runtime::configure(const loop::CycleConfig& config, infer::DeployedModel model,
-                               const loop::JointPath* path) {
-  if (devices_.robot == nullptr) return "no robot link";
+Status Runtime::configure(const loop::CycleConfig& config, infer::DeployedModel model,
+                          const loop::JointPath* path) {
+  if (devices_.robot == nullptr) return {StatusCode::not_ready, "no robot link"};
   // The model's identity, for the supervisor (proto/modbus.md) before the cycle takes the model.
-  snapshot_.model_crc32 = options_.model_file_crc32;
-  snapshot_.model_effects = model.physics.effects.bits();
-  if (model.network) {
-    const model::NetworkShape& shape = model.network->shape;
-    snapshot_.network_inputs = static_cast<std::uint16_t>(shape.width.front());
-    snapshot_.network_outputs = static_cast<std::uint16_t>(shape.width.back());
-    snapshot_.network_layers = static_cast<std::uint16_t>(shape.num_layers());
-    int widest = 0;
-    for (std::size_t l = 1; l + 1 < shape.width.size(); ++l)
-      widest = std::max(widest, shape.width[l]);
-    snapshot_.network_width = static_cast<std::uint16_t>(widest);
-  }
+  modbus::fill_model_identity(model, options_.model_file_crc32, snapshot_);
   if (options_.telemetry) {
     telemetry::TelemetryConfig t = *options_.telemetry;
     t.nominal_period_s = config.period_s;
-    if (std::string why = telemetry::check_config(t); !why.empty()) return why;
+    if (Status st = telemetry::check_config(t); !st.ok()) return std::move(st).within("telemetry");
     telemetry_ = std::make_unique<telemetry::TelemetryChannel>(
         t, telemetry::model_identity(model, options_.model_file_name, options_.model_file_crc32),
         config.body);
   }
-  if (std::string why = cycle_.configure(config, std::move(model)); !why.empty()) return why;
+  // loop::Cycle::configure still answers in text (its reason names what it refuses).
+  if (std::string why = cycle_.configure(config, std::move(model)); !why.empty())
+    return {StatusCode::invalid_setting, std::move(why)};
   configured_tunables_ = cycle_.tunables();
   supervisor_.publish(snapshot_);
   path_ = path;
@@ -134,15 +119,15 @@ std::string Runtime::configure(const loop::CycleConfig& config, infer::DeployedM
   return {};
 }
 
-std::string Runtime::start(std::vector<std::string>& warnings) {
-  if (started_) return "already started";
+Status Runtime::start(std::vector<std::string>& warnings) {
+  if (started_) return {StatusCode::already_started, "already started"};
   try {
     recorder_ = std::make_unique<Recorder>(options_.recorder);
   } catch (const std::exception& e) {
-    return e.what();
+    return {StatusCode::system_error, e.what()};
   }
   if (telemetry_ != nullptr) {
-    if (std::string why = telemetry_->start(); !why.empty()) return "telemetry: " + why;
+    if (Status st = telemetry_->start(); !st.ok()) return std::move(st).within("telemetry");
   }
   if (options_.realtime.lock_memory) {
     if (std::string w = lock_memory(); !w.empty()) warnings.push_back(std::move(w));
@@ -152,11 +137,11 @@ std::string Runtime::start(std::vector<std::string>& warnings) {
   std::vector<std::string> refused;
   int sched_error = 0;
   auto launch = [&](Thread& thread, const char* name, void (Runtime::*body)(), int prio,
-                    int cpu) -> std::string {
+                    int cpu) -> Status {
     ThreadSetup setup;
-    std::string error = thread.start(
+    Status st = thread.start(
         name, [this, body] { (this->*body)(); }, prio, cpu, setup);
-    if (!error.empty()) return error;
+    if (!st.ok()) return st;
     if (setup.sched_error != 0) {
       refused.emplace_back(name);
       sched_error = setup.sched_error;
@@ -167,26 +152,29 @@ std::string Runtime::start(std::vector<std::string>& warnings) {
     return {};
   };
   started_ = true;
-  std::string error = launch(recorder_thread_, "recorder", &Runtime::recorder_loop, 0, -1);
-  if (error.empty() && devices_.imu != nullptr)
+  Status error = launch(recorder_thread_, "recorder", &Runtime::recorder_loop, 0, -1);
+  if (error.ok() && devices_.imu != nullptr)
     error = launch(imu_thread_, "imu", &Runtime::imu_loop, sensor_priority, -1);
-  if (error.empty() && devices_.ft != nullptr)
+  if (error.ok() && devices_.ft != nullptr)
     error = launch(ft_thread_, "ft", &Runtime::ft_loop, sensor_priority, -1);
   // Whatever robot datagrams piled up while the program started are old: the first cycle
   // starts from now (and a datagram sent after start() began is kept).
   devices_.robot->discard_queued();
-  if (error.empty())
+  if (error.ok())
     error = launch(cycle_thread_, "cycle", &Runtime::cycle_loop, priority, options_.realtime.cpu);
-  if (error.empty() && options_.modbus) {
+  if (error.ok() && options_.modbus) {
     modbus_ = std::make_unique<modbus::ModbusServer>(*options_.modbus, *this);
-    error = modbus_->start();
+    // A refused setting is named as in the file ("modbus.port"); the server's own failures
+    // already say "Modbus server: …".
+    Status st = modbus_->start();
+    error = st.setting().empty() ? std::move(st) : std::move(st).within("modbus");
   }
   if (!refused.empty()) {
     std::string names;
     for (const std::string& n : refused) names += (names.empty() ? "" : ", ") + n;
     warnings.push_back(sched_warning("the " + names + " threads", priority, sched_error));
   }
-  if (!error.empty()) stop();
+  if (!error.ok()) (void)stop();
   return error;
 }
 
@@ -207,7 +195,7 @@ void Runtime::cycle_once() noexcept {
     lockstep_once();
     return;
   }
-  handle_received(devices_.robot->receive(message_));
+  handle_received(devices_.robot->receive_sample(robot_sample_));
 }
 
 void Runtime::handle_received(rtio::RobotReceiveStatus received) noexcept {
@@ -239,17 +227,16 @@ void Runtime::handle_received(rtio::RobotReceiveStatus received) noexcept {
   while (imu_ring_->try_pop(imu_sample_)) cycle_.add_imu(imu_sample_);
 
   const std::int64_t t0 = monotonic_ns();
-  cycle_.step(message_, reply_);
+  cycle_.step(robot_sample_, correction_);
   const std::int64_t t1 = monotonic_ns();
-  const rtio::RobotReplyStatus sent = reply_.axis ? robot.reply_axes(reply_.akorr_deg, reply_.ipoc)
-                                                  : robot.reply(reply_.rkorr, reply_.ipoc);
+  const rtio::RobotReplyStatus sent = robot.send_correction(correction_);
   const std::int64_t t2 = monotonic_ns();
   if (sent == rtio::RobotReplyStatus::ok) {
     ++cycle_counters_.replies_ok;
   } else {
     ++cycle_counters_.replies_failed;
   }
-  if (reply_.axis) ++cycle_counters_.axis_replies;
+  if (correction_.axis()) ++cycle_counters_.axis_replies;
 
   cycle_.set_compute_ns(t1 - t0);
   const loop::CycleRecord& record = cycle_.last();
@@ -308,6 +295,9 @@ void Runtime::after_cycle() noexcept {
     h.record_drops = snapshot_.records_dropped;
     h.commands_refused = c.commands_refused;
     h.transitions = s.transitions;
+    h.poses_from_joints = c.poses_from_joints;
+    h.pose_disagreements = c.pose_disagreements;
+    h.poses_missing = c.poses_missing;
     telemetry_->set_health(h);
     if (cycle_.tunables_accepted() != tunables_seen_) {  // the PLC changed the virtual body
       tunables_seen_ = cycle_.tunables_accepted();
@@ -321,29 +311,13 @@ void Runtime::after_cycle() noexcept {
 void Runtime::update_snapshot(std::int64_t t_received_ns) noexcept {
   // Called when a robot message has arrived: the period since the last one, and once a second
   // the compute-time p99 and the largest jitter of that second.
-  if (last_start_ns_ != 0) {
-    const std::int64_t period = t_received_ns - last_start_ns_;
-    snapshot_.period_last_s = 1e-9 * static_cast<double>(period);
-    const auto nominal = static_cast<std::int64_t>(cycle_.config().period_s * 1e9);
-    second_jitter_ns_ = std::max(second_jitter_ns_, std::abs(period - nominal));
-  }
-  last_start_ns_ = t_received_ns;
-  const std::int64_t compute = cycle_.last().compute_ns;
-  if (cycle_.last().cycle > 0 && second_n_ < second_compute_ns_.size())
-    second_compute_ns_[second_n_++] = compute;
-  if (second_start_ns_ == 0) second_start_ns_ = t_received_ns;
-  if (t_received_ns - second_start_ns_ >= 1'000'000'000) {
-    if (second_n_ > 0) {
-      const std::size_t rank = (second_n_ - 1) * 99 / 100;
-      std::nth_element(second_compute_ns_.begin(),
-                       second_compute_ns_.begin() + static_cast<std::ptrdiff_t>(rank),
-                       second_compute_ns_.begin() + static_cast<std::ptrdiff_t>(second_n_));
-      snapshot_.compute_p99_s = 1e-9 * static_cast<double>(second_compute_ns_[rank]);
-    }
-    snapshot_.jitter_max_s = 1e-9 * static_cast<double>(second_jitter_ns_);
-    second_n_ = 0;
-    second_jitter_ns_ = 0;
-    second_start_ns_ = t_received_ns;
+  const auto nominal_ns = static_cast<std::int64_t>(cycle_.config().period_s * 1e9);
+  const SecondWindow::Figures f = second_window_.on_message(
+      t_received_ns, nominal_ns, cycle_.last().compute_ns, cycle_.last().cycle > 0);
+  if (f.has_period) snapshot_.period_last_s = 1e-9 * static_cast<double>(f.period_ns);
+  if (f.second_ended) {
+    if (f.has_compute_p99) snapshot_.compute_p99_s = 1e-9 * static_cast<double>(f.compute_p99_ns);
+    snapshot_.jitter_max_s = 1e-9 * static_cast<double>(f.jitter_max_ns);
   }
 }
 
@@ -442,7 +416,7 @@ void Runtime::lockstep_once() noexcept {
   } else {
     ++lockstep_counters_.datagram_events;
     // The datagram was sent before the event: it is on its way through loopback.
-    rtio::RobotReceiveStatus received = devices_.robot->receive(message_);
+    rtio::RobotReceiveStatus received = devices_.robot->receive_sample(robot_sample_);
     const std::int64_t deadline = monotonic_ns() + kDatagramGuardNs;
     while (received == rtio::RobotReceiveStatus::timeout) {
       if (monotonic_ns() > deadline) {
@@ -450,7 +424,7 @@ void Runtime::lockstep_once() noexcept {
         return;
       }
       ++lockstep_counters_.receive_retries;
-      received = devices_.robot->receive(message_);
+      received = devices_.robot->receive_sample(robot_sample_);
     }
     handle_received(received);
   }
@@ -697,48 +671,13 @@ void Runtime::recorder_loop() {
 // --- main thread ----------------------------------------------------------------------------
 
 SupervisorEvents Runtime::supervise() {
-  SupervisorEvents ev;
   CycleStatus s;
-  if (cycle_status_.read(s) == rtio::LatestRead::empty) return ev;
+  if (cycle_status_.read(s) == rtio::LatestRead::empty) return {};
   last_status_ = s;
-  if (s.transitions != transitions_seen_) {
-    if (s.transitions > transitions_seen_ + 1) {
-      ev.err.push_back("zerog-rt: " + std::to_string(s.transitions - transitions_seen_ - 1) +
-                       " more state transitions (in the summary)");
-    }
-    ev.err.push_back("zerog-rt: cycle " + std::to_string(s.last_transition.cycle) + ": " +
-                     transition_text(s.last_transition));
-    transitions_seen_ = s.transitions;
-  }
-  const bool automatic = options_.auto_enable_zero_g || options_.auto_collect;
-  if (automatic && !auto_done_ && !auto_gave_up_) {
-    const loop::State target =
-        options_.auto_enable_zero_g ? loop::State::zero_g : loop::State::collecting;
-    if (s.state == target) {
-      const std::uint64_t at = s.last_transition.to == target ? s.last_transition.cycle : s.cycle;
-      ev.out.push_back(std::string("zerog-rt: ") +
-                       (options_.auto_enable_zero_g ? "zero-g enabled" : "collection started") +
-                       " at cycle " + std::to_string(at));
-      auto_done_ = true;
-    } else if (s.state == loop::State::fault) {
-      ev.err.push_back(std::string("zerog-rt: ") +
-                       (options_.auto_enable_zero_g ? "--enable-zero-g" : "--collect") +
-                       " gave up: fault " + loop::fault_name(s.fault) + " before it started");
-      auto_gave_up_ = true;
-    } else if (devices_.lockstep == nullptr) {
-      auto_request(s.state, s.ready, s.cycle, requested_, requested_at_);
-    }
-  }
-  if (s.commands_refused != refused_seen_) {
-    refused_seen_ = s.commands_refused;
-    ev.err.push_back(std::string("zerog-rt: command refused in state ") +
-                     loop::state_name(s.state) + " (proto/states.md)");
-  }
-  if (s.collections_done != collections_seen_) {
-    collections_seen_ = s.collections_done;
-    ev.out.push_back("zerog-rt: collection finished at cycle " + std::to_string(s.cycle));
-    if (options_.auto_collect) collection_finished_ = true;
-  }
+  SupervisorEvents ev = announcer_.update(s);
+  // Still waiting (neither there nor given up): ask again (in lockstep the cycle thread asks).
+  if (announcer_.auto_pending() && devices_.lockstep == nullptr)
+    auto_request(s.state, s.ready, s.cycle, requested_, requested_at_);
   return ev;
 }
 

@@ -8,6 +8,7 @@
 
 #include <cerrno>
 #include <cstring>
+#include <string>
 
 #include "wait.hpp"
 
@@ -33,25 +34,33 @@ LockstepClient::~LockstepClient() {
   if (fd_ >= 0) ::close(fd_);
 }
 
-const char* LockstepClient::open(std::string_view path) {
+Status LockstepClient::open(std::string_view path) {
   if (fd_ >= 0) ::close(fd_);
   fd_ = -1;
   sockaddr_un peer{};
   peer.sun_family = AF_UNIX;
-  if (path.empty() || path.size() >= sizeof peer.sun_path) return "the path is empty or too long";
+  if (path.empty() || path.size() >= sizeof peer.sun_path) {
+    return Status::invalid(
+        "path", "is empty or longer than " + std::to_string(sizeof peer.sun_path - 1) + " bytes");
+  }
   std::memcpy(peer.sun_path, path.data(), path.size());
   const int fd = ::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
-  if (fd < 0) return "socket(AF_UNIX, SOCK_DGRAM) failed";
+  if (fd < 0) {
+    last_errno_ = errno;
+    return {StatusCode::system_error,
+            std::string("socket(AF_UNIX, SOCK_DGRAM) failed: ") + std::strerror(last_errno_)};
+  }
   sockaddr_un self{};
   self.sun_family = AF_UNIX;  // autobind: an abstract address the emulator answers to
   if (::bind(fd, reinterpret_cast<const sockaddr*>(&self), sizeof(sa_family_t)) != 0 ||
       ::connect(fd, reinterpret_cast<const sockaddr*>(&peer), sizeof peer) != 0) {
     last_errno_ = errno;
     ::close(fd);
-    return "no emulator listens there (connect failed)";
+    return {StatusCode::system_error, std::string("no emulator listens there (connect failed: ") +
+                                          std::strerror(last_errno_) + ")"};
   }
   fd_ = fd;
-  return "";
+  return {};
 }
 
 LockstepStatus LockstepClient::send(const LockstepReply& reply) {

@@ -59,9 +59,12 @@ TelemetryChannel::TelemetryChannel(TelemetryConfig config, ModelIdentityInfo mod
 
 TelemetryChannel::~TelemetryChannel() { stop(); }
 
-std::string TelemetryChannel::start() {
+Status TelemetryChannel::start() {
   if (started_) return {};
-  if (std::string why = check_config(config_); !why.empty()) return why;
+  if (Status st = check_config(config_); !st.ok()) return st;
+  const auto failed = [](std::string why) {
+    return Status(StatusCode::system_error, std::move(why));
+  };
   auto dds = std::make_unique<Dds>();
   const std::string xml = cyclone_xml(config_);
   const auto domain_id = static_cast<dds_domainid_t>(config_.domain_id);
@@ -72,13 +75,13 @@ std::string TelemetryChannel::start() {
     std::string why = dds_error("dds_create_domain(" + std::to_string(config_.domain_id) + ")", rc);
     if (rc == DDS_RETCODE_PRECONDITION_NOT_MET)
       why += " (the domain already exists in this process)";
-    return why + "; configuration: " + xml;
+    return failed(why + "; configuration: " + xml);
   }
   dds->participant = dds_create_participant(domain_id, nullptr, nullptr);
   if (dds->participant < 0) {
     const dds_return_t rc = dds->participant;
     dds->participant = 0;
-    return dds_error("dds_create_participant", rc);
+    return failed(dds_error("dds_create_participant", rc));
   }
 
   // High-rate streams: best-effort, keep-last 1, volatile. State: reliable, transient-local.
@@ -114,12 +117,12 @@ std::string TelemetryChannel::start() {
   writer(&zerog_telemetry_ModelIdentity_desc, "model", state_qos, dds->model);
   dds_delete_qos(stream_qos);
   dds_delete_qos(state_qos);
-  if (!error.empty()) return error;
+  if (!error.empty()) return failed(error);
 
   std::vector<char*> storage;
   const zerog_telemetry_ModelIdentity identity = model_identity_sample(model_, storage);
   if (const dds_return_t rc = dds_write(dds->model, &identity); rc < 0)
-    return dds_error("dds_write(" + topic_name("model") + ")", rc);
+    return failed(dds_error("dds_write(" + topic_name("model") + ")", rc));
 
   dds_ = std::move(dds);
   stop_.store(false, std::memory_order_relaxed);

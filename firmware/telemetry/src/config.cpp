@@ -15,40 +15,41 @@ bool blank_or_control(char c) { return static_cast<unsigned char>(c) <= ' '; }
 
 }  // namespace
 
-std::string check_config(const TelemetryConfig& c) {
+Status check_config(const TelemetryConfig& c) {
   if (c.domain_id < 0 || c.domain_id > kMaxDomainId)
-    return "telemetry.domain_id: " + std::to_string(c.domain_id) + " is outside 0.." +
-           std::to_string(kMaxDomainId);
+    return Status::invalid("domain_id", std::to_string(c.domain_id) + " is outside 0.." +
+                                            std::to_string(kMaxDomainId));
   if (!c.interface.empty()) {
     if (c.interface.size() > 15)
-      return "telemetry.interface: \"" + c.interface + "\" is longer than 15 characters";
+      return Status::invalid("interface", "\"" + c.interface + "\" is longer than 15 characters");
     for (char ch : c.interface)
       if (blank_or_control(ch) || has_xml_special(std::string_view(&ch, 1)) || ch == '/')
-        return "telemetry.interface: \"" + c.interface + "\" is not an interface name";
+        return Status::invalid("interface", "\"" + c.interface + "\" is not an interface name");
   }
   for (const std::string& p : c.peers) {
-    if (p.empty()) return "telemetry.peers: an empty address";
+    if (p.empty()) return Status::invalid("peers", "an empty address");
     for (char ch : p)
       if (blank_or_control(ch) || has_xml_special(std::string_view(&ch, 1)))
-        return "telemetry.peers: \"" + p + "\" is not an address or host name";
+        return Status::invalid("peers", "\"" + p + "\" is not an address or host name");
   }
   if (!c.allow_multicast && c.peers.empty())
-    return "telemetry.peers: multicast is off, so discovery needs at least one unicast peer "
-           "(e.g. 127.0.0.1 for this host)";
-  if (c.topic_prefix.empty()) return "telemetry.topic_prefix: empty";
+    return Status::invalid("peers",
+                           "multicast is off, so discovery needs at least one unicast peer "
+                           "(e.g. 127.0.0.1 for this host)");
+  if (c.topic_prefix.empty()) return Status::invalid("topic_prefix", "empty");
   for (char ch : c.topic_prefix) {
     const bool ok = (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') ||
                     (ch >= '0' && ch <= '9') || ch == '_' || ch == '/';
     if (!ok)
-      return "telemetry.topic_prefix: \"" + c.topic_prefix +
-             "\" may hold only letters, digits, '_' and '/'";
+      return Status::invalid(
+          "topic_prefix", "\"" + c.topic_prefix + "\" may hold only letters, digits, '_' and '/'");
   }
   if (!std::isfinite(c.health_period_s) || c.health_period_s <= 0.0)
-    return "telemetry.health_period_s: must be a positive number of seconds";
+    return Status::invalid("health_period_s", "must be a positive number of seconds");
   if (!std::isfinite(c.nominal_period_s) || c.nominal_period_s <= 0.0)
-    return "telemetry.nominal_period_s: must be a positive number of seconds";
+    return Status::invalid("nominal_period_s", "must be a positive number of seconds");
   if (!std::isfinite(c.poll_period_s) || c.poll_period_s <= 0.0 || c.poll_period_s > 0.1)
-    return "telemetry.poll_period_s: must lie in (0, 0.1] s";
+    return Status::invalid("poll_period_s", "must lie in (0, 0.1] s");
   return {};
 }
 

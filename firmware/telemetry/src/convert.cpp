@@ -157,6 +157,9 @@ HealthSample to_health(std::uint64_t health_seq, const loop::CycleRecord* newest
   s.record_drops = runtime.record_drops;
   s.commands_refused = runtime.commands_refused;
   s.transitions = runtime.transitions;
+  s.poses_from_joints = runtime.poses_from_joints;
+  s.pose_disagreements = runtime.pose_disagreements;
+  s.poses_missing = runtime.poses_missing;
   return s;
 }
 

@@ -15,7 +15,7 @@ constexpr const char* kBegin = "<!-- BEGIN register map: generated from register
 constexpr const char* kEnd = "<!-- END register map -->";
 
 TEST(ModbusDoc, RegisterTablesInProtoMatchTheCode) {
-  const std::string path = std::string(ZEROG_SOURCE_DIR) + "/proto/modbus.md";
+  const std::string path = ZEROG_SOURCE_DIR "/proto/modbus.md";
   std::ifstream in(path);
   ASSERT_TRUE(in) << "cannot read " << path;
   std::stringstream ss;
@@ -25,7 +25,7 @@ TEST(ModbusDoc, RegisterTablesInProtoMatchTheCode) {
   const std::size_t end = doc.find(kEnd);
   const std::string expected = register_map_markdown();
   // For a developer: the block to paste (also written next to the build).
-  const std::string out_path = std::string(ZEROG_BINARY_DIR) + "/modbus_register_map.md";
+  const std::string out_path = ZEROG_BINARY_DIR "/modbus_register_map.md";
   std::ofstream(out_path) << kBegin << "\n" << expected << kEnd << "\n";
   ASSERT_NE(begin, std::string::npos) << path << ": marker missing: " << kBegin;
   ASSERT_NE(end, std::string::npos) << path << ": marker missing: " << kEnd;

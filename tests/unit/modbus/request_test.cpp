@@ -327,6 +327,9 @@ TEST(ModbusRegisters, InputRegistersShowTheSnapshot) {
   in.target.contact_sensor = {1.5, -2.25, 0.0, 0.125, 0.0, -0.0001};
   in.target.compute_last_s = 8.5e-6;
   in.target.model_crc32 = 0xDEADBEEF;
+  in.target.pose_disagreements = 0x1'0000'0007ULL;  // wraps modulo 2^32
+  in.target.poses_from_joints = 11;
+  in.target.poses_missing = 13;
   in.proposal = loop::ProposalStatus::refused_state;
   std::vector<std::uint16_t> regs(table_extent(Table::input_register));
   fill_input(in, regs);
@@ -341,6 +344,10 @@ TEST(ModbusRegisters, InputRegistersShowTheSnapshot) {
   EXPECT_EQ(get_words(ValueType::int32, &regs[20]), -1);
   EXPECT_EQ(get_words(ValueType::uint32, &regs[22]), 8500);
   EXPECT_EQ(get_words(ValueType::uint32, &regs[40]), 0xDEADBEEF);
+  ASSERT_GE(regs.size(), 62u);
+  EXPECT_EQ(get_words(ValueType::uint32, &regs[56]), 7);
+  EXPECT_EQ(get_words(ValueType::uint32, &regs[58]), 11);
+  EXPECT_EQ(get_words(ValueType::uint32, &regs[60]), 13);
   std::vector<std::uint8_t> coils(table_extent(Table::coil));
   fill_bits(Table::coil, in, coils);
   EXPECT_EQ(coils, (std::vector<std::uint8_t>{1, 0, 0}));

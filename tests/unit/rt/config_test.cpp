@@ -312,6 +312,38 @@ TEST(RtConfig, ModbusAndTelemetryTablesAreReadAndCheckedKeyByKey) {
                {"telemetry.peers", line_of(s, "peers = []"), 0, "needs at least one unicast peer"});
 }
 
+// The [modbus] and [telemetry] values the server's and the channel's own checks refuse
+// (modbus::check_server_config, telemetry::check_config): the key comes from the status's field,
+// at its value's position, and the message reads `KEY: why` once (no key parsed out of text).
+TEST(RtConfig, ModuleChecksNameTheKeyFromTheStatusField) {
+  const std::string s = with_supervision(sample_text());
+  const int bind_line = line_of(s, "bind_address = \"192.168.2");
+  expect_error(with_line(s, "bind_address = \"192.168.2", "bind_address = \"localhost\""),
+               {"modbus.bind_address", bind_line, 16, "'localhost' is not an IPv4 address"});
+  expect_error(with_line(s, "allow = ", "allow = [\"10.0.0.0/33\"]"),
+               {"modbus.allow[0]", line_of(s, "allow = "), 9, "prefix length that is not 0..32"});
+  expect_error(with_line(s, "allow = ", "allow = [\"10.0.0.0/8\", \"ten\"]"),
+               {"modbus.allow[1]", line_of(s, "allow = "), 9, "'ten' is not an IPv4 address"});
+  expect_error(with_line(s, "interface = \"eth1", "interface = \"an-interface-too-long\""),
+               {"telemetry.interface", line_of(s, "interface = \"eth1"), 13,
+                "is longer than 15 characters"});
+  expect_error(with_line(s, "peers = []", "peers = [\"bad<peer\"]"),
+               {"telemetry.peers", line_of(s, "peers = []"), 9,
+                "\"bad<peer\" is not an address or host name"});
+  expect_error(with_line(s, "allow_multicast", "allow_multicast = true\ntopic_prefix = \"zerog.\""),
+               {"telemetry.topic_prefix", line_of(s, "allow_multicast") + 1, 16,
+                "may hold only letters, digits"});
+  try {
+    parse_config(with_line(s, "bind_address = \"192.168.2", "bind_address = \"localhost\""),
+                 "rt.toml");
+    ADD_FAILURE() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(std::string(e.what()), "rt.toml:" + std::to_string(bind_line) +
+                                         ":16: modbus.bind_address: 'localhost' is not an IPv4 "
+                                         "address");
+  }
+}
+
 // --- the program ---------------------------------------------------------------------------
 
 struct ProgramRun {

@@ -70,7 +70,7 @@ TEST_F(CycleOnce, TheSupervisorSnapshotAndTelemetryHandOverAllocateNothing) {
   t.domain_id = 7;
   options.telemetry = t;
   auto rt = std::make_unique<Runtime>(options, RuntimeDevices{&robot_link});
-  ASSERT_EQ(rt->configure(test::test_cycle_config(), test::payload_model()), "");
+  ASSERT_EQ(rt->configure(test::test_cycle_config(), test::payload_model()).text(), "");
   modbus::SupervisorTarget& target = *rt;
   EXPECT_EQ(target.snapshot().model_crc32, 0xC0FFEEu) << "identity published at configure";
   EXPECT_EQ(target.snapshot().model_effects, model::kDefaultModel.bits());
@@ -106,7 +106,7 @@ TEST_F(CycleOnce, TheSupervisorSnapshotAndTelemetryHandOverAllocateNothing) {
 
 TEST_F(CycleOnce, AllocatesNothingInZeroGAndThroughAFault) {
   auto rt = std::make_unique<Runtime>(RuntimeOptions{}, RuntimeDevices{&robot_link});
-  ASSERT_EQ(rt->configure(test::test_cycle_config(), test::payload_model()), "");
+  ASSERT_EQ(rt->configure(test::test_cycle_config(), test::payload_model()).text(), "");
   const Eigen::Matrix<double, 6, 1> none = Eigen::Matrix<double, 6, 1>::Zero();
   for (int i = 0; i < 6; ++i) {
     feed(*rt, none);
@@ -174,7 +174,7 @@ class Ramp final : public loop::JointPath {
 TEST_F(CycleOnce, AllocatesNothingInCollectionModeAndAnswersWithAxisCorrections) {
   Ramp path(proto::rsi::joints_to_rad(robot.message.joints_deg));
   auto rt = std::make_unique<Runtime>(RuntimeOptions{}, RuntimeDevices{&robot_link});
-  ASSERT_EQ(rt->configure(test::test_cycle_config(), test::payload_model(), &path), "");
+  ASSERT_EQ(rt->configure(test::test_cycle_config(), test::payload_model(), &path).text(), "");
   const Eigen::Matrix<double, 6, 1> none = Eigen::Matrix<double, 6, 1>::Zero();
   for (int i = 0; i < 6; ++i) {
     feed(*rt, none);

@@ -41,18 +41,20 @@ TEST(Realtime, ThreadRunsUnderSchedFifoOrReportsWhy) {
   std::atomic<int> policy{-1};
   std::atomic<int> priority{-1};
   ThreadSetup setup;
-  ASSERT_EQ(thread.start(
-                "test",
-                [&] {
-                  prefault_stack();
-                  while (!release.load()) sched_yield();
-                  sched_param p{};
-                  int pol = 0;
-                  pthread_getschedparam(pthread_self(), &pol, &p);
-                  policy = pol;
-                  priority = p.sched_priority;
-                },
-                10, -1, setup),
+  ASSERT_EQ(thread
+                .start(
+                    "test",
+                    [&] {
+                      prefault_stack();
+                      while (!release.load()) sched_yield();
+                      sched_param p{};
+                      int pol = 0;
+                      pthread_getschedparam(pthread_self(), &pol, &p);
+                      policy = pol;
+                      priority = p.sched_priority;
+                    },
+                    10, -1, setup)
+                .text(),
             "");
   release = true;
   thread.join();

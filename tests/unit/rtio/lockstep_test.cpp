@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cerrno>
 #include <chrono>
 #include <cstdint>
 #include <cstring>
@@ -64,9 +65,15 @@ class Emulator {
 
 TEST(Lockstep, OpenSaysWhyWhenNobodyListens) {
   LockstepClient client;
-  EXPECT_STREQ(client.open("/nonexistent/zerog-lockstep"),
-               "no emulator listens there (connect failed)");
-  EXPECT_STREQ(client.open(std::string(200, 'x')), "the path is empty or too long");
+  const Status nobody = client.open("/nonexistent/zerog-lockstep");
+  EXPECT_EQ(nobody.code(), StatusCode::system_error);
+  EXPECT_EQ(nobody.text(), "no emulator listens there (connect failed: No such file or directory)");
+  EXPECT_EQ(client.last_errno(), ENOENT);
+  const Status too_long = client.open(std::string(200, 'x'));
+  EXPECT_EQ(too_long.code(), StatusCode::invalid_setting);
+  EXPECT_EQ(too_long.setting(), "path");
+  EXPECT_EQ(too_long.text(), "path: is empty or longer than 107 bytes");
+  EXPECT_EQ(client.open("").setting(), "path");
   LockstepEvent ev;
   EXPECT_EQ(client.wait(ev, 1ms), LockstepStatus::not_open);
 }
@@ -74,7 +81,7 @@ TEST(Lockstep, OpenSaysWhyWhenNobodyListens) {
 TEST(Lockstep, HelloCarriesTheTimeoutsAndRateAndDoneTheReplies) {
   Emulator emu;
   LockstepClient client;
-  ASSERT_STREQ(client.open(emu.path()), "");
+  ASSERT_EQ(client.open(emu.path()).text(), "");
   ASSERT_EQ(client.hello(18ms, 250.0, 3ms), LockstepStatus::ok);
   const LockstepReply hello = emu.receive();
   EXPECT_EQ(hello.magic, kLockstepMagic);
@@ -93,7 +100,7 @@ TEST(Lockstep, HelloCarriesTheTimeoutsAndRateAndDoneTheReplies) {
 TEST(Lockstep, EventsComeWholeAndAnythingElseIsACountedBadMessage) {
   Emulator emu;
   LockstepClient client;
-  ASSERT_STREQ(client.open(emu.path()), "");
+  ASSERT_EQ(client.open(emu.path()).text(), "");
   ASSERT_EQ(client.hello(18ms, 250.0, 3ms), LockstepStatus::ok);
   emu.receive();
 
@@ -134,7 +141,7 @@ TEST(Lockstep, EventsComeWholeAndAnythingElseIsACountedBadMessage) {
 TEST(Lockstep, TheGuardBoundsTheWait) {
   Emulator emu;
   LockstepClient client;
-  ASSERT_STREQ(client.open(emu.path()), "");
+  ASSERT_EQ(client.open(emu.path()).text(), "");
   LockstepEvent got;
   const auto t0 = std::chrono::steady_clock::now();
   EXPECT_EQ(client.wait(got, 30ms), LockstepStatus::timeout);
@@ -146,7 +153,7 @@ TEST(Lockstep, TheGuardBoundsTheWait) {
 TEST(Lockstep, WaitAndDoneDoNotAllocate) {
   Emulator emu;
   LockstepClient client;
-  ASSERT_STREQ(client.open(emu.path()), "");
+  ASSERT_EQ(client.open(emu.path()).text(), "");
   ASSERT_EQ(client.hello(18ms, 250.0, 3ms), LockstepStatus::ok);
   emu.receive();
   LockstepEvent sent;

@@ -122,8 +122,8 @@ TEST(TelemetryChannel, PublishesEveryTopicWithTheRecordsValues) {
   control::BodyParams body;
   body.mass_kg = 50.0;
   TelemetryChannel channel(config, test_identity(), body);
-  ASSERT_EQ(channel.start(), "");
-  EXPECT_EQ(channel.start(), "");  // idempotent
+  ASSERT_EQ(channel.start().text(), "");
+  EXPECT_EQ(channel.start().text(), "");  // idempotent
   Reader wrench(config.domain_id, &zerog_telemetry_WrenchSample_desc, "zerog/wrench", false, false);
   Reader imu(config.domain_id, &zerog_telemetry_ImuSample_desc, "zerog/imu", false, false);
   Reader robot(config.domain_id, &zerog_telemetry_RobotSample_desc, "zerog/robot", false, false);
@@ -207,7 +207,7 @@ TEST(TelemetryChannel, PublishesEveryTopicWithTheRecordsValues) {
 TEST(TelemetryChannel, LateReaderGetsModelIdentityAndLastHealth) {
   const TelemetryConfig config = loopback_config(2);
   TelemetryChannel channel(config, test_identity(), control::BodyParams{});
-  ASSERT_EQ(channel.start(), "");
+  ASSERT_EQ(channel.start().text(), "");
   for (int i = 1; i <= 30; ++i) ASSERT_TRUE(channel.offer(scripted(static_cast<std::uint64_t>(i))));
   ASSERT_TRUE(wait_for([&] { return channel.counters().records_published == 30; }));
   // Health follows the state change (idle → zero_g at cycle 20) and the period.
@@ -254,7 +254,7 @@ TEST(TelemetryChannel, LateReaderGetsModelIdentityAndLastHealth) {
 TEST(TelemetryChannel, CountsDropsWhenThePublisherStallsAndDrainsOnStop) {
   const TelemetryConfig config = loopback_config(3);
   TelemetryChannel channel(config, test_identity(), control::BodyParams{});
-  ASSERT_EQ(channel.start(), "");
+  ASSERT_EQ(channel.start().text(), "");
   Reader health(config.domain_id, &zerog_telemetry_Health_desc, "zerog/health", true, true);
   channel.pause_publisher_for_test(true);
   constexpr std::size_t kCapacity = TelemetryChannel::Ring::capacity();
@@ -296,7 +296,7 @@ TEST(TelemetryChannel, OfferDoesNotAllocate) {
   channel.set_body_params(control::BodyParams{});
   EXPECT_EQ(zerog::test::allocation_count() - before, 0u);
 
-  ASSERT_EQ(channel.start(), "");
+  ASSERT_EQ(channel.start().text(), "");
   channel.pause_publisher_for_test(true);
   std::this_thread::sleep_for(std::chrono::milliseconds(20));
   before = zerog::test::allocation_count();
@@ -314,8 +314,10 @@ TEST(TelemetryChannel, StartRefusesABadConfigurationNamingTheSetting) {
   TelemetryConfig config = loopback_config(5);
   config.peers.clear();
   TelemetryChannel channel(config, test_identity(), control::BodyParams{});
-  const std::string why = channel.start();
-  EXPECT_NE(why.find("telemetry.peers"), std::string::npos) << why;
+  const Status st = channel.start();
+  EXPECT_EQ(st.code(), StatusCode::invalid_setting) << st.text();
+  EXPECT_EQ(st.setting(), "peers") << st.text();
+  EXPECT_NE(st.message().find("unicast peer"), std::string::npos) << st.text();
   EXPECT_FALSE(channel.started());
 }
 

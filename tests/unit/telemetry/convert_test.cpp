@@ -156,6 +156,9 @@ TEST(TelemetryConvert, HealthCodesAndCounters) {
   RuntimeHealth h;
   h.datagrams_lost = 3;
   h.record_drops = 4;
+  h.poses_from_joints = 7;
+  h.pose_disagreements = 8;
+  h.poses_missing = 9;
   const HealthSample s = to_health(5, &r, c, h);
   EXPECT_EQ(s.health_seq, 5u);
   EXPECT_EQ(s.state, 3);
@@ -167,6 +170,9 @@ TEST(TelemetryConvert, HealthCodesAndCounters) {
   EXPECT_EQ(s.records_offered, 10u);
   EXPECT_EQ(s.datagrams_lost, 3u);
   EXPECT_EQ(s.record_drops, 4u);
+  EXPECT_EQ(s.poses_from_joints, 7u);
+  EXPECT_EQ(s.pose_disagreements, 8u);
+  EXPECT_EQ(s.poses_missing, 9u);
   const HealthSample none = to_health(1, nullptr, c, h);
   EXPECT_EQ(none.cycle, 0u);
 }
@@ -211,27 +217,38 @@ TEST(TelemetryConvert, ModelIdentityNamesRigEffectsAndNetwork) {
 }
 
 TEST(TelemetryConfig, ChecksNameTheSetting) {
+  // The field comes apart from the reason: zerog-rt names its key "telemetry.<field>" from it.
+  const auto expect_setting = [](const Status& st, const std::string& setting,
+                                 const std::string& why) {
+    EXPECT_EQ(st.code(), StatusCode::invalid_setting) << st.text();
+    EXPECT_EQ(st.setting(), setting) << st.text();
+    EXPECT_NE(st.message().find(why), std::string::npos) << st.text();
+  };
   TelemetryConfig c;
-  EXPECT_EQ(check_config(c), "");
+  EXPECT_EQ(check_config(c).text(), "");
   c.domain_id = 233;
-  EXPECT_NE(check_config(c).find("telemetry.domain_id"), std::string::npos);
+  expect_setting(check_config(c), "domain_id", "233 is outside 0..232");
+  EXPECT_EQ(check_config(c).text(), "domain_id: 233 is outside 0..232");
   c = {};
   c.interface = "eth0\"/><x";
-  EXPECT_NE(check_config(c).find("telemetry.interface"), std::string::npos);
+  expect_setting(check_config(c), "interface", "is not an interface name");
   c = {};
   c.allow_multicast = false;
-  EXPECT_NE(check_config(c).find("telemetry.peers"), std::string::npos);
+  expect_setting(check_config(c), "peers", "at least one unicast peer");
   c.peers = {"127.0.0.1", "bad<peer"};
-  EXPECT_NE(check_config(c).find("\"bad<peer\""), std::string::npos);
+  expect_setting(check_config(c), "peers", "\"bad<peer\"");
   c = {};
   c.topic_prefix = "zerog.";
-  EXPECT_NE(check_config(c).find("telemetry.topic_prefix"), std::string::npos);
+  expect_setting(check_config(c), "topic_prefix", "only letters");
   c = {};
   c.health_period_s = 0.0;
-  EXPECT_NE(check_config(c).find("telemetry.health_period_s"), std::string::npos);
+  expect_setting(check_config(c), "health_period_s", "positive");
   c = {};
   c.nominal_period_s = std::nan("");
-  EXPECT_NE(check_config(c).find("telemetry.nominal_period_s"), std::string::npos);
+  expect_setting(check_config(c), "nominal_period_s", "positive");
+  c = {};
+  c.poll_period_s = 1.0;
+  expect_setting(check_config(c), "poll_period_s", "(0, 0.1]");
 }
 
 TEST(TelemetryConfig, CycloneXmlForLoopbackWithoutMulticast) {
@@ -239,7 +256,7 @@ TEST(TelemetryConfig, CycloneXmlForLoopbackWithoutMulticast) {
   c.interface = "lo";
   c.allow_multicast = false;
   c.peers = {"127.0.0.1", "10.0.0.2"};
-  ASSERT_EQ(check_config(c), "");
+  ASSERT_EQ(check_config(c).text(), "");
   EXPECT_EQ(cyclone_xml(c),
             "<CycloneDDS><Domain id=\"any\"><General><Interfaces><NetworkInterface "
             "name=\"lo\"/></Interfaces><AllowMulticast>false</AllowMulticast></General>"

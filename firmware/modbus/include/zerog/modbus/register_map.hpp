@@ -15,7 +15,7 @@
 
 namespace zerog::modbus {
 
-inline constexpr std::uint16_t kRegisterMapVersion = 1;
+inline constexpr std::uint16_t kRegisterMapVersion = 2;
 
 enum class Table : std::uint8_t { coil, discrete_input, input_register, holding_register };
 const char* table_name(Table t);

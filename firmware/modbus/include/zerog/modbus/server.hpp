@@ -15,6 +15,7 @@
 
 #include "zerog/modbus/request.hpp"
 #include "zerog/modbus/target.hpp"
+#include "zerog/status.hpp"
 
 namespace zerog::modbus {
 
@@ -37,14 +38,15 @@ struct ServerConfig {
   double proposal_timeout_s = 0.25;
 };
 
-/// "" if usable, else what is wrong, starting with the setting's name (e.g. "bind_address: …").
-std::string check_server_config(const ServerConfig& c);
+/// ok() if usable, else invalid_setting naming the ServerConfig field ("bind_address",
+/// "allow[1]", "max_clients", …) with why.
+Status check_server_config(const ServerConfig& c);
 
 /// The allowlist, parsed. permits() takes an address in host byte order.
 class Allowlist {
  public:
-  /// "" or what is wrong, naming the entry ("allow[1]: …").
-  std::string parse(const std::vector<std::string>& entries);
+  /// ok() or invalid_setting naming the entry ("allow[1]") with why.
+  Status parse(const std::vector<std::string>& entries);
   bool permits(std::uint32_t ipv4_host_order) const;
   bool empty() const { return nets_.empty(); }
 
@@ -84,8 +86,9 @@ class ModbusServer {
   ModbusServer& operator=(const ModbusServer&) = delete;
 
   /// Checks the configuration, binds and listens, takes the target's tunables and starts the
-  /// thread. "" or why not ("Modbus server: cannot bind 127.0.0.1:502: Permission denied").
-  std::string start();
+  /// thread. ok(), or check_server_config's invalid_setting, already_started, or system_error
+  /// ("Modbus server: cannot bind 127.0.0.1:502: Permission denied").
+  Status start();
   /// Closes every connection and joins the thread. Idempotent.
   void stop();
 

@@ -5,6 +5,7 @@
 #include <array>
 #include <cstdint>
 
+#include "zerog/infer/deploy_model.hpp"
 #include "zerog/loop/cycle.hpp"
 
 namespace zerog::modbus {
@@ -28,6 +29,12 @@ struct SupervisorSnapshot {
   std::uint64_t robot_lost = 0;        ///< timeouts + malformed + receive errors
   std::uint64_t datagrams_lost = 0;    ///< loop::CycleCounters::datagrams_lost
   std::uint64_t commands_refused = 0;  ///< loop::CycleCounters::commands_refused
+  /// The sensor pose's sources (loop::CycleCounters): messages without RIst posed by the robot's
+  /// kinematics, RIst and the kinematics disagreeing (a wrong tool or base frame shows here
+  /// first), messages without RIst and no robot to pose them.
+  std::uint64_t poses_from_joints = 0;
+  std::uint64_t pose_disagreements = 0;
+  std::uint64_t poses_missing = 0;
   std::uint64_t telemetry_dropped = 0;
   std::uint64_t records_dropped = 0;
   // Model identity.
@@ -40,10 +47,15 @@ struct SupervisorSnapshot {
 };
 
 /// The fields a loop::Cycle knows (cycle, state, fault, ready, flags, contact, datagrams_lost,
-/// commands_refused), from its last record and counters; the program adds the rest (times, robot
-/// lost, drops, model identity). Call it on the cycle's thread after step()/robot_lost().
-/// Real-time safe.
+/// commands_refused, the pose counters), from its last record and counters; the program adds the
+/// rest (times, robot lost, drops, model identity). Call it on the cycle's thread after
+/// step()/robot_lost(). Real-time safe.
 void fill_from_cycle(const loop::Cycle& cycle, SupervisorSnapshot& s) noexcept;
+
+/// The model identity registers (model_crc32 … network_outputs) from the deployed model and the
+/// deploy file's CRC-32. Start-up (before the cycle takes the model).
+void fill_model_identity(const infer::DeployedModel& model, std::uint32_t file_crc32,
+                         SupervisorSnapshot& s);
 
 /// The server's only way into the cycle. Every call is made from the server's thread and must
 /// not block the cycle: lock-free (or wait-free) underneath.

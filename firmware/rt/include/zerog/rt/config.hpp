@@ -15,6 +15,9 @@
 #include "zerog/formats/log.hpp"
 #include "zerog/loop/cycle.hpp"
 #include "zerog/modbus/server.hpp"
+#include "zerog/rtio/netcanoem_sensor.hpp"
+#include "zerog/rtio/rsi_endpoint.hpp"
+#include "zerog/rtio/stim300_imu.hpp"
 #include "zerog/telemetry/config.hpp"
 
 namespace zerog::rt {
@@ -116,5 +119,10 @@ RtConfig parse_config(const std::string& text, const std::filesystem::path& path
 
 /// The loop's configuration from the file's settings.
 loop::CycleConfig cycle_config(const RtConfig& config);
+
+/// The devices' settings from their tables (units converted: ms → ns, g → the STIM300's range).
+rtio::NetcanoemConfig netcanoem_config(const FtSection& ft);
+rtio::Stim300Config stim300_config(const ImuSection& imu);
+rtio::RsiEndpointConfig rsi_endpoint_config(const RobotSection& robot);
 
 }  // namespace zerog::rt

@@ -11,6 +11,8 @@
 #include <memory>
 #include <string>
 
+#include "zerog/status.hpp"
+
 namespace zerog::rt {
 
 /// mlockall(MCL_CURRENT | MCL_FUTURE). "" on success, else the warning line.
@@ -44,11 +46,11 @@ class Thread {
   Thread(const Thread&) = delete;
   Thread& operator=(const Thread&) = delete;
 
-  /// Starts `body`. Returns "" or why the thread could not be created. Then sets the scheduling:
-  /// SCHED_FIFO at `priority` (0: SCHED_OTHER, nothing to do) and pins to `cpu` (-1: any); a
-  /// failure there is not fatal and is reported in `setup`.
-  std::string start(const std::string& name, std::function<void()> body, int priority, int cpu,
-                    ThreadSetup& setup, std::size_t stack_bytes = kThreadStackBytes);
+  /// Starts `body`: ok(), already_started, or system_error when the thread could not be created.
+  /// Then sets the scheduling: SCHED_FIFO at `priority` (0: SCHED_OTHER, nothing to do) and pins
+  /// to `cpu` (-1: any); a failure there is not fatal and is reported in `setup`.
+  Status start(const std::string& name, std::function<void()> body, int priority, int cpu,
+               ThreadSetup& setup, std::size_t stack_bytes = kThreadStackBytes);
   void join();
   bool running() const { return started_; }
 

@@ -3,8 +3,9 @@
 //
 //   F/T thread     FtSensor::read_sample paced at rate_hz (clock_nanosleep, absolute) → ring
 //   IMU thread     Imu::read_sample → ring; on `disconnected` re-opens every 100 ms
-//   cycle thread   cycle_once(): RobotLink::receive → drain both rings into the cycle → step →
-//                  reply / reply_axes → compute time → record ring; timeout/malformed → robot_lost
+//   cycle thread   cycle_once(): RobotLink::receive_sample (SI) → drain both rings into the cycle
+//                  → step → send_correction → compute time → record ring; timeout/malformed →
+//                  robot_lost
 //   recorder       record ring → Recorder (cycles.csv, the log); dumps the frozen black box
 //   main thread    commands (request), supervise() (--enable-zero-g, --collect), status_line()
 //
@@ -130,6 +131,34 @@ struct SupervisorEvents {
   std::vector<std::string> err;
 };
 
+/// The main thread's reading of the cycle's status: the announcements of proto/rt_config.md
+/// (stdout: "zero-g enabled at cycle N", "collection started …", "collection finished …") and
+/// the notes (stderr: transitions, refused commands, --enable-zero-g/--collect giving up), each
+/// once. No threads, no clock: the same statuses give the same lines.
+class StatusAnnouncer {
+ public:
+  /// --enable-zero-g / --collect (at most one): the state they wait for.
+  StatusAnnouncer(bool auto_enable_zero_g, bool auto_collect)
+      : auto_enable_zero_g_(auto_enable_zero_g), auto_collect_(auto_collect) {}
+  /// The lines for the newest status (the changes since the last one).
+  SupervisorEvents update(const CycleStatus& s);
+  /// --enable-zero-g / --collect has neither reached its state nor given up (on a fault).
+  bool auto_pending() const {
+    return (auto_enable_zero_g_ || auto_collect_) && !auto_done_ && !auto_gave_up_;
+  }
+  /// --collect's path has been followed to its end.
+  bool collection_finished() const { return collection_finished_; }
+
+ private:
+  bool auto_enable_zero_g_, auto_collect_;
+  bool auto_done_ = false;
+  bool auto_gave_up_ = false;
+  std::uint64_t transitions_seen_ = 0;
+  std::uint64_t collections_seen_ = 0;
+  std::uint64_t refused_seen_ = 0;
+  bool collection_finished_ = false;
+};
+
 /// One line of `--commands stdin` (proto/rt_config.md): `enable`, `stop`, `reset`, `collect`,
 /// `quit`, surrounding blanks ignored.
 struct CommandLine {
@@ -165,13 +194,16 @@ class Runtime final : public modbus::SupervisorTarget {
   Runtime& operator=(const Runtime&) = delete;
 
   /// Start-up: the loop's configuration and model; `path` for collection mode (not owned).
-  /// "" or what is wrong.
-  std::string configure(const loop::CycleConfig& config, infer::DeployedModel model,
-                        const loop::JointPath* path = nullptr);
+  /// ok(); not_ready without a robot link; invalid_setting for a telemetry setting (named
+  /// "telemetry.<field>") or a configuration the loop refuses (its reason as the message).
+  Status configure(const loop::CycleConfig& config, infer::DeployedModel model,
+                   const loop::JointPath* path = nullptr);
 
-  /// Opens the recorder, locks memory (if configured), starts the threads. "" or why not;
-  /// `warnings` gets the real-time set-up warnings (one line each).
-  std::string start(std::vector<std::string>& warnings);
+  /// Opens the recorder, locks memory (if configured), starts the threads. ok(), or
+  /// already_started, or system_error (the recorder, a thread), or the telemetry channel's and
+  /// the Modbus server's failures (a refused setting named as in the file: "telemetry.peers",
+  /// "modbus.port"); `warnings` gets the real-time set-up warnings (one line each).
+  Status start(std::vector<std::string>& warnings);
 
   /// The cycle thread's loop body: one robot cycle (or one lost one). Real-time safe.
   void cycle_once() noexcept;
@@ -195,7 +227,7 @@ class Runtime final : public modbus::SupervisorTarget {
   /// Main thread, every few ms: --enable-zero-g and --collect requests, announcements.
   SupervisorEvents supervise();
   /// True once a --collect path has been followed to its end.
-  bool collection_finished() const { return collection_finished_; }
+  bool collection_finished() const { return announcer_.collection_finished(); }
   /// Lockstep: true once the emulator ended the run or the lockstep failed (see summary).
   bool lockstep_finished() const { return lockstep_finished_.load(std::memory_order_acquire); }
   /// The once-a-second status line (main thread).
@@ -209,6 +241,9 @@ class Runtime final : public modbus::SupervisorTarget {
   std::string summary_json() const;
   /// Black-box dumps written so far (after stop()).
   const std::vector<std::filesystem::path>& black_box_paths() const { return black_box_paths_; }
+  /// True while a frozen black box waits for the recorder thread's dump (its file may already
+  /// exist: the hand-back follows the rename). The box is released only after that.
+  bool black_box_pending() const { return box_state_.load(std::memory_order_acquire) == 1; }
 
   // Test hooks. The rings' producer side is the sensor thread's; use them only without one.
   FtRing& ft_ring() { return *ft_ring_; }
@@ -256,8 +291,8 @@ class Runtime final : public modbus::SupervisorTarget {
   std::unique_ptr<RecordRing> record_ring_;
 
   // Cycle thread.
-  proto::rsi::RobotMessage message_;
-  loop::CycleReply reply_;
+  samples::RobotSample robot_sample_;    ///< the robot's message, SI (rtio converts)
+  samples::RobotCorrection correction_;  ///< the cycle's answer, SI
   rtio::FtSample ft_sample_;
   rtio::ImuSample imu_sample_;
   RecordSlot slot_;
@@ -272,11 +307,7 @@ class Runtime final : public modbus::SupervisorTarget {
   mutable rtio::LatestValue<modbus::SupervisorSnapshot> supervisor_;
   mutable modbus::SupervisorSnapshot supervisor_read_;
   loop::Tunables configured_tunables_;
-  std::array<std::int64_t, 1024> second_compute_ns_{};  ///< this second's compute times
-  std::size_t second_n_ = 0;
-  std::int64_t second_start_ns_ = 0;
-  std::int64_t second_jitter_ns_ = 0;  ///< largest |period − nominal| this second
-  std::int64_t last_start_ns_ = 0;     ///< when the last robot message was received
+  SecondWindow second_window_;  ///< period, compute p99 and jitter of the last second
 
   // Black-box handover: 0 recording, 1 frozen (cycle → recorder), 2 dumped (recorder → cycle).
   std::atomic<std::uint8_t> box_state_{0};
@@ -305,14 +336,9 @@ class Runtime final : public modbus::SupervisorTarget {
   bool recording_failed_ = false;
 
   // Main thread.
-  bool auto_done_ = false;
-  bool auto_gave_up_ = false;
+  StatusAnnouncer announcer_;
   std::uint64_t requested_at_ = 0;
   bool requested_ = false;
-  std::uint64_t transitions_seen_ = 0;
-  std::uint64_t collections_seen_ = 0;
-  std::uint64_t refused_seen_ = 0;
-  bool collection_finished_ = false;
   CycleStatus last_status_;
   RecorderStatus last_recorder_status_;
 

@@ -16,6 +16,8 @@
 #include <cstdint>
 #include <string_view>
 
+#include "zerog/status.hpp"
+
 namespace zerog::rtio {
 
 inline constexpr std::uint32_t kLockstepMagic = 0x5a474c53;  // "ZGLS"
@@ -75,8 +77,10 @@ class LockstepClient {
   LockstepClient(const LockstepClient&) = delete;
   LockstepClient& operator=(const LockstepClient&) = delete;
 
-  /// "" or why not (path too long, no emulator listening there).
-  const char* open(std::string_view path);
+  /// Connects to the emulator's socket at `path`. ok(), or invalid_setting ("path": empty or
+  /// longer than an AF_UNIX address holds), or system_error (no emulator listening there; errno
+  /// also in last_errno()). Not real-time safe.
+  Status open(std::string_view path);
   /// Announces zerog-rt (after its devices started, before the first cycle).
   LockstepStatus hello(std::chrono::nanoseconds receive_timeout, double ft_rate_hz,
                        std::chrono::nanoseconds ft_sample_timeout);

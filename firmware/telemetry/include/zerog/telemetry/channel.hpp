@@ -60,9 +60,10 @@ class TelemetryChannel {
   TelemetryChannel& operator=(const TelemetryChannel&) = delete;
 
   /// Checks the configuration, creates the DDS domain (cyclone_xml), participant, topics and
-  /// writers, publishes the model identity and starts the publisher thread. "" on success, else
-  /// what failed (naming the setting or the DDS call). Idempotent while started. Not real-time.
-  std::string start();
+  /// writers, publishes the model identity and starts the publisher thread. ok(), or
+  /// check_config's invalid_setting, or system_error naming the DDS call that failed.
+  /// Idempotent while started. Not real-time.
+  Status start();
   /// Stops the publisher thread after it has drained the ring, writes a last Health, waits up
   /// to `ack_timeout_s` for reliable readers to acknowledge, deletes the DDS entities.
   /// Idempotent. Not real-time safe.

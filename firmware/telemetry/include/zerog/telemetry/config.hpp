@@ -5,6 +5,8 @@
 #include <string>
 #include <vector>
 
+#include "zerog/status.hpp"
+
 namespace zerog::telemetry {
 
 /// The largest DDS domain id with Cyclone's default port mapping (DDSI 9.6.1.1: port ≤ 65535).
@@ -28,9 +30,9 @@ struct TelemetryConfig {
   double poll_period_s = 0.001;
 };
 
-/// Empty if `config` can be used; otherwise what is wrong, naming the setting (e.g.
-/// "telemetry.domain_id: 300 is outside 0..232").
-std::string check_config(const TelemetryConfig& config);
+/// ok() if `config` can be used; otherwise invalid_setting naming the TelemetryConfig field
+/// (setting() "domain_id", "peers", …; message() "300 is outside 0..232").
+Status check_config(const TelemetryConfig& config);
 
 /// The Cyclone DDS XML configuration (<CycloneDDS><Domain>…) for `config`. Call check_config
 /// first: names with XML special characters are refused there, not escaped here.

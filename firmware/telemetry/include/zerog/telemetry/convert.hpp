@@ -48,6 +48,9 @@ struct RuntimeHealth {
   std::uint64_t record_drops = 0;
   std::uint64_t commands_refused = 0;
   std::uint64_t transitions = 0;
+  std::uint64_t poses_from_joints = 0;   ///< loop::CycleCounters: pose by forward kinematics
+  std::uint64_t pose_disagreements = 0;  ///< RIst and the kinematics disagreed
+  std::uint64_t poses_missing = 0;       ///< no RIst and no robot
   bool operator==(const RuntimeHealth&) const = default;
 };
 
