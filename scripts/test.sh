@@ -6,7 +6,8 @@
 #      again, without the VM tests and the host pipeline's end-to-end numeric runs (labels
 #      cli_test, discovery_test, insight_loop_test, results_test, recordings_test) and the other
 #      HIL motion seeds;
-#      the exclusions are in CMakePresets.json (test preset `asan`) and all run in stage 1;
+#      the exclusions are in CMakePresets.json (test preset `asan`) and all run in stage 1; this
+#      stage compiles only the binaries its tests use (cmake/stage_targets.py), like stage 3;
 #   3. ThreadSanitizer: the threaded tests (rings, runtime, cycle, Modbus server, telemetry);
 #   4. the fuzz targets, each for a bounded time (scripts/fuzz.sh).
 # Any failure, sanitizer finding or fuzz crash fails the run. Each stage prints its duration, and
@@ -35,15 +36,20 @@ stage_done "build ci"
 ctest --preset ci -j "$jobs"
 stage_done "tests ci (HIL, VM included)"
 
+# The sanitizer stages build only what their test presets select (cmake/stage_targets.py derives
+# the targets from ctest and the build tree: the asan preset's exclusions are not compiled).
 cmake --preset asan
-cmake --build --preset asan -j "$jobs"
+asan_targets=$(python3 cmake/stage_targets.py --preset asan --build-dir build/asan)
+echo "test.sh: asan builds" $asan_targets
+cmake --build --preset asan -j "$jobs" --target $asan_targets
 stage_done "build asan"
 ctest --preset asan -j "$jobs"
 stage_done "tests asan"
 
 cmake --preset tsan
-cmake --build --preset tsan -j "$jobs" --target rtio_test rt_test loop_test modbus_test \
-  telemetry_test zerog-rt
+tsan_targets=$(python3 cmake/stage_targets.py --preset tsan --build-dir build/tsan)
+echo "test.sh: tsan builds" $tsan_targets
+cmake --build --preset tsan -j "$jobs" --target $tsan_targets
 stage_done "build tsan"
 ctest --preset tsan -j "$jobs"
 stage_done "tests tsan"
