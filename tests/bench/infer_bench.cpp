@@ -58,7 +58,7 @@ infer::Inference make_inference(const NetCase& c) {
   m.physics = infer::test::demo_physics();
   m.network = infer::test::make_network(c.features, c.hidden, c.activation, samples(), 1.0, 5);
   infer::Inference inf;
-  if (!inf.configure(m).empty()) std::abort();
+  if (!inf.configure(m).ok()) std::abort();
   return inf;
 }
 

@@ -34,7 +34,7 @@ const char* kind_name(int kind) { return kind == 0 ? "physics" : "physics+residu
 void BM_ModelOnly(benchmark::State& state) {
   const int kind = static_cast<int>(state.range(0));
   infer::Inference inf;
-  if (!inf.configure(make_model(kind)).empty()) std::abort();
+  if (!inf.configure(make_model(kind)).ok()) std::abort();
   const auto samples = infer::test::random_samples(1024, 7);
   const infer::Path path = kind == 0 ? infer::Path::physics_only : infer::Path::quantised;
   std::size_t i = 0;
@@ -54,7 +54,7 @@ void BM_CycleStep(benchmark::State& state) {
   config.period_s = 0.012;
   config.p_sensor_com_m = Eigen::Vector3d(0.03, -0.02, 0.25);
   loop::Cycle cycle;
-  if (!cycle.configure(config, make_model(kind)).empty()) std::abort();
+  if (!cycle.configure(config, make_model(kind)).ok()) std::abort();
   std::mt19937_64 rng(3);
   std::normal_distribution<double> noise(0.0, 1.0);
   proto::rsi::RobotMessage m;

@@ -60,7 +60,7 @@ enum class Load { none, flood, stall };
 
 void run_cycles(benchmark::State& state, Load load) {
   loop::Cycle cycle;
-  if (!cycle.configure(loop::test::test_cycle_config(), loop::test::payload_model()).empty()) {
+  if (!cycle.configure(loop::test::test_cycle_config(), loop::test::payload_model()).ok()) {
     state.SkipWithError("cycle configuration failed");
     return;
   }

@@ -326,7 +326,7 @@ void BM_ZerogRtRoundTrip(benchmark::State& state) {
   if (subscriber) state.counters["subscriber_taken"] = static_cast<double>(subscriber->taken());
   if (stalled) state.counters["modbus_stalls"] = static_cast<double>(stalled->stalls());
   stalled.reset();
-  runtime.stop();
+  if (const zerog::Status st = runtime.stop(); !st.ok()) state.SkipWithError(st.text().c_str());
   subscriber.reset();
   if (const auto* t = runtime.telemetry()) {
     state.counters["dds_published"] = static_cast<double>(t->counters().records_published);

@@ -1328,12 +1328,12 @@ int Soak::run() {
   if (episode_ || awaiting_) fail("the run ended inside an injection");
   mem_end_ = measure_memory();
   const std::uint64_t lost_before_stop = runtime_->snapshot().robot_lost;
-  const std::string stop_error = runtime_->stop();
+  const Status stop_status = runtime_->stop();
   // The cycle thread waits in receive() when stop() comes: that wait ends as a timeout.
   stop_timeouts_ = runtime_->cycle_thread_counters().receive_timeouts +
                    runtime_->cycle_thread_counters().receive_malformed - lost_before_stop;
   check(stop_timeouts_ <= 1, "lost cycles while stopping: " + std::to_string(stop_timeouts_));
-  check(stop_error.empty(), "stop(): " + stop_error);
+  check(stop_status.ok(), "stop(): " + stop_status.text());
   mem_after_stop_ = measure_memory();
   json summary;
   const std::string summary_text = runtime_->summary_json();

@@ -100,8 +100,9 @@ const char* status_name(StatusCode c) {
   return "not_configured";
 }
 
-std::string Inference::configure(DeployedModel model) {
-  if (auto [err, msg] = validate_model(model); err != LoadError::none) return msg;
+zerog::Status Inference::configure(DeployedModel model) {
+  if (auto [err, msg] = validate_model(model); err != LoadError::none)
+    return {zerog::StatusCode::invalid_setting, std::move(msg)};
   // Build everything into a fresh object, then hand it over whole.
   Inference next;
   next.geometry_ = model.rig.geometry();

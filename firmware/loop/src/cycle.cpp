@@ -3,6 +3,8 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <string>
+#include <utility>
 
 #include "zerog/proto/rsi_si.hpp"
 
@@ -10,32 +12,6 @@ namespace zerog::loop {
 namespace {
 
 bool positive_finite(double x) { return std::isfinite(x) && x > 0.0; }
-
-std::string check_config(const CycleConfig& c) {
-  if (!positive_finite(c.period_s)) return "period_s must be a positive number of seconds";
-  if (!positive_finite(c.ipoc_unit_s)) return "ipoc_unit_s must be a positive number of seconds";
-  if (c.angular_accel_order != 2 && c.angular_accel_order != 4)
-    return "angular_accel_order must be 2 or 4";
-  const WatchdogConfig& w = c.watchdog;
-  if (w.ft_fault_cycles < 1 || w.imu_fault_cycles < 1 || w.robot_fault_cycles < 1 ||
-      w.robot_late_cycles < 1 || w.model_fault_cycles < 1)
-    return "watchdog cycle counts must be at least 1";
-  if (const char* why = check_tunables({c.body, c.limits, c.p_sensor_com_m}); *why != '\0')
-    return why;
-  if (!positive_finite(c.max_axis_step_rad) || !positive_finite(c.approach_speed_radps) ||
-      !positive_finite(c.approach_accel_radps2))
-    return "collection step, speed and acceleration must be positive";
-  if (!positive_finite(c.pose_check_position_m) || !positive_finite(c.pose_check_angle_rad))
-    return "pose check tolerances must be positive";
-  if (c.robot) {
-    if (const robot::RobotStatus st = robot::validate(*c.robot); !st.ok())
-      return "robot: " + st.field + ": " + st.message;
-    if (c.robot->joint_count != 6)
-      return "robot: RSI reports 6 axes (AIPos A1..A6); the robot has " +
-             std::to_string(c.robot->joint_count);
-  }
-  return {};
-}
 
 // Internal values of Cycle::proposal_state_ besides the ProposalStatus ones.
 constexpr std::uint8_t kProposalWriting = 100;  // the proposer is filling proposal_
@@ -45,41 +21,90 @@ constexpr std::uint8_t status_byte(ProposalStatus s) { return static_cast<std::u
 
 }  // namespace
 
-const char* check_tunables(const Tunables& t) noexcept {
-  if (!positive_finite(t.body.mass_kg)) return "body mass must be positive";
+TunablesCheck check_tunables(const Tunables& t) noexcept {
+  if (!positive_finite(t.body.mass_kg)) return {"body.mass_kg", "must be positive"};
   const Eigen::Matrix3d& I = t.body.inertia_body_kgm2;
   if (!I.allFinite() || (I - I.transpose()).norm() > 1e-9 * I.norm() ||
       Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(I, Eigen::EigenvaluesOnly)
               .eigenvalues()
               .minCoeff() <= 0.0)
-    return "body inertia must be symmetric positive definite";
-  if (!t.p_sensor_com_m.allFinite()) return "virtual centre of mass must be finite";
+    return {"body.inertia_body_kgm2", "must be symmetric positive definite"};
+  if (!t.p_sensor_com_m.allFinite()) return {"p_sensor_com_m", "must be finite"};
   const control::MotionLimits& l = t.limits;
-  if (!(l.force_deadband_N >= 0.0) || !(l.torque_deadband_Nm >= 0.0))
-    return "deadbands must be zero or positive";
-  if (l.contact_confirm_cycles < 1) return "contact_confirm_cycles must be at least 1";
+  if (!(l.force_deadband_N >= 0.0)) return {"limits.force_deadband_N", "must be zero or positive"};
+  if (!(l.torque_deadband_Nm >= 0.0))
+    return {"limits.torque_deadband_Nm", "must be zero or positive"};
+  if (l.contact_confirm_cycles < 1) return {"limits.contact_confirm_cycles", "must be at least 1"};
   if (!(l.contact_release_fraction >= 0.0 && l.contact_release_fraction <= 1.0))
-    return "contact_release_fraction must be in 0..1";
-  if (!positive_finite(l.max_contact_force_N) || !positive_finite(l.max_contact_torque_Nm) ||
-      !positive_finite(l.max_speed_mps) || !positive_finite(l.max_angular_speed_radps) ||
-      !positive_finite(l.max_accel_mps2) || !positive_finite(l.max_angular_accel_radps2))
-    return "motion limits must be positive";
-  if (!(l.force_deadband_N < l.max_contact_force_N) ||
-      !(l.torque_deadband_Nm < l.max_contact_torque_Nm))
-    return "deadbands must be below the contact limits";
-  if (!(l.linear_damping_per_s >= 0.0 && std::isfinite(l.linear_damping_per_s)) ||
-      !(l.angular_damping_per_s >= 0.0 && std::isfinite(l.angular_damping_per_s)))
-    return "damping must be zero or positive";
-  if (!l.workspace_min_m.allFinite() || !l.workspace_max_m.allFinite() ||
-      !(l.workspace_min_m.array() < l.workspace_max_m.array()).all())
-    return "workspace_min must be below workspace_max on every axis";
-  return "";
+    return {"limits.contact_release_fraction", "must be in 0..1"};
+  const std::pair<const char*, double> positive[] = {
+      {"limits.max_contact_force_N", l.max_contact_force_N},
+      {"limits.max_contact_torque_Nm", l.max_contact_torque_Nm},
+      {"limits.max_speed_mps", l.max_speed_mps},
+      {"limits.max_angular_speed_radps", l.max_angular_speed_radps},
+      {"limits.max_accel_mps2", l.max_accel_mps2},
+      {"limits.max_angular_accel_radps2", l.max_angular_accel_radps2}};
+  for (const auto& [setting, value] : positive) {
+    if (!positive_finite(value)) return {setting, "must be positive"};
+  }
+  if (!(l.force_deadband_N < l.max_contact_force_N))
+    return {"limits.force_deadband_N", "must be below max_contact_force_N"};
+  if (!(l.torque_deadband_Nm < l.max_contact_torque_Nm))
+    return {"limits.torque_deadband_Nm", "must be below max_contact_torque_Nm"};
+  if (!(l.linear_damping_per_s >= 0.0 && std::isfinite(l.linear_damping_per_s)))
+    return {"limits.linear_damping_per_s", "must be zero or positive"};
+  if (!(l.angular_damping_per_s >= 0.0 && std::isfinite(l.angular_damping_per_s)))
+    return {"limits.angular_damping_per_s", "must be zero or positive"};
+  if (!l.workspace_min_m.allFinite()) return {"limits.workspace_min_m", "must be finite"};
+  if (!l.workspace_max_m.allFinite()) return {"limits.workspace_max_m", "must be finite"};
+  if (!(l.workspace_min_m.array() < l.workspace_max_m.array()).all())
+    return {"limits.workspace_max_m", "must be above workspace_min_m on every axis"};
+  return {};
 }
 
-std::string Cycle::configure(const CycleConfig& config, infer::DeployedModel model) {
-  if (std::string why = check_config(config); !why.empty()) return why;
+Status check_config(const CycleConfig& c) {
+  if (!positive_finite(c.period_s))
+    return Status::invalid("period_s", "must be a positive number of seconds");
+  if (!positive_finite(c.ipoc_unit_s))
+    return Status::invalid("ipoc_unit_s", "must be a positive number of seconds");
+  if (c.angular_accel_order != 2 && c.angular_accel_order != 4)
+    return Status::invalid("angular_accel_order",
+                           "must be 2 or 4, is " + std::to_string(c.angular_accel_order));
+  const WatchdogConfig& w = c.watchdog;
+  for (const auto& [setting, cycles] :
+       {std::pair{"watchdog.ft_fault_cycles", w.ft_fault_cycles},
+        std::pair{"watchdog.imu_fault_cycles", w.imu_fault_cycles},
+        std::pair{"watchdog.robot_fault_cycles", w.robot_fault_cycles},
+        std::pair{"watchdog.robot_late_cycles", w.robot_late_cycles},
+        std::pair{"watchdog.model_fault_cycles", w.model_fault_cycles}}) {
+    if (cycles < 1)
+      return Status::invalid(setting, "must be at least 1, is " + std::to_string(cycles));
+  }
+  if (const TunablesCheck t = check_tunables({c.body, c.limits, c.p_sensor_com_m}); !t.ok())
+    return Status::invalid(t.setting, t.message);
+  for (const auto& [setting, value] : {std::pair{"max_axis_step_rad", c.max_axis_step_rad},
+                                       std::pair{"approach_speed_radps", c.approach_speed_radps},
+                                       std::pair{"approach_accel_radps2", c.approach_accel_radps2},
+                                       std::pair{"pose_check_position_m", c.pose_check_position_m},
+                                       std::pair{"pose_check_angle_rad", c.pose_check_angle_rad}}) {
+    if (!positive_finite(value)) return Status::invalid(setting, "must be positive");
+  }
+  if (c.robot) {
+    if (const robot::RobotStatus st = robot::validate(*c.robot); !st.ok())
+      return Status::invalid(st.field.empty() ? "robot" : "robot." + st.field, st.message);
+    if (c.robot->joint_count != 6)
+      return Status::invalid("robot.joint_count",
+                             "RSI reports 6 axes (AIPos A1..A6); the robot has " +
+                                 std::to_string(c.robot->joint_count));
+  }
+  return {};
+}
+
+Status Cycle::configure(const CycleConfig& config, infer::DeployedModel model) {
+  if (Status st = check_config(config); !st.ok()) return st;
   const bool network = model.network.has_value();
-  if (std::string why = inference_.configure(std::move(model)); !why.empty()) return why;
+  if (Status st = inference_.configure(std::move(model)); !st.ok())
+    return std::move(st).within("model");
   config_ = config;
   use_network_ = network;
   motion_ = control::ZeroGMotion(config.body, config.limits, config.p_sensor_com_m);
@@ -190,7 +215,7 @@ void Cycle::take_proposal() noexcept {
   ProposalStatus outcome = ProposalStatus::accepted;
   if (sm_.state() != State::idle) {
     outcome = ProposalStatus::refused_state;
-  } else if (*check_tunables(proposal_) != '\0') {
+  } else if (!check_tunables(proposal_).ok()) {
     outcome = ProposalStatus::refused_invalid;
   } else {
     config_.body = proposal_.body;

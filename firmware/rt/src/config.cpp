@@ -84,9 +84,31 @@ void read_ft_bus(const TomlTable& ft, FtSection& out) {
   out.local_path = local_path;
 }
 
+// The keys of the tables loop::check_config's settings come from (check_cycle reopens them).
+const std::vector<std::string_view> kModelKeys{"file", "temperature_C"};
+const std::vector<std::string_view> kRobotKeys{
+    "bind_address", "bind_port",          "address",       "port",          "sensor_type",
+    "cycle_ms",     "receive_timeout_ms", "pose_check_mm", "pose_check_deg"};
+const std::vector<std::string_view> kBodyKeys{"mass_kg", "inertia_kgm2", "com_sensor_m"};
+const std::vector<std::string_view> kLimitsKeys{
+    "force_deadband_N",       "torque_deadband_Nm",
+    "contact_confirm_cycles", "contact_release_fraction",
+    "max_contact_force_N",    "max_contact_torque_Nm",
+    "max_speed_mps",          "max_angular_speed_radps",
+    "max_accel_mps2",         "max_angular_accel_radps2",
+    "linear_damping_per_s",   "angular_damping_per_s",
+    "workspace_min_m",        "workspace_max_m"};
+const std::vector<std::string_view> kWatchdogKeys{"ft_fault_cycles", "imu_fault_cycles",
+                                                  "robot_fault_cycles", "robot_late_cycles",
+                                                  "model_fault_cycles"};
+const std::vector<std::string_view> kFilterKeys{"angular_accel_order"};
+const std::vector<std::string_view> kCollectionKeys{"speed_fraction", "dwell_s",
+                                                    "max_axis_step_rad", "approach_speed_radps",
+                                                    "approach_accel_radps2"};
+
 // [model]: the deployed model and the temperature fed to it.
 void read_model(const TomlTable& file, RtConfig& c) {
-  const TomlTable model = file.sub_table("model", {"file", "temperature_C"});
+  const TomlTable model = file.sub_table("model", kModelKeys);
   c.model_file = model.path("file");
   c.temperature_C = model.optional_number("temperature_C", 25.0, {-50.0, false, 150.0, false});
 }
@@ -106,9 +128,7 @@ bool valid_sensor_type(const std::string& type) {
 
 // [robot]: the RSI endpoint and the RSI cycle.
 RobotSection read_robot(const TomlTable& file) {
-  const TomlTable robot = file.sub_table(
-      "robot", {"bind_address", "bind_port", "address", "port", "sensor_type", "cycle_ms",
-                "receive_timeout_ms", "pose_check_mm", "pose_check_deg"});
+  const TomlTable robot = file.sub_table("robot", kRobotKeys);
   RobotSection r;
   r.bind_address = robot.optional_string("bind_address", r.bind_address);
   if (robot.find("bind_address") != nullptr) check_ipv4(robot, "bind_address", r.bind_address);
@@ -172,7 +192,7 @@ ImuSection read_imu(const TomlTable& file) {
 
 // [body]: the virtual body's mass properties.
 void read_body(const TomlTable& file, RtConfig& c) {
-  const TomlTable body = file.sub_table("body", {"mass_kg", "inertia_kgm2", "com_sensor_m"});
+  const TomlTable body = file.sub_table("body", kBodyKeys);
   c.body.mass_kg = body.number("mass_kg", {0.0, true, 10000.0, false});
   const Eigen::Matrix3d I = body.matrix3(
       "inertia_kgm2",
@@ -190,12 +210,7 @@ void read_body(const TomlTable& file, RtConfig& c) {
 
 // [limits]: the motion limits; defaults are control::MotionLimits'.
 control::MotionLimits read_limits(const TomlTable& file) {
-  const TomlTable limits = file.sub_table(
-      "limits",
-      {"force_deadband_N", "torque_deadband_Nm", "contact_confirm_cycles",
-       "contact_release_fraction", "max_contact_force_N", "max_contact_torque_Nm", "max_speed_mps",
-       "max_angular_speed_radps", "max_accel_mps2", "max_angular_accel_radps2",
-       "linear_damping_per_s", "angular_damping_per_s", "workspace_min_m", "workspace_max_m"});
+  const TomlTable limits = file.sub_table("limits", kLimitsKeys);
   const io::NumberRange at_least_zero{0.0, false};
   const io::NumberRange positive{0.0, true};
   control::MotionLimits l;
@@ -223,14 +238,7 @@ control::MotionLimits read_limits(const TomlTable& file) {
                                                    {0.0, false, 100.0, false});
   l.workspace_min_m = limits.optional_vector3("workspace_min_m", l.workspace_min_m);
   l.workspace_max_m = limits.optional_vector3("workspace_max_m", l.workspace_max_m);
-  if (l.force_deadband_N >= l.max_contact_force_N) {
-    limits.fail("force_deadband_N",
-                "must be below max_contact_force_N (" + number_text(l.max_contact_force_N) + " N)");
-  }
-  if (l.torque_deadband_Nm >= l.max_contact_torque_Nm) {
-    limits.fail("torque_deadband_Nm", "must be below max_contact_torque_Nm (" +
-                                          number_text(l.max_contact_torque_Nm) + " N·m)");
-  }
+  // Deadbands below the contact limits: the loop's own rule (check_cycle).
   constexpr const char* kAxes[] = {"x", "y", "z"};
   for (int k = 0; k < 3; ++k) {
     if (!(l.workspace_min_m[k] < l.workspace_max_m[k])) {
@@ -245,9 +253,7 @@ control::MotionLimits read_limits(const TomlTable& file) {
 
 // [watchdog]: cycles before each fault; defaults are loop::WatchdogConfig's.
 loop::WatchdogConfig read_watchdog(const TomlTable& file) {
-  const TomlTable watchdog =
-      file.sub_table("watchdog", {"ft_fault_cycles", "imu_fault_cycles", "robot_fault_cycles",
-                                  "robot_late_cycles", "model_fault_cycles"});
+  const TomlTable watchdog = file.sub_table("watchdog", kWatchdogKeys);
   loop::WatchdogConfig w;
   for (auto [key, cycles] : {std::pair{"ft_fault_cycles", &w.ft_fault_cycles},
                              std::pair{"imu_fault_cycles", &w.imu_fault_cycles},
@@ -261,7 +267,7 @@ loop::WatchdogConfig read_watchdog(const TomlTable& file) {
 
 // [filter]: the angular-acceleration difference's order.
 int read_filter(const TomlTable& file) {
-  const TomlTable filter = file.sub_table("filter", {"angular_accel_order"});
+  const TomlTable filter = file.sub_table("filter", kFilterKeys);
   const auto order = static_cast<int>(filter.optional_integer("angular_accel_order", 4, 2, 4));
   if (order == 3) {
     filter.fail("angular_accel_order",
@@ -282,9 +288,7 @@ RealtimeSection read_realtime(const TomlTable& file) {
 
 // [collection]: the design path's speed and dwell, the approach to its first point.
 CollectionSection read_collection(const TomlTable& file) {
-  const TomlTable collection =
-      file.sub_table("collection", {"speed_fraction", "dwell_s", "max_axis_step_rad",
-                                    "approach_speed_radps", "approach_accel_radps2"});
+  const TomlTable collection = file.sub_table("collection", kCollectionKeys);
   CollectionSection col;
   col.speed_fraction = collection.optional_number("speed_fraction", 0.3, {0.0, true, 1.0, false});
   col.dwell_s = collection.optional_number("dwell_s", 2.0, {0.0, false, 3600.0, false});
@@ -368,7 +372,61 @@ std::optional<telemetry::TelemetryConfig> read_telemetry(const TomlTable& file) 
   return t;
 }
 
-// The file, table by table (in this order: the first error found is the one reported).
+// config_key() as {table, key}; {"", ""} for a field the file does not set. The reverse of
+// cycle_config().
+std::pair<std::string_view, std::string_view> file_key(std::string_view setting) {
+  static constexpr std::pair<std::string_view, std::pair<std::string_view, std::string_view>>
+      kRenamed[] = {
+          {"period_s", {"robot", "cycle_ms"}},
+          {"temperature_C", {"model", "temperature_C"}},
+          {"angular_accel_order", {"filter", "angular_accel_order"}},
+          {"body.mass_kg", {"body", "mass_kg"}},
+          {"body.inertia_body_kgm2", {"body", "inertia_kgm2"}},
+          {"p_sensor_com_m", {"body", "com_sensor_m"}},
+          {"max_axis_step_rad", {"collection", "max_axis_step_rad"}},
+          {"approach_speed_radps", {"collection", "approach_speed_radps"}},
+          {"approach_accel_radps2", {"collection", "approach_accel_radps2"}},
+          {"pose_check_position_m", {"robot", "pose_check_mm"}},
+          {"pose_check_angle_rad", {"robot", "pose_check_deg"}},
+      };
+  for (const auto& [field, key] : kRenamed) {
+    if (setting == field) return key;
+  }
+  // [limits] and [watchdog] keys are MotionLimits' and WatchdogConfig's field names.
+  for (std::string_view table : {"limits", "watchdog"}) {
+    if (setting.size() > table.size() && setting.starts_with(table) && setting[table.size()] == '.')
+      return {table, setting.substr(table.size() + 1)};
+  }
+  return {};
+}
+
+const std::vector<std::string_view>& table_keys(std::string_view table) {
+  static const std::vector<std::string_view> none;
+  for (const auto& [name, keys] :
+       {std::pair{"model", &kModelKeys}, std::pair{"robot", &kRobotKeys},
+        std::pair{"body", &kBodyKeys}, std::pair{"limits", &kLimitsKeys},
+        std::pair{"watchdog", &kWatchdogKeys}, std::pair{"filter", &kFilterKeys},
+        std::pair{"collection", &kCollectionKeys}}) {
+    if (table == name) return *keys;
+  }
+  return none;
+}
+
+// The loop's own rules (loop::check_config) on the configuration read so far: a refused field
+// is reported at the file key that set it ("limits.force_deadband_N" at its line and column),
+// as the [modbus] and [telemetry] checks are (fail_setting). The robot is the rig file's and
+// is checked with it (load_setup).
+void check_cycle(const TomlTable& file, const RtConfig& c) {
+  const Status st = loop::check_config(cycle_config(c));
+  if (st.ok()) return;
+  const auto [table, key] = file_key(st.setting());
+  if (table.empty()) file.fail(st.setting(), file.where(), st.message());
+  const TomlTable section = file.sub_table(table, table_keys(table));
+  section.fail(key, st.message());
+}
+
+// The file, table by table (in this order: the first error found is the one reported); then
+// the loop's rules across tables (check_cycle).
 RtConfig read_tables(const toml::table& root, const fs::path& path) {
   RtConfig c;
   c.file = path;
@@ -390,6 +448,7 @@ RtConfig read_tables(const toml::table& root, const fs::path& path) {
   read_record(file, c);
   c.modbus = read_modbus(file);
   c.telemetry = read_telemetry(file);
+  check_cycle(file, c);
   return c;
 }
 
@@ -429,6 +488,11 @@ RtConfig read_config(const fs::path& path) {
   std::ostringstream text;
   text << in.rdbuf();
   return parse_config(text.str(), path);
+}
+
+std::string config_key(std::string_view cycle_setting) {
+  const auto [table, key] = file_key(cycle_setting);
+  return table.empty() ? std::string() : std::string(table) + "." + std::string(key);
 }
 
 loop::CycleConfig cycle_config(const RtConfig& c) {

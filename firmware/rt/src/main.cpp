@@ -328,8 +328,8 @@ void supervise_until_done(const Options& opt, int signal_fd, rt::Runtime& runtim
 // code: kExitOk, or kExitOutputFailed when an output could not be written.
 int finish(const Options& opt, const rt::RtConfig& config, rt::Runtime& runtime) {
   int code = kExitOk;
-  if (std::string error = runtime.stop(); !error.empty()) {
-    print_err("zerog-rt: " + error);
+  if (const Status st = runtime.stop(); !st.ok()) {
+    print_err("zerog-rt: " + st.text());
     code = kExitOutputFailed;
   }
   print_err(runtime.status_line());

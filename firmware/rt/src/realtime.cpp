@@ -17,14 +17,14 @@ void* trampoline(void* arg) {
 
 }  // namespace
 
-std::string lock_memory() {
+Status lock_memory() {
   if (::mlockall(MCL_CURRENT | MCL_FUTURE) == 0) return {};
   const int error = errno;
-  return std::string("zerog-rt: WARNING: mlockall(MCL_CURRENT|MCL_FUTURE) failed (") +
-         std::strerror(error) +
-         "): memory may be paged out and the cycle may miss its deadline; grant it with "
-         "'LimitMEMLOCK=infinity' in the systemd unit or '<user> - memlock unlimited' in "
-         "/etc/security/limits.conf (or run with CAP_IPC_LOCK)";
+  return {StatusCode::system_error,
+          std::string("mlockall(MCL_CURRENT|MCL_FUTURE) failed (") + std::strerror(error) +
+              "): memory may be paged out and the cycle may miss its deadline; grant it with "
+              "'LimitMEMLOCK=infinity' in the systemd unit or '<user> - memlock unlimited' in "
+              "/etc/security/limits.conf (or run with CAP_IPC_LOCK)"};
 }
 
 void prefault_stack() {

@@ -84,53 +84,48 @@ CommandLine parse_command_line(std::string_view line) {
 }
 
 Runtime::Runtime(RuntimeOptions options, RuntimeDevices devices)
-    : options_(std::move(options)),
-      devices_(devices),
-      ft_ring_(std::make_unique<FtRing>()),
-      imu_ring_(std::make_unique<ImuRing>()),
-      record_ring_(std::make_unique<RecordRing>()),
-      popped_(std::make_unique<RecordSlot>()),
-      announcer_(options_.auto_enable_zero_g, options_.auto_collect) {
-  compute_window_.reserve(4096);
+    : options_(std::move(options)), devices_(devices), supervision_(options_) {
+  recorder_side_.compute_window.reserve(4096);
 }
 
-Runtime::~Runtime() { stop(); }
+// No one to tell here: a caller that wants the recorder's error calls stop() first.
+Runtime::~Runtime() { static_cast<void>(stop()); }
 
 Status Runtime::configure(const loop::CycleConfig& config, infer::DeployedModel model,
                           const loop::JointPath* path) {
   if (devices_.robot == nullptr) return {StatusCode::not_ready, "no robot link"};
   // The model's identity, for the supervisor (proto/modbus.md) before the cycle takes the model.
-  modbus::fill_model_identity(model, options_.model_file_crc32, snapshot_);
+  modbus::fill_model_identity(model, options_.model_file_crc32, cycle_side_.snapshot);
   if (options_.telemetry) {
     telemetry::TelemetryConfig t = *options_.telemetry;
     t.nominal_period_s = config.period_s;
     if (Status st = telemetry::check_config(t); !st.ok()) return std::move(st).within("telemetry");
-    telemetry_ = std::make_unique<telemetry::TelemetryChannel>(
+    supervision_.telemetry = std::make_unique<telemetry::TelemetryChannel>(
         t, telemetry::model_identity(model, options_.model_file_name, options_.model_file_crc32),
         config.body);
   }
-  // loop::Cycle::configure still answers in text (its reason names what it refuses).
-  if (std::string why = cycle_.configure(config, std::move(model)); !why.empty())
-    return {StatusCode::invalid_setting, std::move(why)};
-  configured_tunables_ = cycle_.tunables();
-  supervisor_.publish(snapshot_);
+  if (Status st = cycle_.configure(config, std::move(model)); !st.ok()) return st;
+  supervision_.configured_tunables = cycle_.tunables();
+  handover_.supervisor.publish(cycle_side_.snapshot);
   path_ = path;
   cycle_.set_collection_path(path);
   return {};
 }
 
 Status Runtime::start(std::vector<std::string>& warnings) {
-  if (started_) return {StatusCode::already_started, "already started"};
+  if (threads_.started) return {StatusCode::already_started, "already started"};
   try {
-    recorder_ = std::make_unique<Recorder>(options_.recorder);
+    recorder_side_.recorder = std::make_unique<Recorder>(options_.recorder);
   } catch (const std::exception& e) {
     return {StatusCode::system_error, e.what()};
   }
-  if (telemetry_ != nullptr) {
-    if (Status st = telemetry_->start(); !st.ok()) return std::move(st).within("telemetry");
+  if (supervision_.telemetry != nullptr) {
+    if (Status st = supervision_.telemetry->start(); !st.ok())
+      return std::move(st).within("telemetry");
   }
   if (options_.realtime.lock_memory) {
-    if (std::string w = lock_memory(); !w.empty()) warnings.push_back(std::move(w));
+    if (const Status st = lock_memory(); !st.ok())
+      warnings.push_back("zerog-rt: WARNING: " + st.message());
   }
   const int priority = options_.realtime.priority;
   const int sensor_priority = priority > 1 ? priority - 1 : priority;
@@ -151,22 +146,22 @@ Status Runtime::start(std::vector<std::string>& warnings) {
     }
     return {};
   };
-  started_ = true;
-  Status error = launch(recorder_thread_, "recorder", &Runtime::recorder_loop, 0, -1);
+  threads_.started = true;
+  Status error = launch(threads_.recorder, "recorder", &Runtime::recorder_loop, 0, -1);
   if (error.ok() && devices_.imu != nullptr)
-    error = launch(imu_thread_, "imu", &Runtime::imu_loop, sensor_priority, -1);
+    error = launch(threads_.imu, "imu", &Runtime::imu_loop, sensor_priority, -1);
   if (error.ok() && devices_.ft != nullptr)
-    error = launch(ft_thread_, "ft", &Runtime::ft_loop, sensor_priority, -1);
+    error = launch(threads_.ft, "ft", &Runtime::ft_loop, sensor_priority, -1);
   // Whatever robot datagrams piled up while the program started are old: the first cycle
   // starts from now (and a datagram sent after start() began is kept).
   devices_.robot->discard_queued();
   if (error.ok())
-    error = launch(cycle_thread_, "cycle", &Runtime::cycle_loop, priority, options_.realtime.cpu);
+    error = launch(threads_.cycle, "cycle", &Runtime::cycle_loop, priority, options_.realtime.cpu);
   if (error.ok() && options_.modbus) {
-    modbus_ = std::make_unique<modbus::ModbusServer>(*options_.modbus, *this);
+    supervision_.modbus = std::make_unique<modbus::ModbusServer>(*options_.modbus, *this);
     // A refused setting is named as in the file ("modbus.port"); the server's own failures
     // already say "Modbus server: …".
-    Status st = modbus_->start();
+    Status st = supervision_.modbus->start();
     error = st.setting().empty() ? std::move(st) : std::move(st).within("modbus");
   }
   if (!refused.empty()) {
@@ -182,12 +177,12 @@ Status Runtime::start(std::vector<std::string>& warnings) {
 
 void Runtime::cycle_loop() {
   prefault_stack();
-  while (!stop_cycle_.load(std::memory_order_relaxed)) cycle_once();
+  while (!threads_.stop_cycle.load(std::memory_order_relaxed)) cycle_once();
 }
 
 void Runtime::discard_samples() noexcept {
-  while (ft_ring_->try_pop(ft_sample_)) ++cycle_counters_.samples_discarded;
-  while (imu_ring_->try_pop(imu_sample_)) ++cycle_counters_.samples_discarded;
+  while (handover_.ft->try_pop(cycle_side_.ft_sample)) ++cycle_side_.counters.samples_discarded;
+  while (handover_.imu->try_pop(cycle_side_.imu_sample)) ++cycle_side_.counters.samples_discarded;
 }
 
 void Runtime::cycle_once() noexcept {
@@ -195,7 +190,7 @@ void Runtime::cycle_once() noexcept {
     lockstep_once();
     return;
   }
-  handle_received(devices_.robot->receive_sample(robot_sample_));
+  handle_received(devices_.robot->receive_sample(cycle_side_.robot_sample));
 }
 
 void Runtime::handle_received(rtio::RobotReceiveStatus received) noexcept {
@@ -203,15 +198,15 @@ void Runtime::handle_received(rtio::RobotReceiveStatus received) noexcept {
   if (received != rtio::RobotReceiveStatus::message) {
     switch (received) {
       case rtio::RobotReceiveStatus::timeout:
-        ++cycle_counters_.receive_timeouts;
+        ++cycle_side_.counters.receive_timeouts;
         cycle_.robot_lost(loop::RobotLoss::timeout);
         break;
       case rtio::RobotReceiveStatus::malformed:
-        ++cycle_counters_.receive_malformed;
+        ++cycle_side_.counters.receive_malformed;
         cycle_.robot_lost(loop::RobotLoss::malformed);
         break;
       default:  // io_error, not_started: nothing came; do not spin
-        ++cycle_counters_.receive_errors;
+        ++cycle_side_.counters.receive_errors;
         cycle_.robot_lost(loop::RobotLoss::timeout);
         if (devices_.lockstep == nullptr) sleep_ns(1'000'000);
         break;
@@ -223,42 +218,44 @@ void Runtime::handle_received(rtio::RobotReceiveStatus received) noexcept {
   }
   const std::int64_t t_received = monotonic_ns();
   update_snapshot(t_received);
-  while (ft_ring_->try_pop(ft_sample_)) cycle_.add_ft(ft_sample_);
-  while (imu_ring_->try_pop(imu_sample_)) cycle_.add_imu(imu_sample_);
+  while (handover_.ft->try_pop(cycle_side_.ft_sample)) cycle_.add_ft(cycle_side_.ft_sample);
+  while (handover_.imu->try_pop(cycle_side_.imu_sample)) cycle_.add_imu(cycle_side_.imu_sample);
 
   const std::int64_t t0 = monotonic_ns();
-  cycle_.step(robot_sample_, correction_);
+  cycle_.step(cycle_side_.robot_sample, cycle_side_.correction);
   const std::int64_t t1 = monotonic_ns();
-  const rtio::RobotReplyStatus sent = robot.send_correction(correction_);
+  const rtio::RobotReplyStatus sent = robot.send_correction(cycle_side_.correction);
   const std::int64_t t2 = monotonic_ns();
   if (sent == rtio::RobotReplyStatus::ok) {
-    ++cycle_counters_.replies_ok;
+    ++cycle_side_.counters.replies_ok;
   } else {
-    ++cycle_counters_.replies_failed;
+    ++cycle_side_.counters.replies_failed;
   }
-  if (correction_.axis()) ++cycle_counters_.axis_replies;
+  if (cycle_side_.correction.axis()) ++cycle_side_.counters.axis_replies;
 
   cycle_.set_compute_ns(t1 - t0);
   const loop::CycleRecord& record = cycle_.last();
-  compute_ns_.add(t1 - t0);
-  reply_ns_.add(t2 - t_received);
-  if ((record.flags & loop::kCollectionDone) != 0) ++collections_done_;
-  slot_.record = record;
-  record_ring_->try_push(slot_);  // a full ring drops the record (counted by the ring)
-  if (telemetry_ != nullptr) telemetry_->offer(record, t_received);  // full: counted drop
+  cycle_side_.compute_ns.add(t1 - t0);
+  cycle_side_.reply_ns.add(t2 - t_received);
+  if ((record.flags & loop::kCollectionDone) != 0) ++cycle_side_.collections_done;
+  cycle_side_.slot.record = record;
+  // A full ring drops the record (counted by the ring).
+  handover_.records->try_push(cycle_side_.slot);
+  if (supervision_.telemetry != nullptr)
+    supervision_.telemetry->offer(record, t_received);  // full: counted drop
   after_cycle();
 }
 
 void Runtime::after_cycle() noexcept {
   // Black box: publish a freshly frozen box to the recorder; release it once dumped and the
   // fault has been reset.
-  const std::uint8_t box = box_state_.load(std::memory_order_acquire);
+  const std::uint8_t box = handover_.box_state.load(std::memory_order_acquire);
   if (box == 0 && cycle_.black_box().frozen()) {
-    box_state_.store(1, std::memory_order_release);
+    handover_.box_state.store(1, std::memory_order_release);
   } else if (box == 2 && cycle_.state_machine().state() != loop::State::fault) {
     cycle_.release_black_box();
-    ++cycle_counters_.black_box_releases;
-    box_state_.store(0, std::memory_order_release);
+    ++cycle_side_.counters.black_box_releases;
+    handover_.box_state.store(0, std::memory_order_release);
   }
 
   const loop::CycleRecord& r = cycle_.last();
@@ -272,18 +269,18 @@ void Runtime::after_cycle() noexcept {
   s.compute_ns = r.compute_ns;
   s.transitions = sm.total_transitions();
   if (sm.log_size() > 0) s.last_transition = sm.log_at(sm.log_size() - 1);
-  s.collections_done = collections_done_;
-  s.robot_lost = cycle_counters_.receive_timeouts + cycle_counters_.receive_malformed +
-                 cycle_counters_.receive_errors;
+  s.collections_done = cycle_side_.collections_done;
+  s.robot_lost = cycle_side_.counters.receive_timeouts + cycle_side_.counters.receive_malformed +
+                 cycle_side_.counters.receive_errors;
   s.commands_refused = cycle_.counters().commands_refused;
-  cycle_status_.publish(s);
+  handover_.cycle_status.publish(s);
 
-  modbus::fill_from_cycle(cycle_, snapshot_);
-  snapshot_.compute_last_s = 1e-9 * static_cast<double>(r.compute_ns);
-  snapshot_.robot_lost = s.robot_lost;
-  snapshot_.records_dropped = record_ring_->dropped();
+  modbus::fill_from_cycle(cycle_, cycle_side_.snapshot);
+  cycle_side_.snapshot.compute_last_s = 1e-9 * static_cast<double>(r.compute_ns);
+  cycle_side_.snapshot.robot_lost = s.robot_lost;
+  cycle_side_.snapshot.records_dropped = handover_.records->dropped();
 
-  if (telemetry_ != nullptr) {
+  if (supervision_.telemetry != nullptr) {
     const loop::CycleCounters& c = cycle_.counters();
     telemetry::RuntimeHealth h;
     h.robot_lost = s.robot_lost;
@@ -291,39 +288,41 @@ void Runtime::after_cycle() noexcept {
     h.ipoc_gaps = c.ipoc_gaps;
     h.ft_held_cycles = c.ft_held_cycles;
     h.imu_held_cycles = c.imu_held_cycles;
-    h.replies_failed = cycle_counters_.replies_failed;
-    h.record_drops = snapshot_.records_dropped;
+    h.replies_failed = cycle_side_.counters.replies_failed;
+    h.record_drops = cycle_side_.snapshot.records_dropped;
     h.commands_refused = c.commands_refused;
     h.transitions = s.transitions;
     h.poses_from_joints = c.poses_from_joints;
     h.pose_disagreements = c.pose_disagreements;
     h.poses_missing = c.poses_missing;
-    telemetry_->set_health(h);
-    if (cycle_.tunables_accepted() != tunables_seen_) {  // the PLC changed the virtual body
-      tunables_seen_ = cycle_.tunables_accepted();
-      telemetry_->set_body_params(cycle_.config().body);
+    supervision_.telemetry->set_health(h);
+    // The PLC changed the virtual body.
+    if (cycle_.tunables_accepted() != cycle_side_.tunables_seen) {
+      cycle_side_.tunables_seen = cycle_.tunables_accepted();
+      supervision_.telemetry->set_body_params(cycle_.config().body);
     }
-    snapshot_.telemetry_dropped = telemetry_->counters().telemetry_drops;
+    cycle_side_.snapshot.telemetry_dropped = supervision_.telemetry->counters().telemetry_drops;
   }
-  supervisor_.publish(snapshot_);
+  handover_.supervisor.publish(cycle_side_.snapshot);
 }
 
 void Runtime::update_snapshot(std::int64_t t_received_ns) noexcept {
   // Called when a robot message has arrived: the period since the last one, and once a second
   // the compute-time p99 and the largest jitter of that second.
   const auto nominal_ns = static_cast<std::int64_t>(cycle_.config().period_s * 1e9);
-  const SecondWindow::Figures f = second_window_.on_message(
+  const SecondWindow::Figures f = cycle_side_.second_window.on_message(
       t_received_ns, nominal_ns, cycle_.last().compute_ns, cycle_.last().cycle > 0);
-  if (f.has_period) snapshot_.period_last_s = 1e-9 * static_cast<double>(f.period_ns);
+  if (f.has_period) cycle_side_.snapshot.period_last_s = 1e-9 * static_cast<double>(f.period_ns);
   if (f.second_ended) {
-    if (f.has_compute_p99) snapshot_.compute_p99_s = 1e-9 * static_cast<double>(f.compute_p99_ns);
-    snapshot_.jitter_max_s = 1e-9 * static_cast<double>(f.jitter_max_ns);
+    if (f.has_compute_p99)
+      cycle_side_.snapshot.compute_p99_s = 1e-9 * static_cast<double>(f.compute_p99_ns);
+    cycle_side_.snapshot.jitter_max_s = 1e-9 * static_cast<double>(f.jitter_max_ns);
   }
 }
 
 modbus::SupervisorSnapshot Runtime::snapshot() const {
-  supervisor_.read(supervisor_read_);
-  return supervisor_read_;
+  handover_.supervisor.read(supervision_.snapshot_read);
+  return supervision_.snapshot_read;
 }
 
 // --- lockstep (proto/lockstep.md) -----------------------------------------------------------
@@ -340,24 +339,26 @@ constexpr std::chrono::nanoseconds kImuBytesGuard = std::chrono::seconds(5);
 }  // namespace
 
 void Runtime::lockstep_fail(const char* what) noexcept {
-  ++lockstep_counters_.errors;
-  if (lockstep_counters_.error == nullptr) lockstep_counters_.error = what;
-  lockstep_finished_.store(true, std::memory_order_release);
+  ++lockstep_.counters.errors;
+  if (lockstep_.counters.error == nullptr) lockstep_.counters.error = what;
+  lockstep_.finished.store(true, std::memory_order_release);
 }
 
 void Runtime::lockstep_sensors(const rtio::LockstepEvent& event) noexcept {
-  lockstep_event_ = event;
-  const std::uint32_t tick = lockstep_tick_.load(std::memory_order_relaxed) + 1;
-  lockstep_tick_.store(tick, std::memory_order_release);
-  lockstep_tick_.notify_all();
+  lockstep_.event = event;
+  const std::uint32_t tick = lockstep_.tick.load(std::memory_order_relaxed) + 1;
+  lockstep_.tick.store(tick, std::memory_order_release);
+  lockstep_.tick.notify_all();
   const std::int64_t deadline = monotonic_ns() + kSensorGuardNs;
   auto done = [&] {
-    return (devices_.ft == nullptr || ft_done_tick_.load(std::memory_order_acquire) == tick) &&
-           (devices_.imu == nullptr || imu_done_tick_.load(std::memory_order_acquire) == tick);
+    return (devices_.ft == nullptr ||
+            lockstep_.ft_done_tick.load(std::memory_order_acquire) == tick) &&
+           (devices_.imu == nullptr ||
+            lockstep_.imu_done_tick.load(std::memory_order_acquire) == tick);
   };
   while (!done()) {
     if (monotonic_ns() > deadline) {
-      ++lockstep_counters_.sensor_waits_over;
+      ++lockstep_.counters.sensor_waits_over;
       return;
     }
     sleep_ns(20'000);
@@ -367,16 +368,16 @@ void Runtime::lockstep_sensors(const rtio::LockstepEvent& event) noexcept {
 void Runtime::lockstep_auto_request() noexcept {
   // What supervise() does in real time, here in the cycle thread so that the cycle it takes
   // effect in is the emulator's, not the main thread's polling.
-  if (!(options_.auto_enable_zero_g || options_.auto_collect) || lockstep_auto_done_) return;
+  if (!(options_.auto_enable_zero_g || options_.auto_collect) || lockstep_.auto_done) return;
   const loop::State target =
       options_.auto_enable_zero_g ? loop::State::zero_g : loop::State::collecting;
   const loop::State state = cycle_.state_machine().state();
   if (state == target || state == loop::State::fault) {
-    lockstep_auto_done_ = true;
+    lockstep_.auto_done = true;
     return;
   }
-  auto_request(state, cycle_.ready(), cycle_.last().cycle, lockstep_requested_,
-               lockstep_requested_at_);
+  auto_request(state, cycle_.ready(), cycle_.last().cycle, lockstep_.requested,
+               lockstep_.requested_at);
 }
 
 void Runtime::auto_request(loop::State state, bool ready, std::uint64_t cycle, bool& requested,
@@ -392,7 +393,7 @@ void Runtime::auto_request(loop::State state, bool ready, std::uint64_t cycle, b
 
 void Runtime::lockstep_once() noexcept {
   rtio::LockstepClient& link = *devices_.lockstep;
-  if (lockstep_finished_.load(std::memory_order_acquire)) {
+  if (lockstep_.finished.load(std::memory_order_acquire)) {
     sleep_ns(1'000'000);  // waiting for stop()
     return;
   }
@@ -404,27 +405,27 @@ void Runtime::lockstep_once() noexcept {
     return;
   }
   if (event.kind == rtio::LockstepKind::end) {
-    lockstep_counters_.ended = true;
-    lockstep_finished_.store(true, std::memory_order_release);
+    lockstep_.counters.ended = true;
+    lockstep_.finished.store(true, std::memory_order_release);
     return;
   }
   lockstep_sensors(event);
-  ++lockstep_counters_.events;
+  ++lockstep_.counters.events;
   if (event.kind == rtio::LockstepKind::timeout) {
-    ++lockstep_counters_.timeout_events;
+    ++lockstep_.counters.timeout_events;
     handle_received(rtio::RobotReceiveStatus::timeout);
   } else {
-    ++lockstep_counters_.datagram_events;
+    ++lockstep_.counters.datagram_events;
     // The datagram was sent before the event: it is on its way through loopback.
-    rtio::RobotReceiveStatus received = devices_.robot->receive_sample(robot_sample_);
+    rtio::RobotReceiveStatus received = devices_.robot->receive_sample(cycle_side_.robot_sample);
     const std::int64_t deadline = monotonic_ns() + kDatagramGuardNs;
     while (received == rtio::RobotReceiveStatus::timeout) {
       if (monotonic_ns() > deadline) {
         lockstep_fail("the robot's datagram did not arrive within 5 s of its event");
         return;
       }
-      ++lockstep_counters_.receive_retries;
-      received = devices_.robot->receive_sample(robot_sample_);
+      ++lockstep_.counters.receive_retries;
+      received = devices_.robot->receive_sample(cycle_side_.robot_sample);
     }
     handle_received(received);
   }
@@ -443,21 +444,22 @@ void Runtime::ft_loop_lockstep() {
   std::uint32_t seen = 0;
   std::uint64_t requested = 0;
   while (true) {
-    lockstep_tick_.wait(seen, std::memory_order_acquire);
-    if (stop_sensors_.load(std::memory_order_relaxed)) return;
-    const std::uint32_t tick = lockstep_tick_.load(std::memory_order_acquire);
-    const std::uint64_t target = lockstep_event_.ft_samples;
+    lockstep_.tick.wait(seen, std::memory_order_acquire);
+    if (threads_.stop_sensors.load(std::memory_order_relaxed)) return;
+    const std::uint32_t tick = lockstep_.tick.load(std::memory_order_acquire);
+    const std::uint64_t target = lockstep_.event.ft_samples;
     // An answer the emulator's board gives in time (emulated) is waited for however long the
     // host takes; a silent board's request waits the configured timeout.
     const std::chrono::nanoseconds wait =
-        lockstep_event_.ft_answers != 0 ? kFtAnswerGuard : std::chrono::nanoseconds(0);
-    for (; requested < target && !stop_sensors_.load(std::memory_order_relaxed); ++requested) {
+        lockstep_.event.ft_answers != 0 ? kFtAnswerGuard : std::chrono::nanoseconds(0);
+    for (; requested < target && !threads_.stop_sensors.load(std::memory_order_relaxed);
+         ++requested) {
       const rtio::FtReadStatus st = ft.read_sample_waiting(sample, wait);
-      ++sensor_counters_.ft_reads;
-      if (st == rtio::FtReadStatus::sample) ft_ring_->try_push(sample);  // full: counted drop
+      ++sensors_.counters.ft_reads;
+      if (st == rtio::FtReadStatus::sample) handover_.ft->try_push(sample);  // full: counted drop
     }
     seen = tick;
-    ft_done_tick_.store(tick, std::memory_order_release);
+    lockstep_.ft_done_tick.store(tick, std::memory_order_release);
   }
 }
 
@@ -477,21 +479,21 @@ void Runtime::imu_loop_lockstep() {
   const std::int64_t reopen_ns =
       std::chrono::duration_cast<std::chrono::nanoseconds>(options_.imu_reopen_interval).count();
   auto disconnected = [&](std::int64_t now_ns) {
-    ++sensor_counters_.imu_disconnects;
+    ++sensors_.counters.imu_disconnects;
     connected = false;
     last_attempt_ns = now_ns;
   };
   while (true) {
-    lockstep_tick_.wait(seen, std::memory_order_acquire);
-    if (stop_sensors_.load(std::memory_order_relaxed)) return;
-    const std::uint32_t tick = lockstep_tick_.load(std::memory_order_acquire);
-    const rtio::LockstepEvent ev = lockstep_event_;
+    lockstep_.tick.wait(seen, std::memory_order_acquire);
+    if (threads_.stop_sensors.load(std::memory_order_relaxed)) return;
+    const std::uint32_t tick = lockstep_.tick.load(std::memory_order_acquire);
+    const rtio::LockstepEvent ev = lockstep_.event;
     if (!connected && ev.imu_plugged != 0 && ev.time_ns - last_attempt_ns >= reopen_ns) {
       last_attempt_ns = ev.time_ns;
-      ++sensor_counters_.imu_reopen_attempts;
-      ++lockstep_counters_.imu_reopen_attempts;
+      ++sensors_.counters.imu_reopen_attempts;
+      ++lockstep_.counters.imu_reopen_attempts;
       if (imu.start() == rtio::ImuStartStatus::ok) {
-        ++sensor_counters_.imu_reopens;
+        ++sensors_.counters.imu_reopens;
         connected = true;
         epoch = ev.imu_epoch;
         base = imu.counters().bytes_read;
@@ -501,7 +503,7 @@ void Runtime::imu_loop_lockstep() {
     if (connected && (ev.imu_plugged == 0 || ev.imu_epoch != epoch)) {
       // Unplugged since the last event: the tty hangs up.
       const rtio::ImuReadStatus st = imu.read_sample(sample);
-      ++sensor_counters_.imu_reads;
+      ++sensors_.counters.imu_reads;
       if (st == rtio::ImuReadStatus::disconnected) disconnected(ev.time_ns);
     } else if (connected) {
       // Up to the bytes written (waiting for them however slow the host is), or, to re-base,
@@ -511,19 +513,19 @@ void Runtime::imu_loop_lockstep() {
           rebase ? UINT64_MAX
                  : base + static_cast<std::uint64_t>(std::max<std::int64_t>(target, 0));
       const std::chrono::nanoseconds wait = rebase ? std::chrono::nanoseconds(0) : kImuBytesGuard;
-      while (!stop_sensors_.load(std::memory_order_relaxed)) {
+      while (!threads_.stop_sensors.load(std::memory_order_relaxed)) {
         const rtio::ImuReadStatus st =
             rebase ? imu.read_sample(sample) : imu.read_sample_upto(sample, limit, wait);
-        ++sensor_counters_.imu_reads;
+        ++sensors_.counters.imu_reads;
         if (st == rtio::ImuReadStatus::sample) {
-          imu_ring_->try_push(sample);
+          handover_.imu->try_push(sample);
           continue;
         }
         if (st == rtio::ImuReadStatus::timeout) {
           // After a re-open: the bytes before it may be gone. Otherwise the bytes written did
           // not come within the guard (counted: the run is not exact any more).
           const auto read = static_cast<std::int64_t>(imu.counters().bytes_read - base);
-          ++lockstep_counters_.imu_rebases;
+          ++lockstep_.counters.imu_rebases;
           offset = static_cast<std::int64_t>(ev.imu_bytes) - read;
           rebase = false;
         } else if (st == rtio::ImuReadStatus::disconnected) {
@@ -533,7 +535,7 @@ void Runtime::imu_loop_lockstep() {
       }
     }
     seen = tick;
-    imu_done_tick_.store(tick, std::memory_order_release);
+    lockstep_.imu_done_tick.store(tick, std::memory_order_release);
   }
 }
 
@@ -547,14 +549,14 @@ void Runtime::ft_loop() {
   const auto period_ns = static_cast<std::int64_t>(1e9 / options_.ft_rate_hz + 0.5);
   std::int64_t next = monotonic_ns();
   rtio::FtSample sample;
-  while (!stop_sensors_.load(std::memory_order_relaxed)) {
+  while (!threads_.stop_sensors.load(std::memory_order_relaxed)) {
     const rtio::FtReadStatus st = ft.read_sample(sample);
-    ++sensor_counters_.ft_reads;
-    if (st == rtio::FtReadStatus::sample) ft_ring_->try_push(sample);  // full: counted drop
+    ++sensors_.counters.ft_reads;
+    if (st == rtio::FtReadStatus::sample) handover_.ft->try_push(sample);  // full: counted drop
     next += period_ns;
     const std::int64_t now = monotonic_ns();
     if (next < now - period_ns) {  // fell behind by more than a period: start afresh
-      ++sensor_counters_.ft_overruns;
+      ++sensors_.counters.ft_overruns;
       next = now;
     }
     timespec ts{};
@@ -575,20 +577,20 @@ void Runtime::imu_loop() {
   rtio::ImuSample sample;
   const std::int64_t reopen_ns =
       std::chrono::duration_cast<std::chrono::nanoseconds>(options_.imu_reopen_interval).count();
-  while (!stop_sensors_.load(std::memory_order_relaxed)) {
+  while (!threads_.stop_sensors.load(std::memory_order_relaxed)) {
     const rtio::ImuReadStatus st = imu.read_sample(sample);
-    ++sensor_counters_.imu_reads;
+    ++sensors_.counters.imu_reads;
     switch (st) {
       case rtio::ImuReadStatus::sample:
-        imu_ring_->try_push(sample);
+        handover_.imu->try_push(sample);
         break;
       case rtio::ImuReadStatus::disconnected:
-        ++sensor_counters_.imu_disconnects;
-        while (!stop_sensors_.load(std::memory_order_relaxed)) {
+        ++sensors_.counters.imu_disconnects;
+        while (!threads_.stop_sensors.load(std::memory_order_relaxed)) {
           sleep_ns(reopen_ns);
-          ++sensor_counters_.imu_reopen_attempts;
+          ++sensors_.counters.imu_reopen_attempts;
           if (imu.start() == rtio::ImuStartStatus::ok) {
-            ++sensor_counters_.imu_reopens;
+            ++sensors_.counters.imu_reopens;
             break;
           }
         }
@@ -608,37 +610,40 @@ void Runtime::recorder_loop() {
   std::int64_t next_status = monotonic_ns() + 1'000'000'000;
   auto publish = [&] {
     RecorderStatus s;
-    s.records = recorder_->counters().records;
-    s.black_boxes = black_box_paths_.size();
-    if (!compute_window_.empty()) {
-      const auto k =
-          static_cast<std::ptrdiff_t>(0.99 * static_cast<double>(compute_window_.size() - 1));
-      std::nth_element(compute_window_.begin(), compute_window_.begin() + k, compute_window_.end());
-      s.compute_p99_ns = compute_window_[static_cast<std::size_t>(k)];
+    s.records = recorder_side_.recorder->counters().records;
+    s.black_boxes = recorder_side_.black_box_paths.size();
+    if (!recorder_side_.compute_window.empty()) {
+      const auto k = static_cast<std::ptrdiff_t>(
+          0.99 * static_cast<double>(recorder_side_.compute_window.size() - 1));
+      std::nth_element(recorder_side_.compute_window.begin(),
+                       recorder_side_.compute_window.begin() + k,
+                       recorder_side_.compute_window.end());
+      s.compute_p99_ns = recorder_side_.compute_window[static_cast<std::size_t>(k)];
     }
-    compute_window_.clear();
-    recorder_status_.publish(s);
+    recorder_side_.compute_window.clear();
+    handover_.recorder_status.publish(s);
   };
   while (true) {
-    const bool stopping = stop_recorder_.load(std::memory_order_acquire);
+    const bool stopping = threads_.stop_recorder.load(std::memory_order_acquire);
     int taken = 0;
-    while (taken < 4096 && record_ring_->try_pop(*popped_)) {
+    while (taken < 4096 && handover_.records->try_pop(*recorder_side_.popped)) {
       ++taken;
-      compute_window_.push_back(popped_->record.compute_ns);
-      if (recording_failed_) continue;
+      recorder_side_.compute_window.push_back(recorder_side_.popped->record.compute_ns);
+      if (recorder_side_.failed) continue;
       try {
-        recorder_->add(popped_->record);
+        recorder_side_.recorder->add(recorder_side_.popped->record);
       } catch (const std::exception& e) {
-        recording_failed_ = true;
-        recorder_error_ = std::string("recording stopped: ") + e.what();
-        std::fprintf(stderr, "zerog-rt: %s\n", recorder_error_.c_str());
+        recorder_side_.failed = true;
+        recorder_side_.error = std::string("recording stopped: ") + e.what();
+        std::fprintf(stderr, "zerog-rt: %s\n", recorder_side_.error.c_str());
       }
     }
-    if (box_state_.load(std::memory_order_acquire) == 1) {
+    if (handover_.box_state.load(std::memory_order_acquire) == 1) {
       // The box is frozen: the cycle thread does not write it until we hand it back.
       try {
-        const std::filesystem::path path = recorder_->dump_black_box(cycle_.black_box());
-        black_box_paths_.push_back(path);
+        const std::filesystem::path path =
+            recorder_side_.recorder->dump_black_box(cycle_.black_box());
+        recorder_side_.black_box_paths.push_back(path);
         const loop::Cycle::Box& box = cycle_.black_box();
         std::fprintf(
             stderr, "zerog-rt: black box (%zu cycles, fault %s at cycle %llu) written to %s\n",
@@ -648,22 +653,22 @@ void Runtime::recorder_loop() {
       } catch (const std::exception& e) {
         std::fprintf(stderr, "zerog-rt: cannot write the black box: %s\n", e.what());
       }
-      box_state_.store(2, std::memory_order_release);
+      handover_.box_state.store(2, std::memory_order_release);
     }
     const std::int64_t now = monotonic_ns();
     if (now >= next_status) {
       publish();
       next_status = now + 1'000'000'000;
     }
-    if (stopping && record_ring_->size_approx() == 0) break;
+    if (stopping && handover_.records->size_approx() == 0) break;
     if (taken == 0) sleep_ns(2'000'000);
   }
   publish();
-  if (!recording_failed_) {
+  if (!recorder_side_.failed) {
     try {
-      recorder_->finish();
+      recorder_side_.recorder->finish();
     } catch (const std::exception& e) {
-      recorder_error_ = std::string("cannot finish the recording: ") + e.what();
+      recorder_side_.error = std::string("cannot finish the recording: ") + e.what();
     }
   }
 }
@@ -672,21 +677,21 @@ void Runtime::recorder_loop() {
 
 SupervisorEvents Runtime::supervise() {
   CycleStatus s;
-  if (cycle_status_.read(s) == rtio::LatestRead::empty) return {};
-  last_status_ = s;
-  SupervisorEvents ev = announcer_.update(s);
+  if (handover_.cycle_status.read(s) == rtio::LatestRead::empty) return {};
+  supervision_.last_status = s;
+  SupervisorEvents ev = supervision_.announcer.update(s);
   // Still waiting (neither there nor given up): ask again (in lockstep the cycle thread asks).
-  if (announcer_.auto_pending() && devices_.lockstep == nullptr)
-    auto_request(s.state, s.ready, s.cycle, requested_, requested_at_);
+  if (supervision_.announcer.auto_pending() && devices_.lockstep == nullptr)
+    auto_request(s.state, s.ready, s.cycle, supervision_.requested, supervision_.requested_at);
   return ev;
 }
 
 std::string Runtime::status_line() {
-  CycleStatus s = last_status_;
-  cycle_status_.read(s);
-  RecorderStatus r = last_recorder_status_;
-  recorder_status_.read(r);
-  last_recorder_status_ = r;
+  CycleStatus s = supervision_.last_status;
+  handover_.cycle_status.read(s);
+  RecorderStatus r = supervision_.last_recorder_status;
+  handover_.recorder_status.read(r);
+  supervision_.last_recorder_status = r;
   char buffer[256];
   std::snprintf(
       buffer, sizeof buffer,
@@ -695,29 +700,35 @@ std::string Runtime::status_line() {
       loop::state_name(s.state), loop::fault_name(s.fault),
       static_cast<unsigned long long>(s.cycle), static_cast<unsigned long long>(s.robot_lost),
       static_cast<double>(r.compute_p99_ns) * 1e-3, static_cast<unsigned long long>(r.records),
-      static_cast<unsigned long long>(record_ring_->dropped()));
+      static_cast<unsigned long long>(handover_.records->dropped()));
   return buffer;
 }
 
-std::string Runtime::stop() {
-  if (stopped_ || !started_) {
-    stopped_ = stopped_ || !started_;
-    return recorder_error_;
+Status Runtime::stop() {
+  if (threads_.stopped || !threads_.started) {
+    threads_.stopped = threads_.stopped || !threads_.started;
+    return recorder_result();
   }
   // The supervisor first: the cycle it talks to is about to stop.
-  if (modbus_ != nullptr) modbus_->stop();
-  stop_cycle_.store(true, std::memory_order_relaxed);
-  cycle_thread_.join();
-  stop_sensors_.store(true, std::memory_order_relaxed);
-  lockstep_tick_.fetch_add(1, std::memory_order_release);  // wakes lockstep sensor threads
-  lockstep_tick_.notify_all();
-  ft_thread_.join();
-  imu_thread_.join();
-  stop_recorder_.store(true, std::memory_order_release);
-  recorder_thread_.join();
-  if (telemetry_ != nullptr) telemetry_->stop();  // publishes what the cycle handed over
-  stopped_ = true;
-  return recorder_error_;
+  if (supervision_.modbus != nullptr) supervision_.modbus->stop();
+  threads_.stop_cycle.store(true, std::memory_order_relaxed);
+  threads_.cycle.join();
+  threads_.stop_sensors.store(true, std::memory_order_relaxed);
+  lockstep_.tick.fetch_add(1, std::memory_order_release);  // wakes lockstep sensor threads
+  lockstep_.tick.notify_all();
+  threads_.ft.join();
+  threads_.imu.join();
+  threads_.stop_recorder.store(true, std::memory_order_release);
+  threads_.recorder.join();
+  if (supervision_.telemetry != nullptr)
+    supervision_.telemetry->stop();  // publishes what the cycle handed over
+  threads_.stopped = true;
+  return recorder_result();
+}
+
+Status Runtime::recorder_result() const {
+  if (recorder_side_.error.empty()) return {};
+  return {StatusCode::system_error, recorder_side_.error};
 }
 
 // --- summary --------------------------------------------------------------------------------
@@ -744,7 +755,7 @@ std::string Runtime::summary_json() const {
                  {"poses_from_joints", c.poses_from_joints},
                  {"pose_disagreements", c.pose_disagreements},
                  {"poses_missing", c.poses_missing}};
-  const CycleThreadCounters& t = cycle_counters_;
+  const CycleThreadCounters& t = cycle_side_.counters;
   json cycle_thread = {
       {"receive_timeouts", t.receive_timeouts},   {"receive_malformed", t.receive_malformed},
       {"receive_errors", t.receive_errors},       {"replies_ok", t.replies_ok},
@@ -790,8 +801,8 @@ std::string Runtime::summary_json() const {
                      {"bad_length", f.bad_length},
                      {"tx_would_block", f.tx_would_block},
                      {"io_errors", f.io_errors},
-                     {"thread_reads", sensor_counters_.ft_reads},
-                     {"thread_overruns", sensor_counters_.ft_overruns}};
+                     {"thread_reads", sensors_.counters.ft_reads},
+                     {"thread_overruns", sensors_.counters.ft_overruns}};
   }
   if (devices_.imu != nullptr) {
     const rtio::ImuCounters i = devices_.imu->counters();
@@ -806,14 +817,14 @@ std::string Runtime::summary_json() const {
                       {"timeouts", i.timeouts},
                       {"disconnects", i.disconnects},
                       {"io_errors", i.io_errors},
-                      {"thread_reads", sensor_counters_.imu_reads},
-                      {"thread_disconnects", sensor_counters_.imu_disconnects},
-                      {"reopen_attempts", sensor_counters_.imu_reopen_attempts},
-                      {"reopens", sensor_counters_.imu_reopens}};
+                      {"thread_reads", sensors_.counters.imu_reads},
+                      {"thread_disconnects", sensors_.counters.imu_disconnects},
+                      {"reopen_attempts", sensors_.counters.imu_reopen_attempts},
+                      {"reopens", sensors_.counters.imu_reopens}};
   }
-  json rings = {{"ft", ring_json(*ft_ring_)},
-                {"imu", ring_json(*imu_ring_)},
-                {"records", ring_json(*record_ring_)}};
+  json rings = {{"ft", ring_json(*handover_.ft)},
+                {"imu", ring_json(*handover_.imu)},
+                {"records", ring_json(*handover_.records)}};
   const loop::StateMachine& sm = cycle_.state_machine();
   json transitions = json::array();
   for (std::size_t i = 0; i < sm.log_size(); ++i) {
@@ -828,19 +839,19 @@ std::string Runtime::summary_json() const {
     transitions.push_back(j);
   }
   json boxes = json::array();
-  for (const auto& p : black_box_paths_) boxes.push_back(p.string());
+  for (const auto& p : recorder_side_.black_box_paths) boxes.push_back(p.string());
   json recording = nullptr;
-  if (recorder_ != nullptr && recorder_->recording()) {
-    const RecorderCounters& rc = recorder_->counters();
-    recording = {{"log", recorder_->log_path().string()},
-                 {"cycles", recorder_->cycles_path().string()},
+  if (recorder_side_.recorder != nullptr && recorder_side_.recorder->recording()) {
+    const RecorderCounters& rc = recorder_side_.recorder->counters();
+    recording = {{"log", recorder_side_.recorder->log_path().string()},
+                 {"cycles", recorder_side_.recorder->cycles_path().string()},
                  {"records", rc.records},
                  {"log_rows", rc.log_rows},
                  {"skipped_stale", rc.skipped_stale},
                  {"skipped_no_samples", rc.skipped_no_samples},
                  {"rejected", rc.rejected},
-                 {"records_dropped", record_ring_->dropped()},
-                 {"error", recorder_error_}};
+                 {"records_dropped", handover_.records->dropped()},
+                 {"error", recorder_side_.error}};
   }
   json out = {{"format", "zerog-rt-summary"},
               {"version", 1},
@@ -852,13 +863,13 @@ std::string Runtime::summary_json() const {
               {"rings", rings},
               {"transitions", transitions},
               {"transitions_total", sm.total_transitions()},
-              {"compute_ns", latency_json(compute_ns_)},
-              {"reply_latency_ns", latency_json(reply_ns_)},
+              {"compute_ns", latency_json(cycle_side_.compute_ns)},
+              {"reply_latency_ns", latency_json(cycle_side_.reply_ns)},
               {"black_box_dumps", boxes},
               {"recording", recording}};
-  if (telemetry_ != nullptr) {
-    const telemetry::ChannelCounters tc = telemetry_->counters();
-    out["telemetry"] = {{"domain_id", telemetry_->config().domain_id},
+  if (supervision_.telemetry != nullptr) {
+    const telemetry::ChannelCounters tc = supervision_.telemetry->counters();
+    out["telemetry"] = {{"domain_id", supervision_.telemetry->config().domain_id},
                         {"records_offered", tc.records_offered},
                         {"records_published", tc.records_published},
                         {"dropped", tc.telemetry_drops},
@@ -866,7 +877,7 @@ std::string Runtime::summary_json() const {
                         {"health_published", tc.health_published}};
   }
   if (devices_.lockstep != nullptr) {
-    const LockstepCounters& l = lockstep_counters_;
+    const LockstepCounters& l = lockstep_.counters;
     out["lockstep"] = {{"events", l.events},
                        {"datagram_events", l.datagram_events},
                        {"timeout_events", l.timeout_events},
@@ -879,13 +890,13 @@ std::string Runtime::summary_json() const {
                        {"ended", l.ended},
                        {"error", l.error != nullptr ? l.error : ""}};
   }
-  if (modbus_ != nullptr) {
-    const modbus::ServerCounters m = modbus_->counters();
+  if (supervision_.modbus != nullptr) {
+    const modbus::ServerCounters m = supervision_.modbus->counters();
     json exceptions = json::object();
     for (std::size_t code = 1; code < m.exceptions.size(); ++code) {
       if (m.exceptions[code] != 0) exceptions[std::to_string(code)] = m.exceptions[code];
     }
-    out["modbus"] = {{"port", modbus_->port()},
+    out["modbus"] = {{"port", supervision_.modbus->port()},
                      {"requests", m.requests},
                      {"replies", m.replies},
                      {"exceptions_by_code", exceptions},

@@ -11,6 +11,7 @@
 
 #include "zerog/formats/design_csv.hpp"
 #include "zerog/infer/deploy_file.hpp"
+#include "zerog/status.hpp"
 
 namespace zerog::rt {
 
@@ -87,10 +88,17 @@ Setup load_setup(const RtConfig& config) {
   // The rig's robot (its flange_sensor is the rig's): the pose from AIPos without RIst, and the
   // check of RIst (proto/rt_config.md, "[robot]").
   s.cycle.robot = s.rig.robot_model;
-  // The loop's own checks, on a scratch cycle (configure takes the model).
+  // The loop's own checks, on a scratch cycle (configure takes the model). The configuration's
+  // own fields passed them when the file was read (rt/config.cpp names the key); what is new
+  // here is the rig's robot and the model.
   auto scratch = std::make_unique<loop::Cycle>();
-  if (std::string why = scratch->configure(s.cycle, s.model); !why.empty()) {
-    throw std::runtime_error(config.file.string() + ": the loop refuses the configuration: " + why);
+  if (const Status st = scratch->configure(s.cycle, s.model); !st.ok()) {
+    if (st.setting() == "robot" || st.setting().starts_with("robot.")) {
+      throw std::runtime_error("[rig] file: " + config.rig_file.string() +
+                               ": the loop refuses the rig's robot: " + st.text());
+    }
+    throw std::runtime_error(config.file.string() +
+                             ": the loop refuses the configuration: " + st.text());
   }
   return s;
 }

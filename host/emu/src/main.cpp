@@ -162,8 +162,8 @@ int run(const Args& a) {
                  std::min({range[3], range[4], range[5]}));
   }
   if (imu) {
-    const std::string error = imu->open(a.imu_link);
-    if (!error.empty()) throw std::runtime_error("--imu-link: " + error);
+    if (const Status st = imu->open(a.imu_link); !st.ok())
+      throw std::runtime_error("--imu-link: " + st.message());
     std::fprintf(stderr, "zerog-emu: STIM300 on %s -> %s\n", a.imu_link.c_str(),
                  imu->slave_path().c_str());
   }

@@ -386,8 +386,8 @@ void RigEmulator::device_faults(double t_s) {
           ft_->set_response_delay(std::chrono::microseconds(0));
           break;
         case FaultKind::imu_unplug: {
-          const std::string error = imu_->open(options_.imu_link);
-          if (!error.empty()) st.note = "re-plug failed: " + error;
+          if (const Status plugged = imu_->open(options_.imu_link); !plugged.ok())
+            st.note = "re-plug failed: " + plugged.message();
           break;
         }
         default:

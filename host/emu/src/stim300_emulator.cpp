@@ -30,24 +30,29 @@ std::string read_link(const std::string& path) {
 }
 
 // Points `link` at `target`: an existing symlink is replaced atomically, anything else refused.
-std::string make_link(const std::string& link, const std::string& target) {
+// The link's failures name the setting they concern: open()'s link_path.
+Status make_link(const std::string& link, const std::string& target) {
   struct stat st {};
   if (::lstat(link.c_str(), &st) == 0) {
     if (!S_ISLNK(st.st_mode)) {
-      return "Stim300Emulator: refusing to replace '" + link + "': it exists and is not a symlink";
+      return Status::invalid("link_path", "Stim300Emulator: refusing to replace '" + link +
+                                              "': it exists and is not a symlink");
     }
   } else if (errno != ENOENT) {
-    return "Stim300Emulator: cannot check '" + link + "': " + errno_text(errno);
+    return {StatusCode::system_error, "link_path",
+            "Stim300Emulator: cannot check '" + link + "': " + errno_text(errno)};
   }
   const std::string temporary = link + ".tmp-" + std::to_string(::getpid());
   ::unlink(temporary.c_str());  // a leftover of a crashed run, if any
   if (::symlink(target.c_str(), temporary.c_str()) != 0) {
-    return "Stim300Emulator: cannot create symlink '" + temporary + "': " + errno_text(errno);
+    return {StatusCode::system_error, "link_path",
+            "Stim300Emulator: cannot create symlink '" + temporary + "': " + errno_text(errno)};
   }
   if (::rename(temporary.c_str(), link.c_str()) != 0) {
     const int error_number = errno;
     ::unlink(temporary.c_str());
-    return "Stim300Emulator: cannot move symlink to '" + link + "': " + errno_text(error_number);
+    return {StatusCode::system_error, "link_path",
+            "Stim300Emulator: cannot move symlink to '" + link + "': " + errno_text(error_number)};
   }
   return {};
 }
@@ -121,38 +126,43 @@ bool Stim300Emulator::flush_pending() {
   return master_ < 0 || flush_pending_locked();
 }
 
-std::string Stim300Emulator::open(const std::string& link_path) {
+Status Stim300Emulator::open(const std::string& link_path) {
   const std::lock_guard lock(mutex_);
   close_locked();
   const std::string old_slave = slave_path_;
   slave_path_.clear();
-  auto fail = [this](const std::string& message) {
+  auto fail = [this](Status why) {
     close_locked();
     slave_path_.clear();
-    return message;
+    return why;
+  };
+  auto os_error = [](std::string message) {
+    return Status(StatusCode::system_error, std::move(message));
   };
   bytes_.store(0, std::memory_order_release);
   master_ = ::posix_openpt(O_RDWR | O_NOCTTY | O_CLOEXEC);
-  if (master_ < 0) return fail("Stim300Emulator: posix_openpt failed: " + errno_text(errno));
+  if (master_ < 0)
+    return fail(os_error("Stim300Emulator: posix_openpt failed: " + errno_text(errno)));
   const int flags = ::fcntl(master_, F_GETFL);
   if (flags < 0 || ::fcntl(master_, F_SETFL, flags | O_NONBLOCK) != 0 || ::grantpt(master_) != 0 ||
       ::unlockpt(master_) != 0) {
-    return fail("Stim300Emulator: cannot set up the pty master: " + errno_text(errno));
+    return fail(os_error("Stim300Emulator: cannot set up the pty master: " + errno_text(errno)));
   }
   std::array<char, 128> name{};
   if (::ptsname_r(master_, name.data(), name.size()) != 0) {
-    return fail("Stim300Emulator: ptsname failed: " + errno_text(errno));
+    return fail(os_error("Stim300Emulator: ptsname failed: " + errno_text(errno)));
   }
   const std::string slave(name.data());
   slave_ = ::open(slave.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
-  if (slave_ < 0) return fail("Stim300Emulator: cannot open '" + slave + "': " + errno_text(errno));
+  if (slave_ < 0)
+    return fail(os_error("Stim300Emulator: cannot open '" + slave + "': " + errno_text(errno)));
   termios tio{};
   if (::tcgetattr(slave_, &tio) != 0) {
-    return fail("Stim300Emulator: tcgetattr on '" + slave + "': " + errno_text(errno));
+    return fail(os_error("Stim300Emulator: tcgetattr on '" + slave + "': " + errno_text(errno)));
   }
   ::cfmakeraw(&tio);
   if (::tcsetattr(slave_, TCSANOW, &tio) != 0) {
-    return fail("Stim300Emulator: tcsetattr on '" + slave + "': " + errno_text(errno));
+    return fail(os_error("Stim300Emulator: tcsetattr on '" + slave + "': " + errno_text(errno)));
   }
   slave_path_ = slave;
 
@@ -162,8 +172,7 @@ std::string Stim300Emulator::open(const std::string& link_path) {
   }
   link_path_.clear();
   if (!link_path.empty()) {
-    const std::string error = make_link(link_path, slave_path_);
-    if (!error.empty()) return fail(error);
+    if (Status st = make_link(link_path, slave_path_); !st.ok()) return fail(std::move(st));
     link_path_ = link_path;
   }
   return {};

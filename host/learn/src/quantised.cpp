@@ -46,8 +46,8 @@ std::vector<ident::Wrench> quantised_prediction(const NetworkFile& residual,
   m.physics = residual.physics->params;
   m.network = deploy_network(residual, {}, &data, &log);
   infer::Inference inference;
-  const std::string error = inference.configure(std::move(m));
-  if (!error.empty()) throw std::runtime_error("quantised inference: " + error);
+  if (const Status st = inference.configure(std::move(m)); !st.ok())
+    throw std::runtime_error("quantised inference: " + st.text());
   std::vector<model::FeatureSignals> signals(data.size());
   for (std::size_t i = 0; i < data.size(); ++i) signals[i] = feature_signals(data, log, i);
   std::vector<infer::Wrench> out(data.size());

@@ -52,7 +52,7 @@ ContactStats run(Akorr akorr, double seconds, double settle_s) {
   config.body.inertia_body_kgm2 = Eigen::Vector3d(4.0, 5.0, 6.0).asDiagonal();
   config.p_sensor_com_m = sc.payload.com_sensor_m;
   loop::Cycle cycle;
-  EXPECT_EQ(cycle.configure(config, model), "");
+  EXPECT_EQ(cycle.configure(config, model).text(), "");
 
   const int steps_per_cycle = static_cast<int>(std::lround(kCycle * kPhysicsRate));
   const int cycles = static_cast<int>(std::lround(seconds / kCycle));

@@ -66,8 +66,8 @@ TEST(DeployFile, RoundTripGivesBitIdenticalPredictions) {
   const LoadResult r = load(bytes);
   ASSERT_TRUE(r.ok()) << r.message;
   Inference original, loaded;
-  ASSERT_EQ(original.configure(m), "");
-  ASSERT_EQ(loaded.configure(*r.model), "");
+  ASSERT_EQ(original.configure(m).text(), "");
+  ASSERT_EQ(loaded.configure(*r.model).text(), "");
   EXPECT_EQ(loaded.model().network->features, m.network->features);
   EXPECT_EQ(loaded.model().physics.values, m.physics.values);
   EXPECT_EQ(loaded.model().network->params, m.network->params);
@@ -92,7 +92,7 @@ TEST(DeployFile, PhysicsOnlyFilesLoadAndPredictThePhysics) {
   ASSERT_TRUE(r.ok()) << r.message;
   EXPECT_FALSE(r.model->network.has_value());
   Inference inf;
-  ASSERT_EQ(inf.configure(*r.model), "");
+  ASSERT_EQ(inf.configure(*r.model).text(), "");
   std::mt19937_64 rng(3);
   const model::FeatureSignals s = test::random_signals(rng);
   Wrench w, p;
@@ -248,7 +248,7 @@ TEST(DeployFile, NetworksWithFewerOutputsAddToTheirAxesOnly) {
   ASSERT_TRUE(r.ok()) << r.message;
   EXPECT_EQ(r.model->network->output_axes, (std::vector<int>{0, 1, 2, 3, 4}));
   Inference inf;
-  ASSERT_EQ(inf.configure(*r.model), "");
+  ASSERT_EQ(inf.configure(*r.model).text(), "");
   std::mt19937_64 rng(2);
   const model::FeatureSignals s = test::random_signals(rng);
   Wrench residual, full_w, physics;

@@ -31,7 +31,7 @@ TEST(Inference, EvaluateDoesNotAllocate) {
   for (Activation act : {Activation::tanh, Activation::sigmoid, Activation::leaky_relu}) {
     for (int bits : {8, 16}) {
       Inference inf;
-      ASSERT_EQ(inf.configure(model_with(act, bits)), "");
+      ASSERT_EQ(inf.configure(model_with(act, bits)).text(), "");
       const auto samples = test::random_samples(500, 1);
       Wrench w;
       zerog::test::AllocGuard guard("Inference::evaluate");
@@ -52,16 +52,16 @@ TEST(Inference, EvaluateDoesNotAllocate) {
   zerog::test::AllocGuard guard("Inference::configure");
   Eigen::internal::set_is_malloc_allowed(true);  // configure may use Eigen's heap
   Inference inf;
-  const auto error = inf.configure(m);
+  const zerog::Status st = inf.configure(m);
   guard.stop();
-  ASSERT_EQ(error, "");
+  ASSERT_TRUE(st.ok()) << st.text();
   EXPECT_GT(guard.allocations(), 0u);
 }
 
 TEST(Inference, PhysicsIsModelPredictWrench) {
   Inference inf;
   const DeployedModel m = model_with(Activation::tanh, 16);
-  ASSERT_EQ(inf.configure(m), "");
+  ASSERT_EQ(inf.configure(m).text(), "");
   std::mt19937_64 rng(4);
   for (int i = 0; i < 100; ++i) {
     const model::FeatureSignals s = test::random_signals(rng);
@@ -92,7 +92,7 @@ TEST(Inference, StatusInsteadOfExceptions) {
   Wrench w = Wrench::Constant(7.0);
   EXPECT_EQ(inf.evaluate(s, w).code, StatusCode::not_configured);
   EXPECT_EQ(w, Wrench::Constant(7.0));  // not written
-  ASSERT_EQ(inf.configure(model_with(Activation::tanh, 16)), "");
+  ASSERT_EQ(inf.configure(model_with(Activation::tanh, 16)).text(), "");
   s.temperature_C = std::numeric_limits<double>::quiet_NaN();
   EXPECT_EQ(inf.evaluate(s, w).code, StatusCode::non_finite);
   EXPECT_EQ(w, Wrench::Constant(7.0));
@@ -110,11 +110,12 @@ TEST(Inference, StatusInsteadOfExceptions) {
 TEST(Inference, NeverHalfConfigured) {
   Inference inf;
   const DeployedModel good = model_with(Activation::tanh, 16);
-  ASSERT_EQ(inf.configure(good), "");
+  ASSERT_EQ(inf.configure(good).text(), "");
   DeployedModel bad = good;
   bad.network->quantised.layers[1].weights.pop_back();
-  const std::string why = inf.configure(bad);
-  EXPECT_NE(why.find("quantised weights"), std::string::npos) << why;
+  const zerog::Status why = inf.configure(bad);
+  EXPECT_EQ(why.code(), zerog::StatusCode::invalid_setting);
+  EXPECT_NE(why.message().find("quantised weights"), std::string::npos) << why.text();
   ASSERT_TRUE(inf.configured());
   EXPECT_EQ(inf.model().network->quantised.layers[1].weights.size(),
             good.network->quantised.layers[1].weights.size());
@@ -128,7 +129,7 @@ TEST(Inference, SequenceMatchesPerSampleAndShiftsTheImuForTheTimeOffset) {
   std::vector<model::FeatureSignals> samples = test::random_samples(50, 12);
   for (std::size_t i = 0; i < samples.size(); ++i) samples[i].t_s = 0.012 * static_cast<double>(i);
   Inference inf;
-  ASSERT_EQ(inf.configure(m), "");
+  ASSERT_EQ(inf.configure(m).text(), "");
   std::vector<Wrench> out(samples.size());
   evaluate_sequence(inf, Path::quantised, samples, out);
   for (std::size_t i = 0; i < samples.size(); ++i) {
@@ -139,7 +140,7 @@ TEST(Inference, SequenceMatchesPerSampleAndShiftsTheImuForTheTimeOffset) {
   // With tau = one row, the physics of sample i reads the IMU of sample i + 1.
   m.physics.effects.add(model::Effect::imu_time_offset);
   m.physics.block(model::Effect::imu_time_offset)[0] = 0.012;
-  ASSERT_EQ(inf.configure(m), "");
+  ASSERT_EQ(inf.configure(m).text(), "");
   evaluate_sequence(inf, Path::physics_only, samples, out);
   for (std::size_t i = 0; i + 1 < samples.size(); ++i) {
     model::FeatureSignals shifted = samples[i];
@@ -184,10 +185,10 @@ TEST(Inference, UserTermsRoundTripAndAddTheirLaw) {
   EXPECT_EQ(loaded.model->physics.user.coeff[1], -25.0);
 
   Inference with, without;
-  ASSERT_EQ(with.configure(*loaded.model), "");
+  ASSERT_EQ(with.configure(*loaded.model).text(), "");
   DeployedModel plain = m;
   plain.physics.user = {};
-  ASSERT_EQ(without.configure(plain), "");
+  ASSERT_EQ(without.configure(plain).text(), "");
   std::mt19937_64 rng(8);
   std::size_t allocations = 0;
   for (int i = 0; i < 50; ++i) {

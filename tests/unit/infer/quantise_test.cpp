@@ -36,7 +36,7 @@ MaxError measure(const DeployedNetwork& net, std::size_t n, std::uint64_t seed) 
   m.physics = test::demo_physics();
   m.network = net;
   Inference inf;
-  EXPECT_EQ(inf.configure(m), "");
+  EXPECT_EQ(inf.configure(m).text(), "");
   std::mt19937_64 rng(seed);
   MaxError e;
   for (std::size_t i = 0; i < n; ++i) {

@@ -97,8 +97,8 @@ CycleConfig with_robot(const robot::FrameTransform& flange_sensor) {
 
 TEST(CyclePose, JointsOnlyStreamGivesTheSensorPoseOfTheRIstStream) {
   Cycle from_rist, from_joints;
-  ASSERT_EQ(from_rist.configure(test_cycle_config(), payload_model()), "");
-  ASSERT_EQ(from_joints.configure(with_robot(tool(kFlangeSensor)), payload_model()), "");
+  ASSERT_EQ(from_rist.configure(test_cycle_config(), payload_model()).text(), "");
+  ASSERT_EQ(from_joints.configure(with_robot(tool(kFlangeSensor)), payload_model()).text(), "");
   const std::vector<CycleRecord> a = run(from_rist, true);
   const std::vector<CycleRecord> b = run(from_joints, false);
   double worst_m = 0.0, worst_rad = 0.0;
@@ -124,7 +124,7 @@ TEST(CyclePose, JointsOnlyStreamGivesTheSensorPoseOfTheRIstStream) {
 
 TEST(CyclePose, BothPresentAndAgreeingIsCheckedQuietly) {
   Cycle c;
-  ASSERT_EQ(c.configure(with_robot(tool(kFlangeSensor)), payload_model()), "");
+  ASSERT_EQ(c.configure(with_robot(tool(kFlangeSensor)), payload_model()).text(), "");
   const std::vector<CycleRecord> r = run(c, true);
   double worst_m = 0.0, worst_rad = 0.0;
   for (const CycleRecord& record : r) {
@@ -144,9 +144,10 @@ TEST(CyclePose, AWrongToolFrameIsCountedAsDisagreement) {
   // disagrees in position (tolerance 1 mm).
   {
     Cycle c;
-    ASSERT_EQ(c.configure(with_robot(tool(kFlangeSensor + Eigen::Vector3d(0, 0, 0.005))),
-                          payload_model()),
-              "");
+    ASSERT_EQ(
+        c.configure(with_robot(tool(kFlangeSensor + Eigen::Vector3d(0, 0, 0.005))), payload_model())
+            .text(),
+        "");
     const std::vector<CycleRecord> r = run(c, true);
     EXPECT_EQ(c.counters().pose_disagreements, static_cast<std::uint64_t>(kCycles));
     EXPECT_NE(r.back().flags & kPoseDisagrees, 0u);
@@ -159,7 +160,7 @@ TEST(CyclePose, AWrongToolFrameIsCountedAsDisagreement) {
     Cycle c;
     const Eigen::Matrix3d turned =
         Eigen::AngleAxisd(0.5 * kDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-    ASSERT_EQ(c.configure(with_robot(tool(kFlangeSensor, turned)), payload_model()), "");
+    ASSERT_EQ(c.configure(with_robot(tool(kFlangeSensor, turned)), payload_model()).text(), "");
     const std::vector<CycleRecord> r = run(c, true);
     EXPECT_EQ(c.counters().pose_disagreements, static_cast<std::uint64_t>(kCycles));
     EXPECT_LT(r.back().pose_check_m, 0.01e-3);
@@ -171,7 +172,7 @@ TEST(CyclePose, AWrongToolFrameIsCountedAsDisagreement) {
         kFlangeSensor, Eigen::AngleAxisd(0.5 * kDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix()));
     config.pose_check_angle_rad = 1.0 * kDeg;
     Cycle c;
-    ASSERT_EQ(c.configure(config, payload_model()), "");
+    ASSERT_EQ(c.configure(config, payload_model()).text(), "");
     run(c, true);
     EXPECT_EQ(c.counters().pose_disagreements, 0u);
   }
@@ -179,7 +180,7 @@ TEST(CyclePose, AWrongToolFrameIsCountedAsDisagreement) {
 
 TEST(CyclePose, NoRIstAndNoRobotIsAnsweredButCountsAsALostCycle) {
   Cycle c;
-  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()).text(), "");
   const std::vector<CycleRecord> r = run(c, false);
   EXPECT_EQ(c.counters().poses_missing, static_cast<std::uint64_t>(kCycles));
   EXPECT_EQ(r.back().flags, static_cast<std::uint32_t>(kPoseMissing));
@@ -191,18 +192,25 @@ TEST(CyclePose, ConfigureRefusesABadRobotOrTolerance) {
   CycleConfig config = with_robot(tool(kFlangeSensor));
   config.robot->joints[1].sign = 0.5;
   Cycle c;
-  EXPECT_NE(c.configure(config, payload_model()).find("robot"), std::string::npos);
+  zerog::Status st = c.configure(config, payload_model());
+  EXPECT_EQ(st.code(), zerog::StatusCode::invalid_setting);
+  EXPECT_EQ(st.setting(), "robot.joints[1].sign") << st.text();
   config = with_robot(tool(kFlangeSensor));
   config.robot->joint_count = 5;
-  EXPECT_NE(c.configure(config, payload_model()).find("6 axes"), std::string::npos);
+  st = c.configure(config, payload_model());
+  EXPECT_EQ(st.setting(), "robot.joint_count") << st.text();
+  EXPECT_NE(st.message().find("6 axes"), std::string::npos) << st.text();
   config = with_robot(tool(kFlangeSensor));
   config.pose_check_position_m = 0.0;
-  EXPECT_NE(c.configure(config, payload_model()).find("tolerances"), std::string::npos);
+  EXPECT_EQ(c.configure(config, payload_model()).setting(), "pose_check_position_m");
+  config = with_robot(tool(kFlangeSensor));
+  config.pose_check_angle_rad = -1.0;
+  EXPECT_EQ(c.configure(config, payload_model()).setting(), "pose_check_angle_rad");
 }
 
 TEST(CyclePose, KinematicsInTheCycleDoNotAllocate) {
   Cycle c;
-  ASSERT_EQ(c.configure(with_robot(tool(kFlangeSensor)), payload_model()), "");
+  ASSERT_EQ(c.configure(with_robot(tool(kFlangeSensor)), payload_model()).text(), "");
   StaticRobot sensors;
   std::vector<rsi::RobotMessage> messages;
   for (int k = 0; k < 40; ++k) messages.push_back(wire_message(k, k % 2 == 0));

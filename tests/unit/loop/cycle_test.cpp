@@ -34,23 +34,83 @@ void start_zero_g(Cycle& c, StaticRobot& rig) {
   ASSERT_EQ(c.state_machine().state(), State::zero_g);
 }
 
-TEST(Cycle, ConfigureNamesWhatIsWrong) {
+// A refused value is invalid_setting naming its CycleConfig field as a path; the message does
+// not repeat the field.
+void expect_refused(const CycleConfig& bad, const std::string& setting, const std::string& why) {
   Cycle c;
+  const zerog::Status st = c.configure(bad, payload_model());
+  EXPECT_EQ(st.code(), zerog::StatusCode::invalid_setting) << setting;
+  EXPECT_EQ(st.setting(), setting) << st.text();
+  EXPECT_NE(st.message().find(why), std::string::npos) << st.text();
+  EXPECT_EQ(st.text(), setting + ": " + st.message());
+  EXPECT_FALSE(c.ready());
+  const zerog::Status again = check_config(bad);
+  EXPECT_EQ(again.setting(), setting) << "check_config is configure's check";
+}
+
+TEST(Cycle, ConfigureNamesTheRefusedField) {
   CycleConfig bad = test_cycle_config();
   bad.angular_accel_order = 3;
-  EXPECT_NE(c.configure(bad, payload_model()).find("angular_accel_order"), std::string::npos);
+  expect_refused(bad, "angular_accel_order", "must be 2 or 4, is 3");
+  bad = test_cycle_config();
+  bad.period_s = 0.0;
+  expect_refused(bad, "period_s", "positive");
   bad = test_cycle_config();
   bad.body.inertia_body_kgm2(0, 1) = 1.0;
-  EXPECT_NE(c.configure(bad, payload_model()).find("inertia"), std::string::npos);
+  expect_refused(bad, "body.inertia_body_kgm2", "symmetric positive definite");
   bad = test_cycle_config();
-  bad.watchdog.ft_fault_cycles = 0;
-  EXPECT_NE(c.configure(bad, payload_model()).find("watchdog"), std::string::npos);
-  EXPECT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  bad.watchdog.robot_late_cycles = 0;
+  expect_refused(bad, "watchdog.robot_late_cycles", "at least 1, is 0");
+  bad = test_cycle_config();
+  bad.limits.max_angular_speed_radps = -1.0;
+  expect_refused(bad, "limits.max_angular_speed_radps", "must be positive");
+  bad = test_cycle_config();
+  bad.limits.torque_deadband_Nm = bad.limits.max_contact_torque_Nm;
+  expect_refused(bad, "limits.torque_deadband_Nm", "below max_contact_torque_Nm");
+  bad = test_cycle_config();
+  bad.limits.workspace_max_m.y() = bad.limits.workspace_min_m.y();
+  expect_refused(bad, "limits.workspace_max_m", "above workspace_min_m");
+  bad = test_cycle_config();
+  bad.p_sensor_com_m.z() = std::nan("");
+  expect_refused(bad, "p_sensor_com_m", "finite");
+  bad = test_cycle_config();
+  bad.approach_accel_radps2 = 0.0;
+  expect_refused(bad, "approach_accel_radps2", "positive");
+  EXPECT_TRUE(check_config(test_cycle_config()).ok());
+  Cycle c;
+  EXPECT_EQ(c.configure(test_cycle_config(), payload_model()).text(), "");
+}
+
+// The model's refusal (Inference::configure) comes back as the model's, and nothing changes.
+TEST(Cycle, ConfigureReportsARefusedModelAsTheModels) {
+  Cycle c;
+  infer::DeployedModel bad = payload_model();
+  bad.rig.name.clear();
+  const zerog::Status st = c.configure(test_cycle_config(), bad);
+  EXPECT_EQ(st.code(), zerog::StatusCode::invalid_setting);
+  EXPECT_EQ(st.setting(), "");
+  EXPECT_EQ(st.message(), "model: rig.name is empty");
+  EXPECT_FALSE(c.inference().configured());
+}
+
+// check_tunables (the proposals' check, real-time safe) names the Tunables field the same way.
+TEST(Cycle, CheckTunablesNamesTheField) {
+  const CycleConfig good = test_cycle_config();
+  Tunables t{good.body, good.limits, good.p_sensor_com_m};
+  EXPECT_TRUE(check_tunables(t).ok());
+  EXPECT_STREQ(check_tunables(t).setting, "");
+  t.body.mass_kg = 0.0;
+  EXPECT_STREQ(check_tunables(t).setting, "body.mass_kg");
+  EXPECT_STREQ(check_tunables(t).message, "must be positive");
+  t = {good.body, good.limits, good.p_sensor_com_m};
+  t.limits.force_deadband_N = t.limits.max_contact_force_N + 1.0;
+  EXPECT_STREQ(check_tunables(t).setting, "limits.force_deadband_N");
+  EXPECT_FALSE(check_tunables(t).ok());
 }
 
 TEST(Cycle, IdleAnswersEveryMessageWithItsIpocAndNoCorrectionAndSeesNoContact) {
   Cycle c;
-  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()).text(), "");
   StaticRobot rig;
   for (int i = 0; i < 20; ++i) {
     const std::uint64_t ipoc = rig.message.ipoc;
@@ -68,7 +128,7 @@ TEST(Cycle, IdleAnswersEveryMessageWithItsIpocAndNoCorrectionAndSeesNoContact) {
 
 TEST(Cycle, SensorsThatHaveNotStartedYetMeanNotReadyNotAFault) {
   Cycle c;
-  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()).text(), "");
   StaticRobot rig;
   // The robot's datagrams come before the sensors' first samples (start-up order).
   for (int i = 0; i < 20; ++i) rig.quiet(c, 0, 0);
@@ -85,7 +145,7 @@ TEST(Cycle, SensorsThatHaveNotStartedYetMeanNotReadyNotAFault) {
 
 TEST(Cycle, EnableIsRefusedUntilTheModelHasItsRows) {
   Cycle c;
-  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()).text(), "");
   StaticRobot rig;
   rig.quiet(c);
   ASSERT_TRUE(c.request(Command::enable_zero_g));
@@ -102,7 +162,7 @@ TEST(Cycle, EnableIsRefusedUntilTheModelHasItsRows) {
 // Each command's own outcome, under its ticket (the Modbus server answers a coil write with it).
 TEST(Cycle, EveryCommandHasATicketAndItsOwnOutcome) {
   Cycle c;
-  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()).text(), "");
   StaticRobot rig;
   rig.quiet(c);
   const std::uint64_t early = c.request(Command::enable_zero_g);
@@ -136,7 +196,7 @@ TEST(Cycle, EveryCommandHasATicketAndItsOwnOutcome) {
 
 TEST(Cycle, PushOfImpulseJGivesVelocityJOverMAndTheCorrectionsAddUpToTheMotion) {
   Cycle c;
-  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()).text(), "");
   StaticRobot rig;
   start_zero_g(c, rig);
   const Eigen::Vector3d p0 = c.motion().sensor_position_world();
@@ -163,7 +223,7 @@ TEST(Cycle, PushOfImpulseJGivesVelocityJOverMAndTheCorrectionsAddUpToTheMotion) 
 
 TEST(Cycle, AnOffCentrePushTurnsTheBodyAndTheCorrectionCarriesTheRotation) {
   Cycle c;
-  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()).text(), "");
   StaticRobot rig;
   start_zero_g(c, rig);
   // A pure torque of 5 N·m about sensor z for 20 cycles (the gate's release of three cycles'
@@ -187,7 +247,7 @@ TEST(Cycle, AnOffCentrePushTurnsTheBodyAndTheCorrectionCarriesTheRotation) {
 
 TEST(Cycle, TunablesProposedInIdleAreTakenByTheNextCycle) {
   Cycle c;
-  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()).text(), "");
   StaticRobot rig;
   for (int i = 0; i < 6; ++i) rig.quiet(c);
   Tunables t = c.tunables();
@@ -227,7 +287,7 @@ TEST(Cycle, TunablesProposedInIdleAreTakenByTheNextCycle) {
 
 TEST(Cycle, TunablesAreRefusedOutsideIdleAndTheRunningBodyKeepsItsMass) {
   Cycle c;
-  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()).text(), "");
   StaticRobot rig;
   start_zero_g(c, rig);
   Tunables t = c.tunables();
@@ -246,7 +306,7 @@ TEST(Cycle, TunablesAreRefusedOutsideIdleAndTheRunningBodyKeepsItsMass) {
 
 TEST(Cycle, ProposalsFromAnotherThreadAreEachDecidedOnce) {
   Cycle c;
-  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()).text(), "");
   StaticRobot rig;
   for (int i = 0; i < 6; ++i) rig.quiet(c);
   std::atomic<bool> done{false};
@@ -279,7 +339,7 @@ TEST(Cycle, ProposalsFromAnotherThreadAreEachDecidedOnce) {
 
 TEST(Cycle, StepDoesNotAllocate) {
   Cycle c;
-  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()).text(), "");
   StaticRobot rig;
   start_zero_g(c, rig);
   AllocGuard guard("Cycle::step");
@@ -297,7 +357,7 @@ TEST(Cycle, StepDoesNotAllocate) {
 // std::vector push, a malloc and an Eigen dynamic allocation made inside the same cycle scope.
 TEST(Cycle, TheAllocationGuardPassesTheRealCycleAndCatchesADeliberatePushInIt) {
   Cycle c;
-  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()).text(), "");
   StaticRobot rig;
   start_zero_g(c, rig);
   {
@@ -332,7 +392,7 @@ TEST(Cycle, TheAllocationGuardPassesTheRealCycleAndCatchesADeliberatePushInIt) {
 
 TEST(CycleDeathTest, AnAbortModeGuardStopsADeliberatePushInsideTheCycle) {
   Cycle c;
-  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()).text(), "");
   StaticRobot rig;
   start_zero_g(c, rig);
   std::vector<double> trace;
@@ -352,7 +412,7 @@ TEST(Cycle, RowsWithAHeldSensorValueDoNotDriveTheBody) {
   for (const bool hold_ft : {true, false}) {
     SCOPED_TRACE(hold_ft ? "F/T held" : "IMU held");
     Cycle c;
-    ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+    ASSERT_EQ(c.configure(test_cycle_config(), payload_model()).text(), "");
     StaticRobot rig;
     start_zero_g(c, rig);
     const int D = c.delay_rows();
@@ -418,7 +478,7 @@ void expect_hold_then_fault(Cycle& c, StaticRobot& rig, int threshold, Fault fau
 class Watchdog : public ::testing::Test {
  protected:
   void SetUp() override {
-    ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+    ASSERT_EQ(c.configure(test_cycle_config(), payload_model()).text(), "");
     start_zero_g(c, rig);
     // Moving, so that a zero correction is a real change.
     for (int i = 0; i < 10; ++i) rig.cycle(c, push(30.0, 0.0, 0.0));
@@ -604,7 +664,7 @@ class RampPath final : public JointPath {
 
 TEST(Cycle, CollectionApproachesThePathThenFollowsItWithAxisCorrectionsAndStops) {
   Cycle c;
-  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()), "");
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()).text(), "");
   StaticRobot rig;
   const std::array<double, 6> now = proto::rsi::joints_to_rad(rig.message.joints_deg);
   std::array<double, 6> start = now;

@@ -65,7 +65,7 @@ inline CycleConfig test_cycle_config() {
 class StaticRobot {
  public:
   explicit StaticRobot(const infer::DeployedModel& model = payload_model()) {
-    EXPECT_EQ(truth_.configure(model), "");
+    EXPECT_EQ(truth_.configure(model).text(), "");
     message.actual_pose = {1500.0, 200.0, 1200.0, 10.0, 20.0, -30.0};
     message.joints_deg = {5.0, -80.0, 95.0, 10.0, 40.0, -20.0};
     message.has_delay = true;

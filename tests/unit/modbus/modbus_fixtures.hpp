@@ -16,7 +16,8 @@ class CycleTarget : public SupervisorTarget {
  public:
   explicit CycleTarget(std::chrono::microseconds period = std::chrono::microseconds(2000))
       : period_(period) {
-    EXPECT_EQ(cycle_.configure(loop::test::test_cycle_config(), loop::test::payload_model()), "");
+    EXPECT_EQ(cycle_.configure(loop::test::test_cycle_config(), loop::test::payload_model()).text(),
+              "");
     initial_ = cycle_.tunables();
   }
   ~CycleTarget() override { stop(); }

@@ -316,7 +316,7 @@ TEST(ModbusRegisters, TheWholeHoldingTableReadBackAndWrittenGivesTheSameTunables
   EXPECT_NEAR(d.tunables.limits.max_speed_mps, t.limits.max_speed_mps, 1e-5);
   EXPECT_TRUE(d.tunables.limits.workspace_min_m.isApprox(t.limits.workspace_min_m, 1e-5));
   EXPECT_TRUE(d.tunables.limits.workspace_max_m.isApprox(t.limits.workspace_max_m, 1e-5));
-  EXPECT_STREQ(loop::check_tunables(d.tunables), "");
+  EXPECT_TRUE(loop::check_tunables(d.tunables).ok()) << loop::check_tunables(d.tunables).message;
 }
 
 TEST(ModbusRegisters, InputRegistersShowTheSnapshot) {

@@ -344,6 +344,62 @@ TEST(RtConfig, ModuleChecksNameTheKeyFromTheStatusField) {
   }
 }
 
+// The loop's own rules across keys (loop::check_config, the cycle's check): its status names the
+// CycleConfig field, reported at the file key that set it, at that key's value, `KEY: why`.
+TEST(RtConfig, LoopChecksNameTheFileKeyAtItsPosition) {
+  const std::string s = sample_text();
+  const int force_line = line_of(s, "force_deadband_N");
+  expect_error(with_line(s, "force_deadband_N", "force_deadband_N = 400.0"),
+               {"limits.force_deadband_N", force_line, 20, "must be below max_contact_force_N"});
+  expect_error(with_line(s, "torque_deadband_Nm", "torque_deadband_Nm = 90"),
+               {"limits.torque_deadband_Nm", line_of(s, "torque_deadband_Nm"), 22,
+                "must be below max_contact_torque_Nm"});
+  try {
+    parse_config(with_line(s, "force_deadband_N", "force_deadband_N = 400.0"), "rt.toml");
+    ADD_FAILURE() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "rt.toml:" + std::to_string(force_line) +
+                  ":20: limits.force_deadband_N: must be below max_contact_force_N");
+  }
+}
+
+// Every CycleConfig field the file sets maps to the key that sets it (and back: cycle_config).
+TEST(RtConfig, ConfigKeyIsTheFileKeyOfACycleConfigField) {
+  EXPECT_EQ(config_key("period_s"), "robot.cycle_ms");
+  EXPECT_EQ(config_key("angular_accel_order"), "filter.angular_accel_order");
+  EXPECT_EQ(config_key("temperature_C"), "model.temperature_C");
+  EXPECT_EQ(config_key("body.mass_kg"), "body.mass_kg");
+  EXPECT_EQ(config_key("body.inertia_body_kgm2"), "body.inertia_kgm2");
+  EXPECT_EQ(config_key("p_sensor_com_m"), "body.com_sensor_m");
+  EXPECT_EQ(config_key("limits.max_speed_mps"), "limits.max_speed_mps");
+  EXPECT_EQ(config_key("limits.workspace_max_m"), "limits.workspace_max_m");
+  EXPECT_EQ(config_key("watchdog.robot_late_cycles"), "watchdog.robot_late_cycles");
+  EXPECT_EQ(config_key("max_axis_step_rad"), "collection.max_axis_step_rad");
+  EXPECT_EQ(config_key("approach_speed_radps"), "collection.approach_speed_radps");
+  EXPECT_EQ(config_key("approach_accel_radps2"), "collection.approach_accel_radps2");
+  EXPECT_EQ(config_key("pose_check_position_m"), "robot.pose_check_mm");
+  EXPECT_EQ(config_key("pose_check_angle_rad"), "robot.pose_check_deg");
+  EXPECT_EQ(config_key("ipoc_unit_s"), "");
+  EXPECT_EQ(config_key("robot.joint_count"), "");
+  EXPECT_EQ(config_key("limits"), "");
+  // Each key named is one the file may have: a value there that the loop refuses is reported
+  // by read_config at that key (the [limits] deadband rule is the one the reader leaves to it).
+  const std::string s = sample_text();
+  for (const char* field : {"limits.force_deadband_N", "limits.torque_deadband_Nm"}) {
+    const std::string key = config_key(field);
+    const std::string name = key.substr(key.find('.') + 1);
+    const std::string bad = with_line(s, name, name + " = 1000");
+    try {
+      parse_config(bad, "rt.toml");
+      ADD_FAILURE() << field;
+    } catch (const ConfigError& e) {
+      EXPECT_EQ(e.key(), key) << e.what();
+      EXPECT_EQ(e.line(), line_of(s, name)) << e.what();
+    }
+  }
+}
+
 // --- the program ---------------------------------------------------------------------------
 
 struct ProgramRun {
@@ -411,6 +467,16 @@ TEST(ZerogRt, AMissingModelFailsCheckConfigWithOneAndStartUpWithTwoNamingThePath
   EXPECT_NE(r.err.find("zerog-rt.toml:" + std::to_string(line_of(sample_text(), "cycle_ms")) +
                        ":12: robot.cycle_ms: must be 4 or 12"),
             std::string::npos)
+      << r.err;
+  // A value the loop's own check refuses (loop::check_config), likewise: the file's key.
+  test::write_text(dir.path() / "zerog-rt.toml",
+                   with_line(sample_text(), "torque_deadband_Nm", "torque_deadband_Nm = 90"));
+  r = run_rt(dir.path(), config + " --check-config");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(
+      r.err.find("zerog-rt.toml:" + std::to_string(line_of(sample_text(), "torque_deadband_Nm")) +
+                 ":22: limits.torque_deadband_Nm: must be below max_contact_torque_Nm"),
+      std::string::npos)
       << r.err;
 }
 

@@ -125,7 +125,7 @@ TEST(Runtime, EndToEndOnLoopbackUdp) {
             std::to_string(fault_cycle));
   EXPECT_NE(box_text.find(",fault,ft_stale,", last_line), std::string::npos);
 
-  EXPECT_EQ(rt.stop(), "");
+  EXPECT_EQ(rt.stop().text(), "");
   EXPECT_NE(rt.status_line().find("state fault, fault ft_stale, cycles " + std::to_string(cycles)),
             std::string::npos)
       << rt.status_line();
@@ -214,7 +214,7 @@ TEST(Runtime, ResetAfterTheDumpReleasesTheBlackBoxForTheNextFault) {
   for (int i = 0; i < 3; ++i) one_cycle(false);
   for (int i = 0; i < 5; ++i) one_cycle(true);  // the second fault, at cycle 19
   ASSERT_TRUE(wait_for(dir.path() / "blackbox-19.csv"));
-  EXPECT_EQ(rt.stop(), "");
+  EXPECT_EQ(rt.stop().text(), "");
   EXPECT_EQ(rt.cycle_thread_counters().black_box_releases, 1u);
   EXPECT_EQ(rt.black_box_paths().size(), 2u);
   EXPECT_EQ(cycles, 19u);
@@ -279,7 +279,7 @@ TEST(Runtime, CollectStartsWhenReadyAnswersWithAxisCorrectionsAndFinishes) {
   EXPECT_EQ(announced[0].rfind("zerog-rt: collection started at cycle ", 0), 0u) << announced[0];
   EXPECT_EQ(announced[1].rfind("zerog-rt: collection finished at cycle ", 0), 0u) << announced[1];
   EXPECT_NEAR(a1_deg * rsi::kRadPerDeg, 0.05, 1e-3);  // 4 decimals of a degree per reply
-  EXPECT_EQ(rt.stop(), "");
+  EXPECT_EQ(rt.stop().text(), "");
   EXPECT_EQ(rt.cycle().state_machine().state(), loop::State::idle);
   // The collection is recorded for zerog fit: the joints moved along A1 in the log.
   const io::Log log = io::read_log(dir.path() / "collect" / "run.csv");

@@ -20,6 +20,7 @@
 #include "zerog/model/features.hpp"
 #include "zerog/model/network.hpp"
 #include "zerog/model/predict.hpp"
+#include "zerog/status.hpp"
 
 namespace zerog::infer {
 
@@ -51,10 +52,10 @@ enum class Path : std::uint8_t { quantised, float_reference, physics_only };
 class Inference {
  public:
   /// Start-up: validates `model` (same checks as the loader), sizes every buffer and builds the
-  /// lookup tables and requantisation multipliers. Returns an empty string on success, else the
-  /// reason; on failure the previous configuration is kept (never half-configured).
-  /// Not real-time safe.
-  std::string configure(DeployedModel model);
+  /// lookup tables and requantisation multipliers. Returns ok(), or invalid_setting with the
+  /// loader's reason (about the model as a whole: no setting named); on failure the previous
+  /// configuration is kept (never half-configured). Not real-time safe.
+  zerog::Status configure(DeployedModel model);
   bool configured() const { return configured_; }
   const DeployedModel& model() const { return model_; }
 

@@ -23,7 +23,8 @@
 // → row → watchdogs → model → model watchdog → motion → record.
 //
 // Life cycle (STYLE.md habit 3): construct and configure() at start-up (may allocate, may fail
-// with a message); add_*/robot_* and step() every cycle: no allocation, no exceptions, no locks.
+// with a zerog::Status); add_*/robot_* and step() every cycle: no allocation, no exceptions, no
+// locks.
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <array>
@@ -41,6 +42,7 @@
 #include "zerog/robot/robot_model.hpp"
 #include "zerog/samples/robot_sample.hpp"
 #include "zerog/samples/sensor_samples.hpp"
+#include "zerog/status.hpp"
 
 namespace zerog::loop {
 
@@ -117,9 +119,26 @@ enum class ProposalStatus : std::uint8_t {
   refused_invalid,  ///< inconsistent values (check_tunables()): nothing changed
 };
 
-/// Why tunables cannot be used ("" if they can): positive mass, symmetric positive-definite
-/// inertia, finite centre of mass, consistent limits. Real-time safe (static strings).
-const char* check_tunables(const Tunables& t) noexcept;
+/// What check_tunables() found: the field it concerns, named as in CycleConfig ("body.mass_kg",
+/// "limits.max_speed_mps", "p_sensor_com_m"), and why, without the field's name ("must be
+/// positive"); both "" when the tunables can be used. Static strings.
+struct TunablesCheck {
+  const char* setting = "";
+  const char* message = "";
+  bool ok() const noexcept { return *message == '\0'; }
+};
+
+/// Whether tunables can be used: positive mass, symmetric positive-definite inertia, finite
+/// centre of mass, consistent limits. The first field refused, in that order. Real-time safe
+/// (no allocation: static strings).
+TunablesCheck check_tunables(const Tunables& t) noexcept;
+
+/// Whether `config` can be used (Cycle::configure checks it first): ok(), or invalid_setting
+/// naming the refused field as a path in CycleConfig ("period_s", "watchdog.ft_fault_cycles",
+/// "limits.max_speed_mps", "body.inertia_body_kgm2", "robot.joints[2].sign") with why. A program
+/// that reads the configuration from a file maps the path to the file's key (zerog-rt's
+/// rt/config.cpp). Start-up only: not real-time safe (a failure allocates).
+zerog::Status check_config(const CycleConfig& config);
 
 /// Why a robot cycle was lost (robot_lost()).
 enum class RobotLoss : std::uint8_t { timeout, malformed };
@@ -410,9 +429,11 @@ class Cycle {
   static constexpr std::size_t kBlackBoxCycles = 256;
   using Box = BlackBox<CycleRecord, kBlackBoxCycles>;
 
-  /// Start-up: validates the configuration and takes the model (Inference::configure). Returns
-  /// "" on success, else what is wrong (naming the setting). Not real-time safe.
-  std::string configure(const CycleConfig& config, infer::DeployedModel model);
+  /// Start-up: validates the configuration (check_config) and takes the model
+  /// (Inference::configure). Returns ok(), or invalid_setting: check_config's, naming the
+  /// CycleConfig field, or the model's refusal with "model: " in front of its message. On
+  /// failure nothing changes. Not real-time safe.
+  zerog::Status configure(const CycleConfig& config, infer::DeployedModel model);
   const CycleConfig& config() const { return config_; }
   /// Rows between the newest row and the one the model is evaluated on.
   int delay_rows() const { return config_.angular_accel_order / 2; }

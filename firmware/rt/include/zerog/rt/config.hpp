@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <string_view>
 
 #include "zerog/control/motion.hpp"
 #include "zerog/control/virtual_body.hpp"
@@ -119,6 +120,11 @@ RtConfig parse_config(const std::string& text, const std::filesystem::path& path
 
 /// The loop's configuration from the file's settings.
 loop::CycleConfig cycle_config(const RtConfig& config);
+/// The file's key ("limits.force_deadband_N", "body.com_sensor_m", "robot.cycle_ms") of the
+/// CycleConfig field `cycle_setting` as loop::check_config names it ("limits.force_deadband_N",
+/// "p_sensor_com_m", "period_s"); "" for a field the file does not set (ipoc_unit_s; robot.*,
+/// which is the rig file's). read_config reports the loop's refusals at that key.
+std::string config_key(std::string_view cycle_setting);
 
 /// The devices' settings from their tables (units converted: ms → ns, g → the STIM300's range).
 rtio::NetcanoemConfig netcanoem_config(const FtSection& ft);

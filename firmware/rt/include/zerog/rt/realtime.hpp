@@ -15,8 +15,9 @@
 
 namespace zerog::rt {
 
-/// mlockall(MCL_CURRENT | MCL_FUTURE). "" on success, else the warning line.
-std::string lock_memory();
+/// mlockall(MCL_CURRENT | MCL_FUTURE). ok(), or system_error saying what failed and how to grant
+/// it (the caller warns and carries on).
+Status lock_memory();
 
 /// Stack of the threads Thread starts (MCL_FUTURE locks it whole).
 inline constexpr std::size_t kThreadStackBytes = 2 * 1024 * 1024;

@@ -195,7 +195,8 @@ class Runtime final : public modbus::SupervisorTarget {
 
   /// Start-up: the loop's configuration and model; `path` for collection mode (not owned).
   /// ok(); not_ready without a robot link; invalid_setting for a telemetry setting (named
-  /// "telemetry.<field>") or a configuration the loop refuses (its reason as the message).
+  /// "telemetry.<field>") or a configuration the loop refuses (loop::Cycle::configure's status:
+  /// the CycleConfig field, e.g. "limits.max_speed_mps", or "model: …").
   Status configure(const loop::CycleConfig& config, infer::DeployedModel model,
                    const loop::JointPath* path = nullptr);
 
@@ -222,43 +223,52 @@ class Runtime final : public modbus::SupervisorTarget {
   }
   bool withdraw_proposal() noexcept override { return cycle_.withdraw_proposal(); }
   /// The tunables of configure() (the cycle's own copy is the cycle thread's).
-  loop::Tunables tunables() const override { return configured_tunables_; }
+  loop::Tunables tunables() const override { return supervision_.configured_tunables; }
 
   /// Main thread, every few ms: --enable-zero-g and --collect requests, announcements.
   SupervisorEvents supervise();
   /// True once a --collect path has been followed to its end.
-  bool collection_finished() const { return announcer_.collection_finished(); }
+  bool collection_finished() const { return supervision_.announcer.collection_finished(); }
   /// Lockstep: true once the emulator ended the run or the lockstep failed (see summary).
-  bool lockstep_finished() const { return lockstep_finished_.load(std::memory_order_acquire); }
+  bool lockstep_finished() const { return lockstep_.finished.load(std::memory_order_acquire); }
   /// The once-a-second status line (main thread).
   std::string status_line();
 
   /// Stops the threads in order (cycle, sensors, recorder: it drains and renames its files).
-  /// Idempotent. Returns the recorder's error, if any ("" otherwise).
-  std::string stop();
+  /// Idempotent. ok(), or system_error with the recorder's error (the recording stopped early or
+  /// could not be finished).
+  Status stop();
 
   /// The run's summary as JSON text (after stop(); proto/rt_config.md, "Summary").
   std::string summary_json() const;
   /// Black-box dumps written so far (after stop()).
-  const std::vector<std::filesystem::path>& black_box_paths() const { return black_box_paths_; }
+  const std::vector<std::filesystem::path>& black_box_paths() const {
+    return recorder_side_.black_box_paths;
+  }
   /// True while a frozen black box waits for the recorder thread's dump (its file may already
   /// exist: the hand-back follows the rename). The box is released only after that.
-  bool black_box_pending() const { return box_state_.load(std::memory_order_acquire) == 1; }
+  bool black_box_pending() const {
+    return handover_.box_state.load(std::memory_order_acquire) == 1;
+  }
 
   // Test hooks. The rings' producer side is the sensor thread's; use them only without one.
-  FtRing& ft_ring() { return *ft_ring_; }
-  ImuRing& imu_ring() { return *imu_ring_; }
-  RecordRing& record_ring() { return *record_ring_; }
+  FtRing& ft_ring() { return *handover_.ft; }
+  ImuRing& imu_ring() { return *handover_.imu; }
+  RecordRing& record_ring() { return *handover_.records; }
   const loop::Cycle& cycle() const { return cycle_; }
-  const CycleThreadCounters& cycle_thread_counters() const { return cycle_counters_; }
-  const LatencyHistogram& compute_histogram() const { return compute_ns_; }
-  const Recorder* recorder() const { return recorder_.get(); }
+  const CycleThreadCounters& cycle_thread_counters() const { return cycle_side_.counters; }
+  const LatencyHistogram& compute_histogram() const { return cycle_side_.compute_ns; }
+  const Recorder* recorder() const { return recorder_side_.recorder.get(); }
   /// The telemetry channel, if configured.
-  const telemetry::TelemetryChannel* telemetry() const { return telemetry_.get(); }
+  const telemetry::TelemetryChannel* telemetry() const { return supervision_.telemetry.get(); }
   /// The Modbus server, if configured and started.
-  const modbus::ModbusServer* modbus_server() const { return modbus_.get(); }
+  const modbus::ModbusServer* modbus_server() const { return supervision_.modbus.get(); }
 
  private:
+  /// The supervisor snapshot from the cycle just run (cycle thread).
+  void update_snapshot(std::int64_t t_received_ns) noexcept;
+  /// stop()'s answer: the recorder thread's error, if any.
+  Status recorder_result() const;
   void cycle_loop();
   void ft_loop();
   void imu_loop();
@@ -281,74 +291,102 @@ class Runtime final : public modbus::SupervisorTarget {
   void ft_loop_lockstep();
   void imu_loop_lockstep();
 
+  // What Runtime wires (set at construction and configure()). The cycle is the cycle thread's;
+  // the other threads reach it only through its lock-free mailboxes (request, propose).
   RuntimeOptions options_;
   RuntimeDevices devices_;
   loop::Cycle cycle_;
   const loop::JointPath* path_ = nullptr;
 
-  std::unique_ptr<FtRing> ft_ring_;
-  std::unique_ptr<ImuRing> imu_ring_;
-  std::unique_ptr<RecordRing> record_ring_;
+  /// Between the threads, lock-free, one writer and one reader each.
+  struct Handover {
+    std::unique_ptr<FtRing> ft = std::make_unique<FtRing>();               ///< F/T thread → cycle
+    std::unique_ptr<ImuRing> imu = std::make_unique<ImuRing>();            ///< IMU thread → cycle
+    std::unique_ptr<RecordRing> records = std::make_unique<RecordRing>();  ///< cycle → recorder
+    rtio::LatestValue<CycleStatus> cycle_status;                           ///< cycle → main
+    rtio::LatestValue<RecorderStatus> recorder_status;                     ///< recorder → main
+    /// Cycle → Modbus thread (its read in snapshot() const changes the reader's side).
+    mutable rtio::LatestValue<modbus::SupervisorSnapshot> supervisor;
+    /// Black box: 0 recording, 1 frozen (cycle → recorder), 2 dumped (recorder → cycle).
+    std::atomic<std::uint8_t> box_state{0};
+  };
 
-  // Cycle thread.
-  samples::RobotSample robot_sample_;    ///< the robot's message, SI (rtio converts)
-  samples::RobotCorrection correction_;  ///< the cycle's answer, SI
-  rtio::FtSample ft_sample_;
-  rtio::ImuSample imu_sample_;
-  RecordSlot slot_;
-  CycleThreadCounters cycle_counters_;
-  LatencyHistogram compute_ns_;
-  LatencyHistogram reply_ns_;  ///< receive returned → reply sent
-  std::uint64_t collections_done_ = 0;
-  rtio::LatestValue<CycleStatus> cycle_status_;
-  // The supervisor snapshot, with one-second statistics of the cycle's timing.
-  void update_snapshot(std::int64_t t_received_ns) noexcept;
-  modbus::SupervisorSnapshot snapshot_;
-  mutable rtio::LatestValue<modbus::SupervisorSnapshot> supervisor_;
-  mutable modbus::SupervisorSnapshot supervisor_read_;
-  loop::Tunables configured_tunables_;
-  SecondWindow second_window_;  ///< period, compute p99 and jitter of the last second
+  /// The cycle thread's own data: its buffers, timing statistics and what it publishes.
+  struct CycleThreadData {
+    samples::RobotSample robot_sample;    ///< the robot's message, SI (rtio converts)
+    samples::RobotCorrection correction;  ///< the cycle's answer, SI
+    rtio::FtSample ft_sample;
+    rtio::ImuSample imu_sample;
+    RecordSlot slot;
+    CycleThreadCounters counters;
+    LatencyHistogram compute_ns;
+    LatencyHistogram reply_ns;  ///< receive returned → reply sent
+    std::uint64_t collections_done = 0;
+    /// The supervisor snapshot, with one-second statistics of the cycle's timing.
+    modbus::SupervisorSnapshot snapshot;
+    SecondWindow second_window;       ///< period, compute p99 and jitter of the last second
+    std::uint64_t tunables_seen = 0;  ///< Cycle::tunables_accepted() mirrored
+  };
 
-  // Black-box handover: 0 recording, 1 frozen (cycle → recorder), 2 dumped (recorder → cycle).
-  std::atomic<std::uint8_t> box_state_{0};
+  /// The F/T and IMU threads.
+  struct SensorThreadsData {
+    SensorThreadCounters counters;
+  };
 
-  // Sensor threads.
-  SensorThreadCounters sensor_counters_;
+  /// Lockstep (proto/lockstep.md): the cycle thread publishes an event's production, then bumps
+  /// tick; each sensor thread reads it up to that production and stores the tick in its done
+  /// flag. The cycle thread also makes the --enable-zero-g / --collect requests.
+  struct LockstepData {
+    rtio::LockstepEvent event{};
+    std::atomic<std::uint32_t> tick{0};
+    std::atomic<std::uint32_t> ft_done_tick{0}, imu_done_tick{0};
+    std::atomic<bool> finished{false};
+    LockstepCounters counters;
+    bool requested = false;
+    bool auto_done = false;
+    std::uint64_t requested_at = 0;
+  };
 
-  // Lockstep: the cycle thread publishes an event's production, then bumps lockstep_tick_; each
-  // sensor thread reads it up to that production and stores the tick in its done flag.
-  rtio::LockstepEvent lockstep_event_{};
-  std::atomic<std::uint32_t> lockstep_tick_{0};
-  std::atomic<std::uint32_t> ft_done_tick_{0}, imu_done_tick_{0};
-  std::atomic<bool> lockstep_finished_{false};
-  LockstepCounters lockstep_counters_;
-  bool lockstep_requested_ = false;
-  bool lockstep_auto_done_ = false;
-  std::uint64_t lockstep_requested_at_ = 0;
+  /// The recorder thread: the files, the black-box dumps and the compute-time window.
+  struct RecorderThreadData {
+    std::unique_ptr<Recorder> recorder;
+    std::unique_ptr<RecordSlot> popped = std::make_unique<RecordSlot>();
+    std::vector<std::int64_t> compute_window;
+    std::vector<std::filesystem::path> black_box_paths;
+    std::string error;
+    bool failed = false;
+  };
 
-  // Recorder thread.
-  std::unique_ptr<Recorder> recorder_;
-  std::unique_ptr<RecordSlot> popped_;
-  std::vector<std::int64_t> compute_window_;
-  rtio::LatestValue<RecorderStatus> recorder_status_;
-  std::vector<std::filesystem::path> black_box_paths_;
-  std::string recorder_error_;
-  bool recording_failed_ = false;
+  /// Supervision: the main thread (announcements, --enable-zero-g / --collect in real time,
+  /// the status line), the Modbus server and the telemetry channel with their own threads.
+  struct Supervision {
+    explicit Supervision(const RuntimeOptions& options)
+        : announcer(options.auto_enable_zero_g, options.auto_collect) {}
+    StatusAnnouncer announcer;
+    std::uint64_t requested_at = 0;
+    bool requested = false;
+    CycleStatus last_status;
+    RecorderStatus last_recorder_status;
+    loop::Tunables configured_tunables;  ///< configure()'s (the Modbus thread reads them)
+    mutable modbus::SupervisorSnapshot snapshot_read;  ///< the Modbus thread's copy
+    std::unique_ptr<modbus::ModbusServer> modbus;
+    std::unique_ptr<telemetry::TelemetryChannel> telemetry;
+  };
 
-  // Main thread.
-  StatusAnnouncer announcer_;
-  std::uint64_t requested_at_ = 0;
-  bool requested_ = false;
-  CycleStatus last_status_;
-  RecorderStatus last_recorder_status_;
+  /// The threads and how they are stopped (stop(): cycle, sensors, recorder, in that order).
+  struct Threads {
+    std::atomic<bool> stop_cycle{false}, stop_sensors{false}, stop_recorder{false};
+    Thread cycle, ft, imu, recorder;
+    bool started = false, stopped = false;
+  };
 
-  std::unique_ptr<modbus::ModbusServer> modbus_;
-  std::unique_ptr<telemetry::TelemetryChannel> telemetry_;
-  std::uint64_t tunables_seen_ = 0;  ///< cycle thread: Cycle::tunables_accepted() mirrored
-
-  std::atomic<bool> stop_cycle_{false}, stop_sensors_{false}, stop_recorder_{false};
-  Thread cycle_thread_, ft_thread_, imu_thread_, recorder_thread_;
-  bool started_ = false, stopped_ = false;
+  Handover handover_;
+  CycleThreadData cycle_side_;
+  SensorThreadsData sensors_;
+  LockstepData lockstep_;
+  RecorderThreadData recorder_side_;
+  Supervision supervision_;
+  Threads threads_;
 };
 
 }  // namespace zerog::rt

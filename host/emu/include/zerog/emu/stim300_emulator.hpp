@@ -27,6 +27,7 @@
 #include <Eigen/Core>
 
 #include "zerog/proto/stim300.hpp"
+#include "zerog/status.hpp"
 
 namespace zerog::emu {
 
@@ -87,9 +88,10 @@ class Stim300Emulator {
   /// Opens a pty (master non-blocking, slave in raw mode, see above). If `link_path` is not
   /// empty, a symlink there points to the slave: an existing symlink is replaced atomically
   /// (rename), anything else is refused. Called again, it replaces the pty (a re-plug after
-  /// unplug()) and moves the link. Returns "" on success, else a message naming the path and
-  /// the reason (errno text). Not real-time safe.
-  std::string open(const std::string& link_path = "");
+  /// unplug()) and moves the link. Returns ok(), or system_error (invalid_setting for a
+  /// link_path that is not a symlink) with a message naming the path and the reason (errno
+  /// text); a failure about the link names the setting "link_path". Not real-time safe.
+  Status open(const std::string& link_path = "");
   /// The slave's path (/dev/pts/N); empty before open().
   const std::string& slave_path() const { return slave_path_; }
   /// The symlink made by open(), or empty.
