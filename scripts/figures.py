@@ -9,7 +9,8 @@ the exit status is 1.
 
     scripts/figures.py demo OUT_DIR             # scripts/demo.sh's run (demo.sh --write-readme)
     scripts/figures.py discovery ZEROG          # runs zerog sim + diagnose itself (about a minute)
-    scripts/figures.py speed --run BENCH_DIR    # runs the Google Benchmark programs (a few minutes)
+    scripts/figures.py speed --run BENCH_DIR    # runs the Google Benchmark programs (ten minutes
+                                                # or so: ident_bench's 10^6-sample logs)
     scripts/figures.py speed BENCH_JSON...      # or takes their --benchmark_format=json output
     scripts/figures.py speed --check --bench-dir BENCH_DIR   # the README's timings, see below
     scripts/figures.py tool-change --gtest IDENT_TEST   # ident_test's ToolChange case
@@ -454,6 +455,70 @@ def ratio(x):
     return f"{x:.2f}×"
 
 
+# How cost grows with the log's length: ident_bench's BM_Scale* benchmarks, argument `samples`,
+# each size with its own model-evaluation reference and the peak memory of each step.
+SCALE_REFERENCE = "BM_ScaleModelEvaluation"
+SCALE_STEPS = [("BM_ScaleFitFullEffectList/covariance:0", "`zerog fit`, full list, no covariance"),
+               ("BM_ScaleFitFullEffectList/covariance:1", "with covariance"),
+               ("BM_ScaleFitDefaultModel", "`zerog fit`, default model"),
+               ("BM_ScaleDiagnose", "`zerog diagnose`"),
+               ("BM_ScaleLadder", "`zerog ladder`")]
+
+
+def scale_sizes(b):
+    """The log lengths of ident_bench's BM_Scale* benchmarks in the run (none in a run made
+    before them)."""
+    if "ident_bench" not in b.runs:
+        return []
+    pattern = re.compile(re.escape(SCALE_REFERENCE) + r"/samples:([0-9]+)")
+    names = b.runs["ident_bench"]["benchmarks"]
+    return sorted(int(m.group(1)) for m in map(pattern.fullmatch, names) if m)
+
+
+def speed_scale(b, sizes):
+    """The table of time (× the reference of the same size) and peak memory per log length."""
+    def at(name, n, field):
+        return b("ident_bench", f"{name}/samples:{n}", field)
+
+    ladder_steps = at("BM_ScaleLadder", sizes[-1], "steps")
+    heads = [label for _, label in SCALE_STEPS]
+    heads[-1] += f", {ladder_steps:.0f} steps"
+    lines = [
+        "How the cost grows with the log (`BM_Scale*`, the same simulated path, longer for a "
+        "longer log): each time with its ratio to the model evaluation over the same samples; "
+        "peak RSS is the largest resident size any of the steps reached with its log in memory "
+        "(in brackets: the most a step added above the resident size at its start).",
+        "",
+        "| samples | model evaluation (reference) | " + " | ".join(heads) + " | peak RSS |",
+        "|---" * (len(heads) + 3) + "|",
+    ]
+    for n in sizes:
+        ref = at(SCALE_REFERENCE, n, "real_time_s")
+        cells = []
+        for name, _ in SCALE_STEPS:
+            t = at(name, n, "real_time_s")
+            cells.append(f"{seconds(t)} ({t / ref:.0f}×)")
+        names = [SCALE_REFERENCE] + [name for name, _ in SCALE_STEPS]
+        peak = max(at(name, n, "peak_rss_MB") for name in names)
+        growth = max(at(name, n, "peak_growth_MB") for name in names)
+        lines.append(f"| {n:,} | {seconds(ref)} | " + " | ".join(cells) +
+                     f" | {peak:,.0f} MB (+{growth:,.0f} MB) |")
+    if len(sizes) >= 2:
+        small, large = sizes[-2], sizes[-1]
+
+        def growth_of(name):
+            return at(name, large, "real_time_s") / at(name, small, "real_time_s")
+
+        lines += ["", (
+            f"From {small:,} to {large:,} samples ({large / small:.0f}× the work) the reference "
+            f"took {growth_of(SCALE_REFERENCE):.1f}× as long, the full fit "
+            f"{growth_of(SCALE_STEPS[0][0]):.1f}× (with covariance "
+            f"{growth_of(SCALE_STEPS[1][0]):.1f}×), the default fit "
+            f"{growth_of(SCALE_STEPS[2][0]):.1f}×, diagnose {growth_of(SCALE_STEPS[3][0]):.1f}× "
+            f"and the ladder {growth_of(SCALE_STEPS[4][0]):.1f}×.")]
+    return lines
+
+
 def speed_ident(b):
     ref = b("ident_bench", "BM_ModelEvaluationAllSamples", "real_time_s")
     samples = b("ident_bench", "BM_ModelEvaluationAllSamples", "samples")
@@ -484,7 +549,7 @@ def speed_ident(b):
         "",
         (f"The full fit misses its {aim:g} s aim ({fit0 / aim:.1f} times as long)."
          if fit0 > aim else f"The full fit meets its {aim:g} s aim."),
-    ])
+    ] + (["", *speed_scale(b, sizes)] if (sizes := scale_sizes(b)) else []))
 
 
 def discovery_speed(b):

@@ -31,6 +31,7 @@ struct Common {
   bool json = false;
   bool quiet = false;
   int threads = 2;
+  std::string engine = ident::FitOptions{}.engine;  ///< --engine (fit, diagnose, ladder)
 };
 
 void add_common(CLI::App* c, Common& o) {
@@ -43,6 +44,16 @@ void add_common(CLI::App* c, Common& o) {
   c->add_option("--threads", o.threads, "Solver threads")->check(CLI::Range(1, 64));
 }
 
+// --engine: how the fit evaluates the block means it compares (ident::FitOptions::engine).
+void add_engine(CLI::App* c, Common& o) {
+  c->add_option("--engine", o.engine,
+                "Fit engine: block_stats (each block mean of the prediction from the block's "
+                "sufficient statistics, one model evaluation per block) or samples (the model on "
+                "every sample: the reference, slower); both give the same fit to rounding")
+      ->check(CLI::IsMember({"block_stats", "samples"}))
+      ->capture_default_str();
+}
+
 std::function<void(const std::string&)> progress(const Common& o) {
   if (o.quiet) return nullptr;
   return progress_line;
@@ -52,6 +63,7 @@ nlohmann::json fit_json(const ident::FitResult& r) {
   nlohmann::json j;
   j["usable"] = r.usable;
   j["termination"] = r.termination;
+  j["engine"] = r.engine;
   j["iterations"] = r.iterations;
   j["seconds"] = r.seconds;
   j["samples"] = r.samples;
@@ -154,6 +166,7 @@ void run_fit(const Common& c, const std::string& effects, const std::string& out
   o.max_iterations = max_iter;
   o.block_samples = block_samples;
   o.threads = c.threads;
+  o.engine = c.engine;
   o.progress = progress(c);
   const ident::FitResult r = ident::fit(data, o);
   const io::ModelFile m = fitted_model_file(r, log, c.log, data);
@@ -194,6 +207,7 @@ void run_tool_change(const Common& c, const std::string& base_path, const std::s
   o.max_iterations = max_iter;
   o.block_samples = block_samples;
   o.threads = c.threads;
+  o.engine = c.engine;
   o.progress = progress(c);
   const ident::ToolChangeResult tc = ident::fit_tool_change(data, base.params, o);
   const ident::FitResult& r = tc.fit;
@@ -311,6 +325,7 @@ void add_ident_commands(CLI::App& app) {
     auto base = std::make_shared<std::string>();
     CLI::App* s = app.add_subcommand("fit", "Fit a model (a list of effects) to a log with Ceres");
     add_common(s, *c);
+    add_engine(s, *c);
     auto* effects_opt =
         s->add_option("-e,--effects", *effects,
                       "Comma-separated effects (proto/effects.md); @FILE adds a user-defined "
@@ -381,6 +396,7 @@ void add_ident_commands(CLI::App& app) {
         "diagnose",
         "Rank the effects a model lacks by how much they reduce the error on held-out data");
     add_common(s, *c);
+    add_engine(s, *c);
     s->add_option("-m,--model", *model_path,
                   "Fitted model to diagnose (its effects and start values)")
         ->check(CLI::ExistingFile);
@@ -407,6 +423,7 @@ void add_ident_commands(CLI::App& app) {
       o.log_path = c->log;
       o.progress = progress(*c);
       o.fit.threads = c->threads;
+      o.fit.engine = c->engine;
       o.discover = !*no_discover;
       o.discovery_path = *discovered_out;
       o.user_candidates = user_candidates(*candidates);
@@ -457,6 +474,7 @@ void add_ident_commands(CLI::App& app) {
                                      "From a minimal model, add the best effect step by step while "
                                      "it pays; print the error at each step");
     add_common(s, *c);
+    add_engine(s, *c);
     s->add_option("--start", *start, "Effects to start from (@FILE: a user-defined effect)")
         ->capture_default_str();
     s->add_option("--candidates", *candidates,
@@ -482,6 +500,7 @@ void add_ident_commands(CLI::App& app) {
       o.diagnose.log_path = c->log;
       o.diagnose.progress = progress(*c);
       o.diagnose.fit.threads = c->threads;
+      o.diagnose.fit.engine = c->engine;
       const io::ModelSpec spec = io::parse_model_spec(*start);
       o.diagnose.fit.effects = spec.effects;
       o.diagnose.fit.user = spec.user;

@@ -5,9 +5,20 @@
 //    ratio fit / evaluation is comparable across machines.
 // The fits use the default engine (block sufficient statistics, FitOptions::engine); the
 // *SamplesEngine variants time the per-sample reference engine in the same run.
+// How cost grows with the work (BM_Scale*, argument `samples`: 10^4, 10^5, 10^6): the
+// reference, the full and the default fit, diagnose and the ladder on logs of each length, each
+// with the peak resident memory it reached (counters peak_rss_MB, peak_growth_MB). They run size
+// by size (registered in main), so that only one size's log is held at a time.
 // The README's tables are written from its JSON output: scripts/figures.py speed.
 #include <benchmark/benchmark.h>
+#include <malloc.h>
+#include <sys/resource.h>
 
+#include <cstdint>
+#include <fstream>
+#include <memory>
+#include <sstream>
+#include <stdexcept>
 #include <string>
 
 #include "zerog/ident/diagnose.hpp"
@@ -19,26 +30,88 @@ namespace {
 
 using namespace zerog;
 
-// 100,000 samples of a random 200-point path with the given truth effects.
-ident::Dataset simulated(const std::string& effects) {
+// The first `samples` samples of a random path with the given truth effects: 200 points per
+// 100,000 samples (a longer path for a longer log, the same path up to 100,000 samples).
+ident::Dataset simulated(const std::string& effects, std::size_t samples = 100000) {
   sim::SimConfig cfg = sim::default_sim_config(1);
   cfg.effects = sim::parse_sim_effects(effects);
   sim::DesignOptions d;
   d.kind = sim::DesignKind::random;
-  d.points = 200;
+  d.points = 200 * static_cast<int>((samples + 99999) / 100000);
   d.workspace.floor_z_m = cfg.floor_z_m;
   sim::RigSimulator s(cfg, sim::make_design(d).points_rad);
   io::Log log = s.run().log;
-  if (log.samples.size() > 100000) log.samples.resize(100000);
+  if (log.samples.size() < samples)
+    throw std::runtime_error("the simulated path gave " + std::to_string(log.samples.size()) +
+                             " samples, fewer than " + std::to_string(samples));
+  log.samples.resize(samples);
   return ident::make_dataset(log);
 }
 
-const ident::Dataset& dataset() {
-  // Every effect the model library has (none of those outside it).
-  static const ident::Dataset data =
-      simulated("all,-joint6_friction,-swivel_viscous,-hose_drag,-dress_pack_bend");
-  return data;
+// Every effect the model library has (none of those outside it).
+constexpr const char* kAllLibraryEffects =
+    "all,-joint6_friction,-swivel_viscous,-hose_drag,-dress_pack_bend";
+
+// The log of `samples` samples with every library effect; one length is held at a time (the
+// previous one is freed first), so that a benchmark's peak memory holds its own log only.
+const ident::Dataset& dataset(std::size_t samples = 100000) {
+  static std::unique_ptr<ident::Dataset> data;
+  static std::size_t held = 0;
+  if (!data || held != samples) {
+    data.reset();
+    data = std::make_unique<ident::Dataset>(simulated(kAllLibraryEffects, samples));
+    held = samples;
+  }
+  return *data;
 }
+
+// The value in kB of a line of /proc/self/status ("VmHWM:", "VmRSS:"); -1 if absent.
+double status_kb(const std::string& key) {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind(key, 0) != 0) continue;
+    std::istringstream value(line.substr(key.size()));
+    double kb = -1;
+    value >> kb;
+    return kb;
+  }
+  return -1;
+}
+
+// Peak resident memory while a benchmark runs. Freed heap memory is first returned to the system
+// (glibc's malloc_trim), so that the resident size at the start is what is live. Linux resets the
+// high-water mark VmHWM to the current resident size when "5" is written to /proc/self/clear_refs
+// (since 4.0); then VmHWM at the end is this benchmark's own peak. Where that fails (no procfs, an
+// older kernel), the peak is getrusage's ru_maxrss, the whole process's peak so far (an upper
+// bound: it also holds earlier benchmarks). Counters: peak_rss_MB (the peak, with the log held) and
+// peak_growth_MB (the peak above the resident size at the start: what the benchmarked call
+// allocated); peak_reset is 1 when the peak is this benchmark's own.
+class PeakMemory {
+ public:
+  PeakMemory() {
+    malloc_trim(0);
+    std::ofstream clear("/proc/self/clear_refs");
+    clear << "5" << std::flush;
+    reset_ = static_cast<bool>(clear) && status_kb("VmHWM:") >= 0;
+    start_kb_ = status_kb("VmRSS:");
+  }
+  void report(benchmark::State& state) const {
+    double peak_kb = reset_ ? status_kb("VmHWM:") : -1;
+    if (peak_kb < 0) {
+      rusage u{};
+      getrusage(RUSAGE_SELF, &u);
+      peak_kb = static_cast<double>(u.ru_maxrss);  // kB on Linux
+    }
+    state.counters["peak_rss_MB"] = peak_kb / 1024.0;
+    state.counters["peak_growth_MB"] = start_kb_ >= 0 ? (peak_kb - start_kb_) / 1024.0 : -1;
+    state.counters["peak_reset"] = reset_ ? 1 : 0;
+  }
+
+ private:
+  bool reset_ = false;
+  double start_kb_ = -1;
+};
 
 model::EffectSet full_list() {
   model::EffectSet all;
@@ -149,6 +222,131 @@ void BM_DiagnoseWithDiscovery(benchmark::State& state) {
 }
 BENCHMARK(BM_DiagnoseWithDiscovery)->Unit(benchmark::kSecond)->Iterations(1);
 
+// --- How cost grows with the work: the same steps on logs of 10^4, 10^5 and 10^6 samples ------
+
+std::size_t samples_arg(const benchmark::State& state, int index) {
+  return static_cast<std::size_t>(state.range(index));
+}
+
+// The reference of its size: one double evaluation of the full model over every sample.
+void BM_ScaleModelEvaluation(benchmark::State& state) {
+  const auto& data = dataset(samples_arg(state, 0));
+  model::ModelParams p;
+  p.effects = full_list();
+  p.block(model::Effect::gravity)[0] = 100.0;
+  const PeakMemory peak;
+  for (auto _ : state) {
+    double sum = 0;
+    for (std::size_t i = 0; i < data.size(); ++i) sum += ident::predict(p, data, i)[2];
+    benchmark::DoNotOptimize(sum);
+  }
+  peak.report(state);
+  state.counters["samples"] = static_cast<double>(data.size());
+}
+
+// Argument 0: covariance (0 or 1); 1: samples.
+void BM_ScaleFitFullEffectList(benchmark::State& state) {
+  const auto& data = dataset(samples_arg(state, 1));
+  ident::FitOptions o;
+  o.effects = full_list();
+  o.covariance = state.range(0) != 0;
+  const PeakMemory peak;
+  for (auto _ : state) {
+    auto r = ident::fit(data, o);
+    benchmark::DoNotOptimize(r.params);
+    state.counters["iterations"] = r.iterations;
+    state.counters["parameters"] = r.num_params;
+  }
+  peak.report(state);
+  state.counters["samples"] = static_cast<double>(data.size());
+}
+
+void BM_ScaleFitDefaultModel(benchmark::State& state) {
+  const auto& data = dataset(samples_arg(state, 0));
+  ident::FitOptions o;
+  o.effects = model::kDefaultModel;
+  const PeakMemory peak;
+  for (auto _ : state) {
+    auto r = ident::fit(data, o);
+    benchmark::DoNotOptimize(r.params);
+    state.counters["iterations"] = r.iterations;
+    state.counters["parameters"] = r.num_params;
+  }
+  peak.report(state);
+  state.counters["samples"] = static_cast<double>(data.size());
+}
+
+void BM_ScaleDiagnose(benchmark::State& state) {
+  const auto& data = dataset(samples_arg(state, 0));
+  ident::DiagnoseOptions o;
+  o.fit.effects = model::kDefaultModel;
+  const PeakMemory peak;
+  for (auto _ : state) {
+    auto d = ident::diagnose(data, o);
+    benchmark::DoNotOptimize(d.candidates);
+    state.counters["candidates"] = static_cast<double>(d.candidates.size());
+  }
+  peak.report(state);
+  state.counters["samples"] = static_cast<double>(data.size());
+}
+
+// `zerog ladder`'s climb from bias + gravity, its first kLadderSteps steps (each a diagnosis
+// over every candidate): the same work at every size.
+constexpr int kLadderSteps = 3;
+
+void BM_ScaleLadder(benchmark::State& state) {
+  const auto& data = dataset(samples_arg(state, 0));
+  ident::LadderOptions o;
+  o.diagnose.fit.effects = model::kMinimalModel;
+  o.max_steps = kLadderSteps;
+  const PeakMemory peak;
+  for (auto _ : state) {
+    auto steps = ident::ladder(data, o);
+    benchmark::DoNotOptimize(steps);
+    state.counters["steps"] = static_cast<double>(steps.size()) - 1;  // effects added
+  }
+  peak.report(state);
+  state.counters["samples"] = static_cast<double>(data.size());
+}
+
+// Size by size, so that one log is simulated and held at a time (dataset()).
+void register_scale_benchmarks() {
+  for (const std::int64_t n : {10'000, 100'000, 1'000'000}) {
+    benchmark::RegisterBenchmark("BM_ScaleModelEvaluation", BM_ScaleModelEvaluation)
+        ->Arg(n)
+        ->ArgName("samples")
+        ->Unit(benchmark::kMillisecond);
+    benchmark::RegisterBenchmark("BM_ScaleFitFullEffectList", BM_ScaleFitFullEffectList)
+        ->Args({0, n})
+        ->Args({1, n})
+        ->ArgNames({"covariance", "samples"})
+        ->Unit(benchmark::kSecond)
+        ->Iterations(1);
+    benchmark::RegisterBenchmark("BM_ScaleFitDefaultModel", BM_ScaleFitDefaultModel)
+        ->Arg(n)
+        ->ArgName("samples")
+        ->Unit(benchmark::kSecond)
+        ->Iterations(1);
+    benchmark::RegisterBenchmark("BM_ScaleDiagnose", BM_ScaleDiagnose)
+        ->Arg(n)
+        ->ArgName("samples")
+        ->Unit(benchmark::kSecond)
+        ->Iterations(1);
+    benchmark::RegisterBenchmark("BM_ScaleLadder", BM_ScaleLadder)
+        ->Arg(n)
+        ->ArgName("samples")
+        ->Unit(benchmark::kSecond)
+        ->Iterations(1);
+  }
+}
+
 }  // namespace
 
-BENCHMARK_MAIN();
+int main(int argc, char** argv) {
+  register_scale_benchmarks();
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}

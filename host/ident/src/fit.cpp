@@ -274,28 +274,54 @@ class ProgressCallback : public ceres::IterationCallback {
   const std::function<void(const std::string&)>& f_;
 };
 
-// Per-axis noise of block-mean residuals from pairs of consecutive blocks that both lie in a
-// dwell: var(mean_b+1 − mean_b) = 2 σ². Empty if there are fewer than 20 such pairs.
-std::optional<std::array<double, 6>> static_noise_of_block_means(
-    const Dataset& data, const model::ModelParams& params,
-    const std::vector<std::pair<std::size_t, std::size_t>>& blocks) {
-  auto block_mean = [&](std::size_t first, std::size_t count, bool& all_static) {
-    Wrench mean = Wrench::Zero();
-    all_static = true;
-    for (std::size_t i = first; i < first + count; ++i) {
-      mean += data.measured[i] - predict(params, data, i);
-      all_static = all_static && !data.moving[i];
+// Block means of the residual (measured − predicted) with `params`, one per block. With the
+// block statistics (engine block_stats) one model evaluation per block, exact as in BlockCost
+// (stage 1's block mean from the statistics, stage 2 on the block means of its inputs, the user
+// terms' mean design); without them, the mean of the per-sample residuals.
+std::vector<Wrench> block_mean_residuals(const Dataset& data, const BlockStats* stats,
+                                         const SampleBlocks& blocks,
+                                         const model::ModelParams& params,
+                                         const std::vector<double>& user_design) {
+  std::vector<Wrench> out;
+  out.reserve(blocks.size());
+  const int num_user = params.user.num_terms;
+  const auto p = model::pointers(params);
+  for (std::size_t b = 0; b < blocks.size(); ++b) {
+    const auto [first, count] = blocks[b];
+    if (stats == nullptr) {
+      Wrench mean = Wrench::Zero();
+      for (std::size_t i = first; i < first + count; ++i)
+        mean += data.measured[i] - predict(params, data, i);
+      out.push_back(mean / static_cast<double>(count));
+      continue;
     }
-    return Wrench(mean / static_cast<double>(count));
-  };
+    const BlockSensorMeans& means = stats->sensor_means(b);
+    const Wrench w1 = stats->payload_mean<double>(params.effects, p, b);
+    Wrench pred = model::sensor_output<double>(params.effects, p, means.inputs, w1);
+    const double* design = user_design.data() + b * 6 * static_cast<std::size_t>(num_user);
+    for (int j = 0; j < num_user; ++j)
+      pred +=
+          params.user.coeff[static_cast<std::size_t>(j)] * Eigen::Map<const Wrench>(design + 6 * j);
+    out.push_back(means.measured - pred);
+  }
+  return out;
+}
+
+// Per-axis noise of block-mean residuals (`residuals`, one per block of `blocks`) from pairs of
+// consecutive blocks that both lie in a dwell: var(mean_b+1 − mean_b) = 2 σ². Empty if there are
+// fewer than 20 such pairs.
+std::optional<std::array<double, 6>> static_noise_of_block_means(
+    const Dataset& data, const SampleBlocks& blocks, const std::vector<Wrench>& residuals) {
   std::array<double, 6> ss{};
   std::size_t pairs = 0;
   bool prev_static = false;
   Wrench prev = Wrench::Zero();
   std::size_t prev_end = 0;
-  for (const auto& [first, count] : blocks) {
-    bool is_static = false;
-    const Wrench m = block_mean(first, count, is_static);
+  for (std::size_t b = 0; b < blocks.size(); ++b) {
+    const auto [first, count] = blocks[b];
+    bool is_static = true;
+    for (std::size_t i = first; i < first + count; ++i) is_static = is_static && !data.moving[i];
+    const Wrench& m = residuals[b];
     if (is_static && prev_static && prev_end == first) {
       const Wrench d = m - prev;
       for (int k = 0; k < 6; ++k) ss[k] += d[k] * d[k];
@@ -325,6 +351,7 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
     throw std::runtime_error("empty model: give at least one effect");
 
   FitResult r;
+  r.engine = o.engine;
   r.params.effects = o.effects;
   if (o.initial) {
     r.params.values = o.initial->values;
@@ -400,7 +427,10 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
     // Consecutive static rows are different poses, not one dwell: no noise estimate from them.
     const auto est = data.columns.static_rows
                          ? std::nullopt
-                         : static_noise_of_block_means(data, r.params, blocks_of_samples);
+                         : static_noise_of_block_means(
+                               data, blocks_of_samples,
+                               block_mean_residuals(data, stats ? &*stats : nullptr,
+                                                    blocks_of_samples, r.params, user_design));
     if (est) {
       sigma = *est;
     } else {
@@ -460,9 +490,22 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
       std::fprintf(stderr, "%s\n", solved.summary.FullReport().c_str());
     r.iterations += static_cast<int>(solved.summary.iterations.size());
 
-    // Per-sample RMS of the residuals (what compare reports), and the block-mean residuals the
-    // fit sees: their RMS whitens the next pass, their whitened sum of squares gives the BIC.
-    std::array<double, 6> ss{}, ss_block{};
+    // The block-mean residuals the fit sees: their RMS whitens the next pass, their whitened sum
+    // of squares gives the BIC. After the last pass also the per-sample RMS of the residuals
+    // (what compare reports), in the same pass over the samples; before it, the block means
+    // alone (from the block statistics when the engine has them).
+    std::array<double, 6> ss_block{};
+    const double nb = static_cast<double>(blocks_of_samples.size());
+    solved.nb = blocks_of_samples.size();
+    if (pass + 1 < passes) {
+      for (const Wrench& mean : block_mean_residuals(data, stats ? &*stats : nullptr,
+                                                     blocks_of_samples, r.params, user_design))
+        for (int k = 0; k < 6; ++k) ss_block[k] += mean[k] * mean[k];
+      for (int k = 0; k < 6; ++k)
+        sigma[k] = std::max(std::sqrt(ss_block[k] / nb), k < 3 ? 1e-4 : 1e-5);
+      continue;
+    }
+    std::array<double, 6> ss{};
     std::size_t n = 0;
     for (const auto& [first, count] : blocks_of_samples) {
       Wrench mean = Wrench::Zero();
@@ -475,17 +518,11 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
       mean /= static_cast<double>(count);
       for (int k = 0; k < 6; ++k) ss_block[k] += mean[k] * mean[k];
     }
-    const double nb = static_cast<double>(blocks_of_samples.size());
     solved.n = n;
-    solved.nb = blocks_of_samples.size();
     solved.ssr = 0.0;
     for (int k = 0; k < 6; ++k) {
       solved.rms[k] = std::sqrt(ss[k] / static_cast<double>(n));
       solved.ssr += ss_block[k] / (sigma[k] * sigma[k]);
-    }
-    if (pass + 1 < passes) {
-      for (int k = 0; k < 6; ++k)
-        sigma[k] = std::max(std::sqrt(ss_block[k] / nb), k < 3 ? 1e-4 : 1e-5);
     }
   }
   r.sigma = sigma;
@@ -670,6 +707,7 @@ ToolChangeResult fit_tool_change(const Dataset& data, const model::ModelParams& 
   fo.threads = opt.threads;
   fo.loss = opt.loss;
   fo.loss_scale = opt.loss_scale;
+  fo.engine = opt.engine;
   fo.progress = opt.progress;
   out.fit = fit(data, fo);
 

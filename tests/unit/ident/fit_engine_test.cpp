@@ -12,6 +12,7 @@
 #include <fstream>
 #include <random>
 #include <string>
+#include <vector>
 
 #include <unistd.h>
 
@@ -243,6 +244,20 @@ TEST(FitEngine, BlockStatsEqualsSamplesOnTheDefaultModel) {
   compare_engines(data, o, "default model");
 }
 
+// A user-defined effect (proto/user_effects.md): a viscous swivel, one term.
+model::UserEffects swivel_user_term() {
+  namespace fs = std::filesystem;
+  const fs::path file =
+      fs::temp_directory_path() / ("zerog_fit_engine_" + std::to_string(getpid()) + ".toml");
+  std::ofstream(file) << "format = \"zerog-effect\"\nversion = 1\nname = \"swivel\"\n"
+                         "description = \"viscous swivel\"\n\n[[term]]\naxis = \"Mz\"\n"
+                         "basis = \"wz_S\"\nunit = \"N*m/(rad/s)\"\nvalue = 0.0\n";
+  model::UserEffects user;
+  io::read_effect_file(file, user);
+  fs::remove(file);
+  return user;
+}
+
 // The masked fits of diagnose and ladder (training blocks only), with a robust loss, a partial
 // model with a user term (proto/user_effects.md), and block means of another length.
 TEST(FitEngine, BlockStatsEqualsSamplesOnAMaskedRobustFit) {
@@ -255,14 +270,7 @@ TEST(FitEngine, BlockStatsEqualsSamplesOnAMaskedRobustFit) {
   o.effects.add(Effect::imu_time_offset);
   o.effects.add(Effect::sensor_rotation);
   o.effects.add(Effect::cable);
-  namespace fs = std::filesystem;
-  const fs::path file =
-      fs::temp_directory_path() / ("zerog_fit_engine_" + std::to_string(getpid()) + ".toml");
-  std::ofstream(file) << "format = \"zerog-effect\"\nversion = 1\nname = \"swivel\"\n"
-                         "description = \"viscous swivel\"\n\n[[term]]\naxis = \"Mz\"\n"
-                         "basis = \"wz_S\"\nunit = \"N*m/(rad/s)\"\nvalue = 0.0\n";
-  io::read_effect_file(file, o.user);
-  fs::remove(file);
+  o.user = swivel_user_term();
   ASSERT_EQ(o.user.num_terms, 1);
   o.mask = &train;
   o.loss = "huber";
@@ -287,6 +295,28 @@ TEST(FitEngine, BlockStatsEqualsSamplesWithFrozenEffects) {
   o.initial = &base.params;
   o.mask = &mask;
   compare_engines(data, o, "tool change (frozen, static mask)");
+}
+
+// Without dwells (the moving samples only) the whitening cannot be estimated before the solve:
+// two passes, the second whitened by the first's block-mean residuals (from the block statistics
+// with block_stats); with a user term, which those residuals must include.
+TEST(FitEngine, BlockStatsEqualsSamplesWithoutDwellsInTwoPasses) {
+  const Dataset& data = library_run();
+  std::vector<std::uint8_t> moving = static_mask(data);
+  for (auto& m : moving) m = m ? 0 : 1;
+  FitOptions o;
+  o.effects = model::kDefaultModel;
+  o.effects.add(Effect::imu_time_offset);
+  o.user = swivel_user_term();
+  o.mask = &moving;
+  compare_engines(data, o, "moving samples only (two passes)");
+  // Two passes indeed: the second pass's line is printed.
+  std::vector<std::string> lines;
+  o.progress = [&](const std::string& line) { lines.push_back(line); };
+  fit(data, o);
+  EXPECT_TRUE(std::any_of(lines.begin(), lines.end(), [](const std::string& line) {
+    return line.rfind("fit pass 2/2", 0) == 0;
+  }));
 }
 
 TEST(FitEngine, UnknownEngineIsRefused) {

@@ -72,6 +72,36 @@ Vec3<T> gravity_sensor(const EffectSet& effects, const ParamPointers<T>& p,
   return R_nominal_true.transpose() * g_nominal;
 }
 
+/// Where the IMU sits in the true sensor frame: the nominal mounting (rig) turned by the sensor
+/// rotation, if the model has one (the true sensor frame is the nominal one rotated by Exp(r);
+/// the IMU is fixed to the flange side, so a sensor rotation also turns the IMU relative to S).
+template <typename T>
+struct ImuMount {
+  Mat3<T> R_nominal_true = Mat3<T>::Identity();
+  Mat3<T> R_sensor_imu = Mat3<T>::Identity();  ///< IMU axes in the true sensor frame
+  Vec3<T> p_sensor_imu = Vec3<T>::Zero();      ///< IMU origin in the true sensor frame, m
+};
+
+template <typename T>
+ImuMount<T> imu_mount(const EffectSet& effects, const ParamPointers<T>& p, const RigGeometry& rig) {
+  ImuMount<T> m;
+  if (effects.has(Effect::sensor_rotation)) {
+    m.R_nominal_true = rotation_from_vector(Vec3<T>(p[index(Effect::sensor_rotation)]));
+  }
+  m.R_sensor_imu = m.R_nominal_true.transpose() * rig.R_sensor_imu.cast<T>();
+  m.p_sensor_imu = m.R_nominal_true.transpose() * rig.p_sensor_imu_m.cast<T>();
+  return m;
+}
+
+/// The symmetric inertia tensor from rotational_inertia's parameters (Ixx, Iyy, Izz, Ixy, Ixz,
+/// Iyz), about the centre of mass, sensor axes, kg·m².
+template <typename T>
+Mat3<T> inertia_tensor(const T* I) {
+  Mat3<T> inertia;
+  inertia << I[0], I[3], I[4], I[3], I[1], I[5], I[4], I[5], I[2];
+  return inertia;
+}
+
 /// Stage 1 of the model: the wrench the payload's gravity and inertia exert on the sensor
 /// (sensor frame, torque about the sensor origin). Nonlinear in its parameters (gravity,
 /// base_tilt, rotational_inertia, sensor_rotation; imu_time_offset through `imu`).
@@ -82,14 +112,10 @@ Wrench<T> payload_wrench(const EffectSet& effects, const ParamPointers<T>& p,
                          const RigGeometry& rig) {
   Wrench<T> w = Wrench<T>::Zero();
   if (!effects.has(Effect::gravity)) return w;
-  // Sensor mounting rotation: the true sensor frame is the nominal one rotated by Exp(r).
-  Mat3<T> R_nominal_true = Mat3<T>::Identity();
-  if (effects.has(Effect::sensor_rotation)) {
-    R_nominal_true = rotation_from_vector(Vec3<T>(p[index(Effect::sensor_rotation)]));
-  }
-  // The IMU is fixed to the flange side, so a sensor rotation also turns the IMU relative to S.
-  const Mat3<T> R_sensor_imu = R_nominal_true.transpose() * rig.R_sensor_imu.cast<T>();
-  const Vec3<T> p_sensor_imu = R_nominal_true.transpose() * rig.p_sensor_imu_m.cast<T>();
+  const ImuMount<T> mount = imu_mount(effects, p, rig);
+  const Mat3<T>& R_nominal_true = mount.R_nominal_true;
+  const Mat3<T>& R_sensor_imu = mount.R_sensor_imu;
+  const Vec3<T>& p_sensor_imu = mount.p_sensor_imu;
   const Vec3<T> omega = R_sensor_imu * imu.angular_rate_imu;
   const Vec3<T> omega_dot = R_sensor_imu * imu.angular_accel_imu;
 
@@ -109,9 +135,7 @@ Wrench<T> payload_wrench(const EffectSet& effects, const ParamPointers<T>& p,
   }
   Vec3<T> torque = com.cross(force);
   if (effects.has(Effect::rotational_inertia)) {
-    const T* I = p[index(Effect::rotational_inertia)];
-    Mat3<T> inertia;
-    inertia << I[0], I[3], I[4], I[3], I[1], I[5], I[4], I[5], I[2];
+    const Mat3<T> inertia = inertia_tensor(p[index(Effect::rotational_inertia)]);
     // Newton–Euler (000_… eq. 5): the payload needs I ω̇ + ω × I ω from the sensor.
     torque -= inertia * omega_dot + omega.cross(inertia * omega);
   }
@@ -146,12 +170,10 @@ Wrench<T> payload_wrench_mean(const EffectSet& effects, const ParamPointers<T>& 
                               const PayloadMeans<T>& means, const RigGeometry& rig) {
   Wrench<T> w = Wrench<T>::Zero();
   if (!effects.has(Effect::gravity)) return w;
-  Mat3<T> R_nominal_true = Mat3<T>::Identity();
-  if (effects.has(Effect::sensor_rotation)) {
-    R_nominal_true = rotation_from_vector(Vec3<T>(p[index(Effect::sensor_rotation)]));
-  }
-  const Mat3<T> R_sensor_imu = R_nominal_true.transpose() * rig.R_sensor_imu.cast<T>();
-  const Vec3<T> p_sensor_imu = R_nominal_true.transpose() * rig.p_sensor_imu_m.cast<T>();
+  const ImuMount<T> mount = imu_mount(effects, p, rig);
+  const Mat3<T>& R_nominal_true = mount.R_nominal_true;
+  const Mat3<T>& R_sensor_imu = mount.R_sensor_imu;
+  const Vec3<T>& p_sensor_imu = mount.p_sensor_imu;
   const Vec3<T> omega_dot = R_sensor_imu * means.angular_accel_imu;
   const Mat3<T> rate_outer = R_sensor_imu * means.rate_outer_imu * R_sensor_imu.transpose();
 
@@ -169,9 +191,7 @@ Wrench<T> payload_wrench_mean(const EffectSet& effects, const ParamPointers<T>& 
   }
   Vec3<T> torque = com.cross(force);
   if (effects.has(Effect::rotational_inertia)) {
-    const T* I = p[index(Effect::rotational_inertia)];
-    Mat3<T> inertia;
-    inertia << I[0], I[3], I[4], I[3], I[1], I[5], I[4], I[5], I[2];
+    const Mat3<T> inertia = inertia_tensor(p[index(Effect::rotational_inertia)]);
     const Mat3<T> N = inertia * rate_outer;
     const Vec3<T> gyroscopic(N(2, 1) - N(1, 2), N(0, 2) - N(2, 0), N(1, 0) - N(0, 1));
     torque -= inertia * omega_dot + gyroscopic;

@@ -56,6 +56,7 @@ struct FitResult {
   std::vector<double> user_std;   ///< of params.user's coefficients (with `std`; NaN likewise)
   bool usable = false;
   std::string termination;
+  std::string engine;  ///< FitOptions::engine that evaluated the block means
   int iterations = 0;
   double seconds = 0.0;
   std::size_t samples = 0;
@@ -86,6 +87,7 @@ struct ToolChangeOptions {
   int threads = 2;
   std::string loss = "none";
   double loss_scale = 3.0;
+  std::string engine = "block_stats";  ///< FitOptions::engine
   /// Warn ("poses_alike") when the gravity directions in S spread less than this: the angle
   /// asin √(1 − λmax) with λmax the largest eigenvalue of their mean outer product (0 if they
   /// are all parallel, about 55° if they are spread evenly over the sphere), degrees.
