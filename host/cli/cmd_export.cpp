@@ -12,6 +12,7 @@
 #include "zerog/deploy/quantise.hpp"
 #include "zerog/formats/log.hpp"
 #include "zerog/ident/dataset.hpp"
+#include "zerog/ident/kinematics_sources.hpp"
 #include "zerog/infer/deploy_file.hpp"
 #include "zerog/infer/inference.hpp"
 #include "zerog/io/model_file.hpp"
@@ -55,6 +56,42 @@ void check_same_physics(const model::ModelParams& deployed, const model::ModelPa
   }
 }
 
+// The ω̇ a model was fitted on against the one zerog-rt's cycle computes (the 5-point central
+// difference of the gyro, model::angular_accel_central): an import may have formed it otherwise
+// (the gyro's Savitzky–Golay derivative, the robot's, or a logged one; proto/log_format.md), and
+// the effects that read ω̇ then run on another signal than they were fitted on. The cycle is not
+// changed here: the deploy file records both and export says so (proto/deploy_format.md).
+struct OmegaDotCheck {
+  std::string fit_source = "not recorded";  ///< kinematics_sources.omega_dot_source, if any
+  std::string fit_method;                   ///< kinematics_sources.omega_dot (a sentence)
+  std::vector<std::string> effects;         ///< the model's effects that read ω̇
+  bool recorded() const { return fit_source != "not recorded"; }
+  bool matches() const { return fit_source == ident::kCycleOmegaDotSource; }
+};
+
+OmegaDotCheck omega_dot_check(const io::ModelFile& fit) {
+  OmegaDotCheck c;
+  const nlohmann::json* sources = nullptr;
+  if (fit.extra.contains("fit") && fit.extra["fit"].is_object() &&
+      fit.extra["fit"].contains("kinematics_sources"))
+    sources = &fit.extra["fit"]["kinematics_sources"];
+  if (sources != nullptr && sources->is_object()) {
+    if (sources->contains("omega_dot_source") && (*sources)["omega_dot_source"].is_string())
+      c.fit_source = (*sources)["omega_dot_source"].get<std::string>();
+    if (sources->contains("omega_dot") && (*sources)["omega_dot"].is_string())
+      c.fit_method = (*sources)["omega_dot"].get<std::string>();
+    if (sources->contains("effects") && (*sources)["effects"].is_object())
+      for (const auto& [effect, feeds] : (*sources)["effects"].items())
+        if (feeds.is_object() && feeds.contains("omega_dot") && feeds["omega_dot"] != "none")
+          c.effects.push_back(effect);
+    return c;
+  }
+  // Without the record (a truth file, an older fit): the effects that would read ω̇.
+  for (model::Effect e : {model::Effect::linear_inertia, model::Effect::rotational_inertia})
+    if (fit.params.effects.has(e)) c.effects.emplace_back(model::info(e).name);
+  return c;
+}
+
 void run_export(const ExportArgs& a) {
   const io::ModelFile fit = io::read_model(a.model);
   const io::Rig rig = io::read_rig(a.rig);
@@ -92,6 +129,13 @@ void run_export(const ExportArgs& a) {
                                       calib_log ? &*calib_log : nullptr);
     provenance["network"] = fs::path(a.network).filename().string();
   }
+  const OmegaDotCheck omega_dot = omega_dot_check(fit);
+  provenance["omega_dot"] = {{"fit", omega_dot.fit_source},
+                             {"cycle", ident::kCycleOmegaDotSource},
+                             {"matches", omega_dot.recorded() ? nlohmann::json(omega_dot.matches())
+                                                              : nlohmann::json(nullptr)},
+                             {"effects", omega_dot.effects}};
+  if (!omega_dot.fit_method.empty()) provenance["omega_dot"]["fit_method"] = omega_dot.fit_method;
   m.provenance_json = provenance.dump();
   const std::string bytes = infer::serialise_deployed_model(m);
   // Check what we are about to write loads, on this rig, before it replaces anything.
@@ -99,10 +143,30 @@ void run_export(const ExportArgs& a) {
   if (!check.ok())
     throw std::runtime_error("internal: the exported file does not load: " + check.message);
   io::write_file_atomic(a.out, bytes, inputs);
+  // Said even with --quiet: the deployed model may not run on the signal it was fitted on.
+  if (!omega_dot.effects.empty() && omega_dot.recorded() && !omega_dot.matches()) {
+    std::string effects;
+    for (const std::string& e : omega_dot.effects) effects += (effects.empty() ? "" : ", ") + e;
+    std::fprintf(stderr,
+                 "zerog export: warning: %s was fitted on the angular acceleration from '%s' "
+                 "(%s), but zerog-rt's cycle computes it as '%s' (the 5-point central "
+                 "difference of the gyro, model::angular_accel_central): %s will run on "
+                 "another omega_dot than they were fitted on. To deploy what the cycle "
+                 "computes, import with kinematics = \"imu\" (no imu_dw* columns) and refit; "
+                 "%s records both (provenance.omega_dot)\n",
+                 a.model.c_str(), omega_dot.fit_source.c_str(), omega_dot.fit_method.c_str(),
+                 std::string(ident::kCycleOmegaDotSource).c_str(), effects.c_str(), a.out.c_str());
+  }
   if (a.quiet) return;
   std::fprintf(stderr, "zerog export: %s (%zu bytes, CRC-32 %s) for rig '%s'\n", a.out.c_str(),
                bytes.size(), bytes.substr(bytes.find("crc32=") + 6, 8).c_str(), rig.name.c_str());
   std::fprintf(stderr, "  physics: %s\n", io::effect_list_string(m.physics.effects).c_str());
+  if (!omega_dot.effects.empty())
+    std::fprintf(stderr, "  omega_dot: fitted on '%s', the cycle computes '%s'%s\n",
+                 omega_dot.fit_source.c_str(), std::string(ident::kCycleOmegaDotSource).c_str(),
+                 !omega_dot.recorded() ? " (the model does not record its source)"
+                 : omega_dot.matches() ? " (the same)"
+                                       : " (differs: see the warning above)");
   if (!m.network) {
     std::fprintf(stderr, "  network: none (physics only)\n");
     return;
@@ -114,8 +178,8 @@ void run_export(const ExportArgs& a) {
                shape.c_str(), a.weight_bits);
   if (calib_data) {
     infer::Inference inf;
-    if (const std::string why = inf.configure(*check.model); !why.empty())
-      throw std::runtime_error("internal: " + why);
+    if (const Status st = inf.configure(*check.model); !st.ok())
+      throw std::runtime_error("internal: " + st.text());
     double max_f = 0.0, max_m = 0.0;
     std::size_t saturated = 0;
     for (std::size_t i = 0; i < calib_data->size(); ++i) {

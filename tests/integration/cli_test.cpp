@@ -3,6 +3,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -17,6 +19,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;
+using ::testing::Not;
 
 struct Result {
   int status = -1;
@@ -109,6 +112,58 @@ TEST_F(Cli, FitCompareDiagnoseLadderPrintJsonOfTheDocumentedKinds) {
   EXPECT_TRUE(j["made_for"]["model"].is_null());  // a ladder is made for its log
   EXPECT_EQ(j["made_for"]["start"], nlohmann::json({"bias", "gravity"}));
   EXPECT_EQ(j["made_for"]["log"]["file"], log());
+}
+
+// --engine on fit (and diagnose, ladder): the block statistics (the default) and the per-sample
+// reference give the same parameters and standard deviations through the CLI, and the fit says
+// which engine ran; an engine the fit does not know is refused.
+TEST_F(Cli, FitEnginesGiveTheSameParameters) {
+  const std::string fit = "fit " + log() +
+                          " --effects bias,gravity,linear_inertia,rotational_inertia,cable"
+                          " --json -q";
+  Result r = run(fit);
+  ASSERT_EQ(r.status, 0) << r.err;
+  const nlohmann::json by_default = nlohmann::json::parse(r.out);
+  EXPECT_EQ(by_default["extra"]["fit"]["engine"], "block_stats");
+  r = run(fit + " --engine samples");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const nlohmann::json samples = nlohmann::json::parse(r.out);
+  EXPECT_EQ(samples["extra"]["fit"]["engine"], "samples");
+  r = run(fit + " --engine block_stats");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const nlohmann::json block_stats = nlohmann::json::parse(r.out);
+  EXPECT_EQ(block_stats["extra"]["fit"]["engine"], "block_stats");
+  EXPECT_EQ(block_stats["parameters"], by_default["parameters"]);  // deterministic
+
+  const auto& got = block_stats["parameters"];
+  const auto& ref = samples["parameters"];
+  ASSERT_EQ(got.size(), 5u);
+  ASSERT_EQ(ref.size(), got.size());
+  int compared = 0;
+  for (const auto& [effect, block] : ref.items()) {
+    ASSERT_TRUE(got.contains(effect)) << effect;
+    for (const auto& [name, p] : block.items()) {
+      const auto& q = got[effect][name];
+      ASSERT_TRUE(p["std"].is_number() && q["std"].is_number()) << effect << "." << name;
+      const double sd = p["std"].get<double>();
+      // Relative to the value, or to its standard deviation for a value near zero.
+      const double scale = std::max(std::abs(p["value"].get<double>()), sd);
+      EXPECT_NEAR(q["value"].get<double>(), p["value"].get<double>(), 1e-6 * scale)
+          << effect << "." << name;
+      EXPECT_NEAR(q["std"].get<double>(), sd, 1e-6 * sd) << "std of " << effect << "." << name;
+      ++compared;
+    }
+  }
+  // bias 6, gravity 4, linear_inertia none (it uses the mass), rotational_inertia 6, cable 36.
+  EXPECT_EQ(compared, 6 + 4 + 6 + 36);
+
+  for (const char* sub : {"fit", "diagnose", "ladder"})
+    EXPECT_THAT(run(std::string(sub) + " --help").out, HasSubstr("--engine")) << sub;
+  r = run("fit " + log() + " --engine exact -q");
+  EXPECT_NE(r.status, 0);
+  EXPECT_THAT(r.err, HasSubstr("--engine"));
+  r = run("diagnose " + log() + " --engine exact -q");
+  EXPECT_NE(r.status, 0);
 }
 
 // zerog sim writes the clean log beside the log and names it in the truth; compare and ladder
@@ -417,6 +472,63 @@ TEST_F(Cli, DiscoveredLawFitsWithThePrintedCommandAndTravelsToReportAndExport) {
           " --out " + (dir() / "deployed.zgm").string() + " -q");
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_NE(slurp(dir() / "deployed.zgm").find("tanh(qd6/0.02)"), std::string::npos);
+}
+
+// A model fitted on an ω̇ other than the one zerog-rt's cycle computes (the 5-point difference
+// of the gyro): the simulator's log imported with kinematics = "auto" carries the gyro's
+// Savitzky–Golay derivative as imu_dw*_radps2. export warns, naming both (also with -q), and
+// the deploy file records them; the log as simulated (no imu_dw*) deploys without a warning.
+TEST_F(Cli, ExportSaysWhenTheModelWasFittedOnAnotherAngularAccelerationThanTheCycle) {
+  const fs::path map = dir() / "auto_map.toml";
+  std::ofstream(map) << "format = \"zerog-import\"\nversion = 1\nrig_file = \"run.rig.toml\"\n"
+                        "kinematics = \"auto\"\n[files.run]\npath = \"run.csv\"\n"
+                        "time = { column = \"t_s\", unit = \"s\" }\n"
+                        "force = { columns = [\"Fx_N\", \"Fy_N\", \"Fz_N\"], unit = \"N\" }\n"
+                        "torque = { columns = [\"Mx_Nm\", \"My_Nm\", \"Mz_Nm\"], unit = \"N*m\" }\n"
+                        "position = { columns = [\"px_m\", \"py_m\", \"pz_m\"], unit = \"m\" }\n"
+                        "orientation = { type = \"quaternion\", columns = [\"qw\", \"qx\", \"qy\", "
+                        "\"qz\"] }\n"
+                        "specific_force = { columns = [\"imu_fx_mps2\", \"imu_fy_mps2\", "
+                        "\"imu_fz_mps2\"], unit = \"m/s2\" }\n"
+                        "angular_rate = { columns = [\"imu_wx_radps\", \"imu_wy_radps\", "
+                        "\"imu_wz_radps\"], unit = \"rad/s\" }\n";
+  Result r = run("import --mapping " + map.string() + " --out " + (dir() / "sg.csv").string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  ASSERT_NE(slurp(dir() / "sg.csv").find("imu_dwx_radps2"), std::string::npos);
+  const std::string effects = " -e bias,gravity,linear_inertia,rotational_inertia -q -o ";
+  r = run("fit " + (dir() / "sg.csv").string() + effects + (dir() / "fit_sg.json").string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  r = run("fit " + log() + effects + (dir() / "fit_5p.json").string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto provenance = [](const fs::path& deployed) {
+    const std::string text = slurp(deployed);
+    return nlohmann::json::parse(text.substr(text.find('\n') + 1))["provenance"];
+  };
+
+  r = run("export --model " + (dir() / "fit_sg.json").string() + " --rig " +
+          (dir() / "sg.rig.toml").string() + " --out " + (dir() / "sg.zgm").string() + " -q");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("warning: " + (dir() / "fit_sg.json").string() +
+                               " was fitted on the angular acceleration from "
+                               "'gyro_savitzky_golay'"));
+  EXPECT_THAT(r.err, HasSubstr("zerog-rt's cycle computes it as 'gyro_5point'"));
+  EXPECT_THAT(r.err, HasSubstr("linear_inertia, rotational_inertia will run on another"));
+  EXPECT_THAT(r.err, HasSubstr("import with kinematics = \"imu\""));
+  nlohmann::json p = provenance(dir() / "sg.zgm");
+  EXPECT_EQ(p["omega_dot"]["fit"], "gyro_savitzky_golay") << p.dump();
+  EXPECT_EQ(p["omega_dot"]["cycle"], "gyro_5point");
+  EXPECT_EQ(p["omega_dot"]["matches"], false);
+  EXPECT_THAT(p["omega_dot"]["fit_method"].get<std::string>(), HasSubstr("Savitzky-Golay"));
+
+  r = run("export --model " + (dir() / "fit_5p.json").string() + " --rig " +
+          (dir() / "run.rig.toml").string() + " --out " + (dir() / "5p.zgm").string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_THAT(r.err, Not(HasSubstr("warning")));
+  EXPECT_THAT(r.err, HasSubstr("omega_dot: fitted on 'gyro_5point', the cycle computes "
+                               "'gyro_5point' (the same)"));
+  p = provenance(dir() / "5p.zgm");
+  EXPECT_EQ(p["omega_dot"]["fit"], "gyro_5point") << p.dump();
+  EXPECT_EQ(p["omega_dot"]["matches"], true);
 }
 
 }  // namespace

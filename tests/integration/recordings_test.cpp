@@ -12,6 +12,8 @@
 //     rank first, and adding it must lower the held-out error.
 // (c) the static table of calib/static_table: diagnose refuses it saying what works for a
 //     table, and `zerog fit` fits it.
+// (d) an accelerometer-only IMU beside the pose (kinematics = "auto"), and a wrench logged in the
+//     base frame: import → fit → compare → diagnose.
 //
 // Two seeds each; short runs (12 or 16 random path points, 80–115 s of simulated time).
 #include <gmock/gmock.h>
@@ -362,6 +364,120 @@ TEST_F(Recordings, StaticTableDiagnoseSaysWhatWorksAndFitWorks) {
   const Result f = run("fit " + path("static.csv") + " --effects bias,gravity --json -q");
   ASSERT_EQ(f.status, 0) << f.err;
   EXPECT_TRUE(nlohmann::json::parse(f.out)["extra"]["fit"]["usable"].get<bool>());
+}
+
+// ---- (d) accelerometer only; a wrench in the base frame ---------------------------------------
+
+// Two of issue 13's fixtures through import → fit → compare → diagnose, from one short run:
+// an accelerometer-only IMU (in g) beside the pose (ω, ω̇ from the orientation with
+// kinematics = "auto"), and a wrench the recording software rotated into the base frame
+// (`frame = "base"`), which must fit as the simulator's own log does.
+TEST_F(Recordings, AccelerometerOnlyAndBaseFrameWrenchFitCompareDiagnose) {
+  const unsigned seed = 41;
+  const zerog::io::Log truth = simulate(seed, "rotational_inertia", 0.012, 8);
+  const nlohmann::json truth_model = nlohmann::json::parse(slurp(dir() / "sim.truth.json"));
+  const double mass_kg = truth_model["parameters"]["gravity"]["mass"]["value"].get<double>();
+  std::string acc = "t,Fx_N,Fy_N,Fz_N,Mx_Nm,My_Nm,Mz_Nm,qw,qx,qy,qz,px,py,pz,ax_g,ay_g,az_g\n";
+  std::string base = "t,FxB,FyB,FzB,MxB,MyB,MzB,qw,qx,qy,qz,px,py,pz,fx,fy,fz,wx,wy,wz\n";
+  for (const auto& s : truth.samples) {
+    const Eigen::Matrix3d R_BS = s.q_base_sensor.toRotationMatrix();
+    std::string pose = "," + cell(s.q_base_sensor.w()) + "," + cell(s.q_base_sensor.x()) + "," +
+                       cell(s.q_base_sensor.y()) + "," + cell(s.q_base_sensor.z());
+    for (int k = 0; k < 3; ++k) pose += "," + cell(s.p_base_sensor_m[k]);
+    acc += cell(s.t_s);
+    for (int k = 0; k < 3; ++k) acc += "," + cell(s.force_sensor_N[k]);
+    for (int k = 0; k < 3; ++k) acc += "," + cell(s.torque_sensor_Nm[k]);
+    acc += pose;
+    for (int k = 0; k < 3; ++k) acc += "," + cell(s.specific_force_imu_mps2[k] / 9.80665);
+    acc += "\n";
+    const Eigen::Vector3d F_B = R_BS * s.force_sensor_N, M_B = R_BS * s.torque_sensor_Nm;
+    base += cell(s.t_s);
+    for (int k = 0; k < 3; ++k) base += "," + cell(F_B[k]);
+    for (int k = 0; k < 3; ++k) base += "," + cell(M_B[k]);
+    base += pose;
+    for (int k = 0; k < 3; ++k) base += "," + cell(s.specific_force_imu_mps2[k]);
+    for (int k = 0; k < 3; ++k) base += "," + cell(s.angular_rate_imu_radps[k]);
+    base += "\n";
+  }
+  write_text(dir() / "acc.csv", acc);
+  write_text(dir() / "base.csv", base);
+  const std::string pose_keys =
+      "orientation = { type = \"quaternion\", columns = [\"qw\", \"qx\", \"qy\", \"qz\"] }\n"
+      "position = { columns = [\"px\", \"py\", \"pz\"], unit = \"m\" }\n";
+  const std::string head = "format = \"zerog-import\"\nversion = 1\nrig_file = \"sim.rig.toml\"\n";
+  const std::string effects = " --effects bias,gravity,linear_inertia,rotational_inertia";
+  // fit, compare, diagnose: the fitted model and the diagnosis.
+  const auto chain = [&](const std::string& log) {
+    Result r = run("fit " + log + effects + " -q --json --out " + path("model.json"));
+    EXPECT_EQ(r.status, 0) << r.err;
+    const nlohmann::json fit = r.status == 0 ? nlohmann::json::parse(r.out) : nlohmann::json();
+    r = run("compare " + log + " --model " + path("model.json") + " --json -q");
+    EXPECT_EQ(r.status, 0) << r.err;
+    const nlohmann::json compared = r.status == 0 ? nlohmann::json::parse(r.out) : nlohmann::json();
+    r = run("diagnose " + log + " --model " + path("model.json") + " --no-discover --json -q");
+    EXPECT_EQ(r.status, 0) << r.err;
+    const nlohmann::json d = r.status == 0 ? nlohmann::json::parse(r.out) : nlohmann::json();
+    return std::array<nlohmann::json, 3>{fit, compared, d};
+  };
+
+  // Accelerometer only: ω, ω̇ from the pose, the specific force from the accelerometer.
+  write_text(dir() / "acc.toml",
+             head +
+                 "kinematics = \"auto\"\n[files.acc]\npath = \"acc.csv\"\n"
+                 "time = { column = \"t\", unit = \"s\" }\n" +
+                 kForceTorqueKeys + pose_keys +
+                 "specific_force = { columns = [\"ax_g\", \"ay_g\", \"az_g\"], unit = \"g\" }\n");
+  Result imported = run("import --mapping " + path("acc.toml") + " --out " + path("acc_run.csv"));
+  ASSERT_EQ(imported.status, 0) << imported.err;
+  EXPECT_THAT(imported.out, HasSubstr("angular rate from pose"));
+  const auto [acc_fit, acc_compare, acc_diagnosis] = chain(path("acc_run.csv"));
+  ASSERT_FALSE(acc_fit.is_null() || acc_compare.is_null() || acc_diagnosis.is_null());
+  const nlohmann::json& sources = acc_fit["extra"]["fit"]["kinematics_sources"];
+  EXPECT_EQ(sources["effects"]["linear_inertia"]["specific_force"], "imu");
+  EXPECT_EQ(sources["effects"]["rotational_inertia"]["omega"], "pose");
+  EXPECT_EQ(sources["effects"]["rotational_inertia"]["omega_dot"], "pose");
+  EXPECT_EQ(acc_diagnosis["kinematics_sources"]["effects"]["linear_inertia"]["omega"], "pose");
+  const double acc_mass = acc_fit["parameters"]["gravity"]["mass"]["value"].get<double>();
+  std::printf(
+      "accelerometer only (ω, ω̇ from the pose): mass %.4f kg (truth %.4f), moving force RMS "
+      "%.3f N, diagnose baseline held-out force RMS %.3f N\n",
+      acc_mass, mass_kg, acc_compare["segments"]["moving"]["force_rms"].get<double>(),
+      acc_diagnosis["baseline"]["force_rms"].get<double>());
+  EXPECT_NEAR(acc_mass, mass_kg, 0.005 * mass_kg);
+
+  // The wrench in the base frame (full IMU): the same fit as on the simulator's own log.
+  write_text(dir() / "base.toml",
+             head +
+                 "[files.b]\npath = \"base.csv\"\ntime = { column = \"t\", unit = \"s\" }\n"
+                 "force = { columns = [\"FxB\", \"FyB\", \"FzB\"], unit = \"N\", frame = "
+                 "\"base\" }\n"
+                 "torque = { columns = [\"MxB\", \"MyB\", \"MzB\"], unit = \"N*m\", frame = "
+                 "\"base\" }\n" +
+                 pose_keys +
+                 "specific_force = { columns = [\"fx\", \"fy\", \"fz\"], unit = \"m/s2\" }\n"
+                 "angular_rate = { columns = [\"wx\", \"wy\", \"wz\"], unit = \"rad/s\" }\n");
+  imported = run("import --mapping " + path("base.toml") + " --out " + path("base_run.csv"));
+  ASSERT_EQ(imported.status, 0) << imported.err;
+  const auto [base_fit, base_compare, base_diagnosis] = chain(path("base_run.csv"));
+  ASSERT_FALSE(base_fit.is_null() || base_compare.is_null() || base_diagnosis.is_null());
+  const auto [sim_fit, sim_compare, sim_diagnosis] = chain(path("sim.csv"));
+  ASSERT_FALSE(sim_fit.is_null());
+  for (const char* param : {"mass", "cx", "cy", "cz"}) {
+    if (!sim_fit["parameters"]["gravity"].contains(param)) continue;
+    const double a = base_fit["parameters"]["gravity"][param]["value"].get<double>();
+    const double b = sim_fit["parameters"]["gravity"][param]["value"].get<double>();
+    EXPECT_NEAR(a, b, 1e-6 * std::max(1.0, std::abs(b))) << param;
+  }
+  std::printf(
+      "wrench in the base frame: mass %.6f kg, all-rows force RMS %.4f N (the simulator's own "
+      "log: %.6f kg, %.4f N)\n",
+      base_fit["parameters"]["gravity"]["mass"]["value"].get<double>(),
+      base_compare["segments"]["all"]["force_rms"].get<double>(),
+      sim_fit["parameters"]["gravity"]["mass"]["value"].get<double>(),
+      sim_compare["segments"]["all"]["force_rms"].get<double>());
+  EXPECT_NEAR(base_compare["segments"]["all"]["force_rms"].get<double>(),
+              sim_compare["segments"]["all"]["force_rms"].get<double>(), 1e-4);
+  EXPECT_EQ(base_diagnosis["verdict"]["kind"], sim_diagnosis["verdict"]["kind"]);
 }
 
 }  // namespace

@@ -280,7 +280,8 @@ std::string format_rig(const Rig& rig) {
   // Inline, whether it came from a table or a robot_file: the log's rig stands alone.
   if (rig.robot_model) out += robot_toml_text("robot", rig.robot, *rig.robot_model);
   const KinematicsRecord& k = rig.kinematics;
-  if (k.mode != "imu" || k.derived()) {
+  // A logged ω̇ is said too: without the table imu_dw* would read as the gyro's SG derivative.
+  if (k.mode != "imu" || k.derived() || k.angular_accel != KinematicsOrigin::imu) {
     out += "\n[kinematics]  # where the IMU columns came from (zerog import)\n";
     out += "mode = " + toml_string(k.mode) + "\n";
     out += std::string("angular_rate = \"") + to_string(k.angular_rate) + "\"\n";
@@ -465,6 +466,8 @@ const char* to_string(KinematicsOrigin origin) {
       return "joints";
     case KinematicsOrigin::pose:
       return "pose";
+    case KinematicsOrigin::logged:
+      return "logged";
     case KinematicsOrigin::imu:
       break;
   }
@@ -715,11 +718,14 @@ void read_robot(const TomlTable& t, Rig& rig) {
 
 KinematicsOrigin origin_from_toml(const TomlTable& k, std::string_view key) {
   const std::string v = k.optional_string(key, "imu");
-  for (KinematicsOrigin o :
-       {KinematicsOrigin::imu, KinematicsOrigin::joints, KinematicsOrigin::pose}) {
-    if (v == to_string(o)) return o;
+  // "logged" only for the angular acceleration: imu_w* and imu_f* logged are "imu".
+  const bool accel = key == "angular_accel";
+  for (KinematicsOrigin o : {KinematicsOrigin::imu, KinematicsOrigin::joints,
+                             KinematicsOrigin::pose, KinematicsOrigin::logged}) {
+    if (v == to_string(o) && (accel || o != KinematicsOrigin::logged)) return o;
   }
-  k.fail(key, "must be \"imu\", \"joints\" or \"pose\", is \"" + v + "\"");
+  k.fail(key, std::string("must be \"imu\", \"joints\"") +
+                  (accel ? ", \"pose\" or \"logged\"" : " or \"pose\"") + ", is \"" + v + "\"");
 }
 
 KinematicsRecord kinematics_from_toml(const TomlTable& t) {

@@ -15,6 +15,8 @@ std::string source_of(bool present, io::KinematicsOrigin origin) {
 std::string omega_dot_method(const Dataset& data) {
   const io::Columns& c = data.columns;
   const io::KinematicsRecord& k = data.kinematics;
+  if (c.angular_accel && k.angular_accel == io::KinematicsOrigin::logged)
+    return "the recording's own, logged (imu_dw*_radps2 columns)";
   if (!c.angular_rate || c.static_rows) return "none (no angular rate with time: taken as zero)";
   if (!c.angular_accel)
     return std::string(
@@ -29,6 +31,25 @@ std::string omega_dot_method(const Dataset& data) {
 
 }  // namespace
 
+std::string omega_dot_source(const Dataset& data) {
+  const io::Columns& c = data.columns;
+  if (c.angular_accel && data.kinematics.angular_accel == io::KinematicsOrigin::logged)
+    return "logged";
+  if (!c.angular_rate || c.static_rows) return "none";
+  if (!c.angular_accel) return std::string(kCycleOmegaDotSource);
+  switch (data.kinematics.angular_accel) {
+    case io::KinematicsOrigin::imu:
+      return "gyro_savitzky_golay";
+    case io::KinematicsOrigin::joints:
+      return "joints";
+    case io::KinematicsOrigin::pose:
+      return "pose";
+    case io::KinematicsOrigin::logged:
+      break;
+  }
+  return "logged";
+}
+
 std::vector<EffectFeeds> kinematics_feeds(const model::EffectSet& effects, const Dataset& data) {
   using model::Effect;
   const io::Columns& c = data.columns;
@@ -36,7 +57,7 @@ std::vector<EffectFeeds> kinematics_feeds(const model::EffectSet& effects, const
   const SignalFeed omega{"omega", source_of(c.angular_rate, k.angular_rate)};
   // No rate or no time: no ω̇ (taken as zero).
   const SignalFeed omega_dot{"omega_dot",
-                             source_of(c.angular_rate && !c.static_rows,
+                             source_of((c.angular_rate && !c.static_rows) || c.angular_accel,
                                        c.angular_accel ? k.angular_accel : k.angular_rate)};
   const SignalFeed force{"specific_force", source_of(c.specific_force, k.specific_force)};
   std::vector<EffectFeeds> out;
@@ -59,6 +80,7 @@ nlohmann::json kinematics_json(const std::vector<EffectFeeds>& feeds, const Data
   nlohmann::json j;
   j["mode"] = k.mode;
   j["omega_dot"] = omega_dot_method(data);
+  j["omega_dot_source"] = omega_dot_source(data);
   if (k.derived()) {
     j["differentiator"] = {{"method", "savitzky_golay"},
                            {"half_width", k.sg_half_width},

@@ -39,9 +39,10 @@ enum class Quantity : int {
   joints,
   specific_force,
   angular_rate,
+  angular_accel,
   temperature
 };
-constexpr int kQuantityCount = 8;
+constexpr int kQuantityCount = 9;
 
 enum class Orientation { quaternion, matrix, kuka_abc };
 
@@ -92,6 +93,11 @@ const std::array<QuantityInfo, kQuantityCount>& quantity_infos() {
        3,
        {{"rad/s", 1.0}, {"deg/s", kDegree}},
        "IMU angular rate (gyroscope), IMU frame"},
+      {"angular_accel",
+       3,
+       3,
+       {{"rad/s^2", 1.0}, {"rad/s2", 1.0}, {"deg/s^2", kDegree}, {"deg/s2", kDegree}},
+       "angular acceleration, IMU frame"},
       {"temperature", 1, 1, {{"C", 1.0}, {"degC", 1.0}, {"K", 1.0, -273.15}}, "temperature"},
   }};
   return infos;
@@ -236,10 +242,12 @@ void add_refs(FileSpec& file, const TomlTable& t, std::string_view key, std::siz
   for (const toml::node& element : *array) add_ref(file, t, key, element);
 }
 
-bool is_vector(Quantity q) {
-  return q == Quantity::force || q == Quantity::torque || q == Quantity::specific_force ||
-         q == Quantity::angular_rate;
+bool is_imu(Quantity q) {
+  return q == Quantity::specific_force || q == Quantity::angular_rate ||
+         q == Quantity::angular_accel;
 }
+
+bool is_vector(Quantity q) { return q == Quantity::force || q == Quantity::torque || is_imu(q); }
 
 // The optional `frame` of a vector quantity: "sensor"/"imu" (its own frame), "base", or
 // { q_wxyz = [w, x, y, z] } (a fixed frame D: its axes in the own frame), for force and torque
@@ -248,7 +256,7 @@ void read_frame(QuantitySpec& q, const TomlTable& t) {
   const toml::node* node = t.find("frame");
   if (node == nullptr) return;
   q.frame_where = node->source();
-  const bool imu = q.what == Quantity::specific_force || q.what == Quantity::angular_rate;
+  const bool imu = is_imu(q.what);
   const std::string own = imu ? "imu" : "sensor";
   if (node->is_string()) {
     const std::string f = t.string("frame");
@@ -576,6 +584,15 @@ Mapping read_mapping(const fs::path& mapping, bool rig_given) {
     throw_at(mapping, where[static_cast<int>(Quantity::position)],
              "'position' is mapped without 'orientation': map the orientation too, or remove "
              "'position' to take the whole pose from the joints through the rig's robot");
+  }
+  // A logged ω̇ (imu_dw*_radps2) is used as logged; "robot" takes every signal from the robot.
+  if (source[static_cast<int>(Quantity::angular_accel)] != nullptr &&
+      m.kinematics == robot::KinematicsMode::robot) {
+    throw_at(mapping, where[static_cast<int>(Quantity::angular_accel)],
+             "'files." + source[static_cast<int>(Quantity::angular_accel)]->name +
+                 ".angular_accel' is a logged angular acceleration, but kinematics = \"robot\" "
+                 "takes ω̇ from the robot: use kinematics = \"auto\" to keep the logged ω̇ "
+                 "(and take what the IMU lacks from the robot), or remove 'angular_accel'");
   }
   // Rows without time are static samples: they cannot be put on another file's time base.
   for (const FileSpec& file : m.files) {
@@ -970,17 +987,23 @@ void derive_from_robot(const Mapping& m, const fs::path& mapping_path,
                              "(map 'position' beside it, or 'joints' with the rig's robot)"};
   record.angular_rate_reason = choice.omega.reason;
   record.specific_force_reason = choice.specific_force.reason;
-  record.angular_accel_reason = choice.omega_dot.reason;
+  // A logged ω̇ is the IMU's own signal: "auto" keeps it, as it keeps a logged gyro.
+  const bool accel_logged = log.columns.angular_accel;
+  if (accel_logged) {
+    choice.omega_dot = {robot::KinematicSource::imu, record.angular_accel_reason};
+  } else {
+    record.angular_accel_reason = choice.omega_dot.reason;
+  }
   const bool derive_rate = choice.omega.source == robot::KinematicSource::robot;
   const bool derive_force = choice.specific_force.source == robot::KinematicSource::robot;
   const bool derive_accel = choice.omega_dot.source == robot::KinematicSource::robot;
   // ω̇ from the gyro under "auto": its Savitzky–Golay derivative, as measured best
   // (robot_kinematics.md "Choosing the source"); "imu" leaves it to host/ident's 5-point
   // difference, as before.
-  if (choice.omega_dot.source == robot::KinematicSource::imu &&
+  if (choice.omega_dot.source == robot::KinematicSource::imu && !accel_logged &&
       m.kinematics == robot::KinematicsMode::automatic && timed && log.columns.angular_rate)
     differentiate_gyro(m, series, source, result);
-  if (!timed && log.columns.angular_rate)
+  if (!timed && log.columns.angular_rate && !accel_logged)
     record.angular_accel_reason = "rows without time (static samples): no angular acceleration";
   if (!derive_rate && !derive_force && !derive_accel) return;
 
@@ -1229,6 +1252,7 @@ ImportResult import_recordings(const fs::path& mapping_path,
   }
   log.columns.specific_force = has(Quantity::specific_force);
   log.columns.angular_rate = has(Quantity::angular_rate);
+  log.columns.angular_accel = has(Quantity::angular_accel);
   log.columns.temperature = has(Quantity::temperature);
   log.columns.position = has(Quantity::position) || pose_from_joints;
   log.columns.static_rows = !mapping.files.front().has_time;
@@ -1337,6 +1361,14 @@ ImportResult import_recordings(const fs::path& mapping_path,
         s.angular_rate_imu_radps =
             R_sensor_imu.transpose() * R_sensor_base * s.angular_rate_imu_radps;
     }
+    // ω̇ in B: ω̇_S = R_BSᵀ ω̇_B, as d/dt(R_BSᵀ) ω_B = −ω_S × ω_S = 0 (see differentiate_gyro).
+    if (log.columns.angular_accel) {
+      s.angular_accel_imu_radps2 =
+          at<3>(values(Quantity::angular_accel), bracket(Quantity::angular_accel));
+      if (in_base(Quantity::angular_accel))
+        s.angular_accel_imu_radps2 =
+            R_sensor_imu.transpose() * R_sensor_base * s.angular_accel_imu_radps2;
+    }
     if (log.columns.temperature) {
       s.temperature_C = at<1>(values(Quantity::temperature), bracket(Quantity::temperature))[0];
     }
@@ -1349,8 +1381,39 @@ ImportResult import_recordings(const fs::path& mapping_path,
                              result.report.summary());
   }
   log.rig.kinematics = {};  // whatever a rig file says: this import's columns decide
-  if (mapping.kinematics == robot::KinematicsMode::imu) return result;  // the columns as logged
+  // A logged ω̇ goes to imu_dw*_radps2, which log format 2 holds only beside imu_w*_radps: the
+  // gyro's, or under "auto" the robot's ω.
+  const auto refuse_accel_without_rate = [&] {
+    if (!log.columns.angular_accel || log.columns.angular_rate) return;
+    const std::string key = quantity_file(mapping, source, Quantity::angular_accel);
+    throw_at(mapping_path, spec_of[static_cast<int>(Quantity::angular_accel)]->where,
+             "'" + key +
+                 "' needs the angular rate beside it (the log holds ω̇, imu_dw*_radps2, only "
+                 "with imu_w*_radps; proto/log_format.md): map the gyro as 'angular_rate' (in "
+                 "this file or another)" +
+                 (mapping.kinematics == robot::KinematicsMode::imu
+                      ? std::string(", or set kinematics = \"auto\" to derive ω from the joints "
+                                    "(with the rig's robot) or the orientation")
+                      : std::string(log.columns.static_rows
+                                        ? ", or record time (rows without time give no ω)"
+                                        : "")) +
+                 ", or remove '" + std::string(info(Quantity::angular_accel).key) + "'");
+  };
+  if (log.columns.angular_accel) {
+    log.rig.kinematics.angular_accel = KinematicsOrigin::logged;
+    log.rig.kinematics.angular_accel_reason =
+        "logged in " + quantity_file(mapping, source, Quantity::angular_accel) +
+        " (used as logged)";
+  }
+  if (mapping.kinematics == robot::KinematicsMode::imu) {  // the columns as logged
+    refuse_accel_without_rate();
+    if (log.columns.angular_accel)
+      result.report.kinematics =
+          "angular acceleration: " + log.rig.kinematics.angular_accel_reason + "\n";
+    return result;
+  }
   derive_from_robot(mapping, mapping_path, series, source, result);
+  refuse_accel_without_rate();
   const KinematicsRecord& k = log.rig.kinematics;
   result.report.kinematics =
       "kinematics = \"" + k.mode + "\": angular rate " +
@@ -1360,7 +1423,9 @@ ImportResult import_recordings(const fs::path& mapping_path,
       (log.columns.specific_force ? std::string("from ") + to_string(k.specific_force) : "none") +
       (k.specific_force_reason.empty() ? "" : " (" + k.specific_force_reason + ")") +
       "; angular acceleration " +
-      (log.columns.angular_accel
+      (log.columns.angular_accel && k.angular_accel == KinematicsOrigin::logged
+           ? k.angular_accel_reason
+       : log.columns.angular_accel
            ? std::string("from ") + to_string(k.angular_accel) +
                  (k.angular_accel == KinematicsOrigin::imu ? " (Savitzky-Golay)" : "")
        : log.columns.angular_rate && !log.columns.static_rows

@@ -388,6 +388,123 @@ TEST(RobotKinematics, AccelerometerOnlyGetsRatesFromTheOrientation) {
   fs::remove_all(dir);
 }
 
+// ---- (b2) accelerometer and joints, no gyro -------------------------------------------------
+
+// issue 13's acceptance for an accelerometer-only IMU on an arm that logs its joints: with
+// kinematics = "auto" the rotational signals (ω, ω̇) come from the joints through the rig's
+// robot and the linear acceleration from the accelerometer, and the fit recovers mass, centre of
+// mass and inertia within the joints-only tolerances. The wrench and the accelerometer at 4 ms
+// (one file, the master), the joints at 12 ms in another; the truth has the IMU off the sensor
+// origin (imu_lever_arm), which the lever-arm terms explain with the joints' ω, ω̇.
+TEST(RobotKinematics, AccelerometerAndJointsTakeRotationFromTheJointsAndAccelerationFromTheImu) {
+  const fs::path dir = fresh_dir("acc_joints");
+  for (std::uint64_t seed : {1u, 2u}) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    auto config = [&](std::uint64_t noise_seed, double period_s) {
+      sim::SimConfig c = sim::default_sim_config(seed);
+      c.seed = noise_seed;
+      c.effects.add(sim::SimEffect::imu_lever_arm);
+      c.period_s = period_s;
+      c.duration_limit_s = 120.0;
+      return c;
+    };
+    const sim::SimOutput ft = sim::RigSimulator(config(seed, 0.004), design_points()).run();
+    const io::Log arm = sim::RigSimulator(config(seed + 1, 0.012), design_points()).run().log;
+    write_stream(dir / "ft_acc.csv", "t,Fx,Fy,Fz,Mx,My,Mz,ax,ay,az", ft.log,
+                 [](const io::Sample& s) {
+                   return wrench_cells(s) + "," + vector_cells(s.specific_force_imu_mps2);
+                 });
+    write_stream(dir / "arm.csv", "t,A1,A2,A3,A4,A5,A6", arm, joint_cells);
+    write_text(dir / "cell.rig.toml",
+               rig_text(ft.log.rig, dir, "robot_file = \"" + kRobotFile.string() + "\"\n"));
+    write_text(dir / "mapping.toml",
+               kMappingHead +
+                   "master = \"ft\"\nrig_file = \"cell.rig.toml\"\nkinematics = \"auto\"\n"
+                   "[files.ft]\npath = \"ft_acc.csv\"\ntime = { column = \"t\", unit = \"s\" }\n" +
+                   kWrenchKeys +
+                   "specific_force = { columns = [\"ax\", \"ay\", \"az\"], unit = \"m/s2\" }\n"
+                   "[files.arm]\npath = \"arm.csv\"\ntime = { column = \"t\", unit = \"s\" }\n" +
+                   kJointsKey);
+    const io::ImportResult imported = io::import_recordings(dir / "mapping.toml");
+    std::printf("%s", imported.report.summary().c_str());
+    const io::Log& log = imported.log;
+    ASSERT_TRUE(log.columns.angular_rate && log.columns.angular_accel &&
+                log.columns.specific_force);
+    const io::KinematicsRecord& k = log.rig.kinematics;
+    EXPECT_EQ(k.mode, "auto");
+    EXPECT_EQ(k.angular_rate, io::KinematicsOrigin::joints);
+    EXPECT_EQ(k.angular_accel, io::KinematicsOrigin::joints);
+    EXPECT_EQ(k.specific_force, io::KinematicsOrigin::imu);
+    EXPECT_NEAR(k.period_s, 0.012, 1e-9);  // differentiated at the joints' own rate
+
+    // The specific force is the accelerometer's, as logged (the master's own rows); ω from the
+    // joints is far closer to the truth than the simulator's gyro would have been.
+    std::size_t row = 0;
+    double force_difference = 0.0;
+    for (const io::Sample& s : log.samples) {
+      while (ft.log.samples[row].t_s < s.t_s - 1e-7) ++row;
+      ASSERT_NEAR(ft.log.samples[row].t_s, s.t_s, 1e-7);
+      force_difference = std::max(
+          force_difference,
+          (s.specific_force_imu_mps2 - ft.log.samples[row].specific_force_imu_mps2).norm());
+    }
+    EXPECT_LT(force_difference, 1e-6);
+    double rate_error = 0.0, gyro_noise = 0.0;
+    row = 0;
+    for (const io::Sample& s : log.samples) {
+      while (ft.clean_log.samples[row].t_s < s.t_s - 1e-7) ++row;
+      rate_error += (s.angular_rate_imu_radps - ft.clean_log.samples[row].angular_rate_imu_radps)
+                        .squaredNorm();
+      gyro_noise += (ft.log.samples[row].angular_rate_imu_radps -
+                     ft.clean_log.samples[row].angular_rate_imu_radps)
+                        .squaredNorm();
+    }
+    rate_error = std::sqrt(rate_error / static_cast<double>(log.samples.size()));
+    gyro_noise = std::sqrt(gyro_noise / static_cast<double>(log.samples.size()));
+    EXPECT_LT(rate_error, 0.5 * gyro_noise);
+
+    const Dataset data = make_dataset(log);
+    const Scored without = fit_heldout(data, kStaticModel);
+    const Scored with = fit_heldout(data, kDynamicModel);
+    ASSERT_TRUE(without.fit.usable && with.fit.usable) << with.fit.termination;
+    const double* g = with.fit.params.block(Effect::gravity);
+    const double* tg = ft.truth.params.block(Effect::gravity);
+    const double* I = with.fit.params.block(Effect::rotational_inertia);
+    const double* tI = ft.truth.params.block(Effect::rotational_inertia);
+    const double mass_error = relative(g[0], tg[0]);
+    const double com_error_m =
+        (Eigen::Vector3d(g[1], g[2], g[3]) - Eigen::Vector3d(tg[1], tg[2], tg[3]))
+            .cwiseAbs()
+            .maxCoeff();
+    double diagonal_error = 0.0, product_error = 0.0;
+    const double largest = std::max({tI[0], tI[1], tI[2]});
+    for (int j = 0; j < 3; ++j) diagonal_error = std::max(diagonal_error, relative(I[j], tI[j]));
+    for (int j = 3; j < 6; ++j)
+      product_error = std::max(product_error, std::abs(I[j] - tI[j]) / largest);
+    std::printf(
+        "accelerometer + joints (auto), seed %llu: omega error %.2e rad/s (gyro noise %.2e), "
+        "mass %.4f kg (error %.3f %%), centre of mass error %.3f mm, inertia error %.2f %% "
+        "(diagonal), %.2f %% (products); held-out moving force RMS %.3f N (bias+gravity %.3f N)\n",
+        static_cast<unsigned long long>(seed), rate_error, gyro_noise, g[0], 100.0 * mass_error,
+        1e3 * com_error_m, 100.0 * diagonal_error, 100.0 * product_error,
+        with.heldout.moving.force_rms, without.heldout.moving.force_rms);
+    EXPECT_LT(mass_error, 0.005);
+    EXPECT_LT(com_error_m, 0.002);
+    EXPECT_LT(diagonal_error, 0.05);
+    EXPECT_LT(product_error, 0.05);
+    EXPECT_LT(with.heldout.moving.force_rms, 0.5 * without.heldout.moving.force_rms);
+
+    // The fit names the sources: the linear part from the IMU, the rotation from the joints.
+    const nlohmann::json j = kinematics_json(kinematics_feeds(kDynamicModel, data), data);
+    EXPECT_EQ(j["effects"]["linear_inertia"]["specific_force"], "imu");
+    EXPECT_EQ(j["effects"]["linear_inertia"]["omega"], "joints");
+    EXPECT_EQ(j["effects"]["rotational_inertia"]["omega"], "joints");
+    EXPECT_EQ(j["effects"]["rotational_inertia"]["omega_dot"], "joints");
+    EXPECT_EQ(j["omega_dot_source"], "joints");
+  }
+  fs::remove_all(dir);
+}
+
 // ---- (c) auto with both present, and with the gyro only ------------------------------------
 
 TEST(RobotKinematics, AutoPicksPerSignalAndDiagnoseReportsIt) {
@@ -560,6 +677,23 @@ TEST(AngularAcceleration, MakeDatasetUsesTheColumnsWhenPresent) {
       kinematics_json(kinematics_feeds(kDynamicModel, differenced), differenced)["omega_dot"]
           .get<std::string>(),
       HasSubstr("5-point central difference"));
+  // The key zerog export compares with the cycle's ω̇ (the 5-point difference of the gyro).
+  EXPECT_EQ(omega_dot_source(differenced), kCycleOmegaDotSource);
+  EXPECT_EQ(omega_dot_source(derived), "joints");
+  EXPECT_EQ(kinematics_json(kinematics_feeds(kDynamicModel, derived), derived)["omega_dot_source"],
+            "joints");
+  // A ω̇ the recording logged (import mapping `angular_accel`): used as logged, and said so.
+  log.rig.kinematics = {};
+  log.rig.kinematics.angular_accel = io::KinematicsOrigin::logged;
+  const Dataset logged = make_dataset(log);
+  EXPECT_EQ(Eigen::Map<const Eigen::Vector3d>(&logged.imu[i * 9 + 6]),
+            log.samples[i].angular_accel_imu_radps2);
+  const nlohmann::json l = kinematics_json(kinematics_feeds(kDynamicModel, logged), logged);
+  EXPECT_EQ(l["omega_dot_source"], "logged");
+  EXPECT_EQ(l["effects"]["rotational_inertia"]["omega_dot"], "logged");
+  EXPECT_EQ(l["effects"]["rotational_inertia"]["omega"], "imu");
+  EXPECT_THAT(format_kinematics(kinematics_feeds(kDynamicModel, logged), logged),
+              HasSubstr("omega_dot is the recording's own, logged"));
 }
 
 // kinematics = "robot": the dataset's ω̇ is the robot's SG second derivative (computed here again

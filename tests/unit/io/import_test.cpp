@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <numbers>
 #include <random>
+#include <tuple>
 
 #include "test_util.hpp"
 #include "zerog/formats/log.hpp"
@@ -873,6 +874,103 @@ TEST_F(ImportTest, FixedFrameWithLeverArmMovesTheTorqueToTheSensorOrigin) {
   const auto [imu_line, imu_column] = line_column_of(imu_lever, "[" + fmt("%.17g", p_SD.x()));
   expect_input_error([&] { (void)import_recordings(path("m.toml")); }, path("m.toml"), imu_line,
                      imu_column, "the rig's [sensor_imu] p_m");
+}
+
+// A recording that logged the angular acceleration (issue 13): `angular_accel` maps it like the
+// other IMU groups (columns, unit, frame) into imu_dw*_radps2, which host/ident then uses as
+// logged; the rig says where it came from. Log format 2 holds ω̇ only beside the angular rate,
+// and kinematics = "robot" takes ω̇ from the robot: both refusals name the key and the fix.
+TEST_F(ImportTest, LoggedAngularAccelerationComesThroughOrIsRefused) {
+  Rig rig;
+  rig.name = "logged-dw";
+  rig.sensor_imu.q =
+      Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d(-1, 2, 1).normalized()));
+  write_rig(rig, path("dw.rig.toml"));
+  const Eigen::Matrix3d R_SI = rig.sensor_imu.q.toRotationMatrix();
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::string text = "t,fx,fy,fz,mx,my,mz,qw,qx,qy,qz,wx,wy,wz,dwx,dwy,dwz\n";
+  std::vector<Eigen::Vector3d> want_w, want_dw;
+  for (int i = 0; i < 20; ++i) {
+    const Eigen::Quaterniond q_BS = Eigen::Quaterniond(u(rng), u(rng), u(rng), u(rng)).normalized();
+    const Eigen::Vector3d w_I(u(rng), u(rng), u(rng)),
+        dw_I = 5.0 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+    // ω̇ recorded with base-frame axes, in deg/s².
+    const Eigen::Vector3d dw_B = q_BS.toRotationMatrix() * R_SI * dw_I / kDeg;
+    text += fmt("%.17g,1,2,3,0.1,0.2,0.3,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g", 0.01 * i,
+                q_BS.w(), q_BS.x(), q_BS.y(), q_BS.z(), w_I.x(), w_I.y(), w_I.z());
+    text += fmt(",%.17g,%.17g,%.17g\n", dw_B.x(), dw_B.y(), dw_B.z());
+    want_w.push_back(w_I);
+    want_dw.push_back(dw_I);
+  }
+  write_text(path("dw.csv"), text);
+  const std::string head =
+      "format = \"zerog-import\"\nversion = 1\nrig_file = \"dw.rig.toml\"\n"
+      "%s[files.rec]\npath = \"dw.csv\"\ntime = { column = \"t\", unit = \"s\" }\n"
+      "force = { columns = [\"fx\", \"fy\", \"fz\"], unit = \"N\" }\n"
+      "torque = { columns = [\"mx\", \"my\", \"mz\"], unit = \"N*m\" }\n"
+      "orientation = { type = \"quaternion\", columns = [\"qw\", \"qx\", \"qy\", \"qz\"] }\n";
+  const std::string gyro =
+      "angular_rate = { columns = [\"wx\", \"wy\", \"wz\"], unit = \"rad/s\" }\n";
+  const std::string accel =
+      "angular_accel = { columns = [\"dwx\", \"dwy\", \"dwz\"], unit = \"deg/s^2\", frame = "
+      "\"base\" }\n";
+  const auto mapping = [&](const std::string& kinematics, const std::string& keys) {
+    return fmt(head.c_str(), kinematics.c_str()) + keys;
+  };
+  write_text(path("m.toml"), mapping("", gyro + accel));
+  const ImportResult imported = import_recordings(path("m.toml"));
+  const Log& log = imported.log;
+  ASSERT_EQ(log.samples.size(), want_dw.size());
+  EXPECT_TRUE(log.columns.angular_accel);
+  EXPECT_EQ(log.rig.kinematics.angular_accel, KinematicsOrigin::logged);
+  EXPECT_NE(
+      imported.report.summary().find("angular acceleration: logged in files.rec.angular_accel"),
+      std::string::npos)
+      << imported.report.summary();
+  for (std::size_t i = 0; i < want_dw.size(); ++i) {
+    EXPECT_LT((log.samples[i].angular_accel_imu_radps2 - want_dw[i]).norm(), 1e-9) << i;
+    EXPECT_LT((log.samples[i].angular_rate_imu_radps - want_w[i]).norm(), 1e-12) << i;
+  }
+  // Through the log format: version 2 with imu_dw*, and the rig says the ω̇ was logged.
+  write_log(log, path("dw_out.csv"));
+  EXPECT_EQ(read_text(path("dw_out.csv")).rfind("# zerog-log 2\n", 0), 0u);
+  EXPECT_NE(read_text(path("dw_out.rig.toml")).find("angular_accel = \"logged\""),
+            std::string::npos);
+  const Log back = read_log(path("dw_out.csv"));
+  EXPECT_TRUE(back.columns.angular_accel);
+  EXPECT_EQ(back.rig.kinematics.angular_accel, KinematicsOrigin::logged);
+  EXPECT_LT((back.samples[7].angular_accel_imu_radps2 - want_dw[7]).norm(), 1e-6);
+  // "auto" keeps the logged ω̇ (no Savitzky–Golay of the gyro in its place).
+  write_text(path("m.toml"), mapping("kinematics = \"auto\"\n", gyro + accel));
+  const ImportResult automatic = import_recordings(path("m.toml"));
+  EXPECT_EQ(automatic.log.rig.kinematics.angular_accel, KinematicsOrigin::logged);
+  EXPECT_EQ(automatic.log.rig.kinematics.accel_sg_half_width, 0);
+  EXPECT_LT((automatic.log.samples[3].angular_accel_imu_radps2 - want_dw[3]).norm(), 1e-9);
+
+  // Refused: ω̇ without the angular rate (log format 2 holds imu_dw* only beside imu_w*).
+  std::string map = mapping("", accel);
+  write_text(path("m.toml"), map);
+  auto [line, column] = line_column_of(map, "{ columns = [\"dwx\"");
+  expect_input_error([&] { (void)import_recordings(path("m.toml")); }, path("m.toml"), line, column,
+                     "'files.rec.angular_accel' needs the angular rate beside it (the log holds "
+                     "ω̇, imu_dw*_radps2, only with imu_w*_radps; proto/log_format.md): map the "
+                     "gyro as 'angular_rate'");
+  // Refused: kinematics = "robot" takes ω̇ from the robot.
+  map = mapping("kinematics = \"robot\"\n", gyro + accel);
+  write_text(path("m.toml"), map);
+  std::tie(line, column) = line_column_of(map, "{ columns = [\"dwx\"");
+  expect_input_error([&] { (void)import_recordings(path("m.toml")); }, path("m.toml"), line, column,
+                     "kinematics = \"robot\" takes ω̇ from the robot: use kinematics = \"auto\"");
+  // An unknown unit names the accepted ones.
+  map = mapping(
+      "", gyro + "angular_accel = { columns = [\"dwx\", \"dwy\", \"dwz\"], unit = \"rad/s\" }\n");
+  write_text(path("m.toml"), map);
+  std::tie(line, column) = line_column_of(map, "\"dwz\"], unit = \"rad/s\"");
+  column += static_cast<int>(std::string("\"dwz\"], unit = ").size());
+  expect_input_error([&] { (void)import_recordings(path("m.toml")); }, path("m.toml"), line, column,
+                     "unknown unit \"rad/s\" for 'files.rec.angular_accel.unit' (use one of "
+                     "\"rad/s^2\", \"rad/s2\", \"deg/s^2\", \"deg/s2\")");
 }
 
 TEST_F(ImportTest, RefusalsNameFileLineColumnAndTheFix) {

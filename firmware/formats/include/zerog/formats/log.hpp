@@ -31,8 +31,10 @@ struct Transform {
 
 /// Where a log's IMU columns came from (proto/log_format.md, the rig's `[kinematics]`):
 /// logged by an IMU, or derived by `zerog import` (kinematics = "robot" | "auto") from the joint
-/// stream through the rig's robot, or from the pose stream (robot::derive_kinematics).
-enum class KinematicsOrigin : std::uint8_t { imu, joints, pose };
+/// stream through the rig's robot, or from the pose stream (robot::derive_kinematics). For the
+/// angular acceleration `imu` is the gyro differenced at import, and `logged` a ω̇ the recording
+/// itself held (the import mapping's `angular_accel`), used as logged.
+enum class KinematicsOrigin : std::uint8_t { imu, joints, pose, logged };
 const char* to_string(KinematicsOrigin origin);
 
 /// The rig's `[kinematics]` table: per IMU group its origin, and the differentiator that derived
@@ -54,8 +56,9 @@ struct KinematicsRecord {
   double cutoff_rate_hz = 0.0;           ///< −3 dB of the 1st derivative, Hz
   double cutoff_accel_hz = 0.0;          ///< −3 dB of the 2nd derivative, Hz
   /// Of the angular-acceleration columns imu_dw*_radps2, if the log has them: the gyro
-  /// differenced by Savitzky–Golay at import (imu), or the robot's second derivative (joints,
-  /// pose; the differentiator above). Without them host/ident differences imu_w*_radps.
+  /// differenced by Savitzky–Golay at import (imu), the robot's second derivative (joints,
+  /// pose; the differentiator above), or the recording's own (logged). Without them
+  /// host/ident differences imu_w*_radps.
   KinematicsOrigin angular_accel = KinematicsOrigin::imu;
   std::string angular_accel_reason;  ///< why (robot::choose_sources' sentence)
   // ω̇'s own Savitzky–Golay differentiator (with the columns; 0 without): the gyro's first

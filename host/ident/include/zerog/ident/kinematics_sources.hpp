@@ -4,6 +4,7 @@
 // Every fit and diagnosis names, per effect, where its ω, ω̇ and specific force came from
 // (issue 13 item 2; proto/json_output.md).
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -26,6 +27,17 @@ struct EffectFeeds {
   std::string effect;
   std::vector<SignalFeed> signals;
 };
+
+/// What zerog-rt's cycle computes ω̇ from: the 5-point central difference of the gyro
+/// (model::angular_accel_central, firmware/loop), as host/ident does for a log without
+/// imu_dw*_radps2 columns.
+inline constexpr std::string_view kCycleOmegaDotSource = "gyro_5point";
+
+/// Which ω̇ the dataset holds, as a key (JSON "omega_dot_source"): "gyro_5point" (host/ident's
+/// difference of imu_w*_radps: what the cycle runs on), "gyro_savitzky_golay" (the gyro
+/// differenced at import), "joints" or "pose" (the robot's second derivative at import),
+/// "logged" (the recording's own ω̇), or "none" (no rate with time: taken as zero).
+std::string omega_dot_source(const Dataset& data);
 
 /// The inertial signals of `effects` that read the IMU columns (linear_inertia: specific force,
 /// and ω, ω̇ for its lever-arm terms; rotational_inertia: ω, ω̇; imu_time_offset: the IMU groups
