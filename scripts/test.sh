@@ -4,8 +4,8 @@
 #      lockstep with the emulated rig) and the VM tests (SocketCAN in qemu) included;
 #   2. AddressSanitizer + UndefinedBehaviorSanitizer: the unit, socket, device and HIL tests
 #      again, without the VM tests and the host pipeline's end-to-end numeric runs (labels
-#      cli_test, discovery_test, insight_loop_test, results_test, recordings_test) and the other
-#      HIL motion seeds;
+#      cli_test, discovery_test, insight_loop_test, results_test, recordings_test), the pure
+#      Python report test (label python_only: nothing to instrument) and the other HIL motion seeds;
 #      the exclusions are in CMakePresets.json (test preset `asan`) and all run in stage 1; this
 #      stage compiles only the binaries its tests use (cmake/stage_targets.py), like stage 3;
 #   3. ThreadSanitizer: the threaded tests (rings, runtime, cycle, Modbus server, telemetry);
