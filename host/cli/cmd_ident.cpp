@@ -122,7 +122,7 @@ std::string param_table(const model::ModelParams& p, const std::optional<ident::
 }
 
 // A usable fit as a model file; an unusable one is refused, so nothing gets written.
-io::ModelFile fitted_model_file(const ident::FitResult& r, const io::Log& log,
+io::ModelFile fitted_model_file(const ident::FitResult& r, const io::Rig& rig,
                                 const std::string& log_path, const ident::Dataset& data) {
   if (!r.usable)
     throw std::runtime_error("the fit is not usable (" + r.termination + "); nothing written");
@@ -130,7 +130,7 @@ io::ModelFile fitted_model_file(const ident::FitResult& r, const io::Log& log,
   m.params = r.params;
   m.std = r.std;
   m.user_std = r.user_std;
-  m.rig_name = log.rig.name;
+  m.rig_name = rig.name;
   m.extra["fit"] = fit_json(r);
   m.extra["fit"]["log"] = log_path;
   // Which source (IMU, or the robot's joints or pose) fed which effect (proto/json_output.md).
@@ -155,8 +155,9 @@ bool write_fitted_model(const Common& c, const io::ModelFile& m, const std::stri
 void run_fit(const Common& c, const std::string& effects, const std::string& out,
              const std::string& loss, double loss_scale, int max_iter, int block_samples,
              const std::string& truth_path) {
-  const io::Log log = io::read_log(c.log);
-  const ident::Dataset data = ident::make_dataset(log);
+  // Streamed: the log's rows go straight into the dataset, never held whole (issue 16).
+  io::Rig rig;
+  const ident::Dataset data = ident::read_dataset(c.log, &rig);
   ident::FitOptions o;
   const io::ModelSpec spec = io::parse_model_spec(effects);
   o.effects = spec.effects;
@@ -169,7 +170,7 @@ void run_fit(const Common& c, const std::string& effects, const std::string& out
   o.engine = c.engine;
   o.progress = progress(c);
   const ident::FitResult r = ident::fit(data, o);
-  const io::ModelFile m = fitted_model_file(r, log, c.log, data);
+  const io::ModelFile m = fitted_model_file(r, rig, c.log, data);
   std::optional<io::ModelFile> truth;
   if (!truth_path.empty()) truth = io::read_model(truth_path);
   if (write_fitted_model(c, m, out, {c.log, io::rig_path_for(c.log)})) return;
@@ -198,8 +199,8 @@ void run_tool_change(const Common& c, const std::string& base_path, const std::s
     throw std::invalid_argument(
         "--tool-change needs --base: the previous fit whose sensor model "
         "(bias and other effects) stays frozen");
-  const io::Log log = io::read_log(c.log);
-  const ident::Dataset data = ident::make_dataset(log);
+  io::Rig rig;
+  const ident::Dataset data = ident::read_dataset(c.log, &rig);
   const io::ModelFile base = io::read_model(base_path);
   ident::ToolChangeOptions o;
   o.loss = loss;
@@ -211,7 +212,7 @@ void run_tool_change(const Common& c, const std::string& base_path, const std::s
   o.progress = progress(c);
   const ident::ToolChangeResult tc = ident::fit_tool_change(data, base.params, o);
   const ident::FitResult& r = tc.fit;
-  io::ModelFile m = fitted_model_file(r, log, c.log, data);
+  io::ModelFile m = fitted_model_file(r, rig, c.log, data);
   std::optional<io::ModelFile> truth;
   if (!truth_path.empty()) truth = io::read_model(truth_path);
   // Frozen effects carry the base fit's values and so its standard deviations.
@@ -268,8 +269,7 @@ void floors_into(nlohmann::json& j, const ident::Floors* f) {
 
 void run_compare(const Common& c, const std::string& model_path, const std::string& truth_path,
                  int bins) {
-  const io::Log log = io::read_log(c.log);
-  const ident::Dataset data = ident::make_dataset(log);
+  const ident::Dataset data = ident::read_dataset(c.log);
   const io::ModelFile m = io::read_model(model_path);
   ident::check_signals(m.params.effects, data);
   ident::check_signals(m.params.user, data);
@@ -416,8 +416,7 @@ void add_ident_commands(CLI::App& app) {
                   "60 s when the log holds 8 such blocks, else the log's length / 8 (at least "
                   "0.5 s)");
     s->callback([=] {
-      const io::Log log = io::read_log(c->log);
-      const ident::Dataset data = ident::make_dataset(log);
+      const ident::Dataset data = ident::read_dataset(c->log);
       ident::DiagnoseOptions o;
       o.block_s = *block;
       o.log_path = c->log;
@@ -492,8 +491,7 @@ void add_ident_commands(CLI::App& app) {
         ->check(CLI::ExistingFile);
     s->add_option("--plot", *plot, "Plot the error at each step into this PNG (matplotlib)");
     s->callback([=] {
-      const io::Log log = io::read_log(c->log);
-      const ident::Dataset data = ident::make_dataset(log);
+      const ident::Dataset data = ident::read_dataset(c->log);
       ident::LadderOptions o;
       o.min_gain = *min_gain;
       o.diagnose.block_s = *block;

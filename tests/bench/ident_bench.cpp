@@ -8,18 +8,22 @@
 // How cost grows with the work (BM_Scale*, argument `samples`: 10^4, 10^5, 10^6): the
 // reference, the full and the default fit, diagnose and the ladder on logs of each length, each
 // with the peak resident memory it reached (counters peak_rss_MB, peak_growth_MB). They run size
-// by size (registered in main), so that only one size's log is held at a time.
+// by size (registered in main), so that only one size's log is held at a time. BM_ScaleReadLog:
+// reading a log file of each length into a dataset, whole or streamed (issue 16).
 // The README's tables are written from its JSON output: scripts/figures.py speed.
 #include <benchmark/benchmark.h>
 #include <malloc.h>
 #include <sys/resource.h>
+#include <unistd.h>
 
 #include <cstdint>
+#include <filesystem>
 #include <fstream>
 #include <memory>
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 #include "zerog/ident/diagnose.hpp"
 #include "zerog/ident/fit.hpp"
@@ -32,7 +36,7 @@ using namespace zerog;
 
 // The first `samples` samples of a random path with the given truth effects: 200 points per
 // 100,000 samples (a longer path for a longer log, the same path up to 100,000 samples).
-ident::Dataset simulated(const std::string& effects, std::size_t samples = 100000) {
+io::Log simulated_log(const std::string& effects, std::size_t samples) {
   sim::SimConfig cfg = sim::default_sim_config(1);
   cfg.effects = sim::parse_sim_effects(effects);
   sim::DesignOptions d;
@@ -45,7 +49,11 @@ ident::Dataset simulated(const std::string& effects, std::size_t samples = 10000
     throw std::runtime_error("the simulated path gave " + std::to_string(log.samples.size()) +
                              " samples, fewer than " + std::to_string(samples));
   log.samples.resize(samples);
-  return ident::make_dataset(log);
+  return log;
+}
+
+ident::Dataset simulated(const std::string& effects, std::size_t samples = 100000) {
+  return ident::make_dataset(simulated_log(effects, samples));
 }
 
 // Every effect the model library has (none of those outside it).
@@ -112,6 +120,42 @@ class PeakMemory {
   bool reset_ = false;
   double start_kb_ = -1;
 };
+
+// The log of `samples` samples with every library effect as a file (zerog log format) in the
+// temporary folder, one length at a time (the previous file is removed first); removed at exit.
+struct LogFile {
+  std::filesystem::path csv;
+  std::size_t samples = 0;
+  void remove() const {
+    std::error_code ec;
+    if (csv.empty()) return;
+    std::filesystem::remove(csv, ec);
+    std::filesystem::remove(io::rig_path_for(csv), ec);
+  }
+  ~LogFile() { remove(); }
+};
+const std::filesystem::path& log_file(std::size_t samples) {
+  static LogFile file;
+  if (file.samples != samples) {
+    file.remove();
+    file.csv = std::filesystem::temp_directory_path() /
+               ("zerog_ident_bench_" + std::to_string(::getpid()) + ".csv");
+    io::write_log(simulated_log(kAllLibraryEffects, samples), file.csv);
+    file.samples = samples;
+  }
+  return file.csv;
+}
+
+// Bytes a dataset holds per sample (the capacity of its per-sample vectors).
+double dataset_bytes_per_sample(const ident::Dataset& d) {
+  const auto bytes = [](const auto& v) {
+    return static_cast<double>(v.capacity() *
+                               sizeof(typename std::decay_t<decltype(v)>::value_type));
+  };
+  const double total = bytes(d.t_s) + bytes(d.pose) + bytes(d.imu) + bytes(d.measured) +
+                       bytes(d.moving) + bytes(d.joint_vel_radps) + bytes(d.p_base_sensor_m);
+  return total / static_cast<double>(d.size());
+}
 
 model::EffectSet full_list() {
   model::EffectSet all;
@@ -309,6 +353,27 @@ void BM_ScaleLadder(benchmark::State& state) {
   state.counters["samples"] = static_cast<double>(data.size());
 }
 
+// Reading a log file into a dataset, as `zerog fit` does (argument 0): 0 the whole file first
+// (io::read_log, then make_dataset: text, parsed rows and dataset held at once), 1 streamed
+// (ident::read_dataset: rows in chunks into the dataset). Counter dataset_B_per_sample: what the
+// dataset itself holds.
+void BM_ScaleReadLog(benchmark::State& state) {
+  const bool streamed = state.range(0) != 0;
+  const std::filesystem::path& csv = log_file(samples_arg(state, 1));
+  const PeakMemory peak;
+  std::size_t samples = 0;
+  double bytes_per_sample = 0.0;
+  for (auto _ : state) {
+    const ident::Dataset data =
+        streamed ? ident::read_dataset(csv) : ident::make_dataset(io::read_log(csv));
+    samples = data.size();
+    bytes_per_sample = dataset_bytes_per_sample(data);
+  }
+  peak.report(state);
+  state.counters["samples"] = static_cast<double>(samples);
+  state.counters["dataset_B_per_sample"] = bytes_per_sample;
+}
+
 // Size by size, so that one log is simulated and held at a time (dataset()).
 void register_scale_benchmarks() {
   for (const std::int64_t n : {10'000, 100'000, 1'000'000}) {
@@ -335,6 +400,12 @@ void register_scale_benchmarks() {
     benchmark::RegisterBenchmark("BM_ScaleLadder", BM_ScaleLadder)
         ->Arg(n)
         ->ArgName("samples")
+        ->Unit(benchmark::kSecond)
+        ->Iterations(1);
+    benchmark::RegisterBenchmark("BM_ScaleReadLog", BM_ScaleReadLog)
+        ->Args({0, n})
+        ->Args({1, n})
+        ->ArgNames({"streamed", "samples"})
         ->Unit(benchmark::kSecond)
         ->Iterations(1);
   }

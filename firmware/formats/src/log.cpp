@@ -4,6 +4,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cerrno>
 #include <charconv>
@@ -11,6 +12,8 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <fstream>
+#include <limits>
 #include <string_view>
 #include <system_error>
 #include <utility>
@@ -117,7 +120,8 @@ std::vector<std::string_view> known_column_names() {
 
 constexpr std::string_view kVersionPrefix = "# zerog-log";
 
-int check_version_line(const fs::path& csv, detail::LineCursor& lines) {
+template <typename Lines>
+int check_version_line(const fs::path& csv, Lines& lines) {
   std::string_view line;
   // Version 1 is the common case; version 2 adds optional time, position and IMU groups.
   const std::string expected = std::string(kVersionPrefix) + " 1' or '" +
@@ -480,10 +484,73 @@ fs::path rig_path_for(const fs::path& csv) {
   return rig;
 }
 
-Log read_log(const fs::path& csv) {
-  const std::string text = detail::read_whole_file(csv);
-  detail::LineCursor lines(text);
+namespace {
+
+// The lines of a file read a buffer at a time: detail::LineCursor's lines (a '\n' ends a line,
+// a '\r' before it is dropped, a last line needs no '\n') without the whole text in memory.
+class FileLines {
+ public:
+  FileLines(const fs::path& path, std::size_t buffer_bytes)
+      : path_(path), in_(path, std::ios::binary), chunk_(std::max<std::size_t>(buffer_bytes, 1)) {
+    if (!in_) throw InputError(path, 0, 0, std::string("cannot open: ") + std::strerror(errno));
+  }
+  /// The next line; valid until the next call.
+  bool next(std::string_view& line) {
+    for (;;) {
+      const std::size_t nl = buffer_.find('\n', pos_);
+      if (nl != std::string::npos || (eof_ && pos_ < buffer_.size())) {
+        const std::size_t end = nl == std::string::npos ? buffer_.size() : nl;
+        line = std::string_view(buffer_).substr(pos_, end - pos_);
+        if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+        pos_ = nl == std::string::npos ? buffer_.size() : nl + 1;
+        ++number_;
+        return true;
+      }
+      if (eof_) return false;
+      buffer_.erase(0, pos_);
+      pos_ = 0;
+      const std::size_t kept = buffer_.size();
+      buffer_.resize(kept + chunk_);
+      in_.read(buffer_.data() + kept, static_cast<std::streamsize>(chunk_));
+      if (in_.bad()) throw InputError(path_, 0, 0, "read error");
+      buffer_.resize(kept + static_cast<std::size_t>(in_.gcount()));
+      if (in_.eof()) eof_ = true;
+    }
+  }
+  int number() const { return number_; }  ///< number of the line last returned
+
+ private:
+  fs::path path_;
+  std::ifstream in_;
+  std::size_t chunk_;
+  std::string buffer_;
+  std::size_t pos_ = 0;
+  bool eof_ = false;
+  int number_ = 0;
+};
+
+}  // namespace
+
+struct LogReader::State {
+  State(const fs::path& path, std::size_t buffer_bytes) : csv(path), lines(path, buffer_bytes) {}
+  fs::path csv;
+  FileLines lines;
+  int version = 0;
+  Columns columns;
+  std::array<int, kNumCols> cell_of{};
+  std::vector<int> column_of_cell;  ///< the log column of each header cell
+  std::vector<detail::Cell> cells;
+  std::size_t rows = 0;
+  double previous_t = 0.0;
+  int previous_line = 0;
+};
+
+LogReader::LogReader(const fs::path& csv, std::size_t buffer_bytes)
+    : state_(std::make_unique<State>(csv, buffer_bytes)) {
+  State& st = *state_;
+  FileLines& lines = st.lines;
   const int version = check_version_line(csv, lines);
+  st.version = version;
 
   std::string_view line;
   bool have_header = false;
@@ -500,11 +567,12 @@ Log read_log(const fs::path& csv) {
 
   // Header: map every cell to a known column.
   const int header_line = lines.number();
-  std::vector<detail::Cell> cells;
+  std::vector<detail::Cell>& cells = st.cells;
   detail::split_cells(line, ',', cells);
-  std::array<int, kNumCols> cell_of;
+  std::array<int, kNumCols>& cell_of = st.cell_of;
   cell_of.fill(-1);
-  std::vector<int> column_of_cell(cells.size());
+  std::vector<int>& column_of_cell = st.column_of_cell;
+  column_of_cell.assign(cells.size(), 0);
   for (std::size_t i = 0; i < cells.size(); ++i) {
     const std::string_view name = detail::trim(cells[i].text);
     const int column = detail::char_column(line, cells[i].offset);
@@ -551,17 +619,17 @@ Log read_log(const fs::path& csv) {
     }
   }
 
-  Log log;
-  log.columns.joints = cell_of[kQ1] >= 0;
-  log.columns.specific_force = cell_of[kImuFx] >= 0;
-  log.columns.angular_rate = cell_of[kImuWx] >= 0;
-  log.columns.angular_accel = cell_of[kImuDwx] >= 0;
-  log.columns.temperature = cell_of[kTemp] >= 0;
-  log.columns.position = cell_of[kPx] >= 0;
-  log.columns.static_rows = cell_of[kT] < 0;
-  if (version == 1 && log.columns.specific_force != log.columns.angular_rate) {
-    const int present = log.columns.specific_force ? kImuFx : kImuWx;
-    const int missing = log.columns.specific_force ? kImuWx : kImuFx;
+  Columns& columns = st.columns;
+  columns.joints = cell_of[kQ1] >= 0;
+  columns.specific_force = cell_of[kImuFx] >= 0;
+  columns.angular_rate = cell_of[kImuWx] >= 0;
+  columns.angular_accel = cell_of[kImuDwx] >= 0;
+  columns.temperature = cell_of[kTemp] >= 0;
+  columns.position = cell_of[kPx] >= 0;
+  columns.static_rows = cell_of[kT] < 0;
+  if (version == 1 && columns.specific_force != columns.angular_rate) {
+    const int present = columns.specific_force ? kImuFx : kImuWx;
+    const int missing = columns.specific_force ? kImuWx : kImuFx;
     throw InputError(csv, header_line, detail::char_column(line, cells[cell_of[present]].offset),
                      "incomplete column group: '" + std::string(kColumnNames[present]) +
                          "' is present but '" + std::string(kColumnNames[missing]) +
@@ -569,7 +637,7 @@ Log read_log(const fs::path& csv) {
                          "from version 2 on each group of three may come alone: write '# "
                          "zerog-log 2' on line 1)");
   }
-  if (log.columns.angular_accel && (version == 1 || !log.columns.angular_rate)) {
+  if (columns.angular_accel && (version == 1 || !columns.angular_rate)) {
     throw InputError(csv, header_line, detail::char_column(line, cells[cell_of[kImuDwx]].offset),
                      version == 1 ? std::string("'imu_dwx_radps2' (angular acceleration) is a "
                                                 "format version 2 column: write '# zerog-log 2' "
@@ -579,14 +647,31 @@ Log read_log(const fs::path& csv) {
                                                 "beside it: add those columns, or drop the "
                                                 "imu_dw*_radps2 columns"));
   }
-  log.samples.reserve(text.size() / (cells.size() * 8 + 1));
+}
 
+LogReader::~LogReader() = default;
+LogReader::LogReader(LogReader&&) noexcept = default;
+LogReader& LogReader::operator=(LogReader&&) noexcept = default;
+
+const Columns& LogReader::columns() const { return state_->columns; }
+int LogReader::version() const { return state_->version; }
+std::size_t LogReader::rows() const { return state_->rows; }
+Rig LogReader::read_rig() const { return io::read_rig(rig_path_for(state_->csv)); }
+
+std::size_t LogReader::read(std::vector<Sample>& out, std::size_t max_rows) {
+  State& st = *state_;
+  const fs::path& csv = st.csv;
+  const Columns& columns = st.columns;
+  const std::array<int, kNumCols>& cell_of = st.cell_of;
+  const std::vector<int>& column_of_cell = st.column_of_cell;
+  std::vector<detail::Cell>& cells = st.cells;
   std::array<double, kNumCols> values{};
-  const std::size_t num_cells = cells.size();
-  int previous_line = 0;
-  while (lines.next(line)) {
+  const std::size_t num_cells = column_of_cell.size();
+  std::size_t appended = 0;
+  std::string_view line;
+  while (appended < max_rows && st.lines.next(line)) {
     if (is_comment(line) || detail::is_blank(line)) continue;
-    const int n = lines.number();
+    const int n = st.lines.number();
     detail::split_cells(line, ',', cells);
     if (cells.size() > num_cells) {
       throw InputError(csv, n, detail::char_column(line, cells[num_cells].offset),
@@ -608,14 +693,13 @@ Log read_log(const fs::path& csv) {
       const std::string why = detail::number_error(status, cells[i].text, kColumnNames[c]);
       throw InputError(csv, n, detail::char_column(line, cells[i].offset), why);
     }
-    if (!log.columns.static_rows && !log.samples.empty() &&
-        !(values[kT] > log.samples.back().t_s)) {
-      const double before = log.samples.back().t_s;
+    if (!columns.static_rows && st.rows > 0 && !(values[kT] > st.previous_t)) {
+      const double before = st.previous_t;
       throw InputError(csv, n, detail::char_column(line, cells[cell_of[kT]].offset),
                        std::string("time ") +
                            (values[kT] < before ? "goes backwards" : "stands still") + " at line " +
                            std::to_string(n) + ": t=" + number_text(values[kT]) + " after " +
-                           number_text(before) + " (line " + std::to_string(previous_line) +
+                           number_text(before) + " (line " + std::to_string(st.previous_line) +
                            "); t_s must increase strictly");
     }
     const double norm = std::sqrt(values[kQw] * values[kQw] + values[kQx] * values[kQx] +
@@ -625,11 +709,27 @@ Log read_log(const fs::path& csv) {
                        "quaternion (qw, qx, qy, qz) has norm " + number_text(norm) +
                            ", off from 1 by more than 1e-3");
     }
-    const std::size_t row = log.samples.size();
-    fill_sample(values, log.columns, row, log.samples.emplace_back());
-    previous_line = n;
+    fill_sample(values, columns, st.rows, out.emplace_back());
+    st.previous_t = out.back().t_s;
+    st.previous_line = n;
+    ++st.rows;
+    ++appended;
   }
-  log.rig = read_rig(rig_path_for(csv));
+  return appended;
+}
+
+Log read_log(const fs::path& csv) {
+  LogReader reader(csv);
+  Log log;
+  log.columns = reader.columns();
+  std::size_t cells = 0;
+  for (int c = 0; c < kNumCols; ++c) cells += column_written(c, log.columns) ? 1 : 0;
+  std::error_code ec;
+  const auto bytes = fs::file_size(csv, ec);
+  if (!ec) log.samples.reserve(static_cast<std::size_t>(bytes) / (cells * 8 + 1));
+  while (reader.read(log.samples, std::numeric_limits<std::size_t>::max()) > 0) {
+  }
+  log.rig = reader.read_rig();
   return log;
 }
 

@@ -48,34 +48,54 @@ BlockStats::BlockStats(const Dataset& data, SampleBlocks blocks, const model::Ef
   if (!imu_) return;
   segment_ = std::max<std::size_t>(4096, longest + 1);
   const std::size_t n = data.size();
-  partial_.assign((n + 1) * kChannels, 0.0);
+  partial_.assign((n / kCheckpointRows + 1) * kChannels, 0.0);
   total_.assign((n / segment_ + 1) * kChannels, 0.0);
   Channels sum = Channels::Zero();
   for (std::size_t j = 0; j < n; ++j) {
-    const double* row = &data.imu[j * 9];
-    const Eigen::Map<const Eigen::Vector3d> w(row + 3);
-    Channels c;
-    for (int k = 0; k < 3; ++k) c[k] = row[k], c[3 + k] = row[6 + k];
-    const Eigen::Vector3d d =
-        j + 1 < n ? Eigen::Vector3d(Eigen::Map<const Eigen::Vector3d>(row + 9 + 3) - w)
-                  : Eigen::Vector3d::Zero();
-    c.segment<6>(6) = upper(w);
-    c.segment<6>(12) = upper(d);
-    sum += c;
+    sum += row_channels(j);
     const std::size_t next = j + 1;
     if (next % segment_ == 0 || next == n) {
       Eigen::Map<Channels> total(&total_[(j / segment_) * kChannels]);
       total = sum;
     }
     if (next % segment_ == 0) sum.setZero();
-    Eigen::Map<Channels> partial(&partial_[next * kChannels]);
-    partial = sum;
+    if (next % kCheckpointRows == 0) {
+      Eigen::Map<Channels> partial(&partial_[(next / kCheckpointRows) * kChannels]);
+      partial = sum;
+    }
   }
+}
+
+BlockStats::Channels BlockStats::row_channels(std::size_t j) const {
+  const std::size_t n = data_->size();
+  const double* row = &data_->imu[j * 9];
+  const Eigen::Map<const Eigen::Vector3d> w(row + 3);
+  Channels c;
+  for (int k = 0; k < 3; ++k) c[k] = row[k], c[3 + k] = row[6 + k];
+  const Eigen::Vector3d d =
+      j + 1 < n ? Eigen::Vector3d(Eigen::Map<const Eigen::Vector3d>(row + 9 + 3) - w)
+                : Eigen::Vector3d::Zero();
+  c.segment<6>(6) = upper(w);
+  c.segment<6>(12) = upper(d);
+  return c;
+}
+
+BlockStats::Channels BlockStats::partial_sum(std::size_t j) const {
+  const std::size_t segment_start = (j / segment_) * segment_;
+  std::size_t from = (j / kCheckpointRows) * kCheckpointRows;
+  Channels sum = Channels::Zero();
+  if (from > segment_start) {
+    sum = Eigen::Map<const Channels>(&partial_[(from / kCheckpointRows) * kChannels]);
+  } else {
+    from = segment_start;
+  }
+  for (std::size_t r = from; r < j; ++r) sum += row_channels(r);
+  return sum;
 }
 
 BlockStats::Channels BlockStats::window_sum(std::size_t a, std::size_t e) const {
   const std::size_t sa = a / segment_, se = e / segment_;
-  const Eigen::Map<const Channels> pa(&partial_[a * kChannels]), pe(&partial_[e * kChannels]);
+  const Channels pa = partial_sum(a), pe = partial_sum(e);
   if (sa == se) return pe - pa;
   return (Eigen::Map<const Channels>(&total_[sa * kChannels]) - pa) + pe;
 }

@@ -151,7 +151,7 @@ Floors floors(const std::filesystem::path& truth_path, const Dataset& data,
     return f;
   }
   const std::filesystem::path clean_path = truth_path.parent_path() / it->get<std::string>();
-  const Dataset clean = make_dataset(io::read_log(clean_path));
+  const Dataset clean = read_dataset(clean_path);
   try {
     Floors f = floors(t.params, data, &clean, mask);
     f.clean_log = clean_path.string();

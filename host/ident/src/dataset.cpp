@@ -4,107 +4,134 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 namespace zerog::ident {
 
 using model::Effect;
 
-Dataset make_dataset(const io::Log& log) {
-  Dataset d;
-  const std::size_t n = log.samples.size();
-  if (n < 3) throw std::runtime_error("log has " + std::to_string(n) + " samples; need at least 3");
-  d.columns = log.columns;
-  d.rig.R_sensor_imu = log.rig.sensor_imu.q.normalized().toRotationMatrix();
-  d.rig.p_sensor_imu_m = log.rig.sensor_imu.p_m;
-  d.kinematics = log.rig.kinematics;
-  d.dt_s = (log.samples.back().t_s - log.samples.front().t_s) / static_cast<double>(n - 1);
-  d.t_s.resize(n);
-  d.pose.resize(n);
-  d.measured.resize(n);
-  d.imu.assign(n * 9, 0.0);
-  d.moving.assign(n, 0);
-  d.joint_vel_radps.assign(n, {});
-  const double t0 = log.samples.front().t_s;
-  for (std::size_t i = 0; i < n; ++i) {
-    const io::Sample& s = log.samples[i];
-    d.t_s[i] = s.t_s;
-    model::PoseSignals& p = d.pose[i];
-    p.R_base_sensor = s.q_base_sensor.normalized().toRotationMatrix();
-    p.t_rel_s = log.columns.static_rows ? 0.0 : s.t_s - t0;
-    p.temperature_C = log.columns.temperature ? s.temperature_C : model::kTemperatureReferenceC;
-    p.joints_rad = s.joints_rad;
-    d.measured[i] << s.force_sensor_N, s.torque_sensor_Nm;
-    double* row = &d.imu[i * 9];
-    for (int k = 0; k < 3; ++k) {
-      row[k] = s.specific_force_imu_mps2[k];
-      row[3 + k] = s.angular_rate_imu_radps[k];
-      // ω̇ formed at import (the gyro by Savitzky–Golay, or the robot's): used as logged.
-      if (log.columns.angular_accel) row[6 + k] = s.angular_accel_imu_radps2[k];
+DatasetBuilder::DatasetBuilder(const io::Columns& columns, std::size_t expected_samples) {
+  d_.columns = columns;
+  if (expected_samples == 0) return;
+  d_.t_s.reserve(expected_samples);
+  d_.pose.reserve(expected_samples);
+  d_.measured.reserve(expected_samples);
+  d_.imu.reserve(expected_samples * 9);
+  d_.moving.reserve(expected_samples);
+  d_.joint_vel_radps.reserve(expected_samples);
+  d_.p_base_sensor_m.reserve(expected_samples);
+  raw_moving_.reserve(expected_samples);
+}
+
+void DatasetBuilder::add(const io::Sample& s) {
+  const io::Columns& columns = d_.columns;
+  const std::size_t i = n_;
+  d_.t_s.push_back(s.t_s);
+  model::PoseSignals& p = d_.pose.emplace_back();
+  p.R_base_sensor = s.q_base_sensor.normalized().toRotationMatrix();
+  p.t_rel_s = columns.static_rows ? 0.0 : s.t_s - d_.t_s.front();
+  p.temperature_C = columns.temperature ? s.temperature_C : model::kTemperatureReferenceC;
+  p.joints_rad = s.joints_rad;
+  d_.measured.emplace_back() << s.force_sensor_N, s.torque_sensor_Nm;
+  for (int k = 0; k < 3; ++k) d_.imu.push_back(s.specific_force_imu_mps2[k]);
+  for (int k = 0; k < 3; ++k) d_.imu.push_back(s.angular_rate_imu_radps[k]);
+  // ω̇ formed at import (the gyro by Savitzky–Golay, or the robot's): used as logged.
+  for (int k = 0; k < 3; ++k)
+    d_.imu.push_back(columns.angular_accel ? s.angular_accel_imu_radps2[k] : 0.0);
+  d_.moving.push_back(0);
+  d_.joint_vel_radps.emplace_back();
+  d_.p_base_sensor_m.push_back(s.p_base_sensor_m);
+  ++n_;
+  // Rows without time are independent held poses: nothing is differenced across them, rates
+  // and accelerations not measured stay zero, and no row moves.
+  if (columns.static_rows) return;
+  const io::Sample s0 = previous_;
+  previous_ = s;
+  // Motion: from the logged pose (the orientation always, the position if logged). Speeds by
+  // differencing (dilated by 3 rows in finish()).
+  raw_moving_.push_back(0);
+  if (i >= 1) {
+    const double dt = s.t_s - s0.t_s;
+    const double v = (s.p_base_sensor_m - s0.p_base_sensor_m).norm() / dt;
+    const double w = s0.q_base_sensor.angularDistance(s.q_base_sensor) / dt;
+    raw_moving_[i] = (v > 1e-3 || w > 2e-3) ? 1 : 0;
+    if (columns.joints) {
+      for (int j = 0; j < 6; ++j)
+        d_.joint_vel_radps[i][j] = (s.joints_rad[j] - s0.joints_rad[j]) / dt;
     }
   }
-  // Rows without time are independent held poses: nothing is differenced across them, rates and
-  // accelerations not measured stay zero, and no row moves.
-  if (log.columns.static_rows) {
-    d.p_base_sensor_m.resize(n);
-    for (std::size_t i = 0; i < n; ++i) d.p_base_sensor_m[i] = log.samples[i].p_base_sensor_m;
-    d.v_base_sensor_mps.assign(n, Eigen::Vector3d::Zero());
-    d.joint_vel_central_radps.assign(n, {});
-    d.joint_acc_radps2.assign(n, {});
-    return d;
-  }
+}
+
+Dataset DatasetBuilder::finish(const io::Rig& rig) {
+  const std::size_t n = n_;
+  if (n < 3) throw std::runtime_error("log has " + std::to_string(n) + " samples; need at least 3");
+  Dataset& d = d_;
+  d.rig.R_sensor_imu = rig.sensor_imu.q.normalized().toRotationMatrix();
+  d.rig.p_sensor_imu_m = rig.sensor_imu.p_m;
+  d.kinematics = rig.kinematics;
+  d.dt_s = (d.t_s.back() - d.t_s.front()) / static_cast<double>(n - 1);
+  if (d.columns.static_rows) return std::move(d_);
   // Angular acceleration, unless the log has it (imu_dw*_radps2): 5-point central differences
   // (4th order) of the angular rate, 3-point one row from the ends, zero on the first and last
   // row.
-  const bool difference_rate = log.columns.angular_rate && !log.columns.angular_accel;
+  const bool difference_rate = d.columns.angular_rate && !d.columns.angular_accel;
   for (std::size_t i = 1; i + 1 < n && difference_rate; ++i) {
     const int order = (i >= 2 && i + 2 < n) ? 4 : 2;
     Eigen::Map<Eigen::Vector3d>(&d.imu[i * 9 + 6]) =
         model::angular_accel_central(&d.imu[i * 9 + 3], 9, order, d.dt_s);
   }
-  // Motion: from the logged pose (the orientation always, the position if logged). Speeds by
-  // differencing, dilated by 3 rows.
-  std::vector<std::uint8_t> raw(n, 0);
-  for (std::size_t i = 1; i < n; ++i) {
-    const io::Sample& s0 = log.samples[i - 1];
-    const io::Sample& s1 = log.samples[i];
-    const double dt = s1.t_s - s0.t_s;
-    const double v = (s1.p_base_sensor_m - s0.p_base_sensor_m).norm() / dt;
-    const double w = s0.q_base_sensor.angularDistance(s1.q_base_sensor) / dt;
-    raw[i] = (v > 1e-3 || w > 2e-3) ? 1 : 0;
-    if (log.columns.joints) {
-      for (int j = 0; j < 6; ++j)
-        d.joint_vel_radps[i][j] = (s1.joints_rad[j] - s0.joints_rad[j]) / dt;
-    }
-  }
-  if (n > 1) d.joint_vel_radps[0] = d.joint_vel_radps[1];
-  // Dictionary signals: 3-point central differences (model::central_differences; at the first
-  // and last row those of their neighbour), on the rows' own time stamps.
-  d.p_base_sensor_m.resize(n);
-  d.v_base_sensor_mps.assign(n, Eigen::Vector3d::Zero());
-  d.joint_vel_central_radps.assign(n, {});
-  d.joint_acc_radps2.assign(n, {});
-  for (std::size_t i = 0; i < n; ++i) d.p_base_sensor_m[i] = log.samples[i].p_base_sensor_m;
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::size_t c = std::clamp<std::size_t>(i, 1, n - 2);
-    const io::Sample &s0 = log.samples[c - 1], &s1 = log.samples[c], &s2 = log.samples[c + 1];
-    model::central_differences(s0.p_base_sensor_m.data(), s1.p_base_sensor_m.data(),
-                               s2.p_base_sensor_m.data(), 3, s0.t_s, s1.t_s, s2.t_s,
-                               d.v_base_sensor_mps[i].data(), nullptr);
-    if (log.columns.joints)
-      model::central_differences(s0.joints_rad.data(), s1.joints_rad.data(), s2.joints_rad.data(),
-                                 6, s0.t_s, s1.t_s, s2.t_s, d.joint_vel_central_radps[i].data(),
-                                 d.joint_acc_radps2[i].data());
-  }
+  d.joint_vel_radps[0] = d.joint_vel_radps[1];
   const std::size_t dilate = 3;
   for (std::size_t i = 0; i < n; ++i) {
-    if (!raw[i]) continue;
+    if (!raw_moving_[i]) continue;
     const std::size_t lo = i >= dilate ? i - dilate : 0;
     const std::size_t hi = std::min(n - 1, i + dilate);
     for (std::size_t k = lo; k <= hi; ++k) d.moving[k] = 1;
   }
-  return d;
+  raw_moving_ = {};
+  return std::move(d_);
+}
+
+Dataset make_dataset(const io::Log& log) {
+  DatasetBuilder builder(log.columns, log.samples.size());
+  for (const io::Sample& s : log.samples) builder.add(s);
+  return builder.finish(log.rig);
+}
+
+namespace {
+
+// Lines of a file (an upper bound of its rows), counted a buffer at a time.
+std::size_t count_lines(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::vector<char> buffer(1 << 16);
+  std::size_t lines = 1;
+  while (in) {
+    in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+    const auto got = static_cast<std::ptrdiff_t>(in.gcount());
+    lines += static_cast<std::size_t>(std::count(buffer.data(), buffer.data() + got, '\n'));
+  }
+  return lines;
+}
+
+}  // namespace
+
+Dataset read_dataset(const std::filesystem::path& csv, io::Rig* rig, std::size_t chunk_rows,
+                     std::size_t buffer_bytes) {
+  io::LogReader reader(csv, buffer_bytes);
+  DatasetBuilder builder(reader.columns(), count_lines(csv));
+  std::vector<io::Sample> chunk;
+  chunk.reserve(chunk_rows);
+  for (;;) {
+    chunk.clear();
+    if (reader.read(chunk, chunk_rows) == 0) break;
+    for (const io::Sample& s : chunk) builder.add(s);
+  }
+  const io::Rig log_rig = reader.read_rig();
+  if (rig != nullptr) *rig = log_rig;
+  return builder.finish(log_rig);
 }
 
 model::DictionarySignals Dataset::dictionary(std::size_t i) const {
@@ -112,15 +139,21 @@ model::DictionarySignals Dataset::dictionary(std::size_t i) const {
   model::FeatureSignals& f = in.features;
   const model::PoseSignals& p = pose[i];
   f.joints_rad = p.joints_rad;
-  f.joint_vel_radps = joint_vel_central_radps[i];
-  in.joint_acc_radps2 = joint_acc_radps2[i];
+  if (!columns.static_rows && size() >= 3) {
+    const std::size_t c = std::clamp<std::size_t>(i, 1, size() - 2);
+    model::central_differences(p_base_sensor_m[c - 1].data(), p_base_sensor_m[c].data(),
+                               p_base_sensor_m[c + 1].data(), 3, t_s[c - 1], t_s[c], t_s[c + 1],
+                               in.v_base_sensor_mps.data(), nullptr);
+    if (columns.joints)
+      model::central_differences(pose[c - 1].joints_rad.data(), pose[c].joints_rad.data(),
+                                 pose[c + 1].joints_rad.data(), 6, t_s[c - 1], t_s[c], t_s[c + 1],
+                                 f.joint_vel_radps.data(), in.joint_acc_radps2.data());
+  }
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c)
       f.R_base_sensor[static_cast<std::size_t>(3 * r + c)] = p.R_base_sensor(r, c);
-  for (int k = 0; k < 3; ++k) {
+  for (int k = 0; k < 3; ++k)
     f.p_base_sensor_m[static_cast<std::size_t>(k)] = p_base_sensor_m[i][k];
-    in.v_base_sensor_mps[static_cast<std::size_t>(k)] = v_base_sensor_mps[i][k];
-  }
   for (std::size_t k = 0; k < 9; ++k) f.imu[k] = imu[i * 9 + k];
   f.temperature_C = p.temperature_C;
   f.t_s = p.t_rel_s;

@@ -9,6 +9,8 @@
 #include <random>
 #include <stdexcept>
 #include <typeinfo>
+#include <utility>
+#include <vector>
 
 #include "test_util.hpp"
 #include "zerog/formats/log.hpp"
@@ -155,6 +157,69 @@ TEST_F(LogTest, WriteLogRejectsNonIncreasingTimeAndNonFiniteValues) {
 
 const std::string kHeader = "t_s,px_m,py_m,pz_m,qw,qx,qy,qz,Fx_N,Fy_N,Fz_N,Mx_Nm,My_Nm,Mz_Nm";
 std::string row(const std::string& t) { return t + ",0.1,0.2,0.3,1,0,0,0,1,2,3,0.1,0.2,0.3"; }
+
+// LogReader (issue 16): the rows in chunks, the text a buffer at a time, give exactly read_log's
+// samples, whatever the chunk and buffer sizes (buffers shorter than a line included).
+TEST_F(LogTest, ReaderInChunksGivesReadLogsSamples) {
+  Columns columns{.joints = true,
+                  .specific_force = true,
+                  .angular_rate = true,
+                  .angular_accel = true,
+                  .temperature = true};
+  const fs::path csv = path("run.csv");
+  write_log(example_log(300, columns), csv);
+  const Log whole = read_log(csv);
+  for (const auto& [chunk_rows, buffer_bytes] : std::vector<std::pair<std::size_t, std::size_t>>{
+           {1, 1}, {7, 100}, {64, 4096}, {1000, 1 << 20}}) {
+    SCOPED_TRACE(std::to_string(chunk_rows) + " rows a chunk, " + std::to_string(buffer_bytes) +
+                 " bytes a read");
+    LogReader reader(csv, buffer_bytes);
+    EXPECT_EQ(reader.columns(), whole.columns);
+    EXPECT_EQ(reader.version(), 2);
+    std::vector<Sample> all;
+    std::vector<Sample> chunk;
+    std::size_t got = 0;
+    while ((got = reader.read(chunk, chunk_rows)) > 0) {
+      EXPECT_LE(got, chunk_rows);
+      all.insert(all.end(), chunk.begin(), chunk.end());
+      chunk.clear();
+    }
+    EXPECT_EQ(reader.rows(), whole.samples.size());
+    ASSERT_EQ(all.size(), whole.samples.size());
+    for (std::size_t i = 0; i < all.size(); ++i) {
+      const Sample &g = all[i], &w = whole.samples[i];
+      const bool same = g.t_s == w.t_s && g.joints_rad == w.joints_rad &&
+                        g.p_base_sensor_m == w.p_base_sensor_m &&
+                        g.q_base_sensor.coeffs() == w.q_base_sensor.coeffs() &&
+                        g.specific_force_imu_mps2 == w.specific_force_imu_mps2 &&
+                        g.angular_rate_imu_radps == w.angular_rate_imu_radps &&
+                        g.angular_accel_imu_radps2 == w.angular_accel_imu_radps2 &&
+                        g.force_sensor_N == w.force_sensor_N &&
+                        g.torque_sensor_Nm == w.torque_sensor_Nm &&
+                        g.temperature_C == w.temperature_C;
+      ASSERT_TRUE(same) << "row " << i;
+    }
+    expect_rigs_equal(reader.read_rig(), whole.rig);
+  }
+}
+
+// A row's error found by LogReader after many small reads names the right line and column.
+TEST_F(LogTest, ReaderErrorsNameLineAndColumnAcrossBuffers) {
+  const fs::path csv = path("run.csv");
+  write_log(example_log(50, Columns{}), csv);
+  std::string text = read_text(csv);
+  text += "1300,1,2,nan,1,0,0,0,1,2,3,4,5,6\n";  // line 53: version, header, 50 rows, this
+  write_text(csv, text);
+  LogReader reader(csv, 16);
+  std::vector<Sample> rows;
+  expect_input_error(
+      [&] {
+        while (reader.read(rows, 8) > 0) {
+        }
+      },
+      csv, 53, 10, "NaN/inf 'nan' in column 'pz_m'");
+  EXPECT_EQ(rows.size(), 50u);
+}
 
 class LogReadErrorTest : public test::TempDirTest {
  protected:

@@ -8,6 +8,7 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -155,9 +156,42 @@ class InputError : public std::runtime_error {
 std::filesystem::path rig_path_for(const std::filesystem::path& csv);
 
 /// Reads a log and its rig sidecar (format version 1 or 2). Throws InputError naming file, line
-/// and column. Quaternions are returned normalised.
+/// and column. Quaternions are returned normalised. Holds every row: a long log is better read
+/// with LogReader, chunk by chunk.
 Log read_log(const std::filesystem::path& csv);
 Rig read_rig(const std::filesystem::path& toml);
+
+/// Reads a log CSV row by row, a chunk of rows at a time, so that a long log is never held whole
+/// (neither its text nor its samples): read_log is this reader run to the end, so both give the
+/// same samples and throw the same InputErrors (file, line, column). The version line and the
+/// header are read and checked at construction; a row's errors when read() reaches it.
+class LogReader {
+ public:
+  /// Opens `csv` and reads its version and header lines. `buffer_bytes`: the text read from the
+  /// file at a time (a line longer than that grows the buffer).
+  explicit LogReader(const std::filesystem::path& csv, std::size_t buffer_bytes = 1 << 20);
+  ~LogReader();
+  LogReader(LogReader&&) noexcept;
+  LogReader& operator=(LogReader&&) noexcept;
+  LogReader(const LogReader&) = delete;
+  LogReader& operator=(const LogReader&) = delete;
+
+  /// The column groups the header names.
+  const Columns& columns() const;
+  /// The format version of line 1.
+  int version() const;
+  /// Appends the next rows, at most `max_rows`, to `out` (which is not cleared). Returns how many
+  /// it appended: 0 at the end of the file.
+  std::size_t read(std::vector<Sample>& out, std::size_t max_rows);
+  /// Rows read so far.
+  std::size_t rows() const;
+  /// The log's rig sidecar (read_rig(rig_path_for(csv))).
+  Rig read_rig() const;
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
 
 /// Writes a log and its sidecar atomically (temporary files, then rename); never half-written.
 /// Throws std::invalid_argument for a non-finite value or a t_s that does not increase, and

@@ -149,6 +149,11 @@ class BlockStats {
   }
   /// Sum of the channels over rows [a, e), e − a ≤ segment_.
   Channels window_sum(std::size_t a, std::size_t e) const;
+  /// The channels of row j.
+  Channels row_channels(std::size_t j) const;
+  /// The running sum of row j (rows [segment start of j, j)): the checkpoint at or before j plus
+  /// the rows after it, added in the order the constructor added them (so the same number).
+  Channels partial_sum(std::size_t j) const;
 
   const Dataset* data_;
   SampleBlocks blocks_;
@@ -156,8 +161,11 @@ class BlockStats {
   std::vector<Eigen::Matrix3d> R_mean_;
   bool imu_ = false;
   // Running sums restarted every segment_ rows (so a window sum never subtracts two sums of the
-  // whole log: its rounding stays that of a segment): partial_ row j = sum of rows
-  // [segment start of j, j), j = 0..n; total_ row s = sum of the rows of segment s.
+  // whole log: its rounding stays that of a segment): the running sum of row j is the sum of rows
+  // [segment start of j, j), j = 0..n; it is kept every kCheckpointRows rows only (partial_ row m
+  // = that of row m kCheckpointRows: 18 doubles per 8 rows instead of per row) and completed
+  // from the rows on demand (partial_sum); total_ row s = sum of the rows of segment s.
+  static constexpr std::size_t kCheckpointRows = 8;
   std::size_t segment_ = 4096;
   std::vector<double> partial_;
   std::vector<double> total_;

@@ -3,6 +3,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
+#include <filesystem>
 #include <vector>
 
 #include "zerog/formats/log.hpp"
@@ -30,14 +31,13 @@ struct Dataset {
   std::vector<Wrench> measured;
   std::vector<std::uint8_t> moving;  ///< 1 while the sensor moves (always 0 for static rows)
   std::vector<std::array<double, 6>> joint_vel_radps;  ///< from differencing the joint angles
-  // For the signal dictionary (model/dictionary.hpp): central differences (3-point; one-sided
-  // at the ends), so that they carry no delay.
-  std::vector<Eigen::Vector3d> p_base_sensor_m;                ///< S origin in B, m
-  std::vector<Eigen::Vector3d> v_base_sensor_mps;              ///< velocity of the S origin in B
-  std::vector<std::array<double, 6>> joint_vel_central_radps;  ///< A1..A6
-  std::vector<std::array<double, 6>> joint_acc_radps2;         ///< A1..A6
+  std::vector<Eigen::Vector3d> p_base_sensor_m;        ///< S origin in B, m (zero without position)
 
-  /// Every signal of the dictionary for sample i (the IMU as logged, no time offset).
+  /// Every signal of the dictionary for sample i (the IMU as logged, no time offset). Its
+  /// velocities and accelerations (sensor origin, joints) are 3-point central differences
+  /// (model::central_differences; at the first and last row those of their neighbour), so that
+  /// they carry no delay, formed here from the neighbouring rows rather than stored (issue 16:
+  /// 120 bytes a sample that only user terms and discovery read); none across static rows.
   model::DictionarySignals dictionary(std::size_t i) const;
 
   std::size_t size() const { return t_s.size(); }
@@ -68,8 +68,37 @@ struct Dataset {
 /// Builds the dataset: rotations from quaternions, angular acceleration from the log's
 /// imu_dw*_radps2 columns when present (formed at import: the gyro by Savitzky–Golay, or the
 /// robot's), else by 5-point central differences of the gyroscope column
-/// (model::angular_accel_central), motion flags, joint velocities.
+/// (model::angular_accel_central), motion flags, joint velocities. (DatasetBuilder fed every
+/// sample.)
 Dataset make_dataset(const io::Log& log);
+
+/// make_dataset sample by sample, so that a log read in chunks (io::LogReader) becomes a Dataset
+/// without the parsed log ever held whole: it keeps the previous sample, differences across
+/// rows as they come and finishes the rest (ω̇ from the gyro, motion dilation) in finish().
+/// The Dataset is the one make_dataset builds from the same samples, bit for bit.
+class DatasetBuilder {
+ public:
+  /// `columns`: the log's column groups; `expected_samples`: capacity to reserve (0: none). An
+  /// estimate above the count costs address space, not resident memory.
+  explicit DatasetBuilder(const io::Columns& columns, std::size_t expected_samples = 0);
+  /// Appends the next sample (times as the log reader checked them: strictly increasing).
+  void add(const io::Sample& sample);
+  /// The dataset, with the rig's IMU mount and kinematics record. Throws std::runtime_error for a
+  /// log of fewer than 3 samples. Call once.
+  Dataset finish(const io::Rig& rig);
+
+ private:
+  Dataset d_;
+  std::size_t n_ = 0;
+  io::Sample previous_;  ///< sample n − 1
+  std::vector<std::uint8_t> raw_moving_;
+};
+
+/// Reads a log CSV (io::LogReader, `chunk_rows` rows at a time) straight into a Dataset: the
+/// same Dataset as make_dataset(io::read_log(csv)) and the same InputErrors, without the log's
+/// text or its parsed rows held whole. `rig`, if given, receives the log's rig.
+Dataset read_dataset(const std::filesystem::path& csv, io::Rig* rig = nullptr,
+                     std::size_t chunk_rows = 4096, std::size_t buffer_bytes = 1 << 20);
 
 /// Predicted wrench of sample i with the given parameters (double evaluation of the model).
 Wrench predict(const model::ModelParams& params, const Dataset& data, std::size_t i);
