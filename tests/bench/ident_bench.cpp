@@ -3,8 +3,10 @@
 //  - zerog diagnose over all candidates on the same log (aim: under 20 s);
 //  - a reference in the same run: one double evaluation of the model over all samples, so the
 //    ratio fit / evaluation is comparable across machines.
-// The fits use the default engine (block sufficient statistics, FitOptions::engine); the
-// *SamplesEngine variants time the per-sample reference engine in the same run.
+// The fits use the default engine (the streamed normal equations, FitOptions::engine); the
+// *BlockStatsEngine variants time Ceres on the block sufficient statistics (the same block
+// evaluation, Ceres' dense normal equations), the *SamplesEngine variants the per-sample
+// reference engine, in the same run.
 // How cost grows with the work (BM_Scale*, argument `samples`: 10^4, 10^5, 10^6): the
 // reference, the full and the default fit, diagnose and the ladder on logs of each length, each
 // with the peak resident memory it reached (counters peak_rss_MB, peak_growth_MB). They run size
@@ -192,8 +194,18 @@ void fit_full_effect_list(benchmark::State& state, const std::string& engine) {
   state.counters["samples"] = static_cast<double>(data.size());
 }
 
-void BM_FitFullEffectList(benchmark::State& state) { fit_full_effect_list(state, "block_stats"); }
+void BM_FitFullEffectList(benchmark::State& state) { fit_full_effect_list(state, "normal"); }
 BENCHMARK(BM_FitFullEffectList)
+    ->Arg(0)
+    ->Arg(1)
+    ->ArgName("covariance")
+    ->Unit(benchmark::kSecond)
+    ->Iterations(1);
+
+void BM_FitFullEffectListBlockStatsEngine(benchmark::State& state) {
+  fit_full_effect_list(state, "block_stats");
+}
+BENCHMARK(BM_FitFullEffectListBlockStatsEngine)
     ->Arg(0)
     ->Arg(1)
     ->ArgName("covariance")
@@ -223,8 +235,13 @@ void fit_default_model(benchmark::State& state, const std::string& engine) {
   }
 }
 
-void BM_FitDefaultModel(benchmark::State& state) { fit_default_model(state, "block_stats"); }
+void BM_FitDefaultModel(benchmark::State& state) { fit_default_model(state, "normal"); }
 BENCHMARK(BM_FitDefaultModel)->Unit(benchmark::kSecond)->Iterations(1);
+
+void BM_FitDefaultModelBlockStatsEngine(benchmark::State& state) {
+  fit_default_model(state, "block_stats");
+}
+BENCHMARK(BM_FitDefaultModelBlockStatsEngine)->Unit(benchmark::kSecond)->Iterations(1);
 
 void BM_FitDefaultModelSamplesEngine(benchmark::State& state) {
   fit_default_model(state, "samples");
@@ -288,12 +305,13 @@ void BM_ScaleModelEvaluation(benchmark::State& state) {
   state.counters["samples"] = static_cast<double>(data.size());
 }
 
-// Argument 0: covariance (0 or 1); 1: samples.
-void BM_ScaleFitFullEffectList(benchmark::State& state) {
+// Argument 0: covariance (0 or 1); 1: samples. The default engine (normal), or `engine`.
+void scale_fit_full_effect_list(benchmark::State& state, const std::string& engine) {
   const auto& data = dataset(samples_arg(state, 1));
   ident::FitOptions o;
   o.effects = full_list();
   o.covariance = state.range(0) != 0;
+  if (!engine.empty()) o.engine = engine;
   const PeakMemory peak;
   for (auto _ : state) {
     auto r = ident::fit(data, o);
@@ -305,10 +323,16 @@ void BM_ScaleFitFullEffectList(benchmark::State& state) {
   state.counters["samples"] = static_cast<double>(data.size());
 }
 
-void BM_ScaleFitDefaultModel(benchmark::State& state) {
+void BM_ScaleFitFullEffectList(benchmark::State& state) { scale_fit_full_effect_list(state, ""); }
+void BM_ScaleFitFullEffectListBlockStatsEngine(benchmark::State& state) {
+  scale_fit_full_effect_list(state, "block_stats");
+}
+
+void scale_fit_default_model(benchmark::State& state, const std::string& engine) {
   const auto& data = dataset(samples_arg(state, 0));
   ident::FitOptions o;
   o.effects = model::kDefaultModel;
+  if (!engine.empty()) o.engine = engine;
   const PeakMemory peak;
   for (auto _ : state) {
     auto r = ident::fit(data, o);
@@ -318,6 +342,11 @@ void BM_ScaleFitDefaultModel(benchmark::State& state) {
   }
   peak.report(state);
   state.counters["samples"] = static_cast<double>(data.size());
+}
+
+void BM_ScaleFitDefaultModel(benchmark::State& state) { scale_fit_default_model(state, ""); }
+void BM_ScaleFitDefaultModelBlockStatsEngine(benchmark::State& state) {
+  scale_fit_default_model(state, "block_stats");
 }
 
 void BM_ScaleDiagnose(benchmark::State& state) {
@@ -387,7 +416,20 @@ void register_scale_benchmarks() {
         ->ArgNames({"covariance", "samples"})
         ->Unit(benchmark::kSecond)
         ->Iterations(1);
+    benchmark::RegisterBenchmark("BM_ScaleFitFullEffectListBlockStatsEngine",
+                                 BM_ScaleFitFullEffectListBlockStatsEngine)
+        ->Args({0, n})
+        ->Args({1, n})
+        ->ArgNames({"covariance", "samples"})
+        ->Unit(benchmark::kSecond)
+        ->Iterations(1);
     benchmark::RegisterBenchmark("BM_ScaleFitDefaultModel", BM_ScaleFitDefaultModel)
+        ->Arg(n)
+        ->ArgName("samples")
+        ->Unit(benchmark::kSecond)
+        ->Iterations(1);
+    benchmark::RegisterBenchmark("BM_ScaleFitDefaultModelBlockStatsEngine",
+                                 BM_ScaleFitDefaultModelBlockStatsEngine)
         ->Arg(n)
         ->ArgName("samples")
         ->Unit(benchmark::kSecond)

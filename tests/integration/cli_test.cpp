@@ -114,9 +114,9 @@ TEST_F(Cli, FitCompareDiagnoseLadderPrintJsonOfTheDocumentedKinds) {
   EXPECT_EQ(j["made_for"]["log"]["file"], log());
 }
 
-// --engine on fit (and diagnose, ladder): the block statistics (the default) and the per-sample
-// reference give the same parameters and standard deviations through the CLI, and the fit says
-// which engine ran; an engine the fit does not know is refused.
+// --engine on fit (and diagnose, ladder): the normal equations (the default), the block
+// statistics and the per-sample reference give the same parameters and standard deviations
+// through the CLI, and the fit says which engine ran; an engine the fit does not know is refused.
 TEST_F(Cli, FitEnginesGiveTheSameParameters) {
   const std::string fit = "fit " + log() +
                           " --effects bias,gravity,linear_inertia,rotational_inertia,cable"
@@ -124,7 +124,10 @@ TEST_F(Cli, FitEnginesGiveTheSameParameters) {
   Result r = run(fit);
   ASSERT_EQ(r.status, 0) << r.err;
   const nlohmann::json by_default = nlohmann::json::parse(r.out);
-  EXPECT_EQ(by_default["extra"]["fit"]["engine"], "block_stats");
+  EXPECT_EQ(by_default["extra"]["fit"]["engine"], "normal");
+  r = run(fit + " --engine normal");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["parameters"], by_default["parameters"]);  // deterministic
   r = run(fit + " --engine samples");
   ASSERT_EQ(r.status, 0) << r.err;
   const nlohmann::json samples = nlohmann::json::parse(r.out);
@@ -133,29 +136,31 @@ TEST_F(Cli, FitEnginesGiveTheSameParameters) {
   ASSERT_EQ(r.status, 0) << r.err;
   const nlohmann::json block_stats = nlohmann::json::parse(r.out);
   EXPECT_EQ(block_stats["extra"]["fit"]["engine"], "block_stats");
-  EXPECT_EQ(block_stats["parameters"], by_default["parameters"]);  // deterministic
 
-  const auto& got = block_stats["parameters"];
-  const auto& ref = samples["parameters"];
-  ASSERT_EQ(got.size(), 5u);
-  ASSERT_EQ(ref.size(), got.size());
-  int compared = 0;
-  for (const auto& [effect, block] : ref.items()) {
-    ASSERT_TRUE(got.contains(effect)) << effect;
-    for (const auto& [name, p] : block.items()) {
-      const auto& q = got[effect][name];
-      ASSERT_TRUE(p["std"].is_number() && q["std"].is_number()) << effect << "." << name;
-      const double sd = p["std"].get<double>();
-      // Relative to the value, or to its standard deviation for a value near zero.
-      const double scale = std::max(std::abs(p["value"].get<double>()), sd);
-      EXPECT_NEAR(q["value"].get<double>(), p["value"].get<double>(), 1e-6 * scale)
-          << effect << "." << name;
-      EXPECT_NEAR(q["std"].get<double>(), sd, 1e-6 * sd) << "std of " << effect << "." << name;
-      ++compared;
+  for (const nlohmann::json* engine : {&block_stats, &by_default}) {
+    SCOPED_TRACE(engine == &block_stats ? "block_stats" : "normal");
+    const auto& got = (*engine)["parameters"];
+    const auto& ref = samples["parameters"];
+    ASSERT_EQ(got.size(), 5u);
+    ASSERT_EQ(ref.size(), got.size());
+    int compared = 0;
+    for (const auto& [effect, block] : ref.items()) {
+      ASSERT_TRUE(got.contains(effect)) << effect;
+      for (const auto& [name, p] : block.items()) {
+        const auto& q = got[effect][name];
+        ASSERT_TRUE(p["std"].is_number() && q["std"].is_number()) << effect << "." << name;
+        const double sd = p["std"].get<double>();
+        // Relative to the value, or to its standard deviation for a value near zero.
+        const double scale = std::max(std::abs(p["value"].get<double>()), sd);
+        EXPECT_NEAR(q["value"].get<double>(), p["value"].get<double>(), 1e-6 * scale)
+            << effect << "." << name;
+        EXPECT_NEAR(q["std"].get<double>(), sd, 1e-6 * sd) << "std of " << effect << "." << name;
+        ++compared;
+      }
     }
+    // bias 6, gravity 4, linear_inertia none (it uses the mass), rotational_inertia 6, cable 36.
+    EXPECT_EQ(compared, 6 + 4 + 6 + 36);
   }
-  // bias 6, gravity 4, linear_inertia none (it uses the mass), rotational_inertia 6, cable 36.
-  EXPECT_EQ(compared, 6 + 4 + 6 + 36);
 
   for (const char* sub : {"fit", "diagnose", "ladder"})
     EXPECT_THAT(run(std::string(sub) + " --help").out, HasSubstr("--engine")) << sub;

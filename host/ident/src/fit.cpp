@@ -14,7 +14,9 @@
 #include <numbers>
 #include <optional>
 #include <sstream>
+#include <utility>
 
+#include "normal_equations.hpp"
 #include "zerog/ident/block_stats.hpp"
 #include "zerog/io/effect_file.hpp"
 
@@ -38,11 +40,29 @@ using model::Effect;
 // "block_stats" evaluates stage 1's block mean once per block from the block's sufficient
 // statistics (model::payload_wrench_mean, block_stats.hpp) and takes stage 2's derivatives from
 // model::sensor_output_jacobian (stage 2 is affine in each parameter) instead of the wide Jet.
+// Engine "normal" evaluates every block as block_stats does, through one BlockCost
+// (evaluate_site), and solves the streamed normal equations itself (normal_equations.hpp); the
+// rank check, covariance and BIC below then come from its final normal matrix.
 constexpr int kCoreDim = 16;  // gravity 4, base_tilt 2, rotational_inertia 6, tau 1, rotation 3
 using CoreJet = ceres::Jet<double, kCoreDim>;
 
+// Which block a BlockCost evaluates: block `block` of the statistics (if any) is the samples
+// [first, first + count), `user_design` its user terms' mean design.
+struct BlockSite {
+  std::size_t block, first, count;
+  const double* user_design;
+};
+
+// A residual block whose evaluation can also be asked for another block of the same problem
+// (the normal engine evaluates every block through one object, normal_equations.hpp).
+class BlockCostBase : public ceres::CostFunction {
+ public:
+  virtual bool evaluate_site(const BlockSite& site, double const* const* parameters,
+                             double* residuals, double** jacobians) const = 0;
+};
+
 template <int kSensorDim>
-class BlockCost : public ceres::CostFunction {
+class BlockCost : public BlockCostBase {
   using SensorJet = ceres::Jet<double, kSensorDim>;
 
  public:
@@ -77,20 +97,25 @@ class BlockCost : public ceres::CostFunction {
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
+    return evaluate_site({block_, first_, count_, user_design_}, parameters, residuals, jacobians);
+  }
+
+  bool evaluate_site(const BlockSite& site, double const* const* parameters, double* residuals,
+                     double** jacobians) const override {
     // Stage 1's block mean; stage 2 once, on the block means of its inputs (exact: stage 2 is
     // affine in them).
     const BlockSensorMeans computed =
-        stats_ ? BlockSensorMeans{} : block_sensor_means(*data_, first_, count_);
-    const BlockSensorMeans& means = stats_ ? stats_->sensor_means(block_) : computed;
+        stats_ ? BlockSensorMeans{} : block_sensor_means(*data_, site.first, site.count);
+    const BlockSensorMeans& means = stats_ ? stats_->sensor_means(site.block) : computed;
     const model::SensorInputs& mean_in = means.inputs;
     const ident::Wrench& meas = means.measured;
     model::ParamPointers<double> p{};
     for (std::size_t b = 0; b < order_.size(); ++b) p[model::index(order_[b])] = parameters[b];
     ident::Wrench pred;
     if (jacobians == nullptr) {  // only residuals wanted: plain doubles
-      const ident::Wrench w1 = payload_mean<double>(p);
+      const ident::Wrench w1 = payload_mean<double>(site, p);
       pred = model::sensor_output<double>(effects_, p, mean_in, w1);
-      add_user(parameters, pred);
+      add_user(site, parameters, pred);
       for (int r = 0; r < 6; ++r) residuals[r] = (meas[r] - pred[r]) * inv_sigma_[r];
       return true;
     }
@@ -106,7 +131,7 @@ class BlockCost : public ceres::CostFunction {
         core[off + i] = CoreJet(parameters[b][i], off + i);
       pc[idx] = &core[off];
     }
-    const model::Wrench<CoreJet> w1 = payload_mean<CoreJet>(pc);
+    const model::Wrench<CoreJet> w1 = payload_mean<CoreJet>(site, pc);
     Eigen::Matrix<double, 6, kSensorDim> d_sensor;
     if (stats_) {
       // Stage 2 with its hand-derived derivatives (model::sensor_output_jacobian).
@@ -139,13 +164,13 @@ class BlockCost : public ceres::CostFunction {
     Eigen::Matrix<double, 6, kCoreDim> d_core = Eigen::Matrix<double, 6, kCoreDim>::Zero();
     for (int r = 0; r < 6; ++r)
       for (int k = 0; k < 6; ++k) d_core.row(r) += d_sensor(r, k) * w1[k].v.transpose();
-    add_user(parameters, pred);
+    add_user(site, parameters, pred);
     for (int r = 0; r < 6; ++r) residuals[r] = (meas[r] - pred[r]) * inv_sigma_[r];
     if (num_user_ > 0 && jacobians[order_.size()] != nullptr) {
       double* J = jacobians[order_.size()];
       for (int r = 0; r < 6; ++r)
         for (int j = 0; j < num_user_; ++j)
-          J[r * num_user_ + j] = -inv_sigma_[r] * user_design_[6 * j + r];
+          J[r * num_user_ + j] = -inv_sigma_[r] * site.user_design[6 * j + r];
     }
     for (std::size_t b = 0; b < order_.size(); ++b) {
       if (jacobians[b] == nullptr) continue;
@@ -163,16 +188,16 @@ class BlockCost : public ceres::CostFunction {
 
  private:
   template <typename T>
-  model::Wrench<T> payload_mean(const model::ParamPointers<T>& p) const {
-    if (stats_) return stats_->payload_mean<T>(effects_, p, block_);
-    return payload_mean_by_samples<T>(*data_, effects_, p, first_, count_);
+  model::Wrench<T> payload_mean(const BlockSite& site, const model::ParamPointers<T>& p) const {
+    if (stats_) return stats_->payload_mean<T>(effects_, p, site.block);
+    return payload_mean_by_samples<T>(*data_, effects_, p, site.first, site.count);
   }
 
-  void add_user(double const* const* parameters, ident::Wrench& pred) const {
+  void add_user(const BlockSite& site, double const* const* parameters, ident::Wrench& pred) const {
     if (num_user_ == 0) return;
     const double* c = parameters[order_.size()];
     for (int j = 0; j < num_user_; ++j)
-      pred += c[j] * Eigen::Map<const ident::Wrench>(user_design_ + 6 * j);
+      pred += c[j] * Eigen::Map<const ident::Wrench>(site.user_design + 6 * j);
   }
 
   const Dataset* data_;
@@ -188,15 +213,14 @@ class BlockCost : public ceres::CostFunction {
 };
 
 /// The narrowest BlockCost whose sensor-stage Jet holds the model's sensor-stage parameters.
-ceres::CostFunction* make_block_cost(const Dataset* data, const BlockStats* stats,
-                                     std::size_t block, std::size_t first, std::size_t count,
-                                     model::EffectSet effects, const std::vector<Effect>& order,
-                                     std::array<double, 6> inv_sigma, const double* user_design,
-                                     int num_user) {
+BlockCostBase* make_block_cost(const Dataset* data, const BlockStats* stats, std::size_t block,
+                               std::size_t first, std::size_t count, model::EffectSet effects,
+                               const std::vector<Effect>& order, std::array<double, 6> inv_sigma,
+                               const double* user_design, int num_user) {
   int sensor_dim = 6;
   for (Effect e : order)
     if (!model::is_payload_effect(e)) sensor_dim += model::info(e).num_params;
-  const auto make = [&]<int kDim>() -> ceres::CostFunction* {
+  const auto make = [&]<int kDim>() -> BlockCostBase* {
     return new BlockCost<kDim>(data, stats, block, first, count, effects, order, inv_sigma,
                                user_design, num_user);
   };
@@ -205,6 +229,92 @@ ceres::CostFunction* make_block_cost(const Dataset* data, const BlockStats* stat
   if (sensor_dim <= 48) return make.template operator()<48>();
   return make.template operator()<96>();
 }
+
+// The normal engine's view of the fit (normal_equations.hpp): every block evaluated through one
+// BlockCost with the block statistics (the block_stats engine's evaluation), the free parameters
+// packed in the order of the Ceres path's parameter blocks (the effects of `order` that are not
+// frozen, then the user terms).
+class NormalBlocks final : public normal::BlockEvaluator {
+ public:
+  NormalBlocks(const Dataset& data, const BlockStats& stats, const model::ModelParams& start,
+               const std::vector<Effect>& order, const std::vector<bool>& frozen,
+               std::array<double, 6> inv_sigma, const std::vector<double>& user_design)
+      : stats_(stats),
+        order_(order),
+        point_(start),
+        num_user_(start.user.num_terms),
+        user_design_(user_design),
+        cost_(make_block_cost(&data, &stats, 0, 0, 0, start.effects, order, inv_sigma,
+                              user_design.data(), num_user_)) {
+    for (std::size_t b = 0; b < order.size(); ++b) {
+      blocks_.push_back(point_.block(order[b]));
+      if (!frozen[b]) free_.push_back({b, model::info(order[b]).num_params});
+    }
+    if (num_user_ > 0) {
+      blocks_.push_back(point_.user.coeff.data());
+      free_.push_back({order.size(), num_user_});
+    }
+    for (Free& f : free_) f.column = std::exchange(n_, n_ + f.size);
+  }
+
+  std::size_t num_blocks() const override { return stats_.size(); }
+  int num_params() const override { return n_; }
+  void set_point(const Eigen::VectorXd& x) override {
+    for (const Free& f : free_)
+      Eigen::Map<Eigen::VectorXd>(blocks_[f.block], f.size) = x.segment(f.column, f.size);
+  }
+  Eigen::VectorXd point() const {
+    Eigen::VectorXd x(n_);
+    for (const Free& f : free_)
+      x.segment(f.column, f.size) = Eigen::Map<const Eigen::VectorXd>(blocks_[f.block], f.size);
+    return x;
+  }
+  /// The free parameters of `params` from the point.
+  void store(model::ModelParams& params) const {
+    for (const Free& f : free_) {
+      double* to =
+          f.block < order_.size() ? params.block(order_[f.block]) : params.user.coeff.data();
+      std::copy_n(blocks_[f.block], f.size, to);
+    }
+  }
+
+  bool evaluate(std::size_t b, double* residual, double* jacobian) const override {
+    const auto [first, count] = stats_.block(b);
+    const BlockSite site{b, first, count,
+                         user_design_.data() + b * 6 * static_cast<std::size_t>(num_user_)};
+    if (jacobian == nullptr) return cost_->evaluate_site(site, blocks_.data(), residual, nullptr);
+    // Each free block's 6 × size Jacobian (row-major) into its columns of the 6 × n row.
+    std::array<double, 6 * (model::kEffectCount * model::kMaxEffectParams + model::kMaxUserTerms)>
+        scratch;
+    std::array<double*, model::kEffectCount + 1> jacobians{};
+    std::size_t used = 0;
+    for (const Free& f : free_) {
+      jacobians[f.block] = scratch.data() + used;
+      used += 6 * static_cast<std::size_t>(f.size);
+    }
+    if (!cost_->evaluate_site(site, blocks_.data(), residual, jacobians.data())) return false;
+    for (const Free& f : free_)
+      for (int r = 0; r < 6; ++r)
+        std::copy_n(jacobians[f.block] + r * f.size, f.size, jacobian + r * n_ + f.column);
+    return true;
+  }
+
+ private:
+  struct Free {
+    std::size_t block;  // parameter block (index into blocks_)
+    int size;
+    int column = 0;  // first column in the packed parameters
+  };
+  const BlockStats& stats_;
+  std::vector<Effect> order_;
+  model::ModelParams point_;
+  int num_user_;
+  const std::vector<double>& user_design_;
+  std::unique_ptr<BlockCostBase> cost_;
+  std::vector<double*> blocks_;
+  std::vector<Free> free_;
+  int n_ = 0;
+};
 
 // Blocks of `m` consecutive used samples, never spanning a gap in the mask (so held-out data
 // never leaks into training); a run's leftover tail shorter than m is not used.
@@ -253,7 +363,10 @@ void linear_init(const Dataset& data, const FitOptions& o, model::ModelParams& p
 }
 
 struct Solved {
-  ceres::Solver::Summary summary;
+  bool usable = false;
+  bool no_convergence = false;  // stopped at max_iterations
+  std::string message;
+  Eigen::MatrixXd normal_JtJ;  // engine normal: JᵀJ of the free parameters at the solution
   std::array<double, 6> rms{};
   double ssr = 0.0;
   std::size_t n = 0;   // samples
@@ -336,6 +449,92 @@ std::optional<std::array<double, 6>> static_noise_of_block_means(
   return sigma;
 }
 
+// Identifiability from the column-scaled normal matrix C (unit diagonal). Its eigenvalues below
+// 1e-9 of the largest span the null space (rank deficiency), the cut moved to the widest gap of
+// the spectrum between 1e-12 and 1e-6 of the largest, so that an eigenvalue near 1e-9 does not
+// flip with the summation order of C. Each null direction names the parameters with entries of
+// at least 0.3 of its largest. The directions are taken from the null space's projector P, not
+// from the eigensolver's basis (arbitrary in a null space of several dimensions): pivot on the
+// parameter P leaves most undetermined, u = P e_q / √P_qq, then P −= u uᵀ; the result depends on
+// the null space only. The covariance (of the scaled parameters): the pseudo-inverse of C on the
+// identifiable directions.
+struct RankCheck {
+  std::vector<std::vector<int>> null_directions;  // parameters named, ascending; sorted
+  Eigen::MatrixXd cov_scaled;
+};
+
+RankCheck rank_check(const Eigen::MatrixXd& C) {
+  constexpr double kLow = 1e-12, kHigh = 1e-6;  // band of the cut, relative to the largest
+  const int p = static_cast<int>(C.rows());
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(C);
+  const Eigen::VectorXd& l = eig.eigenvalues();  // ascending
+  const double lmax = l.maxCoeff();
+  const auto clamped = [&](int k) {
+    if (k < 0) return kLow;
+    if (k >= p) return kHigh;
+    return std::clamp(l[k] / lmax, kLow, kHigh);
+  };
+  int null_dim = lmax > 0.0 ? 0 : p;  // the cut below eigenvalue null_dim: the widest gap
+  double widest = -1.0;
+  for (int k = 0; k <= p && lmax > 0.0; ++k) {
+    const double gap = std::log(clamped(k)) - std::log(clamped(k - 1));
+    if (gap > widest) widest = gap, null_dim = k;
+  }
+  RankCheck out;
+  Eigen::MatrixXd P =
+      eig.eigenvectors().leftCols(null_dim) * eig.eigenvectors().leftCols(null_dim).transpose();
+  for (int k = 0; k < null_dim; ++k) {
+    Eigen::Index q = 0;
+    const double pqq = P.diagonal().maxCoeff(&q);
+    const Eigen::VectorXd u = P.col(q) / std::sqrt(std::max(pqq, 1e-300));
+    const double umax = u.cwiseAbs().maxCoeff();
+    std::vector<int> group;
+    for (int j = 0; j < p; ++j)
+      if (std::abs(u[j]) >= 0.3 * umax) group.push_back(j);
+    out.null_directions.push_back(std::move(group));
+    P -= u * u.transpose();
+  }
+  std::sort(out.null_directions.begin(), out.null_directions.end());
+  out.cov_scaled = Eigen::MatrixXd::Zero(p, p);
+  for (int k = null_dim; k < p; ++k)
+    out.cov_scaled += eig.eigenvectors().col(k) * eig.eigenvectors().col(k).transpose() / l[k];
+  return out;
+}
+
+// One pass of the normal engine: Levenberg–Marquardt on the streamed normal equations
+// (normal_equations.hpp) from r.params, which it updates.
+template <typename IsFrozen>
+void solve_normal_pass(const Dataset& data, const BlockStats& stats,
+                       const std::vector<Effect>& order, const IsFrozen& is_frozen,
+                       std::array<double, 6> inv_sigma, const std::vector<double>& user_design,
+                       const FitOptions& o, int pass, int passes, int block_samples, FitResult& r,
+                       Solved& solved) {
+  std::vector<bool> frozen;
+  for (Effect e : order) frozen.push_back(is_frozen(e));
+  NormalBlocks blocks(data, stats, r.params, order, frozen, inv_sigma, user_design);
+  if (blocks.num_blocks() == 0) throw std::runtime_error("no samples to fit");
+  normal::SolveOptions so;
+  so.max_iterations = o.max_iterations;
+  so.threads = o.threads;
+  so.function_tolerance = 1e-10;  // as the Ceres path
+  so.parameter_tolerance = 1e-10;
+  so.progress = o.progress;
+  if (o.progress) {
+    o.progress("fit pass " + std::to_string(pass + 1) + "/" + std::to_string(passes) + ": " +
+               std::to_string(blocks.num_blocks()) + " blocks of " + std::to_string(block_samples) +
+               " samples, " + std::to_string(r.num_params) + " parameters (normal equations)");
+  }
+  Eigen::VectorXd x = blocks.point();
+  normal::SolveSummary summary = normal::solve(blocks, x, so);
+  blocks.set_point(x);
+  blocks.store(r.params);
+  r.iterations += summary.iterations;
+  solved.usable = summary.usable;
+  solved.no_convergence = summary.usable && !summary.converged;
+  solved.message = summary.message;
+  solved.normal_JtJ = std::move(summary.at_solution.JtJ);
+}
+
 }  // namespace
 
 std::string param_label(Effect e, int i) {
@@ -402,10 +601,14 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
   // Static rows (no time) are independent poses: each row is a block of its own.
   const int block_samples = data.columns.static_rows ? 1 : std::max(1, o.block_samples);
   const auto blocks_of_samples = make_blocks(data, o, block_samples);
-  if (o.engine != "block_stats" && o.engine != "samples")
-    throw std::runtime_error("unknown fit engine '" + o.engine + "' (block_stats, samples)");
+  if (o.engine != "normal" && o.engine != "block_stats" && o.engine != "samples")
+    throw std::runtime_error("unknown fit engine '" + o.engine +
+                             "' (normal, block_stats, samples)");
+  // The normal engine solves least squares only: a robust loss goes to block_stats' Ceres path.
+  const bool normal_engine = o.engine == "normal" && o.loss == "none";
+  if (o.engine == "normal" && !normal_engine) r.engine = "block_stats";
   std::optional<BlockStats> stats;
-  if (o.engine == "block_stats") stats.emplace(data, blocks_of_samples, o.effects);
+  if (o.engine != "samples") stats.emplace(data, blocks_of_samples, o.effects);
   // User terms are linear: each block's mean design (6 × num_user) is computed once.
   std::vector<double> user_design(blocks_of_samples.size() * 6 *
                                   static_cast<std::size_t>(num_user));
@@ -452,43 +655,52 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
   Solved solved;
   std::unique_ptr<ceres::Problem> problem;
   for (int pass = 0; pass < passes; ++pass) {
-    problem = std::make_unique<ceres::Problem>(problem_options);
     std::array<double, 6> inv_sigma;
     for (int k = 0; k < 6; ++k) inv_sigma[k] = 1.0 / sigma[k];
-    std::vector<double*> blocks;
-    for (Effect e : order) blocks.push_back(r.params.block(e));
-    if (num_user > 0) blocks.push_back(r.params.user.coeff.data());
-    for (std::size_t b = 0; b < blocks_of_samples.size(); ++b) {
-      const auto [first, count] = blocks_of_samples[b];
-      problem->AddResidualBlock(
-          make_block_cost(&data, stats ? &*stats : nullptr, b, first, count, o.effects, order,
-                          inv_sigma, &user_design[b * 6 * static_cast<std::size_t>(num_user)],
-                          num_user),
-          loss.get(), blocks);
+    if (normal_engine) {
+      solve_normal_pass(data, *stats, order, is_frozen, inv_sigma, user_design, o, pass, passes,
+                        block_samples, r, solved);
+    } else {
+      problem = std::make_unique<ceres::Problem>(problem_options);
+      std::vector<double*> blocks;
+      for (Effect e : order) blocks.push_back(r.params.block(e));
+      if (num_user > 0) blocks.push_back(r.params.user.coeff.data());
+      for (std::size_t b = 0; b < blocks_of_samples.size(); ++b) {
+        const auto [first, count] = blocks_of_samples[b];
+        problem->AddResidualBlock(
+            make_block_cost(&data, stats ? &*stats : nullptr, b, first, count, o.effects, order,
+                            inv_sigma, &user_design[b * 6 * static_cast<std::size_t>(num_user)],
+                            num_user),
+            loss.get(), blocks);
+      }
+      if (problem->NumResidualBlocks() == 0) throw std::runtime_error("no samples to fit");
+      for (Effect e : order)
+        if (is_frozen(e)) problem->SetParameterBlockConstant(r.params.block(e));
+      ceres::Solver::Options so;
+      so.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
+      so.num_threads = o.threads;
+      so.max_num_iterations = o.max_iterations;
+      so.function_tolerance = 1e-10;
+      so.parameter_tolerance = 1e-10;
+      so.logging_type = ceres::SILENT;
+      std::unique_ptr<ProgressCallback> cb;
+      if (o.progress) {
+        o.progress("fit pass " + std::to_string(pass + 1) + "/" + std::to_string(passes) + ": " +
+                   std::to_string(problem->NumResidualBlocks()) + " blocks of " +
+                   std::to_string(block_samples) + " samples, " + std::to_string(r.num_params) +
+                   " parameters");
+        cb = std::make_unique<ProgressCallback>(o.progress);
+        so.callbacks.push_back(cb.get());
+      }
+      ceres::Solver::Summary summary;
+      ceres::Solve(so, problem.get(), &summary);
+      if (std::getenv("ZEROG_CERES_REPORT"))
+        std::fprintf(stderr, "%s\n", summary.FullReport().c_str());
+      r.iterations += static_cast<int>(summary.iterations.size());
+      solved.usable = summary.IsSolutionUsable();
+      solved.no_convergence = summary.termination_type == ceres::NO_CONVERGENCE;
+      solved.message = summary.message;
     }
-    if (problem->NumResidualBlocks() == 0) throw std::runtime_error("no samples to fit");
-    for (Effect e : order)
-      if (is_frozen(e)) problem->SetParameterBlockConstant(r.params.block(e));
-    ceres::Solver::Options so;
-    so.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
-    so.num_threads = o.threads;
-    so.max_num_iterations = o.max_iterations;
-    so.function_tolerance = 1e-10;
-    so.parameter_tolerance = 1e-10;
-    so.logging_type = ceres::SILENT;
-    std::unique_ptr<ProgressCallback> cb;
-    if (o.progress) {
-      o.progress("fit pass " + std::to_string(pass + 1) + "/" + std::to_string(passes) + ": " +
-                 std::to_string(problem->NumResidualBlocks()) + " blocks of " +
-                 std::to_string(block_samples) + " samples, " + std::to_string(r.num_params) +
-                 " parameters");
-      cb = std::make_unique<ProgressCallback>(o.progress);
-      so.callbacks.push_back(cb.get());
-    }
-    ceres::Solve(so, problem.get(), &solved.summary);
-    if (std::getenv("ZEROG_CERES_REPORT"))
-      std::fprintf(stderr, "%s\n", solved.summary.FullReport().c_str());
-    r.iterations += static_cast<int>(solved.summary.iterations.size());
 
     // The block-mean residuals the fit sees: their RMS whitens the next pass, their whitened sum
     // of squares gives the BIC. After the last pass also the per-sample RMS of the residuals
@@ -528,11 +740,11 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
   r.sigma = sigma;
   r.residual_rms = solved.rms;
   r.samples = solved.n;
-  r.usable = solved.summary.IsSolutionUsable();
-  r.termination = solved.summary.message;
+  r.usable = solved.usable;
+  r.termination = solved.message;
   const double n_res = 6.0 * static_cast<double>(solved.nb);
   r.bic = n_res * std::log(solved.ssr / n_res) + r.num_params * std::log(n_res);
-  if (solved.summary.termination_type == ceres::NO_CONVERGENCE) {
+  if (solved.no_convergence) {
     r.warnings.push_back({"not_converged", "the solver stopped after " +
                                                std::to_string(r.iterations) +
                                                " iterations without converging"});
@@ -548,14 +760,17 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
     std::vector<double*> free_blocks;
     for (Effect e : free_order) free_blocks.push_back(r.params.block(e));
     if (num_user > 0) free_blocks.push_back(r.params.user.coeff.data());
-    ceres::Problem::EvaluateOptions eval_options;
-    eval_options.parameter_blocks = free_blocks;
-    ceres::CRSMatrix J;
-    double cost = 0.0;
-    problem->Evaluate(eval_options, &cost, nullptr, nullptr, &J);
-    const int p = J.num_cols;
-    Eigen::MatrixXd JtJ = Eigen::MatrixXd::Zero(p, p);
-    {
+    Eigen::MatrixXd JtJ;
+    if (normal_engine) {
+      JtJ = solved.normal_JtJ;  // the normal equations at the solution
+    } else {
+      ceres::Problem::EvaluateOptions eval_options;
+      eval_options.parameter_blocks = free_blocks;
+      ceres::CRSMatrix J;
+      double cost = 0.0;
+      problem->Evaluate(eval_options, &cost, nullptr, nullptr, &J);
+      const int p = J.num_cols;
+      JtJ = Eigen::MatrixXd::Zero(p, p);
       Eigen::VectorXd row(p);
       for (int i = 0; i < J.num_rows; ++i) {
         row.setZero();
@@ -564,6 +779,7 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
       }
       JtJ = JtJ.selfadjointView<Eigen::Lower>();
     }
+    const int p = static_cast<int>(JtJ.rows());
     // Parameter q: (effect, index), or (no effect, term) for a user term.
     std::vector<std::pair<std::optional<Effect>, int>> names;
     for (Effect e : free_order)
@@ -575,22 +791,15 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
     };
     Eigen::VectorXd d = JtJ.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
     const Eigen::MatrixXd C = d.asDiagonal() * JtJ * d.asDiagonal();
-    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(C);
-    const double lmax = eig.eigenvalues().maxCoeff();
-    const double rel_tol = 1e-9;
+    const RankCheck rank = rank_check(C);
     std::vector<bool> deficient(p, false);
-    for (int k = 0; k < p; ++k) {
-      if (eig.eigenvalues()[k] > rel_tol * lmax) continue;
+    for (const std::vector<int>& group : rank.null_directions) {
       std::string who;
-      int count = 0;
-      const Eigen::VectorXd v = eig.eigenvectors().col(k);
-      const double vmax = v.cwiseAbs().maxCoeff();
-      for (int q = 0; q < p; ++q) {
-        if (std::abs(v[q]) < 0.3 * vmax) continue;
+      for (int q : group) {
         deficient[q] = true;
-        ++count;
         who += (who.empty() ? "" : ", ") + label(q);
       }
+      const std::size_t count = group.size();
       r.warnings.push_back(
           {"rank_deficient",
            count == 1 ? "the data cannot identify " + who +
@@ -599,18 +808,12 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
                             " separately: only a combination of them changes the prediction "
                             "(rank deficiency)"});
     }
-    // Pseudo-inverse restricted to the identifiable directions.
-    Eigen::MatrixXd cov_scaled = Eigen::MatrixXd::Zero(p, p);
-    for (int k = 0; k < p; ++k) {
-      const double l = eig.eigenvalues()[k];
-      if (l <= rel_tol * lmax) continue;
-      cov_scaled += eig.eigenvectors().col(k) * eig.eigenvectors().col(k).transpose() / l;
-    }
-    Eigen::MatrixXd cov = d.asDiagonal() * cov_scaled * d.asDiagonal();
+    Eigen::MatrixXd cov = d.asDiagonal() * rank.cov_scaled * d.asDiagonal();
     // Ceres' own covariance when the problem has full rank (SPARSE_QR); it cross-checks ours.
+    // The normal engine has no Ceres problem: the inverse of its normal matrix above.
     bool any_deficient = false;
     for (bool b : deficient) any_deficient = any_deficient || b;
-    if (!any_deficient) {
+    if (!any_deficient && !normal_engine) {
       ceres::Covariance::Options co;
       co.num_threads = o.threads;
       ceres::Covariance covariance(co);

@@ -1,12 +1,16 @@
-// The fit's two engines (FitOptions::engine): "block_stats" evaluates each block mean of the
+// The fit's engines (FitOptions::engine): "block_stats" evaluates each block mean of the
 // prediction from the block's sufficient statistics (block_stats.hpp), "samples" evaluates the
-// model on every sample (the reference). Both must give the same fit: the same parameters and
-// the same standard deviations, on the hidden-effect runs of the simulator.
+// model on every sample (the reference), both solved by Ceres; "normal" evaluates the blocks as
+// block_stats does and solves the streamed normal equations itself (normal_equations.hpp). All
+// must give the same fit: the same parameters and the same standard deviations, on the
+// hidden-effect runs of the simulator.
 #include <ceres/jet.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -34,22 +38,24 @@ model::EffectSet full_list() {
   return all;
 }
 
-// A random-path run with every effect of the model library hidden in it (none outside it),
-// cut to 130 s (10,800 rows).
+// A random-path run of simulator seed `seed` with every effect of the model library hidden in it
+// (none outside it), cut to `seconds`.
+Dataset simulated_library_run(std::uint64_t seed, double seconds) {
+  sim::SimConfig cfg = sim::default_sim_config(seed);
+  cfg.effects = sim::parse_sim_effects(
+      "all,-joint6_friction,-swivel_viscous,-hose_drag,"
+      "-dress_pack_bend");
+  cfg.duration_limit_s = seconds;
+  sim::DesignOptions d;
+  d.kind = sim::DesignKind::random;
+  d.points = 60;
+  d.workspace.floor_z_m = cfg.floor_z_m;
+  return make_dataset(sim::RigSimulator(cfg, sim::make_design(d).points_rad).run().log);
+}
+
+// The fixture: seed 5, cut to 130 s (10,800 rows).
 const Dataset& library_run() {
-  static const Dataset data = [] {
-    const double seconds = 130.0;
-    sim::SimConfig cfg = sim::default_sim_config(5);
-    cfg.effects = sim::parse_sim_effects(
-        "all,-joint6_friction,-swivel_viscous,-hose_drag,"
-        "-dress_pack_bend");
-    cfg.duration_limit_s = seconds;
-    sim::DesignOptions d;
-    d.kind = sim::DesignKind::random;
-    d.points = 60;
-    d.workspace.floor_z_m = cfg.floor_z_m;
-    return make_dataset(sim::RigSimulator(cfg, sim::make_design(d).points_rad).run().log);
-  }();
+  static const Dataset data = simulated_library_run(5, 130.0);
   return data;
 }
 
@@ -142,30 +148,25 @@ struct Agreement {
   int stds_compared = 0;
 };
 
-// Where the fit's identifiability check lands (fit.cpp: eigenvalues of the column-scaled JᵀJ
-// below 1e-9 of the largest are a rank deficiency, and the parameters with large entries in
-// their eigenvectors get no std).
+// Where the fit's identifiability check lands (fit.cpp, rank_check: eigenvalues of the
+// column-scaled JᵀJ below 1e-9 of the largest, the cut moved to the widest gap of the spectrum
+// nearby, are a rank deficiency; the parameters with large entries in the null space's
+// directions, chosen from its projector, get no std). Either way both fits must report the same
+// deficiencies: the same warnings naming the same parameters, and the same stds missing.
 enum class Conditioning {
-  // Every eigenvalue is far from the threshold: the same deficiencies, warnings and NaN stds.
+  // Every eigenvalue is far from the threshold: also the same other warnings (correlations).
   clear,
   // The model has near-degenerate directions (the full list: crosstalk against sensor rotation
-  // and the centre of mass, base tilt against the accelerometer) whose eigenvalues lie within
-  // rounding of the threshold, and a null space of several dimensions whose eigenvector basis is
-  // arbitrary: which parameters each warning names follows rounding (any change in the
-  // summation order of the Jacobian changes it, in either engine). Then the same number of
-  // deficiencies, and the stds of the parameters both fits identify.
+  // and the centre of mass, base tilt against the accelerometer): correlations near the warning
+  // threshold |rho| = 0.99 may differ by rounding; the deficiencies may not.
   near_degenerate,
 };
 
-// Fits with both engines and compares every free parameter and every standard deviation.
-Agreement compare_engines(const Dataset& data, FitOptions o, const std::string& what,
-                          Conditioning conditioning = Conditioning::clear) {
+// Compares every free parameter and every standard deviation of two fits of `o`.
+Agreement compare_fits(const FitResult& ref, const FitResult& got, const FitOptions& o,
+                       const std::string& what, Conditioning conditioning) {
   const bool clear = conditioning == Conditioning::clear;
   SCOPED_TRACE(what);
-  o.engine = "samples";
-  const FitResult ref = fit(data, o);
-  o.engine = "block_stats";
-  const FitResult got = fit(data, o);
   Agreement a;
   EXPECT_TRUE(ref.usable) << ref.termination;
   EXPECT_TRUE(got.usable) << got.termination;
@@ -184,9 +185,7 @@ Agreement compare_engines(const Dataset& data, FitOptions o, const std::string& 
       EXPECT_NEAR(x, y, 1e-6 * std::abs(y)) << param_label(e, i);
       if (!ref.std || !got.std) continue;
       const double sx = (*got.std)[model::index(e)][i], sy = (*ref.std)[model::index(e)][i];
-      if (clear) {
-        EXPECT_EQ(std::isnan(sx), std::isnan(sy)) << param_label(e, i);
-      }
+      EXPECT_EQ(std::isnan(sx), std::isnan(sy)) << param_label(e, i);
       if (std::isnan(sy) || std::isnan(sx)) continue;
       a.stds = std::max(a.stds, rel(sx, sy));
       ++a.stds_compared;
@@ -209,11 +208,20 @@ Agreement compare_engines(const Dataset& data, FitOptions o, const std::string& 
     EXPECT_NEAR(got.residual_rms[k], ref.residual_rms[k], 1e-6 * ref.residual_rms[k]);
   }
   EXPECT_NEAR(got.bic, ref.bic, 1e-6 * std::abs(ref.bic));
+  auto messages = [](const FitResult& r, const std::string& kind) {
+    std::vector<std::string> m;
+    for (const Warning& w : r.warnings)
+      if (w.kind == kind) m.push_back(w.message);
+    std::sort(m.begin(), m.end());
+    return m;
+  };
   auto count = [](const FitResult& r, const std::string& kind) {
     return std::count_if(r.warnings.begin(), r.warnings.end(),
                          [&](const Warning& w) { return w.kind == kind; });
   };
   EXPECT_EQ(count(got, "rank_deficient"), count(ref, "rank_deficient"));
+  EXPECT_EQ(messages(got, "rank_deficient"), messages(ref, "rank_deficient"));
+  EXPECT_EQ(count(got, "not_converged"), count(ref, "not_converged"));
   if (clear) {
     EXPECT_EQ(got.warnings.size(), ref.warnings.size());
     for (std::size_t k = 0; k < std::min(got.warnings.size(), ref.warnings.size()); ++k) {
@@ -222,22 +230,48 @@ Agreement compare_engines(const Dataset& data, FitOptions o, const std::string& 
     }
   }
   std::printf(
-      "[ engines  ] %-36s params %.2e  stds %.2e (%d of %d compared; %ld deficiencies), "
+      "[ engines  ] %-52s params %.2e  stds %.2e (%d of %d compared; %ld deficiencies), "
       "%.2f s vs %.2f s\n",
       what.c_str(), a.params, a.stds, a.stds_compared, ref.num_params,
       static_cast<long>(count(ref, "rank_deficient")), got.seconds, ref.seconds);
   return a;
 }
 
-TEST(FitEngine, BlockStatsEqualsSamplesOnTheFullLibraryList) {
+struct EngineAgreement {
+  Agreement block_stats;  // against samples
+  Agreement normal;       // against block_stats
+};
+
+// Fits with the three engines: block_stats against the samples reference, normal against
+// block_stats (Ceres on the same block evaluation).
+EngineAgreement compare_engines(const Dataset& data, FitOptions o, const std::string& what,
+                                Conditioning conditioning = Conditioning::clear) {
+  o.engine = "samples";
+  const FitResult samples = fit(data, o);
+  o.engine = "block_stats";
+  const FitResult block_stats = fit(data, o);
+  o.engine = "normal";
+  const FitResult normal = fit(data, o);
+  // A robust loss is delegated to block_stats (normal_equations.hpp), and says so.
+  EXPECT_EQ(normal.engine, o.loss == "none" ? "normal" : "block_stats");
+  EngineAgreement a;
+  a.block_stats =
+      compare_fits(samples, block_stats, o, what + ": block_stats vs samples", conditioning);
+  a.normal = compare_fits(block_stats, normal, o, what + ": normal vs block_stats", conditioning);
+  return a;
+}
+
+TEST(FitEngine, EnginesAgreeOnTheFullLibraryList) {
   const Dataset& data = library_run();
   FitOptions o;
   o.effects = full_list();
-  const Agreement a = compare_engines(data, o, "full library list", Conditioning::near_degenerate);
-  EXPECT_GE(a.stds_compared, 60);
+  const EngineAgreement a =
+      compare_engines(data, o, "full library list", Conditioning::near_degenerate);
+  EXPECT_GE(a.block_stats.stds_compared, 60);
+  EXPECT_GE(a.normal.stds_compared, 60);
 }
 
-TEST(FitEngine, BlockStatsEqualsSamplesOnTheDefaultModel) {
+TEST(FitEngine, EnginesAgreeOnTheDefaultModel) {
   const Dataset& data = library_run();
   FitOptions o;
   o.effects = model::kDefaultModel;
@@ -260,7 +294,7 @@ model::UserEffects swivel_user_term() {
 
 // The masked fits of diagnose and ladder (training blocks only), with a robust loss, a partial
 // model with a user term (proto/user_effects.md), and block means of another length.
-TEST(FitEngine, BlockStatsEqualsSamplesOnAMaskedRobustFit) {
+TEST(FitEngine, EnginesAgreeOnAMaskedRobustFit) {
   const Dataset& data = library_run();
   const auto held = heldout_mask(data, 20.0, 4);
   std::vector<std::uint8_t> train(held.size());
@@ -276,11 +310,14 @@ TEST(FitEngine, BlockStatsEqualsSamplesOnAMaskedRobustFit) {
   o.loss = "huber";
   o.block_samples = 5;
   compare_engines(data, o, "masked, huber, user term, blocks of 5");
+  // The same without the robust loss: the normal engine solves it itself.
+  o.loss = "none";
+  compare_engines(data, o, "masked, user term, blocks of 5");
 }
 
 // A tool change: the sensor model frozen at a fitted model, gravity re-fitted on the static
 // samples (FitOptions::frozen with a mask of the dwells, as fit_tool_change sets it up).
-TEST(FitEngine, BlockStatsEqualsSamplesWithFrozenEffects) {
+TEST(FitEngine, EnginesAgreeWithFrozenEffects) {
   const Dataset& data = library_run();
   FitOptions base_options;
   base_options.effects = full_list();
@@ -300,7 +337,7 @@ TEST(FitEngine, BlockStatsEqualsSamplesWithFrozenEffects) {
 // Without dwells (the moving samples only) the whitening cannot be estimated before the solve:
 // two passes, the second whitened by the first's block-mean residuals (from the block statistics
 // with block_stats); with a user term, which those residuals must include.
-TEST(FitEngine, BlockStatsEqualsSamplesWithoutDwellsInTwoPasses) {
+TEST(FitEngine, EnginesAgreeWithoutDwellsInTwoPasses) {
   const Dataset& data = library_run();
   std::vector<std::uint8_t> moving = static_mask(data);
   for (auto& m : moving) m = m ? 0 : 1;
@@ -317,6 +354,65 @@ TEST(FitEngine, BlockStatsEqualsSamplesWithoutDwellsInTwoPasses) {
   EXPECT_TRUE(std::any_of(lines.begin(), lines.end(), [](const std::string& line) {
     return line.rfind("fit pass 2/2", 0) == 0;
   }));
+}
+
+// Acceptance on more runs: the normal engine against block_stats (Ceres on the same block
+// evaluation) with the full list and the default model, simulator seeds 1 to 3 (60 s each).
+TEST(FitEngine, NormalEqualsBlockStatsOnSeveralSeeds) {
+  for (const std::uint64_t seed : {1u, 2u, 3u}) {
+    const Dataset data = simulated_library_run(seed, 60.0);
+    for (const bool full : {true, false}) {
+      FitOptions o;
+      o.effects = full ? full_list() : model::kDefaultModel;
+      o.engine = "block_stats";
+      const FitResult ref = fit(data, o);
+      o.engine = "normal";
+      const FitResult got = fit(data, o);
+      const Agreement a =
+          compare_fits(ref, got, o,
+                       "seed " + std::to_string(seed) + (full ? ", full list" : ", default model") +
+                           ": normal vs block_stats",
+                       full ? Conditioning::near_degenerate : Conditioning::clear);
+      EXPECT_GE(a.stds_compared, full ? 60 : 16);
+    }
+  }
+}
+
+// The normal engine sums its chunks' normal equations in chunk order: the same bits for any
+// number of threads (the full list: 1,350 blocks, three chunks; the default model).
+TEST(FitEngine, NormalIsBitIdenticalForAnyThreadCount) {
+  const Dataset& data = library_run();
+  for (const model::EffectSet& effects : {full_list(), model::kDefaultModel}) {
+    SCOPED_TRACE("effects " + std::to_string(effects.bits()));
+    FitOptions o;
+    o.effects = effects;
+    o.engine = "normal";
+    o.threads = 1;
+    const FitResult one = fit(data, o);
+    o.threads = 2;
+    const FitResult two = fit(data, o);
+    o.threads = 3;
+    const FitResult three = fit(data, o);
+    ASSERT_TRUE(one.usable && two.usable && three.usable);
+    ASSERT_TRUE(one.std && two.std && three.std);
+    int differ = 0;
+    for (Effect e : model::kAllEffects) {
+      if (!effects.has(e)) continue;
+      for (int i = 0; i < model::info(e).num_params; ++i) {
+        const double x = one.params.block(e)[i];
+        const auto bits = [](double v) { return std::bit_cast<std::uint64_t>(v); };
+        for (const FitResult* r : {&two, &three}) {
+          EXPECT_EQ(bits(r->params.block(e)[i]), bits(x)) << param_label(e, i);
+          const double s1 = (*one.std)[model::index(e)][i], s = (*r->std)[model::index(e)][i];
+          EXPECT_TRUE(bits(s) == bits(s1)) << "std of " << param_label(e, i);
+          differ += bits(r->params.block(e)[i]) != bits(x) || bits(s) != bits(s1);
+        }
+      }
+    }
+    EXPECT_EQ(three.warnings.size(), one.warnings.size());
+    std::printf("[ threads  ] effects %u: %d values or stds differ between 1, 2 and 3 threads\n",
+                effects.bits(), differ);
+  }
 }
 
 TEST(FitEngine, UnknownEngineIsRefused) {

@@ -26,7 +26,7 @@ struct FitOptions {
   /// The fit compares block means of this many consecutive samples (1 = every sample); see
   /// proto/effects.md, "Angular acceleration and noise".
   int block_samples = 8;
-  int threads = 2;
+  int threads = 2;         ///< the normal engine's result is bit-identical for any count
   bool covariance = true;  ///< compute standard deviations and identifiability
   const std::vector<std::uint8_t>* mask = nullptr;  ///< use sample i only if (*mask)[i] == 1
   const model::ModelParams* initial = nullptr;      ///< start values (others: linear init)
@@ -35,11 +35,14 @@ struct FitOptions {
   /// `initial` must then hold every frozen effect. Standard deviations, correlations, the rank
   /// check and the BIC cover the free parameters only; frozen ones get no std (NaN).
   model::EffectSet frozen;
-  /// How the block mean of the prediction is evaluated. "block_stats": from the blocks'
-  /// sufficient statistics, one model evaluation per block (block_stats.hpp; exact);
-  /// "samples": the model on every sample of the block (the reference, slower). Results agree to
-  /// rounding (tests/unit/ident/fit_engine_test.cpp).
-  std::string engine = "block_stats";
+  /// How the fit evaluates and solves. "normal" (the default): the block means as
+  /// "block_stats" does, accumulated into the whitened normal equations in one streaming pass
+  /// per iteration (no per-block Jacobian is stored), solved by Levenberg–Marquardt; robust
+  /// losses delegate to "block_stats" (normal_equations.hpp). "block_stats": Ceres on the block
+  /// means from the blocks' sufficient statistics, one model evaluation per block
+  /// (block_stats.hpp; exact); "samples": Ceres with the model on every sample of the block (the
+  /// reference, slower). Results agree within 1e-6 (tests/unit/ident/fit_engine_test.cpp).
+  std::string engine = "normal";
   /// Per-axis noise for whitening; if absent, estimated (two passes).
   std::optional<std::array<double, 6>> sigma;
   std::function<void(const std::string&)> progress;  ///< progress lines (may be empty)
@@ -56,7 +59,8 @@ struct FitResult {
   std::vector<double> user_std;   ///< of params.user's coefficients (with `std`; NaN likewise)
   bool usable = false;
   std::string termination;
-  std::string engine;  ///< FitOptions::engine that evaluated the block means
+  std::string engine;  ///< the engine that ran (FitOptions::engine; "block_stats" where "normal"
+                       ///< delegated a robust loss)
   int iterations = 0;
   double seconds = 0.0;
   std::size_t samples = 0;
@@ -87,7 +91,7 @@ struct ToolChangeOptions {
   int threads = 2;
   std::string loss = "none";
   double loss_scale = 3.0;
-  std::string engine = "block_stats";  ///< FitOptions::engine
+  std::string engine = "normal";  ///< FitOptions::engine
   /// Warn ("poses_alike") when the gravity directions in S spread less than this: the angle
   /// asin √(1 − λmax) with λmax the largest eigenvalue of their mean outer product (0 if they
   /// are all parallel, about 55° if they are spread evenly over the sphere), degrees.
