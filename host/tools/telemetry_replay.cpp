@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "zerog/formats/cycles_csv.hpp"
+#include "zerog/proto/rsi_si.hpp"
 #include "zerog/telemetry/channel.hpp"
 
 namespace {
@@ -51,7 +52,11 @@ CycleRecord scripted_record(std::uint64_t cycle, double period_s) {
   r.ft_samples = 2;
   r.imu_samples = static_cast<std::uint16_t>(8 + cycle % 2);
   r.t_eval_s = t - 2.0 * period_s;
-  r.rkorr = {0.01 * std::sin(0.1 * k), -0.02, 0.005, 0.001 * k, -0.002, 0.0};
+  zerog::proto::rsi::Reply rkorr;  // an RKorr in the wire's units (mm, degrees), kept in SI
+  rkorr.ipoc = r.ipoc;
+  rkorr.has_rkorr = true;
+  rkorr.rkorr = {0.01 * std::sin(0.1 * k), -0.02, 0.005, 0.001 * k, -0.002, 0.0};
+  r.reply = zerog::proto::rsi::correction_from_reply(rkorr);
   r.body.p_world_m = Eigen::Vector3d(1.0 + 1e-4 * k, 0.2, 1.4);
   r.body.q_world_body =
       Eigen::Quaterniond(Eigen::AngleAxisd(0.01 * k, Eigen::Vector3d(1, 2, 3).normalized()));

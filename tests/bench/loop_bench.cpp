@@ -2,6 +2,11 @@
 // after 6 F/T and 24 IMU samples were handed in, as at 12 ms with a 500 Hz F/T and a 2 kHz IMU),
 // against the model evaluation alone for the same deployed model, in the same run. Reported:
 // ns per cycle and the ratio cycle / model. Speed is measured, never asserted.
+//
+// BM_CycleStep/0,1 step with the RSI message in KUKA units (Cycle::step(RobotMessage,
+// CycleReply&): the border's conversions both ways included); BM_CycleStepSi/0,1 step with the SI
+// sample as zerog-rt's RSI endpoint hands it (Cycle::step(RobotSample, RobotCorrection&): the
+// cycle alone, conversions excluded, as in zerog-rt where rtio converts).
 #include <benchmark/benchmark.h>
 
 #include <random>
@@ -9,6 +14,7 @@
 
 #include "infer_fixtures.hpp"
 #include "zerog/loop/cycle.hpp"
+#include "zerog/proto/rsi_si.hpp"
 
 namespace {
 
@@ -48,7 +54,8 @@ void BM_ModelOnly(benchmark::State& state) {
   state.SetLabel(kind_name(kind));
 }
 
-void BM_CycleStep(benchmark::State& state) {
+// `si`: step with the SI sample (the conversion to it made once, up front), else with the message.
+void cycle_step(benchmark::State& state, bool si) {
   const int kind = static_cast<int>(state.range(0));
   loop::CycleConfig config;
   config.period_s = 0.012;
@@ -79,6 +86,8 @@ void BM_CycleStep(benchmark::State& state) {
   }
   std::size_t next_ft = 0, next_imu = 0;
   loop::CycleReply reply;
+  samples::RobotCorrection correction;
+  samples::RobotSample sample = proto::rsi::robot_sample_from_message(m);
   auto one_cycle = [&](double push_N) {
     for (int i = 0; i < 6; ++i) {
       samples::FtSample ft = fts[next_ft++ & 4095];
@@ -86,7 +95,12 @@ void BM_CycleStep(benchmark::State& state) {
       cycle.add_ft(ft);
     }
     for (int i = 0; i < 24; ++i) cycle.add_imu(imus[next_imu++ & 4095]);
-    cycle.step(m, reply);
+    if (si) {
+      cycle.step(sample, correction);
+      sample.ipoc += 12;
+    } else {
+      cycle.step(m, reply);
+    }
     m.ipoc += 12;
   };
   for (int i = 0; i < 10; ++i) one_cycle(0.0);
@@ -98,6 +112,7 @@ void BM_CycleStep(benchmark::State& state) {
     // Alternating pushes keep the body moving slowly without reaching a limit.
     one_cycle(((n++ / 50) % 2) ? 20.0 : -20.0);
     benchmark::DoNotOptimize(reply);
+    benchmark::DoNotOptimize(correction);
   }
   if (cycle.state_machine().state() != loop::State::zero_g) state.SkipWithError("cycle faulted");
   state.SetLabel(kind_name(kind));
@@ -106,8 +121,12 @@ void BM_CycleStep(benchmark::State& state) {
                          benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
 }
 
+void BM_CycleStep(benchmark::State& state) { cycle_step(state, false); }
+void BM_CycleStepSi(benchmark::State& state) { cycle_step(state, true); }
+
 }  // namespace
 
 BENCHMARK(BM_ModelOnly)->Arg(0)->Arg(1);
 BENCHMARK(BM_CycleStep)->Arg(0)->Arg(1);
+BENCHMARK(BM_CycleStepSi)->Arg(0)->Arg(1);
 BENCHMARK_MAIN();

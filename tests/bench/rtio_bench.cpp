@@ -296,7 +296,7 @@ void BM_ZerogRtRoundTrip(benchmark::State& state) {
     state.SkipWithError("Runtime::configure failed");
     return;
   }
-  std::vector<std::string> warnings;
+  std::vector<zerog::Status> warnings;
   if (!runtime.start(warnings).ok()) {
     state.SkipWithError("Runtime::start failed");
     return;

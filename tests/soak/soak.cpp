@@ -441,7 +441,7 @@ std::string Soak::set_up() {
   runtime_ = std::make_unique<rt::Runtime>(ro, rt::RuntimeDevices{endpoint_.get()});
   if (const Status st = runtime_->configure(config_, model); !st.ok())
     return "configure: " + st.text();
-  std::vector<std::string> warnings;
+  std::vector<Status> warnings;
   if (const Status st = runtime_->start(warnings); !st.ok()) return "start: " + st.text();
   return {};
 }

@@ -9,6 +9,8 @@
 #include <stdexcept>
 #include <string_view>
 
+#include "zerog/proto/rsi_si.hpp"
+
 namespace zerog::io {
 
 namespace {
@@ -114,11 +116,14 @@ void append_record_row(const loop::CycleRecord& r, std::string& out) {
   row.numbers(r.wrench_at_eval);
   row.numbers(r.predicted);
   row.numbers(r.contact);
-  row.integer(r.axis_reply ? 1 : 0);
-  for (double v :
-       {r.rkorr.x_mm, r.rkorr.y_mm, r.rkorr.z_mm, r.rkorr.a_deg, r.rkorr.b_deg, r.rkorr.c_deg})
+  // The record's reply is SI; the file keeps the wire's units (proto/loop.md): the RSI
+  // border's conversion, here and not in the cycle.
+  const proto::rsi::Reply kuka = proto::rsi::reply_from_correction(r.reply);
+  row.integer(r.reply.axis() ? 1 : 0);
+  for (double v : {kuka.rkorr.x_mm, kuka.rkorr.y_mm, kuka.rkorr.z_mm, kuka.rkorr.a_deg,
+                   kuka.rkorr.b_deg, kuka.rkorr.c_deg})
     row.number(v);
-  row.numbers(r.akorr_deg);
+  row.numbers(kuka.akorr_deg);
   row.numbers(r.body.p_world_m);
   for (double v : {r.body.q_world_body.w(), r.body.q_world_body.x(), r.body.q_world_body.y(),
                    r.body.q_world_body.z()})
@@ -201,12 +206,21 @@ std::vector<loop::CycleRecord> read_cycles_csv(const std::filesystem::path& file
     r.ft_samples = static_cast<std::uint16_t>(uint("ft_samples"));
     r.imu_samples = static_cast<std::uint16_t>(uint("imu_samples"));
     r.t_eval_s = num("t_eval_s");
-    r.axis_reply = uint("axis_reply") != 0;
-    r.rkorr = {num("rkorr_x_mm"),  num("rkorr_y_mm"),  num("rkorr_z_mm"),
-               num("rkorr_a_deg"), num("rkorr_b_deg"), num("rkorr_c_deg")};
+    // Back to SI (the writer's inverse, up to rounding): AKorr when axis_reply, else RKorr; an
+    // RKorr of zeros is Kind::none (what the cycle answers outside zero-g).
+    proto::rsi::Reply kuka;
+    kuka.ipoc = r.ipoc;
+    kuka.has_akorr = uint("axis_reply") != 0;
+    kuka.rkorr = {num("rkorr_x_mm"),  num("rkorr_y_mm"),  num("rkorr_z_mm"),
+                  num("rkorr_a_deg"), num("rkorr_b_deg"), num("rkorr_c_deg")};
+    const proto::rsi::Correction& k = kuka.rkorr;
+    kuka.has_rkorr = !kuka.has_akorr && (k.x_mm != 0.0 || k.y_mm != 0.0 || k.z_mm != 0.0 ||
+                                         k.a_deg != 0.0 || k.b_deg != 0.0 || k.c_deg != 0.0);
+    if (!kuka.has_rkorr) kuka.rkorr = {};
     const char* ak[] = {"akorr_a1_deg", "akorr_a2_deg", "akorr_a3_deg",
                         "akorr_a4_deg", "akorr_a5_deg", "akorr_a6_deg"};
-    for (int i = 0; i < 6; ++i) r.akorr_deg[i] = num(ak[i]);
+    for (int i = 0; i < 6; ++i) kuka.akorr_deg[i] = num(ak[i]);
+    r.reply = proto::rsi::correction_from_reply(kuka);
     r.body.p_world_m = {num("body_px_m"), num("body_py_m"), num("body_pz_m")};
     r.body.q_world_body =
         Eigen::Quaterniond(num("body_qw"), num("body_qx"), num("body_qy"), num("body_qz"));

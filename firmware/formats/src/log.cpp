@@ -252,9 +252,8 @@ void check_rig_finite(const Rig& rig) {
                                 "' has a non-finite value or sample_period_s <= 0");
   }
   if (rig.robot_model) {
-    const robot::RobotStatus status = robot::validate(*rig.robot_model);
-    if (!status.ok())
-      throw std::invalid_argument("write_rig: rig '" + rig.name + "': robot: " + status.message);
+    if (const zerog::Status status = robot::validate(*rig.robot_model); !status.ok())
+      throw std::invalid_argument("write_rig: rig '" + rig.name + "': robot: " + status.text());
   }
 }
 

@@ -62,8 +62,8 @@ robot::RobotModel robot_from_toml(const toml::table& table, const std::filesyste
     m.last_flange = to_frame_transform(detail::transform_of(f));
   }
   m.flange_sensor = to_frame_transform(flange_sensor);
-  const robot::RobotStatus status = robot::validate(m);
-  if (!status.ok()) throw_at(t.file(), t.where(), status.message);
+  if (const zerog::Status status = robot::validate(m); !status.ok())
+    throw_at(t.file(), t.where(), status.text());
   return m;
 }
 

@@ -101,8 +101,7 @@ const char* status_name(StatusCode c) {
 }
 
 zerog::Status Inference::configure(DeployedModel model) {
-  if (auto [err, msg] = validate_model(model); err != LoadError::none)
-    return {zerog::StatusCode::invalid_setting, std::move(msg)};
+  if (zerog::Status st = validate_model(model); !st.ok()) return st;
   // Build everything into a fresh object, then hand it over whole.
   Inference next;
   next.geometry_ = model.rig.geometry();

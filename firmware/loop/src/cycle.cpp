@@ -90,8 +90,7 @@ Status check_config(const CycleConfig& c) {
     if (!positive_finite(value)) return Status::invalid(setting, "must be positive");
   }
   if (c.robot) {
-    if (const robot::RobotStatus st = robot::validate(*c.robot); !st.ok())
-      return Status::invalid(st.field.empty() ? "robot" : "robot." + st.field, st.message);
+    if (Status st = robot::validate(*c.robot); !st.ok()) return std::move(st).within("robot");
     if (c.robot->joint_count != 6)
       return Status::invalid("robot.joint_count",
                              "RSI reports 6 axes (AIPos A1..A6); the robot has " +
@@ -259,13 +258,11 @@ void Cycle::robot_lost(RobotLoss why) noexcept {
 void Cycle::pose_missing() noexcept {
   ++counters_.poses_missing;
   if (data_.clock.have_ipoc) grow_lost_run();
-  record_.rkorr = proto::rsi::Correction{};
   push_lost_record(kPoseMissing);
 }
 
 void Cycle::stale_message() noexcept {
   record_.flags = kIpocStale;
-  record_.rkorr = proto::rsi::Correction{};
   record_.state = sm_.state();
   record_.fault = sm_.fault();
   box_.push(record_);
@@ -298,16 +295,10 @@ void Cycle::keep_record() noexcept {
 void Cycle::step(const proto::rsi::RobotMessage& m, CycleReply& reply) noexcept {
   samples::RobotCorrection correction;
   step(proto::rsi::robot_sample_from_message(m), correction);
+  // The border's one conversion of the reply (the record keeps it in SI).
+  const proto::rsi::Reply r = proto::rsi::reply_from_correction(correction);
   reply.axis = correction.axis();
   reply.ipoc = correction.ipoc;
-  if (correction.kind == samples::RobotCorrection::Kind::cartesian) {
-    // Only a completed cycle corrects, and its record holds this very correction converted by
-    // reply_from_correction (stages::make_record): not converted twice.
-    reply.rkorr = record_.rkorr;
-    reply.akorr_deg = {};
-    return;
-  }
-  const proto::rsi::Reply r = proto::rsi::reply_from_correction(correction);
   reply.rkorr = r.rkorr;
   reply.akorr_deg = r.akorr_deg;
 }
@@ -320,7 +311,6 @@ void Cycle::step(const samples::RobotSample& m, samples::RobotCorrection& correc
   record_.cycle = cycle_;
   record_.ipoc = m.ipoc;
   record_.limit_flags = 0;
-  record_.axis_reply = false;
   take_proposal();
 
   if (!configured_) {
@@ -328,9 +318,11 @@ void Cycle::step(const samples::RobotSample& m, samples::RobotCorrection& correc
     raise(Fault::model_invalid);
     record_.state = sm_.state();
     record_.fault = sm_.fault();
+    record_.reply = correction;  // zero, this IPOC
     return;
   }
   if (!m.has_pose && !config_.robot) {
+    record_.reply = correction;
     pose_missing();
     return;
   }
@@ -339,6 +331,7 @@ void Cycle::step(const samples::RobotSample& m, samples::RobotCorrection& correc
   const State state_before = sm_.state();
   const stages::Timing timing = stages::timing(config_, m, data_.clock, counters_);
   if (timing.stale) {
+    record_.reply = correction;
     stale_message();
     return;
   }
@@ -351,16 +344,37 @@ void Cycle::step(const samples::RobotSample& m, samples::RobotCorrection& correc
   raise_all(stages::watch_model(config_.watchdog, model, data_.watchdogs));
   const stages::PendingCommand command = take_command();
   const stages::Row& now = data_.rows.newest();
-  const stages::MotionResult motion =
-      stages::run_motion(config_, path_, cycle_, command, timing, now, row, model, data_.model, sm_,
-                         motion_, data_.collection, data_.watchdogs, counters_);
+  const stages::MotionResult motion = stages::run_motion(config_,
+                                                         {.path = path_,
+                                                          .cycle = cycle_,
+                                                          .command = command,
+                                                          .timing = timing,
+                                                          .now = now,
+                                                          .row = row,
+                                                          .model = model,
+                                                          .model_data = data_.model},
+                                                         {.sm = sm_,
+                                                          .zero_g = motion_,
+                                                          .collection = data_.collection,
+                                                          .runs = data_.watchdogs,
+                                                          .counters = counters_});
   publish_outcome(command, motion.command_accepted);
   raise(motion.fault);
   // In fault, every reply is a zero correction (proto/loop.md, "Watchdogs").
   correction = sm_.state() == State::fault ? samples::RobotCorrection{} : motion.correction;
   correction.ipoc = m.ipoc;
-  stages::make_record(cycle_, m, timing, now, row, model, data_.model, motion, correction, sm_,
-                      motion_, record_);
+  stages::make_record({.cycle = cycle_,
+                       .message = m,
+                       .timing = timing,
+                       .now = now,
+                       .row = row,
+                       .model = model,
+                       .model_data = data_.model,
+                       .motion = motion,
+                       .reply = correction,
+                       .sm = sm_,
+                       .zero_g = motion_},
+                      record_);
   keep_record();
 }
 

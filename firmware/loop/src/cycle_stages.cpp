@@ -7,7 +7,6 @@
 #include "zerog/model/dictionary.hpp"
 #include "zerog/model/rotation.hpp"
 #include "zerog/model/signals.hpp"
-#include "zerog/proto/rsi_si.hpp"
 #include "zerog/robot/forward_kinematics.hpp"
 
 namespace zerog::loop::stages {
@@ -313,22 +312,24 @@ FaultRequests watch_model(const WatchdogConfig& config, const ModelResult& model
   return out;
 }
 
-MotionResult run_motion(const CycleConfig& config, const JointPath* path, std::uint64_t cycle,
-                        const PendingCommand& command, const Timing& timing, const Row& now,
-                        const RowResult& row, const ModelResult& model, const ModelData& model_data,
-                        StateMachine& sm, control::ZeroGMotion& motion, CollectionData& collection,
-                        WatchdogData& runs, CycleCounters& counters) noexcept {
+MotionResult run_motion(const CycleConfig& config, const MotionInputs& in,
+                        const MotionState& state) noexcept {
+  const PendingCommand& command = in.command;
+  const Row& now = in.now;
+  StateMachine& sm = state.sm;
+  control::ZeroGMotion& motion = state.zero_g;
+  CollectionData& collection = state.collection;
   MotionResult out;
   if (command.present) {
     const Command c = command.command;
     bool allowed = true;
-    if (c == Command::enable_zero_g && !model.ready) allowed = false;
-    if (c == Command::start_collection && path == nullptr) allowed = false;
-    if (allowed) allowed = sm.command(c, cycle);
+    if (c == Command::enable_zero_g && !in.model.ready) allowed = false;
+    if (c == Command::start_collection && in.path == nullptr) allowed = false;
+    if (allowed) allowed = sm.command(c, in.cycle);
     out.command_accepted = allowed;
     if (!allowed) {
       out.flags |= kCommandRefused;
-      ++counters.commands_refused;
+      ++state.counters.commands_refused;
     } else if (c == Command::enable_zero_g) {
       const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> R(
           now.signals.R_base_sensor.data());
@@ -340,6 +341,7 @@ MotionResult run_motion(const CycleConfig& config, const JointPath* path, std::u
       collection.cmd_rad = now.signals.joints_rad;
       set_zero(collection.v_radps);
     } else if (c == Command::reset_fault) {
+      WatchdogData& runs = state.runs;
       runs.robot_lost_run = runs.robot_late_run = 0;
       runs.ft_bad_run = runs.imu_bad_run = runs.model_bad_run = 0;
     }
@@ -347,16 +349,16 @@ MotionResult run_motion(const CycleConfig& config, const JointPath* path, std::u
   switch (sm.state()) {
     case State::idle:
       motion.reset(Eigen::Map<const Eigen::Vector3d>(now.signals.p_base_sensor_m.data()),
-                   Eigen::Quaterniond(row.R_base_sensor));
+                   Eigen::Quaterniond(in.row.R_base_sensor));
       break;
     case State::zero_g: {
-      if (model_data.status != infer::StatusCode::ok &&
-          model_data.status != infer::StatusCode::saturated)
+      if (in.model_data.status != infer::StatusCode::ok &&
+          in.model_data.status != infer::StatusCode::saturated)
         break;
-      const Eigen::Vector3d F(model.contact[0], model.contact[1], model.contact[2]);
-      const Eigen::Vector3d M(model.contact[3], model.contact[4], model.contact[5]);
+      const Eigen::Vector3d F(in.model.contact[0], in.model.contact[1], in.model.contact[2]);
+      const Eigen::Vector3d M(in.model.contact[3], in.model.contact[4], in.model.contact[5]);
       control::PoseCorrection c;
-      out.limit_flags = motion.step(F, M, timing.dt_s, c);
+      out.limit_flags = motion.step(F, M, in.timing.dt_s, c);
       if ((out.limit_flags & (control::kForceOverLimit | control::kTorqueOverLimit)) != 0) {
         out.fault = Fault::contact_over_limit;
         break;
@@ -372,7 +374,7 @@ MotionResult run_motion(const CycleConfig& config, const JointPath* path, std::u
     case State::collecting:
       out.correction.kind = samples::RobotCorrection::Kind::axes;
       out.correction.axes_rad =
-          follow_path(config, *path, timing.dt_s, cycle, sm, collection, out.flags);
+          follow_path(config, *in.path, in.timing.dt_s, in.cycle, sm, collection, out.flags);
       break;
     case State::fault:
       break;
@@ -380,18 +382,19 @@ MotionResult run_motion(const CycleConfig& config, const JointPath* path, std::u
   return out;
 }
 
-void make_record(std::uint64_t cycle, const samples::RobotSample& m, const Timing& timing,
-                 const Row& now, const RowResult& row, const ModelResult& model,
-                 const ModelData& model_data, const MotionResult& motion,
-                 const samples::RobotCorrection& reply, const StateMachine& sm,
-                 const control::ZeroGMotion& zero_g, CycleRecord& record) noexcept {
-  record.cycle = cycle;
-  record.ipoc = m.ipoc;
+void make_record(const RecordInputs& in, CycleRecord& record) noexcept {
+  const Row& now = in.now;
+  const RowResult& row = in.row;
+  const ModelResult& model = in.model;
+  const ModelData& model_data = in.model_data;
+  const MotionResult& motion = in.motion;
+  record.cycle = in.cycle;
+  record.ipoc = in.message.ipoc;
   record.t_s = now.t_s;
-  record.dt_s = timing.dt_s;
-  record.flags = timing.flags | row.flags | model.flags | motion.flags;
-  record.state = sm.state();
-  record.fault = sm.fault();
+  record.dt_s = in.timing.dt_s;
+  record.flags = in.timing.flags | row.flags | model.flags | motion.flags;
+  record.state = in.sm.state();
+  record.fault = in.sm.fault();
   record.limit_flags = motion.limit_flags;
   record.model_status = model_data.status;
   record.joints_rad = now.signals.joints_rad;
@@ -410,11 +413,8 @@ void make_record(std::uint64_t cycle, const samples::RobotSample& m, const Timin
   record.wrench_at_eval = model_data.wrench_at_eval;
   record.predicted = model.predicted;
   record.contact = model.contact;
-  const proto::rsi::Reply kuka = proto::rsi::reply_from_correction(reply);
-  record.axis_reply = reply.axis();
-  record.rkorr = kuka.rkorr;
-  record.akorr_deg = kuka.akorr_deg;
-  record.body = zero_g.body().state();
+  record.reply = in.reply;
+  record.body = in.zero_g.body().state();
   record.compute_ns = 0;
 }
 

@@ -69,6 +69,12 @@ RobotMessage robot_message_from_sample(const samples::RobotSample& s) {
   return m;
 }
 
+std::array<double, 3> rkorr_abc_rad(const samples::RobotCorrection& c) {
+  if (c.kind != samples::RobotCorrection::Kind::cartesian) return {};
+  const Eigen::Vector3d abc = model::kuka_abc_from_rotation(to_matrix(c.R_correction));
+  return {abc[0], abc[1], abc[2]};
+}
+
 Reply reply_from_correction(const samples::RobotCorrection& c) {
   using Kind = samples::RobotCorrection::Kind;
   Reply r;

@@ -14,17 +14,14 @@ bool is_rotation(const Eigen::Matrix3d& R) {
          std::abs(R.determinant() - 1.0) < 1e-9;
 }
 
-RobotStatus fail(RobotError code, std::string field, int joint, std::string message) {
-  return {code, std::move(field), joint, std::move(message)};
-}
-
 }  // namespace
 
-RobotStatus validate(const RobotModel& model) {
+zerog::Status validate(const RobotModel& model) {
+  using zerog::Status;
   if (model.joint_count < 1 || model.joint_count > kMaxJoints)
-    return fail(RobotError::joint_count, "joint_count", -1,
-                "a robot has 1 to " + std::to_string(kMaxJoints) + " joints, this one " +
-                    std::to_string(model.joint_count));
+    return Status::invalid("joint_count", "a robot has 1 to " + std::to_string(kMaxJoints) +
+                                              " joints, this one " +
+                                              std::to_string(model.joint_count));
   std::array<bool, kMaxJoints> used{};
   for (int i = 0; i < model.joint_count; ++i) {
     const DhJoint& j = model.joints[i];
@@ -32,26 +29,24 @@ RobotStatus validate(const RobotModel& model) {
     const auto row = [i] { return "joints[" + std::to_string(i) + "]"; };
     if (!std::isfinite(j.a_m) || !std::isfinite(j.alpha_rad) || !std::isfinite(j.d_m) ||
         !std::isfinite(j.theta_offset_rad))
-      return fail(RobotError::not_finite, row(), i,
-                  row() + " has a value that is not a finite number");
+      return Status::invalid(row(), "has a value that is not a finite number");
     if (j.sign != 1.0 && j.sign != -1.0)
-      return fail(RobotError::sign, row() + ".sign", i, row() + ".sign must be +1 or -1");
+      return Status::invalid(row() + ".sign", "must be +1 or -1");
     const int k = model.input_index[i];
     if (k < 0 || k >= model.joint_count || used[k])
-      return fail(RobotError::joint_order, "input_index[" + std::to_string(i) + "]", i,
-                  "the joint order must name each of the " + std::to_string(model.joint_count) +
-                      " recorded joints once");
+      return Status::invalid("input_index[" + std::to_string(i) + "]",
+                             "the joint order must name each of the " +
+                                 std::to_string(model.joint_count) + " recorded joints once");
     used[k] = true;
   }
   const std::pair<const FrameTransform*, const char*> frames[] = {
       {&model.last_flange, "last_flange"}, {&model.flange_sensor, "flange_sensor"}};
   for (const auto& [f, name] : frames) {
     if (!f->R.allFinite() || !f->p_m.allFinite())
-      return fail(RobotError::not_finite, name, -1,
-                  std::string(name) + " has a value that is not a finite number");
+      return Status::invalid(name, "has a value that is not a finite number");
     if (!is_rotation(f->R))
-      return fail(RobotError::rotation, std::string(name) + ".R", -1,
-                  std::string(name) + " is not a rotation (orthonormal, determinant +1)");
+      return Status::invalid(std::string(name) + ".R",
+                             "is not a rotation (orthonormal, determinant +1)");
   }
   return {};
 }

@@ -394,9 +394,9 @@ int run(const Options& opt) {
               ": the loop refuses the configuration: " + st.text());
     return kExitStartup;
   }
-  std::vector<std::string> warnings;
+  std::vector<Status> warnings;
   const Status started = runtime.start(warnings);
-  for (const std::string& w : warnings) print_err(w);
+  for (const Status& w : warnings) print_err("zerog-rt: WARNING: " + w.text());
   if (!started.ok()) {
     print_err("zerog-rt: " + started.text());
     return kExitStartup;

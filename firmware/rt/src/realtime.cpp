@@ -20,7 +20,7 @@ void* trampoline(void* arg) {
 Status lock_memory() {
   if (::mlockall(MCL_CURRENT | MCL_FUTURE) == 0) return {};
   const int error = errno;
-  return {StatusCode::system_error,
+  return {StatusCode::system_error, "realtime.lock_memory",
           std::string("mlockall(MCL_CURRENT|MCL_FUTURE) failed (") + std::strerror(error) +
               "): memory may be paged out and the cycle may miss its deadline; grant it with "
               "'LimitMEMLOCK=infinity' in the systemd unit or '<user> - memlock unlimited' in "
@@ -36,19 +36,21 @@ void prefault_stack() {
 
 Thread::~Thread() { join(); }
 
-std::string sched_warning(const std::string& threads, int priority, int error) {
-  return "zerog-rt: WARNING: SCHED_FIFO priority " + std::to_string(priority) + " for " + threads +
-         " refused (" + std::strerror(error) +
-         "): they run as SCHED_OTHER and may miss deadlines; grant it with 'LimitRTPRIO=99' in "
-         "the systemd unit or '<user> - rtprio 99' in /etc/security/limits.conf (or "
-         "CAP_SYS_NICE; in a container also a real-time budget, cpu.rt_runtime_us)";
+Status sched_warning(const std::string& threads, int priority, int error) {
+  return {StatusCode::system_error, "realtime.priority",
+          "SCHED_FIFO priority " + std::to_string(priority) + " for " + threads + " refused (" +
+              std::strerror(error) +
+              "): they run as SCHED_OTHER and may miss deadlines; grant it with 'LimitRTPRIO=99' "
+              "in the systemd unit or '<user> - rtprio 99' in /etc/security/limits.conf (or "
+              "CAP_SYS_NICE; in a container also a real-time budget, cpu.rt_runtime_us)"};
 }
 
-std::string affinity_warning(const std::string& thread, int cpu, int error) {
-  return "zerog-rt: WARNING: pinning the " + thread + " thread to CPU " + std::to_string(cpu) +
-         " failed (" + std::strerror(error) +
-         "): it may run on any CPU; check [realtime] cpu against the CPUs of this machine and "
-         "the process's cpuset";
+Status affinity_warning(const std::string& thread, int cpu, int error) {
+  return {StatusCode::system_error, "realtime.cpu",
+          "pinning the " + thread + " thread to CPU " + std::to_string(cpu) + " failed (" +
+              std::strerror(error) +
+              "): it may run on any CPU; check [realtime] cpu against the CPUs of this machine "
+              "and the process's cpuset"};
 }
 
 Status Thread::start(const std::string& name, std::function<void()> body, int priority, int cpu,

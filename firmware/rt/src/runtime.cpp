@@ -112,7 +112,7 @@ Status Runtime::configure(const loop::CycleConfig& config, infer::DeployedModel 
   return {};
 }
 
-Status Runtime::start(std::vector<std::string>& warnings) {
+Status Runtime::start(std::vector<Status>& warnings) {
   if (threads_.started) return {StatusCode::already_started, "already started"};
   try {
     recorder_side_.recorder = std::make_unique<Recorder>(options_.recorder);
@@ -124,8 +124,7 @@ Status Runtime::start(std::vector<std::string>& warnings) {
       return std::move(st).within("telemetry");
   }
   if (options_.realtime.lock_memory) {
-    if (const Status st = lock_memory(); !st.ok())
-      warnings.push_back("zerog-rt: WARNING: " + st.message());
+    if (Status st = lock_memory(); !st.ok()) warnings.push_back(std::move(st));
   }
   const int priority = options_.realtime.priority;
   const int sensor_priority = priority > 1 ? priority - 1 : priority;

@@ -2,7 +2,7 @@
 
 #include <cstddef>
 
-#include "zerog/proto/rsi.hpp"
+#include "zerog/proto/rsi_si.hpp"
 
 namespace zerog::telemetry {
 
@@ -86,13 +86,15 @@ CommandSample to_command(const loop::CycleRecord& r, const control::BodyParams& 
   s.cycle = r.cycle;
   s.t_s = r.t_s;
   s.dt_s = r.dt_s;
-  s.axis_reply = r.axis_reply;
-  // RKorr has the layout of a Cartesian pose (mm, degrees): the RSI border's conversion.
-  const proto::rsi::PoseSi rkorr = proto::rsi::to_si(proto::rsi::CartesianPose{
-      r.rkorr.x_mm, r.rkorr.y_mm, r.rkorr.z_mm, r.rkorr.a_deg, r.rkorr.b_deg, r.rkorr.c_deg});
-  copy_to(s.rkorr_translation_m, rkorr.position_m);
-  copy_to(s.rkorr_abc_rad, rkorr.abc_rad);
-  copy_to(s.akorr_rad, proto::rsi::joints_to_rad(r.akorr_deg));
+  // The record's reply is SI; RKorr's angles are KUKA's A, B, C (in rad here), from the RSI
+  // border's one function. Each part is zero unless the reply is of its kind.
+  using Kind = samples::RobotCorrection::Kind;
+  s.axis_reply = r.reply.axis();
+  const bool cartesian = r.reply.kind == Kind::cartesian;
+  for (std::size_t i = 0; i < 3; ++i)
+    s.rkorr_translation_m[i] = cartesian ? r.reply.translation_m[i] : 0.0;
+  copy_to(s.rkorr_abc_rad, proto::rsi::rkorr_abc_rad(r.reply));
+  for (std::size_t i = 0; i < 6; ++i) s.akorr_rad[i] = s.axis_reply ? r.reply.axes_rad[i] : 0.0;
   const control::VirtualBody virtual_body(body, r.body);
   copy_to(s.v_world_mps, r.body.v_world_mps);
   copy_to(s.omega_world_radps, virtual_body.omega_world());

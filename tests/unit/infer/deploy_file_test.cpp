@@ -206,7 +206,8 @@ TEST(DeployFileBad, MissingKeysAndBadNumbersAreNamed) {
   expect_error(load(file_with(c)), LoadError::invalid_value, "missing key 'rig.sample_period_s'");
   c = good;
   c["network"]["quantisation"]["weight_bits"] = 4;
-  expect_error(load(file_with(c)), LoadError::invalid_value, "weight_bits is 4");
+  expect_error(load(file_with(c)), LoadError::invalid_value,
+               "network.quantisation.weight_bits: must be 8 or 16, is 4");
   c = good;
   c["network"]["layers"][0]["q_weight_scale"][0] = -1.0;
   expect_error(load(file_with(c)), LoadError::invalid_value, "q_weight_scale");
@@ -216,6 +217,18 @@ TEST(DeployFile, WriterRefusesAnInconsistentModel) {
   DeployedModel m = full_model();
   m.network->params.pop_back();
   EXPECT_THROW(serialise_deployed_model(m), std::invalid_argument);
+  // validate_model names the field and the loader's category.
+  LoadError kind = LoadError::none;
+  const zerog::Status st = validate_model(m, &kind);
+  EXPECT_EQ(st.code(), zerog::StatusCode::invalid_setting);
+  EXPECT_EQ(st.setting(), "network");
+  EXPECT_EQ(kind, LoadError::inconsistent_sizes);
+  m = full_model();
+  m.network->quantised.layers[0].bias[0] = std::int64_t{1} << 60;
+  EXPECT_EQ(validate_model(m, &kind).setting(), "network.layers[0].q_bias");
+  EXPECT_EQ(kind, LoadError::invalid_value);
+  EXPECT_TRUE(validate_model(full_model(), &kind).ok());
+  EXPECT_EQ(kind, LoadError::none);
 }
 
 }  // namespace

@@ -88,8 +88,8 @@ TEST(Cycle, ConfigureReportsARefusedModelAsTheModels) {
   bad.rig.name.clear();
   const zerog::Status st = c.configure(test_cycle_config(), bad);
   EXPECT_EQ(st.code(), zerog::StatusCode::invalid_setting);
-  EXPECT_EQ(st.setting(), "");
-  EXPECT_EQ(st.message(), "model: rig.name is empty");
+  EXPECT_EQ(st.setting(), "model.rig.name");
+  EXPECT_EQ(st.message(), "is empty");
   EXPECT_FALSE(c.inference().configured());
 }
 

@@ -139,24 +139,27 @@ TEST(RobotModelValidate, NamesTheFaultyField) {
   RobotModel m = kr210_r2700();
   EXPECT_TRUE(validate(m).ok());
   m.joint_count = 9;
-  EXPECT_EQ(validate(m).code, RobotError::joint_count);
+  EXPECT_EQ(validate(m).setting(), "joint_count");
   m = kr210_r2700();
   m.joints[2].sign = 0.5;
-  RobotStatus s = validate(m);
-  EXPECT_EQ(s.code, RobotError::sign);
-  EXPECT_EQ(s.joint, 2);
-  EXPECT_EQ(s.field, "joints[2].sign");
+  zerog::Status s = validate(m);
+  EXPECT_EQ(s.code(), zerog::StatusCode::invalid_setting);
+  EXPECT_EQ(s.setting(), "joints[2].sign");
+  EXPECT_EQ(s.message(), "must be +1 or -1");
+  EXPECT_EQ(s.text(), "joints[2].sign: must be +1 or -1");
   m = kr210_r2700();
   m.input_index[1] = 0;
-  EXPECT_EQ(validate(m).code, RobotError::joint_order);
+  EXPECT_EQ(validate(m).setting(), "input_index[1]");
   m = kr210_r2700();
   m.joints[4].d_m = std::nan("");
-  EXPECT_EQ(validate(m).code, RobotError::not_finite);
+  s = validate(m);
+  EXPECT_EQ(s.setting(), "joints[4]");
+  EXPECT_EQ(s.message(), "has a value that is not a finite number");
   m = kr210_r2700();
   m.flange_sensor.R(0, 0) = 2.0;
   s = validate(m);
-  EXPECT_EQ(s.code, RobotError::rotation);
-  EXPECT_EQ(s.field, "flange_sensor.R");
+  EXPECT_EQ(s.code(), zerog::StatusCode::invalid_setting);
+  EXPECT_EQ(s.setting(), "flange_sensor.R");
 }
 
 TEST(RobotToml, RefusesBadTablesNamingTheKey) {

@@ -65,8 +65,10 @@ TEST(Realtime, ThreadRunsUnderSchedFifoOrReportsWhy) {
     EXPECT_EQ(priority.load(), 10);
   } else {
     EXPECT_EQ(policy.load(), SCHED_OTHER);
-    const std::string w = sched_warning("the test thread", 10, setup.sched_error);
-    EXPECT_NE(w.find("LimitRTPRIO"), std::string::npos) << w;
+    const Status w = sched_warning("the test thread", 10, setup.sched_error);
+    EXPECT_EQ(w.code(), StatusCode::system_error);
+    EXPECT_EQ(w.setting(), "realtime.priority");
+    EXPECT_NE(w.message().find("LimitRTPRIO"), std::string::npos) << w.text();
   }
   EXPECT_EQ(setup.affinity_error, 0);
 }

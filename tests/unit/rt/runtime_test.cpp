@@ -9,12 +9,15 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <nlohmann/json.hpp>
 #include <thread>
 
 #include "../rtio/udp.hpp"
 #include "rt_fixtures.hpp"
+#include "zerog/formats/cycles_csv.hpp"
+#include "zerog/proto/rsi_si.hpp"
 #include "zerog/rt/runtime.hpp"
 #include "zerog/rtio/rsi_endpoint.hpp"
 
@@ -68,7 +71,7 @@ TEST(Runtime, EndToEndOnLoopbackUdp) {
   options.recorder.rig = test::test_rig();
   Runtime rt(options, RuntimeDevices{&endpoint});
   ASSERT_EQ(rt.configure(test::test_cycle_config(), test::payload_model()).text(), "");
-  std::vector<std::string> warnings;
+  std::vector<Status> warnings;
   ASSERT_EQ(rt.start(warnings).text(), "");
   EXPECT_TRUE(warnings.empty());
 
@@ -181,7 +184,7 @@ TEST(Runtime, ResetAfterTheDumpReleasesTheBlackBoxForTheNextFault) {
   options.recorder.blackbox_dir = dir.path();
   Runtime rt(options, RuntimeDevices{&endpoint});
   ASSERT_EQ(rt.configure(test::test_cycle_config(), test::payload_model()).text(), "");
-  std::vector<std::string> warnings;
+  std::vector<Status> warnings;
   ASSERT_EQ(rt.start(warnings).text(), "");
   RobotInTest robot(endpoint.local_port());
   test::StaticRobot rig;
@@ -249,7 +252,7 @@ TEST(Runtime, CollectStartsWhenReadyAnswersWithAxisCorrectionsAndFinishes) {
   options.recorder.rig = test::test_rig();
   Runtime rt(options, RuntimeDevices{&endpoint});
   ASSERT_EQ(rt.configure(test::test_cycle_config(), test::payload_model(), &path).text(), "");
-  std::vector<std::string> warnings;
+  std::vector<Status> warnings;
   ASSERT_EQ(rt.start(warnings).text(), "");
   RobotInTest robot(endpoint.local_port());
   std::vector<std::string> announced;
@@ -285,6 +288,78 @@ TEST(Runtime, CollectStartsWhenReadyAnswersWithAxisCorrectionsAndFinishes) {
   const io::Log log = io::read_log(dir.path() / "collect" / "run.csv");
   ASSERT_EQ(log.samples.size(), cycles);
   EXPECT_NEAR(log.samples.back().joints_rad[0] - log.samples.front().joints_rad[0], 0.05, 1e-3);
+}
+
+// SI at the border, the reply side (proto/loop.md): the cycle's correction is SI (m, rad) and is
+// converted to the wire's mm and degrees exactly once, in rtio, on its way into the UDP reply;
+// cycles.csv's writer converts the record's copy for the file once too. A conversion too many
+// anywhere (the cycle, the record, rtio, the writer) makes one side 1000 or 57.3 times the other.
+TEST(Runtime, TheCyclesSiCorrectionReachesTheUdpReplyInMillimetresAndDegreesOnce) {
+  test::TempDir dir;
+  rtio::RsiEndpointConfig rc;
+  rc.bind_port = 0;
+  rc.receive_timeout = 1s;
+  rtio::RsiEndpoint endpoint(rc);
+  ASSERT_EQ(endpoint.start(), rtio::RobotStartStatus::ok);
+  RuntimeOptions options;
+  options.auto_enable_zero_g = true;
+  options.recorder.dir = dir.path() / "rec";
+  options.recorder.rig = test::test_rig();
+  Runtime rt(options, RuntimeDevices{&endpoint});
+  ASSERT_EQ(rt.configure(test::test_cycle_config(), test::payload_model()).text(), "");
+  std::vector<Status> warnings;
+  ASSERT_EQ(rt.start(warnings).text(), "");
+  RobotInTest robot(endpoint.local_port());
+  ASSERT_TRUE(robot.ok());
+  test::StaticRobot rig;
+  // A push through the centre of mass and a twist about the sensor's z: translation and rotation.
+  Eigen::Matrix<double, 6, 1> push = test::push(50.0, -20.0, 0.0);
+  push[5] += 8.0;
+  rsi::Reply last;
+  for (int i = 0; i < 50; ++i) {
+    for (int k = 0; k < 4; ++k)
+      EXPECT_TRUE(
+          rt.ft_ring().try_push(rig.ft(i < 20 ? Eigen::Matrix<double, 6, 1>::Zero() : push)));
+    for (int k = 0; k < 24; ++k) EXPECT_TRUE(rt.imu_ring().try_push(rig.imu_sample));
+    ASSERT_TRUE(robot.exchange(rig.message, last)) << "cycle " << i + 1;
+    rig.message.ipoc += 12;
+    (void)rt.supervise();
+  }
+  EXPECT_EQ(rt.stop().text(), "");
+
+  // The cycle's own value (SI; the cycle thread has stopped): the last reply's correction.
+  const loop::CycleRecord& record = rt.cycle().last();
+  ASSERT_EQ(record.state, loop::State::zero_g);
+  ASSERT_EQ(record.reply.kind, samples::RobotCorrection::Kind::cartesian);
+  ASSERT_EQ(record.reply.ipoc, last.ipoc);
+  const std::array<double, 3>& t_m = record.reply.translation_m;
+  const std::array<double, 3> abc_rad = rsi::rkorr_abc_rad(record.reply);
+  // Moving, but by a plausible amount of metres and radians per 12 ms (not mm, not degrees).
+  EXPECT_GT(std::abs(t_m[0]), 1e-5);
+  EXPECT_LT(std::hypot(t_m[0], t_m[1], t_m[2]), 0.01);
+  const double turn_rad =
+      std::max({std::abs(abc_rad[0]), std::abs(abc_rad[1]), std::abs(abc_rad[2])});
+  EXPECT_GT(turn_rad, 1e-4);
+  EXPECT_LT(turn_rad, 0.01);
+  // The UDP reply: that value in mm and degrees, once (RSI writes 4 decimals).
+  ASSERT_TRUE(last.has_rkorr);
+  const double x[] = {last.rkorr.x_mm, last.rkorr.y_mm, last.rkorr.z_mm};
+  const double a[] = {last.rkorr.a_deg, last.rkorr.b_deg, last.rkorr.c_deg};
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_NEAR(x[k], t_m[static_cast<std::size_t>(k)] * 1e3, 0.51e-4) << k;
+    EXPECT_NEAR(a[k], abc_rad[static_cast<std::size_t>(k)] / rsi::kRadPerDeg, 0.51e-4) << k;
+  }
+  // cycles.csv: the same reply, converted for the file once (and read back to SI).
+  const std::vector<loop::CycleRecord> rows =
+      io::read_cycles_csv(dir.path() / "rec" / "cycles.csv");
+  ASSERT_FALSE(rows.empty());
+  const samples::RobotCorrection& back = rows.back().reply;
+  EXPECT_EQ(back.ipoc, last.ipoc);
+  ASSERT_EQ(back.kind, samples::RobotCorrection::Kind::cartesian);
+  for (std::size_t k = 0; k < 3; ++k) {
+    EXPECT_NEAR(back.translation_m[k], t_m[k], 1e-15) << k;
+    EXPECT_NEAR(rsi::rkorr_abc_rad(back)[k], abc_rad[k], 1e-14) << k;
+  }
 }
 
 TEST(CommandLine, ParsesTheFiveCommandsAndNamesTheRest) {

@@ -49,7 +49,8 @@ loop::CycleRecord scripted(std::uint64_t cycle) {
   r.joints_rad[0] = 0.01 * static_cast<double>(cycle);
   r.body.v_world_mps = {0.01, 0.0, 0.0};
   r.body.L_world_kgm2ps = {0.0, 0.0, 0.1};
-  r.rkorr.x_mm = 0.04;
+  r.reply.kind = samples::RobotCorrection::Kind::cartesian;
+  r.reply.translation_m[0] = 0.04e-3;
   r.compute_ns = 1000 * static_cast<std::int64_t>(cycle);
   return r;
 }

@@ -7,6 +7,7 @@
 #include <cstring>
 
 #include "zerog/proto/rsi.hpp"
+#include "zerog/proto/rsi_si.hpp"
 #include "zerog/telemetry/config.hpp"
 #include "zerog/telemetry/convert.hpp"
 
@@ -30,7 +31,6 @@ loop::CycleRecord sample_record() {
     r.wrench_at_eval[i] = 2.0 + i;
     r.predicted[i] = 1.5 + i;
     r.contact[i] = 0.5;
-    r.akorr_deg[i] = 0.01 * (i + 1);
   }
   r.p_base_sensor_m = {1.0, 2.0, 3.0};
   r.q_base_sensor = Eigen::Quaterniond(Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitY()));
@@ -39,7 +39,12 @@ loop::CycleRecord sample_record() {
   r.ft_samples = 2;
   r.imu_samples = 9;
   r.t_eval_s = 0.156;
-  r.rkorr = {1.0, -2.0, 0.5, 0.1, -0.2, 0.3};  // mm, degrees
+  // The reply in SI, made from an RKorr of 1, −2, 0.5 mm and 0.1, −0.2, 0.3 degrees.
+  proto::rsi::Reply rkorr;
+  rkorr.ipoc = r.ipoc;
+  rkorr.has_rkorr = true;
+  rkorr.rkorr = {1.0, -2.0, 0.5, 0.1, -0.2, 0.3};
+  r.reply = proto::rsi::correction_from_reply(rkorr);
   r.body.p_world_m = {0.5, 0.6, 0.7};
   r.body.q_world_body = Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitX()));
   r.body.v_world_mps = {0.1, -0.2, 0.05};
@@ -93,9 +98,21 @@ TEST(TelemetryConvert, CommandIsInSiAndTheTwistComesFromTheVirtualBody) {
   const CommandSample s = to_command(r, body);
   EXPECT_NEAR(s.rkorr_translation_m[0], 1.0e-3, 1e-18);
   EXPECT_NEAR(s.rkorr_translation_m[1], -2.0e-3, 1e-18);
+  EXPECT_NEAR(s.rkorr_abc_rad[0], 0.1 * M_PI / 180.0, 1e-15);
+  EXPECT_NEAR(s.rkorr_abc_rad[1], -0.2 * M_PI / 180.0, 1e-15);
   EXPECT_NEAR(s.rkorr_abc_rad[2], 0.3 * M_PI / 180.0, 1e-15);
-  EXPECT_NEAR(s.akorr_rad[5], 0.06 * M_PI / 180.0, 1e-15);
+  EXPECT_EQ(s.akorr_rad[5], 0.0);  // an RKorr reply: no AKorr
   EXPECT_FALSE(s.axis_reply);
+  // An AKorr reply: axes in rad as the cycle made them, no RKorr.
+  loop::CycleRecord axes = r;
+  axes.reply = {};
+  axes.reply.kind = samples::RobotCorrection::Kind::axes;
+  for (int i = 0; i < 6; ++i) axes.reply.axes_rad[i] = 1e-4 * (i + 1);
+  const CommandSample a = to_command(axes, body);
+  EXPECT_TRUE(a.axis_reply);
+  EXPECT_EQ(a.akorr_rad[5], axes.reply.axes_rad[5]);
+  EXPECT_EQ(a.rkorr_translation_m[0], 0.0);
+  EXPECT_EQ(a.rkorr_abc_rad[1], 0.0);
   EXPECT_EQ(s.limit_flags, static_cast<std::uint32_t>(control::kSpeedLimited));
   const control::VirtualBody vb(body, r.body);
   const Eigen::Vector3d w = vb.omega_world();

@@ -15,7 +15,9 @@ namespace zerog::io {
 void append_record_header(std::string& out);
 /// Appends one row: numbers in C locale, shortest text that reads back exactly; state, fault
 /// and model status by name; flags as decimal integers (bits in loop::CycleFlags and
-/// control::LimitFlags).
+/// control::LimitFlags). The record's reply (SI) is written in the wire's units, as the robot
+/// got it: rkorr_* in mm and degrees, akorr_* in degrees (proto::rsi::reply_from_correction, the
+/// RSI border's function; the cycle itself never converts).
 void append_record_row(const loop::CycleRecord& record, std::string& out);
 /// Number of columns of the header and of every row.
 int record_column_count();
@@ -23,6 +25,8 @@ int record_column_count();
 /// Reads a cycles.csv (columns found by their header names) back into records. Throws
 /// std::runtime_error naming the file (and line) for an unreadable file, a missing column, too
 /// few cells, a cell that is not a number or an unknown state, fault or model status name.
+/// The reply comes back in SI (proto::rsi::correction_from_reply: equal up to rounding; an
+/// RKorr of zeros reads as Kind::none).
 std::vector<loop::CycleRecord> read_cycles_csv(const std::filesystem::path& path);
 
 }  // namespace zerog::io

@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "zerog/infer/deploy_model.hpp"
+#include "zerog/status.hpp"
 
 namespace zerog::infer {
 
@@ -54,8 +55,12 @@ LoadResult load_deployed_model_file(const std::filesystem::path& path,
 /// if the model fails validate_model. Host side.
 std::string serialise_deployed_model(const DeployedModel& model);
 
-/// Internal consistency of a model (everything the loader checks except the rig and the bytes).
-std::pair<LoadError, std::string> validate_model(const DeployedModel& model);
+/// Internal consistency of a model (everything the loader checks except the rig and the bytes):
+/// ok(), or invalid_setting naming the field as a path in the file's content ("rig.name",
+/// "physics.parameters.gravity.mass", "network.layers[1]", "network.quantisation.weight_bits")
+/// and why, without the field's name. `kind`, if given, receives the loader's category of the
+/// refusal (LoadError::none when ok). Start-up only (a refusal allocates).
+zerog::Status validate_model(const DeployedModel& model, LoadError* kind = nullptr);
 
 /// CRC-32 (IEEE 802.3 / zlib: reflected polynomial 0xEDB88320, initial and final XOR 0xFFFFFFFF).
 std::uint32_t crc32(std::string_view bytes);

@@ -14,8 +14,9 @@
 // Units: the cycle sees SI only (STYLE.md habit 13). The robot's message comes in as a
 // samples::RobotSample (m, rad, rotation matrices) and the answer goes out as a
 // samples::RobotCorrection; zerog::rtio converts from and to the wire's KUKA units
-// (zerog/proto/rsi_si.hpp). The record keeps the reply in the log's units (cycles.csv: mm,
-// degrees), converted by the same function.
+// (zerog/proto/rsi_si.hpp), once per message each way. The record keeps the reply in SI too
+// (CycleRecord::reply); cycles.csv's writer (zerog/formats/cycles_csv.hpp) and telemetry convert
+// it to their units outside the cycle.
 //
 // Structure (STYLE.md habit 14): the configuration (CycleConfig, const between configure() and
 // an accepted proposal) and per-cycle data (CycleData: one part per stage), and stage functions
@@ -197,10 +198,10 @@ struct CycleRecord {
   std::array<double, 6> wrench_at_eval{};  ///< measured, that row
   std::array<double, 6> predicted{};       ///< model prediction, that row
   std::array<double, 6> contact{};         ///< measured − predicted (sensor frame, about S)
-  // The reply.
-  bool axis_reply = false;       ///< AKorr (collection) instead of RKorr
-  proto::rsi::Correction rkorr;  ///< mm, degrees
-  std::array<double, 6> akorr_deg{};
+  /// The reply sent, in SI (as the cycle handed it to zerog::rtio): Kind::none (a zero RKorr),
+  /// cartesian (translation in B, m; rotation in B) or axes (AKorr, rad), with the message's
+  /// IPOC. cycles.csv writes it in the wire's units (mm, degrees).
+  samples::RobotCorrection reply;
   // The virtual body after the step (world = robot base frame).
   control::BodyState body;
   std::int64_t compute_ns = 0;  ///< filled in by the program (time of step())
@@ -393,23 +394,56 @@ ModelResult evaluate_model(const CycleConfig& config, infer::Inference& inferenc
 FaultRequests watch_model(const WatchdogConfig& config, const ModelResult& model,
                           WatchdogData& runs) noexcept;
 
-/// The command of this cycle (if any) and the state's motion: idle follows the sensor, zero-g
-/// steps the virtual body with the contact wrench, collection follows `path`. A correction only
-/// in zero-g and collection; none in fault.
-MotionResult run_motion(const CycleConfig& config, const JointPath* path, std::uint64_t cycle,
-                        const PendingCommand& command, const Timing& timing, const Row& now,
-                        const RowResult& row, const ModelResult& model, const ModelData& model_data,
-                        StateMachine& sm, control::ZeroGMotion& motion, CollectionData& collection,
-                        WatchdogData& runs, CycleCounters& counters) noexcept;
+/// What run_motion() reads: this cycle's number, the collection path and the earlier stages'
+/// outputs. References to the caller's values (nothing is copied); build it with designated
+/// initialisers, which name every field.
+struct MotionInputs {
+  const JointPath* path;          ///< collection mode's path (null: none set)
+  std::uint64_t cycle;            ///< this cycle's number (state transitions are stamped with it)
+  const PendingCommand& command;  ///< the command taken for this cycle (present or not)
+  const Timing& timing;           ///< dt for the body and the path
+  const Row& now;                 ///< this cycle's row: the pose and joints to start from
+  const RowResult& row;           ///< the row's R_base_sensor
+  const ModelResult& model;       ///< contact wrench (sensor frame), ready
+  const ModelData& model_data;    ///< the last evaluation's status
+};
 
-/// The cycle's record from the stages' outputs and the reply sent (`reply`: the motion's
-/// correction, or none in fault), in the log's units (mm and degrees, by
-/// proto::rsi::reply_from_correction). compute_ns is 0 (the program fills it in).
-void make_record(std::uint64_t cycle, const samples::RobotSample& message, const Timing& timing,
-                 const Row& now, const RowResult& row, const ModelResult& model,
-                 const ModelData& model_data, const MotionResult& motion,
-                 const samples::RobotCorrection& reply, const StateMachine& sm,
-                 const control::ZeroGMotion& zero_g, CycleRecord& record) noexcept;
+/// What run_motion() changes besides its result: the state machine (commands, collection's
+/// end), the virtual body, collection's progress, the watchdogs' runs (reset_fault clears them)
+/// and the counters.
+struct MotionState {
+  StateMachine& sm;
+  control::ZeroGMotion& zero_g;
+  CollectionData& collection;
+  WatchdogData& runs;
+  CycleCounters& counters;
+};
+
+/// The command of this cycle (if any) and the state's motion: idle follows the sensor, zero-g
+/// steps the virtual body with the contact wrench, collection follows `in.path`. A correction
+/// (SI) only in zero-g and collection; none in fault.
+MotionResult run_motion(const CycleConfig& config, const MotionInputs& in,
+                        const MotionState& state) noexcept;
+
+/// What make_record() reads: every stage's output, the reply sent (the motion's correction, or
+/// none in fault) and the state after the cycle. References, as MotionInputs.
+struct RecordInputs {
+  std::uint64_t cycle;
+  const samples::RobotSample& message;
+  const Timing& timing;
+  const Row& now;
+  const RowResult& row;
+  const ModelResult& model;
+  const ModelData& model_data;
+  const MotionResult& motion;
+  const samples::RobotCorrection& reply;  ///< SI, as handed to zerog::rtio
+  const StateMachine& sm;
+  const control::ZeroGMotion& zero_g;
+};
+
+/// The cycle's record from `in`, the reply kept in SI (no conversion in the cycle). compute_ns
+/// is 0 (the program fills it in).
+void make_record(const RecordInputs& in, CycleRecord& record) noexcept;
 
 }  // namespace stages
 
@@ -431,8 +465,8 @@ class Cycle {
 
   /// Start-up: validates the configuration (check_config) and takes the model
   /// (Inference::configure). Returns ok(), or invalid_setting: check_config's, naming the
-  /// CycleConfig field, or the model's refusal with "model: " in front of its message. On
-  /// failure nothing changes. Not real-time safe.
+  /// CycleConfig field, or the model's refusal (infer::validate_model) with its field under
+  /// "model." ("model.rig.name"). On failure nothing changes. Not real-time safe.
   zerog::Status configure(const CycleConfig& config, infer::DeployedModel model);
   const CycleConfig& config() const { return config_; }
   /// Rows between the newest row and the one the model is evaluated on.

@@ -12,6 +12,8 @@
 // [−90°, 90°] and A, C in (−180°, 180°] (model::kuka_abc_from_rotation).
 //
 // Real-time safe: no allocation, no exceptions, no locks.
+#include <array>
+
 #include "zerog/proto/rsi.hpp"
 #include "zerog/samples/robot_sample.hpp"
 
@@ -32,6 +34,11 @@ RobotMessage robot_message_from_sample(const samples::RobotSample& sample);
 /// of exact zeros for Kind::none, AKorr (degrees) for Kind::axes; the other one is absent
 /// (has_* false, zero). IPOC as it is.
 Reply reply_from_correction(const samples::RobotCorrection& correction);
+
+/// The RKorr angles A, B, C of `correction` in rad (KUKA's Euler angles of R_correction, in the
+/// ranges above) for Kind::cartesian; exact zeros otherwise. reply_from_correction's angles are
+/// these in degrees. For telemetry, which carries them in rad.
+std::array<double, 3> rkorr_abc_rad(const samples::RobotCorrection& correction);
 
 /// A reply's KUKA units → SI (the controller's side: the emulator applies it; tests). RKorr
 /// gives translation_m and R_correction, AKorr gives axes_rad (zero when absent); kind is axes

@@ -11,6 +11,8 @@
 #include <cstdint>
 #include <string>
 
+#include "zerog/status.hpp"
+
 namespace zerog::robot {
 
 /// Most joints a RobotModel can hold (fixed capacity: the cycle passes fixed-size values).
@@ -54,28 +56,11 @@ struct RobotModel {
   FrameTransform flange_sensor;
 };
 
-/// What validate() found wrong.
-enum class RobotError : std::uint8_t {
-  ok,
-  joint_count,  ///< joint_count outside 1..kMaxJoints
-  not_finite,   ///< a NaN or infinite number
-  sign,         ///< a joint sign that is not +1 or −1
-  joint_order,  ///< input_index is not a permutation of 0..joint_count−1
-  rotation,     ///< a rotation matrix that is not orthonormal with determinant +1 (1e-9)
-};
-
-/// Typed status: a code to branch on, the field it concerns and the joint (−1: none), and a
-/// sentence for a person.
-struct RobotStatus {
-  RobotError code = RobotError::ok;
-  std::string field;  ///< "joint_count", "joints[2].sign", "flange_sensor.R", …
-  int joint = -1;     ///< 0-based DH row, or −1
-  std::string message;
-  bool ok() const { return code == RobotError::ok; }
-};
-
-/// Checks a model before use. Configuration time: allocates the message.
-RobotStatus validate(const RobotModel& model);
+/// Checks a model before use: ok(), or invalid_setting naming the field refused as a path in
+/// RobotModel ("joint_count", "joints[2]", "joints[2].sign", "input_index[1]", "flange_sensor",
+/// "last_flange.R") with why, without the field's name ("must be +1 or -1"). Configuration time:
+/// a failure allocates its message (the check itself does not).
+zerog::Status validate(const RobotModel& model);
 
 /// The KUKA KR 210 R2700 as calib/robots/kr210_r2700.robot.toml describes it (standard DH,
 /// KUKA's joint directions, joint order A1..A6), with `flange_sensor` as given. For tests and

@@ -15,8 +15,9 @@
 
 namespace zerog::rt {
 
-/// mlockall(MCL_CURRENT | MCL_FUTURE). ok(), or system_error saying what failed and how to grant
-/// it (the caller warns and carries on).
+/// mlockall(MCL_CURRENT | MCL_FUTURE). ok(), or system_error concerning "realtime.lock_memory"
+/// (the [realtime] key that asks for it), saying what failed and how to grant it (the caller
+/// warns and carries on).
 Status lock_memory();
 
 /// Stack of the threads Thread starts (MCL_FUTURE locks it whole).
@@ -33,10 +34,12 @@ struct ThreadSetup {
   int affinity_error = 0;  ///< pthread_setaffinity_np
 };
 
-/// The warning line for SCHED_FIFO at `priority` refused with `error` for `threads` (names).
-std::string sched_warning(const std::string& threads, int priority, int error);
-/// The warning line for pinning `thread` to `cpu` refused with `error`.
-std::string affinity_warning(const std::string& thread, int cpu, int error);
+/// SCHED_FIFO at `priority` refused with `error` for `threads` (names): system_error concerning
+/// "realtime.priority", saying what failed and how to grant it. A warning: the caller carries on.
+Status sched_warning(const std::string& threads, int priority, int error);
+/// Pinning `thread` to `cpu` refused with `error`: system_error concerning "realtime.cpu". A
+/// warning: the caller carries on.
+Status affinity_warning(const std::string& thread, int cpu, int error);
 
 /// A thread with a fixed stack size (so MCL_FUTURE locks 2 MiB per thread, not the 8 MiB
 /// default), a name (visible in top -H) and optional SCHED_FIFO priority and CPU affinity.

@@ -203,8 +203,9 @@ class Runtime final : public modbus::SupervisorTarget {
   /// Opens the recorder, locks memory (if configured), starts the threads. ok(), or
   /// already_started, or system_error (the recorder, a thread), or the telemetry channel's and
   /// the Modbus server's failures (a refused setting named as in the file: "telemetry.peers",
-  /// "modbus.port"); `warnings` gets the real-time set-up warnings (one line each).
-  Status start(std::vector<std::string>& warnings);
+  /// "modbus.port"); `warnings` gets the real-time set-up warnings (system_error, each naming
+  /// its [realtime] key: realtime.lock_memory, realtime.priority, realtime.cpu).
+  Status start(std::vector<Status>& warnings);
 
   /// The cycle thread's loop body: one robot cycle (or one lost one). Real-time safe.
   void cycle_once() noexcept;
