@@ -32,6 +32,8 @@ struct Common {
   bool quiet = false;
   int threads = 2;
   std::string engine = ident::FitOptions{}.engine;  ///< --engine (fit, diagnose, ladder)
+  /// --errors-in-variables (fit, diagnose, ladder): ident::FitOptions::errors_in_variables
+  std::string errors_in_variables = ident::FitOptions{}.errors_in_variables;
 };
 
 void add_common(CLI::App* c, Common& o) {
@@ -57,6 +59,16 @@ void add_engine(CLI::App* c, Common& o) {
       ->capture_default_str();
 }
 
+// --errors-in-variables: the fit corrected for the IMU regressors' noise (ident/eiv.hpp).
+void add_errors_in_variables(CLI::App* c, Common& o) {
+  c->add_option("--errors-in-variables", o.errors_in_variables,
+                "Correct the fit for the noise of the IMU signals it regresses on (corrected "
+                "least squares, proto/effects.md): off, on, or auto (on where the log's rig says "
+                "its IMU rows are point samples)")
+      ->check(CLI::IsMember({"off", "on", "auto"}))
+      ->capture_default_str();
+}
+
 std::function<void(const std::string&)> progress(const Common& o) {
   if (o.quiet) return nullptr;
   return progress_line;
@@ -73,6 +85,18 @@ nlohmann::json fit_json(const ident::FitResult& r) {
   j["residual_rms"] = r.residual_rms;
   j["sigma"] = r.sigma;
   j["bic"] = r.bic;
+  const ident::EivSummary& e = r.errors_in_variables;
+  j["errors_in_variables"] = {{"mode", e.mode}, {"applied", e.applied}, {"reason", e.reason}};
+  if (e.applied) {
+    j["errors_in_variables"]["gyro_noise_radps"] = e.noise.gyro_radps;
+    j["errors_in_variables"]["accel_noise_mps2"] = e.noise.accel_mps2;
+    j["errors_in_variables"]["noise_source"] = e.noise_source;
+    j["errors_in_variables"]["draws"] = e.draws;
+    j["errors_in_variables"]["iterations"] = e.iterations;
+    j["errors_in_variables"]["corrected_params"] = e.corrected_params;
+    j["errors_in_variables"]["max_shift_std"] = e.max_shift_std;
+    j["errors_in_variables"]["max_shift_param"] = e.max_shift_param;
+  }
   j["warnings"] = nlohmann::json::array();
   for (const auto& w : r.warnings)
     j["warnings"].push_back({{"kind", w.kind}, {"message", w.message}});
@@ -171,6 +195,7 @@ void run_fit(const Common& c, const std::string& effects, const std::string& out
   o.block_samples = block_samples;
   o.threads = c.threads;
   o.engine = c.engine;
+  o.errors_in_variables = c.errors_in_variables;
   o.progress = progress(c);
   const ident::FitResult r = ident::fit(data, o);
   const io::ModelFile m = fitted_model_file(r, rig, c.log, data);
@@ -188,6 +213,17 @@ void run_fit(const Common& c, const std::string& effects, const std::string& out
   std::printf(
       "%s",
       ident::format_kinematics(ident::kinematics_feeds(r.params.effects, data), data).c_str());
+  const ident::EivSummary& eiv = r.errors_in_variables;
+  if (eiv.applied)
+    std::printf(
+        "errors in variables: %s; IMU row noise (%s) gyro %.3g %.3g %.3g rad/s, accel %.3g %.3g "
+        "%.3g m/s^2; largest shift %.2f std (%s)\n",
+        eiv.reason.c_str(), eiv.noise_source.c_str(), eiv.noise.gyro_radps[0],
+        eiv.noise.gyro_radps[1], eiv.noise.gyro_radps[2], eiv.noise.accel_mps2[0],
+        eiv.noise.accel_mps2[1], eiv.noise.accel_mps2[2], eiv.max_shift_std,
+        eiv.max_shift_param.c_str());
+  else if (eiv.mode != "auto")
+    std::printf("errors in variables: not applied (%s)\n", eiv.reason.c_str());
   for (const auto& w : r.warnings)
     std::printf("warning (%s): %s\n", w.kind.c_str(), w.message.c_str());
   if (!out.empty()) std::printf("wrote %s\n", out.c_str());
@@ -212,6 +248,7 @@ void run_tool_change(const Common& c, const std::string& base_path, const std::s
   o.block_samples = block_samples;
   o.threads = c.threads;
   o.engine = c.engine;
+  o.errors_in_variables = c.errors_in_variables;
   o.progress = progress(c);
   const ident::ToolChangeResult tc = ident::fit_tool_change(data, base.params, o);
   const ident::FitResult& r = tc.fit;
@@ -329,6 +366,7 @@ void add_ident_commands(CLI::App& app) {
     CLI::App* s = app.add_subcommand("fit", "Fit a model (a list of effects) to a log with Ceres");
     add_common(s, *c);
     add_engine(s, *c);
+    add_errors_in_variables(s, *c);
     auto* effects_opt =
         s->add_option("-e,--effects", *effects,
                       "Comma-separated effects (proto/effects.md); @FILE adds a user-defined "
@@ -400,6 +438,7 @@ void add_ident_commands(CLI::App& app) {
         "Rank the effects a model lacks by how much they reduce the error on held-out data");
     add_common(s, *c);
     add_engine(s, *c);
+    add_errors_in_variables(s, *c);
     s->add_option("-m,--model", *model_path,
                   "Fitted model to diagnose (its effects and start values)")
         ->check(CLI::ExistingFile);
@@ -426,6 +465,7 @@ void add_ident_commands(CLI::App& app) {
       o.progress = progress(*c);
       o.fit.threads = c->threads;
       o.fit.engine = c->engine;
+      o.fit.errors_in_variables = c->errors_in_variables;
       o.discover = !*no_discover;
       o.discovery_path = *discovered_out;
       o.user_candidates = user_candidates(*candidates);
@@ -477,6 +517,7 @@ void add_ident_commands(CLI::App& app) {
                                      "it pays; print the error at each step");
     add_common(s, *c);
     add_engine(s, *c);
+    add_errors_in_variables(s, *c);
     s->add_option("--start", *start, "Effects to start from (@FILE: a user-defined effect)")
         ->capture_default_str();
     s->add_option("--candidates", *candidates,
@@ -502,6 +543,7 @@ void add_ident_commands(CLI::App& app) {
       o.diagnose.progress = progress(*c);
       o.diagnose.fit.threads = c->threads;
       o.diagnose.fit.engine = c->engine;
+      o.diagnose.fit.errors_in_variables = c->errors_in_variables;
       const io::ModelSpec spec = io::parse_model_spec(*start);
       o.diagnose.fit.effects = spec.effects;
       o.diagnose.fit.user = spec.user;

@@ -245,8 +245,10 @@ void check_rig_finite(const Rig& rig) {
   const auto finite = [](double v) { return std::isfinite(v); };
   const bool ok = finite(rig.sample_period_s) && rig.sample_period_s > 0.0 &&
                   finite(rig.ft_rate_hz) && finite(rig.imu_rate_hz) && finite(rig.floor_z_m) &&
-                  rig.flange_sensor.p_m.allFinite() && rig.flange_sensor.q.coeffs().allFinite() &&
-                  rig.sensor_imu.p_m.allFinite() && rig.sensor_imu.q.coeffs().allFinite();
+                  finite(rig.imu_sampling.gyro_noise_radps) &&
+                  finite(rig.imu_sampling.accel_noise_mps2) && rig.flange_sensor.p_m.allFinite() &&
+                  rig.flange_sensor.q.coeffs().allFinite() && rig.sensor_imu.p_m.allFinite() &&
+                  rig.sensor_imu.q.coeffs().allFinite();
   if (!ok) {
     throw std::invalid_argument("write_rig: rig '" + rig.name +
                                 "' has a non-finite value or sample_period_s <= 0");
@@ -280,6 +282,14 @@ std::string format_rig(const Rig& rig) {
   out += "floor_z_m = " + toml_float(rig.floor_z_m) + "\n";
   out += transform("flange_sensor", "sensor frame S in the flange frame F", rig.flange_sensor);
   out += transform("sensor_imu", "IMU frame I in the sensor frame S", rig.sensor_imu);
+  // Only when said: a rig that does not say stays as every rig before the table.
+  const ImuSampling& is = rig.imu_sampling;
+  if (!(is == ImuSampling{})) {
+    out += "\n[imu_sampling]  # how each row's IMU reading was formed, its noise per row\n";
+    out += std::string("rows = \"") + to_string(is.rows) + "\"\n";
+    out += "gyro_noise_radps = " + toml_float(is.gyro_noise_radps) + "\n";
+    out += "accel_noise_mps2 = " + toml_float(is.accel_noise_mps2) + "\n";
+  }
   // Inline, whether it came from a table or a robot_file: the log's rig stands alone.
   if (rig.robot_model) out += robot_toml_text("robot", rig.robot, *rig.robot_model);
   const KinematicsRecord& k = rig.kinematics;
@@ -462,6 +472,18 @@ InputError::InputError(fs::path file, int line, int column, const std::string& w
       file_(std::move(file)),
       line_(line),
       column_(column) {}
+
+const char* to_string(ImuRows rows) {
+  switch (rows) {
+    case ImuRows::mean:
+      return "mean";
+    case ImuRows::point:
+      return "point";
+    case ImuRows::unknown:
+      break;
+  }
+  return "unknown";
+}
 
 const char* to_string(KinematicsOrigin origin) {
   switch (origin) {
@@ -827,6 +849,20 @@ KinematicsOrigin origin_from_toml(const TomlTable& k, std::string_view key) {
                   (accel ? ", \"pose\" or \"logged\"" : " or \"pose\"") + ", is \"" + v + "\"");
 }
 
+ImuSampling imu_sampling_from_toml(const TomlTable& t) {
+  const TomlTable k = t.sub_table("imu_sampling", {"rows", "gyro_noise_radps", "accel_noise_mps2"});
+  ImuSampling s;
+  const std::string rows = k.optional_string("rows", "unknown");
+  bool known = false;
+  for (ImuRows r : {ImuRows::unknown, ImuRows::mean, ImuRows::point}) {
+    if (rows == to_string(r)) s.rows = r, known = true;
+  }
+  if (!known) k.fail("rows", "must be \"point\", \"mean\" or \"unknown\", is \"" + rows + "\"");
+  s.gyro_noise_radps = k.optional_number("gyro_noise_radps", 0.0, {0.0, false});
+  s.accel_noise_mps2 = k.optional_number("accel_noise_mps2", 0.0, {0.0, false});
+  return s;
+}
+
 KinematicsRecord kinematics_from_toml(const TomlTable& t) {
   const TomlTable k = t.sub_table("kinematics", {"mode",
                                                  "angular_rate",
@@ -886,7 +922,7 @@ Rig rig_from_toml(const toml::table& table, const fs::path& file, bool embedded,
   const TomlTable t(
       table, file, key_prefix,
       {"format", "version", "name", "robot", "robot_file", "sample_period_s", "ft_rate_hz",
-       "imu_rate_hz", "floor_z_m", "flange_sensor", "sensor_imu", "kinematics"});
+       "imu_rate_hz", "floor_z_m", "flange_sensor", "sensor_imu", "kinematics", "imu_sampling"});
   if (!embedded || t.find("format") != nullptr) {
     const std::string format = t.string("format");
     if (format != "zerog-rig") t.fail("format", "must be \"zerog-rig\", is \"" + format + "\"");
@@ -912,6 +948,7 @@ Rig rig_from_toml(const toml::table& table, const fs::path& file, bool embedded,
   rig.sensor_imu = transform_from_toml(t, "sensor_imu");
   read_robot(t, rig);
   if (t.find("kinematics") != nullptr) rig.kinematics = kinematics_from_toml(t);
+  if (t.find("imu_sampling") != nullptr) rig.imu_sampling = imu_sampling_from_toml(t);
   return rig;
 }
 

@@ -72,17 +72,11 @@ Dataset DatasetBuilder::finish(const io::Rig& rig) {
   d.rig.R_sensor_imu = rig.sensor_imu.q.normalized().toRotationMatrix();
   d.rig.p_sensor_imu_m = rig.sensor_imu.p_m;
   d.kinematics = rig.kinematics;
+  d.imu_sampling = rig.imu_sampling;
   d.dt_s = (d.t_s.back() - d.t_s.front()) / static_cast<double>(n - 1);
   if (d.columns.static_rows) return std::move(d_);
-  // Angular acceleration, unless the log has it (imu_dw*_radps2): 5-point central differences
-  // (4th order) of the angular rate, 3-point one row from the ends, zero on the first and last
-  // row.
-  const bool difference_rate = d.columns.angular_rate && !d.columns.angular_accel;
-  for (std::size_t i = 1; i + 1 < n && difference_rate; ++i) {
-    const int order = (i >= 2 && i + 2 < n) ? 4 : 2;
-    Eigen::Map<Eigen::Vector3d>(&d.imu[i * 9 + 6]) =
-        model::angular_accel_central(&d.imu[i * 9 + 3], 9, order, d.dt_s);
-  }
+  // Angular acceleration, unless the log has it (imu_dw*_radps2).
+  if (differences_angular_rate(d)) angular_accel_from_rate(d);
   d.joint_vel_radps[0] = d.joint_vel_radps[1];
   const std::size_t dilate = 3;
   for (std::size_t i = 0; i < n; ++i) {
@@ -132,6 +126,21 @@ Dataset read_dataset(const std::filesystem::path& csv, io::Rig* rig, std::size_t
   const io::Rig log_rig = reader.read_rig();
   if (rig != nullptr) *rig = log_rig;
   return builder.finish(log_rig);
+}
+
+bool differences_angular_rate(const Dataset& d) {
+  return d.columns.angular_rate && !d.columns.angular_accel && !d.columns.static_rows;
+}
+
+void angular_accel_from_rate(Dataset& d) {
+  // 5-point central differences (4th order) of the angular rate, 3-point one row from the ends,
+  // zero on the first and last row.
+  const std::size_t n = d.size();
+  for (std::size_t i = 1; i + 1 < n; ++i) {
+    const int order = (i >= 2 && i + 2 < n) ? 4 : 2;
+    Eigen::Map<Eigen::Vector3d>(&d.imu[i * 9 + 6]) =
+        model::angular_accel_central(&d.imu[i * 9 + 3], 9, order, d.dt_s);
+  }
 }
 
 model::DictionarySignals Dataset::dictionary(std::size_t i) const {

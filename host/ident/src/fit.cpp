@@ -18,6 +18,7 @@
 
 #include "normal_equations.hpp"
 #include "zerog/ident/block_stats.hpp"
+#include "zerog/ident/eiv.hpp"
 #include "zerog/io/effect_file.hpp"
 
 namespace zerog::ident {
@@ -593,6 +594,9 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
   if (r.num_params == 0 && (!order.empty() || num_user > 0))
     throw std::runtime_error("every effect of the model is frozen: nothing to fit");
 
+  // Errors in variables (eiv.hpp): decided (and a bad mode refused) before the solve.
+  r.errors_in_variables.mode = o.errors_in_variables;
+  const bool eiv = errors_in_variables_applies(o, data, &r.errors_in_variables.reason);
   std::array<double, 6> sigma = o.sigma.value_or(std::array<double, 6>{1, 1, 1, 0.1, 0.1, 0.1});
   if (o.block_samples < 1) throw std::runtime_error("block_samples must be at least 1");
   // Whitening: per-axis noise of the block residuals. Estimated before solving from the
@@ -855,6 +859,7 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
       }
     }
   }
+  if (eiv && r.usable) correct_errors_in_variables(data, o, blocks_of_samples, r);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return r;
 }
@@ -911,6 +916,7 @@ ToolChangeResult fit_tool_change(const Dataset& data, const model::ModelParams& 
   fo.loss = opt.loss;
   fo.loss_scale = opt.loss_scale;
   fo.engine = opt.engine;
+  fo.errors_in_variables = opt.errors_in_variables;
   fo.progress = opt.progress;
   out.fit = fit(data, fo);
 

@@ -269,6 +269,10 @@ void set_config_value(SimConfig& config, const std::string& key, double value) {
     config.noise.quantize = value != 0.0;
     return;
   }
+  if (key == "noise.imu_point_rows") {
+    config.noise.imu_point_rows = value != 0.0;
+    return;
+  }
   for (const Binding& b : bindings(config)) {
     if (b.key != key) continue;
     *b.value = value;
@@ -283,7 +287,8 @@ void set_config_value(SimConfig& config, const std::string& key, double value) {
       known += (known.empty() ? "" : ", ") + group + ".*";
   }
   throw std::invalid_argument("unknown --set key '" + key + "' (groups: " + known +
-                              ", noise.quantize; --list-effects prints every key)");
+                              ", noise.quantize, noise.imu_point_rows; --list-effects prints "
+                              "every key)");
 }
 
 std::vector<std::pair<std::string, double>> config_values(const SimConfig& config) {
@@ -291,6 +296,7 @@ std::vector<std::pair<std::string, double>> config_values(const SimConfig& confi
   std::vector<std::pair<std::string, double>> out;
   for (const Binding& b : bindings(copy)) out.emplace_back(b.key, *b.value);
   out.emplace_back("noise.quantize", config.noise.quantize ? 1.0 : 0.0);
+  out.emplace_back("noise.imu_point_rows", config.noise.imu_point_rows ? 1.0 : 0.0);
   return out;
 }
 
@@ -330,6 +336,10 @@ io::Rig RigSimulator::rig() const {
   r.ft_rate_hz = 1.0 / config_.period_s;
   r.imu_rate_hz = 1.0 / config_.period_s;
   r.floor_z_m = config_.floor_z_m;
+  // Point-sampled IMU rows are said, with the noise per row (NoiseConfig); mean rows are not, as
+  // before.
+  if (config_.noise.imu_point_rows)
+    r.imu_sampling = {io::ImuRows::point, config_.noise.gyro_radps, config_.noise.accel_mps2};
   return r;
 }
 

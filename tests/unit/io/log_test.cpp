@@ -532,6 +532,27 @@ TEST_F(RigReadTest, Errors) {
   expect_error(replace(kRig, "ft_rate_hz = 1000.0", "ft_rate_hz = "), 6, 14, "TOML syntax");
 }
 
+// [imu_sampling] (issue 16): optional; absent reads as unknown and a default rig writes none;
+// what it says reads back exactly; a bad value names the table's key.
+TEST_F(RigReadTest, ImuSamplingTable) {
+  write_text(path("r.rig.toml"), kRig);
+  EXPECT_EQ(read_rig(path("r.rig.toml")).imu_sampling, ImuSampling{});
+  write_rig(read_rig(path("r.rig.toml")), path("w.rig.toml"));
+  EXPECT_EQ(read_text(path("w.rig.toml")).find("imu_sampling"), std::string::npos);
+
+  write_text(path("p.rig.toml"), kRig +
+                                     "\n[imu_sampling]\nrows = \"point\"\n"
+                                     "gyro_noise_radps = 9e-4\naccel_noise_mps2 = 0.024\n");
+  const Rig point = read_rig(path("p.rig.toml"));
+  EXPECT_EQ(point.imu_sampling, (ImuSampling{ImuRows::point, 9e-4, 0.024}));
+  write_rig(point, path("q.rig.toml"));
+  EXPECT_EQ(read_rig(path("q.rig.toml")).imu_sampling, point.imu_sampling);
+
+  expect_error(kRig + "\n[imu_sampling]\nrows = \"sometimes\"\n", 17, 8,
+               "must be \"point\", \"mean\" or \"unknown\"");
+  expect_error(kRig + "\n[imu_sampling]\ngyro_noise_radps = -1.0\n", 17, 20, "must be >= 0");
+}
+
 // ---- atomic writing -------------------------------------------------------------------------
 
 using AtomicWriteTest = test::TempDirTest;

@@ -78,6 +78,23 @@ struct KinematicsRecord {
   }
 };
 
+/// How each row's IMU reading was formed (proto/log_format.md, the rig's `[imu_sampling]`):
+/// `point`, one IMU sample at the row time (as many loggers write them); `mean`, the mean of the
+/// IMU's native samples over the row period; `unknown` when the rig does not say (every log before
+/// the table). host/ident corrects the fit for the IMU's noise by default on `point` rows
+/// (ident::FitOptions::errors_in_variables).
+enum class ImuRows : std::uint8_t { unknown, mean, point };
+const char* to_string(ImuRows rows);
+
+/// The rig's `[imu_sampling]` table: how the IMU rows were formed and, if known, the white noise
+/// of one logged row (standard deviation per axis, IMU frame I; 0 = not given).
+struct ImuSampling {
+  ImuRows rows = ImuRows::unknown;
+  double gyro_noise_radps = 0.0;  ///< σ of one row of imu_w*_radps, rad/s (0: unknown)
+  double accel_noise_mps2 = 0.0;  ///< σ of one row of imu_f*_mps2, m/s² (0: unknown)
+  bool operator==(const ImuSampling&) const = default;
+};
+
 /// The rig description (the `.rig.toml` sidecar).
 struct Rig {
   std::string name = "unnamed";
@@ -86,6 +103,7 @@ struct Rig {
   /// `[robot]` table or `robot_file`. Its flange_sensor is this rig's flange_sensor.
   std::optional<robot::RobotModel> robot_model;
   KinematicsRecord kinematics;     ///< where the IMU columns came from
+  ImuSampling imu_sampling;        ///< how the IMU rows were formed (and their noise)
   Transform flange_sensor;         ///< F/T sensor frame S in the flange frame F
   Transform sensor_imu;            ///< IMU frame I in the sensor frame S
   double sample_period_s = 0.012;  ///< log row period (rows need not be exactly uniform)

@@ -20,6 +20,9 @@ struct Dataset {
   io::Columns columns;
   /// Where the IMU columns came from (logged, or derived at import from joints or pose).
   io::KinematicsRecord kinematics;
+  /// How the IMU rows were formed and their noise, as the rig says (point samples or means;
+  /// FitOptions::errors_in_variables).
+  io::ImuSampling imu_sampling;
   double dt_s = 0.012;  ///< mean row period (IMU time shifts interpolate on this grid)
   std::vector<double> t_s;
   std::vector<model::PoseSignals> pose;
@@ -99,6 +102,14 @@ class DatasetBuilder {
 /// text or its parsed rows held whole. `rig`, if given, receives the log's rig.
 Dataset read_dataset(const std::filesystem::path& csv, io::Rig* rig = nullptr,
                      std::size_t chunk_rows = 4096, std::size_t buffer_bytes = 1 << 20);
+
+/// True when make_dataset forms the angular acceleration from the angular-rate column (the log
+/// has time and the rate, and no imu_dw*_radps2 columns).
+bool differences_angular_rate(const Dataset& data);
+/// Overwrites the angular acceleration of every row (Dataset::imu) with the 5-point central
+/// differences of the angular rate (model::angular_accel_central; 3-point one row from the ends,
+/// zero on the first and last row), as make_dataset does.
+void angular_accel_from_rate(Dataset& data);
 
 /// Predicted wrench of sample i with the given parameters (double evaluation of the model).
 Wrench predict(const model::ModelParams& params, const Dataset& data, std::size_t i);

@@ -15,6 +15,27 @@ namespace zerog::ident {
 
 using ParamArray = std::array<std::array<double, model::kMaxEffectParams>, model::kEffectCount>;
 
+/// White noise of one logged IMU row, per axis of the IMU frame I (standard deviations).
+struct ImuRowNoise {
+  std::array<double, 3> gyro_radps{};  ///< of imu_w*_radps, rad/s
+  std::array<double, 3> accel_mps2{};  ///< of imu_f*_mps2, m/s²
+};
+
+/// What the errors-in-variables correction (eiv.hpp) did: FitResult::errors_in_variables.
+struct EivSummary {
+  std::string mode = "off";  ///< FitOptions::errors_in_variables as asked: off | on | auto
+  bool applied = false;
+  std::string reason;        ///< why it was or was not applied, in plain words
+  ImuRowNoise noise;         ///< the IMU row noise it used
+  std::string noise_source;  ///< "options" | "rig" | "estimated" (per group, e.g. "rig, estimated")
+  int draws = 0;             ///< Monte Carlo draws of the regressor noise
+  int iterations = 0;        ///< corrected Gauss–Newton steps
+  int corrected_params = 0;  ///< free parameters in it (rank-deficient combinations stay put)
+  /// Largest |corrected − uncorrected| / std over those with a std, and whose.
+  double max_shift_std = 0.0;
+  std::string max_shift_param;
+};
+
 struct FitOptions {
   model::EffectSet effects;
   /// User-defined effects to fit with the library ones (proto/user_effects.md); their
@@ -45,6 +66,14 @@ struct FitOptions {
   std::string engine = "normal";
   /// Per-axis noise for whitening; if absent, estimated (two passes).
   std::optional<std::array<double, 6>> sigma;
+  /// Errors in variables (eiv.hpp, proto/effects.md "Angular acceleration and noise"): correct
+  /// the fit for the noise of the IMU regressors (above all the differenced gyro). "off", "on",
+  /// or "auto": on where the log's rig says its IMU rows are point samples
+  /// (Dataset::imu_sampling, proto/log_format.md `[imu_sampling]`), off otherwise.
+  std::string errors_in_variables = "auto";
+  /// The IMU row noise the correction uses; absent: the rig's (`[imu_sampling]`), else estimated
+  /// from the log's high-frequency content (estimate_imu_row_noise).
+  std::optional<ImuRowNoise> imu_noise;
   std::function<void(const std::string&)> progress;  ///< progress lines (may be empty)
 };
 
@@ -69,6 +98,7 @@ struct FitResult {
   double bic = 0.0;                      ///< Bayesian information criterion of the block residuals
   int num_params = 0;                    ///< free (fitted) parameters
   std::vector<Warning> warnings;
+  EivSummary errors_in_variables;  ///< the errors-in-variables correction (eiv.hpp)
 };
 
 /// Fits the effects in `options.effects` to `data`. Accepts the solution only if Ceres reports
@@ -91,7 +121,8 @@ struct ToolChangeOptions {
   int threads = 2;
   std::string loss = "none";
   double loss_scale = 3.0;
-  std::string engine = "normal";  ///< FitOptions::engine
+  std::string engine = "normal";             ///< FitOptions::engine
+  std::string errors_in_variables = "auto";  ///< FitOptions::errors_in_variables
   /// Warn ("poses_alike") when the gravity directions in S spread less than this: the angle
   /// asin √(1 − λmax) with λmax the largest eigenvalue of their mean outer product (0 if they
   /// are all parallel, about 55° if they are spread evenly over the sphere), degrees.

@@ -83,13 +83,30 @@ std::string sim_effect_list_string(const SimEffectSet& effects);
 /// raw 2 kHz sample instead, through the STIM300's 262 Hz filter, would give N·√(262·π/2) ≈
 /// 9e-4 rad/s and 0.024 m/s².) With the IMU in the model, σ_acc · m ≈ 1 N enters the
 /// true-model reference, four times the F/T noise of the sensor floor.
+///
+/// Either way the simulator evaluates the IMU's signal at the row time and adds white noise of
+/// the σ above to each row. `imu_point_rows` says what that noise stands for, and the log's rig
+/// says it (`[imu_sampling]`, proto/log_format.md): false, a row is the mean over its period (the
+/// σ above; the rig does not say, as every log before); true, a row is one raw sample
+/// (`--set noise.imu_point_rows=1`): the rig says `rows = "point"` with the σ per row, and
+/// `stim300_point_rows()` gives the single-sample σ of the STIM300 above.
 struct NoiseConfig {
   double force_N = 0.25;
   double torque_Nm = 0.03;
   double accel_mps2 = 0.01;
   double gyro_radps = 5e-4;
-  bool quantize = true;  ///< Omega191 resolution (paper 000_… Table 2)
-  static NoiseConfig none() { return {0.0, 0.0, 0.0, 0.0, false}; }
+  bool quantize = true;         ///< Omega191 resolution (paper 000_… Table 2)
+  bool imu_point_rows = false;  ///< IMU rows are point samples (see above)
+  static NoiseConfig none() { return {0.0, 0.0, 0.0, 0.0, false, false}; }
+  /// The defaults with point-sampled IMU rows: one raw 2 kHz STIM300 sample through its 262 Hz
+  /// filter, σ = N √(262 π / 2): gyro 9e-4 rad/s, accelerometer 0.024 m/s².
+  static NoiseConfig stim300_point_rows() {
+    NoiseConfig n;
+    n.gyro_radps = 9e-4;
+    n.accel_mps2 = 0.024;
+    n.imu_point_rows = true;
+    return n;
+  }
 };
 /// Omega191 resolution: Fx, Fy 3/8 N, Fz 5/8 N, Mx, My 5/96 N·m, Mz 5/144 N·m.
 inline constexpr std::array<double, 6> kOmega191Resolution = {0.375,      0.375,      0.625,
