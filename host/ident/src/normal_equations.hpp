@@ -15,7 +15,7 @@
 // minimum relative decrease 1e-3, function / parameter tolerance from the options, gradient
 // tolerance 1e-10), so that where the problem is nearly rank deficient both take the same path.
 //
-// Robust losses (huber, cauchy) are not implemented here: fit.cpp delegates them to the Ceres
+// Robust losses (huber, cauchy) are left to the Ceres path: fit.cpp delegates them to the Ceres
 // path of the block_stats engine.
 // Host only: allocates.
 #include <Eigen/Core>
