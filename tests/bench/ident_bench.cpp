@@ -22,6 +22,7 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -179,19 +180,29 @@ void BM_ModelEvaluationAllSamples(benchmark::State& state) {
 }
 BENCHMARK(BM_ModelEvaluationAllSamples)->Unit(benchmark::kMillisecond);
 
-void fit_full_effect_list(benchmark::State& state, const std::string& engine) {
-  const auto& data = dataset();
-  ident::FitOptions o;
-  o.effects = full_list();
-  o.covariance = state.range(0) != 0;
-  o.engine = engine;
+// The timed loop of every fit benchmark: `o` fitted on `data`, with the counters iterations,
+// parameters and samples, and with `peak_memory` the peak resident memory (PeakMemory; the
+// BM_Scale* set).
+void time_fit(benchmark::State& state, const ident::Dataset& data, const ident::FitOptions& o,
+              bool peak_memory) {
+  std::optional<PeakMemory> peak;
+  if (peak_memory) peak.emplace();
   for (auto _ : state) {
     auto r = ident::fit(data, o);
     benchmark::DoNotOptimize(r.params);
     state.counters["iterations"] = r.iterations;
     state.counters["parameters"] = r.num_params;
   }
+  if (peak) peak->report(state);
   state.counters["samples"] = static_cast<double>(data.size());
+}
+
+void fit_full_effect_list(benchmark::State& state, const std::string& engine) {
+  ident::FitOptions o;
+  o.effects = full_list();
+  o.covariance = state.range(0) != 0;
+  o.engine = engine;
+  time_fit(state, dataset(), o, false);
 }
 
 void BM_FitFullEffectList(benchmark::State& state) { fit_full_effect_list(state, "normal"); }
@@ -223,16 +234,10 @@ BENCHMARK(BM_FitFullEffectListSamplesEngine)
     ->Iterations(1);
 
 void fit_default_model(benchmark::State& state, const std::string& engine) {
-  const auto& data = dataset();
   ident::FitOptions o;
   o.effects = model::kDefaultModel;
   o.engine = engine;
-  for (auto _ : state) {
-    auto r = ident::fit(data, o);
-    benchmark::DoNotOptimize(r.params);
-    state.counters["iterations"] = r.iterations;
-    state.counters["parameters"] = r.num_params;
-  }
+  time_fit(state, dataset(), o, false);
 }
 
 void BM_FitDefaultModel(benchmark::State& state) { fit_default_model(state, "normal"); }
@@ -312,15 +317,7 @@ void scale_fit_full_effect_list(benchmark::State& state, const std::string& engi
   o.effects = full_list();
   o.covariance = state.range(0) != 0;
   if (!engine.empty()) o.engine = engine;
-  const PeakMemory peak;
-  for (auto _ : state) {
-    auto r = ident::fit(data, o);
-    benchmark::DoNotOptimize(r.params);
-    state.counters["iterations"] = r.iterations;
-    state.counters["parameters"] = r.num_params;
-  }
-  peak.report(state);
-  state.counters["samples"] = static_cast<double>(data.size());
+  time_fit(state, data, o, true);
 }
 
 void BM_ScaleFitFullEffectList(benchmark::State& state) { scale_fit_full_effect_list(state, ""); }
@@ -333,15 +330,7 @@ void scale_fit_default_model(benchmark::State& state, const std::string& engine)
   ident::FitOptions o;
   o.effects = model::kDefaultModel;
   if (!engine.empty()) o.engine = engine;
-  const PeakMemory peak;
-  for (auto _ : state) {
-    auto r = ident::fit(data, o);
-    benchmark::DoNotOptimize(r.params);
-    state.counters["iterations"] = r.iterations;
-    state.counters["parameters"] = r.num_params;
-  }
-  peak.report(state);
-  state.counters["samples"] = static_cast<double>(data.size());
+  time_fit(state, data, o, true);
 }
 
 void BM_ScaleFitDefaultModel(benchmark::State& state) { scale_fit_default_model(state, ""); }
