@@ -11,8 +11,10 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <thread>
+#include <vector>
 
 #include "../rtio/udp.hpp"
 #include "rt_fixtures.hpp"
@@ -27,6 +29,28 @@ namespace {
 namespace fs = std::filesystem;
 namespace rsi = proto::rsi;
 using namespace std::chrono_literals;
+
+// A started RSI endpoint on a free loopback port (null if it did not start), its receive timeout
+// long enough that the test's robot, slower than a controller, is never late.
+std::unique_ptr<rtio::RsiEndpoint> loopback_endpoint() {
+  rtio::RsiEndpointConfig rc;
+  rc.bind_port = 0;
+  rc.receive_timeout = 1s;
+  auto endpoint = std::make_unique<rtio::RsiEndpoint>(rc);
+  if (endpoint->start() != rtio::RobotStartStatus::ok) return nullptr;
+  return endpoint;
+}
+
+// Configures `rt` with the test cycle and payload model (and `path`, if given) and starts it.
+testing::AssertionResult configure_and_start(Runtime& rt, std::vector<Status>& warnings,
+                                             const loop::JointPath* path = nullptr) {
+  if (const Status s = rt.configure(test::test_cycle_config(), test::payload_model(), path);
+      !s.ok())
+    return testing::AssertionFailure() << "configure: " << s.text();
+  if (const Status s = rt.start(warnings); !s.ok())
+    return testing::AssertionFailure() << "start: " << s.text();
+  return testing::AssertionSuccess();
+}
 
 class RobotInTest {
  public:
@@ -58,24 +82,19 @@ double norm(const rsi::Correction& c) {
 
 TEST(Runtime, EndToEndOnLoopbackUdp) {
   test::TempDir dir;
-  rtio::RsiEndpointConfig rc;
-  rc.bind_port = 0;
-  rc.robot_address = "127.0.0.1";
-  rc.receive_timeout = 1s;  // the test's robot is slower than a controller; never late here
-  rtio::RsiEndpoint endpoint(rc);
-  ASSERT_EQ(endpoint.start(), rtio::RobotStartStatus::ok);
+  const auto endpoint = loopback_endpoint();
+  ASSERT_NE(endpoint, nullptr);
 
   RuntimeOptions options;
   options.auto_enable_zero_g = true;
   options.recorder.dir = dir.path() / "rec";
   options.recorder.rig = test::test_rig();
-  Runtime rt(options, RuntimeDevices{&endpoint});
-  ASSERT_EQ(rt.configure(test::test_cycle_config(), test::payload_model()).text(), "");
+  Runtime rt(options, RuntimeDevices{endpoint.get()});
   std::vector<Status> warnings;
-  ASSERT_EQ(rt.start(warnings).text(), "");
+  ASSERT_TRUE(configure_and_start(rt, warnings));
   EXPECT_TRUE(warnings.empty());
 
-  RobotInTest robot(endpoint.local_port());
+  RobotInTest robot(endpoint->local_port());
   ASSERT_TRUE(robot.ok());
   test::StaticRobot rig;
   std::uint64_t cycles = 0;
@@ -175,18 +194,14 @@ TEST(Runtime, EndToEndOnLoopbackUdp) {
 
 TEST(Runtime, ResetAfterTheDumpReleasesTheBlackBoxForTheNextFault) {
   test::TempDir dir;
-  rtio::RsiEndpointConfig rc;
-  rc.bind_port = 0;
-  rc.receive_timeout = 1s;
-  rtio::RsiEndpoint endpoint(rc);
-  ASSERT_EQ(endpoint.start(), rtio::RobotStartStatus::ok);
+  const auto endpoint = loopback_endpoint();
+  ASSERT_NE(endpoint, nullptr);
   RuntimeOptions options;
   options.recorder.blackbox_dir = dir.path();
-  Runtime rt(options, RuntimeDevices{&endpoint});
-  ASSERT_EQ(rt.configure(test::test_cycle_config(), test::payload_model()).text(), "");
+  Runtime rt(options, RuntimeDevices{endpoint.get()});
   std::vector<Status> warnings;
-  ASSERT_EQ(rt.start(warnings).text(), "");
-  RobotInTest robot(endpoint.local_port());
+  ASSERT_TRUE(configure_and_start(rt, warnings));
+  RobotInTest robot(endpoint->local_port());
   test::StaticRobot rig;
   std::uint64_t cycles = 0;
   auto one_cycle = [&](bool ft_silent) {
@@ -239,22 +254,18 @@ class Ramp final : public loop::JointPath {
 
 TEST(Runtime, CollectStartsWhenReadyAnswersWithAxisCorrectionsAndFinishes) {
   test::TempDir dir;
-  rtio::RsiEndpointConfig rc;
-  rc.bind_port = 0;
-  rc.receive_timeout = 1s;
-  rtio::RsiEndpoint endpoint(rc);
-  ASSERT_EQ(endpoint.start(), rtio::RobotStartStatus::ok);
+  const auto endpoint = loopback_endpoint();
+  ASSERT_NE(endpoint, nullptr);
   test::StaticRobot rig;
   Ramp path(rsi::joints_to_rad(rig.message.joints_deg));
   RuntimeOptions options;
   options.auto_collect = true;
   options.recorder.dir = dir.path() / "collect";
   options.recorder.rig = test::test_rig();
-  Runtime rt(options, RuntimeDevices{&endpoint});
-  ASSERT_EQ(rt.configure(test::test_cycle_config(), test::payload_model(), &path).text(), "");
+  Runtime rt(options, RuntimeDevices{endpoint.get()});
   std::vector<Status> warnings;
-  ASSERT_EQ(rt.start(warnings).text(), "");
-  RobotInTest robot(endpoint.local_port());
+  ASSERT_TRUE(configure_and_start(rt, warnings, &path));
+  RobotInTest robot(endpoint->local_port());
   std::vector<std::string> announced;
   double a1_deg = 0.0;
   std::uint64_t cycles = 0;
@@ -296,20 +307,16 @@ TEST(Runtime, CollectStartsWhenReadyAnswersWithAxisCorrectionsAndFinishes) {
 // anywhere (the cycle, the record, rtio, the writer) makes one side 1000 or 57.3 times the other.
 TEST(Runtime, TheCyclesSiCorrectionReachesTheUdpReplyInMillimetresAndDegreesOnce) {
   test::TempDir dir;
-  rtio::RsiEndpointConfig rc;
-  rc.bind_port = 0;
-  rc.receive_timeout = 1s;
-  rtio::RsiEndpoint endpoint(rc);
-  ASSERT_EQ(endpoint.start(), rtio::RobotStartStatus::ok);
+  const auto endpoint = loopback_endpoint();
+  ASSERT_NE(endpoint, nullptr);
   RuntimeOptions options;
   options.auto_enable_zero_g = true;
   options.recorder.dir = dir.path() / "rec";
   options.recorder.rig = test::test_rig();
-  Runtime rt(options, RuntimeDevices{&endpoint});
-  ASSERT_EQ(rt.configure(test::test_cycle_config(), test::payload_model()).text(), "");
+  Runtime rt(options, RuntimeDevices{endpoint.get()});
   std::vector<Status> warnings;
-  ASSERT_EQ(rt.start(warnings).text(), "");
-  RobotInTest robot(endpoint.local_port());
+  ASSERT_TRUE(configure_and_start(rt, warnings));
+  RobotInTest robot(endpoint->local_port());
   ASSERT_TRUE(robot.ok());
   test::StaticRobot rig;
   // A push through the centre of mass and a twist about the sensor's z: translation and rotation.
