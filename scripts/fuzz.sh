@@ -37,18 +37,19 @@ export ZEROG_FUZZ_SCRATCH=$scratch
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1:strict_string_checks=1}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
 
-failed=()
-for t in "${targets[@]}"; do
-  corpus=$build/fuzz-corpus/$t
-  artifacts=$build/fuzz-artifacts/$t
-  log=$build/fuzz-logs/$t.log
+# One target: runs it and writes its report (the lines printed below) to $build/fuzz-logs/$t.result;
+# exit 1 if it found something.
+run_target() {
+  local t=$1 corpus=$build/fuzz-corpus/$1 artifacts=$build/fuzz-artifacts/$1
+  local log=$build/fuzz-logs/$1.log result=$build/fuzz-logs/$1.result
   mkdir -p "$corpus" "$artifacts" "$(dirname "$log")"
   cp -n "tests/fuzz/corpus/$t"/* "$corpus"/ 2>/dev/null || true
-  rc=0
+  local rc=0
   # Run in a scratch folder: libFuzzer's -fork/-merge temporaries and stray files stay there.
   (cd "$work" && "$build/tests/fuzz/${t}_fuzz" -max_total_time="$seconds" -timeout=5 \
      -rss_limit_mb=2048 -malloc_limit_mb=1024 -detect_leaks=1 -print_final_stats=1 \
      -artifact_prefix="$artifacts/" "$corpus") >"$log" 2>&1 || rc=$?
+  local stats execs cov ft files bytes artifact
   stats=$(grep -E '^#[0-9]+[[:space:]]+DONE' "$log" | tail -1 || true)
   execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
   cov=$(sed -nE 's/.*cov: ([0-9]+).*/\1/p' <<<"$stats")
@@ -57,14 +58,43 @@ for t in "${targets[@]}"; do
   bytes=$(du -sb "$corpus" | cut -f1)
   if [ "$rc" -ne 0 ]; then
     artifact=$(sed -nE 's/.*Test unit written to (.*)$/\1/p' "$log" | tail -1)
-    echo "FAIL $t: libFuzzer exit $rc; input: ${artifact:-none written}; log: $log"
-    grep -E 'ERROR: |SUMMARY: |runtime error|property violated|undocumented|deadly signal' \
-      "$log" | head -8 | sed 's/^/    /'
-    failed+=("$t")
-  else
-    printf 'ok   %-17s %9s execs  cov: %-5s ft: %-6s corpus: %s files, %s bytes\n' "$t" \
-      "${execs:-?}" "${cov:-?}" "${ft:-?}" "$files" "$bytes"
+    { echo "FAIL $t: libFuzzer exit $rc; input: ${artifact:-none written}; log: $log"
+      grep -E 'ERROR: |SUMMARY: |runtime error|property violated|undocumented|deadly signal' \
+        "$log" | head -8 | sed 's/^/    /'; } >"$result"
+    return 1
   fi
+  printf 'ok   %-17s %9s execs  cov: %-5s ft: %-6s corpus: %s files, %s bytes\n' "$t" \
+    "${execs:-?}" "${cov:-?}" "${ft:-?}" "$files" "$bytes" >"$result"
+}
+
+# Each target is one single-threaded process: FUZZ_JOBS (default: the cores) of them at a time,
+# so the stage takes (targets / cores) × FUZZ_SECONDS, each target still its full time.
+parallel=${FUZZ_JOBS:-$(nproc)}
+declare -A pid_of
+running=0
+mkdir -p "$build/fuzz-logs"
+for t in "${targets[@]}"; do
+  rm -f "$build/fuzz-logs/$t.result"
+  if [ "$running" -ge "$parallel" ]; then
+    wait -n || true
+    running=$((running - 1))
+  fi
+  run_target "$t" &
+  pid_of[$t]=$!
+  running=$((running + 1))
+done
+failed=()
+for t in "${targets[@]}"; do
+  # The report file, not wait's status, decides: `wait -n` above may have reaped the job.
+  wait "${pid_of[$t]}" 2>/dev/null || true
+  result=$build/fuzz-logs/$t.result
+  if [ ! -s "$result" ]; then
+    echo "FAIL $t: no report (the run was killed?); log: $build/fuzz-logs/$t.log"
+    failed+=("$t")
+    continue
+  fi
+  cat "$result"
+  if ! grep -q '^ok ' "$result"; then failed+=("$t"); fi
 done
 
 if [ ${#failed[@]} -gt 0 ]; then

@@ -4,10 +4,12 @@
 #      lockstep with the emulated rig) and the VM tests (SocketCAN in qemu) included;
 #   2. AddressSanitizer + UndefinedBehaviorSanitizer: the unit, socket, device and HIL tests
 #      again, without the VM tests and the host pipeline's end-to-end numeric runs (labels
-#      cli_test, discovery_test, insight_loop_test, results_test, recordings_test), the pure
+#      cli_test, discovery_test, insight_loop_test, results_test, recordings_test), the host
+#      CLI's end-to-end scripts (label host_cli: install, bag import, zerog watch), the pure
 #      Python report test (label python_only: nothing to instrument) and the other HIL motion seeds;
 #      the exclusions are in CMakePresets.json (test preset `asan`) and all run in stage 1; this
-#      stage compiles only the binaries its tests use (cmake/stage_targets.py), like stage 3;
+#      stage compiles only the binaries its tests use (cmake/stage_targets.py), like stage 3, and
+#      its HIL runs take `zerog export` from stage 1's tree;
 #   3. ThreadSanitizer: the threaded tests (rings, runtime, cycle, Modbus server, telemetry);
 #   4. the fuzz targets, each for a bounded time (scripts/fuzz.sh).
 # Any failure, sanitizer finding or fuzz crash fails the run. Each stage prints its duration, and
@@ -38,7 +40,9 @@ stage_done "tests ci (HIL, VM included)"
 
 # The sanitizer stages build only what their test presets select (cmake/stage_targets.py derives
 # the targets from ctest and the build tree: the asan preset's exclusions are not compiled).
-cmake --preset asan
+# The HIL runs here take `zerog export` from the CI tree (ZEROG_HIL_HOST_CLI): the programs under
+# test are zerog-rt and zerog-emu, and the host CLI's own tests under ASan are not in this stage.
+cmake --preset asan -DZEROG_HIL_HOST_CLI="$(pwd)/build/ci/host/cli/zerog"
 asan_targets=$(python3 cmake/stage_targets.py --preset asan --build-dir build/asan)
 echo "test.sh: asan builds" $asan_targets
 cmake --build --preset asan -j "$jobs" --target $asan_targets

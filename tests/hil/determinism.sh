@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
-# determinism.sh BUILD_DIR OUT CASE: runs CASE twice in lockstep (hil.sh) and requires the same
+# determinism.sh BUILD_DIR OUT CASE [HIL.SH OPTION...]: runs CASE twice in lockstep (hil.sh) and requires the same
 # bytes: the robot's truth (truth.csv), zerog-rt's log (rec/run.csv) and its cycle records
 # (rec/cycles.csv) but for the compute-time column, which is measured on the wall clock.
 set -uo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 bin=$1 out=$2 case=$3
+shift 3
 rm -rf "$out"
 for run in a b; do
-  "$here/hil.sh" --bin "$bin" --out "$out/$run" "$case" || {
+  "$here/hil.sh" --bin "$bin" --out "$out/$run" "$@" "$case" || {
     echo "determinism.sh: run $run of $case failed its checks" >&2; exit 1; }
 done
 status=0

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # hil.sh --bin BUILD_DIR --out DIR [--mode lockstep|realtime] [--bus local|vcan] [--seed N]
-#        [--mutant NAME --expect-fail TEXT] CASE...
+#        [--mutant NAME --expect-fail TEXT] [--zerog PATH] CASE...
 #
 # Hardware-in-the-loop run of zerog-rt against the rig emulator (zerog-emu: KR 210 controller
 # over RSI/UDP with servo lag, ATI NETCANOEM board on a CAN bus, STIM300 on a pty, all driven by
@@ -20,6 +20,9 @@
 #   --seed N: the scenario's [payload] seed replaced by N (results in DIR/CASE-seedN/).
 #   --mutant NAME: zerog-rt --test-mutant NAME (broken on purpose); with --expect-fail TEXT the
 #       run passes only if every case fails a check whose line contains TEXT.
+#   --zerog PATH: the host CLI that writes the deployed model (`zerog export`; default
+#       BUILD_DIR/host/cli/zerog). The sanitizer stage of scripts/test.sh passes the CI tree's:
+#       the programs under test there are zerog-rt and zerog-emu, not the host tool.
 # A scenario with a `# plc = SCRIPT` line has no --enable-zero-g: SCRIPT (in tests/hil/, the
 # cell PLC over Modbus) runs beside zerog-rt and enables zero-g itself. A template with
 # @DDS_DOMAIN@ gets DDS telemetry: the independent Python subscriber (the repository's .venv)
@@ -29,7 +32,7 @@
 set -uo pipefail
 
 here=$(cd "$(dirname "$0")" && pwd)
-bin= out= mode=lockstep bus=local seed= mutant= expect_fail=
+bin= out= mode=lockstep bus=local seed= mutant= expect_fail= zerog=
 cases=()
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -40,19 +43,20 @@ while [ $# -gt 0 ]; do
     --seed) seed=$2; shift 2 ;;
     --mutant) mutant=$2; shift 2 ;;
     --expect-fail) expect_fail=$2; shift 2 ;;
+    --zerog) zerog=$2; shift 2 ;;
     -*) echo "hil.sh: unknown option $1" >&2; exit 2 ;;
     *) cases+=("$1"); shift ;;
   esac
 done
 [ -n "$bin" ] && [ -n "$out" ] && [ ${#cases[@]} -gt 0 ] || {
   echo "usage: hil.sh --bin BUILD_DIR --out DIR [--mode lockstep|realtime] [--bus local|vcan]" \
-    "[--seed N] [--mutant NAME --expect-fail TEXT] CASE..." >&2; exit 2; }
+    "[--seed N] [--mutant NAME --expect-fail TEXT] [--zerog PATH] CASE..." >&2; exit 2; }
 case "$mode" in lockstep|realtime) ;; *) echo "hil.sh: --mode lockstep or realtime" >&2; exit 2 ;; esac
 case "$bus" in local|vcan) ;; *) echo "hil.sh: --bus local or vcan" >&2; exit 2 ;; esac
 [ -z "$expect_fail" ] || [ -n "$mutant" ] || { echo "hil.sh: --expect-fail needs --mutant" >&2; exit 2; }
 emu=$bin/host/emu/zerog-emu
 rt=$bin/firmware/rt/zerog-rt
-zerog=$bin/host/cli/zerog
+zerog=${zerog:-$bin/host/cli/zerog}
 for p in "$emu" "$rt" "$zerog"; do
   [ -x "$p" ] || { echo "hil.sh: $p not built" >&2; exit 2; }
 done

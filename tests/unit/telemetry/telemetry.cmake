@@ -33,4 +33,4 @@ add_test(NAME telemetry_watch
          COMMAND sh ${PROJECT_SOURCE_DIR}/tests/telemetry/watch_test.sh $<TARGET_FILE:zerog>
                  $<TARGET_FILE:zerog-telemetry-replay> ${CMAKE_CURRENT_BINARY_DIR}/telemetry_watch
                  ${_zerog_watch_domain})
-set_tests_properties(telemetry_watch PROPERTIES LABELS dds TIMEOUT 60 RESOURCE_LOCK dds)
+set_tests_properties(telemetry_watch PROPERTIES LABELS "dds;host_cli" TIMEOUT 60 RESOURCE_LOCK dds)
