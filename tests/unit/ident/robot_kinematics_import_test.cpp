@@ -107,6 +107,18 @@ const std::string kJointsKey =
     "joints = { columns = [\"A1\", \"A2\", \"A3\", \"A4\", \"A5\", \"A6\"], unit = \"rad\" }\n";
 
 // The OA design's path points (zerog design's default), as the partial-recordings test uses.
+// One stream of a multi-rate recording: the payload of `payload_seed` with the IMU off the
+// sensor origin (imu_lever_arm), its own noise (`noise_seed`), rate and length.
+sim::SimConfig lever_arm_stream(std::uint64_t payload_seed, std::uint64_t noise_seed,
+                                double period_s, double duration_s) {
+  sim::SimConfig c = sim::default_sim_config(payload_seed);
+  c.seed = noise_seed;
+  c.effects.add(sim::SimEffect::imu_lever_arm);
+  c.period_s = period_s;
+  c.duration_limit_s = duration_s;
+  return c;
+}
+
 const std::vector<sim::JointVector>& design_points() {
   static const std::vector<sim::JointVector> points = [] {
     sim::DesignOptions oa;
@@ -314,12 +326,7 @@ TEST(RobotKinematics, AccelerometerOnlyGetsRatesFromTheOrientation) {
   for (std::uint64_t seed : {5u, 6u}) {
     SCOPED_TRACE("seed " + std::to_string(seed));
     auto config = [&](std::uint64_t noise_seed, double period_s) {
-      sim::SimConfig c = sim::default_sim_config(seed);
-      c.seed = noise_seed;
-      c.effects.add(sim::SimEffect::imu_lever_arm);
-      c.period_s = period_s;
-      c.duration_limit_s = 90.0;
-      return c;
+      return lever_arm_stream(seed, noise_seed, period_s, 90.0);
     };
     const io::Log ft = sim::RigSimulator(config(seed, 1.0 / 700.0), design_points()).run().log;
     const io::Log acc = sim::RigSimulator(config(seed + 1, 1.0 / 250.0), design_points()).run().log;
@@ -401,12 +408,7 @@ TEST(RobotKinematics, AccelerometerAndJointsTakeRotationFromTheJointsAndAccelera
   for (std::uint64_t seed : {1u, 2u}) {
     SCOPED_TRACE("seed " + std::to_string(seed));
     auto config = [&](std::uint64_t noise_seed, double period_s) {
-      sim::SimConfig c = sim::default_sim_config(seed);
-      c.seed = noise_seed;
-      c.effects.add(sim::SimEffect::imu_lever_arm);
-      c.period_s = period_s;
-      c.duration_limit_s = 120.0;
-      return c;
+      return lever_arm_stream(seed, noise_seed, period_s, 120.0);
     };
     const sim::SimOutput ft = sim::RigSimulator(config(seed, 0.004), design_points()).run();
     const io::Log arm = sim::RigSimulator(config(seed + 1, 0.012), design_points()).run().log;
