@@ -433,6 +433,7 @@ void add_ident_commands(CLI::App& app) {
     auto no_discover = std::make_shared<bool>(false);
     auto candidates = std::make_shared<std::string>();
     auto discovered_out = std::make_shared<std::string>("discovered.toml");
+    auto exact_candidates = std::make_shared<bool>(false);
     CLI::App* s = app.add_subcommand(
         "diagnose",
         "Rank the effects a model lacks by how much they reduce the error on held-out data");
@@ -450,6 +451,11 @@ void add_ident_commands(CLI::App& app) {
     s->add_flag("--no-discover", *no_discover,
                 "When no library effect explains the residual, do not search the signal "
                 "dictionary for a law");
+    s->add_flag(
+        "--exact-candidates", *exact_candidates,
+        "Refit every candidate effect (a warm-started fit each) instead of screening them from "
+        "one pass of the model with all of them and refitting only those that could be the "
+        "best (slower; the screened figures are linearised)");
     s->add_option("--discovered-out", *discovered_out,
                   "Where to write a discovered law as an effect file (proto/user_effects.md)")
         ->capture_default_str();
@@ -467,6 +473,7 @@ void add_ident_commands(CLI::App& app) {
       o.fit.engine = c->engine;
       o.fit.errors_in_variables = c->errors_in_variables;
       o.discover = !*no_discover;
+      o.exact_candidates = *exact_candidates;
       o.discovery_path = *discovered_out;
       o.user_candidates = user_candidates(*candidates);
       std::optional<io::ModelFile> m;
@@ -512,6 +519,7 @@ void add_ident_commands(CLI::App& app) {
     auto truth = std::make_shared<std::string>();
     auto plot = std::make_shared<std::string>();
     auto candidates = std::make_shared<std::string>();
+    auto exact_candidates = std::make_shared<bool>(false);
     CLI::App* s = app.add_subcommand("ladder",
                                      "From a minimal model, add the best effect step by step while "
                                      "it pays; print the error at each step");
@@ -522,6 +530,11 @@ void add_ident_commands(CLI::App& app) {
         ->capture_default_str();
     s->add_option("--candidates", *candidates,
                   "User-defined effects the ladder may add beside the library's: @FILE,@FILE");
+    s->add_flag(
+        "--exact-candidates", *exact_candidates,
+        "Refit every candidate effect (a warm-started fit each) instead of screening them from "
+        "one pass of the model with all of them and refitting only those that could be the "
+        "best (slower; the screened figures are linearised)");
     s->add_option("--min-gain", *min_gain,
                   "Smallest share of held-out error an effect must remove to be added")
         ->capture_default_str();
@@ -544,6 +557,7 @@ void add_ident_commands(CLI::App& app) {
       o.diagnose.fit.threads = c->threads;
       o.diagnose.fit.engine = c->engine;
       o.diagnose.fit.errors_in_variables = c->errors_in_variables;
+      o.diagnose.exact_candidates = *exact_candidates;
       const io::ModelSpec spec = io::parse_model_spec(*start);
       o.diagnose.fit.effects = spec.effects;
       o.diagnose.fit.user = spec.user;

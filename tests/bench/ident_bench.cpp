@@ -253,17 +253,29 @@ void BM_FitDefaultModelSamplesEngine(benchmark::State& state) {
 }
 BENCHMARK(BM_FitDefaultModelSamplesEngine)->Unit(benchmark::kSecond)->Iterations(1);
 
-void BM_DiagnoseAllCandidates(benchmark::State& state) {
+// Candidates screened from one accumulation pass (the default), or with exact_candidates every
+// one refitted (what diagnose did before the screening: the reference of its speed-up).
+void diagnose_all_candidates(benchmark::State& state, bool exact) {
   const auto& data = dataset();
   ident::DiagnoseOptions o;
   o.fit.effects = model::kDefaultModel;
+  o.exact_candidates = exact;
   for (auto _ : state) {
     auto d = ident::diagnose(data, o);
     benchmark::DoNotOptimize(d.candidates);
     state.counters["candidates"] = static_cast<double>(d.candidates.size());
+    // Where the time goes: the candidates (screening and refits) and discovery (if it ran).
+    state.counters["candidates_s"] = d.candidate_evaluation.seconds;
+    state.counters["refitted"] = d.candidate_evaluation.refitted;
+    state.counters["discovery_s"] = d.discovery ? d.discovery->seconds : 0.0;
   }
 }
+void BM_DiagnoseAllCandidates(benchmark::State& state) { diagnose_all_candidates(state, false); }
 BENCHMARK(BM_DiagnoseAllCandidates)->Unit(benchmark::kSecond)->Iterations(1);
+void BM_DiagnoseAllCandidatesExact(benchmark::State& state) {
+  diagnose_all_candidates(state, true);
+}
+BENCHMARK(BM_DiagnoseAllCandidatesExact)->Unit(benchmark::kSecond)->Iterations(1);
 
 // Discovery over the full signal dictionary (proto/user_effects.md): the default model on a run
 // with an effect outside the library; diagnose tries every library candidate, finds none, and
@@ -338,28 +350,37 @@ void BM_ScaleFitDefaultModelBlockStatsEngine(benchmark::State& state) {
   scale_fit_default_model(state, "block_stats");
 }
 
-void BM_ScaleDiagnose(benchmark::State& state) {
+void scale_diagnose(benchmark::State& state, bool exact) {
   const auto& data = dataset(samples_arg(state, 0));
   ident::DiagnoseOptions o;
   o.fit.effects = model::kDefaultModel;
+  o.exact_candidates = exact;
   const PeakMemory peak;
   for (auto _ : state) {
     auto d = ident::diagnose(data, o);
     benchmark::DoNotOptimize(d.candidates);
     state.counters["candidates"] = static_cast<double>(d.candidates.size());
+    // Where the time goes: the candidates (screening and refits) and discovery (if it ran).
+    state.counters["candidates_s"] = d.candidate_evaluation.seconds;
+    state.counters["refitted"] = d.candidate_evaluation.refitted;
+    state.counters["discovery_s"] = d.discovery ? d.discovery->seconds : 0.0;
   }
   peak.report(state);
   state.counters["samples"] = static_cast<double>(data.size());
 }
 
+void BM_ScaleDiagnose(benchmark::State& state) { scale_diagnose(state, false); }
+void BM_ScaleDiagnoseExactCandidates(benchmark::State& state) { scale_diagnose(state, true); }
+
 // `zerog ladder`'s climb from bias + gravity, its first kLadderSteps steps (each a diagnosis
 // over every candidate): the same work at every size.
 constexpr int kLadderSteps = 3;
 
-void BM_ScaleLadder(benchmark::State& state) {
+void scale_ladder(benchmark::State& state, bool exact) {
   const auto& data = dataset(samples_arg(state, 0));
   ident::LadderOptions o;
   o.diagnose.fit.effects = model::kMinimalModel;
+  o.diagnose.exact_candidates = exact;
   o.max_steps = kLadderSteps;
   const PeakMemory peak;
   for (auto _ : state) {
@@ -370,6 +391,9 @@ void BM_ScaleLadder(benchmark::State& state) {
   peak.report(state);
   state.counters["samples"] = static_cast<double>(data.size());
 }
+
+void BM_ScaleLadder(benchmark::State& state) { scale_ladder(state, false); }
+void BM_ScaleLadderExactCandidates(benchmark::State& state) { scale_ladder(state, true); }
 
 // Reading a log file into a dataset, as `zerog fit` does (argument 0): 0 the whole file first
 // (io::read_log, then make_dataset: text, parsed rows and dataset held at once), 1 streamed
@@ -428,7 +452,17 @@ void register_scale_benchmarks() {
         ->ArgName("samples")
         ->Unit(benchmark::kSecond)
         ->Iterations(1);
+    benchmark::RegisterBenchmark("BM_ScaleDiagnoseExactCandidates", BM_ScaleDiagnoseExactCandidates)
+        ->Arg(n)
+        ->ArgName("samples")
+        ->Unit(benchmark::kSecond)
+        ->Iterations(1);
     benchmark::RegisterBenchmark("BM_ScaleLadder", BM_ScaleLadder)
+        ->Arg(n)
+        ->ArgName("samples")
+        ->Unit(benchmark::kSecond)
+        ->Iterations(1);
+    benchmark::RegisterBenchmark("BM_ScaleLadderExactCandidates", BM_ScaleLadderExactCandidates)
         ->Arg(n)
         ->ArgName("samples")
         ->Unit(benchmark::kSecond)

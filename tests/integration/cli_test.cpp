@@ -102,11 +102,21 @@ TEST_F(Cli, FitCompareDiagnoseLadderPrintJsonOfTheDocumentedKinds) {
   EXPECT_EQ(j["made_for"]["log"]["file"], log());
   EXPECT_EQ(j["made_for"]["log"]["crc32"].get<std::string>().size(), 8u);
   EXPECT_EQ(j["made_for"]["log"]["rig_file"], (dir() / "run.rig.toml").string());
+  // Candidates screened by default; --exact-candidates refits each, to the same verdict.
+  EXPECT_EQ(j["candidate_evaluation"]["method"], "screened");
+  r = run("diagnose " + log() + " --model " + model + " --block 20 --exact-candidates --json -q");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto exact = nlohmann::json::parse(r.out);
+  EXPECT_EQ(exact["candidate_evaluation"]["method"], "refitted");
+  EXPECT_EQ(exact["verdict"]["command"], j["verdict"]["command"]);
 
   r = run("ladder " + log() + " --block 20 --json -q");
   ASSERT_EQ(r.status, 0) << r.err;
   j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j["kind"], "zerog-ladder");
+  r = run("ladder " + log() + " --block 20 --exact-candidates --json -q");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["steps"], j["steps"]);
   ASSERT_GE(j["steps"].size(), 3u);
   EXPECT_TRUE(j["steps"][0]["added"].is_null());
   EXPECT_TRUE(j["made_for"]["model"].is_null());  // a ladder is made for its log

@@ -17,6 +17,7 @@
 #include <utility>
 
 #include "normal_equations.hpp"
+#include "screening.hpp"
 #include "zerog/ident/block_stats.hpp"
 #include "zerog/ident/eiv.hpp"
 #include "zerog/io/effect_file.hpp"
@@ -502,6 +503,25 @@ RankCheck rank_check(const Eigen::MatrixXd& C) {
   return out;
 }
 
+// User terms are linear: each block's mean design (6 × num_user, column-major) is computed once.
+std::vector<double> mean_user_design(const Dataset& data, const model::UserEffects& user,
+                                     const SampleBlocks& blocks) {
+  const int num_user = user.num_terms;
+  std::vector<double> design(blocks.size() * 6 * static_cast<std::size_t>(num_user));
+  if (num_user == 0) return design;
+  std::array<double, 6 * model::kMaxUserTerms> row{};
+  for (std::size_t b = 0; b < blocks.size(); ++b) {
+    const auto [first, count] = blocks[b];
+    double* mean = &design[b * 6 * static_cast<std::size_t>(num_user)];
+    for (std::size_t i = first; i < first + count; ++i) {
+      model::user_design(user, data.dictionary(i), data.pose[i].R_base_sensor, row.data());
+      for (int k = 0; k < 6 * num_user; ++k)
+        mean[k] += row[static_cast<std::size_t>(k)] / static_cast<double>(count);
+    }
+  }
+  return design;
+}
+
 // One pass of the normal engine: Levenberg–Marquardt on the streamed normal equations
 // (normal_equations.hpp) from r.params, which it updates.
 template <typename IsFrozen>
@@ -613,22 +633,7 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
   if (o.engine == "normal" && !normal_engine) r.engine = "block_stats";
   std::optional<BlockStats> stats;
   if (o.engine != "samples") stats.emplace(data, blocks_of_samples, o.effects);
-  // User terms are linear: each block's mean design (6 × num_user) is computed once.
-  std::vector<double> user_design(blocks_of_samples.size() * 6 *
-                                  static_cast<std::size_t>(num_user));
-  if (num_user > 0) {
-    std::array<double, 6 * model::kMaxUserTerms> row{};
-    for (std::size_t b = 0; b < blocks_of_samples.size(); ++b) {
-      const auto [first, count] = blocks_of_samples[b];
-      double* mean = &user_design[b * 6 * static_cast<std::size_t>(num_user)];
-      for (std::size_t i = first; i < first + count; ++i) {
-        model::user_design(r.params.user, data.dictionary(i), data.pose[i].R_base_sensor,
-                           row.data());
-        for (int k = 0; k < 6 * num_user; ++k)
-          mean[k] += row[static_cast<std::size_t>(k)] / static_cast<double>(count);
-      }
-    }
-  }
+  const std::vector<double> user_design = mean_user_design(data, r.params.user, blocks_of_samples);
   int passes = 1;
   if (!o.sigma) {
     // Consecutive static rows are different poses, not one dwell: no noise estimate from them.
@@ -954,6 +959,77 @@ ToolChangeResult fit_tool_change(const Dataset& data, const model::ModelParams& 
                         "static poses cannot identify it; fit a moving run to update it"});
   }
   return out;
+}
+
+// ---- screening.hpp: the training problem of a model at a point, for diagnose's screening ----
+
+struct screening::TrainingProblem::Impl {
+  Impl(const Dataset& data, const FitOptions& o, const model::ModelParams& point)
+      : blocks(make_blocks(data, o, data.columns.static_rows ? 1 : std::max(1, o.block_samples))),
+        stats(data, blocks, o.effects),
+        user_design(mean_user_design(data, point.user, blocks)) {
+    if (!o.sigma) throw std::runtime_error("screening needs the whitening (FitOptions::sigma)");
+    if (blocks.empty()) throw std::runtime_error("no samples to fit");
+    std::array<double, 6> inv_sigma;
+    for (int k = 0; k < 6; ++k) inv_sigma[k] = 1.0 / (*o.sigma)[k];
+    std::vector<bool> frozen;
+    for (Effect e : model::kAllEffects) {
+      if (!o.effects.has(e) || model::info(e).num_params == 0) continue;
+      order.push_back(e);
+      frozen.push_back(o.frozen.has(e));
+    }
+    column.fill(-1);
+    int next = 0;
+    for (std::size_t b = 0; b < order.size(); ++b) {
+      if (frozen[b]) continue;
+      column[static_cast<std::size_t>(model::index(order[b]))] = next;
+      next += model::info(order[b]).num_params;
+    }
+    user_column = point.user.num_terms > 0 ? next : -1;
+    evaluator =
+        std::make_unique<NormalBlocks>(data, stats, point, order, frozen, inv_sigma, user_design);
+    x0 = evaluator->point();
+  }
+  SampleBlocks blocks;
+  BlockStats stats;
+  std::vector<double> user_design;
+  std::vector<Effect> order;
+  std::array<int, model::kEffectCount> column{};
+  int user_column = -1;
+  std::unique_ptr<NormalBlocks> evaluator;
+  Eigen::VectorXd x0;
+};
+
+screening::TrainingProblem::TrainingProblem(const Dataset& data, const FitOptions& options,
+                                            const model::ModelParams& point)
+    : impl_(std::make_unique<Impl>(data, options, point)) {}
+screening::TrainingProblem::~TrainingProblem() = default;
+
+int screening::TrainingProblem::num_params() const { return impl_->evaluator->num_params(); }
+std::size_t screening::TrainingProblem::num_blocks() const { return impl_->blocks.size(); }
+int screening::TrainingProblem::column(Effect e) const {
+  return impl_->column[static_cast<std::size_t>(model::index(e))];
+}
+int screening::TrainingProblem::user_column() const { return impl_->user_column; }
+
+bool screening::TrainingProblem::accumulate(int threads, normal::NormalEquations& out) const {
+  return normal::accumulate(*impl_->evaluator, threads, out);
+}
+
+double screening::TrainingProblem::ssr_at(const Eigen::VectorXd& step) const {
+  NormalBlocks& f = *impl_->evaluator;
+  f.set_point(impl_->x0 + step);
+  // Residuals only (one model evaluation per block): a small share of one accumulation pass,
+  // so one thread; the sum runs in block order and is deterministic.
+  double ssr = 0.0;
+  std::array<double, 6> r{};
+  bool ok = true;
+  for (std::size_t b = 0; b < f.num_blocks() && ok; ++b) {
+    ok = f.evaluate(b, r.data(), nullptr);
+    for (double v : r) ssr += v * v;
+  }
+  f.set_point(impl_->x0);
+  return ok && std::isfinite(ssr) ? ssr : std::numeric_limits<double>::quiet_NaN();
 }
 
 }  // namespace zerog::ident

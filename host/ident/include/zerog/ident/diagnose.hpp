@@ -29,6 +29,22 @@ struct Candidate {
   double gain = 0.0;  ///< fraction of the baseline's held-out noise-whitened MSE removed
   std::array<double, 6> axis_gain{};  ///< per-axis fraction of held-out MSE removed
   double delta_bic = 0.0;             ///< BIC(candidate) − BIC(baseline), on the training samples
+  /// True: the figures (fit.params, heldout, gains, delta_bic) are the screening's: one
+  /// Gauss–Newton step of the baseline plus this candidate from the baseline's solution
+  /// (linearised, not iterated; fit.params is that step, held-out figures are exact for it).
+  /// False: a warm-started fit() of the model with the candidate (a refit).
+  bool screened = false;
+};
+
+/// How diagnose evaluated the candidates (Diagnosis::candidate_evaluation).
+struct CandidateEvaluation {
+  /// "screened": one accumulation pass of the model with every candidate, a Gauss–Newton step
+  /// per candidate, and refits of the leading ones; "refitted": a fit per candidate.
+  std::string method = "refitted";
+  std::string
+      reason;        ///< plain words: why refits (option, robust loss, ...), or what screening did
+  int refitted = 0;  ///< candidates whose figures come from a refit
+  double seconds = 0.0;  ///< wall time of evaluating the candidates (screening and refits)
 };
 
 struct SignalCorrelation {
@@ -106,6 +122,7 @@ struct Diagnosis {
   /// mse_k/σ_k².
   double structured_fraction = 0.0;
   std::vector<Candidate> candidates;          ///< best first
+  CandidateEvaluation candidate_evaluation;   ///< screened or refitted, and why
   std::vector<SignalCorrelation> correlated;  ///< strongest first
   std::optional<Discovery> discovery;         ///< when verdict is `discovered`
   enum class Verdict { effect, none, nothing_left, discovered } verdict = Verdict::none;
@@ -127,6 +144,13 @@ struct DiagnoseOptions {
   std::string model_text;
   /// User-defined effects tried as candidates beside the library's (diagnose --candidates).
   std::vector<UserCandidate> user_candidates;
+  /// Refit every candidate (a warm-started fit each) instead of screening them all from one
+  /// accumulation pass and refitting only those that could be the best (diagnose
+  /// --exact-candidates).
+  bool exact_candidates = false;
+  /// Test only: a mutant of the screening that ignores the coupling of the candidate's columns
+  /// with the baseline's (no Schur complement); the screening tests must fail with it.
+  bool screening_drop_coupling = false;
   /// When no library effect explains the structure, search the signal dictionary for a law.
   bool discover = true;
   /// Where discovery writes the effect file it finds ("" = do not write).
