@@ -4,6 +4,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "commands.hpp"
 #include "zerog/formats/log.hpp"
@@ -17,6 +18,7 @@ void add_decode_can_command(CLI::App& app) {
     int base_id = 0x20;
     std::string timestamps = "auto";
     std::optional<double> assume_rate_hz;
+    std::vector<double> thermistor;
   };
   auto a = std::make_shared<Args>();
   CLI::App* s = app.add_subcommand(
@@ -44,11 +46,19 @@ void add_decode_can_command(CLI::App& app) {
                 "Sample rate of the sensor, Hz, for a log without timestamps (candump's default "
                 "output): sample k gets t = k / HZ")
       ->check(CLI::PositiveNumber);
+  s->add_option("--thermistor", a->thermistor,
+                "Thermistor conversion (opcode 0x9, index 2): C_AT_0,C_PER_COUNT, i.e. degC at 0 "
+                "counts and degC per count; adds temp_C. UNVERIFIED: no datasheet default, fit "
+                "it on your sensor (proto/netcanoem.md). Without it: raw thermistor_counts only")
+      ->expected(2)
+      ->delimiter(',');
   s->callback([a] {
     io::CanDecodeOptions o;
     o.base_id = static_cast<std::uint8_t>(a->base_id);
     proto::parse_candump_clock(a->timestamps, o.clock);
     o.assume_rate_hz = a->assume_rate_hz;
+    if (!a->thermistor.empty())
+      o.thermistor = proto::netcanoem::ThermistorConversion{a->thermistor[0], a->thermistor[1]};
     const io::CanDecodeResult r = io::decode_netcanoem_log(a->log, o);
     io::write_ft_recording(r, a->out, {a->log});
     const auto& c = r.counters;
@@ -77,6 +87,19 @@ void add_decode_can_command(CLI::App& app) {
         static_cast<unsigned long long>(c.out_of_order),
         static_cast<unsigned long long>(c.wrong_length), r.unconfirmed, r.other_traffic,
         static_cast<unsigned long long>(c.overtaken));
+    const io::DiagnosticCounters& d = r.diagnostic;
+    if (d.requests > 0 || d.unrequested > 0 || d.wrong_length > 0) {
+      std::printf(
+          "thermistor (0x9, index 2): %zu readings%s; %zu requests, %zu answers of other channels "
+          "and %zu of unknown indices ignored, %zu unanswered, %zu answers without a request, %zu "
+          "of a wrong length\n",
+          d.thermistor_readings,
+          r.temperature_converted     ? ", temp_C written (conversion UNVERIFIED)"
+          : d.thermistor_readings > 0 ? ", raw counts only (no --thermistor: no temp_C)"
+                                      : "",
+          d.requests, d.other_channel, d.unknown_index, d.unanswered, d.unrequested,
+          d.wrong_length);
+    }
   });
 }
 

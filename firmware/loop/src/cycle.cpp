@@ -113,6 +113,11 @@ Status Cycle::configure(const CycleConfig& config, infer::DeployedModel model) {
 
 void Cycle::add_ft(const samples::FtSample& s) noexcept {
   stages::SensorWindow& window = data_.window;
+  if (s.temperature_valid) {  // read apart from the gauges: good even when the gauges are not
+    window.have_temperature = true;
+    window.temperature_C = s.temperature_C;
+    window.temperature_age_s = s.temperature_age_s;
+  }
   if (!s.valid) {
     ++counters_.ft_invalid;
     if (s.status == samples::FtSampleStatus::critical) ++window.ft_critical;

@@ -149,7 +149,16 @@ RowResult assemble_row(const CycleConfig& config, const samples::RobotSample& m,
     for (int c = 0; c < 3; ++c) now.signals.R_base_sensor[3 * r + c] = out.R_base_sensor(r, c);
     now.signals.p_base_sensor_m[r] = p[r];
   }
-  now.signals.temperature_C = config.temperature_C;
+  // The F/T sensor's own temperature wins over the configured one, and is held between its
+  // readings (about 1 Hz; the temperature moves slowly).
+  if (window.have_temperature) {
+    rows.have_temperature = true;
+    rows.temperature_C = window.temperature_C;
+    rows.temperature_age_s = window.temperature_age_s;
+  }
+  now.signals.temperature_C = rows.have_temperature ? rows.temperature_C : config.temperature_C;
+  now.temperature_measured = rows.have_temperature;
+  now.temperature_age_s = rows.temperature_age_s;
   now.t_s = timing.t_s;
   now.signals.t_s = now.t_s;
 
@@ -409,6 +418,9 @@ void make_record(const RecordInputs& in, CycleRecord& record) noexcept {
   }
   record.ft_samples = static_cast<std::uint16_t>(row.sensors.ft_n);
   record.imu_samples = static_cast<std::uint16_t>(row.sensors.imu_n);
+  record.temperature_C = now.signals.temperature_C;
+  record.temperature_measured = now.temperature_measured;
+  record.temperature_age_s = now.temperature_age_s;
   record.t_eval_s = model_data.t_eval_s;
   record.wrench_at_eval = model_data.wrench_at_eval;
   record.predicted = model.predicted;

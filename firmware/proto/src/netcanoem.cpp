@@ -70,6 +70,14 @@ std::optional<CanFrame> request_firmware_version(std::uint8_t base_id) {
   return empty_request(base_id, Opcode::firmware_version);
 }
 
+std::optional<CanFrame> request_diagnostic_adc(std::uint8_t base_id, DiagnosticIndex index) {
+  const auto i = static_cast<std::uint8_t>(index);
+  if (!base_ok(base_id) || i > kMaxDiagnosticIndex) return std::nullopt;
+  CanFrame frame = make_frame(base_id, Opcode::diagnostic_adc, kDiagnosticRequestLength);
+  frame.data[0] = i;
+  return frame;
+}
+
 std::uint8_t saturated_gauges(const std::array<std::int16_t, kGaugeCount>& gauges) {
   std::uint8_t mask = 0;
   for (int i = 0; i < kGaugeCount; ++i) {
@@ -254,6 +262,48 @@ DecodeStatus decode_firmware_version(const CanFrame& frame, std::uint8_t base_id
   version.minor = frame.data[1];
   version.build = load_u16(&frame.data[2]);
   return DecodeStatus::ok;
+}
+
+DecodeStatus decode_diagnostic_adc(const CanFrame& frame, std::uint8_t base_id,
+                                   std::uint16_t& counts) {
+  if (DecodeStatus s = check(frame, base_id, Opcode::diagnostic_adc, kDiagnosticAdcLength);
+      s != DecodeStatus::ok) {
+    return s;
+  }
+  counts = load_u16(&frame.data[0]);
+  return DecodeStatus::ok;
+}
+
+const char* decode_status_name(DecodeStatus status) {
+  switch (status) {
+    case DecodeStatus::ok:
+      return "ok";
+    case DecodeStatus::wrong_id:
+      return "wrong_id";
+    case DecodeStatus::wrong_length:
+      return "wrong_length";
+    case DecodeStatus::bad_value:
+      return "bad_value";
+  }
+  return "?";
+}
+
+// --- Thermistor ------------------------------------------------------------------------------
+
+bool thermistor_conversion_valid(const ThermistorConversion& c) {
+  return std::isfinite(c.celsius_at_zero_counts) && std::isfinite(c.celsius_per_count) &&
+         c.celsius_per_count != 0.0;
+}
+
+double thermistor_celsius(const ThermistorConversion& c, std::uint16_t counts) {
+  return c.celsius_at_zero_counts + c.celsius_per_count * static_cast<double>(counts);
+}
+
+std::optional<std::uint16_t> thermistor_counts(const ThermistorConversion& c, double celsius) {
+  if (!thermistor_conversion_valid(c) || !std::isfinite(celsius)) return std::nullopt;
+  const double counts = std::round((celsius - c.celsius_at_zero_counts) / c.celsius_per_count);
+  if (!(counts >= 0.0 && counts <= 65535.0)) return std::nullopt;
+  return static_cast<std::uint16_t>(counts);
 }
 
 // --- CalibrationReadout -----------------------------------------------------------------------
@@ -521,6 +571,13 @@ std::optional<CanFrame> encode_firmware_version(std::uint8_t base_id, FirmwareVe
   frame.data[0] = version.major;
   frame.data[1] = version.minor;
   detail::store_u16(&frame.data[2], version.build);
+  return frame;
+}
+
+std::optional<CanFrame> encode_diagnostic_adc(std::uint8_t base_id, std::uint16_t counts) {
+  if (!base_ok(base_id)) return std::nullopt;
+  CanFrame frame = make_frame(base_id, Opcode::diagnostic_adc, kDiagnosticAdcLength);
+  detail::store_u16(&frame.data[0], counts);
   return frame;
 }
 

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
+#include <cmath>
 #include <fstream>
 #include <sstream>
 #include <string_view>
@@ -157,8 +158,10 @@ RobotSection read_robot(const TomlTable& file) {
 
 // [ft]: the F/T board's bus (read_ft_bus) and its NETCANOEM settings.
 FtSection read_ft(const TomlTable& file) {
-  const TomlTable ft = file.sub_table("ft", {"transport", "interface", "local_path", "base_id",
-                                             "calibration", "rate_hz", "sample_timeout_ms"});
+  const TomlTable ft =
+      file.sub_table("ft", {"transport", "interface", "local_path", "base_id", "calibration",
+                            "rate_hz", "sample_timeout_ms", "thermistor_period_s",
+                            "thermistor_C_at_zero_counts", "thermistor_C_per_count"});
   FtSection f;
   read_ft_bus(ft, f);
   f.base_id = static_cast<int>(ft.optional_integer("base_id", 0x20, 0, 127));
@@ -166,6 +169,26 @@ FtSection read_ft(const TomlTable& file) {
   f.rate_hz = ft.optional_number("rate_hz", 500.0, {0.0, true, 2000.0, false});
   f.sample_timeout_ms = ft.optional_number("sample_timeout_ms", std::min(2.0, 1000.0 / f.rate_hz),
                                            {0.0, true, 1000.0 / f.rate_hz, false});
+  f.thermistor_period_s = ft.optional_number("thermistor_period_s", 1.0, {0.0, false, 3600.0});
+  // The conversion has no default (no datasheet fact): both numbers, or neither.
+  const bool at_zero = ft.find("thermistor_C_at_zero_counts") != nullptr;
+  const bool per_count = ft.find("thermistor_C_per_count") != nullptr;
+  if (at_zero != per_count) {
+    const char* missing = at_zero ? "thermistor_C_per_count" : "thermistor_C_at_zero_counts";
+    ft.fail(at_zero ? "thermistor_C_at_zero_counts" : "thermistor_C_per_count",
+            std::string("needs ft.") + missing +
+                " too: the thermistor conversion is °C = C_at_zero_counts + C_per_count * counts "
+                "(proto/netcanoem.md, \"Thermistor\")");
+  }
+  if (at_zero) {
+    proto::netcanoem::ThermistorConversion c;
+    c.celsius_at_zero_counts = ft.number("thermistor_C_at_zero_counts", io::NumberRange{});
+    c.celsius_per_count = ft.number("thermistor_C_per_count", io::NumberRange{});
+    if (c.celsius_per_count == 0.0) {
+      ft.fail("thermistor_C_per_count", "must not be 0 (every reading would be the same °C)");
+    }
+    f.thermistor = c;
+  }
   return f;
 }
 
@@ -539,6 +562,12 @@ rtio::NetcanoemConfig netcanoem_config(const FtSection& ft) {
   out.base_id = static_cast<std::uint8_t>(ft.base_id);
   out.calibration_index = static_cast<std::uint8_t>(ft.calibration);
   out.sample_timeout = from_ms(ft.sample_timeout_ms);
+  // Every N-th sample request reads the thermistor: N = period × rate, at least 1.
+  out.thermistor_every_polls =
+      ft.thermistor_period_s > 0.0
+          ? static_cast<int>(std::max(1.0, std::round(ft.thermistor_period_s * ft.rate_hz)))
+          : 0;
+  out.thermistor = ft.thermistor;
   return out;
 }
 

@@ -252,6 +252,7 @@ rt::RuntimeOptions runtime_options(const Options& opt, const Loaded& loaded) {
   options.auto_collect = loaded.path != nullptr;
   options.recorder.dir = config.record_dir;
   options.recorder.rig = loaded.setup.rig;
+  options.recorder.temperature = config.ft.thermistor.has_value();
   options.model_file_crc32 = loaded.setup.model_file_crc32;
   options.modbus = config.modbus;
   options.telemetry = config.telemetry;

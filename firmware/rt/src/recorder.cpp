@@ -145,8 +145,13 @@ void Recorder::add(const loop::CycleRecord& r) {
     ++counters_.skipped_no_samples;
     return;
   }
+  if (options_.temperature && !r.temperature_measured) {
+    ++counters_.skipped_no_temperature;  // temp_C would be the configured guess, not a reading
+    return;
+  }
   io::Sample s;
   s.t_s = r.t_s;
+  s.temperature_C = r.temperature_C;  // °C, the log's unit for temp_C (written with the column)
   s.joints_rad = r.joints_rad;
   s.p_base_sensor_m = r.p_base_sensor_m;
   s.q_base_sensor = r.q_base_sensor;

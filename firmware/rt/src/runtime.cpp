@@ -800,6 +800,11 @@ std::string Runtime::summary_json() const {
                      {"bad_length", f.bad_length},
                      {"tx_would_block", f.tx_would_block},
                      {"io_errors", f.io_errors},
+                     {"thermistor_requests", f.thermistor_requests},
+                     {"thermistor_readings", f.thermistor_readings},
+                     {"thermistor_lost", f.thermistor_lost},
+                     {"thermistor_wrong_length", f.thermistor_wrong_length},
+                     {"thermistor_unrequested", f.thermistor_unrequested},
                      {"thread_reads", sensors_.counters.ft_reads},
                      {"thread_overruns", sensors_.counters.ft_overruns}};
   }
@@ -848,6 +853,7 @@ std::string Runtime::summary_json() const {
                  {"log_rows", rc.log_rows},
                  {"skipped_stale", rc.skipped_stale},
                  {"skipped_no_samples", rc.skipped_no_samples},
+                 {"skipped_no_temperature", rc.skipped_no_temperature},
                  {"rejected", rc.rejected},
                  {"records_dropped", handover_.records->dropped()},
                  {"error", recorder_side_.error}};

@@ -1,10 +1,21 @@
 #include "zerog/rtio/netcanoem_sensor.hpp"
 
+#include <algorithm>
+
 #include "wait.hpp"
 
 namespace zerog::rtio {
 
 namespace netcanoem = proto::netcanoem;
+
+namespace {
+
+// A standard data frame of the board's diagnostic opcode (0x9)?
+bool is_diagnostic(const proto::CanFrame& frame, std::uint8_t base_id) {
+  return frame.id == netcanoem::can_id(base_id, netcanoem::Opcode::diagnostic_adc);
+}
+
+}  // namespace
 
 NetcanoemSensor::NetcanoemSensor(CanBus& bus, const NetcanoemConfig& config)
     : bus_(bus), config_(config), assembler_(config.base_id) {}
@@ -27,29 +38,100 @@ void NetcanoemSensor::drain_stale() {
   for (int i = 0; i < config_.max_stale_frames; ++i) {
     const CanReadStatus status = bus_.read(rx, std::chrono::nanoseconds(0));
     if (status == CanReadStatus::frame) {
-      ++own_.stale_frames;
-      feed(rx.frame, ignored);  // before the next request: anything it completes is late
+      // The thermistor's answer usually comes after its poll's sample: expected, not stale.
+      if (!is_diagnostic(rx.frame, config_.base_id)) ++own_.stale_frames;
+      feed(rx, ignored);  // before the next request: anything it completes is late
     } else if (status != CanReadStatus::error_frame && status != CanReadStatus::bad_length) {
       break;  // empty (or failing: the request path reports it)
     }
   }
 }
 
-bool NetcanoemSensor::feed(const proto::CanFrame& frame, netcanoem::GaugeSample& out) {
+bool NetcanoemSensor::feed(const CanRxFrame& rx, netcanoem::GaugeSample& out) {
+  if (is_diagnostic(rx.frame, config_.base_id)) {
+#ifndef ZEROG_MUTANT_DIAGNOSTIC_AS_GAUGE
+    take_diagnostic(rx);
+    return false;
+#else
+    // TEST ONLY (tests/unit/CMakeLists.txt, netcanoem_mutant_test): the broken variant the
+    // interleaving tests must catch: the 0x9 payload taken as the gauge stream's second half.
+    CanRxFrame as_gauge = rx;
+    as_gauge.frame.id = netcanoem::can_id(config_.base_id, netcanoem::Opcode::sample_b);
+    as_gauge.frame.len = netcanoem::kSampleBLength;
+    return feed(as_gauge, out);
+#endif
+  }
   // A 0x0 half is tagged with the poll that is open when it arrives; its 0x1 completes it in
   // order, whatever came between.
-  if (assembler_.feed(frame, out, poll_) != netcanoem::FeedResult::sample) return false;
+  if (assembler_.feed(rx.frame, out, poll_) != netcanoem::FeedResult::sample) return false;
   if (in_poll_ && out.tag == poll_) return true;
   ++late_samples_;  // answers an earlier request: its own two frames, but too old
   late_pairing_ = true;
   return false;
 }
 
+void NetcanoemSensor::take_diagnostic(const CanRxFrame& rx) {
+  if (rx.frame.len == netcanoem::kDiagnosticRequestLength) return;  // a request, looped back
+  std::uint16_t counts = 0;
+  if (netcanoem::decode_diagnostic_adc(rx.frame, config_.base_id, counts) !=
+      netcanoem::DecodeStatus::ok) {
+    ++own_.thermistor_wrong_length;
+    return;
+  }
+  // The answer does not name its channel: only one we asked for (and not yet had) is taken, so
+  // someone else's read of another channel on the bus cannot pass for a temperature.
+  if (!thermistor_open_) {
+    ++own_.thermistor_unrequested;
+    return;
+  }
+  thermistor_open_ = false;
+  have_thermistor_ = true;
+  thermistor_counts_ = counts;
+  thermistor_rx_ns_ = rx.timestamp_ns;
+  ++own_.thermistor_readings;
+}
+
+void NetcanoemSensor::request_thermistor() {
+  if (config_.thermistor_every_polls <= 0) return;
+  if (polls_to_thermistor_ > 0) {
+    --polls_to_thermistor_;
+    return;
+  }
+  polls_to_thermistor_ = config_.thermistor_every_polls - 1;
+  if (thermistor_open_) ++own_.thermistor_lost;  // the last read never got its answer
+  thermistor_open_ = false;
+  const CanWriteStatus written = bus_.write(thermistor_request_);
+  if (written == CanWriteStatus::ok) {
+    ++own_.thermistor_requests;
+    thermistor_open_ = true;
+  } else if (written == CanWriteStatus::would_block) {
+    ++own_.tx_would_block;  // tried again at the next due poll; the sample is not affected
+  } else {
+    ++own_.io_errors;  // the sample path reports a failing bus
+  }
+}
+
+void NetcanoemSensor::fill_temperature(FtSample& out) const {
+  out.thermistor_valid = have_thermistor_;
+  out.thermistor_counts = thermistor_counts_;
+  out.temperature_valid = have_thermistor_ && config_.thermistor.has_value();
+  out.temperature_C = out.temperature_valid
+                          ? netcanoem::thermistor_celsius(*config_.thermistor, thermistor_counts_)
+                          : 0.0;
+  const bool times_known = out.timestamp_ns != 0 && thermistor_rx_ns_ != 0;
+  out.temperature_age_s =
+      have_thermistor_ && times_known
+          ? std::max(0.0, static_cast<double>(out.timestamp_ns - thermistor_rx_ns_) * 1e-9)
+          : 0.0;
+}
+
 FtStartStatus NetcanoemSensor::start() {
   started_ = false;
   readout_error_ = netcanoem::ReadoutError::none;
   if (config_.base_id > netcanoem::kMaxBaseId ||
-      config_.calibration_index > netcanoem::kMaxCalibrationIndex || config_.startup_attempts < 1) {
+      config_.calibration_index > netcanoem::kMaxCalibrationIndex || config_.startup_attempts < 1 ||
+      config_.thermistor_every_polls < 0 ||
+      (config_.thermistor && !netcanoem::thermistor_conversion_valid(*config_.thermistor))) {
     return FtStartStatus::bad_config;
   }
   drain_stale();
@@ -102,6 +184,12 @@ FtStartStatus NetcanoemSensor::start() {
     return FtStartStatus::unknown_units;
   }
   request_ = netcanoem::request_sample(config_.base_id).value_or(proto::CanFrame{});
+  thermistor_request_ =
+      netcanoem::request_diagnostic_adc(config_.base_id, netcanoem::DiagnosticIndex::thermistor)
+          .value_or(proto::CanFrame{});
+  thermistor_open_ = false;
+  have_thermistor_ = false;
+  polls_to_thermistor_ = 0;  // the first poll reads it: a temperature from the start
   assembler_.reset();
   started_ = true;
   return FtStartStatus::ok;
@@ -133,6 +221,7 @@ FtReadStatus NetcanoemSensor::read_sample_waiting(FtSample& out,
   ++own_.requests;
   ++poll_;
   in_poll_ = true;
+  request_thermistor();
   const std::int64_t deadline =
       detail::monotonic_ns() + std::max(config_.sample_timeout, at_least).count();
   CanRxFrame rx;
@@ -147,7 +236,7 @@ FtReadStatus NetcanoemSensor::read_sample_waiting(FtSample& out,
       return FtReadStatus::io_error;
     }
     if (status != CanReadStatus::frame) continue;  // error frame / bad length: counted by the bus
-    if (!feed(rx.frame, gauges)) continue;
+    if (!feed(rx, gauges)) continue;
 
     // Cannot fail: start() checked the unit codes.
     const auto wrench =
@@ -168,6 +257,7 @@ FtReadStatus NetcanoemSensor::read_sample_waiting(FtSample& out,
     out.valid = gauges.usable() && wrench.has_value();
     out.timestamp_ns = rx.timestamp_ns;
     out.sequence = ++sequence_;
+    fill_temperature(out);
     ++own_.samples;
     return FtReadStatus::sample;
   }
@@ -196,7 +286,7 @@ FtCounters NetcanoemSensor::counters() const {
   c.kernel_drops = bus.kernel_drops;
   c.bad_length = bus.bad_length;
   c.tx_would_block = own_.tx_would_block;
-  return c;
+  return c;  // the thermistor counters are own_'s
 }
 
 }  // namespace zerog::rtio

@@ -40,6 +40,7 @@ bool is_request(const proto::CanFrame& frame, std::uint8_t base_id) {
       return frame.len == 0;
     case netcanoem::Opcode::matrix_sg01:
     case netcanoem::Opcode::active_calibration:
+    case netcanoem::Opcode::diagnostic_adc:
       return frame.len == 1;
     default:
       return false;
@@ -131,6 +132,29 @@ AtiBoard::AtiBoard(const AtiBoardConfig& config) : config_(config), rng_(config.
                        : Eigen::Matrix<double, 6, 6>::Zero();
   if (!si_known_) forward_.setZero();
   for (int j = 0; j < 6; ++j) gauges_exact_[j] = config.gauge_bias[j];
+  if (!netcanoem::thermistor_conversion_valid(config.thermistor)) {
+    throw std::invalid_argument(where +
+                                "thermistor: celsius_at_zero_counts and celsius_per_count must be "
+                                "finite and celsius_per_count not 0");
+  }
+  set_temperature(config.temperature_C);
+}
+
+void AtiBoard::set_temperature(double temperature_C) {
+  const std::optional<std::uint16_t> counts =
+      netcanoem::thermistor_counts(config_.thermistor, temperature_C);
+  if (!counts) {
+    throw std::invalid_argument("AtiBoard::set_temperature: " + std::to_string(temperature_C) +
+                                " °C is not finite or outside the thermistor channel's 0–65535 "
+                                "counts (AtiBoardConfig.thermistor)");
+  }
+  const std::lock_guard lock(mutex_);
+  thermistor_counts_ = *counts;
+}
+
+std::uint16_t AtiBoard::thermistor_counts() const {
+  const std::lock_guard lock(mutex_);
+  return thermistor_counts_;
 }
 
 std::array<double, 6> AtiBoard::count_resolution_si() const {
@@ -275,6 +299,7 @@ AtiBoard::Step AtiBoard::respond_locked(const proto::CanFrame& request, Response
   if (fault_ == FtFault::silent || quirks_.ignore_requests > 0) {
     if (fault_ != FtFault::silent) --quirks_.ignore_requests;
     ++counters_.ignored;
+    if (opcode == netcanoem::Opcode::sample_a) ++counters_.sample_requests_ignored;
     return {};
   }
   Step step;
@@ -334,10 +359,24 @@ AtiBoard::Step AtiBoard::respond_locked(const proto::CanFrame& request, Response
     case netcanoem::Opcode::firmware_version:
       put(netcanoem::encode_firmware_version(base, config_.firmware));
       break;
+    case netcanoem::Opcode::diagnostic_adc: {
+      // Only the thermistor is emulated; the other channels answer mid-scale (not a board fact).
+      const std::uint8_t index = request.data[0];
+      if (index > netcanoem::kMaxDiagnosticIndex) break;  // not a channel: no answer
+      const bool thermistor =
+          index == static_cast<std::uint8_t>(netcanoem::DiagnosticIndex::thermistor);
+      put(netcanoem::encode_diagnostic_adc(base, thermistor ? thermistor_counts_ : 0x8000));
+      ++counters_.diagnostic_reads;
+      if (thermistor) ++counters_.thermistor_reads;
+      break;
+    }
     default:
       break;
   }
-  if (step.frames == 0) ++counters_.ignored;
+  if (step.frames == 0) {
+    ++counters_.ignored;
+    if (opcode == netcanoem::Opcode::sample_a) ++counters_.sample_requests_ignored;
+  }
   return step;
 }
 

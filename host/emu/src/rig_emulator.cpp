@@ -309,8 +309,13 @@ bool RigEmulator::physics_step(std::uint64_t k, const std::atomic<bool>& stop) {
     tick_truth_.push_back(
         {js.q_rad, tcp, s.truth.v_com_base_mps, s.push_force_base_N, s.push_torque_com_base_Nm});
   }
-  if (ft_ != nullptr) ft_->set_wrench(s.wrench_sensor_noisy);
   const double rate = physics_.physics_rate_hz();
+  if (ft_ != nullptr) {
+    ft_->set_wrench(s.wrench_sensor_noisy);
+    // The scenario's sensor temperature (the sim's profile, the one temperature_bias follows),
+    // for the thermistor channel.
+    ft_->set_temperature(scenario_.sim.temperature.at(static_cast<double>(k) / rate));
+  }
   if (lockstep_ && ft_ != nullptr) {  // the samples zerog-rt will request, at its rate
     const auto ft_due =
         static_cast<std::uint64_t>(std::floor(static_cast<double>(k) * ft_rate_hz_ / rate + 1e-9));
@@ -954,7 +959,7 @@ nlohmann::json RigEmulator::summary() const {
         {"ft_rate_hz", ft_rate_hz_},
         {"ft_samples_produced", ft_produced_},
         {"ft_queue_underruns", b.queue_underruns},
-        {"ft_requests_ignored", b.ignored},
+        {"ft_requests_ignored", b.sample_requests_ignored},  // thermistor reads apart
         {"ft_samples_left", ft_ != nullptr ? ft_->samples_queued() : 0},
         {"slowest_answer_s", lockstep_counts_.slowest_ack_s}};
   }
@@ -1039,7 +1044,9 @@ nlohmann::json RigEmulator::summary() const {
                      {"saturated_samples", c.saturated_samples},
                      {"critical_samples", c.critical_samples},
                      {"other_frames", c.other_frames},
-                     {"tx_failed", c.tx_failed}};
+                     {"tx_failed", c.tx_failed},
+                     {"diagnostic_reads", c.diagnostic_reads},
+                     {"thermistor_reads", c.thermistor_reads}};
   }
   if (imu_ != nullptr) {
     const Stim300Emulator::Counters c = imu_->counters();

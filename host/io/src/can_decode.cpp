@@ -61,6 +61,41 @@ struct CalibrationTracker {
   }
 };
 
+// Pairs the board's 0x9 requests with their answers: the request names the channel, the answer
+// that follows is its reading (the answer does not carry the index).
+struct DiagnosticTracker {
+  std::uint8_t base_id;
+  DiagnosticCounters& counters;
+  std::vector<ThermistorReading>& readings;
+  int open_index = -1;  // index of the request waiting for its answer, -1: none
+
+  void feed(const proto::CanFrame& f, double t_s) {
+    if (f.id != nc::can_id(base_id, nc::Opcode::diagnostic_adc)) return;
+    if (f.len == nc::kDiagnosticRequestLength) {
+      if (open_index >= 0) ++counters.unanswered;
+      ++counters.requests;
+      if (f.data[0] > nc::kMaxDiagnosticIndex) ++counters.unknown_index;
+      open_index = f.data[0];
+      return;
+    }
+    std::uint16_t counts = 0;
+    if (nc::decode_diagnostic_adc(f, base_id, counts) != nc::DecodeStatus::ok) {
+      ++counters.wrong_length;
+      return;
+    }
+    const int index = open_index;
+    open_index = -1;
+    if (index < 0) {
+      ++counters.unrequested;
+    } else if (index == static_cast<int>(nc::DiagnosticIndex::thermistor)) {
+      ++counters.thermistor_readings;
+      readings.push_back({t_s, counts});
+    } else if (index <= nc::kMaxDiagnosticIndex) {
+      ++counters.other_channel;
+    }  // an unknown index: counted at its request
+  }
+};
+
 }  // namespace
 
 CanDecodeResult decode_netcanoem_log(const std::filesystem::path& candump,
@@ -105,6 +140,9 @@ CanDecodeResult decode_netcanoem_log(const std::filesystem::path& candump,
         " (matrix rows 0x2-0x4 and units 0x8): record the bus from before the sensor's start-up "
         "(zerog-rt reads the calibration at every start)");
   }
+  if (o.thermistor && !nc::thermistor_conversion_valid(*o.thermistor))
+    throw std::runtime_error(
+        "--thermistor: both numbers must be finite and the °C per count must not be 0");
   if (!nc::newton_per_force_unit(r.calibration.force_unit) ||
       !nc::newton_metre_per_torque_unit(r.calibration.torque_unit))
     throw std::runtime_error(candump.string() + ": unknown force/torque unit codes " +
@@ -125,12 +163,20 @@ CanDecodeResult decode_netcanoem_log(const std::filesystem::path& candump,
       return;
     }
     const auto w = nc::gauges_to_wrench_si(r.calibration, g.gauges, o.bias_gauges);
-    r.samples.push_back({t_s, *w, g.status});
+    r.samples.push_back({t_s, *w, g.status, std::nullopt, std::nullopt});
   };
+  DiagnosticTracker diagnostic{o.base_id, r.diagnostic, r.thermistor, -1};
   for (const auto& rec : records) {
     if (rec.fd) continue;  // CAN FD traffic: counted in r.log.fd_frames
     if (nc::base_id_of(rec.frame.id) != o.base_id) {
       ++r.other_traffic;
+      continue;
+    }
+    if (nc::opcode_of(rec.frame.id) == static_cast<std::uint8_t>(nc::Opcode::diagnostic_adc)) {
+      // Never gauge data. Without timestamps a reading gets the time of the samples so far.
+      const double t_s = r.time_assumed ? static_cast<double>(complete) / *o.assume_rate_hz
+                                        : static_cast<double>(rec.timestamp_ns) * 1e-9;
+      diagnostic.feed(rec.frame, t_s);
       continue;
     }
     nc::GaugeSample g;
@@ -150,6 +196,18 @@ CanDecodeResult decode_netcanoem_log(const std::filesystem::path& candump,
   }
   r.unconfirmed += run.size();  // the log ended with halves still waiting
   r.counters = assembler.counters();
+
+  // Each sample gets the latest thermistor reading at or before it; those before the first
+  // reading get the first (zerog-rt reads it with its first poll, then about once a second: the
+  // temperature moves far less in that time than the conversion is uncertain).
+  std::size_t next = 0;
+  for (DecodedWrench& s : r.samples) {
+    if (r.thermistor.empty()) break;
+    while (next + 1 < r.thermistor.size() && r.thermistor[next + 1].t_s <= s.t_s) ++next;
+    s.thermistor_counts = r.thermistor[next].counts;
+    if (o.thermistor) s.temperature_C = nc::thermistor_celsius(*o.thermistor, *s.thermistor_counts);
+  }
+  r.temperature_converted = o.thermistor.has_value() && !r.thermistor.empty();
   return r;
 }
 
@@ -158,13 +216,28 @@ void write_ft_recording(const CanDecodeResult& r, const std::filesystem::path& o
   std::ostringstream os;
   os << "# zerog-ft 1: F/T samples decoded from CAN by zerog decode-can (sensor frame, N and "
         "N*m)\n";
-  os << "t_s,Fx_N,Fy_N,Fz_N,Mx_Nm,My_Nm,Mz_Nm,status\n";
+  const bool counts = !r.thermistor.empty();
+  const bool celsius = counts && r.temperature_converted;
+  if (counts && !celsius) {
+    os << "# thermistor_counts: raw 0x9 readings (diagnostic index 2); no temp_C without a "
+          "conversion (--thermistor, proto/netcanoem.md)\n";
+  }
+  os << "t_s,Fx_N,Fy_N,Fz_N,Mx_Nm,My_Nm,Mz_Nm,status" << (counts ? ",thermistor_counts" : "")
+     << (celsius ? ",temp_C" : "") << "\n";
   char line[256];
   for (const auto& s : r.samples) {
-    std::snprintf(line, sizeof line, "%.6f,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%u\n", s.t_s, s.wrench[0],
-                  s.wrench[1], s.wrench[2], s.wrench[3], s.wrench[4], s.wrench[5],
-                  static_cast<unsigned>(s.status));
-    os << line;
+    int n = std::snprintf(line, sizeof line, "%.6f,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%u", s.t_s,
+                          s.wrench[0], s.wrench[1], s.wrench[2], s.wrench[3], s.wrench[4],
+                          s.wrench[5], static_cast<unsigned>(s.status));
+    if (counts) {
+      n += std::snprintf(line + n, sizeof line - static_cast<std::size_t>(n), ",%u",
+                         static_cast<unsigned>(s.thermistor_counts.value_or(0)));
+    }
+    if (celsius) {
+      std::snprintf(line + n, sizeof line - static_cast<std::size_t>(n), ",%.4f",
+                    s.temperature_C.value_or(0.0));
+    }
+    os << line << "\n";
   }
   write_file_atomic(out, os.str(), inputs);
 }

@@ -209,10 +209,13 @@ TEST_F(AtiBoardTest, FaultsGiveTheSensorsStatuses) {
   EXPECT_EQ(c.sample_requests, 6u);
   EXPECT_EQ(c.samples_sent, 4u);
   EXPECT_EQ(c.ignored, 2u);
+  EXPECT_EQ(c.sample_requests_ignored, 2u);
   EXPECT_EQ(c.critical_samples, 1u);
   EXPECT_EQ(c.saturated_samples, 1u);
-  EXPECT_EQ(c.requests, 6u + 11u);  // + the start-up read-out: calibration, version, serial,
-                                    //   6 matrix rows, counts, units
+  // + the start-up read-out (calibration, version, serial, 6 matrix rows, counts, units) + the
+  // thermistor read that goes with the first poll (rtio::NetcanoemConfig::thermistor_every_polls)
+  EXPECT_EQ(c.requests, 6u + 11u + 1u);
+  EXPECT_EQ(c.thermistor_reads, 1u);
   EXPECT_EQ(std::string(ft_fault_name(FtFault::bus_error_bit)), "bus_error_bit");
 }
 
@@ -298,6 +301,65 @@ TEST_F(AtiBoardTest, BadConfigurationsAreRefusedWithTheirReason) {
   AtiBoardQuirks q;
   q.before_sample_count = 5;
   EXPECT_THROW(board.set_quirks(q), std::invalid_argument);
+
+  c = {};
+  c.thermistor.celsius_per_count = 0.0;
+  EXPECT_NE(message(c).find("thermistor"), std::string::npos) << message(c);
+  c = {};
+  c.temperature_C = 1000.0;  // beyond 65535 counts of the default conversion
+  EXPECT_NE(message(c).find("1000"), std::string::npos) << message(c);
+  EXPECT_THROW(board.set_temperature(std::nan("")), std::invalid_argument);
+}
+
+// The thermistor channel (0x9, index 2) answers the temperature through the inverse of the
+// board's conversion; the other channels answer too, an index above 5 gets no answer.
+TEST_F(AtiBoardTest, ThermistorChannelAnswersTheTemperature) {
+  AtiBoard board;
+  AtiBoard::Response out{};
+  board.set_temperature(37.25);
+  const auto thermistor =
+      netcanoem::request_diagnostic_adc(0x20, netcanoem::DiagnosticIndex::thermistor).value();
+  ASSERT_EQ(board.respond(thermistor, out), 1u);
+  std::uint16_t counts = 0;
+  ASSERT_EQ(netcanoem::decode_diagnostic_adc(out[0], 0x20, counts), netcanoem::DecodeStatus::ok);
+  EXPECT_EQ(counts, board.thermistor_counts());
+  EXPECT_NEAR(netcanoem::thermistor_celsius(board.config().thermistor, counts), 37.25,
+              0.5 * board.config().thermistor.celsius_per_count);
+  const auto power =
+      netcanoem::request_diagnostic_adc(0x20, netcanoem::DiagnosticIndex::power).value();
+  EXPECT_EQ(board.respond(power, out), 1u);
+  proto::CanFrame bad_index = thermistor;
+  bad_index.data[0] = 6;
+  EXPECT_EQ(board.respond(bad_index, out), 0u);
+  const AtiBoard::Counters c = board.counters();
+  EXPECT_EQ(c.diagnostic_reads, 2u);
+  EXPECT_EQ(c.thermistor_reads, 1u);
+  EXPECT_EQ(c.ignored, 1u);
+}
+
+// End to end with the real sensor class: the board's temperature reaches the sample in °C.
+TEST_F(AtiBoardTest, SensorReadsTheBoardsTemperature) {
+  AtiBoardConfig config;
+  config.temperature_C = 18.0;
+  board_ = std::make_unique<AtiBoard>(config);
+  responder_ = std::make_unique<AtiBoardResponder>(*board_, 5);
+  bus_.set_responder(responder_.get());
+  rtio::NetcanoemConfig c;
+  c.sample_timeout = 1s;
+  c.thermistor_every_polls = 2;
+  c.thermistor = config.thermistor;
+  rtio::NetcanoemSensor sensor(bus_, c);
+  ASSERT_EQ(sensor.start(), rtio::FtStartStatus::ok);
+  rtio::FtSample s;
+  ASSERT_EQ(sensor.read_sample(s), rtio::FtReadStatus::sample);
+  ASSERT_EQ(sensor.read_sample(s), rtio::FtReadStatus::sample);
+  ASSERT_TRUE(s.temperature_valid);
+  EXPECT_NEAR(s.temperature_C, 18.0, 0.5 * config.thermistor.celsius_per_count);
+  board_->set_temperature(55.5);
+  for (int i = 0; i < 2; ++i) ASSERT_EQ(sensor.read_sample(s), rtio::FtReadStatus::sample);
+  EXPECT_NEAR(s.temperature_C, 55.5, 0.5 * config.thermistor.celsius_per_count);
+  EXPECT_EQ(board_->counters().thermistor_reads, 2u);
+  EXPECT_EQ(sensor.counters().thermistor_readings, 2u);
 }
 
 TEST_F(AtiBoardTest, RespondIgnoresWhatIsNotItsRequest) {

@@ -167,6 +167,111 @@ TEST(DecodeCan, ReproducesIndependentlyComputedWrenches) {
 // own two frames. Written from the real bus log's patterns (CANopen traffic beside the board, a
 // host polling without waiting; the board's 0x1 overtaken by the next poll's 0x0 23 times in
 // 808 polls): A1 A2 B1 B2, and twice in a row A1 A2 B1 A3 B2 B3 (A = 0x0, B = 0x1, digit = poll).
+// Thermistor reads (0x9, index 2) interleaved with the polls as zerog-rt sends them, one inside
+// a poll's two halves, plus a read of another channel, an unknown index, an unanswered request,
+// an answer nobody asked for and a wrong-length frame: the samples stay exact, each gets the
+// latest reading at or before it in temp_C (the first reading before any), the rest is counted.
+TEST(DecodeCan, ThermistorReadsBecomeTempCAndNeverGaugeData) {
+  std::mt19937 rng(21);
+  Fixture fx = make_calibrated(true, rng);
+  std::uniform_int_distribution<int> g(-20000, 20000);
+  const auto thermistor = *nc::request_diagnostic_adc(kBase, nc::DiagnosticIndex::thermistor);
+  const auto power = *nc::request_diagnostic_adc(kBase, nc::DiagnosticIndex::power);
+  std::vector<std::uint16_t> counts_of_poll;  // the reading each sample should carry
+  std::uint16_t latest = 0;
+  for (int k = 0; k < 12; ++k) {
+    std::array<std::int16_t, 6> s;
+    for (auto& v : s) v = static_cast<std::int16_t>(g(rng));
+    fx.gauges.push_back(s);
+    const auto frames = *nc::encode_sample(kBase, s, 0);
+    fx.rec.add(*nc::request_sample(kBase));
+    const bool read = k % 4 == 1;
+    const auto counts = static_cast<std::uint16_t>(7500 + 10 * k);
+    if (read) fx.rec.add(thermistor);
+    fx.rec.add(frames[0]);
+    if (read && k == 5) fx.rec.add(*nc::encode_diagnostic_adc(kBase, counts));  // between halves
+    fx.rec.add(frames[1]);
+    if (read && k != 5) fx.rec.add(*nc::encode_diagnostic_adc(kBase, counts));  // after the pair
+    if (read && k == 5) latest = counts;  // its answer came before its 0x1: the new one
+    counts_of_poll.push_back(latest);
+    if (read && k != 5) latest = counts;  // from the next poll on
+  }
+  counts_of_poll[0] = counts_of_poll[1] = 7510;  // before the first reading: the first reading
+  fx.rec.add(power);                             // another channel: ignored
+  fx.rec.add(*nc::encode_diagnostic_adc(kBase, 1));
+  proto::CanFrame unknown = thermistor;  // an index the manual does not list
+  unknown.data[0] = 9;
+  fx.rec.add(unknown);
+  fx.rec.add(*nc::encode_diagnostic_adc(kBase, 2));
+  fx.rec.add(thermistor);                            // never answered …
+  fx.rec.add(thermistor);                            // … before this one, also never answered
+  fx.rec.add(*nc::encode_diagnostic_adc(kBase, 3));  // answers the last
+  fx.rec.add(*nc::encode_diagnostic_adc(kBase, 4));  // nobody asked
+  proto::CanFrame odd = *nc::encode_diagnostic_adc(kBase, 5);
+  odd.len = 6;  // as long as a gauge half
+  fx.rec.add(odd);
+
+  const fs::path log = write_temp("thermistor.log", fx.rec.text);
+  CanDecodeOptions o;
+  o.thermistor = nc::ThermistorConversion{-50.0, 0.01};
+  const CanDecodeResult r = decode_netcanoem_log(log, o);
+  ASSERT_EQ(r.samples.size(), fx.gauges.size());
+  for (std::size_t k = 0; k < fx.gauges.size(); ++k) {
+    const Eigen::Matrix<double, 6, 1> w = expected_wrench(fx, fx.gauges[k]);
+    for (int i = 0; i < 6; ++i)
+      ASSERT_NEAR(r.samples[k].wrench[i], w[i], 1e-9 * (1 + std::abs(w[i]))) << "poll " << k;
+    ASSERT_TRUE(r.samples[k].thermistor_counts.has_value()) << k;
+    EXPECT_EQ(*r.samples[k].thermistor_counts, counts_of_poll[k]) << "poll " << k;
+    EXPECT_NEAR(*r.samples[k].temperature_C, -50.0 + 0.01 * counts_of_poll[k], 1e-9) << k;
+  }
+  EXPECT_EQ(r.thermistor.size(), 4u);  // polls 1, 5, 9 and the late answer at the end
+  const DiagnosticCounters& d = r.diagnostic;
+  EXPECT_EQ(d.requests, 7u);
+  EXPECT_EQ(d.thermistor_readings, 4u);
+  EXPECT_EQ(d.other_channel, 1u);
+  EXPECT_EQ(d.unknown_index, 1u);
+  EXPECT_EQ(d.unanswered, 1u);
+  EXPECT_EQ(d.unrequested, 1u);
+  EXPECT_EQ(d.wrong_length, 1u);
+  std::size_t startup_frames = 0;  // the read-out's frames: the assembler's only strays
+  for (const auto& f : fx.rec.records) {
+    const std::uint8_t op = nc::opcode_of(f.frame.id);
+    if (op != 0x0 && op != 0x1 && op != 0x9) ++startup_frames;
+  }
+  EXPECT_EQ(r.counters.stray, startup_frames);  // 0x9 frames never reach the gauge assembler
+  EXPECT_EQ(r.counters.out_of_order, 0u);
+  EXPECT_TRUE(r.temperature_converted);
+
+  // The recording: temp_C in °C (the log format's unit), and thermistor_counts.
+  const fs::path out = write_temp("thermistor.csv", "");
+  fs::remove(out);
+  write_ft_recording(r, out, {log});
+  std::ifstream in(out);
+  std::string comment, header, first;
+  std::getline(in, comment);
+  std::getline(in, header);
+  std::getline(in, first);
+  EXPECT_EQ(header, "t_s,Fx_N,Fy_N,Fz_N,Mx_Nm,My_Nm,Mz_Nm,status,thermistor_counts,temp_C");
+  EXPECT_THAT(first, ::testing::EndsWith(",0,7510,25.1000"));
+
+  // Without a conversion: raw counts only, no temp_C.
+  const CanDecodeResult raw = decode_netcanoem_log(log, {});
+  EXPECT_FALSE(raw.temperature_converted);
+  EXPECT_FALSE(raw.samples[0].temperature_C.has_value());
+  fs::remove(out);
+  write_ft_recording(raw, out, {log});
+  std::ifstream in_raw(out);
+  std::getline(in_raw, comment);
+  std::getline(in_raw, comment);  // the note that temp_C needs a conversion
+  std::getline(in_raw, header);
+  EXPECT_THAT(comment, ::testing::HasSubstr("no temp_C without a conversion"));
+  EXPECT_EQ(header, "t_s,Fx_N,Fy_N,Fz_N,Mx_Nm,My_Nm,Mz_Nm,status,thermistor_counts");
+  o.thermistor = nc::ThermistorConversion{25.0, 0.0};
+  EXPECT_THROW(decode_netcanoem_log(log, o), std::runtime_error);
+  fs::remove(out);
+  fs::remove(log);
+}
+
 TEST(DecodeCan, OvertakenSecondHalvesDecodeEveryPollFromItsOwnFrames) {
   std::mt19937 rng(11);
   Fixture fx = make_calibrated(true, rng);

@@ -126,6 +126,36 @@ TEST(Cycle, IdleAnswersEveryMessageWithItsIpocAndNoCorrectionAndSeesNoContact) {
   EXPECT_EQ(c.last().flags & kNotReady, 0u);
 }
 
+// The model's temperature_bias gets the F/T sensor's own temperature (the NETCANOEM thermistor)
+// once a sample brings one, held between readings; before that the configured temperature_C.
+// Rig at 35 °C with a model of 2 N/K on Fx: with the configured 25 °C the contact would show
+// 20 N; with the sensor's reading it is zero.
+TEST(Cycle, TheSensorsTemperatureReachesTheModelAndTheRecord) {
+  infer::DeployedModel model = payload_model();
+  model.physics.effects.add(model::Effect::temperature_bias);
+  double* per_kelvin = model.physics.block(model::Effect::temperature_bias);
+  for (int k = 0; k < 6; ++k) per_kelvin[k] = k == 0 ? 2.0 : 0.0;
+  Cycle c;
+  ASSERT_EQ(c.configure(test_cycle_config(), model).text(), "");
+  StaticRobot rig(model);  // its payload wrench is the model's at 25 °C
+  Eigen::Matrix<double, 6, 1> warm = Eigen::Matrix<double, 6, 1>::Zero();
+  warm[0] = 2.0 * (35.0 - 25.0);                    // what 35 °C adds to Fx
+  for (int i = 0; i < 10; ++i) rig.cycle(c, warm);  // no temperature in the samples
+  EXPECT_FALSE(c.last().temperature_measured);
+  EXPECT_DOUBLE_EQ(c.last().temperature_C, test_cycle_config().temperature_C);
+  EXPECT_NEAR(c.last().contact[0], 20.0, 1e-6);
+  samples::FtSample s = rig.ft(warm);
+  s.temperature_valid = true;
+  s.temperature_C = 35.0;
+  s.temperature_age_s = 0.25;
+  c.add_ft(s);  // one sample with the reading; the others of later cycles carry none
+  for (int i = 0; i < 10; ++i) rig.cycle(c, warm);
+  EXPECT_TRUE(c.last().temperature_measured);
+  EXPECT_DOUBLE_EQ(c.last().temperature_C, 35.0);
+  EXPECT_DOUBLE_EQ(c.last().temperature_age_s, 0.25);
+  EXPECT_NEAR(c.last().contact[0], 0.0, 1e-6);
+}
+
 TEST(Cycle, SensorsThatHaveNotStartedYetMeanNotReadyNotAFault) {
   Cycle c;
   ASSERT_EQ(c.configure(test_cycle_config(), payload_model()).text(), "");

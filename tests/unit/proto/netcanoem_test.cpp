@@ -601,7 +601,7 @@ double dbc_value(const DbcSignal& s, const CanFrame& f) {
 
 TEST(NetcanoemDbc, DescribesTheFramesTheCodeDecodes) {
   const auto dbc = read_dbc(std::string(ZEROG_SOURCE_DIR) + "/proto/netcanoem.dbc");
-  ASSERT_EQ(dbc.size(), 10u);
+  ASSERT_EQ(dbc.size(), 11u);
   for (const auto& [id, m] : dbc) {
     EXPECT_EQ(base_id_of(id), kBase) << m.name;
     for (const DbcSignal& s : m.signals) EXPECT_TRUE(s.big_endian) << s.name;
@@ -640,6 +640,81 @@ TEST(NetcanoemDbc, DescribesTheFramesTheCodeDecodes) {
   EXPECT_EQ(value(Opcode::active_calibration, "CalibrationIndex", active), 9);
   const CanFrame serial = *encode_serial_number(kBase, {'A', 'B', 'C', 'D', 'E', 'F', 'G', 'H'});
   EXPECT_EQ(value(Opcode::serial_number, "SerialChar7", serial), 'H');
+  const CanFrame adc = *encode_diagnostic_adc(kBase, 0xBEEF);
+  EXPECT_EQ(value(Opcode::diagnostic_adc, "AdcCounts", adc), 0xBEEF);
+}
+
+// --- Opcode 0x9 (diagnostic ADC; the thermistor is index 2) -----------------------------------
+
+TEST(NetcanoemDiagnostic, RequestCarriesTheIndex) {
+  const CanFrame r = *request_diagnostic_adc(kBase, DiagnosticIndex::thermistor);
+  EXPECT_EQ(r.id, 0x209u);  // (0x20 << 4) | 0x9
+  EXPECT_EQ(r.len, kDiagnosticRequestLength);
+  EXPECT_EQ(r.data[0], 2);
+  EXPECT_EQ(request_diagnostic_adc(kBase, DiagnosticIndex::ground)->data[0], 5);
+  EXPECT_FALSE(request_diagnostic_adc(kBase, static_cast<DiagnosticIndex>(6)).has_value());
+  EXPECT_FALSE(request_diagnostic_adc(0x80, DiagnosticIndex::thermistor).has_value());
+}
+
+TEST(NetcanoemDiagnostic, ResponseIsBigEndianCountsAndRoundTrips) {
+  std::uint16_t counts = 0;
+  EXPECT_EQ(decode_diagnostic_adc(frame(0x209, {0x12, 0x34}), kBase, counts), DecodeStatus::ok);
+  EXPECT_EQ(counts, 0x1234u);
+  EXPECT_EQ(decode_diagnostic_adc(frame(0x209, {0xFF, 0xFE}), kBase, counts), DecodeStatus::ok);
+  EXPECT_EQ(counts, 0xFFFEu);  // read as unsigned (UNVERIFIED)
+  for (std::uint16_t c : std::array<std::uint16_t, 4>{0, 1, 7500, 65535}) {
+    EXPECT_EQ(decode_diagnostic_adc(*encode_diagnostic_adc(kBase, c), kBase, counts),
+              DecodeStatus::ok);
+    EXPECT_EQ(counts, c);
+  }
+}
+
+// Malformed frames: a clear status naming what is wrong with the frame, and `counts` untouched.
+TEST(NetcanoemDiagnostic, MalformedFramesAreRefusedByName) {
+  std::uint16_t counts = 77;
+  // The looped-back request (1 byte), a truncated and an over-long response.
+  EXPECT_EQ(decode_diagnostic_adc(frame(0x209, {0x02}), kBase, counts), DecodeStatus::wrong_length);
+  EXPECT_EQ(decode_diagnostic_adc(frame(0x209, {}), kBase, counts), DecodeStatus::wrong_length);
+  EXPECT_EQ(decode_diagnostic_adc(frame(0x209, {1, 2, 3}), kBase, counts),
+            DecodeStatus::wrong_length);
+  // Another board, another opcode (the gauge half 0x1), an extended frame with the same bits.
+  EXPECT_EQ(decode_diagnostic_adc(frame(0x219, {1, 2}), kBase, counts), DecodeStatus::wrong_id);
+  EXPECT_EQ(decode_diagnostic_adc(frame(0x201, {1, 2}), kBase, counts), DecodeStatus::wrong_id);
+  EXPECT_EQ(decode_diagnostic_adc(frame(0x209 | kCanExtendedFlag, {1, 2}), kBase, counts),
+            DecodeStatus::wrong_id);
+  EXPECT_EQ(counts, 77u);
+  EXPECT_STREQ(decode_status_name(DecodeStatus::wrong_length), "wrong_length");
+  EXPECT_STREQ(decode_status_name(DecodeStatus::wrong_id), "wrong_id");
+}
+
+// The gauge assembler never takes a 0x9 frame as gauge data, whatever its length.
+TEST(NetcanoemDiagnostic, AssemblerCountsDiagnosticFramesAsStray) {
+  SampleAssembler a(kBase);
+  GaugeSample out;
+  const auto pair = *encode_sample(kBase, {1, 2, 3, 4, 5, 6}, 0);
+  EXPECT_EQ(a.feed(pair[0], out), FeedResult::pending);
+  EXPECT_EQ(a.feed(*encode_diagnostic_adc(kBase, 0x0102), out), FeedResult::stray);
+  EXPECT_EQ(a.feed(frame(0x209, {0, 7, 0, 8, 0, 9}), out), FeedResult::stray);  // 6 bytes like 0x1
+  ASSERT_EQ(a.feed(pair[1], out), FeedResult::sample);
+  EXPECT_EQ(out.gauges, (std::array<std::int16_t, 6>{1, 2, 3, 4, 5, 6}));
+}
+
+TEST(NetcanoemThermistor, LinearConversionAndItsInverse) {
+  const ThermistorConversion c{-50.0, 0.01};
+  ASSERT_TRUE(thermistor_conversion_valid(c));
+  EXPECT_DOUBLE_EQ(thermistor_celsius(c, 0), -50.0);
+  EXPECT_DOUBLE_EQ(thermistor_celsius(c, 7500), 25.0);
+  EXPECT_EQ(thermistor_counts(c, 25.0), 7500u);
+  EXPECT_EQ(thermistor_counts(c, 25.004), 7500u);          // nearest count
+  EXPECT_FALSE(thermistor_counts(c, -50.01).has_value());  // below 0 counts
+  EXPECT_FALSE(thermistor_counts(c, 700.0).has_value());   // above 65535 counts
+  EXPECT_FALSE(thermistor_counts(c, std::numeric_limits<double>::quiet_NaN()).has_value());
+  // A falling characteristic (an NTC divider read high-side) is a negative slope.
+  const ThermistorConversion ntc{100.0, -0.002};
+  EXPECT_DOUBLE_EQ(thermistor_celsius(ntc, *thermistor_counts(ntc, 20.0)), 20.0);
+  EXPECT_FALSE(thermistor_conversion_valid({25.0, 0.0}));
+  EXPECT_FALSE(thermistor_conversion_valid({std::numeric_limits<double>::infinity(), 0.01}));
+  EXPECT_FALSE(thermistor_counts({25.0, 0.0}, 25.0).has_value());
 }
 
 }  // namespace

@@ -211,6 +211,41 @@ std::string with_local_transport(const std::string& text) {
                    "interface = ", "local_path = \"/run/zerog/can.sock\"");
 }
 
+// The thermistor (opcode 0x9): read about once a second by default, no conversion unless both
+// numbers are given (no datasheet default), each error naming its key.
+TEST(RtConfig, FtThermistorConversionIsBothNumbersOrNeither) {
+  const std::string s = sample_text();
+  const RtConfig defaults = parse_config(s, "rt.toml");
+  EXPECT_FALSE(defaults.ft.thermistor.has_value());
+  EXPECT_EQ(netcanoem_config(defaults.ft).thermistor_every_polls, 500);  // 1 s at 500 Hz
+  EXPECT_FALSE(netcanoem_config(defaults.ft).thermistor.has_value());
+  const RtConfig given =
+      parse_config(with_line(s, "thermistor_period_s = 1.0",
+                             "thermistor_period_s = 0.5\n"
+                             "thermistor_C_at_zero_counts = -50.0\nthermistor_C_per_count = 0.005"),
+                   "rt.toml");
+  ASSERT_TRUE(given.ft.thermistor.has_value());
+  EXPECT_DOUBLE_EQ(given.ft.thermistor->celsius_at_zero_counts, -50.0);
+  EXPECT_DOUBLE_EQ(given.ft.thermistor->celsius_per_count, 0.005);
+  const rtio::NetcanoemConfig nc = netcanoem_config(given.ft);
+  EXPECT_EQ(nc.thermistor_every_polls, 250);
+  ASSERT_TRUE(nc.thermistor.has_value());
+  const RtConfig off =
+      parse_config(with_line(s, "thermistor_period_s = 1.0", "thermistor_period_s = 0"), "rt.toml");
+  EXPECT_EQ(netcanoem_config(off.ft).thermistor_every_polls, 0);
+  const int line = line_of(s, "thermistor_period_s = 1.0");
+  expect_error(
+      with_line(s, "thermistor_period_s = 1.0",
+                "thermistor_period_s = 1.0\nthermistor_C_per_count = 0.005"),
+      {"ft.thermistor_C_per_count", line + 1, 0, "needs ft.thermistor_C_at_zero_counts too"});
+  expect_error(with_line(s, "thermistor_period_s = 1.0",
+                         "thermistor_period_s = 1.0\nthermistor_C_at_zero_counts = 1.0\n"
+                         "thermistor_C_per_count = 0.0"),
+               {"ft.thermistor_C_per_count", line + 2, 0, "must not be 0"});
+  expect_error(with_line(s, "thermistor_period_s = 1.0", "thermistor_period_s = -1"),
+               {"ft.thermistor_period_s", line, 0, "in [0, 3600]"});
+}
+
 TEST(RtConfig, FtTransportIsSocketCanByDefaultOrTheLocalBusSocket) {
   const std::string s = sample_text();
   const RtConfig sample = parse_config(s, "rt.toml");

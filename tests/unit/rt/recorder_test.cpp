@@ -178,6 +178,33 @@ TEST(Recorder, WritesALogThatReadsBackAndCyclesCsvAndRenamesOnlyAtTheEnd) {
   EXPECT_THROW(Recorder{o}, std::runtime_error);
 }
 
+// With the F/T sensor's temperature ([ft] thermistor conversion): the log gets temp_C in °C;
+// rows before the first reading are skipped (the configured temperature is not a reading).
+TEST(Recorder, WritesTheSensorsTemperatureAsTempC) {
+  test::TempDir dir;
+  RecorderOptions o;
+  o.dir = dir.path() / "warm";
+  o.rig = test::test_rig();
+  o.temperature = true;
+  {
+    Recorder rec(o);
+    for (std::uint64_t c = 1; c <= 20; ++c) {
+      loop::CycleRecord r = record(c, 0.012 * static_cast<double>(c - 1));
+      r.temperature_measured = c > 5;
+      r.temperature_C = c > 5 ? 31.5 + 0.01 * static_cast<double>(c) : 25.0;
+      rec.add(r);
+    }
+    rec.finish();
+    EXPECT_EQ(rec.counters().skipped_no_temperature, 5u);
+    EXPECT_EQ(rec.counters().log_rows, 15u);
+  }
+  const io::Log log = io::read_log(dir.path() / "warm" / "run.csv");
+  EXPECT_TRUE(log.columns.temperature);
+  ASSERT_EQ(log.samples.size(), 15u);
+  EXPECT_NEAR(log.samples[0].temperature_C, 31.56, 1e-9);
+  EXPECT_NEAR(log.samples[14].temperature_C, 31.70, 1e-9);
+}
+
 TEST(Recorder, DumpsTheFrozenBlackBoxOldestFirstWithTheFaultCycleLast) {
   test::TempDir dir;
   RecorderOptions o;

@@ -249,11 +249,18 @@ class ScriptedBoard final : public CanResponder {
     for (int i = 0; i < 6; ++i) g[i] = static_cast<std::int16_t>(100 * p + 10 * i + p * i);
     return g;
   }
-  /// The frames to queue for the next requests, e.g. {"A2", "B1", "B2"}.
+  /// The frames to queue for the next requests, e.g. {"A2", "B1", "B2"}; "T123" is a thermistor
+  /// answer (0x9) of 123 counts. Only sample requests take a script line (a thermistor request
+  /// gets its answer wherever the script puts it).
   void then(std::vector<std::string> frames) { script_.push_back(std::move(frames)); }
   void on_write(const proto::CanFrame& request, FakeCanBus& bus) override {
     if (request.len != 0 || next_ >= script_.size()) return;
     for (const std::string& f : script_[next_]) {
+      if (f[0] == 'T') {
+        const auto counts = static_cast<std::uint16_t>(std::stoi(f.substr(1)));
+        bus.inject(CanRxFrame{*netcanoem::encode_diagnostic_adc(base_id_, counts), 0});
+        continue;
+      }
       const auto pair = netcanoem::encode_sample(base_id_, gauges(std::stoi(f.substr(1))), 0);
       bus.inject(CanRxFrame{(*pair)[f[0] == 'A' ? 0 : 1], 0});
     }
@@ -320,6 +327,135 @@ TEST_F(NetcanoemSensorTest, ALostSecondHalfCostsTwoPollsAndMixesNothing) {
   bus_.set_responder(nullptr);
 }
 
+// --- The thermistor (opcode 0x9, diagnostic index 2), read between the gauge polls ----------
+
+// With the emulated board: read with the first poll and then every N-th, its answer (queued
+// behind that poll's sample pair) taken in the next poll and converted with the configured
+// conversion; not counted stale, no sample lost.
+TEST_F(NetcanoemSensorTest, ThermistorIsReadEveryNthPollAndReachesTheSample) {
+  board_config_.temperature_C = 31.5;
+  NetcanoemConfig c = config();
+  c.thermistor_every_polls = 3;
+  c.thermistor = board_config_.thermistor;
+  NetcanoemSensor sensor(bus_, c);
+  ASSERT_EQ(sensor.start(), FtStartStatus::ok);
+  FtSample s;
+  ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);  // poll 1: reads it, answer behind
+  EXPECT_FALSE(s.thermistor_valid);
+  EXPECT_FALSE(s.temperature_valid);
+  ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);  // poll 2: the answer of poll 1
+  EXPECT_EQ(s.gauges, kGauges);
+  ASSERT_TRUE(s.temperature_valid);
+  EXPECT_TRUE(s.thermistor_valid);
+  EXPECT_EQ(s.thermistor_counts, board().thermistor_counts());
+  EXPECT_NEAR(s.temperature_C, 31.5, 0.5 * board_config_.thermistor.celsius_per_count);
+  EXPECT_GE(s.temperature_age_s, 0.0);
+  board().set_temperature(40.0);
+  ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);  // poll 3: no read
+  ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);  // poll 4: reads it again
+  EXPECT_NEAR(s.temperature_C, 31.5, 0.5 * board_config_.thermistor.celsius_per_count);
+  ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);  // poll 5: the new temperature
+  EXPECT_NEAR(s.temperature_C, 40.0, 0.5 * board_config_.thermistor.celsius_per_count);
+  EXPECT_EQ(written_with(netcanoem::Opcode::diagnostic_adc), 2u);  // polls 1 and 4
+  const FtCounters counters = sensor.counters();
+  EXPECT_EQ(counters.thermistor_requests, 2u);
+  EXPECT_EQ(counters.thermistor_readings, 2u);
+  EXPECT_EQ(counters.thermistor_lost, 0u);
+  EXPECT_EQ(counters.stale_frames, 0u);
+  EXPECT_EQ(counters.stray_frames, 0u);
+  EXPECT_EQ(counters.samples, 5u);
+  EXPECT_EQ(board().counters().thermistor_reads, 2u);
+}
+
+// Safety: a 0x9 answer arriving between a poll's 0x0 and 0x1 halves, and after a re-poll behind
+// a late 0x1, is never paired as gauge data: each sample carries exactly its own poll's gauges.
+// (The mutant ZEROG_MUTANT_DIAGNOSTIC_AS_GAUGE, which takes the 0x9 payload as a second half,
+// fails here.)
+TEST_F(NetcanoemSensorTest, ThermistorAnswerBetweenGaugeHalvesIsNeverPairedAsGaugeData) {
+  NetcanoemConfig c = config();
+  c.thermistor_every_polls = 1;
+  c.thermistor = netcanoem::ThermistorConversion{-50.0, 0.01};
+  NetcanoemSensor sensor(bus_, c);
+  ASSERT_EQ(sensor.start(), FtStartStatus::ok);
+  ScriptedBoard script(board_config_.base_id);
+  bus_.set_responder(&script);
+  script.then({"A1", "T7500", "B1"});        // between the halves
+  script.then({"A2"});                       // B2 and the thermistor answer late: timeout
+  script.then({"A3", "B2", "T8000", "B3"});  // re-poll: late B2, then the answer, then B3
+  script.then({"T8100", "A4", "B4"});        // before the first half
+  FtSample s;
+  ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
+  EXPECT_EQ(s.gauges, ScriptedBoard::gauges(1));
+  EXPECT_EQ(s.thermistor_counts, 7500u);
+  EXPECT_NEAR(s.temperature_C, 25.0, 1e-9);
+  EXPECT_EQ(sensor.read_sample(s), FtReadStatus::timeout);
+  ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
+  EXPECT_EQ(s.gauges, ScriptedBoard::gauges(3));
+  EXPECT_EQ(s.thermistor_counts, 8000u);
+  EXPECT_NEAR(s.temperature_C, 30.0, 1e-9);
+  ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
+  EXPECT_EQ(s.gauges, ScriptedBoard::gauges(4));
+  EXPECT_EQ(s.thermistor_counts, 8100u);
+  const FtCounters counters = sensor.counters();
+  EXPECT_EQ(counters.samples, 3u);
+  EXPECT_EQ(counters.late_samples, 1u);  // B2 with A2
+  EXPECT_EQ(counters.out_of_order, 0u);
+  EXPECT_EQ(counters.wrong_length, 0u);
+  EXPECT_EQ(counters.thermistor_readings, 3u);
+  EXPECT_EQ(counters.thermistor_lost, 1u);  // poll 2's read, unanswered when poll 3's was due
+  bus_.set_responder(nullptr);
+}
+
+// A thermistor read that gets no answer is counted when the next one is due; the samples go on
+// and no temperature is made up.
+TEST_F(NetcanoemSensorTest, LostThermistorAnswersAreCountedNotFatal) {
+  NetcanoemConfig c = config();
+  c.thermistor_every_polls = 1;
+  c.thermistor = netcanoem::ThermistorConversion{-50.0, 0.01};
+  NetcanoemSensor sensor(bus_, c);
+  ASSERT_EQ(sensor.start(), FtStartStatus::ok);
+  ScriptedBoard script(board_config_.base_id);
+  bus_.set_responder(&script);
+  for (int p = 1; p <= 3; ++p) script.then({"A" + std::to_string(p), "B" + std::to_string(p)});
+  FtSample s;
+  for (int p = 1; p <= 3; ++p) {
+    ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample) << p;
+    EXPECT_EQ(s.gauges, ScriptedBoard::gauges(p));
+    EXPECT_TRUE(s.valid);
+    EXPECT_FALSE(s.thermistor_valid);
+    EXPECT_FALSE(s.temperature_valid);
+  }
+  EXPECT_EQ(sensor.counters().thermistor_requests, 3u);
+  EXPECT_EQ(sensor.counters().thermistor_lost, 2u);  // the third is still open
+  bus_.set_responder(nullptr);
+}
+
+// Without a conversion the reading stays raw counts; an answer nobody asked for (reads off, or
+// someone else's read of another channel) and a 0x9 frame of a wrong length are counted and
+// ignored.
+TEST_F(NetcanoemSensorTest, ThermistorWithoutConversionUnrequestedAndWrongLength) {
+  NetcanoemConfig c = config();
+  c.thermistor_every_polls = 2;
+  NetcanoemSensor sensor(bus_, c);
+  ASSERT_EQ(sensor.start(), FtStartStatus::ok);
+  FtSample s;
+  ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
+  ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
+  EXPECT_TRUE(s.thermistor_valid);
+  EXPECT_EQ(s.thermistor_counts, board().thermistor_counts());
+  EXPECT_FALSE(s.temperature_valid);
+  bus_.inject(*netcanoem::encode_diagnostic_adc(board_config_.base_id, 1));  // unrequested
+  proto::CanFrame odd = *netcanoem::encode_diagnostic_adc(board_config_.base_id, 2);
+  odd.len = 3;
+  bus_.inject(odd);
+  ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
+  EXPECT_EQ(s.thermistor_counts, board().thermistor_counts());  // not 1
+  const FtCounters counters = sensor.counters();
+  EXPECT_EQ(counters.thermistor_unrequested, 1u);
+  EXPECT_EQ(counters.thermistor_wrong_length, 1u);
+  EXPECT_EQ(counters.stray_frames, 0u);  // 0x9 frames never reach the gauge assembler
+}
+
 TEST_F(NetcanoemSensorTest, FullTxQueueIsCounted) {
   NetcanoemSensor sensor(bus_, config());
   ASSERT_EQ(sensor.start(), FtStartStatus::ok);
@@ -374,6 +510,15 @@ TEST_F(NetcanoemSensorTest, UnknownUnitsFailStartUp) {
   board_config_.torque_unit = 42;
   NetcanoemSensor sensor(bus_, config());
   EXPECT_EQ(sensor.start(), FtStartStatus::unknown_units);
+}
+
+TEST_F(NetcanoemSensorTest, BadThermistorConfigIsRefused) {
+  NetcanoemConfig c = config();
+  c.thermistor = netcanoem::ThermistorConversion{20.0, 0.0};  // every count the same °C
+  EXPECT_EQ(NetcanoemSensor(bus_, c).start(), FtStartStatus::bad_config);
+  c.thermistor.reset();
+  c.thermistor_every_polls = -1;
+  EXPECT_EQ(NetcanoemSensor(bus_, c).start(), FtStartStatus::bad_config);
 }
 
 TEST_F(NetcanoemSensorTest, BadConfig) {

@@ -42,6 +42,8 @@ TEST(NoAllocation, NetcanoemSensorReadSample) {
   bus.set_responder(&board);
   NetcanoemConfig config;
   config.base_id = board.state.base_id;
+  config.thermistor_every_polls = 7;  // thermistor reads interleaved (0x9)
+  config.thermistor = board.state.board.config().thermistor;
   NetcanoemSensor sensor(bus, config);
   ASSERT_EQ(sensor.start(), FtStartStatus::ok);
   // Exercise the counted paths too: a stray, an error frame, a wrong-length frame.
@@ -54,6 +56,9 @@ TEST(NoAllocation, NetcanoemSensorReadSample) {
   proto::CanFrame short_b;
   short_b.id = netcanoem::can_id(board.state.base_id, netcanoem::Opcode::sample_b);
   short_b.len = 2;
+  proto::CanFrame long_diagnostic;  // a 0x9 frame of a wrong length (counted)
+  long_diagnostic.id = netcanoem::can_id(board.state.base_id, netcanoem::Opcode::diagnostic_adc);
+  long_diagnostic.len = 4;
 
   const std::size_t before = zerog::test::allocation_count();
   FtSample s;
@@ -61,7 +66,7 @@ TEST(NoAllocation, NetcanoemSensorReadSample) {
   for (int i = 0; i < 2000; ++i) {
     board.state.gauges[0] = static_cast<std::int16_t>(i);
     board.state.status = (i % 7 == 0) ? 0x4008 : 0;
-    board.state.before_sample = {stray, error, short_b, stray};
+    board.state.before_sample = {stray, error, short_b, long_diagnostic};
     board.state.before_sample_count = static_cast<std::size_t>(i % 5);
     board.state.silent = (i % 11 == 0);  // timeouts too
     if (sensor.read_sample(s) == FtReadStatus::sample) ++samples;
@@ -71,6 +76,8 @@ TEST(NoAllocation, NetcanoemSensorReadSample) {
   EXPECT_GT(samples, 1500u);
   EXPECT_GT(counters.timeouts, 0u);
   EXPECT_GT(counters.stray_frames, 0u);
+  EXPECT_GT(counters.thermistor_readings, 0u);
+  EXPECT_GT(counters.thermistor_wrong_length, 0u);
 }
 
 TEST(NoAllocation, Stim300ImuReadSampleOnAPty) {

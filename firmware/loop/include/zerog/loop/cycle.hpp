@@ -72,7 +72,10 @@ struct CycleConfig {
   double period_s = 0.012;      ///< nominal robot cycle (RSI: 0.004 or 0.012)
   double ipoc_unit_s = 0.001;   ///< IPOC counts milliseconds (KUKA)
   int angular_accel_order = 4;  ///< 4: 5-point central difference (delay 2 rows); 2: 3-point (1)
-  double temperature_C = 25.0;  ///< sensor temperature fed to the model (no sensor on the rig)
+  /// Sensor temperature fed to the model until the F/T sensor reports its own (FtSample::
+  /// temperature_valid: the NETCANOEM thermistor with a configured conversion), and always when
+  /// it never does. The sensor's reading wins: it is the temperature of the part that drifts.
+  double temperature_C = 25.0;
   WatchdogConfig watchdog;
   control::BodyParams body;      ///< the virtual body
   control::MotionLimits limits;  ///< deadbands, force limit, speed/accel/workspace limits
@@ -193,6 +196,11 @@ struct CycleRecord {
   std::array<double, 3> rate_imu{};            ///< mean gyro, IMU frame, rad/s
   std::uint16_t ft_samples = 0;                ///< valid F/T samples averaged
   std::uint16_t imu_samples = 0;               ///< valid IMU samples averaged
+  /// The temperature fed to the model this cycle, °C: the F/T sensor's latest reading when
+  /// temperature_measured, else CycleConfig::temperature_C.
+  double temperature_C = 25.0;
+  bool temperature_measured = false;
+  double temperature_age_s = 0.0;  ///< age of that reading when it came with a sample, s
   // The model, evaluated on the row delay_rows() back (t_eval_s).
   double t_eval_s = 0.0;
   std::array<double, 6> wrench_at_eval{};  ///< measured, that row
@@ -254,7 +262,9 @@ struct Row {
   model::FeatureSignals signals;   ///< imu[6..8] (angular acceleration) filled when centred
   std::array<double, 6> wrench{};  ///< F/T, sensor frame, N / N·m
   double t_s = 0.0;
-  std::uint32_t held = 0;  ///< kFtHeld | kImuHeld of the cycle that made the row
+  std::uint32_t held = 0;             ///< kFtHeld | kImuHeld of the cycle that made the row
+  bool temperature_measured = false;  ///< signals.temperature_C is the F/T sensor's reading
+  double temperature_age_s = 0.0;     ///< its age when it came with a sample, s
 };
 
 /// The sums of the samples that arrived since the last row (Cycle::add_ft, add_imu).
@@ -263,6 +273,9 @@ struct SensorWindow {
   int ft_n = 0, ft_critical = 0, ft_saturated = 0, ft_warning = 0;
   std::array<double, 6> imu_sum{};  ///< specific force (3), rate (3)
   int imu_n = 0;
+  bool have_temperature = false;  ///< an F/T sample of this window carried a temperature
+  double temperature_C = 0.0;     ///< the latest of them, °C
+  double temperature_age_s = 0.0;
 };
 
 // --- per-cycle data, one part per stage ---------------------------------------------------------
@@ -282,6 +295,9 @@ struct RowData {
   std::array<double, 6> last_wrench{};
   std::array<double, 6> last_imu{};  ///< specific force (3), rate (3)
   bool have_ft = false, have_imu = false;
+  bool have_temperature = false;  ///< the F/T sensor has reported a temperature (held since)
+  double temperature_C = 0.0;
+  double temperature_age_s = 0.0;
   Row& newest() { return rows[(total - 1) % kHistory]; }
   const Row& newest() const { return rows[(total - 1) % kHistory]; }
 };

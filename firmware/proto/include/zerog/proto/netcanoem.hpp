@@ -26,6 +26,7 @@ enum class Opcode : std::uint8_t {
   active_calibration = 0x6,  ///< request: index 0–15; response: the same byte echoed
   counts = 0x7,              ///< response: counts per force (u32), counts per torque (u32)
   units = 0x8,               ///< response: force unit code (u8), torque unit code (u8)
+  diagnostic_adc = 0x9,      ///< request: diagnostic index (1 byte); response: its ADC reading
   firmware_version = 0xF,    ///< response: major (u8), minor (u8), build (u16)
 };
 
@@ -44,6 +45,10 @@ inline constexpr std::uint8_t kActiveCalibrationLength = 1;
 inline constexpr std::uint8_t kCountsLength = 8;
 inline constexpr std::uint8_t kUnitsLength = 2;
 inline constexpr std::uint8_t kFirmwareVersionLength = 4;
+inline constexpr std::uint8_t kDiagnosticAdcLength = 2;
+/// The 0x9 request carries the diagnostic index (1 byte): so a request (1) and a response (2)
+/// of the same id differ in length.
+inline constexpr std::uint8_t kDiagnosticRequestLength = 1;
 
 /// CAN identifier of `opcode` for a board at `base_id` (0–127; higher bits are masked off).
 constexpr std::uint32_t can_id(std::uint8_t base_id, Opcode opcode) {
@@ -73,6 +78,21 @@ std::optional<CanFrame> request_set_active_calibration(std::uint8_t base_id, std
 std::optional<CanFrame> request_counts(std::uint8_t base_id);
 std::optional<CanFrame> request_units(std::uint8_t base_id);
 std::optional<CanFrame> request_firmware_version(std::uint8_t base_id);
+
+/// Diagnostic ADC channels of opcode 0x9 ("Read Diagnostic ADC Voltages"; the manual as
+/// reproduced in a public driver, proto/netcanoem.md). The response does not say which channel
+/// it answers: the caller must know what it asked.
+enum class DiagnosticIndex : std::uint8_t {
+  mid_vsg = 0,
+  unused = 1,
+  thermistor = 2,  ///< the sensor's thermistor (what the temperature comes from)
+  power = 3,
+  dac = 4,
+  ground = 5,
+};
+inline constexpr std::uint8_t kMaxDiagnosticIndex = 5;
+/// Read one diagnostic ADC channel (0x9, 1 byte: `index` 0–5).
+std::optional<CanFrame> request_diagnostic_adc(std::uint8_t base_id, DiagnosticIndex index);
 
 // ---------------------------------------------------------------------------------------------
 // Status word of a sample (manual 9610-05-1030, status code table).
@@ -241,6 +261,36 @@ DecodeStatus decode_units(const CanFrame& frame, std::uint8_t base_id, std::uint
                           std::uint8_t& torque_unit);
 DecodeStatus decode_firmware_version(const CanFrame& frame, std::uint8_t base_id,
                                      FirmwareVersion& version);
+/// The 0x9 response: the requested channel's raw ADC reading (big-endian, read as unsigned 16
+/// bit: UNVERIFIED, the manual we have says neither the signedness nor volts per count).
+/// wrong_length for a frame of this id that is not 2 bytes long (a looped-back request is 1).
+DecodeStatus decode_diagnostic_adc(const CanFrame& frame, std::uint8_t base_id,
+                                   std::uint16_t& counts);
+/// "ok", "wrong_id", "wrong_length", "bad_value": for messages.
+const char* decode_status_name(DecodeStatus status);
+
+// ---------------------------------------------------------------------------------------------
+// Thermistor (0x9, DiagnosticIndex::thermistor) → temperature.
+
+/// A linear map from the thermistor channel's raw counts to the sensor temperature:
+/// T = celsius_at_zero_counts + celsius_per_count · counts. UNVERIFIED: no datasheet fact. ATI's
+/// manual (as we have it) gives neither the ADC's volts per count nor the thermistor circuit,
+/// so there is no default: the rig configuration gives both numbers (e.g. fitted to two
+/// temperatures read with a reference thermometer), and without them the reading stays raw
+/// counts (proto/netcanoem.md, "Thermistor").
+struct ThermistorConversion {
+  double celsius_at_zero_counts = 0.0;  ///< °C at 0 counts
+  double celsius_per_count = 0.0;       ///< K per count; must not be 0
+};
+/// True when both numbers are finite and celsius_per_count is not 0.
+bool thermistor_conversion_valid(const ThermistorConversion& conversion);
+/// The one place counts become °C (the sensor, decode-can); the emulator uses the inverse
+/// below. Real-time safe.
+double thermistor_celsius(const ThermistorConversion& conversion, std::uint16_t counts);
+/// The inverse, rounded to the nearest count: what the board sends at `celsius`; empty when the
+/// conversion is invalid or the temperature maps outside 0–65535 counts.
+std::optional<std::uint16_t> thermistor_counts(const ThermistorConversion& conversion,
+                                               double celsius);
 
 enum class ReadoutState : std::uint8_t { send_request, awaiting_response, done, failed };
 enum class ReadoutError : std::uint8_t {
@@ -326,5 +376,7 @@ std::optional<CanFrame> encode_counts(std::uint8_t base_id, std::uint32_t per_fo
 std::optional<CanFrame> encode_units(std::uint8_t base_id, std::uint8_t force_unit,
                                      std::uint8_t torque_unit);
 std::optional<CanFrame> encode_firmware_version(std::uint8_t base_id, FirmwareVersion version);
+/// The 0x9 response carrying one diagnostic ADC reading (raw counts).
+std::optional<CanFrame> encode_diagnostic_adc(std::uint8_t base_id, std::uint16_t counts);
 
 }  // namespace zerog::proto::netcanoem

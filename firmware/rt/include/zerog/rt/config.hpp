@@ -65,6 +65,11 @@ struct FtSection {
   int calibration = 0;               ///< active calibration, 0..15
   double rate_hz = 500.0;            ///< sample requests per second
   double sample_timeout_ms = 2.0;    ///< request → both response frames
+  /// Thermistor reads (opcode 0x9, index 2) between the sample requests, s; 0: none.
+  double thermistor_period_s = 1.0;
+  /// thermistor_C_at_zero_counts and thermistor_C_per_count (both or neither). UNVERIFIED: no
+  /// datasheet default. Empty: raw counts only, the model gets [model] temperature_C.
+  std::optional<proto::netcanoem::ThermistorConversion> thermistor;
 };
 
 struct ImuSection {

@@ -25,15 +25,19 @@ struct RecorderOptions {
   std::optional<std::filesystem::path> dir;  ///< --record DIR (created if missing); none: no files
   std::filesystem::path blackbox_dir = ".";  ///< black-box dumps when there is no record dir
   io::Rig rig;                               ///< written beside the log (sample period = cycle)
+  /// The log gets temp_C, the F/T sensor's temperature ([ft] thermistor conversion configured);
+  /// rows before its first reading are skipped (counted skipped_no_temperature).
+  bool temperature = false;
 };
 
 struct RecorderCounters {
-  std::uint64_t records = 0;             ///< records taken (= rows of cycles.csv)
-  std::uint64_t log_rows = 0;            ///< rows of run.csv
-  std::uint64_t skipped_stale = 0;       ///< duplicate/reordered IPOC: no new log row
-  std::uint64_t skipped_no_samples = 0;  ///< before the first F/T and IMU sample arrived
-  std::uint64_t rejected = 0;            ///< rows the log writer refused (non-finite value)
-  std::uint64_t black_boxes = 0;         ///< black-box dumps written
+  std::uint64_t records = 0;                 ///< records taken (= rows of cycles.csv)
+  std::uint64_t log_rows = 0;                ///< rows of run.csv
+  std::uint64_t skipped_stale = 0;           ///< duplicate/reordered IPOC: no new log row
+  std::uint64_t skipped_no_samples = 0;      ///< before the first F/T and IMU sample arrived
+  std::uint64_t skipped_no_temperature = 0;  ///< with temp_C: before the first temperature
+  std::uint64_t rejected = 0;                ///< rows the log writer refused (non-finite value)
+  std::uint64_t black_boxes = 0;             ///< black-box dumps written
 };
 
 /// A file written as `<target>.partial`, renamed to `target` by finish(). Buffered.
@@ -86,8 +90,10 @@ class Recorder {
   RecorderCounters counters_;
   PartialFile log_;
   PartialFile cycles_;
-  io::LogCsvWriter log_writer_{
-      io::Columns{.joints = true, .specific_force = true, .angular_rate = true}};
+  io::LogCsvWriter log_writer_{io::Columns{.joints = true,
+                                           .specific_force = true,
+                                           .angular_rate = true,
+                                           .temperature = options_.temperature}};
   std::string row_;
   bool seen_ft_ = false, seen_imu_ = false;
 };

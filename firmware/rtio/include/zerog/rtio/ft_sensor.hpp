@@ -57,6 +57,13 @@ struct FtCounters {
   std::uint64_t bad_length = 0;      ///< reads that were not one classic CAN frame
   std::uint64_t tx_would_block = 0;  ///< requests refused by a full TX queue
   std::uint64_t io_errors = 0;       ///< failed bus reads/writes
+  // The sensor's temperature channel (NETCANOEM: thermistor, opcode 0x9), read between samples.
+  std::uint64_t thermistor_requests = 0;  ///< thermistor reads sent
+  std::uint64_t thermistor_readings = 0;  ///< answers taken
+  /// Reads unanswered when the next one was due (a late answer then counts as unrequested).
+  std::uint64_t thermistor_lost = 0;
+  std::uint64_t thermistor_wrong_length = 0;  ///< 0x9 frames neither request nor response
+  std::uint64_t thermistor_unrequested = 0;   ///< 0x9 answers with no read of ours open
 };
 
 class FtSensor {

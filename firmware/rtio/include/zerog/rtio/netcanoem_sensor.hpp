@@ -6,6 +6,7 @@
 #include <array>
 #include <chrono>
 #include <cstdint>
+#include <optional>
 
 #include "zerog/proto/netcanoem.hpp"
 #include "zerog/rtio/can_bus.hpp"
@@ -27,6 +28,13 @@ struct NetcanoemConfig {
   std::array<double, proto::netcanoem::kGaugeCount> bias_gauges{};
   /// At most this many frames already queued are drained (and counted stale) per request.
   int max_stale_frames = 64;
+  /// Read the thermistor (opcode 0x9, diagnostic index 2) with the first sample request after
+  /// start() and then every this many (500: about 1 Hz at 500 Hz); 0: never. Its request goes out
+  /// right after that poll's sample request, so the gauge answer is not delayed.
+  int thermistor_every_polls = 500;
+  /// Thermistor counts → °C. Empty: the readings stay raw counts (FtSample::thermistor_counts)
+  /// and no temperature is reported. UNVERIFIED: there is no datasheet conversion to default to.
+  std::optional<proto::netcanoem::ThermistorConversion> thermistor;
 };
 
 class NetcanoemSensor final : public FtSensor {
@@ -68,7 +76,13 @@ class NetcanoemSensor final : public FtSensor {
  private:
   void drain_stale();
   // Feeds one received frame; true when it completed a sample of the current poll (in `out`).
-  bool feed(const proto::CanFrame& frame, proto::netcanoem::GaugeSample& out);
+  // A 0x9 frame goes to take_diagnostic, never to the gauge assembler.
+  bool feed(const CanRxFrame& rx, proto::netcanoem::GaugeSample& out);
+  // A 0x9 frame of this board: our looped-back request, or the thermistor's answer.
+  void take_diagnostic(const CanRxFrame& rx);
+  // After poll_'s sample request: sends the thermistor read when one is due.
+  void request_thermistor();
+  void fill_temperature(FtSample& out) const;
 
   CanBus& bus_;
   NetcanoemConfig config_;
@@ -84,7 +98,13 @@ class NetcanoemSensor final : public FtSensor {
   std::uint64_t late_samples_ = 0;
   std::uint64_t startup_retries_ = 0;
   std::uint32_t startup_ignored_ = 0;
-  FtCounters own_;  // requests, samples, timeouts, stale frames, tx/io failures
+  FtCounters own_;  // requests, samples, timeouts, stale frames, tx/io failures, thermistor
+  proto::CanFrame thermistor_request_{};
+  int polls_to_thermistor_ = 0;   // sample polls until the next thermistor read
+  bool thermistor_open_ = false;  // a thermistor read is out and its answer awaited
+  bool have_thermistor_ = false;  // a reading came since start()
+  std::uint16_t thermistor_counts_ = 0;
+  std::int64_t thermistor_rx_ns_ = 0;  // receive time of that reading
 };
 
 }  // namespace zerog::rtio

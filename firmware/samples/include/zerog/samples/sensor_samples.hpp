@@ -28,6 +28,16 @@ struct FtSample {
   /// Receive time of the frame that completed the sample, CLOCK_REALTIME ns (0: unknown).
   std::int64_t timestamp_ns = 0;
   std::uint64_t sequence = 0;  ///< +1 per sample returned by this device, from 1
+  /// The sensor's own temperature, read between samples (NETCANOEM: the thermistor, opcode 0x9,
+  /// about once a second; proto/netcanoem.md). thermistor_valid: a reading came since start-up
+  /// (raw counts, whatever the configuration). temperature_valid: that reading converted to °C
+  /// by the configured conversion (none configured: false, temperature_C unused).
+  bool thermistor_valid = false;
+  std::uint16_t thermistor_counts = 0;  ///< latest raw reading of the thermistor channel
+  bool temperature_valid = false;
+  double temperature_C = 0.0;  ///< sensor temperature of that reading, °C
+  /// timestamp_ns − receive time of that reading, s (0 when either time is unknown).
+  double temperature_age_s = 0.0;
 };
 
 /// One IMU sample in SI units, in the IMU's axes. Fixed size, trivially copyable.

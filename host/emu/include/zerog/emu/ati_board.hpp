@@ -58,6 +58,13 @@ struct AtiBoardConfig {
   /// rounding to int16); 0: none. Seeded by `seed`, so runs repeat.
   double gauge_noise_counts = 0.0;
   std::uint64_t seed = 1;
+  /// The thermistor channel (opcode 0x9, diagnostic index 2) answers the temperature
+  /// (set_temperature) through the inverse of this conversion (proto::netcanoem::
+  /// thermistor_counts), so a sensor configured with the same numbers reads it back to within
+  /// one count. UNVERIFIED: the emulator's own choice (−50 °C at 0 counts, 5 mK per count), not a
+  /// datasheet fact about the board.
+  proto::netcanoem::ThermistorConversion thermistor{-50.0, 0.005};
+  double temperature_C = 25.0;  ///< the sensor temperature until set_temperature
 };
 
 enum class FtFault : std::uint8_t {
@@ -121,6 +128,11 @@ class AtiBoard {
   void set_gauges(const std::array<std::int16_t, 6>& gauges);
   /// The gauges the next sample carries, before noise and faults.
   std::array<std::int16_t, 6> gauges() const;
+  /// The sensor temperature the thermistor channel answers from now on, °C. Throws
+  /// std::invalid_argument when it is not finite or maps outside 0–65535 counts.
+  void set_temperature(double temperature_C);
+  /// The thermistor channel's raw counts now.
+  std::uint16_t thermistor_counts() const;
   /// Raw status word of the samples, OR-ed with the fault's bits (default 0).
   void set_status_word(std::uint16_t status);
   void set_fault(FtFault fault);
@@ -150,12 +162,16 @@ class AtiBoard {
     /// counted but not sent).
     std::uint64_t samples_sent = 0;
     std::uint64_t ignored = 0;  ///< requests not answered (silent, ignore_requests, no answer)
+    /// … of them sample requests (what a sensor's timeouts must match; thermistor reads not)
+    std::uint64_t sample_requests_ignored = 0;
     std::uint64_t saturated_samples = 0;  ///< samples sent with a gauge at a rail
     std::uint64_t critical_samples = 0;   ///< samples sent with a critical status bit
     std::uint64_t other_frames = 0;       ///< frames that were not requests to this board
     std::uint64_t tx_failed = 0;          ///< serve(): responses the bus refused
     std::uint64_t queued = 0;             ///< lockstep: samples queued
     std::uint64_t queue_underruns = 0;    ///< lockstep: sample requests with an empty queue
+    std::uint64_t diagnostic_reads = 0;   ///< 0x9 requests answered (any channel)
+    std::uint64_t thermistor_reads = 0;   ///< … of them the thermistor (index 2)
   };
   Counters counters() const;
 
@@ -175,6 +191,7 @@ class AtiBoard {
 
   mutable std::mutex mutex_;
   std::array<double, 6> gauges_exact_{};     // bias + G · wrench, before rounding
+  std::uint16_t thermistor_counts_ = 0;      // the thermistor channel's reading
   bool lockstep_ = false;                    // queue_sample() was called
   std::deque<std::array<double, 6>> queue_;  // lockstep: gauges of the samples to come
   std::uint16_t status_word_ = 0;

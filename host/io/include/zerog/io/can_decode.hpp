@@ -26,6 +26,15 @@ struct CanDecodeOptions {
   /// The sensor's sample rate, Hz, for a log without timestamps (candump's default output):
   /// the k-th complete sample (usable or not) gets t = k / rate. Refused for a log with times.
   std::optional<double> assume_rate_hz;
+  /// Thermistor counts → °C (proto::netcanoem::ThermistorConversion; UNVERIFIED, no default).
+  /// Without it the thermistor readings are written as raw counts only, and no temp_C.
+  std::optional<proto::netcanoem::ThermistorConversion> thermistor;
+};
+
+/// One thermistor reading (opcode 0x9 answer to a request for diagnostic index 2).
+struct ThermistorReading {
+  double t_s = 0.0;  ///< time of the answer, on the samples' clock
+  std::uint16_t counts = 0;
 };
 
 struct DecodedWrench {
@@ -34,6 +43,22 @@ struct DecodedWrench {
   double t_s = 0.0;
   std::array<double, 6> wrench{};  ///< Fx Fy Fz (N), Mx My Mz (N·m), sensor frame
   std::uint16_t status = 0;        ///< raw status word (non-critical bits may be set)
+  /// The thermistor reading that goes with the sample: the latest at or before it, or the first
+  /// one for samples before any (empty when the log has none).
+  std::optional<std::uint16_t> thermistor_counts;
+  std::optional<double> temperature_C;  ///< that reading in °C (only with a conversion)
+};
+
+/// The 0x9 (diagnostic ADC) traffic of the board: requests name a channel, the next answer is
+/// that channel's reading (the answer itself does not say which).
+struct DiagnosticCounters {
+  std::size_t requests = 0;             ///< 0x9 requests (1 byte), any index
+  std::size_t thermistor_readings = 0;  ///< answers to a thermistor (index 2) request: used
+  std::size_t other_channel = 0;  ///< answers to a request of another known index (0–5): ignored
+  std::size_t unknown_index = 0;  ///< requests of an index above 5: counted, answers ignored
+  std::size_t unanswered = 0;     ///< requests followed by another request before an answer
+  std::size_t unrequested = 0;    ///< answers with no request open: channel unknown, ignored
+  std::size_t wrong_length = 0;   ///< 0x9 frames of neither 1 nor 2 bytes
 };
 
 struct CanDecodeResult {
@@ -49,6 +74,9 @@ struct CanDecodeResult {
   std::size_t unconfirmed = 0;
   proto::CandumpLogInfo log;  ///< the log's form and clock (and why), frames, CAN FD frames
   bool time_assumed = false;  ///< t_s from assume_rate_hz (the log has no time)
+  std::vector<ThermistorReading> thermistor;  ///< every thermistor reading, in log order
+  DiagnosticCounters diagnostic;
+  bool temperature_converted = false;  ///< thermistor readings and a conversion: temp_C written
 };
 
 /// Pairings in a row that may leave 0x0 halves waiting before decode_netcanoem_log takes a 0x1
@@ -65,7 +93,9 @@ CanDecodeResult decode_netcanoem_log(const std::filesystem::path& candump,
                                      const CanDecodeOptions& options);
 
 /// Writes the usable samples as an F/T recording (`# zerog-ft 1`, columns t_s, Fx_N … Mz_Nm,
-/// status) that `zerog import` merges with pose and IMU recordings; atomic, never over an input.
+/// status; then thermistor_counts when the log holds thermistor readings, and temp_C (°C) when
+/// they were converted) that `zerog import` merges with pose and IMU recordings; atomic, never
+/// over an input.
 void write_ft_recording(const CanDecodeResult& result, const std::filesystem::path& out,
                         const std::vector<std::filesystem::path>& inputs);
 
