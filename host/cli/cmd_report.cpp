@@ -153,8 +153,8 @@ void run_report(const ReportOptions& o) {
       if (with_sensor)
         for (int k = 0; k < 6; ++k) put(data.measured[i][k] - floors->sensor_residuals[i][k]);
       if (data.columns.joints) {
-        for (int j = 0; j < 6; ++j) put(data.pose[i].joints_rad[j]);
-        for (int j = 0; j < 6; ++j) put(data.joint_vel_radps[i][j]);
+        for (int j = 0; j < 6; ++j) put(data.joints_rad[i][j]);
+        for (int j = 0; j < 6; ++j) put(data.joint_vel_radps(i)[j]);
       }
       const double* r = &data.imu[i * 9];
       if (data.columns.angular_rate) {
@@ -163,7 +163,7 @@ void run_report(const ReportOptions& o) {
       }
       if (data.columns.specific_force)
         put(Eigen::Map<const Eigen::Vector3d>(r).norm() - model::kStandardGravity);
-      if (data.columns.temperature) put(data.pose[i].temperature_C);
+      if (data.columns.temperature) put(data.pose(i).temperature_C);
       csv << "," << int(heldout[i]) << "\n";
     }
     if (!csv) throw std::runtime_error((bundle / "data.csv").string() + ": write failed");

@@ -26,7 +26,6 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
-#include <type_traits>
 
 #include "zerog/ident/diagnose.hpp"
 #include "zerog/ident/fit.hpp"
@@ -151,13 +150,7 @@ const std::filesystem::path& log_file(std::size_t samples) {
 
 // Bytes a dataset holds per sample (the capacity of its per-sample vectors).
 double dataset_bytes_per_sample(const ident::Dataset& d) {
-  const auto bytes = [](const auto& v) {
-    return static_cast<double>(v.capacity() *
-                               sizeof(typename std::decay_t<decltype(v)>::value_type));
-  };
-  const double total = bytes(d.t_s) + bytes(d.pose) + bytes(d.imu) + bytes(d.measured) +
-                       bytes(d.moving) + bytes(d.joint_vel_radps) + bytes(d.p_base_sensor_m);
-  return total / static_cast<double>(d.size());
+  return static_cast<double>(d.bytes()) / static_cast<double>(d.size());
 }
 
 model::EffectSet full_list() {

@@ -9,7 +9,7 @@ BlockSensorMeans block_sensor_means(const Dataset& data, std::size_t first, std:
   BlockSensorMeans m;
   m.inputs.temperature_C = 0.0;
   for (std::size_t i = first; i < first + count; ++i) {
-    const model::SensorInputs in = model::sensor_inputs(data.pose[i]);
+    const model::SensorInputs in = model::sensor_inputs(data.pose(i));
     m.inputs.t_rel_s += in.t_rel_s * inv_n;
     m.inputs.temperature_C += in.temperature_C * inv_n;
     for (int k = 0; k < 6; ++k) m.inputs.cable_features[k] += in.cable_features[k] * inv_n;
@@ -38,7 +38,7 @@ BlockStats::BlockStats(const Dataset& data, SampleBlocks blocks, const model::Ef
     sensor_.push_back(block_sensor_means(data, first, count));
     Eigen::Matrix3d R = Eigen::Matrix3d::Zero();
     const double inv_n = 1.0 / static_cast<double>(count);
-    for (std::size_t i = first; i < first + count; ++i) R += data.pose[i].R_base_sensor * inv_n;
+    for (std::size_t i = first; i < first + count; ++i) R += data.pose(i).R_base_sensor * inv_n;
     R_mean_.push_back(R);
     longest = std::max(longest, count);
   }

@@ -60,8 +60,8 @@ Comparison compare(const std::vector<Wrench>& res, const Dataset& data,
       double lo = 1e300, hi = -1e300;
       for (std::size_t i = 0; i < data.size(); ++i) {
         if (!use(i)) continue;
-        lo = std::min(lo, data.pose[i].joints_rad[j]);
-        hi = std::max(hi, data.pose[i].joints_rad[j]);
+        lo = std::min(lo, data.joints_rad[i][j]);
+        hi = std::max(hi, data.joints_rad[i][j]);
       }
       if (!(hi > lo)) continue;
       JointBins jb;
@@ -70,7 +70,7 @@ Comparison compare(const std::vector<Wrench>& res, const Dataset& data,
       std::vector<ErrorAccumulator> acc(bins);
       for (std::size_t i = 0; i < data.size(); ++i) {
         if (!use(i)) continue;
-        int b = static_cast<int>((data.pose[i].joints_rad[j] - lo) / (hi - lo) * bins);
+        int b = static_cast<int>((data.joints_rad[i][j] - lo) / (hi - lo) * bins);
         b = std::clamp(b, 0, bins - 1);
         acc[b].add(res[i]);
       }

@@ -17,11 +17,12 @@ DatasetBuilder::DatasetBuilder(const io::Columns& columns, std::size_t expected_
   d_.columns = columns;
   if (expected_samples == 0) return;
   d_.t_s.reserve(expected_samples);
-  d_.pose.reserve(expected_samples);
+  d_.q_base_sensor.reserve(expected_samples);
+  if (columns.temperature) d_.temperature_C.reserve(expected_samples);
+  d_.joints_rad.reserve(expected_samples);
   d_.measured.reserve(expected_samples);
   d_.imu.reserve(expected_samples * 9);
   d_.moving.reserve(expected_samples);
-  d_.joint_vel_radps.reserve(expected_samples);
   d_.p_base_sensor_m.reserve(expected_samples);
   raw_moving_.reserve(expected_samples);
 }
@@ -30,11 +31,10 @@ void DatasetBuilder::add(const io::Sample& s) {
   const io::Columns& columns = d_.columns;
   const std::size_t i = n_;
   d_.t_s.push_back(s.t_s);
-  model::PoseSignals& p = d_.pose.emplace_back();
-  p.R_base_sensor = s.q_base_sensor.normalized().toRotationMatrix();
-  p.t_rel_s = columns.static_rows ? 0.0 : s.t_s - d_.t_s.front();
-  p.temperature_C = columns.temperature ? s.temperature_C : model::kTemperatureReferenceC;
-  p.joints_rad = s.joints_rad;
+  // Dataset::pose forms the matrix (toRotationMatrix) and t_rel_s from these.
+  d_.q_base_sensor.push_back(s.q_base_sensor.normalized());
+  if (columns.temperature) d_.temperature_C.push_back(s.temperature_C);
+  d_.joints_rad.push_back(s.joints_rad);
   d_.measured.emplace_back() << s.force_sensor_N, s.torque_sensor_Nm;
   for (int k = 0; k < 3; ++k) d_.imu.push_back(s.specific_force_imu_mps2[k]);
   for (int k = 0; k < 3; ++k) d_.imu.push_back(s.angular_rate_imu_radps[k]);
@@ -42,7 +42,6 @@ void DatasetBuilder::add(const io::Sample& s) {
   for (int k = 0; k < 3; ++k)
     d_.imu.push_back(columns.angular_accel ? s.angular_accel_imu_radps2[k] : 0.0);
   d_.moving.push_back(0);
-  d_.joint_vel_radps.emplace_back();
   d_.p_base_sensor_m.push_back(s.p_base_sensor_m);
   ++n_;
   // Rows without time are independent held poses: nothing is differenced across them, rates
@@ -58,10 +57,6 @@ void DatasetBuilder::add(const io::Sample& s) {
     const double v = (s.p_base_sensor_m - s0.p_base_sensor_m).norm() / dt;
     const double w = s0.q_base_sensor.angularDistance(s.q_base_sensor) / dt;
     raw_moving_[i] = (v > 1e-3 || w > 2e-3) ? 1 : 0;
-    if (columns.joints) {
-      for (int j = 0; j < 6; ++j)
-        d_.joint_vel_radps[i][j] = (s.joints_rad[j] - s0.joints_rad[j]) / dt;
-    }
   }
 }
 
@@ -77,7 +72,6 @@ Dataset DatasetBuilder::finish(const io::Rig& rig) {
   if (d.columns.static_rows) return std::move(d_);
   // Angular acceleration, unless the log has it (imu_dw*_radps2).
   if (differences_angular_rate(d)) angular_accel_from_rate(d);
-  d.joint_vel_radps[0] = d.joint_vel_radps[1];
   const std::size_t dilate = 3;
   for (std::size_t i = 0; i < n; ++i) {
     if (!raw_moving_[i]) continue;
@@ -146,7 +140,7 @@ void angular_accel_from_rate(Dataset& d) {
 model::DictionarySignals Dataset::dictionary(std::size_t i) const {
   model::KinematicInputs in;
   model::FeatureSignals& f = in.features;
-  const model::PoseSignals& p = pose[i];
+  const model::PoseSignals p = pose(i);
   f.joints_rad = p.joints_rad;
   if (!columns.static_rows && size() >= 3) {
     const std::size_t c = std::clamp<std::size_t>(i, 1, size() - 2);
@@ -154,8 +148,8 @@ model::DictionarySignals Dataset::dictionary(std::size_t i) const {
                                p_base_sensor_m[c + 1].data(), 3, t_s[c - 1], t_s[c], t_s[c + 1],
                                in.v_base_sensor_mps.data(), nullptr);
     if (columns.joints)
-      model::central_differences(pose[c - 1].joints_rad.data(), pose[c].joints_rad.data(),
-                                 pose[c + 1].joints_rad.data(), 6, t_s[c - 1], t_s[c], t_s[c + 1],
+      model::central_differences(joints_rad[c - 1].data(), joints_rad[c].data(),
+                                 joints_rad[c + 1].data(), 6, t_s[c - 1], t_s[c], t_s[c + 1],
                                  f.joint_vel_radps.data(), in.joint_acc_radps2.data());
   }
   for (int r = 0; r < 3; ++r)
@@ -169,14 +163,21 @@ model::DictionarySignals Dataset::dictionary(std::size_t i) const {
   return model::dictionary_signals(in, rig);
 }
 
+std::size_t Dataset::bytes() const {
+  const auto held = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
+  return held(t_s) + held(q_base_sensor) + held(temperature_C) + held(joints_rad) + held(imu) +
+         held(measured) + held(moving) + held(p_base_sensor_m);
+}
+
 Wrench predict(const model::ModelParams& params, const Dataset& data, std::size_t i) {
   const auto p = model::pointers(params);
   const double* tau =
       params.effects.has(Effect::imu_time_offset) ? params.block(Effect::imu_time_offset) : nullptr;
-  Wrench w = model::predict_wrench<double>(params.effects, p, data.pose[i],
-                                           data.imu_at<double>(i, tau), data.rig);
+  const model::PoseSignals pose = data.pose(i);
+  Wrench w =
+      model::predict_wrench<double>(params.effects, p, pose, data.imu_at<double>(i, tau), data.rig);
   if (!params.user.empty())
-    w += model::user_wrench(params.user, data.dictionary(i), data.pose[i].R_base_sensor);
+    w += model::user_wrench(params.user, data.dictionary(i), pose.R_base_sensor);
   return w;
 }
 

@@ -547,20 +547,18 @@ std::vector<Feature> features(const Dataset& data) {
     f.push_back(std::move(x));
   };
   if (!data.columns.static_rows)
-    add("time since start", [&](std::size_t i) { return data.pose[i].t_rel_s; });
+    add("time since start", [&](std::size_t i) { return data.pose(i).t_rel_s; });
   if (data.columns.temperature)
-    add("sensor temperature", [&](std::size_t i) { return data.pose[i].temperature_C; });
+    add("sensor temperature", [&](std::size_t i) { return data.pose(i).temperature_C; });
   if (data.columns.joints) {
     for (int j = 0; j < 6; ++j) {
       const std::string a = "joint A" + std::to_string(j + 1);
-      add(a + " angle (sine)",
-          [&, j](std::size_t i) { return std::sin(data.pose[i].joints_rad[j]); });
-      add(a + " angle (cosine)",
-          [&, j](std::size_t i) { return std::cos(data.pose[i].joints_rad[j]); });
+      add(a + " angle (sine)", [&, j](std::size_t i) { return std::sin(data.joints_rad[i][j]); });
+      add(a + " angle (cosine)", [&, j](std::size_t i) { return std::cos(data.joints_rad[i][j]); });
       if (data.columns.static_rows) continue;  // held poses: no velocities
-      add(a + " velocity", [&, j](std::size_t i) { return data.joint_vel_radps[i][j]; });
+      add(a + " velocity", [&, j](std::size_t i) { return data.joint_vel_radps(i)[j]; });
       add(a + " velocity direction (sign)", [&, j](std::size_t i) {
-        const double v = data.joint_vel_radps[i][j];
+        const double v = data.joint_vel_radps(i)[j];
         return std::abs(v) < 1e-3 ? 0.0 : (v > 0 ? 1.0 : -1.0);
       });
     }
@@ -587,7 +585,7 @@ std::vector<Feature> features(const Dataset& data) {
   for (int k = 0; k < 3; ++k) {
     const char* ax = "xyz";
     add(std::string("gravity direction along sensor ") + ax[k], [&, k](std::size_t i) {
-      return (data.pose[i].R_base_sensor.transpose() * Eigen::Vector3d(0, 0, -1))[k];
+      return (data.pose(i).R_base_sensor.transpose() * Eigen::Vector3d(0, 0, -1))[k];
     });
   }
   return f;

@@ -84,7 +84,7 @@ class BlockPredictor {
       const auto [first, count] = blocks[b];
       double* mean = &user_design_[b * 6 * static_cast<std::size_t>(nu)];
       for (std::size_t i = first; i < first + count; ++i) {
-        model::user_design(params.user, data.dictionary(i), data.pose[i].R_base_sensor, row.data());
+        model::user_design(params.user, data.dictionary(i), data.pose(i).R_base_sensor, row.data());
         for (int k = 0; k < 6 * nu; ++k)
           mean[k] += row[static_cast<std::size_t>(k)] / static_cast<double>(count);
       }

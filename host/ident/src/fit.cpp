@@ -345,7 +345,7 @@ void linear_init(const Dataset& data, const FitOptions& o, model::ModelParams& p
   for (std::size_t i = 0; i < data.size(); ++i) {
     if (!use(o, i)) continue;
     const Eigen::Vector3d g =
-        data.pose[i].R_base_sensor.transpose() * Eigen::Vector3d(0, 0, -model::kStandardGravity);
+        data.pose(i).R_base_sensor.transpose() * Eigen::Vector3d(0, 0, -model::kStandardGravity);
     // unknowns: F0(3) m(1) M0(3) h(3); rows: F (3), M (3)
     Eigen::Matrix<double, 6, 10> J = Eigen::Matrix<double, 6, 10>::Zero();
     J.block<3, 3>(0, 0).setIdentity();
@@ -514,7 +514,7 @@ std::vector<double> mean_user_design(const Dataset& data, const model::UserEffec
     const auto [first, count] = blocks[b];
     double* mean = &design[b * 6 * static_cast<std::size_t>(num_user)];
     for (std::size_t i = first; i < first + count; ++i) {
-      model::user_design(user, data.dictionary(i), data.pose[i].R_base_sensor, row.data());
+      model::user_design(user, data.dictionary(i), data.pose(i).R_base_sensor, row.data());
       for (int k = 0; k < 6 * num_user; ++k)
         mean[k] += row[static_cast<std::size_t>(k)] / static_cast<double>(count);
     }
@@ -890,7 +890,7 @@ ToolChangeResult fit_tool_change(const Dataset& data, const model::ModelParams& 
     if (i < data.size() && mask[i]) {
       ++run;
       ++out.static_samples;
-      const Eigen::Vector3d u = data.pose[i].R_base_sensor.transpose() * Eigen::Vector3d(0, 0, -1);
+      const Eigen::Vector3d u = data.pose(i).R_base_sensor.transpose() * Eigen::Vector3d(0, 0, -1);
       scatter += u * u.transpose();
       continue;
     }

@@ -43,7 +43,7 @@ std::vector<ident::Wrench> predictions(const NetworkFile& net, const ident::Data
     ident::Wrench& w = out[i];
     if (net.kind == NetworkKind::residual) w = ident::predict(net.physics->params, data, i);
     if (net.kind == NetworkKind::paper_zp)
-      w = tool_wrench(*net.tool_load, data.pose[i].R_base_sensor);
+      w = tool_wrench(*net.tool_load, data.pose(i).R_base_sensor);
     for (std::size_t o = 0; o < k; ++o) w[net.output_axes[o]] += y[i * k + o];
   }
   return out;

@@ -104,7 +104,7 @@ Results run_results(const ResultsOptions& o) {
   const io::Log& log = out.log;
   const ident::Dataset data = ident::make_dataset(log);
   r.samples = data.size();
-  r.duration_s = data.pose.back().t_rel_s;
+  r.duration_s = data.pose(data.size() - 1).t_rel_s;
   say("results: simulated " + std::to_string(data.size()) + " samples, truth " + r.truth_effects);
   if (!o.keep_dir.empty()) {
     std::filesystem::create_directories(o.keep_dir);

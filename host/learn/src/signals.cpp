@@ -10,9 +10,9 @@ using model::Feature;
 model::FeatureSignals feature_signals(const ident::Dataset& data, const io::Log& log,
                                       std::size_t i) {
   model::FeatureSignals s;
-  const model::PoseSignals& p = data.pose[i];
+  const model::PoseSignals p = data.pose(i);
   s.joints_rad = p.joints_rad;
-  s.joint_vel_radps = data.joint_vel_radps[i];
+  s.joint_vel_radps = data.joint_vel_radps(i);
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c)
       s.R_base_sensor[static_cast<std::size_t>(3 * r + c)] = p.R_base_sensor(r, c);
@@ -87,7 +87,7 @@ std::vector<std::uint8_t> time_block_mask(const ident::Dataset& data, double blo
     throw std::invalid_argument("time blocks: need block_s > 0 and 0 <= offset < every");
   std::vector<std::uint8_t> m(data.size(), 0);
   for (std::size_t i = 0; i < data.size(); ++i) {
-    const auto b = static_cast<long long>(std::floor(data.pose[i].t_rel_s / block_s));
+    const auto b = static_cast<long long>(std::floor(data.pose(i).t_rel_s / block_s));
     m[i] = (b % every) == offset ? 1 : 0;
   }
   return m;

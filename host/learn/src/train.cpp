@@ -244,7 +244,7 @@ NetworkFile train_paper_zp(const ident::Dataset& data, const io::Log& log, const
                                    z.data(), sa.data(), sb.data());
     ident::Wrench w = median[k];
     for (int a = 0; a < 5; ++a) w[a] -= z[static_cast<std::size_t>(a)];
-    R.push_back(data.pose[mid[k]].R_base_sensor);
+    R.push_back(data.pose(mid[k]).R_base_sensor);
     rest.push_back(w);
   }
   n.tool_load = tool_load_ls(R, rest);

@@ -54,7 +54,7 @@ model::Wrench<T> payload_mean_by_samples(const Dataset& data, const model::Effec
   const double inv_n = 1.0 / static_cast<double>(count);
   model::Wrench<T> w = model::Wrench<T>::Zero();
   for (std::size_t i = first; i < first + count; ++i) {
-    w += model::payload_wrench<T>(effects, p, data.pose[i], data.imu_at<T>(i, tau), data.rig) *
+    w += model::payload_wrench<T>(effects, p, data.pose(i), data.imu_at<T>(i, tau), data.rig) *
          T(inv_n);
   }
   return w;

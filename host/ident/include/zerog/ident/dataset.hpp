@@ -25,7 +25,13 @@ struct Dataset {
   io::ImuSampling imu_sampling;
   double dt_s = 0.012;  ///< mean row period (IMU time shifts interpolate on this grid)
   std::vector<double> t_s;
-  std::vector<model::PoseSignals> pose;
+  /// Sensor attitude in base, the logged quaternion normalised. Stored rather than the matrix
+  /// (issue 16: 32 bytes a sample instead of 72); pose(i) forms the matrix with the same call
+  /// (toRotationMatrix of the normalised quaternion) that filled it before, so bit for bit.
+  std::vector<Eigen::Quaterniond> q_base_sensor;
+  /// Sensor temperature, °C; empty for a log without temp_C (then model::kTemperatureReferenceC).
+  std::vector<double> temperature_C;
+  std::vector<std::array<double, 6>> joints_rad;  ///< robot joint angles A1..A6, rad
   /// n rows of 9: specific force (3), angular rate (3), angular acceleration (3; the log's
   /// imu_dw* columns, or the angular rate differenced), IMU frame.
   /// A group the log lacks is zero (taken as at rest); so is the angular acceleration of a log
@@ -33,8 +39,32 @@ struct Dataset {
   std::vector<double> imu;
   std::vector<Wrench> measured;
   std::vector<std::uint8_t> moving;  ///< 1 while the sensor moves (always 0 for static rows)
-  std::vector<std::array<double, 6>> joint_vel_radps;  ///< from differencing the joint angles
-  std::vector<Eigen::Vector3d> p_base_sensor_m;        ///< S origin in B, m (zero without position)
+  std::vector<Eigen::Vector3d> p_base_sensor_m;  ///< S origin in B, m (zero without position)
+
+  /// The model's pose signals of sample i, formed from the rows above rather than stored (issue
+  /// 16: the matrix and t_rel_s took 80 bytes a sample): the same values make_dataset stored.
+  model::PoseSignals pose(std::size_t i) const {
+    model::PoseSignals p;
+    p.R_base_sensor = q_base_sensor[i].toRotationMatrix();
+    p.t_rel_s = columns.static_rows ? 0.0 : t_s[i] - t_s.front();
+    if (!temperature_C.empty()) p.temperature_C = temperature_C[i];
+    p.joints_rad = joints_rad[i];
+    return p;
+  }
+  /// Joint velocities of sample i, rad/s: the backward difference of the joint angles with the
+  /// previous row (row 0: that of row 1), zero for static rows or a log without joints. Formed
+  /// here from the neighbouring rows rather than stored (issue 16: 48 bytes a sample).
+  std::array<double, 6> joint_vel_radps(std::size_t i) const {
+    std::array<double, 6> v{};
+    if (columns.static_rows || !columns.joints || size() < 2) return v;
+    const std::size_t r = i == 0 ? 1 : i;
+    const double dt = t_s[r] - t_s[r - 1];
+    for (std::size_t j = 0; j < 6; ++j) v[j] = (joints_rad[r][j] - joints_rad[r - 1][j]) / dt;
+    return v;
+  }
+  /// Bytes the per-sample vectors hold (their capacity), the dataset's memory beyond a few
+  /// hundred bytes of its own.
+  std::size_t bytes() const;
 
   /// Every signal of the dictionary for sample i (the IMU as logged, no time offset). Its
   /// velocities and accelerations (sensor origin, joints) are 3-point central differences
@@ -71,8 +101,8 @@ struct Dataset {
 /// Builds the dataset: rotations from quaternions, angular acceleration from the log's
 /// imu_dw*_radps2 columns when present (formed at import: the gyro by Savitzky–Golay, or the
 /// robot's), else by 5-point central differences of the gyroscope column
-/// (model::angular_accel_central), motion flags, joint velocities. (DatasetBuilder fed every
-/// sample.)
+/// (model::angular_accel_central), motion flags; joint velocities are formed on demand
+/// (Dataset::joint_vel_radps). (DatasetBuilder fed every sample.)
 Dataset make_dataset(const io::Log& log);
 
 /// make_dataset sample by sample, so that a log read in chunks (io::LogReader) becomes a Dataset
