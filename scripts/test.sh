@@ -4,7 +4,8 @@
 #      lockstep with the emulated rig) and the VM tests (SocketCAN in qemu) included;
 #   2. AddressSanitizer + UndefinedBehaviorSanitizer: the unit, socket, device and HIL tests
 #      again, without the VM tests and the host pipeline's end-to-end numeric runs (labels
-#      cli_test, discovery_test, insight_loop_test, results_test, recordings_test), the host
+#      cli_test, discovery_test, diagnose_screening_test, insight_loop_test, results_test,
+#      recordings_test), the host
 #      CLI's end-to-end scripts (label host_cli: install, bag import, zerog watch), the pure
 #      Python report test (label python_only: nothing to instrument) and the other HIL motion seeds;
 #      the exclusions are in CMakePresets.json (test preset `asan`) and all run in stage 1; this
