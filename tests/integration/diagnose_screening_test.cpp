@@ -245,5 +245,81 @@ TEST(ScreeningFallback, RobustLossAndErrorsInVariablesRefitEveryCandidate) {
   EXPECT_NE(ident::format_diagnosis(s).find("screened"), std::string::npos);
 }
 
+// Discovery (diagnose.cpp) takes the baseline's tangent space from TrainingProblem::evaluate
+// instead of central differences of the block-mean prediction (issue 16): the block residual
+// must be the whitened block mean of measured − predicted, and its Jacobian the negated central
+// difference, column for column in discovery's packing (the effects in library order, then the
+// user terms). Measured on this run: each column within 6.2e-8 of its own norm and within
+// 1.3e-11 of the block's whole Jacobian (the central differences' truncation and rounding), the
+// residual within 2e-16. Tolerances: 1e-6 of the column plus 1e-9 of the whole Jacobian (for
+// columns near zero), about 16 and 77 times the measured; a wrong column, sign or scale is off by
+// the column's own size.
+TEST(TrainingProblem, BlockJacobianIsTheNegatedDerivativeOfTheBlockMeanPrediction) {
+  const SimRun run = simulate("bias_drift", 7);
+  const ident::Dataset& data = run.data;
+  model::ModelParams p;
+  p.effects = model::kDefaultModel;
+  p.block(Effect::gravity)[0] = 2.0;
+  p.block(Effect::gravity)[3] = 0.05;
+  for (int q = 0; q < model::info(Effect::rotational_inertia).num_params; ++q)
+    p.block(Effect::rotational_inertia)[q] = 1e-3 * (q + 1);
+  // A user term, so that the packing of the user columns is checked too.
+  model::UserTerm t;
+  t.basis.a = {model::Signal::qd6, model::FactorOp::tanh, 0.02};
+  t.axis = 5;
+  p.user.num_effects = 1;
+  p.user.names[0][0] = 'u';
+  p.user.terms[0] = t;
+  p.user.num_terms = 1;
+  p.user.coeff[0] = 0.3;
+  ident::FitOptions fo;
+  fo.effects = p.effects;
+  fo.user = p.user;
+  fo.sigma = std::array<double, 6>{0.5, 0.6, 0.7, 0.05, 0.06, 0.07};
+  const ident::screening::TrainingProblem problem(data, fo, p);
+  const int n = problem.num_params();
+  // Effects' packing: every parameter of each effect with parameters, in library order.
+  std::vector<double*> params;
+  for (Effect e : model::kAllEffects) {
+    if (!p.effects.has(e)) continue;
+    for (int i = 0; i < model::info(e).num_params; ++i) params.push_back(p.block(e) + i);
+  }
+  params.push_back(&p.user.coeff[0]);
+  ASSERT_EQ(n, static_cast<int>(params.size()));
+  ASSERT_GT(problem.num_blocks(), 10u);
+  const std::size_t m = static_cast<std::size_t>(fo.block_samples);  // no mask: block b = b·m…
+  auto mean_prediction = [&](std::size_t b) {
+    Eigen::Matrix<double, 6, 1> w = Eigen::Matrix<double, 6, 1>::Zero();
+    for (std::size_t i = b * m; i < (b + 1) * m; ++i) w += ident::predict(p, data, i);
+    return Eigen::Matrix<double, 6, 1>(w / static_cast<double>(m));
+  };
+  for (std::size_t b : {std::size_t{0}, problem.num_blocks() / 2, problem.num_blocks() - 1}) {
+    Eigen::Matrix<double, 6, 1> r;
+    Eigen::Matrix<double, 6, Eigen::Dynamic, Eigen::RowMajor> J(6, n);
+    ASSERT_TRUE(problem.evaluate(b, r.data(), J.data()));
+    Eigen::Matrix<double, 6, 1> measured = Eigen::Matrix<double, 6, 1>::Zero();
+    for (std::size_t i = b * m; i < (b + 1) * m; ++i) measured += data.measured[i];
+    const Eigen::Matrix<double, 6, 1> expected =
+        (measured / static_cast<double>(m) - mean_prediction(b))
+            .cwiseQuotient(Eigen::Map<const Eigen::Matrix<double, 6, 1>>(fo.sigma->data()));
+    EXPECT_LE((r - expected).norm(), 1e-9 * std::max(1.0, expected.norm())) << "block " << b;
+    for (int q = 0; q < n; ++q) {
+      double* x = params[static_cast<std::size_t>(q)];
+      const double x0 = *x, h = 1e-6 * std::max(1.0, std::abs(x0));
+      *x = x0 + h;
+      const Eigen::Matrix<double, 6, 1> up = mean_prediction(b);
+      *x = x0 - h;
+      const Eigen::Matrix<double, 6, 1> down = mean_prediction(b);
+      *x = x0;
+      const Eigen::Matrix<double, 6, 1> d =
+          -((up - down) / (2.0 * h))
+               .cwiseQuotient(Eigen::Map<const Eigen::Matrix<double, 6, 1>>(fo.sigma->data()));
+      const Eigen::Matrix<double, 6, 1> col = J.col(q);
+      EXPECT_LE((col - d).norm(), 1e-6 * d.norm() + 1e-9 * J.norm())
+          << "block " << b << " column " << q;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace zerog

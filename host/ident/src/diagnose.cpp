@@ -746,16 +746,6 @@ std::optional<Discovery> discover_law(const Dataset& data, const Baseline& base,
   for (std::size_t i = 0; i < data.size(); ++i) sig[i] = data.dictionary(i);
   const std::vector<FactorColumn> factors = dictionary_factors(data, sig);
 
-  auto block_means = [&](const std::vector<double>& v,
-                         const std::vector<std::pair<std::size_t, std::size_t>>& blocks,
-                         std::vector<double>& out) {
-    out.resize(blocks.size());
-    for (std::size_t b = 0; b < blocks.size(); ++b) {
-      double s = 0.0;
-      for (std::size_t i = blocks[b].first; i < blocks[b].first + blocks[b].second; ++i) s += v[i];
-      out[b] = s / static_cast<double>(blocks[b].second);
-    }
-  };
   // Whitened block-mean residuals of the baseline, per axis: r[b * 6 + k].
   auto residual_means = [&](const std::vector<std::pair<std::size_t, std::size_t>>& blocks) {
     std::vector<double> r(blocks.size() * 6, 0.0);
@@ -769,9 +759,9 @@ std::optional<Discovery> discover_law(const Dataset& data, const Baseline& base,
   const std::vector<double> r_train = residual_means(train_blocks);
   const std::vector<double> r_held = residual_means(held_blocks);
 
-  // The baseline's tangent space: whitened block-mean Jacobian of its free parameters by
-  // central differences, so that a term the model can already absorb (a constant, a change of
-  // mass) scores nothing.
+  // The baseline's tangent space: whitened block-mean Jacobian of its free parameters, so that a
+  // term the model can already absorb (a constant, a change of mass) scores nothing. By central
+  // differences here (the fallback), or from the fit's block evaluation below.
   std::vector<double*> params;
   std::vector<double> steps;
   model::ModelParams p = base.fit.params;
@@ -804,8 +794,45 @@ std::optional<Discovery> discover_law(const Dataset& data, const Baseline& base,
     }
     return J;
   };
-  const Eigen::MatrixXd J_train = jacobian(train_blocks);
-  const Eigen::MatrixXd J_held = jacobian(held_blocks);
+  // The same Jacobian from the fit's own block evaluation: analytic derivatives of the block
+  // means, one pass over the blocks instead of two model evaluations per parameter, which made a
+  // quarter of discovery's time (issue 16). Its columns are packed as `params` (the effects in
+  // library order without the frozen ones, then the user terms) and its blocks are mask_blocks'
+  // (tests/integration/diagnose_screening_test.cpp, TrainingProblem); the residual's derivative
+  // is the negated prediction's. Where the packing or the blocks differ (rows without time: the
+  // fit's blocks are single rows) or the evaluation fails, the central differences stand in.
+  auto analytic = [&](const std::vector<std::uint8_t>& mask,
+                      const std::vector<std::pair<std::size_t, std::size_t>>& blocks)
+      -> std::optional<Eigen::MatrixXd> {
+    FitOptions fo = o.fit;
+    fo.effects = p.effects;
+    fo.user = p.user;
+    fo.mask = &mask;
+    fo.sigma = sigma;
+    fo.initial = nullptr;
+    try {
+      const screening::TrainingProblem problem(data, fo, base.fit.params);
+      if (problem.num_params() != static_cast<int>(np) || problem.num_blocks() != blocks.size())
+        return std::nullopt;
+      Eigen::MatrixXd J(static_cast<Eigen::Index>(blocks.size() * 6),
+                        static_cast<Eigen::Index>(np));
+      Eigen::Matrix<double, 6, Eigen::Dynamic, Eigen::RowMajor> jb(6,
+                                                                   static_cast<Eigen::Index>(np));
+      std::array<double, 6> r{};
+      for (std::size_t b = 0; b < blocks.size(); ++b) {
+        if (!problem.evaluate(b, r.data(), jb.data())) return std::nullopt;
+        J.middleRows(static_cast<Eigen::Index>(b * 6), 6) = -jb;
+      }
+      return J;
+    } catch (const std::exception&) {
+      return std::nullopt;
+    }
+  };
+  std::optional<Eigen::MatrixXd> J_train_a = analytic(split.train, train_blocks);
+  std::optional<Eigen::MatrixXd> J_held_a =
+      J_train_a ? analytic(split.heldout, held_blocks) : std::nullopt;
+  const Eigen::MatrixXd J_train = J_held_a ? std::move(*J_train_a) : jacobian(train_blocks);
+  const Eigen::MatrixXd J_held = J_held_a ? std::move(*J_held_a) : jacobian(held_blocks);
   // Orthonormal basis of the training tangent space (column-pivoted QR drops dependent ones).
   Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(J_train);
   const Eigen::Index rank = qr.rank();
@@ -829,54 +856,143 @@ std::optional<Discovery> discover_law(const Dataset& data, const Baseline& base,
   constexpr int kKeepPerAxis = 10;
   std::array<std::vector<Column>, 6> kept;
   int searched = 0;
-  std::vector<double> product(data.size()), mt, mh;
   const std::size_t nf = factors.size();
-  for (std::size_t a = 0; a < nf; ++a) {
-    for (std::size_t b = a; b <= nf; ++b) {
-      model::Basis basis;
-      basis.a = factors[a].factor;
+  // A basis's block means, the product fused in (no per-sample column is formed). Blocks hold
+  // `m` samples each; the sums run over the blocks side by side, each block's in sample order as
+  // before, so that consecutive additions are independent (a single running sum per block is
+  // bound by the latency of the addition).
+  auto basis_means = [&](std::size_t a, std::size_t b,
+                         const std::vector<std::pair<std::size_t, std::size_t>>& blocks,
+                         double* out) {
+    const double* fa = factors[a].v.data();
+    const double* fb = b < nf ? factors[b].v.data() : nullptr;
+    constexpr std::size_t kChunk = 256;  // blocks per pass: their samples stay in cache
+    for (std::size_t t0 = 0; t0 < blocks.size(); t0 += kChunk) {
+      const std::size_t t1 = std::min(blocks.size(), t0 + kChunk);
+      for (std::size_t t = t0; t < t1; ++t) out[t] = 0.0;
+      for (std::size_t i = 0; i < m; ++i) {
+        if (fb) {
+          for (std::size_t t = t0; t < t1; ++t)
+            out[t] += fa[blocks[t].first + i] * fb[blocks[t].first + i];
+        } else {
+          for (std::size_t t = t0; t < t1; ++t) out[t] += fa[blocks[t].first + i];
+        }
+      }
+      for (std::size_t t = t0; t < t1; ++t) out[t] /= static_cast<double>(m);
+    }
+  };
+  // Every basis's projections on the six axes' tangent spaces and on the residuals, by one
+  // matrix product per batch of bases: one matrix-vector product per basis and axis dominated
+  // discovery (issue 16). |Q_kᵀ c|² = Σ_j ((Q_k v_j)ᵀ c)² over the eigenvectors v_j of Q_kᵀ Q_k,
+  // and an axis's slice of the tangent space has far fewer directions than the model has
+  // parameters (a force axis sees only its bias and the mass), so only the directions with
+  // weight (λ_j above 1e-14 of the largest: what is dropped is far below the 1e-9 cut on the
+  // remaining part below) become rows. Rows: each axis's directions, then r_0ᵀ … r_5ᵀ.
+  std::array<Eigen::Index, 7> row0{};
+  std::array<Eigen::MatrixXd, 6> dirs;
+  for (int k = 0; k < 6; ++k) {
+    const Eigen::MatrixXd& q = Qk[static_cast<std::size_t>(k)];
+    Eigen::MatrixXd& out = dirs[static_cast<std::size_t>(k)];
+    if (rank == 0) {
+      out.resize(0, static_cast<Eigen::Index>(nt));
+    } else {
+      const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(q.transpose() * q);
+      const Eigen::VectorXd& l = eig.eigenvalues();  // ascending
+      const double cut = 1e-14 * std::max(l.maxCoeff(), 0.0);
+      Eigen::Index first = 0;
+      while (first < l.size() && !(l[first] > cut)) ++first;
+      out = (q * eig.eigenvectors().rightCols(l.size() - first)).transpose();
+    }
+    row0[static_cast<std::size_t>(k) + 1] = row0[static_cast<std::size_t>(k)] + out.rows();
+  }
+  const Eigen::Index nq = row0[6];
+  Eigen::MatrixXd M(nq + 6, static_cast<Eigen::Index>(nt));
+  for (int k = 0; k < 6; ++k) {
+    const auto ks = static_cast<std::size_t>(k);
+    M.middleRows(row0[ks], dirs[ks].rows()) = dirs[ks];
+    M.row(nq + k) = rk[ks].transpose();
+  }
+  std::vector<std::pair<std::size_t, std::size_t>> bases;  // (a, b); b == nf: factor a alone
+  for (std::size_t a = 0; a < nf; ++a)
+    for (std::size_t b = a; b <= nf; ++b) bases.emplace_back(a, b);
+  const auto nbases = static_cast<Eigen::Index>(bases.size());
+  // Every basis's training block means, a chunk of blocks at a time: the chunk's samples of every
+  // factor are copied together first (sample i of every block side by side), so that all bases
+  // read them from cache rather than streaming two whole factor columns each. Each block's sum
+  // still runs in sample order from zero (as a sum over a product column would), and the sums of
+  // neighbouring blocks are independent. P accumulates the projections chunk by chunk.
+  Eigen::MatrixXd P = Eigen::MatrixXd::Zero(nq + 6, nbases);
+  Eigen::VectorXd c2 = Eigen::VectorXd::Zero(nbases);
+  constexpr std::size_t kChunk = 128;
+  Eigen::MatrixXd C(static_cast<Eigen::Index>(kChunk), nbases);
+  std::vector<double> local(nf * m * kChunk);  // [(factor * m + sample) * kChunk + block]
+  for (std::size_t t0 = 0; t0 < nt; t0 += kChunk) {
+    const std::size_t nb = std::min(kChunk, nt - t0);
+    for (std::size_t f = 0; f < nf; ++f)
+      for (std::size_t i = 0; i < m; ++i)
+        for (std::size_t t = 0; t < nb; ++t)
+          local[(f * m + i) * kChunk + t] = factors[f].v[train_blocks[t0 + t].first + i];
+    for (Eigen::Index j = 0; j < nbases; ++j) {
+      const auto [a, b] = bases[static_cast<std::size_t>(j)];
+      double* out = C.col(j).data();
+      std::fill(out, out + nb, 0.0);
+      for (std::size_t i = 0; i < m; ++i) {
+        const double* xa = &local[(a * m + i) * kChunk];
+        if (b < nf) {
+          const double* xb = &local[(b * m + i) * kChunk];
+          for (std::size_t t = 0; t < nb; ++t) out[t] += xa[t] * xb[t];
+        } else {
+          for (std::size_t t = 0; t < nb; ++t) out[t] += xa[t];
+        }
+      }
+      for (std::size_t t = 0; t < nb; ++t) out[t] /= static_cast<double>(m);
+    }
+    const auto rows = static_cast<Eigen::Index>(nb);
+    P.noalias() += M.middleCols(static_cast<Eigen::Index>(t0), rows) * C.topRows(rows);
+    c2 += C.topRows(rows).colwise().squaredNorm().transpose();
+  }
+  // The best few per axis, in the order the bases were searched; only the final ones get their
+  // columns.
+  std::array<std::vector<std::pair<double, Eigen::Index>>, 6> top;  // (score, basis)
+  for (Eigen::Index j = 0; j < nbases; ++j) {
+    for (int k = 0; k < 6; ++k) {
+      ++searched;
+      const auto ks = static_cast<std::size_t>(k);
+      const double w = 1.0 / sigma[k];
+      const double rc = w * P(nq + k, j), cc = w * w * c2[j];
+      const double qq = w * w * P.col(j).segment(row0[ks], row0[ks + 1] - row0[ks]).squaredNorm();
+      const double perp = cc - qq;
+      if (!(perp > 1e-9 * std::max(cc, 1e-300))) continue;
+      const double score = rc * rc / perp;
+      auto& list = top[ks];
+      if (static_cast<int>(list.size()) == kKeepPerAxis && score <= list.back().first) continue;
+      list.emplace_back(score, j);
+      std::sort(list.begin(), list.end(),
+                [](const auto& x, const auto& y) { return x.first > y.first; });
+      if (static_cast<int>(list.size()) > kKeepPerAxis) list.pop_back();
+    }
+  }
+  std::vector<double> mt(nt), mh(nh);
+  for (int k = 0; k < 6; ++k) {
+    for (const auto& [score, j] : top[static_cast<std::size_t>(k)]) {
+      const auto [a, b] = bases[static_cast<std::size_t>(j)];
+      Column col;
+      col.basis.a = factors[a].factor;
       if (b < nf) {
         // A product of two; the same angle's sin·cos and a velocity's tanh·value repeat simpler
         // shapes, but are kept: the search decides.
-        basis.b = factors[b].factor;
-        basis.product = true;
-        for (std::size_t i = 0; i < data.size(); ++i)
-          product[i] = factors[a].v[i] * factors[b].v[i];
-        block_means(product, train_blocks, mt);
-      } else {
-        block_means(factors[a].v, train_blocks, mt);
+        col.basis.b = factors[b].factor;
+        col.basis.product = true;
       }
-      const Eigen::Map<const Eigen::VectorXd> cm(mt.data(), static_cast<Eigen::Index>(nt));
-      const double cm2 = cm.squaredNorm();
-      for (int k = 0; k < 6; ++k) {
-        ++searched;
-        const auto ks = static_cast<std::size_t>(k);
-        const double w = 1.0 / sigma[k];
-        const double rc = w * rk[ks].dot(cm), cc = w * w * cm2;
-        const double qq = w * w * (Qk[ks].transpose() * cm).squaredNorm();
-        const double perp = cc - qq;
-        if (!(perp > 1e-9 * std::max(cc, 1e-300))) continue;
-        const double score = rc * rc / perp;
-        auto& list = kept[static_cast<std::size_t>(k)];
-        if (static_cast<int>(list.size()) == kKeepPerAxis && score <= list.back().score) continue;
-        Column col;
-        col.basis = basis;
-        col.axis = k;
-        col.score = score;
-        col.train.resize(nt);
-        for (std::size_t t = 0; t < nt; ++t) col.train[t] = mt[t] / sigma[k];
-        if (b < nf) {
-          block_means(product, held_blocks, mh);
-        } else {
-          block_means(factors[a].v, held_blocks, mh);
-        }
-        col.held.resize(nh);
-        for (std::size_t t = 0; t < nh; ++t) col.held[t] = mh[t] / sigma[k];
-        list.push_back(std::move(col));
-        std::sort(list.begin(), list.end(),
-                  [](const Column& x, const Column& y) { return x.score > y.score; });
-        if (static_cast<int>(list.size()) > kKeepPerAxis) list.pop_back();
-      }
+      col.axis = k;
+      col.score = score;
+      basis_means(a, b, train_blocks, mt.data());
+      basis_means(a, b, held_blocks, mh.data());
+      col.train.resize(nt);
+      for (std::size_t t = 0; t < nt; ++t) col.train[t] = mt[t] / sigma[k];
+      col.held.resize(nh);
+      for (std::size_t t = 0; t < nh; ++t) col.held[t] = mh[t] / sigma[k];
+      kept[static_cast<std::size_t>(k)].push_back(std::move(col));
     }
   }
   std::vector<Column> cand;
@@ -901,21 +1017,43 @@ std::optional<Discovery> discover_law(const Dataset& data, const Baseline& base,
   std::vector<std::size_t> chosen;
   Eigen::MatrixXd X_train(Nt, 0), X_held(Nh, 0);
   double held_prev = held_base;
+  // The factorization of the current fit's [J, X] on training: after the first step it is the
+  // held-out check's of the accepted column (the same matrix, factored once).
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> aqr(J_train);
   for (int step = 0; step < o.max_discovered_terms; ++step) {
     // Current fit: [J, X] on training; residual r_cur.
-    Eigen::MatrixXd A(Nt, J_train.cols() + X_train.cols());
-    A << J_train, X_train;
-    const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> aqr(A);
     const Eigen::MatrixXd QA = thin_q(aqr, Nt);
     const Eigen::VectorXd r_cur = rt - QA * (QA.transpose() * rt);
+    // Every open candidate projected out of the current fit at once (issue 16): a column is
+    // nonzero on one axis only, so QAᵀ x reads that axis's rows of QA, and the projections
+    // QA (QAᵀ x) of all candidates are one matrix product.
+    std::vector<std::size_t> open;
+    for (std::size_t c = 0; c < cand.size(); ++c)
+      if (std::find(chosen.begin(), chosen.end(), c) == chosen.end()) open.push_back(c);
+    const Eigen::Index nopen = static_cast<Eigen::Index>(open.size());
+    Eigen::MatrixXd G(QA.cols(), nopen);
+    for (Eigen::Index j = 0; j < nopen; ++j) {
+      const Column& c = cand[open[static_cast<std::size_t>(j)]];
+      const Eigen::Map<const Eigen::MatrixXd, 0, Eigen::Stride<Eigen::Dynamic, 6>> rows(
+          QA.data() + c.axis, static_cast<Eigen::Index>(nt), QA.cols(),
+          Eigen::Stride<Eigen::Dynamic, 6>(QA.outerStride(), 6));
+      G.col(j).noalias() = rows.transpose() * Eigen::Map<const Eigen::VectorXd>(
+                                                  c.train.data(), static_cast<Eigen::Index>(nt));
+    }
+    Eigen::MatrixXd XP(Nt, nopen);
+    XP.noalias() = -QA * G;
     double best_z = 0.0;
     std::size_t best = cand.size();
-    for (std::size_t c = 0; c < cand.size(); ++c) {
-      if (std::find(chosen.begin(), chosen.end(), c) != chosen.end()) continue;
-      const Eigen::VectorXd x = embed(cand[c], false);
-      const Eigen::VectorXd xp = x - QA * (QA.transpose() * x);
+    for (Eigen::Index j = 0; j < nopen; ++j) {
+      const std::size_t c = open[static_cast<std::size_t>(j)];
+      double x2 = 0.0;
+      for (std::size_t t = 0; t < nt; ++t) {
+        XP(static_cast<Eigen::Index>(t * 6) + cand[c].axis, j) += cand[c].train[t];
+        x2 += cand[c].train[t] * cand[c].train[t];
+      }
+      const auto xp = XP.col(j);
       const double xx = xp.squaredNorm();
-      if (!(xx > 1e-9 * x.squaredNorm())) continue;
+      if (!(xx > 1e-9 * x2)) continue;
       // Heteroscedasticity-robust statistic of the coefficient (White's sandwich, HC0, on the
       // residual with the column in the fit): moving blocks carry more noise (IMU noise × mass)
       // than dwells.
@@ -933,10 +1071,12 @@ std::optional<Discovery> discover_law(const Dataset& data, const Baseline& base,
     Eigen::MatrixXd At(Nt, J_train.cols() + Xt.cols()), Ah(Nh, J_held.cols() + Xh.cols());
     At << J_train, Xt;
     Ah << J_held, Xh;
-    const Eigen::VectorXd theta = At.colPivHouseholderQr().solve(rt);
+    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> tqr(At);
+    const Eigen::VectorXd theta = tqr.solve(rt);
     const double held_new = (rh - Ah * theta).squaredNorm();
     if (held_prev - held_new < o.min_term_gain * held_base) break;
     held_prev = held_new;
+    aqr = std::move(tqr);
     chosen.push_back(best);
     d.z.push_back(best_z);
     X_train = Xt;

@@ -1016,6 +1016,10 @@ bool screening::TrainingProblem::accumulate(int threads, normal::NormalEquations
   return normal::accumulate(*impl_->evaluator, threads, out);
 }
 
+bool screening::TrainingProblem::evaluate(std::size_t b, double* residual, double* jacobian) const {
+  return impl_->evaluator->evaluate(b, residual, jacobian);
+}
+
 double screening::TrainingProblem::ssr_at(const Eigen::VectorXd& step) const {
   NormalBlocks& f = *impl_->evaluator;
   f.set_point(impl_->x0 + step);

@@ -34,6 +34,9 @@ class TrainingProblem {
   /// The normal equations at the point (one streaming pass, normal::accumulate). False if an
   /// evaluation failed.
   bool accumulate(int threads, normal::NormalEquations& out) const;
+  /// Block b's whitened residual (6) and its derivative with respect to the n free parameters
+  /// (6 × n, row-major) at the point, as the fit evaluates them. False if the evaluation failed.
+  bool evaluate(std::size_t b, double* residual, double* jacobian) const;
   /// Σ_b |r_b|² (whitened block residuals, what the BIC counts) at the point moved by `step`
   /// (n columns); NaN if an evaluation failed. The point itself is not changed.
   double ssr_at(const Eigen::VectorXd& step) const;
