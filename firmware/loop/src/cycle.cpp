@@ -309,8 +309,13 @@ void Cycle::step(const proto::rsi::RobotMessage& m, CycleReply& reply) noexcept 
 }
 
 void Cycle::step(const samples::RobotSample& m, samples::RobotCorrection& correction) noexcept {
-  correction = samples::RobotCorrection{};
-  correction.ipoc = m.ipoc;
+  // A cycle that ends early answers a zero correction with this IPOC (kept in the record too).
+  // The full cycle writes the correction once, at its end.
+  const auto answer_zero = [&m, &correction, this]() noexcept {
+    correction = samples::RobotCorrection{};
+    correction.ipoc = m.ipoc;
+    record_.reply = correction;
+  };
   ++cycle_;
   ++counters_.messages;
   record_.cycle = cycle_;
@@ -323,11 +328,11 @@ void Cycle::step(const samples::RobotSample& m, samples::RobotCorrection& correc
     raise(Fault::model_invalid);
     record_.state = sm_.state();
     record_.fault = sm_.fault();
-    record_.reply = correction;  // zero, this IPOC
+    answer_zero();
     return;
   }
   if (!m.has_pose && !config_.robot) {
-    record_.reply = correction;
+    answer_zero();
     pose_missing();
     return;
   }
@@ -336,7 +341,7 @@ void Cycle::step(const samples::RobotSample& m, samples::RobotCorrection& correc
   const State state_before = sm_.state();
   const stages::Timing timing = stages::timing(config_, m, data_.clock, counters_);
   if (timing.stale) {
-    record_.reply = correction;
+    answer_zero();
     stale_message();
     return;
   }

@@ -228,17 +228,13 @@ FaultRequests watch_robot_and_sensors(const WatchdogConfig& config, State state,
 
 ModelResult evaluate_model(const CycleConfig& config, infer::Inference& inference, bool use_network,
                            RowData& rows, ModelData& model, CycleCounters& counters) noexcept {
-  ModelResult out;
   const int D = config.angular_accel_order / 2;
   const int n = 2 * D + 1;
   const bool rows_ready = rows.total >= static_cast<std::uint64_t>(n);
-  if (!(rows_ready && rows.have_ft && rows.have_imu)) {
-    out.flags |= kNotReady;
-    return out;
-  }
-  out.evaluated = true;
-  // Rows centre − D … centre + D (= newest), oldest first, in contiguous arrays.
-  std::array<double, 3 * 5> f{}, w{};
+  if (!(rows_ready && rows.have_ft && rows.have_imu)) return {.flags = kNotReady};
+  // Rows centre − D … centre + D (= newest), oldest first, in contiguous arrays (the first 3 n
+  // values; not zeroed first, every one read is written here).
+  std::array<double, 3 * 5> f, w;
   for (int j = 0; j < n; ++j) {
     const Row& r = row_back(rows, n - 1 - j);
     for (int k = 0; k < 3; ++k) {
@@ -264,12 +260,15 @@ ModelResult evaluate_model(const CycleConfig& config, infer::Inference& inferenc
 
   // The signal dictionary's kinematics at the centre row (user-defined effects): central
   // differences of the joints and the sensor position over its neighbours.
-  model::KinematicInputs kinematics;
+  model::KinematicInputs& kinematics = model.kinematics;
   kinematics.features = centre.signals;
   {
     const Row& before = row_back(rows, D + 1);
     const Row& after = row_back(rows, D - 1);
-    if (after.t_s > centre.t_s && centre.t_s > before.t_s) {
+    if (!(after.t_s > centre.t_s && centre.t_s > before.t_s)) {
+      set_zero(kinematics.joint_acc_radps2);
+      set_zero(kinematics.v_base_sensor_mps);
+    } else {
       model::central_differences(before.signals.joints_rad.data(), centre.signals.joints_rad.data(),
                                  after.signals.joints_rad.data(), 6, before.t_s, centre.t_s,
                                  after.t_s, kinematics.features.joint_vel_radps.data(),
@@ -287,26 +286,32 @@ ModelResult evaluate_model(const CycleConfig& config, infer::Inference& inferenc
   model.status = st.code;
   model.t_eval_s = centre.t_s;
   model.wrench_at_eval = centre.wrench;
-  if (!st.written()) return out;
-  out.written = true;
+  if (!st.written()) return {.evaluated = true};
+  // The result is built from its parts at the end (not a zeroed result filled in): every cycle.
+  std::uint32_t flags = 0;
   if (st.code == infer::StatusCode::saturated) {
-    out.flags |= kModelSaturated;
+    flags |= kModelSaturated;
     ++counters.model_saturated;
   }
+  std::array<double, 6> prediction, contact;
   for (int k = 0; k < 6; ++k) {
-    out.predicted[k] = predicted[k];
-    out.contact[k] = centre.wrench[k] - predicted[k];
+    prediction[k] = predicted[k];
+    contact[k] = centre.wrench[k] - predicted[k];
   }
   // A held sensor value is stale while the other inputs (pose, the other sensor) are fresh:
   // measured − predicted would then be a contact nobody applied (the motion of the last cycles
   // missing from one side). Such a row drives nothing: zero contact, the body coasts.
   if (centre.held != 0) {
-    out.flags |= kContactHeld;
-    set_zero(out.contact);
+    flags |= kContactHeld;
+    set_zero(contact);
   }
   // Ready for zero-g: a prediction, and this cycle's samples fresh.
-  out.ready = rows.newest().held == 0;
-  return out;
+  return {.evaluated = true,
+          .written = true,
+          .ready = rows.newest().held == 0,
+          .flags = flags,
+          .predicted = prediction,
+          .contact = contact};
 }
 
 FaultRequests watch_model(const WatchdogConfig& config, const ModelResult& model,

@@ -35,18 +35,19 @@ samples::Rotation rotation_from_abc_deg(double a_deg, double b_deg, double c_deg
 }  // namespace
 
 samples::RobotSample robot_sample_from_message(const RobotMessage& m) {
-  samples::RobotSample s;
-  s.ipoc = m.ipoc;
-  s.has_delay = m.has_delay;
-  s.delay = m.delay;
-  s.joints_rad = joints_to_rad(m.joints_deg);
-  s.has_pose = m.has_actual_pose;
-  if (m.has_actual_pose) {
-    const CartesianPose& p = m.actual_pose;
-    s.p_base_tcp_m = {p.x_mm * 1e-3, p.y_mm * 1e-3, p.z_mm * 1e-3};
-    s.R_base_tcp = rotation_from_abc_deg(p.a_deg, p.b_deg, p.c_deg);
-  }
-  return s;
+  // Every field named once (no default-initialised sample overwritten afterwards): this runs for
+  // every message at the border.
+  const bool pose = m.has_actual_pose;
+  const CartesianPose& p = m.actual_pose;
+  return {.ipoc = m.ipoc,
+          .has_delay = m.has_delay,
+          .delay = m.delay,
+          .joints_rad = joints_to_rad(m.joints_deg),
+          .has_pose = pose,
+          .p_base_tcp_m = pose ? std::array<double, 3>{p.x_mm * 1e-3, p.y_mm * 1e-3, p.z_mm * 1e-3}
+                               : std::array<double, 3>{},
+          .R_base_tcp =
+              pose ? rotation_from_abc_deg(p.a_deg, p.b_deg, p.c_deg) : samples::kIdentityRotation};
 }
 
 RobotMessage robot_message_from_sample(const samples::RobotSample& s) {
@@ -76,31 +77,31 @@ std::array<double, 3> rkorr_abc_rad(const samples::RobotCorrection& c) {
 }
 
 Reply reply_from_correction(const samples::RobotCorrection& c) {
+  // Every field named once, as robot_sample_from_message: this runs for every reply.
   using Kind = samples::RobotCorrection::Kind;
-  Reply r;
-  r.ipoc = c.ipoc;
   switch (c.kind) {
     case Kind::none:  // zeros as such: A, B, C of the identity would give B = −0
-      r.has_rkorr = true;
-      break;
+      return {.has_rkorr = true, .rkorr = {}, .has_akorr = false, .akorr_deg = {}, .ipoc = c.ipoc};
     case Kind::cartesian: {
-      r.has_rkorr = true;
       const std::array<double, 3> abc = abc_deg(c.R_correction);
-      r.rkorr = {c.translation_m[0] * 1e3,
-                 c.translation_m[1] * 1e3,
-                 c.translation_m[2] * 1e3,
-                 abc[0],
-                 abc[1],
-                 abc[2]};
-      break;
+      return {.has_rkorr = true,
+              .rkorr = {c.translation_m[0] * 1e3, c.translation_m[1] * 1e3,
+                        c.translation_m[2] * 1e3, abc[0], abc[1], abc[2]},
+              .has_akorr = false,
+              .akorr_deg = {},
+              .ipoc = c.ipoc};
     }
-    case Kind::axes:
-      r.has_akorr = true;
-      for (std::size_t i = 0; i < r.akorr_deg.size(); ++i)
-        r.akorr_deg[i] = c.axes_rad[i] / kRadPerDeg;
-      break;
+    case Kind::axes: {
+      std::array<double, 6> akorr_deg;
+      for (std::size_t i = 0; i < akorr_deg.size(); ++i) akorr_deg[i] = c.axes_rad[i] / kRadPerDeg;
+      return {.has_rkorr = false,
+              .rkorr = {},
+              .has_akorr = true,
+              .akorr_deg = akorr_deg,
+              .ipoc = c.ipoc};
+    }
   }
-  return r;
+  return {.has_rkorr = false, .rkorr = {}, .has_akorr = false, .akorr_deg = {}, .ipoc = c.ipoc};
 }
 
 samples::RobotCorrection correction_from_reply(const Reply& r) {

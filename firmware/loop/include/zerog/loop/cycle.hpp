@@ -39,6 +39,7 @@
 #include "zerog/infer/inference.hpp"
 #include "zerog/loop/black_box.hpp"
 #include "zerog/loop/state_machine.hpp"
+#include "zerog/model/dictionary.hpp"
 #include "zerog/proto/rsi.hpp"
 #include "zerog/robot/robot_model.hpp"
 #include "zerog/samples/robot_sample.hpp"
@@ -314,6 +315,9 @@ struct ModelData {
   infer::StatusCode status = infer::StatusCode::not_configured;
   double t_eval_s = 0.0;
   std::array<double, 6> wrench_at_eval{};
+  /// The signal dictionary's kinematics of that evaluation (the centre row's signals and their
+  /// central differences). Kept here and rewritten in place, not built afresh every cycle.
+  model::KinematicInputs kinematics;
 };
 
 /// run_motion() in collection mode: approach the path's start, then follow it.

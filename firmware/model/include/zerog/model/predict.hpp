@@ -82,8 +82,11 @@ struct ImuMount {
   Vec3<T> p_sensor_imu = Vec3<T>::Zero();      ///< IMU origin in the true sensor frame, m
 };
 
+// Always inlined: payload_wrench runs every cycle, and a call returning the mount through memory
+// cost more than the mount itself (loop_bench).
 template <typename T>
-ImuMount<T> imu_mount(const EffectSet& effects, const ParamPointers<T>& p, const RigGeometry& rig) {
+EIGEN_ALWAYS_INLINE ImuMount<T> imu_mount(const EffectSet& effects, const ParamPointers<T>& p,
+                                          const RigGeometry& rig) {
   ImuMount<T> m;
   if (effects.has(Effect::sensor_rotation)) {
     m.R_nominal_true = rotation_from_vector(Vec3<T>(p[index(Effect::sensor_rotation)]));
