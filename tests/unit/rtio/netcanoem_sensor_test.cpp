@@ -48,6 +48,14 @@ class NetcanoemSensorTest : public ::testing::Test {
     c.base_id = board_config_.base_id;
     return c;
   }
+  // The thermistor read with every poll, −50 °C at 0 counts and 10 mK per count (the scripted
+  // interleavings' conversion).
+  NetcanoemConfig thermistor_every_poll() {
+    NetcanoemConfig c = config();
+    c.thermistor_every_polls = 1;
+    c.thermistor = netcanoem::ThermistorConversion{-50.0, 0.01};
+    return c;
+  }
 
   static void expect_wrench(const std::array<double, 6>& got, const std::array<double, 6>& want) {
     for (int i = 0; i < 6; ++i) EXPECT_NEAR(got[i], want[i], 1e-9 * (1 + std::abs(want[i]))) << i;
@@ -369,13 +377,10 @@ TEST_F(NetcanoemSensorTest, ThermistorIsReadEveryNthPollAndReachesTheSample) {
 
 // Safety: a 0x9 answer arriving between a poll's 0x0 and 0x1 halves, and after a re-poll behind
 // a late 0x1, is never paired as gauge data: each sample carries exactly its own poll's gauges.
-// (The mutant ZEROG_MUTANT_DIAGNOSTIC_AS_GAUGE, which takes the 0x9 payload as a second half,
-// fails here.)
+// (The kept mutant, ctest netcanoem_mutant_diagnostic_as_gauge, takes the 0x9 payload as a second
+// half: this test fails on it.)
 TEST_F(NetcanoemSensorTest, ThermistorAnswerBetweenGaugeHalvesIsNeverPairedAsGaugeData) {
-  NetcanoemConfig c = config();
-  c.thermistor_every_polls = 1;
-  c.thermistor = netcanoem::ThermistorConversion{-50.0, 0.01};
-  NetcanoemSensor sensor(bus_, c);
+  NetcanoemSensor sensor(bus_, thermistor_every_poll());
   ASSERT_EQ(sensor.start(), FtStartStatus::ok);
   ScriptedBoard script(board_config_.base_id);
   bus_.set_responder(&script);
@@ -409,10 +414,7 @@ TEST_F(NetcanoemSensorTest, ThermistorAnswerBetweenGaugeHalvesIsNeverPairedAsGau
 // A thermistor read that gets no answer is counted when the next one is due; the samples go on
 // and no temperature is made up.
 TEST_F(NetcanoemSensorTest, LostThermistorAnswersAreCountedNotFatal) {
-  NetcanoemConfig c = config();
-  c.thermistor_every_polls = 1;
-  c.thermistor = netcanoem::ThermistorConversion{-50.0, 0.01};
-  NetcanoemSensor sensor(bus_, c);
+  NetcanoemSensor sensor(bus_, thermistor_every_poll());
   ASSERT_EQ(sensor.start(), FtStartStatus::ok);
   ScriptedBoard script(board_config_.base_id);
   bus_.set_responder(&script);
