@@ -41,6 +41,15 @@ std::unique_ptr<rtio::RsiEndpoint> loopback_endpoint() {
   return endpoint;
 }
 
+// Zero-g enabled as soon as the robot is there, recording into `dir`/rec with the test rig.
+RuntimeOptions recording_options(const test::TempDir& dir) {
+  RuntimeOptions options;
+  options.auto_enable_zero_g = true;
+  options.recorder.dir = dir.path() / "rec";
+  options.recorder.rig = test::test_rig();
+  return options;
+}
+
 // Configures `rt` with the test cycle and payload model (and `path`, if given) and starts it.
 testing::AssertionResult configure_and_start(Runtime& rt, std::vector<Status>& warnings,
                                              const loop::JointPath* path = nullptr) {
@@ -85,11 +94,7 @@ TEST(Runtime, EndToEndOnLoopbackUdp) {
   const auto endpoint = loopback_endpoint();
   ASSERT_NE(endpoint, nullptr);
 
-  RuntimeOptions options;
-  options.auto_enable_zero_g = true;
-  options.recorder.dir = dir.path() / "rec";
-  options.recorder.rig = test::test_rig();
-  Runtime rt(options, RuntimeDevices{endpoint.get()});
+  Runtime rt(recording_options(dir), RuntimeDevices{endpoint.get()});
   std::vector<Status> warnings;
   ASSERT_TRUE(configure_and_start(rt, warnings));
   EXPECT_TRUE(warnings.empty());
@@ -309,11 +314,7 @@ TEST(Runtime, TheCyclesSiCorrectionReachesTheUdpReplyInMillimetresAndDegreesOnce
   test::TempDir dir;
   const auto endpoint = loopback_endpoint();
   ASSERT_NE(endpoint, nullptr);
-  RuntimeOptions options;
-  options.auto_enable_zero_g = true;
-  options.recorder.dir = dir.path() / "rec";
-  options.recorder.rig = test::test_rig();
-  Runtime rt(options, RuntimeDevices{endpoint.get()});
+  Runtime rt(recording_options(dir), RuntimeDevices{endpoint.get()});
   std::vector<Status> warnings;
   ASSERT_TRUE(configure_and_start(rt, warnings));
   RobotInTest robot(endpoint->local_port());
