@@ -502,6 +502,7 @@ def case_fault(run, name):
 # --- faults that are not faults of the loop, and the extra checks of some that are ------------
 
 FLAG_FT_HELD, FLAG_IMU_HELD, FLAG_IPOC_GAP, FLAG_IPOC_STALE, FLAG_DELAY_GREW = 1, 2, 16, 32, 64
+FLAG_TEMPERATURE_STALE = 32768  # loop::kTemperatureStale
 RKORR = ("rkorr_x_mm", "rkorr_y_mm", "rkorr_z_mm", "rkorr_a_deg", "rkorr_b_deg", "rkorr_c_deg")
 
 
@@ -609,6 +610,62 @@ def case_ft_slow(run):
     check(held < thr, f"longest F/T hold during it: {held} cycles (fault at {thr})")
     figure("measured", f"{n_during.mean():.2f} samples/cycle during ({n_before.mean():.2f} before); "
                        f"longest hold {held} cycles (fault at {thr}); no fault")
+
+
+def case_ft_thermistor_silent(run):
+    """The board leaves its thermistor reads unanswered, the samples go on: the held reading is
+    used up to [ft] thermistor_max_age_s, then the model gets [model] temperature_C, every such
+    cycle flagged kTemperatureStale and counted; the next answer makes it fresh again; no fault."""
+    no_fault_checks(run)
+    f = run.emu["faults"][0]
+    t0, t1 = f["applied_start_s"], f["applied_end_s"]
+    ft_cfg = run.config["ft"]
+    period = ft_cfg.get("thermistor_period_s", 1.0)
+    max_age = ft_cfg.get("thermistor_max_age_s", 3.0 * period)
+    configured = run.config["model"].get("temperature_C", 25.0)
+    t = record_t(run)
+    stale = flagged(run, FLAG_TEMPERATURE_STALE)
+    measured = run.cycles["temp_measured"] != 0
+    ft = run.rt["devices"]["ft"]
+    counted = run.rt["cycles"]["temperature_stale_cycles"]
+    n = int(stale.sum())
+    figure("thermistor_stale_cycles", n)
+    figure("thermistor_expired", ft["thermistor_expired"])
+    figure("thermistor_lost", ft["thermistor_lost"])
+    check(n > 0, f"{n} cycles flagged kTemperatureStale")
+    if n == 0:
+        figure("measured", "no stale cycle")
+        return
+    idx = np.nonzero(stale)[0]
+    t_first, t_last = t[idx[0]], t[idx[-1]]
+    figure("thermistor_stale_after_s", t_first - t0)
+    figure("thermistor_fresh_after_end_s", t_last - t1)
+    check(idx[-1] - idx[0] + 1 == n, f"one stale spell: cycles {idx[0]}..{idx[-1]} all flagged")
+    # The last reading before t0 came at most one period before it; stale max_age after it.
+    check(t0 + max_age - period - 0.05 <= t_first <= t0 + max_age + 0.1,
+          f"stale {t_first - t0:.3f} s after the reads stopped answering (max age {max_age:g} s, "
+          f"read every {period:g} s)")
+    # Answered again from t1 on: fresh with the next read, at most one period later.
+    check(t1 - 0.05 <= t_last <= t1 + period + 0.1,
+          f"fresh again {t_last - t1:.3f} s after the board answers again (read every {period:g} s)")
+    check(counted == n, f"zerog-rt counted {counted} stale cycles, cycles.csv flags {n}")
+    check(ft["thermistor_expired"] == 1 and ft["thermistor_lost"] >= int((t1 - t0) / period) - 1,
+          f"thermistor_expired {ft['thermistor_expired']}, thermistor_lost {ft['thermistor_lost']}")
+    temp = run.cycles["temp_C"]
+    check(not measured[stale].any() and np.all(temp[stale] == configured),
+          f"the stale cycles fed the configured {configured:g} °C, none measured")
+    after = t > t_last
+    check(after.any() and measured[after].all(),
+          f"measured again in every cycle after the stale spell ({int(after.sum())} cycles)")
+    before = (t > t0 - 1.0) & (t < t0)
+    check(before.any() and measured[before].all() and not stale[before].any(),
+          "measured, not stale, in the second before the injection")
+    skipped = run.rt["recording"]["skipped_no_temperature"]
+    check(skipped >= n, f"run.csv skipped the stale cycles ({skipped} rows without a temperature)")
+    figure("measured", f"stale {t_first - t0:.2f} s after the reads stopped (max age {max_age:g} s), "
+                       f"{n} cycles on the configured {configured:g} °C (counted {counted}, "
+                       f"expired {ft['thermistor_expired']}); fresh {t_last - t1:.2f} s after they "
+                       f"resumed; no fault")
 
 
 def case_imu_gaps(run):
@@ -907,6 +964,7 @@ def case_peer(run, kind):
 
 EXTRA_FAULT_CASES = {
     "fault_ft_slow": case_ft_slow,
+    "fault_ft_thermistor_silent": case_ft_thermistor_silent,
     "fault_imu_gaps": case_imu_gaps,
     "fault_imu_crc": case_imu_crc,
     "fault_imu_unplug": case_imu_unplug,

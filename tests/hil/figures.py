@@ -43,6 +43,10 @@ FAULTS = [
      "hold, then `ft_saturated` at {thr} cycles without a valid sample; zero correction"),
     ("fault_ft_critical", "F/T critical status", "status word with a critical bit for 1 s",
      "hold, then `ft_critical` at {thr} cycles without a valid sample; zero correction"),
+    ("fault_ft_thermistor_silent", "F/T thermistor silent",
+     "the board leaves its thermistor reads (0x9) unanswered for 5 s; samples go on",
+     "the reading held up to `thermistor_max_age_s`, then the configured `temperature_C` "
+     "(`kTemperatureStale`, counted) until the board answers again; no fault"),
     ("fault_imu_garbage", "IMU garbage", "the STIM300 writes random bytes for 1 s",
      "hold, then `imu_stale` at {thr} cycles without a valid sample; zero correction"),
     ("fault_imu_crc", "IMU CRC errors", "every datagram with a wrong CRC for 1 s",

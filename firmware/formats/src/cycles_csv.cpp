@@ -1,9 +1,11 @@
 #include "zerog/formats/cycles_csv.hpp"
 
 #include <charconv>
+#include <cmath>
 #include <cstdint>
 #include <fstream>
 #include <initializer_list>
+#include <limits>
 #include <map>
 #include <sstream>
 #include <stdexcept>
@@ -23,6 +25,7 @@ constexpr std::string_view kColumns[] = {
     "Fx_N", "Fy_N", "Fz_N", "Mx_Nm", "My_Nm", "Mz_Nm",
     "imu_fx_mps2", "imu_fy_mps2", "imu_fz_mps2", "imu_wx_radps", "imu_wy_radps", "imu_wz_radps",
     "ft_samples", "imu_samples",
+    "temp_C", "temp_measured",
     "t_eval_s",
     "eval_Fx_N", "eval_Fy_N", "eval_Fz_N", "eval_Mx_Nm", "eval_My_Nm", "eval_Mz_Nm",
     "pred_Fx_N", "pred_Fy_N", "pred_Fz_N", "pred_Mx_Nm", "pred_My_Nm", "pred_Mz_Nm",
@@ -53,6 +56,14 @@ class Row {
     char buffer[24];
     const auto r = std::to_chars(buffer, buffer + sizeof buffer, v);
     text(std::string_view(buffer, static_cast<std::size_t>(r.ptr - buffer)));
+  }
+  /// A number that may be unknown: NaN (an older file's record read back) as an empty cell.
+  void optional_number(double v) {
+    if (std::isnan(v)) {
+      text("");
+    } else {
+      number(v);
+    }
   }
   void number(double v) {
     char buffer[32];
@@ -112,6 +123,8 @@ void append_record_row(const loop::CycleRecord& r, std::string& out) {
   row.numbers(r.rate_imu);
   row.integer(r.ft_samples);
   row.integer(r.imu_samples);
+  row.optional_number(r.temperature_C);
+  row.integer(r.temperature_measured ? 1 : 0);
   row.number(r.t_eval_s);
   row.numbers(r.wrench_at_eval);
   row.numbers(r.predicted);
@@ -205,6 +218,12 @@ std::vector<loop::CycleRecord> read_cycles_csv(const std::filesystem::path& file
     }
     r.ft_samples = static_cast<std::uint16_t>(uint("ft_samples"));
     r.imu_samples = static_cast<std::uint16_t>(uint("imu_samples"));
+    // The temperature fed to the model (°C), from cycles.csv files that have it: an older file
+    // (or an empty cell) reads as unknown (NaN), not measured.
+    r.temperature_C = std::numeric_limits<double>::quiet_NaN();
+    r.temperature_measured = false;
+    if (column.contains("temp_C") && !cell("temp_C").empty()) r.temperature_C = num("temp_C");
+    if (column.contains("temp_measured")) r.temperature_measured = uint("temp_measured") != 0;
     r.t_eval_s = num("t_eval_s");
     // Back to SI (the writer's inverse, up to rounding): AKorr when axis_reply, else RKorr; an
     // RKorr of zeros is Kind::none (what the cycle answers outside zero-g).

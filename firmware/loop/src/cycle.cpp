@@ -117,6 +117,10 @@ void Cycle::add_ft(const samples::FtSample& s) noexcept {
     window.have_temperature = true;
     window.temperature_C = s.temperature_C;
     window.temperature_age_s = s.temperature_age_s;
+    window.temperature_stale = false;
+  } else if (s.temperature_stale) {  // the sensor's reading is too old: not to be used any more
+    window.have_temperature = false;
+    window.temperature_stale = true;
   }
   if (!s.valid) {
     ++counters_.ft_invalid;

@@ -150,11 +150,21 @@ RowResult assemble_row(const CycleConfig& config, const samples::RobotSample& m,
     now.signals.p_base_sensor_m[r] = p[r];
   }
   // The F/T sensor's own temperature wins over the configured one, and is held between its
-  // readings (about 1 Hz; the temperature moves slowly).
+  // readings (about 1 Hz; the temperature moves slowly), until the sensor says it is stale
+  // (older than its maximum age): then the configured one again, flagged, until a fresh one.
   if (window.have_temperature) {
     rows.have_temperature = true;
     rows.temperature_C = window.temperature_C;
     rows.temperature_age_s = window.temperature_age_s;
+    rows.temperature_stale = false;
+  } else if (window.temperature_stale) {
+    rows.have_temperature = false;
+    rows.temperature_age_s = 0.0;
+    rows.temperature_stale = true;
+  }
+  if (rows.temperature_stale) {
+    out.flags |= kTemperatureStale;
+    ++counters.temperature_stale_cycles;
   }
   now.signals.temperature_C = rows.have_temperature ? rows.temperature_C : config.temperature_C;
   now.temperature_measured = rows.have_temperature;

@@ -158,10 +158,10 @@ RobotSection read_robot(const TomlTable& file) {
 
 // [ft]: the F/T board's bus (read_ft_bus) and its NETCANOEM settings.
 FtSection read_ft(const TomlTable& file) {
-  const TomlTable ft =
-      file.sub_table("ft", {"transport", "interface", "local_path", "base_id", "calibration",
-                            "rate_hz", "sample_timeout_ms", "thermistor_period_s",
-                            "thermistor_C_at_zero_counts", "thermistor_C_per_count"});
+  const TomlTable ft = file.sub_table(
+      "ft", {"transport", "interface", "local_path", "base_id", "calibration", "rate_hz",
+             "sample_timeout_ms", "thermistor_period_s", "thermistor_max_age_s",
+             "thermistor_C_at_zero_counts", "thermistor_C_per_count"});
   FtSection f;
   read_ft_bus(ft, f);
   f.base_id = static_cast<int>(ft.optional_integer("base_id", 0x20, 0, 127));
@@ -170,6 +170,16 @@ FtSection read_ft(const TomlTable& file) {
   f.sample_timeout_ms = ft.optional_number("sample_timeout_ms", std::min(2.0, 1000.0 / f.rate_hz),
                                            {0.0, true, 1000.0 / f.rate_hz, false});
   f.thermistor_period_s = ft.optional_number("thermistor_period_s", 1.0, {0.0, false, 3600.0});
+  // A held reading expires: a board that stops answering 0x9 must not leave the model with a
+  // temperature of any age. Longer than the period (one late answer is not stale).
+  f.thermistor_max_age_s = ft.optional_number(
+      "thermistor_max_age_s", f.thermistor_period_s > 0.0 ? 3.0 * f.thermistor_period_s : 3.0,
+      {0.0, true, 3.0 * 3600.0});
+  if (f.thermistor_period_s > 0.0 && f.thermistor_max_age_s <= f.thermistor_period_s) {
+    ft.fail("thermistor_max_age_s",
+            "must be more than ft.thermistor_period_s (" + number_text(f.thermistor_period_s) +
+                " s): every reading would expire before the next one is due");
+  }
   // The conversion has no default (no datasheet fact): both numbers, or neither.
   const bool at_zero = ft.find("thermistor_C_at_zero_counts") != nullptr;
   const bool per_count = ft.find("thermistor_C_per_count") != nullptr;
@@ -568,6 +578,10 @@ rtio::NetcanoemConfig netcanoem_config(const FtSection& ft) {
           ? static_cast<int>(std::max(1.0, std::round(ft.thermistor_period_s * ft.rate_hz)))
           : 0;
   out.thermistor = ft.thermistor;
+  // The maximum age in sample requests, more than the period's (read_ft checked the seconds).
+  out.thermistor_max_age_polls =
+      static_cast<int>(std::max(static_cast<double>(out.thermistor_every_polls) + 1.0,
+                                std::round(ft.thermistor_max_age_s * ft.rate_hz)));
   return out;
 }
 

@@ -753,7 +753,8 @@ std::string Runtime::summary_json() const {
                  {"black_boxes_lost", c.black_boxes_lost},
                  {"poses_from_joints", c.poses_from_joints},
                  {"pose_disagreements", c.pose_disagreements},
-                 {"poses_missing", c.poses_missing}};
+                 {"poses_missing", c.poses_missing},
+                 {"temperature_stale_cycles", c.temperature_stale_cycles}};
   const CycleThreadCounters& t = cycle_side_.counters;
   json cycle_thread = {
       {"receive_timeouts", t.receive_timeouts},   {"receive_malformed", t.receive_malformed},
@@ -803,6 +804,7 @@ std::string Runtime::summary_json() const {
                      {"thermistor_requests", f.thermistor_requests},
                      {"thermistor_readings", f.thermistor_readings},
                      {"thermistor_lost", f.thermistor_lost},
+                     {"thermistor_expired", f.thermistor_expired},
                      {"thermistor_wrong_length", f.thermistor_wrong_length},
                      {"thermistor_unrequested", f.thermistor_unrequested},
                      {"thread_reads", sensors_.counters.ft_reads},

@@ -88,7 +88,22 @@ void NetcanoemSensor::take_diagnostic(const CanRxFrame& rx) {
   have_thermistor_ = true;
   thermistor_counts_ = counts;
   thermistor_rx_ns_ = rx.timestamp_ns;
+  thermistor_poll_ = poll_;
+  thermistor_stale_ = false;  // fresh again
   ++own_.thermistor_readings;
+}
+
+void NetcanoemSensor::check_thermistor_age() {
+#ifndef ZEROG_MUTANT_THERMISTOR_NEVER_EXPIRES
+  if (thermistor_stale_ || config_.thermistor_every_polls <= 0 || !config_.thermistor) return;
+  if (poll_ - thermistor_poll_ <= static_cast<std::uint64_t>(config_.thermistor_max_age_polls))
+    return;
+  thermistor_stale_ = true;  // the board stopped answering 0x9 (thermistor_lost counts them)
+  ++own_.thermistor_expired;
+#else
+  // TEST ONLY (tests/unit/CMakeLists.txt, netcanoem_mutant_no_expiry_test): the broken variant
+  // the expiry test must catch: a held reading of any age.
+#endif
 }
 
 void NetcanoemSensor::request_thermistor() {
@@ -114,7 +129,8 @@ void NetcanoemSensor::request_thermistor() {
 void NetcanoemSensor::fill_temperature(FtSample& out) const {
   out.thermistor_valid = have_thermistor_;
   out.thermistor_counts = thermistor_counts_;
-  out.temperature_valid = have_thermistor_ && config_.thermistor.has_value();
+  out.temperature_stale = thermistor_stale_;
+  out.temperature_valid = have_thermistor_ && config_.thermistor.has_value() && !thermistor_stale_;
   out.temperature_C = out.temperature_valid
                           ? netcanoem::thermistor_celsius(*config_.thermistor, thermistor_counts_)
                           : 0.0;
@@ -131,7 +147,9 @@ FtStartStatus NetcanoemSensor::start() {
   if (config_.base_id > netcanoem::kMaxBaseId ||
       config_.calibration_index > netcanoem::kMaxCalibrationIndex || config_.startup_attempts < 1 ||
       config_.thermistor_every_polls < 0 ||
-      (config_.thermistor && !netcanoem::thermistor_conversion_valid(*config_.thermistor))) {
+      (config_.thermistor && !netcanoem::thermistor_conversion_valid(*config_.thermistor)) ||
+      (config_.thermistor && config_.thermistor_every_polls > 0 &&
+       config_.thermistor_max_age_polls <= config_.thermistor_every_polls)) {
     return FtStartStatus::bad_config;
   }
   drain_stale();
@@ -189,6 +207,8 @@ FtStartStatus NetcanoemSensor::start() {
           .value_or(proto::CanFrame{});
   thermistor_open_ = false;
   have_thermistor_ = false;
+  thermistor_poll_ = poll_;  // the first reading is due within the maximum age, too
+  thermistor_stale_ = false;
   polls_to_thermistor_ = 0;  // the first poll reads it: a temperature from the start
   assembler_.reset();
   started_ = true;
@@ -222,6 +242,7 @@ FtReadStatus NetcanoemSensor::read_sample_waiting(FtSample& out,
   ++poll_;
   in_poll_ = true;
   request_thermistor();
+  check_thermistor_age();
   const std::int64_t deadline =
       detail::monotonic_ns() + std::max(config_.sample_timeout, at_least).count();
   CanRxFrame rx;

@@ -363,6 +363,7 @@ AtiBoard::Step AtiBoard::respond_locked(const proto::CanFrame& request, Response
       // Only the thermistor is emulated; the other channels answer mid-scale (not a board fact).
       const std::uint8_t index = request.data[0];
       if (index > netcanoem::kMaxDiagnosticIndex) break;  // not a channel: no answer
+      if (quirks_.no_diagnostic_response) break;          // 0x9 reads go unanswered
       const bool thermistor =
           index == static_cast<std::uint8_t>(netcanoem::DiagnosticIndex::thermistor);
       put(netcanoem::encode_diagnostic_adc(base, thermistor ? thermistor_counts_ : 0x8000));

@@ -181,7 +181,8 @@ RigEmulator::RigEmulator(const Scenario& scenario, const RigEmulatorOptions& opt
     const Fault& f = scenario_.faults[i];
     if (!info(f.kind).robot) {
       const bool ft_fault = f.kind == FaultKind::ft_silent || f.kind == FaultKind::ft_slow ||
-                            f.kind == FaultKind::ft_critical || f.kind == FaultKind::ft_saturated;
+                            f.kind == FaultKind::ft_critical || f.kind == FaultKind::ft_saturated ||
+                            f.kind == FaultKind::ft_thermistor_silent;
       if ((ft_fault && ft_ == nullptr) || (!ft_fault && imu_ == nullptr))
         faults_[i].note = "not injected: no device";
       continue;
@@ -358,6 +359,12 @@ void RigEmulator::device_faults(double t_s) {
         case FaultKind::ft_saturated:
           ft_->set_fault(FtFault::saturated);
           break;
+        case FaultKind::ft_thermistor_silent: {
+          AtiBoardQuirks quirks = ft_->quirks();
+          quirks.no_diagnostic_response = true;
+          ft_->set_quirks(quirks);
+          break;
+        }
         case FaultKind::imu_garbage:
           imu_->set_fault(ImuFault::garbage);
           break;
@@ -390,6 +397,12 @@ void RigEmulator::device_faults(double t_s) {
         case FaultKind::ft_slow:
           ft_->set_response_delay(std::chrono::microseconds(0));
           break;
+        case FaultKind::ft_thermistor_silent: {
+          AtiBoardQuirks quirks = ft_->quirks();
+          quirks.no_diagnostic_response = false;
+          ft_->set_quirks(quirks);
+          break;
+        }
         case FaultKind::imu_unplug: {
           if (const Status plugged = imu_->open(options_.imu_link); !plugged.ok())
             st.note = "re-plug failed: " + plugged.message();

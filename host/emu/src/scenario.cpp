@@ -35,6 +35,9 @@ const std::array<FaultKindInfo, kFaultKindCount> kFaults = {{
     {FaultKind::ft_critical, "ft_critical", false,
      "F/T status word with a critical bit for `duration_s`"},
     {FaultKind::ft_saturated, "ft_saturated", false, "F/T gauge SG0 at its rail for `duration_s`"},
+    {FaultKind::ft_thermistor_silent, "ft_thermistor_silent", false,
+     "the F/T board leaves its thermistor reads (opcode 0x9) unanswered for `duration_s`; the "
+     "samples go on"},
     {FaultKind::imu_garbage, "imu_garbage", false,
      "random bytes instead of IMU datagrams for `duration_s`"},
     {FaultKind::imu_crc, "imu_crc", false, "IMU datagrams with a wrong CRC for `duration_s`"},
@@ -239,7 +242,7 @@ Scenario from_table(const toml::table& root, const fs::path& file) {
       s.faults.push_back(read_fault(*faults.get(k)->as_table(), file, k));
     // One fault at a time per group (robot, F/T board, IMU): each would undo the other.
     auto group = [](FaultKind k) {
-      return info(k).robot ? 0 : k <= FaultKind::ft_saturated ? 1 : 2;
+      return info(k).robot ? 0 : k <= FaultKind::ft_thermistor_silent ? 1 : 2;
     };
     auto window = [&](const Fault& f) -> std::pair<double, double> {
       if (info(f.kind).robot) {

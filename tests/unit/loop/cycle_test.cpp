@@ -156,6 +156,57 @@ TEST(Cycle, TheSensorsTemperatureReachesTheModelAndTheRecord) {
   EXPECT_NEAR(c.last().contact[0], 0.0, 1e-6);
 }
 
+// A reading the sensor reports stale (older than its maximum age: the board stopped answering
+// the thermistor reads) is not held any longer: the model gets the configured temperature_C
+// again, every such cycle is flagged kTemperatureStale and counted, and the next fresh reading
+// ends it. Same rig as above: the fallback shows as the 20 N the configured 25 °C leaves.
+TEST(Cycle, AStaleTemperatureFallsBackToTheConfiguredOneFlaggedAndCounted) {
+  infer::DeployedModel model = payload_model();
+  model.physics.effects.add(model::Effect::temperature_bias);
+  double* per_kelvin = model.physics.block(model::Effect::temperature_bias);
+  for (int k = 0; k < 6; ++k) per_kelvin[k] = k == 0 ? 2.0 : 0.0;
+  Cycle c;
+  ASSERT_EQ(c.configure(test_cycle_config(), model).text(), "");
+  StaticRobot rig(model);
+  Eigen::Matrix<double, 6, 1> warm = Eigen::Matrix<double, 6, 1>::Zero();
+  warm[0] = 2.0 * (35.0 - 25.0);
+  samples::FtSample fresh = rig.ft(warm);
+  fresh.temperature_valid = true;
+  fresh.temperature_C = 35.0;
+  samples::FtSample stale = rig.ft(warm);
+  stale.temperature_stale = true;  // temperature_valid false, as the sensor reports it
+  c.add_ft(fresh);
+  for (int i = 0; i < 10; ++i) rig.cycle(c, warm);
+  ASSERT_TRUE(c.last().temperature_measured);
+  EXPECT_EQ(c.last().flags & kTemperatureStale, 0u);
+  EXPECT_NEAR(c.last().contact[0], 0.0, 1e-6);
+  EXPECT_EQ(c.counters().temperature_stale_cycles, 0u);
+
+  c.add_ft(stale);
+  rig.cycle(c, warm);
+  EXPECT_FALSE(c.last().temperature_measured);
+  EXPECT_DOUBLE_EQ(c.last().temperature_C, test_cycle_config().temperature_C);
+  EXPECT_NE(c.last().flags & kTemperatureStale, 0u);
+  // Cycles whose samples say nothing about the temperature keep it stale (not the old reading).
+  for (int i = 0; i < 9; ++i) rig.cycle(c, warm);
+  EXPECT_FALSE(c.last().temperature_measured);
+  EXPECT_NE(c.last().flags & kTemperatureStale, 0u);
+  EXPECT_NEAR(c.last().contact[0], 20.0, 1e-6);  // the model's row has the configured 25 °C
+  EXPECT_EQ(c.counters().temperature_stale_cycles, 10u);
+  EXPECT_EQ(c.state_machine().state(), State::idle);  // not a fault
+  EXPECT_EQ(c.last().flags & kNotReady, 0u);
+
+  // A stale sample and a fresh one in the same cycle: the latest wins.
+  c.add_ft(stale);
+  c.add_ft(fresh);
+  for (int i = 0; i < 10; ++i) rig.cycle(c, warm);
+  EXPECT_TRUE(c.last().temperature_measured);
+  EXPECT_DOUBLE_EQ(c.last().temperature_C, 35.0);
+  EXPECT_EQ(c.last().flags & kTemperatureStale, 0u);
+  EXPECT_NEAR(c.last().contact[0], 0.0, 1e-6);
+  EXPECT_EQ(c.counters().temperature_stale_cycles, 10u);
+}
+
 TEST(Cycle, SensorsThatHaveNotStartedYetMeanNotReadyNotAFault) {
   Cycle c;
   ASSERT_EQ(c.configure(test_cycle_config(), payload_model()).text(), "");

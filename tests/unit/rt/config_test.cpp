@@ -246,6 +246,35 @@ TEST(RtConfig, FtThermistorConversionIsBothNumbersOrNeither) {
                {"ft.thermistor_period_s", line, 0, "in [0, 3600]"});
 }
 
+// The thermistor reading's maximum age: three periods by default, in sample requests for the
+// sensor; not more than the period is refused (every reading would expire before the next).
+TEST(RtConfig, FtThermistorMaxAgeIsThreePeriodsByDefaultAndMoreThanOne) {
+  const std::string s = sample_text();
+  const RtConfig defaults = parse_config(s, "rt.toml");
+  EXPECT_DOUBLE_EQ(defaults.ft.thermistor_max_age_s, 3.0);
+  EXPECT_EQ(netcanoem_config(defaults.ft).thermistor_max_age_polls, 1500);  // 3 s at 500 Hz
+  const RtConfig half = parse_config(
+      with_line(s, "thermistor_period_s = 1.0", "thermistor_period_s = 0.5"), "rt.toml");
+  EXPECT_DOUBLE_EQ(half.ft.thermistor_max_age_s, 1.5);
+  const RtConfig given =
+      parse_config(with_line(s, "thermistor_period_s = 1.0",
+                             "thermistor_period_s = 1.0\nthermistor_max_age_s = 2.5"),
+                   "rt.toml");
+  EXPECT_DOUBLE_EQ(given.ft.thermistor_max_age_s, 2.5);
+  EXPECT_EQ(netcanoem_config(given.ft).thermistor_max_age_polls, 1250);
+  const RtConfig off =
+      parse_config(with_line(s, "thermistor_period_s = 1.0", "thermistor_period_s = 0"), "rt.toml");
+  EXPECT_GT(netcanoem_config(off.ft).thermistor_max_age_polls, 0);
+  const int line = line_of(s, "thermistor_period_s = 1.0");
+  expect_error(
+      with_line(s, "thermistor_period_s = 1.0",
+                "thermistor_period_s = 1.0\nthermistor_max_age_s = 1.0"),
+      {"ft.thermistor_max_age_s", line + 1, 0, "must be more than ft.thermistor_period_s"});
+  expect_error(with_line(s, "thermistor_period_s = 1.0",
+                         "thermistor_period_s = 1.0\nthermistor_max_age_s = 0"),
+               {"ft.thermistor_max_age_s", line + 1, 0, "in (0, 10800]"});
+}
+
 TEST(RtConfig, FtTransportIsSocketCanByDefaultOrTheLocalBusSocket) {
   const std::string s = sample_text();
   const RtConfig sample = parse_config(s, "rt.toml");

@@ -6,7 +6,10 @@
 #include <sys/stat.h>
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "rt_fixtures.hpp"
@@ -133,6 +136,79 @@ TEST(RecordCsv, ReadsBackWhatItWrites) {
   for (const loop::CycleRecord& r : back) io::append_record_row(r, again);
   EXPECT_EQ(again, text);
   EXPECT_THROW(io::read_cycles_csv(dir.path() / "missing.csv"), std::runtime_error);
+}
+
+// The temperature the model was fed (temp_C, °C) and whether it was the F/T sensor's reading
+// (temp_measured) read back; an unknown temperature (NaN: a record read from an older file) is
+// an empty cell and reads back as NaN.
+TEST(RecordCsv, TemperatureColumnsReadBack) {
+  test::TempDir dir;
+  loop::CycleRecord measured = record(7, 0.084), configured = record(8, 0.096),
+                    unknown = record(9, 0.108);
+  measured.temperature_C = 31.25;
+  measured.temperature_measured = true;
+  measured.temperature_age_s = 0.375;
+  configured.temperature_C = 25.0;  // the configured one (e.g. the reading went stale)
+  configured.flags = loop::kTemperatureStale;
+  unknown.temperature_C = std::numeric_limits<double>::quiet_NaN();
+  std::string text;
+  io::append_record_header(text);
+  for (const loop::CycleRecord& r : {measured, configured, unknown}) io::append_record_row(r, text);
+  const std::vector<std::string> lines = lines_of(text);
+  ASSERT_EQ(lines.size(), 4u);
+  const auto cell = [&](std::size_t row, const std::string& name) {
+    const std::vector<std::string> header = split(lines[0], ',');
+    const std::vector<std::string> cells = split(lines[row], ',');
+    const auto at = std::find(header.begin(), header.end(), name);
+    EXPECT_NE(at, header.end()) << name;
+    return at == header.end() ? std::string("?") : cells.at(at - header.begin());
+  };
+  EXPECT_EQ(cell(1, "temp_C"), "31.25");
+  EXPECT_EQ(cell(1, "temp_measured"), "1");
+  EXPECT_EQ(cell(2, "temp_C"), "25");
+  EXPECT_EQ(cell(2, "temp_measured"), "0");
+  EXPECT_EQ(cell(3, "temp_C"), "");
+  const fs::path file = dir.path() / "cycles.csv";
+  io::write_file_atomic(file, text);
+  const std::vector<loop::CycleRecord> back = io::read_cycles_csv(file);
+  ASSERT_EQ(back.size(), 3u);
+  EXPECT_EQ(back[0].temperature_C, 31.25);
+  EXPECT_TRUE(back[0].temperature_measured);
+  EXPECT_EQ(back[1].temperature_C, 25.0);
+  EXPECT_FALSE(back[1].temperature_measured);
+  EXPECT_EQ(back[1].flags, static_cast<std::uint32_t>(loop::kTemperatureStale));
+  EXPECT_TRUE(std::isnan(back[2].temperature_C));
+  EXPECT_FALSE(back[2].temperature_measured);
+}
+
+// cycles.csv files written before the temperature columns (real recordings exist) still read:
+// the temperature is unknown (NaN), not measured; everything else as before.
+TEST(RecordCsv, ReadsOlderFilesWithoutTheTemperatureColumns) {
+  test::TempDir dir;
+  std::string text;
+  io::append_record_header(text);
+  io::append_record_row(record(7, 0.084), text);
+  // Drop the two columns from header and row, as an older writer wrote them.
+  std::vector<std::vector<std::string>> rows;
+  for (const std::string& line : lines_of(text)) rows.push_back(split(line, ','));
+  const auto at = std::find(rows[0].begin(), rows[0].end(), "temp_C") - rows[0].begin();
+  ASSERT_LT(static_cast<std::size_t>(at), rows[0].size());
+  std::string old;
+  for (std::vector<std::string>& r : rows) {
+    r.erase(r.begin() + at, r.begin() + at + 2);
+    for (std::size_t i = 0; i < r.size(); ++i) old += (i ? "," : "") + r[i];
+    old += '\n';
+  }
+  ASSERT_EQ(old.find("temp_"), std::string::npos);
+  const fs::path file = dir.path() / "old_cycles.csv";
+  io::write_file_atomic(file, old);
+  const std::vector<loop::CycleRecord> back = io::read_cycles_csv(file);
+  ASSERT_EQ(back.size(), 1u);
+  EXPECT_EQ(back[0].cycle, 7u);
+  EXPECT_EQ(back[0].contact, record(7, 0.084).contact);
+  EXPECT_EQ(back[0].compute_ns, 1234);
+  EXPECT_TRUE(std::isnan(back[0].temperature_C));
+  EXPECT_FALSE(back[0].temperature_measured);
 }
 
 TEST(Recorder, WritesALogThatReadsBackAndCyclesCsvAndRenamesOnlyAtTheEnd) {

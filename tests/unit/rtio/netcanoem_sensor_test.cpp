@@ -432,6 +432,94 @@ TEST_F(NetcanoemSensorTest, LostThermistorAnswersAreCountedNotFatal) {
   bus_.set_responder(nullptr);
 }
 
+// A board that stops answering the thermistor reads (the samples go on): the held reading is
+// used up to thermistor_max_age_polls sample requests after its read, then it is stale: no
+// temperature any more (temperature_valid false, temperature_stale), counted once; the next
+// answer makes it fresh again. Read every 2nd poll, at most 5 polls old.
+TEST_F(NetcanoemSensorTest, ThermistorReadingExpiresWhenTheBoardStopsAnsweringAndRecovers) {
+  board_config_.temperature_C = 31.5;
+  NetcanoemConfig c = config();
+  c.thermistor_every_polls = 2;
+  c.thermistor_max_age_polls = 5;
+  c.thermistor = board_config_.thermistor;
+  NetcanoemSensor sensor(bus_, c);
+  ASSERT_EQ(sensor.start(), FtStartStatus::ok);
+  const double count = board_config_.thermistor.celsius_per_count;
+  FtSample s;
+  for (int p = 1; p <= 4; ++p) ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample) << p;
+  ASSERT_TRUE(s.temperature_valid);  // the read of poll 3, taken in poll 4
+  EXPECT_FALSE(s.temperature_stale);
+  emu::AtiBoardQuirks quiet;
+  quiet.no_diagnostic_response = true;
+  set_quirks(quiet);
+  // Polls 5–8: the reading of poll 3 is at most 5 polls old: still used.
+  for (int p = 5; p <= 8; ++p) {
+    ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample) << p;
+    EXPECT_TRUE(s.temperature_valid) << p;
+    EXPECT_FALSE(s.temperature_stale) << p;
+    EXPECT_NEAR(s.temperature_C, 31.5, 0.5 * count) << p;
+  }
+  EXPECT_EQ(sensor.counters().thermistor_expired, 0u);
+  // Poll 9: 6 polls old, stale; the samples themselves are fine.
+  board().set_temperature(40.0);
+  ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
+  EXPECT_TRUE(s.valid);
+  EXPECT_FALSE(s.temperature_valid);
+  EXPECT_TRUE(s.temperature_stale);
+  EXPECT_TRUE(s.thermistor_valid);  // the raw counts of the old reading stay for diagnosis
+  EXPECT_EQ(sensor.counters().thermistor_expired, 1u);
+  set_quirks({});
+  // Polls 10, 11: still stale (counted once); poll 11 reads it, answered again.
+  for (int p = 10; p <= 11; ++p) {
+    ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample) << p;
+    EXPECT_TRUE(s.temperature_stale) << p;
+    EXPECT_FALSE(s.temperature_valid) << p;
+  }
+  ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);  // poll 12: poll 11's answer, fresh
+  EXPECT_TRUE(s.temperature_valid);
+  EXPECT_FALSE(s.temperature_stale);
+  EXPECT_NEAR(s.temperature_C, 40.0, 0.5 * count);
+  const FtCounters counters = sensor.counters();
+  EXPECT_EQ(counters.thermistor_expired, 1u);
+  EXPECT_EQ(counters.thermistor_lost, 3u);  // polls 5, 7, 9: unanswered when the next was due
+  EXPECT_EQ(counters.samples, 12u);
+  EXPECT_EQ(counters.timeouts, 0u);
+}
+
+// A board that never answers them: no reading this many polls after start() is stale too (the
+// configured conversion says a temperature is expected). A maximum age not above the read
+// period would expire every reading: refused.
+TEST_F(NetcanoemSensorTest, ThermistorNeverAnsweredIsStaleAfterTheMaximumAge) {
+  NetcanoemConfig c = config();
+  c.thermistor_every_polls = 2;
+  c.thermistor_max_age_polls = 5;
+  c.thermistor = board_config_.thermistor;
+  emu::AtiBoardQuirks quiet;
+  quiet.no_diagnostic_response = true;
+  set_quirks(quiet);
+  NetcanoemSensor sensor(bus_, c);
+  ASSERT_EQ(sensor.start(), FtStartStatus::ok);
+  FtSample s;
+  for (int p = 1; p <= 5; ++p) {
+    ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample) << p;
+    EXPECT_FALSE(s.temperature_valid) << p;
+    EXPECT_FALSE(s.temperature_stale) << p;
+  }
+  ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
+  EXPECT_TRUE(s.temperature_stale);
+  EXPECT_EQ(sensor.counters().thermistor_expired, 1u);
+  // Without a conversion there is no temperature to expire.
+  NetcanoemConfig raw = c;
+  raw.thermistor.reset();
+  NetcanoemSensor counts_only(bus_, raw);
+  ASSERT_EQ(counts_only.start(), FtStartStatus::ok);
+  for (int p = 1; p <= 8; ++p) ASSERT_EQ(counts_only.read_sample(s), FtReadStatus::sample) << p;
+  EXPECT_FALSE(s.temperature_stale);
+  EXPECT_EQ(counts_only.counters().thermistor_expired, 0u);
+  c.thermistor_max_age_polls = 2;
+  EXPECT_EQ(NetcanoemSensor(bus_, c).start(), FtStartStatus::bad_config);
+}
+
 // Without a conversion the reading stays raw counts; an answer nobody asked for (reads off, or
 // someone else's read of another channel) and a 0x9 frame of a wrong length are counted and
 // ignored.

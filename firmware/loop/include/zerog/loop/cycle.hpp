@@ -76,6 +76,7 @@ struct CycleConfig {
   /// Sensor temperature fed to the model until the F/T sensor reports its own (FtSample::
   /// temperature_valid: the NETCANOEM thermistor with a configured conversion), and always when
   /// it never does. The sensor's reading wins: it is the temperature of the part that drifts.
+  /// A reading the sensor reports stale (too old) is dropped: this value again, kTemperatureStale.
   double temperature_C = 25.0;
   WatchdogConfig watchdog;
   control::BodyParams body;      ///< the virtual body
@@ -169,6 +170,10 @@ enum CycleFlags : std::uint32_t {
   /// No RIst and no robot configured: the message has no pose. It is answered (zero, its IPOC)
   /// but counts as a lost robot cycle (robot watchdog), and nothing else changes.
   kPoseMissing = 1u << 14,
+  /// The F/T sensor's temperature reading is older than its maximum age (samples::FtSample::
+  /// temperature_stale: the board stopped answering the thermistor reads): the model gets
+  /// CycleConfig::temperature_C again (temperature_measured false) until a fresh reading comes.
+  kTemperatureStale = 1u << 15,
 };
 
 /// Everything one cycle did: the black box, the recorder and telemetry take it. Fixed size.
@@ -198,7 +203,8 @@ struct CycleRecord {
   std::uint16_t ft_samples = 0;                ///< valid F/T samples averaged
   std::uint16_t imu_samples = 0;               ///< valid IMU samples averaged
   /// The temperature fed to the model this cycle, °C: the F/T sensor's latest reading when
-  /// temperature_measured, else CycleConfig::temperature_C.
+  /// temperature_measured, else CycleConfig::temperature_C (before the first reading, or while
+  /// the reading is stale: kTemperatureStale).
   double temperature_C = 25.0;
   bool temperature_measured = false;
   double temperature_age_s = 0.0;  ///< age of that reading when it came with a sample, s
@@ -247,6 +253,8 @@ struct CycleCounters {
   std::uint64_t poses_from_joints = 0;   ///< messages without RIst: pose by forward kinematics
   std::uint64_t pose_disagreements = 0;  ///< RIst and the kinematics disagreed (kPoseDisagrees)
   std::uint64_t poses_missing = 0;       ///< messages without RIst and no robot (kPoseMissing)
+  /// Cycles whose F/T temperature reading was stale (kTemperatureStale): configured one used.
+  std::uint64_t temperature_stale_cycles = 0;
 };
 
 /// The stages of one cycle and the data each keeps from cycle to cycle (proto/loop.md, "One
@@ -277,6 +285,7 @@ struct SensorWindow {
   bool have_temperature = false;  ///< an F/T sample of this window carried a temperature
   double temperature_C = 0.0;     ///< the latest of them, °C
   double temperature_age_s = 0.0;
+  bool temperature_stale = false;  ///< the latest said its temperature is stale (none then)
 };
 
 // --- per-cycle data, one part per stage ---------------------------------------------------------
@@ -299,6 +308,7 @@ struct RowData {
   bool have_temperature = false;  ///< the F/T sensor has reported a temperature (held since)
   double temperature_C = 0.0;
   double temperature_age_s = 0.0;
+  bool temperature_stale = false;  ///< ... and then said it is stale: dropped until the next
   Row& newest() { return rows[(total - 1) % kHistory]; }
   const Row& newest() const { return rows[(total - 1) % kHistory]; }
 };
@@ -354,7 +364,7 @@ struct SensorCounts {
 };
 
 struct RowResult {
-  std::uint32_t flags = 0;  ///< kFtHeld, kImuHeld, kFtWarning, kPoseFromJoints, kPoseDisagrees
+  std::uint32_t flags = 0;  ///< kFtHeld, kImuHeld, kFtWarning, kPose…, kTemperatureStale
   Eigen::Matrix3d R_base_sensor = Eigen::Matrix3d::Identity();  ///< the new row's, S in B
   double pose_check_m = 0.0;  ///< RIst against the kinematics (CycleRecord::pose_check_*)
   double pose_check_rad = 0.0;

@@ -67,6 +67,10 @@ struct FtSection {
   double sample_timeout_ms = 2.0;    ///< request → both response frames
   /// Thermistor reads (opcode 0x9, index 2) between the sample requests, s; 0: none.
   double thermistor_period_s = 1.0;
+  /// A reading older than this (or none this long after start-up) is stale: the model gets
+  /// [model] temperature_C again, flagged and counted (proto/rt_config.md). s; default three
+  /// periods; more than thermistor_period_s.
+  double thermistor_max_age_s = 3.0;
   /// thermistor_C_at_zero_counts and thermistor_C_per_count (both or neither). UNVERIFIED: no
   /// datasheet default. Empty: raw counts only, the model gets [model] temperature_C.
   std::optional<proto::netcanoem::ThermistorConversion> thermistor;

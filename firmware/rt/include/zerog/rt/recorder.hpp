@@ -26,7 +26,8 @@ struct RecorderOptions {
   std::filesystem::path blackbox_dir = ".";  ///< black-box dumps when there is no record dir
   io::Rig rig;                               ///< written beside the log (sample period = cycle)
   /// The log gets temp_C, the F/T sensor's temperature ([ft] thermistor conversion configured);
-  /// rows before its first reading are skipped (counted skipped_no_temperature).
+  /// rows before its first reading, or while it is stale (loop::kTemperatureStale), are skipped
+  /// (counted skipped_no_temperature).
   bool temperature = false;
 };
 
@@ -35,7 +36,7 @@ struct RecorderCounters {
   std::uint64_t log_rows = 0;                ///< rows of run.csv
   std::uint64_t skipped_stale = 0;           ///< duplicate/reordered IPOC: no new log row
   std::uint64_t skipped_no_samples = 0;      ///< before the first F/T and IMU sample arrived
-  std::uint64_t skipped_no_temperature = 0;  ///< with temp_C: before the first temperature
+  std::uint64_t skipped_no_temperature = 0;  ///< with temp_C: no (fresh) temperature
   std::uint64_t rejected = 0;                ///< rows the log writer refused (non-finite value)
   std::uint64_t black_boxes = 0;             ///< black-box dumps written
 };

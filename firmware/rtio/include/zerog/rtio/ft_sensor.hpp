@@ -62,6 +62,9 @@ struct FtCounters {
   std::uint64_t thermistor_readings = 0;  ///< answers taken
   /// Reads unanswered when the next one was due (a late answer then counts as unrequested).
   std::uint64_t thermistor_lost = 0;
+  /// Times the temperature went stale (FtSample::temperature_stale): the latest reading (or
+  /// start-up, if none came) got older than the maximum age. Once per stale spell.
+  std::uint64_t thermistor_expired = 0;
   std::uint64_t thermistor_wrong_length = 0;  ///< 0x9 frames neither request nor response
   std::uint64_t thermistor_unrequested = 0;   ///< 0x9 answers with no read of ours open
 };

@@ -35,6 +35,11 @@ struct NetcanoemConfig {
   /// Thermistor counts → °C. Empty: the readings stay raw counts (FtSample::thermistor_counts)
   /// and no temperature is reported. UNVERIFIED: there is no datasheet conversion to default to.
   std::optional<proto::netcanoem::ThermistorConversion> thermistor;
+  /// With a conversion and reads on: a reading older than this many sample requests (or none
+  /// this many requests after start()) is stale (FtSample::temperature_stale, temperature_valid
+  /// false; counted thermistor_expired), until the next reading. Must exceed
+  /// thermistor_every_polls (1500: three reads at the default).
+  int thermistor_max_age_polls = 1500;
 };
 
 class NetcanoemSensor final : public FtSensor {
@@ -83,6 +88,8 @@ class NetcanoemSensor final : public FtSensor {
   // After poll_'s sample request: sends the thermistor read when one is due.
   void request_thermistor();
   void fill_temperature(FtSample& out) const;
+  // After poll_'s sample request: the reading (or start()) older than the maximum age is stale.
+  void check_thermistor_age();
 
   CanBus& bus_;
   NetcanoemConfig config_;
@@ -105,6 +112,8 @@ class NetcanoemSensor final : public FtSensor {
   bool have_thermistor_ = false;  // a reading came since start()
   std::uint16_t thermistor_counts_ = 0;
   std::int64_t thermistor_rx_ns_ = 0;  // receive time of that reading
+  std::uint64_t thermistor_poll_ = 0;  // poll_ when that reading (or start()) came
+  bool thermistor_stale_ = false;      // older than thermistor_max_age_polls
 };
 
 }  // namespace zerog::rtio

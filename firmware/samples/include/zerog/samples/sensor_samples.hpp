@@ -38,6 +38,11 @@ struct FtSample {
   double temperature_C = 0.0;  ///< sensor temperature of that reading, °C
   /// timestamp_ns − receive time of that reading, s (0 when either time is unknown).
   double temperature_age_s = 0.0;
+  /// A temperature is expected (a conversion configured, reads on) but the latest reading is
+  /// older than the device's maximum age (NETCANOEM: thermistor_max_age_polls sample requests;
+  /// or none came that long after start-up): temperature_valid is false, the reading is not to
+  /// be used any more. Cleared by the next reading.
+  bool temperature_stale = false;
 };
 
 /// One IMU sample in SI units, in the IMU's axes. Fixed size, trivially copyable.

@@ -81,6 +81,8 @@ struct AtiBoardQuirks {
   int ignore_requests = 0;          ///< ignore this many requests first (counts down)
   bool wrong_echo = false;          ///< echo another calibration index than requested
   bool no_sample_response = false;  ///< answer a sample request with before_sample only
+  /// Leave diagnostic reads (opcode 0x9, the thermistor among them) unanswered; samples go on.
+  bool no_diagnostic_response = false;
   /// Sent before each sample response (strays, wrong lengths, error frames, …).
   std::array<proto::CanFrame, 4> before_sample{};
   std::size_t before_sample_count = 0;  ///< 0–4

@@ -28,13 +28,15 @@ enum class FaultKind : std::uint8_t {
   ft_slow,          ///< the F/T board answers `response_delay_ms` late for `duration_s`
   ft_critical,      ///< status word with a critical bit for `duration_s`
   ft_saturated,     ///< gauge SG0 at its rail for `duration_s`
-  imu_garbage,      ///< random bytes instead of datagrams for `duration_s`
-  imu_crc,          ///< datagrams with a wrong CRC for `duration_s`
-  imu_gaps,         ///< every other datagram left out for `duration_s`
-  imu_silent,       ///< no datagrams for `duration_s`
-  imu_unplug,       ///< the pty closes; re-plugged after `duration_s` if given
+  /// the F/T board leaves its thermistor reads (opcode 0x9) unanswered for `duration_s`
+  ft_thermistor_silent,
+  imu_garbage,  ///< random bytes instead of datagrams for `duration_s`
+  imu_crc,      ///< datagrams with a wrong CRC for `duration_s`
+  imu_gaps,     ///< every other datagram left out for `duration_s`
+  imu_silent,   ///< no datagrams for `duration_s`
+  imu_unplug,   ///< the pty closes; re-plugged after `duration_s` if given
 };
-inline constexpr int kFaultKindCount = 15;
+inline constexpr int kFaultKindCount = 16;
 
 struct FaultKindInfo {
   FaultKind kind;
