@@ -302,9 +302,9 @@ void Cycle::keep_record() noexcept {
 }
 
 void Cycle::step(const proto::rsi::RobotMessage& m, CycleReply& reply) noexcept {
-  samples::RobotCorrection correction;
-  step(proto::rsi::robot_sample_from_message(m), correction);
-  // The border's one conversion of the reply (the record keeps it in SI).
+  run(proto::rsi::robot_sample_from_message(m));
+  // The border's one conversion of the reply, from the record's (SI).
+  const samples::RobotCorrection& correction = record_.reply;
   const proto::rsi::Reply r = proto::rsi::reply_from_correction(correction);
   reply.axis = correction.axis();
   reply.ipoc = correction.ipoc;
@@ -313,12 +313,17 @@ void Cycle::step(const proto::rsi::RobotMessage& m, CycleReply& reply) noexcept 
 }
 
 void Cycle::step(const samples::RobotSample& m, samples::RobotCorrection& correction) noexcept {
-  // A cycle that ends early answers a zero correction with this IPOC (kept in the record too).
-  // The full cycle writes the correction once, at its end.
-  const auto answer_zero = [&m, &correction, this]() noexcept {
-    correction = samples::RobotCorrection{};
-    correction.ipoc = m.ipoc;
-    record_.reply = correction;
+  run(m);
+  correction = record_.reply;
+}
+
+void Cycle::run(const samples::RobotSample& m) noexcept {
+  // The answer is the record's reply (the record keeps the reply sent). A cycle that ends early
+  // answers a zero correction with this IPOC; the full cycle, run_motion's correction.
+  samples::RobotCorrection& reply = record_.reply;
+  const auto answer_zero = [&m, &reply]() noexcept {
+    reply = samples::RobotCorrection{};
+    reply.ipoc = m.ipoc;
   };
   ++cycle_;
   ++counters_.messages;
@@ -375,8 +380,8 @@ void Cycle::step(const samples::RobotSample& m, samples::RobotCorrection& correc
   publish_outcome(command, motion.command_accepted);
   raise(motion.fault);
   // In fault, every reply is a zero correction (proto/loop.md, "Watchdogs").
-  correction = sm_.state() == State::fault ? samples::RobotCorrection{} : motion.correction;
-  correction.ipoc = m.ipoc;
+  reply = sm_.state() == State::fault ? samples::RobotCorrection{} : motion.correction;
+  reply.ipoc = m.ipoc;
   stages::make_record({.cycle = cycle_,
                        .message = m,
                        .timing = timing,
@@ -385,7 +390,6 @@ void Cycle::step(const samples::RobotSample& m, samples::RobotCorrection& correc
                        .model = model,
                        .model_data = data_.model,
                        .motion = motion,
-                       .reply = correction,
                        .sm = sm_,
                        .zero_g = motion_},
                       record_);

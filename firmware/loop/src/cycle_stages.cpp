@@ -440,7 +440,6 @@ void make_record(const RecordInputs& in, CycleRecord& record) noexcept {
   record.wrench_at_eval = model_data.wrench_at_eval;
   record.predicted = model.predicted;
   record.contact = model.contact;
-  record.reply = in.reply;
   record.body = in.zero_g.body().state();
   record.compute_ns = 0;
 }

@@ -388,7 +388,7 @@ struct PendingCommand {
 };
 
 struct MotionResult {
-  samples::RobotCorrection correction;  ///< the answer (zero in fault)
+  samples::RobotCorrection correction;  ///< the answer, IPOC 0 (zero in fault)
   std::uint32_t flags = 0;              ///< kCommandRefused, kCollectionDone
   std::uint32_t limit_flags = 0;        ///< control::LimitFlags of the zero-g step
   bool command_accepted = false;        ///< for the command's outcome
@@ -455,8 +455,8 @@ struct MotionState {
 MotionResult run_motion(const CycleConfig& config, const MotionInputs& in,
                         const MotionState& state) noexcept;
 
-/// What make_record() reads: every stage's output, the reply sent (the motion's correction, or
-/// none in fault) and the state after the cycle. References, as MotionInputs.
+/// What make_record() reads: every stage's output and the state after the cycle. References, as
+/// MotionInputs.
 struct RecordInputs {
   std::uint64_t cycle;
   const samples::RobotSample& message;
@@ -466,13 +466,13 @@ struct RecordInputs {
   const ModelResult& model;
   const ModelData& model_data;
   const MotionResult& motion;
-  const samples::RobotCorrection& reply;  ///< SI, as handed to zerog::rtio
   const StateMachine& sm;
   const control::ZeroGMotion& zero_g;
 };
 
-/// The cycle's record from `in`, the reply kept in SI (no conversion in the cycle). compute_ns
-/// is 0 (the program fills it in).
+/// The cycle's record from `in`, except `record.reply`: Cycle::step writes the reply sent there
+/// (SI, no conversion in the cycle) and make_record leaves it. compute_ns is 0 (the program
+/// fills it in).
 void make_record(const RecordInputs& in, CycleRecord& record) noexcept;
 
 }  // namespace stages
@@ -574,6 +574,8 @@ class Cycle {
   void pose_missing() noexcept;
   /// A message not newer than the last one (kIpocStale): answered (zero), nothing else.
   void stale_message() noexcept;
+  /// One cycle for message `m`; its answer (SI) is record_.reply, which both step()s hand on.
+  void run(const samples::RobotSample& m) noexcept;
   /// The pending command (request()), taken for this cycle.
   stages::PendingCommand take_command() noexcept;
   void publish_outcome(const stages::PendingCommand& c, bool accepted) noexcept;
