@@ -34,13 +34,17 @@ BlockStats::BlockStats(const Dataset& data, SampleBlocks blocks, const model::Ef
   sensor_.reserve(blocks_.size());
   R_mean_.reserve(blocks_.size());
   std::size_t longest = 1;
-  for (const auto& [first, count] : blocks_) {
-    sensor_.push_back(block_sensor_means(data, first, count));
-    Eigen::Matrix3d R = Eigen::Matrix3d::Zero();
-    const double inv_n = 1.0 / static_cast<double>(count);
-    for (std::size_t i = first; i < first + count; ++i) R += data.pose(i).R_base_sensor * inv_n;
-    R_mean_.push_back(R);
-    longest = std::max(longest, count);
+  {
+    ResidentWindow window(data);
+    for (const auto& [first, count] : blocks_) {
+      window.advance(first + count);
+      sensor_.push_back(block_sensor_means(data, first, count));
+      Eigen::Matrix3d R = Eigen::Matrix3d::Zero();
+      const double inv_n = 1.0 / static_cast<double>(count);
+      for (std::size_t i = first; i < first + count; ++i) R += data.pose(i).R_base_sensor * inv_n;
+      R_mean_.push_back(R);
+      longest = std::max(longest, count);
+    }
   }
   // payload_wrench reads the IMU only for the inertia effects (Dataset::imu_at: none without IMU).
   imu_ = data.columns.any_imu() && (effects.has(model::Effect::linear_inertia) ||
@@ -51,7 +55,9 @@ BlockStats::BlockStats(const Dataset& data, SampleBlocks blocks, const model::Ef
   partial_.assign((n / kCheckpointRows + 1) * kChannels, 0.0);
   total_.assign((n / segment_ + 1) * kChannels, 0.0);
   Channels sum = Channels::Zero();
+  ResidentWindow window(data);
   for (std::size_t j = 0; j < n; ++j) {
+    window.advance(j + 1);
     sum += row_channels(j);
     const std::size_t next = j + 1;
     if (next % segment_ == 0 || next == n) {

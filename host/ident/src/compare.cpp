@@ -35,8 +35,11 @@ ErrorStats ErrorAccumulator::stats() const {
 
 std::vector<Wrench> residuals(const model::ModelParams& params, const Dataset& data) {
   std::vector<Wrench> out(data.size());
-  for (std::size_t i = 0; i < data.size(); ++i)
+  ResidentWindow window(data);
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    window.advance(i + 1);
     out[i] = data.measured[i] - predict(params, data, i);
+  }
   return out;
 }
 
@@ -45,10 +48,14 @@ Comparison compare(const std::vector<Wrench>& res, const Dataset& data,
   Comparison c;
   ErrorAccumulator all, stat, moving;
   auto use = [&](std::size_t i) { return mask == nullptr || (*mask)[i] != 0; };
-  for (std::size_t i = 0; i < data.size(); ++i) {
-    if (!use(i)) continue;
-    all.add(res[i]);
-    (data.moving[i] ? moving : stat).add(res[i]);
+  {
+    ResidentWindow window(data);
+    for (std::size_t i = 0; i < data.size(); ++i) {
+      window.advance(i);
+      if (!use(i)) continue;
+      all.add(res[i]);
+      (data.moving[i] ? moving : stat).add(res[i]);
+    }
   }
   c.all = all.stats();
   c.stat = stat.stats();
@@ -58,7 +65,9 @@ Comparison compare(const std::vector<Wrench>& res, const Dataset& data,
   if (data.columns.joints) {
     for (int j = 0; j < 6; ++j) {
       double lo = 1e300, hi = -1e300;
+      ResidentWindow window(data);
       for (std::size_t i = 0; i < data.size(); ++i) {
+        window.advance(i);
         if (!use(i)) continue;
         lo = std::min(lo, data.joints_rad[i][j]);
         hi = std::max(hi, data.joints_rad[i][j]);
@@ -68,7 +77,9 @@ Comparison compare(const std::vector<Wrench>& res, const Dataset& data,
       jb.joint = j;
       for (int b = 0; b <= bins; ++b) jb.edges_rad.push_back(lo + (hi - lo) * b / bins);
       std::vector<ErrorAccumulator> acc(bins);
+      ResidentWindow bin_window(data);
       for (std::size_t i = 0; i < data.size(); ++i) {
+        bin_window.advance(i);
         if (!use(i)) continue;
         int b = static_cast<int>((data.joints_rad[i][j] - lo) / (hi - lo) * bins);
         b = std::clamp(b, 0, bins - 1);
@@ -104,7 +115,9 @@ Comparison compare(const std::vector<Wrench>& res, const Dataset& data,
 SegmentStats segment_stats(const std::vector<Wrench>& res, const Dataset& data,
                            const std::vector<std::uint8_t>* mask) {
   ErrorAccumulator all, stat, moving;
+  ResidentWindow window(data);
   for (std::size_t i = 0; i < data.size(); ++i) {
+    window.advance(i);
     if (mask != nullptr && (*mask)[i] == 0) continue;
     all.add(res[i]);
     (data.moving[i] ? moving : stat).add(res[i]);
@@ -122,7 +135,10 @@ Floors floors(const model::ModelParams& truth, const Dataset& data, const Datase
     throw std::runtime_error("the noise-free log has " + std::to_string(clean->size()) +
                              " rows, the log " + std::to_string(data.size()) +
                              ": they are not of the same run");
+  ResidentWindow window(data), clean_window(*clean);
   for (std::size_t i = 0; i < data.size(); ++i) {
+    window.advance(i);
+    clean_window.advance(i);
     const double dw = (clean->measured[i] - data.measured[i]).cwiseAbs().maxCoeff();
     if (std::abs(clean->t_s[i] - data.t_s[i]) > 1e-9 * (1.0 + std::abs(data.t_s[i])) ||
         dw > 1e-9 * (1.0 + data.measured[i].cwiseAbs().maxCoeff()))
@@ -133,8 +149,12 @@ Floors floors(const model::ModelParams& truth, const Dataset& data, const Datase
   // The noisy wrench of the log against the true model on the noise-free signals; the log's own
   // motion flags (the same poses, so the same flags).
   f.sensor_residuals.resize(data.size());
-  for (std::size_t i = 0; i < data.size(); ++i)
+  ResidentWindow sensor_window(data), sensor_clean_window(*clean);
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    sensor_window.advance(i);
+    sensor_clean_window.advance(i + 1);
     f.sensor_residuals[i] = data.measured[i] - predict(truth, *clean, i);
+  }
   f.sensor = segment_stats(f.sensor_residuals, data, mask);
   return f;
 }

@@ -44,6 +44,12 @@ void DatasetBuilder::add(const io::Sample& s) {
   d_.moving.push_back(0);
   d_.p_base_sensor_m.push_back(s.p_base_sensor_m);
   ++n_;
+  // A spilled dataset keeps a window of rows behind the one added (differences read the previous
+  // sample from previous_, not from the columns).
+  if (const std::size_t w = spill::settings().window_rows; n_ % w == 0 && n_ >= 2 * w) {
+    d_.release_rows(released_, n_ - w);
+    released_ = n_ - w;
+  }
   // Rows without time are independent held poses: nothing is differenced across them, rates
   // and accelerations not measured stay zero, and no row moves.
   if (columns.static_rows) return;
@@ -69,11 +75,14 @@ Dataset DatasetBuilder::finish(const io::Rig& rig) {
   d.kinematics = rig.kinematics;
   d.imu_sampling = rig.imu_sampling;
   d.dt_s = (d.t_s.back() - d.t_s.front()) / static_cast<double>(n - 1);
+  d.release_rows(0, n);
   if (d.columns.static_rows) return std::move(d_);
   // Angular acceleration, unless the log has it (imu_dw*_radps2).
   if (differences_angular_rate(d)) angular_accel_from_rate(d);
   const std::size_t dilate = 3;
+  ResidentWindow window(d);
   for (std::size_t i = 0; i < n; ++i) {
+    window.advance(i + dilate);
     if (!raw_moving_[i]) continue;
     const std::size_t lo = i >= dilate ? i - dilate : 0;
     const std::size_t hi = std::min(n - 1, i + dilate);
@@ -130,7 +139,9 @@ void angular_accel_from_rate(Dataset& d) {
   // 5-point central differences (4th order) of the angular rate, 3-point one row from the ends,
   // zero on the first and last row.
   const std::size_t n = d.size();
+  ResidentWindow window(d);
   for (std::size_t i = 1; i + 1 < n; ++i) {
+    window.advance(i + 2);
     const int order = (i >= 2 && i + 2 < n) ? 4 : 2;
     Eigen::Map<Eigen::Vector3d>(&d.imu[i * 9 + 6]) =
         model::angular_accel_central(&d.imu[i * 9 + 3], 9, order, d.dt_s);
@@ -163,6 +174,40 @@ model::DictionarySignals Dataset::dictionary(std::size_t i) const {
   return model::dictionary_signals(in, rig);
 }
 
+void Dataset::release_rows(std::size_t first, std::size_t last) const {
+  last = std::min(last, size());
+  if (first >= last) return;
+  const auto rows = [&](const auto& column, std::size_t width) {
+    if (column.size() < last * width) return;
+    spill::release(column.data() + first * width, column.data() + last * width);
+  };
+  rows(t_s, 1);
+  rows(q_base_sensor, 1);
+  rows(temperature_C, 1);
+  rows(joints_rad, 1);
+  rows(imu, 9);
+  rows(measured, 1);
+  rows(moving, 1);
+  rows(p_base_sensor_m, 1);
+}
+
+void ResidentWindow::release_behind() {
+  const std::size_t to = end_ - window_;
+  data_->release_rows(released_, to);
+  released_ = to;
+}
+
+ResidentWindow::~ResidentWindow() {
+  if (!active_ || end_ <= released_) return;
+  // The most rows this walk held unreleased (at most two windows while advance releases).
+  std::size_t peak = spill::stats().peak_window_rows.load();
+  const std::size_t held = end_ - released_;
+  while (held > peak && !spill::stats().peak_window_rows.compare_exchange_weak(peak, held)) {
+  }
+  data_->release_rows(released_, end_);
+  ++spill::stats().walks;
+}
+
 std::size_t Dataset::bytes() const {
   const auto held = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
   return held(t_s) + held(q_base_sensor) + held(temperature_C) + held(joints_rad) + held(imu) +
@@ -185,7 +230,9 @@ std::vector<std::uint8_t> heldout_mask(const Dataset& data, double block_s, int 
   if (offset < 0) offset = every - 1;
   std::vector<std::uint8_t> mask(data.size(), 0);
   const double t0 = data.t_s.front();
+  ResidentWindow window(data);
   for (std::size_t i = 0; i < data.size(); ++i) {
+    window.advance(i);
     const long block = data.columns.static_rows
                            ? static_cast<long>(i)
                            : static_cast<long>(std::floor((data.t_s[i] - t0) / block_s));

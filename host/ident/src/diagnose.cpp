@@ -429,7 +429,11 @@ Screened screen(const Dataset& data, const Baseline& base, const Split& split,
     const bool trusted = f.usable && (decrease <= 1e-9 * ssr0 ||
                                       std::abs((ssr0 - ssr) / decrease - 1.0) <= kMaxModelError);
     if (f.usable) {
-      for (std::size_t i : heldout) res[i] = data.measured[i] - predict(f.params, data, i);
+      ResidentWindow window(data);
+      for (std::size_t i : heldout) {
+        window.advance(i + 1);
+        res[i] = data.measured[i] - predict(f.params, data, i);
+      }
       score(c, base, res, split, scale);
       out.candidates.emplace_back(std::move(c));
     } else {
@@ -543,7 +547,11 @@ std::vector<Feature> features(const Dataset& data) {
   const std::size_t n = data.size();
   auto add = [&](std::string name, auto fn) {
     Feature x{std::move(name), std::vector<double>(n)};
-    for (std::size_t i = 0; i < n; ++i) x.v[i] = fn(i);
+    ResidentWindow window(data);
+    for (std::size_t i = 0; i < n; ++i) {
+      window.advance(i + 1);
+      x.v[i] = fn(i);
+    }
     f.push_back(std::move(x));
   };
   if (!data.columns.static_rows)
@@ -743,7 +751,13 @@ std::optional<Discovery> discover_law(const Dataset& data, const Baseline& base,
   if (nt < 20 || nh < 5) return std::nullopt;
   const std::array<double, 6>& sigma = base.fit.sigma;  // block-mean whitening of the fit
   std::vector<model::DictionarySignals> sig(data.size());
-  for (std::size_t i = 0; i < data.size(); ++i) sig[i] = data.dictionary(i);
+  {
+    ResidentWindow window(data);
+    for (std::size_t i = 0; i < data.size(); ++i) {
+      window.advance(i + 1);
+      sig[i] = data.dictionary(i);
+    }
+  }
   const std::vector<FactorColumn> factors = dictionary_factors(data, sig);
 
   // Whitened block-mean residuals of the baseline, per axis: r[b * 6 + k].
@@ -780,7 +794,9 @@ std::optional<Discovery> discover_law(const Dataset& data, const Baseline& base,
       const double h = 1e-6 * std::max(1.0, std::abs(x0));
       for (int side = 0; side < 2; ++side) {
         *params[q] = x0 + (side == 0 ? h : -h);
+        ResidentWindow window(data);
         for (std::size_t b = 0; b < blocks.size(); ++b) {
+          window.advance(blocks[b].first + blocks[b].second);
           Wrench mean = Wrench::Zero();
           for (std::size_t i = blocks[b].first; i < blocks[b].first + blocks[b].second; ++i)
             mean += predict(p, data, i);

@@ -23,7 +23,9 @@ double fourth_difference_scale(const Dataset& data, int col) {
   if (n < 5) return 0.0;
   std::vector<double> d;
   d.reserve(n - 4);
+  ResidentWindow window(data);
   for (std::size_t i = 0; i + 4 < n; ++i) {
+    window.advance(i + 4);
     const auto x = [&](std::size_t k) {
       return data.imu[(i + k) * 9 + static_cast<std::size_t>(col)];
     };
@@ -80,8 +82,10 @@ class BlockPredictor {
     if (nu == 0) return;
     user_design_.assign(blocks_ * 6 * static_cast<std::size_t>(nu), 0.0);
     std::array<double, 6 * model::kMaxUserTerms> row{};
+    ResidentWindow window(data);
     for (std::size_t b = 0; b < blocks_; ++b) {
       const auto [first, count] = blocks[b];
+      window.advance(first + count);
       double* mean = &user_design_[b * 6 * static_cast<std::size_t>(nu)];
       for (std::size_t i = first; i < first + count; ++i) {
         model::user_design(params.user, data.dictionary(i), data.pose(i).R_base_sensor, row.data());
@@ -247,10 +251,15 @@ void correct_errors_in_variables(const Dataset& data, const FitOptions& o,
     model::ModelParams work = theta_hat;
     jacobian(logged, work, f, step, p0, J0);
     Dataset noisy = data;
+    noisy.release_rows(0, noisy.size());  // the copy walked every row (spill.hpp)
+    data.release_rows(0, data.size());
     std::mt19937_64 rng(0x5eed'e1f5ULL);
     std::normal_distribution<double> normal;
     for (int d = 0; d < kEivDraws; ++d) {
+      ResidentWindow window(data), noisy_window(noisy);
       for (std::size_t i = 0; i < data.size(); ++i) {
+        window.advance(i);
+        noisy_window.advance(i);
         for (int k = 0; k < 3; ++k) {
           noisy.imu[i * 9 + static_cast<std::size_t>(k)] =
               data.imu[i * 9 + static_cast<std::size_t>(k)] + s.noise.accel_mps2[k] * normal(rng);
@@ -326,7 +335,9 @@ void correct_errors_in_variables(const Dataset& data, const FitOptions& o,
   {
     std::array<double, 6> ss{};
     std::size_t n = 0;
+    ResidentWindow window(data);
     for (const auto& [first, count] : blocks) {
+      window.advance(first + count);
       for (std::size_t i = first; i < first + count; ++i, ++n) {
         const Wrench e = data.measured[i] - predict(r.params, data, i);
         for (int k = 0; k < 6; ++k) ss[k] += e[k] * e[k];

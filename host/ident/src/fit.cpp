@@ -241,7 +241,8 @@ class NormalBlocks final : public normal::BlockEvaluator {
   NormalBlocks(const Dataset& data, const BlockStats& stats, const model::ModelParams& start,
                const std::vector<Effect>& order, const std::vector<bool>& frozen,
                std::array<double, 6> inv_sigma, const std::vector<double>& user_design)
-      : stats_(stats),
+      : data_(data),
+        stats_(stats),
         order_(order),
         point_(start),
         num_user_(start.user.num_terms),
@@ -261,6 +262,23 @@ class NormalBlocks final : public normal::BlockEvaluator {
 
   std::size_t num_blocks() const override { return stats_.size(); }
   int num_params() const override { return n_; }
+  /// A worker's walk: the rows of its blocks through a ResidentWindow (spill.hpp).
+  std::unique_ptr<normal::BlockWalk> walk() const override {
+    class Rows final : public normal::BlockWalk {
+     public:
+      Rows(const Dataset& data, const BlockStats& stats) : window_(data), stats_(stats) {}
+      void at(std::size_t b) override {
+        const auto [first, count] = stats_.block(b);
+        window_.advance(first + count);
+      }
+
+     private:
+      ResidentWindow window_;
+      const BlockStats& stats_;
+    };
+    if (!data_.spilled()) return nullptr;
+    return std::make_unique<Rows>(data_, stats_);
+  }
   void set_point(const Eigen::VectorXd& x) override {
     for (const Free& f : free_)
       Eigen::Map<Eigen::VectorXd>(blocks_[f.block], f.size) = x.segment(f.column, f.size);
@@ -307,6 +325,7 @@ class NormalBlocks final : public normal::BlockEvaluator {
     int size;
     int column = 0;  // first column in the packed parameters
   };
+  const Dataset& data_;
   const BlockStats& stats_;
   std::vector<Effect> order_;
   model::ModelParams point_;
@@ -342,7 +361,9 @@ bool use(const FitOptions& o, std::size_t i) { return o.mask == nullptr || (*o.m
 void linear_init(const Dataset& data, const FitOptions& o, model::ModelParams& p) {
   Eigen::Matrix<double, 10, 10> A = Eigen::Matrix<double, 10, 10>::Zero();
   Eigen::Matrix<double, 10, 1> b = Eigen::Matrix<double, 10, 1>::Zero();
+  ResidentWindow window(data);
   for (std::size_t i = 0; i < data.size(); ++i) {
+    window.advance(i);
     if (!use(o, i)) continue;
     const Eigen::Vector3d g =
         data.pose(i).R_base_sensor.transpose() * Eigen::Vector3d(0, 0, -model::kStandardGravity);
@@ -401,8 +422,10 @@ std::vector<Wrench> block_mean_residuals(const Dataset& data, const BlockStats* 
   out.reserve(blocks.size());
   const int num_user = params.user.num_terms;
   const auto p = model::pointers(params);
+  ResidentWindow window(data);
   for (std::size_t b = 0; b < blocks.size(); ++b) {
     const auto [first, count] = blocks[b];
+    window.advance(first + count);
     if (stats == nullptr) {
       Wrench mean = Wrench::Zero();
       for (std::size_t i = first; i < first + count; ++i)
@@ -432,8 +455,10 @@ std::optional<std::array<double, 6>> static_noise_of_block_means(
   bool prev_static = false;
   Wrench prev = Wrench::Zero();
   std::size_t prev_end = 0;
+  ResidentWindow window(data);
   for (std::size_t b = 0; b < blocks.size(); ++b) {
     const auto [first, count] = blocks[b];
+    window.advance(first + count);
     bool is_static = true;
     for (std::size_t i = first; i < first + count; ++i) is_static = is_static && !data.moving[i];
     const Wrench& m = residuals[b];
@@ -510,8 +535,10 @@ std::vector<double> mean_user_design(const Dataset& data, const model::UserEffec
   std::vector<double> design(blocks.size() * 6 * static_cast<std::size_t>(num_user));
   if (num_user == 0) return design;
   std::array<double, 6 * model::kMaxUserTerms> row{};
+  ResidentWindow window(data);
   for (std::size_t b = 0; b < blocks.size(); ++b) {
     const auto [first, count] = blocks[b];
+    window.advance(first + count);
     double* mean = &design[b * 6 * static_cast<std::size_t>(num_user)];
     for (std::size_t i = first; i < first + count; ++i) {
       model::user_design(user, data.dictionary(i), data.pose(i).R_base_sensor, row.data());
@@ -728,7 +755,9 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
     }
     std::array<double, 6> ss{};
     std::size_t n = 0;
+    ResidentWindow window(data);
     for (const auto& [first, count] : blocks_of_samples) {
+      window.advance(first + count);
       Wrench mean = Wrench::Zero();
       for (std::size_t i = first; i < first + count; ++i) {
         const Wrench e = data.measured[i] - predict(r.params, data, i);
@@ -871,7 +900,11 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
 
 std::vector<std::uint8_t> static_mask(const Dataset& data) {
   std::vector<std::uint8_t> mask(data.size(), 0);
-  for (std::size_t i = 0; i < data.size(); ++i) mask[i] = data.moving[i] ? 0 : 1;
+  ResidentWindow window(data);
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    window.advance(i);
+    mask[i] = data.moving[i] ? 0 : 1;
+  }
   return mask;
 }
 
@@ -886,7 +919,9 @@ ToolChangeResult fit_tool_change(const Dataset& data, const model::ModelParams& 
   // Static samples, dwells (runs long enough for one block) and the spread of gravity in S.
   Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
   std::size_t run = 0;
+  ResidentWindow window(data);
   for (std::size_t i = 0; i <= data.size(); ++i) {
+    window.advance(i);
     if (i < data.size() && mask[i]) {
       ++run;
       ++out.static_samples;
@@ -1028,7 +1063,9 @@ double screening::TrainingProblem::ssr_at(const Eigen::VectorXd& step) const {
   double ssr = 0.0;
   std::array<double, 6> r{};
   bool ok = true;
+  const std::unique_ptr<normal::BlockWalk> walk = f.walk();
   for (std::size_t b = 0; b < f.num_blocks() && ok; ++b) {
+    if (walk) walk->at(b);
     ok = f.evaluate(b, r.data(), nullptr);
     for (double v : r) ssr += v * v;
   }

@@ -24,13 +24,14 @@ struct Partial {
 // Chunk c's partial sums (blocks [c K, min((c + 1) K, nb))); `J`, `r`: the worker's scratch.
 void chunk_sums(const BlockEvaluator& f, std::size_t c, bool with_jacobian,
                 Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& J,
-                Eigen::VectorXd& r, Partial& out) {
+                Eigen::VectorXd& r, BlockWalk* walk, Partial& out) {
   const std::size_t nb = f.num_blocks();
   const std::size_t b0 = c * kChunkBlocks, b1 = std::min(nb, b0 + kChunkBlocks);
   const Eigen::Index n = f.num_params();
   const auto rows = static_cast<Eigen::Index>(6 * (b1 - b0));
   for (std::size_t b = b0; b < b1; ++b) {
     const auto row = static_cast<Eigen::Index>(6 * (b - b0));
+    if (walk != nullptr) walk->at(b);
     out.ok = f.evaluate(b, r.data() + row, with_jacobian ? J.data() + row * n : nullptr) && out.ok;
   }
   out.cost = 0.5 * r.head(rows).squaredNorm();
@@ -78,8 +79,9 @@ bool pass(const BlockEvaluator& f, int threads, bool with_jacobian, NormalEquati
     Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> J(
         with_jacobian ? static_cast<Eigen::Index>(6 * kChunkBlocks) : 0, n);
     Eigen::VectorXd r(static_cast<Eigen::Index>(6 * kChunkBlocks));
+    const std::unique_ptr<BlockWalk> walk = f.walk();
     for (std::size_t c = next++; c < chunks; c = next++)
-      chunk_sums(f, c, with_jacobian, J, r, parts[c]);
+      chunk_sums(f, c, with_jacobian, J, r, walk.get(), parts[c]);
   };
   const int extra = std::clamp(threads, 1, static_cast<int>(std::max<std::size_t>(chunks, 1))) - 1;
   std::vector<std::thread> pool;

@@ -21,12 +21,21 @@
 #include <Eigen/Core>
 #include <cstddef>
 #include <functional>
+#include <memory>
 #include <string>
 
 namespace zerog::ident::normal {
 
 /// Blocks per chunk of the streaming pass (the unit of work and of summation order).
 inline constexpr std::size_t kChunkBlocks = 512;
+
+/// A worker's walk over the blocks of one pass (blocks in increasing order): BlockEvaluator::walk.
+class BlockWalk {
+ public:
+  virtual ~BlockWalk() = default;
+  /// The worker is about to evaluate block b.
+  virtual void at(std::size_t b) = 0;
+};
 
 /// The residuals of a least-squares problem, block by block.
 class BlockEvaluator {
@@ -40,6 +49,9 @@ class BlockEvaluator {
   /// to the free parameters (6 × n, row-major) at the point. Called concurrently from several
   /// threads (for different blocks); false if the evaluation failed.
   virtual bool evaluate(std::size_t b, double* residual, double* jacobian) const = 0;
+  /// A walk for one worker of a pass, told each block before it is evaluated (the fit's releases
+  /// the rows behind it: ident/spill.hpp); null (the default) for none.
+  virtual std::unique_ptr<BlockWalk> walk() const { return nullptr; }
 };
 
 /// The normal equations of ½ Σ_b |r_b|² at one point.

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <random>
+#include <span>
 #include <stdexcept>
 
 #include "zerog/ident/compare.hpp"
@@ -59,7 +60,7 @@ std::vector<std::size_t> subsample(std::vector<std::size_t> v, std::size_t max,
 
 TrainingSet make_set(const ident::Dataset& data, const io::Log& log,
                      const std::vector<Feature>& features, const std::vector<std::size_t>& idx,
-                     const std::vector<ident::Wrench>& target, const std::vector<int>& axes) {
+                     std::span<const ident::Wrench> target, const std::vector<int>& axes) {
   TrainingSet s;
   s.inputs = static_cast<int>(features.size());
   s.outputs = static_cast<int>(axes.size());

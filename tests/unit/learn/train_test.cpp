@@ -143,7 +143,7 @@ TEST(Train, BadOptionsGiveClearErrors) {
   }
   // No static dwell left for paper-zp.
   o = quick(learn::NetworkKind::paper_zp);
-  const std::vector<std::uint8_t> moving_only = r.data.moving;
+  const std::vector<std::uint8_t> moving_only(r.data.moving.begin(), r.data.moving.end());
   o.usable = &moving_only;
   try {
     learn::train(r.data, r.log, o);

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "zerog/formats/log.hpp"
+#include "zerog/ident/spill.hpp"
 #include "zerog/model/dictionary.hpp"
 #include "zerog/model/predict.hpp"
 #include "zerog/model/signals.hpp"
@@ -15,6 +16,17 @@ namespace zerog::ident {
 
 using Wrench = Eigen::Matrix<double, 6, 1>;
 
+/// A per-sample column of the Dataset: a std::vector whose storage is spilled to a memory-mapped
+/// file once it is large (spill.hpp: a long log's columns do not stay resident; a short one's are
+/// ordinary heap memory).
+template <typename T>
+using Column = std::vector<T, spill::Allocator<T>>;
+
+/// The per-sample columns below are Column<T> (spill.hpp): past spill::settings().min_bytes a
+/// column lives in an unlinked, memory-mapped file ($ZEROG_SPILL_DIR, else $TMPDIR unless tmpfs,
+/// else /var/tmp), and a pass over the samples walks them with a ResidentWindow, which releases
+/// the rows behind it, so that the memory of a fit does not grow with the log. Values never
+/// depend on where the columns live.
 struct Dataset {
   model::RigGeometry rig;
   io::Columns columns;
@@ -24,22 +36,22 @@ struct Dataset {
   /// FitOptions::errors_in_variables).
   io::ImuSampling imu_sampling;
   double dt_s = 0.012;  ///< mean row period (IMU time shifts interpolate on this grid)
-  std::vector<double> t_s;
+  Column<double> t_s;
   /// Sensor attitude in base, the logged quaternion normalised. Stored rather than the matrix
   /// (issue 16: 32 bytes a sample instead of 72); pose(i) forms the matrix with the same call
   /// (toRotationMatrix of the normalised quaternion) that filled it before, so bit for bit.
-  std::vector<Eigen::Quaterniond> q_base_sensor;
+  Column<Eigen::Quaterniond> q_base_sensor;
   /// Sensor temperature, °C; empty for a log without temp_C (then model::kTemperatureReferenceC).
-  std::vector<double> temperature_C;
-  std::vector<std::array<double, 6>> joints_rad;  ///< robot joint angles A1..A6, rad
+  Column<double> temperature_C;
+  Column<std::array<double, 6>> joints_rad;  ///< robot joint angles A1..A6, rad
   /// n rows of 9: specific force (3), angular rate (3), angular acceleration (3; the log's
   /// imu_dw* columns, or the angular rate differenced), IMU frame.
   /// A group the log lacks is zero (taken as at rest); so is the angular acceleration of a log
   /// without angular rate or without time (columns.static_rows).
-  std::vector<double> imu;
-  std::vector<Wrench> measured;
-  std::vector<std::uint8_t> moving;  ///< 1 while the sensor moves (always 0 for static rows)
-  std::vector<Eigen::Vector3d> p_base_sensor_m;  ///< S origin in B, m (zero without position)
+  Column<double> imu;
+  Column<Wrench> measured;
+  Column<std::uint8_t> moving;              ///< 1 while the sensor moves (always 0 for static rows)
+  Column<Eigen::Vector3d> p_base_sensor_m;  ///< S origin in B, m (zero without position)
 
   /// The model's pose signals of sample i, formed from the rows above rather than stored (issue
   /// 16: the matrix and t_rel_s took 80 bytes a sample): the same values make_dataset stored.
@@ -65,6 +77,11 @@ struct Dataset {
   /// Bytes the per-sample vectors hold (their capacity), the dataset's memory beyond a few
   /// hundred bytes of its own.
   std::size_t bytes() const;
+  /// True when the columns are spilled to a file (spill.hpp; the largest, imu, spills first).
+  bool spilled() const { return spill::spilled(imu.data()); }
+  /// Releases rows [first, last) of every column from the process where they are spilled (the
+  /// pages they touch: spill::release); the values stay, a later read faults them back in.
+  void release_rows(std::size_t first, std::size_t last) const;
 
   /// Every signal of the dictionary for sample i (the IMU as logged, no time offset). Its
   /// velocities and accelerations (sensor origin, joints) are 3-point central differences
@@ -98,6 +115,39 @@ struct Dataset {
   }
 };
 
+/// A pass's walk over the rows of a Dataset, front to back (spill.hpp): advance(i) before reading
+/// row i releases the rows more than a window (spill::settings().window_rows) behind the
+/// furthest row it was given, a window at a time, so that at most two windows of rows stay
+/// resident; the destructor releases the rest of what it passed. Reading behind the window (a
+/// neighbouring row, an interpolation, another thread's rows) stays correct: the row faults back
+/// in. Does nothing for a dataset on the heap. One per thread.
+class ResidentWindow {
+ public:
+  explicit ResidentWindow(const Dataset& data, std::size_t first = 0)
+      : data_(&data),
+        window_(spill::settings().window_rows),
+        released_(first),
+        end_(first),
+        active_(data.spilled()) {}
+  ~ResidentWindow();
+  ResidentWindow(const ResidentWindow&) = delete;
+  ResidentWindow& operator=(const ResidentWindow&) = delete;
+
+  void advance(std::size_t i) {
+    if (!active_) return;
+    if (i >= end_) end_ = i + 1;
+    if (end_ - released_ > 2 * window_) release_behind();
+  }
+
+ private:
+  void release_behind();
+  const Dataset* data_;
+  std::size_t window_;
+  std::size_t released_;  ///< rows before this one are released
+  std::size_t end_;       ///< one past the furthest row given
+  bool active_;
+};
+
 /// Builds the dataset: rotations from quaternions, angular acceleration from the log's
 /// imu_dw*_radps2 columns when present (formed at import: the gyro by Savitzky–Golay, or the
 /// robot's), else by 5-point central differences of the gyroscope column
@@ -123,7 +173,8 @@ class DatasetBuilder {
  private:
   Dataset d_;
   std::size_t n_ = 0;
-  io::Sample previous_;  ///< sample n − 1
+  std::size_t released_ = 0;  ///< rows before this one released (a spilled dataset, spill.hpp)
+  io::Sample previous_;       ///< sample n − 1
   std::vector<std::uint8_t> raw_moving_;
 };
 
