@@ -12,13 +12,17 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <random>
 #include <string>
+#include <thread>
 #include <tuple>
+#include <vector>
 
+#include "parallel.hpp"
 #include "screening.hpp"
 #include "sim_run.hpp"
 #include "zerog/ident/diagnose.hpp"
@@ -171,6 +175,41 @@ TEST(ScreeningMutant, DroppingTheBaselineCouplingIsCaught) {
   ASSERT_GT(compared, 0);
   std::printf("mutant: largest |gain - refit gain| of linear candidates %.2e\n", worst);
   EXPECT_GT(worst, kLinearGainTolerance);
+}
+
+// The parallel passes of diagnose (parallel.hpp) fold their tasks in task order whichever thread
+// finishes first: the first tasks are made the slowest, so that on several threads later ones
+// finish first, and the folds must still come in order, with the one-thread sum bit for bit (the
+// terms' magnitudes make the floating-point sum depend on its order), for any window of pending
+// results. A fold in completion order fails.
+TEST(Parallel, OrderedFoldsInTaskOrderOnAnyNumberOfThreads) {
+  constexpr std::size_t kTasks = 24;
+  const auto run = [&](int threads, std::size_t window) {
+    std::vector<double> slots(window);
+    std::vector<std::size_t> order;
+    double sum = 0.0;
+    zerog::ident::parallel::ordered(
+        kTasks, threads, window,
+        [&](std::size_t i, int, std::size_t slot) {
+          if (i < 4) std::this_thread::sleep_for(std::chrono::milliseconds(20 * (4 - i)));
+          slots[slot] = std::ldexp(1.0 + 1e-3 * static_cast<double>(i), (i % 3 == 0) ? 60 : 0) *
+                        ((i % 2) ? -1.0 : 1.0);
+        },
+        [&](std::size_t i, std::size_t slot) {
+          order.push_back(i);
+          sum += slots[slot];
+        });
+    return std::make_pair(order, sum);
+  };
+  const auto [order1, sum1] = run(1, 1);
+  for (std::size_t i = 0; i < kTasks; ++i) ASSERT_EQ(order1[i], i);
+  for (int threads : {1, 2, 3, 4}) {
+    for (std::size_t window : {1, 2, 8}) {
+      const auto [order, sum] = run(threads, window);
+      EXPECT_EQ(order, order1) << threads << " threads, window " << window;
+      EXPECT_EQ(sum, sum1) << threads << " threads, window " << window;
+    }
+  }
 }
 
 // The bordered solve (Schur complement on the candidate's columns) against one pseudo-inverse of

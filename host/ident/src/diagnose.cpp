@@ -1,6 +1,7 @@
 #include "zerog/ident/diagnose.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -8,8 +9,10 @@
 
 #include <Eigen/Dense>
 #include <limits>
+#include <memory>
 #include <optional>
 
+#include "parallel.hpp"
 #include "screening.hpp"
 #include "zerog/ident/eiv.hpp"
 #include "zerog/io/effect_file.hpp"
@@ -23,6 +26,48 @@ using model::Effect;
 std::vector<std::uint8_t> invert(const std::vector<std::uint8_t>& m) {
   std::vector<std::uint8_t> out(m.size());
   for (std::size_t i = 0; i < m.size(); ++i) out[i] = m[i] ? 0 : 1;
+  return out;
+}
+
+// Samples per task of the per-sample passes on several threads (parallel.hpp).
+constexpr std::size_t kSampleChunk = 8192;
+
+std::size_t sample_chunks(std::size_t n) { return (n + kSampleChunk - 1) / kSampleChunk; }
+
+// Runs `rows(i0, i1)` on every chunk of kSampleChunk samples, on `threads` threads; each worker
+// takes its chunks front to back and releases a spilled log's rows behind it with its own
+// ResidentWindow (spill.hpp).
+template <typename Rows>
+void for_each_sample_chunk(const Dataset& data, int threads, const Rows& rows) {
+  const std::size_t n = data.size();
+  const std::size_t tasks = sample_chunks(n);
+  std::vector<std::unique_ptr<ResidentWindow>> windows(
+      static_cast<std::size_t>(parallel::workers(tasks, threads)));
+  for (auto& w : windows) w = std::make_unique<ResidentWindow>(data);
+  parallel::for_each(tasks, threads, [&](std::size_t chunk, int worker) {
+    const std::size_t i0 = chunk * kSampleChunk, i1 = std::min(n, i0 + kSampleChunk);
+    rows(i0, i1);
+    windows[static_cast<std::size_t>(worker)]->advance(i1);
+  });
+}
+
+// The residuals (measured − predicted) of the samples in `mask` (every sample without one; zero
+// outside it in a new vector, left as they were in `out`), on `threads` threads: each sample's
+// is its own, as residuals() forms it.
+void residuals_into(std::vector<Wrench>& out, const model::ModelParams& params, const Dataset& data,
+                    const std::vector<std::uint8_t>* mask, int threads) {
+  const std::size_t n = data.size();
+  out.resize(n, Wrench::Zero());
+  for_each_sample_chunk(data, threads, [&](std::size_t i0, std::size_t i1) {
+    for (std::size_t i = i0; i < i1; ++i)
+      if (!mask || (*mask)[i]) out[i] = data.measured[i] - predict(params, data, i);
+  });
+}
+
+std::vector<Wrench> residuals_of(const model::ModelParams& params, const Dataset& data,
+                                 const std::vector<std::uint8_t>* mask, int threads) {
+  std::vector<Wrench> out;
+  residuals_into(out, params, data, mask, threads);
   return out;
 }
 
@@ -201,7 +246,7 @@ Baseline fit_baseline(const Dataset& data, const model::EffectSet& effects,
   if (!b.fit.usable)
     throw std::runtime_error("the fit of the model " + io::effect_list_string(effects) +
                              " is not usable: " + b.fit.termination);
-  b.res = residuals(b.fit.params, data);
+  b.res = residuals_of(b.fit.params, data, nullptr, o.fit.threads);
   b.heldout = heldout_error(b.res, split.heldout, b.fit.residual_rms);
   return b;
 }
@@ -282,7 +327,7 @@ std::optional<Candidate> refit(const Dataset& data, const Baseline& base, const 
   c.fit = fit(data, fo);
   if (!c.fit.usable) return std::nullopt;
   c.screened = false;
-  score(c, base, residuals(c.fit.params, data), split, scale);
+  score(c, base, residuals_of(c.fit.params, data, &split.heldout, o.fit.threads), split, scale);
   return c;
 }
 
@@ -378,10 +423,7 @@ Screened screen(const Dataset& data, const Baseline& base, const Split& split,
   for (int j = 0; j < b.user.num_terms; ++j) base_columns.push_back(user_column + j);
   const screening::BorderedSolver solver(ne.JtJ, ne.Jtr, base_columns, drop_coupling);
 
-  std::vector<std::size_t> heldout;
-  for (std::size_t i = 0; i < data.size(); ++i)
-    if (split.heldout[i]) heldout.push_back(i);
-  std::vector<Wrench> res(data.size(), Wrench::Zero());
+  std::vector<Wrench> res;  // the held-out samples' residuals of the candidate at hand
   Screened out;
   for (std::size_t t = 0; t < trials.size(); ++t) {
     const Candidate& skeleton = trials[t].c;
@@ -398,7 +440,7 @@ Screened screen(const Dataset& data, const Baseline& base, const Split& split,
       for (int j = 0; j < cand_terms; ++j) cand_columns.push_back(user_column + first_term[t] + j);
     }
     const Eigen::VectorXd x = solver.step(cand_columns);
-    const double ssr = problem.ssr_at(x);
+    const double ssr = problem.ssr_at(x, o.fit.threads);
     const double predicted = ssr0 + x.dot(ne.Jtr);  // ½|r + Jx|²·2 with H x = −g on the columns
     Candidate c = skeleton;
     c.screened = true;
@@ -429,11 +471,7 @@ Screened screen(const Dataset& data, const Baseline& base, const Split& split,
     const bool trusted = f.usable && (decrease <= 1e-9 * ssr0 ||
                                       std::abs((ssr0 - ssr) / decrease - 1.0) <= kMaxModelError);
     if (f.usable) {
-      ResidentWindow window(data);
-      for (std::size_t i : heldout) {
-        window.advance(i + 1);
-        res[i] = data.measured[i] - predict(f.params, data, i);
-      }
+      residuals_into(res, f.params, data, &split.heldout, o.fit.threads);
       score(c, base, res, split, scale);
       out.candidates.emplace_back(std::move(c));
     } else {
@@ -542,16 +580,17 @@ struct Feature {
   std::vector<double> v;
 };
 
-std::vector<Feature> features(const Dataset& data) {
+// Each feature's values on the samples in `mask` (zero elsewhere: correlate reads no other).
+std::vector<Feature> features(const Dataset& data, const std::vector<std::uint8_t>& mask,
+                              int threads) {
   std::vector<Feature> f;
   const std::size_t n = data.size();
   auto add = [&](std::string name, auto fn) {
-    Feature x{std::move(name), std::vector<double>(n)};
-    ResidentWindow window(data);
-    for (std::size_t i = 0; i < n; ++i) {
-      window.advance(i + 1);
-      x.v[i] = fn(i);
-    }
+    Feature x{std::move(name), std::vector<double>(n, 0.0)};
+    for_each_sample_chunk(data, threads, [&](std::size_t i0, std::size_t i1) {
+      for (std::size_t i = i0; i < i1; ++i)
+        if (mask[i]) x.v[i] = fn(i);
+    });
     f.push_back(std::move(x));
   };
   if (!data.columns.static_rows)
@@ -600,9 +639,12 @@ std::vector<Feature> features(const Dataset& data) {
 }
 
 std::vector<SignalCorrelation> correlate(const Dataset& data, const std::vector<Wrench>& res,
-                                         const std::vector<std::uint8_t>& mask) {
-  std::vector<SignalCorrelation> out;
-  for (const Feature& f : features(data)) {
+                                         const std::vector<std::uint8_t>& mask, int threads) {
+  // Each feature's correlations on their own (one thread's sums each), then in feature order.
+  const std::vector<Feature> fs = features(data, mask, threads);
+  std::vector<std::vector<SignalCorrelation>> per(fs.size());
+  parallel::for_each(fs.size(), threads, [&](std::size_t q, int) {
+    const Feature& f = fs[q];
     for (int a = 0; a < 6; ++a) {
       double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
       double n = 0;
@@ -613,9 +655,11 @@ std::vector<SignalCorrelation> correlate(const Dataset& data, const std::vector<
       }
       const double vx = sxx - sx * sx / n, vy = syy - sy * sy / n;
       if (vx <= 1e-12 * n || vy <= 0) continue;
-      out.push_back({f.name, a, (sxy - sx * sy / n) / std::sqrt(vx * vy)});
+      per[q].push_back({f.name, a, (sxy - sx * sy / n) / std::sqrt(vx * vy)});
     }
-  }
+  });
+  std::vector<SignalCorrelation> out;
+  for (auto& p : per) out.insert(out.end(), p.begin(), p.end());
   std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) {
     return std::abs(a.correlation) > std::abs(b.correlation);
   });
@@ -679,16 +723,12 @@ struct FactorColumn {
 
 // The discovery dictionary's factors: every base signal the log has (its value), sin and cos of
 // the joint angles, and tanh(x/eps) of the velocities (eps: 0.02 rad/s, 0.005 m/s).
-std::vector<FactorColumn> dictionary_factors(const Dataset& data,
-                                             const std::vector<model::DictionarySignals>& sig) {
+std::vector<FactorColumn> dictionary_factors(const Dataset& data, int threads) {
+  const std::size_t n = data.size();
   const unsigned have = available_sources(data);
   std::vector<FactorColumn> out;
   auto add = [&](model::Signal s, model::FactorOp op, double eps) {
-    FactorColumn c{{s, op, eps}, std::vector<double>(sig.size())};
-    model::Basis b;
-    b.a = c.factor;
-    for (std::size_t i = 0; i < sig.size(); ++i) c.v[i] = model::basis_value(b, sig[i]);
-    out.push_back(std::move(c));
+    out.push_back({{s, op, eps}, std::vector<double>(n)});
   };
   for (int k = 0; k < model::kSignalCount; ++k) {
     const auto s = static_cast<model::Signal>(k);
@@ -703,6 +743,17 @@ std::vector<FactorColumn> dictionary_factors(const Dataset& data,
     if (si.velocity)
       add(s, model::FactorOp::tanh, std::string_view(si.unit) == "m/s" ? 0.005 : 0.02);
   }
+  // A chunk of samples' signals at a time, then every factor's values on them (each sample on
+  // its own: the same values on any thread).
+  for_each_sample_chunk(data, threads, [&](std::size_t i0, std::size_t i1) {
+    std::vector<model::DictionarySignals> sig(i1 - i0);
+    for (std::size_t i = i0; i < i1; ++i) sig[i - i0] = data.dictionary(i);
+    for (FactorColumn& c : out) {
+      model::Basis b;
+      b.a = c.factor;
+      for (std::size_t i = i0; i < i1; ++i) c.v[i] = model::basis_value(b, sig[i - i0]);
+    }
+  });
   return out;
 }
 
@@ -750,15 +801,7 @@ std::optional<Discovery> discover_law(const Dataset& data, const Baseline& base,
   const std::size_t nt = train_blocks.size(), nh = held_blocks.size();
   if (nt < 20 || nh < 5) return std::nullopt;
   const std::array<double, 6>& sigma = base.fit.sigma;  // block-mean whitening of the fit
-  std::vector<model::DictionarySignals> sig(data.size());
-  {
-    ResidentWindow window(data);
-    for (std::size_t i = 0; i < data.size(); ++i) {
-      window.advance(i + 1);
-      sig[i] = data.dictionary(i);
-    }
-  }
-  const std::vector<FactorColumn> factors = dictionary_factors(data, sig);
+  const std::vector<FactorColumn> factors = dictionary_factors(data, o.fit.threads);
 
   // Whitened block-mean residuals of the baseline, per axis: r[b * 6 + k].
   auto residual_means = [&](const std::vector<std::pair<std::size_t, std::size_t>>& blocks) {
@@ -832,27 +875,42 @@ std::optional<Discovery> discover_law(const Dataset& data, const Baseline& base,
         return std::nullopt;
       Eigen::MatrixXd J(static_cast<Eigen::Index>(blocks.size() * 6),
                         static_cast<Eigen::Index>(np));
-      Eigen::Matrix<double, 6, Eigen::Dynamic, Eigen::RowMajor> jb(6,
-                                                                   static_cast<Eigen::Index>(np));
-      std::array<double, 6> r{};
-      for (std::size_t b = 0; b < blocks.size(); ++b) {
-        if (!problem.evaluate(b, r.data(), jb.data())) return std::nullopt;
-        J.middleRows(static_cast<Eigen::Index>(b * 6), 6) = -jb;
-      }
+      // Each block's rows on their own (the evaluation is concurrent: normal_equations.hpp).
+      constexpr std::size_t kBlocksPerTask = 512;
+      std::atomic<bool> ok{true};
+      parallel::for_each((blocks.size() + kBlocksPerTask - 1) / kBlocksPerTask, o.fit.threads,
+                         [&](std::size_t task, int) {
+                           Eigen::Matrix<double, 6, Eigen::Dynamic, Eigen::RowMajor> jb(
+                               6, static_cast<Eigen::Index>(np));
+                           std::array<double, 6> r{};
+                           const std::size_t b0 = task * kBlocksPerTask;
+                           const std::size_t b1 = std::min(blocks.size(), b0 + kBlocksPerTask);
+                           for (std::size_t b = b0; b < b1 && ok; ++b) {
+                             if (!problem.evaluate(b, r.data(), jb.data())) ok = false;
+                             J.middleRows(static_cast<Eigen::Index>(b * 6), 6) = -jb;
+                           }
+                         });
+      if (!ok) return std::nullopt;
       return J;
     } catch (const std::exception&) {
       return std::nullopt;
     }
   };
-  std::optional<Eigen::MatrixXd> J_train_a = analytic(split.train, train_blocks);
-  std::optional<Eigen::MatrixXd> J_held_a =
-      J_train_a ? analytic(split.heldout, held_blocks) : std::nullopt;
+  // The training and the held-out blocks' problems are set up side by side (each on its own).
+  std::optional<Eigen::MatrixXd> J_train_a, J_held_a;
+  parallel::for_each(2, o.fit.threads, [&](std::size_t side, int) {
+    if (side == 0)
+      J_train_a = analytic(split.train, train_blocks);
+    else
+      J_held_a = analytic(split.heldout, held_blocks);
+  });
+  if (!J_train_a) J_held_a.reset();
   const Eigen::MatrixXd J_train = J_held_a ? std::move(*J_train_a) : jacobian(train_blocks);
   const Eigen::MatrixXd J_held = J_held_a ? std::move(*J_held_a) : jacobian(held_blocks);
   // Orthonormal basis of the training tangent space (column-pivoted QR drops dependent ones).
   Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(J_train);
   const Eigen::Index rank = qr.rank();
-  const Eigen::MatrixXd Q = thin_q(qr, J_train.rows());
+  Eigen::MatrixXd Q = thin_q(qr, J_train.rows());
   // Its rows per axis, contiguous: Qk[k] is nt × rank.
   std::array<Eigen::MatrixXd, 6> Qk;
   std::array<Eigen::VectorXd, 6> rk;
@@ -937,12 +995,35 @@ std::optional<Discovery> discover_law(const Dataset& data, const Baseline& base,
   // read them from cache rather than streaming two whole factor columns each. Each block's sum
   // still runs in sample order from zero (as a sum over a product column would), and the sums of
   // neighbouring blocks are independent. P accumulates the projections chunk by chunk.
+  // The chunks run on the fit's threads (parallel.hpp): each forms its block means and its
+  // products into its worker's scratch, and they are added into P and c2 in chunk order, so the
+  // sums are those of one thread, chunk after chunk.
   Eigen::MatrixXd P = Eigen::MatrixXd::Zero(nq + 6, nbases);
   Eigen::VectorXd c2 = Eigen::VectorXd::Zero(nbases);
   constexpr std::size_t kChunk = 128;
-  Eigen::MatrixXd C(static_cast<Eigen::Index>(kChunk), nbases);
-  std::vector<double> local(nf * m * kChunk);  // [(factor * m + sample) * kChunk + block]
-  for (std::size_t t0 = 0; t0 < nt; t0 += kChunk) {
+  struct ChunkScratch {
+    Eigen::MatrixXd C;
+    std::vector<double> local;  // [(factor * m + sample) * kChunk + block]
+  };
+  struct ChunkResult {
+    Eigen::MatrixXd P;
+    Eigen::VectorXd c2;
+  };
+  const std::size_t chunks = (nt + kChunk - 1) / kChunk;
+  std::vector<ChunkScratch> scratch(
+      static_cast<std::size_t>(parallel::workers(chunks, o.fit.threads)));
+  for (ChunkScratch& w : scratch) {
+    w.C.resize(static_cast<Eigen::Index>(kChunk), nbases);
+    w.local.resize(nf * m * kChunk);
+  }
+  constexpr std::size_t kWindow = 8;
+  std::vector<ChunkResult> results(kWindow);
+  const auto chunk_products = [&](std::size_t chunk, int worker, std::size_t slot) {
+    ChunkScratch& w = scratch[static_cast<std::size_t>(worker)];
+    ChunkResult& result = results[slot];
+    Eigen::MatrixXd& C = w.C;
+    std::vector<double>& local = w.local;
+    const std::size_t t0 = chunk * kChunk;
     const std::size_t nb = std::min(kChunk, nt - t0);
     for (std::size_t f = 0; f < nf; ++f)
       for (std::size_t i = 0; i < m; ++i)
@@ -964,9 +1045,14 @@ std::optional<Discovery> discover_law(const Dataset& data, const Baseline& base,
       for (std::size_t t = 0; t < nb; ++t) out[t] /= static_cast<double>(m);
     }
     const auto rows = static_cast<Eigen::Index>(nb);
-    P.noalias() += M.middleCols(static_cast<Eigen::Index>(t0), rows) * C.topRows(rows);
-    c2 += C.topRows(rows).colwise().squaredNorm().transpose();
-  }
+    result.P.noalias() = M.middleCols(static_cast<Eigen::Index>(t0), rows) * C.topRows(rows);
+    result.c2 = C.topRows(rows).colwise().squaredNorm().transpose();
+  };
+  parallel::ordered(chunks, o.fit.threads, kWindow, chunk_products,
+                    [&](std::size_t, std::size_t slot) {
+                      P += results[slot].P;
+                      c2 += results[slot].c2;
+                    });
   // The best few per axis, in the order the bases were searched; only the final ones get their
   // columns.
   std::array<std::vector<std::pair<double, Eigen::Index>>, 6> top;  // (score, basis)
@@ -1028,17 +1114,20 @@ std::optional<Discovery> discover_law(const Dataset& data, const Baseline& base,
   const double held_base = rh.squaredNorm();
   Discovery d;
   d.dictionary_size = searched;
+  for (const Column& c : cand) d.column_scores.push_back(c.score);
   // Bonferroni over every column searched: a noise column passes with probability 1 %.
   d.z_threshold = normal_two_sided_quantile(o.discovery_alpha / std::max(1, searched));
   std::vector<std::size_t> chosen;
   Eigen::MatrixXd X_train(Nt, 0), X_held(Nh, 0);
   double held_prev = held_base;
-  // The factorization of the current fit's [J, X] on training: after the first step it is the
-  // held-out check's of the accepted column (the same matrix, factored once).
-  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> aqr(J_train);
+  // The factorization of the current fit's [J, X] on training: at the first step the tangent
+  // space's (qr, and its Q), after it the held-out check's of the accepted column (the same
+  // matrix, factored once).
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> aqr = std::move(qr);
+  Eigen::MatrixXd QA = std::move(Q);
   for (int step = 0; step < o.max_discovered_terms; ++step) {
     // Current fit: [J, X] on training; residual r_cur.
-    const Eigen::MatrixXd QA = thin_q(aqr, Nt);
+    if (step > 0) QA = thin_q(aqr, Nt);
     const Eigen::VectorXd r_cur = rt - QA * (QA.transpose() * rt);
     // Every open candidate projected out of the current fit at once (issue 16): a column is
     // nonzero on one axis only, so QAᵀ x reads that axis's rows of QA, and the projections
@@ -1047,38 +1136,49 @@ std::optional<Discovery> discover_law(const Dataset& data, const Baseline& base,
     for (std::size_t c = 0; c < cand.size(); ++c)
       if (std::find(chosen.begin(), chosen.end(), c) == chosen.end()) open.push_back(c);
     const Eigen::Index nopen = static_cast<Eigen::Index>(open.size());
-    Eigen::MatrixXd G(QA.cols(), nopen);
-    for (Eigen::Index j = 0; j < nopen; ++j) {
-      const Column& c = cand[open[static_cast<std::size_t>(j)]];
-      const Eigen::Map<const Eigen::MatrixXd, 0, Eigen::Stride<Eigen::Dynamic, 6>> rows(
-          QA.data() + c.axis, static_cast<Eigen::Index>(nt), QA.cols(),
-          Eigen::Stride<Eigen::Dynamic, 6>(QA.outerStride(), 6));
-      G.col(j).noalias() = rows.transpose() * Eigen::Map<const Eigen::VectorXd>(
-                                                  c.train.data(), static_cast<Eigen::Index>(nt));
-    }
-    Eigen::MatrixXd XP(Nt, nopen);
-    XP.noalias() = -QA * G;
+    // The open candidates a few at a time on the fit's threads (parallel.hpp): each candidate's
+    // statistic is its own, written to its slot, and the best is taken in candidate order.
+    constexpr Eigen::Index kColumnsPerTask = 8;
+    std::vector<double> zs(open.size(), 0.0);
+    const auto statistics = [&](std::size_t task, int) {
+      const Eigen::Index j0 = static_cast<Eigen::Index>(task) * kColumnsPerTask;
+      const Eigen::Index nj = std::min(kColumnsPerTask, nopen - j0);
+      Eigen::MatrixXd G(QA.cols(), nj);
+      for (Eigen::Index j = 0; j < nj; ++j) {
+        const Column& c = cand[open[static_cast<std::size_t>(j0 + j)]];
+        const Eigen::Map<const Eigen::MatrixXd, 0, Eigen::Stride<Eigen::Dynamic, 6>> rows(
+            QA.data() + c.axis, static_cast<Eigen::Index>(nt), QA.cols(),
+            Eigen::Stride<Eigen::Dynamic, 6>(QA.outerStride(), 6));
+        G.col(j).noalias() = rows.transpose() * Eigen::Map<const Eigen::VectorXd>(
+                                                    c.train.data(), static_cast<Eigen::Index>(nt));
+      }
+      Eigen::MatrixXd XP(Nt, nj);
+      XP.noalias() = -QA * G;
+      for (Eigen::Index j = 0; j < nj; ++j) {
+        const Column& c = cand[open[static_cast<std::size_t>(j0 + j)]];
+        double x2 = 0.0;
+        for (std::size_t t = 0; t < nt; ++t) {
+          XP(static_cast<Eigen::Index>(t * 6) + c.axis, j) += c.train[t];
+          x2 += c.train[t] * c.train[t];
+        }
+        const auto xp = XP.col(j);
+        const double xx = xp.squaredNorm();
+        if (!(xx > 1e-9 * x2)) continue;
+        // Heteroscedasticity-robust statistic of the coefficient (White's sandwich, HC0, on the
+        // residual with the column in the fit): moving blocks carry more noise (IMU noise × mass)
+        // than dwells.
+        const double num = xp.dot(r_cur);
+        const Eigen::VectorXd e = r_cur - (num / xx) * xp;
+        const double var = (xp.array().square() * e.array().square()).sum();
+        zs[static_cast<std::size_t>(j0 + j)] = var > 0 ? std::abs(num) / std::sqrt(var) : 0.0;
+      }
+    };
+    parallel::for_each(static_cast<std::size_t>((nopen + kColumnsPerTask - 1) / kColumnsPerTask),
+                       o.fit.threads, statistics);
     double best_z = 0.0;
     std::size_t best = cand.size();
-    for (Eigen::Index j = 0; j < nopen; ++j) {
-      const std::size_t c = open[static_cast<std::size_t>(j)];
-      double x2 = 0.0;
-      for (std::size_t t = 0; t < nt; ++t) {
-        XP(static_cast<Eigen::Index>(t * 6) + cand[c].axis, j) += cand[c].train[t];
-        x2 += cand[c].train[t] * cand[c].train[t];
-      }
-      const auto xp = XP.col(j);
-      const double xx = xp.squaredNorm();
-      if (!(xx > 1e-9 * x2)) continue;
-      // Heteroscedasticity-robust statistic of the coefficient (White's sandwich, HC0, on the
-      // residual with the column in the fit): moving blocks carry more noise (IMU noise × mass)
-      // than dwells.
-      const double num = xp.dot(r_cur);
-      const Eigen::VectorXd e = r_cur - (num / xx) * xp;
-      const double var = (xp.array().square() * e.array().square()).sum();
-      const double z = var > 0 ? std::abs(num) / std::sqrt(var) : 0.0;
-      if (z > best_z) best_z = z, best = c;
-    }
+    for (std::size_t j = 0; j < open.size(); ++j)
+      if (zs[j] > best_z) best_z = zs[j], best = open[j];
     if (best == cand.size() || best_z < d.z_threshold) break;
     // Held-out check: the linearised refit with the new column must lower the held-out error.
     Eigen::MatrixXd Xt(Nt, X_train.cols() + 1), Xh(Nh, X_held.cols() + 1);
@@ -1131,7 +1231,8 @@ std::optional<Discovery> discover_law(const Dataset& data, const Baseline& base,
                         : std::numeric_limits<double>::quiet_NaN());
     d.laws.push_back(law_text(u, j, d.std.back()));
   }
-  d.heldout = heldout_error(residuals(d.fit.params, data), split.heldout, scale);
+  d.heldout = heldout_error(residuals_of(d.fit.params, data, &split.heldout, o.fit.threads),
+                            split.heldout, scale);
   d.gain = 1.0 - d.heldout.whitened_mse / base.heldout.whitened_mse;
   d.seconds = since_start();
   return d;
@@ -1187,7 +1288,7 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
 
   if (o.progress) o.progress("diagnose: trying each candidate effect");
   d.candidates = evaluate_candidates(data, base, split, o, d.noise_rms, &d.candidate_evaluation);
-  d.correlated = correlate(data, base.res, split.heldout);
+  d.correlated = correlate(data, base.res, split.heldout, o.fit.threads);
 
   const auto& h = base.heldout.stats;
   std::ostringstream os;

@@ -17,6 +17,7 @@
 #include <utility>
 
 #include "normal_equations.hpp"
+#include "parallel.hpp"
 #include "screening.hpp"
 #include "zerog/ident/block_stats.hpp"
 #include "zerog/ident/eiv.hpp"
@@ -1055,22 +1056,33 @@ bool screening::TrainingProblem::evaluate(std::size_t b, double* residual, doubl
   return impl_->evaluator->evaluate(b, residual, jacobian);
 }
 
-double screening::TrainingProblem::ssr_at(const Eigen::VectorXd& step) const {
+double screening::TrainingProblem::ssr_at(const Eigen::VectorXd& step, int threads) const {
   NormalBlocks& f = *impl_->evaluator;
   f.set_point(impl_->x0 + step);
-  // Residuals only (one model evaluation per block): a small share of one accumulation pass,
-  // so one thread; the sum runs in block order and is deterministic.
-  double ssr = 0.0;
-  std::array<double, 6> r{};
-  bool ok = true;
-  const std::unique_ptr<normal::BlockWalk> walk = f.walk();
-  for (std::size_t b = 0; b < f.num_blocks() && ok; ++b) {
-    if (walk) walk->at(b);
-    ok = f.evaluate(b, r.data(), nullptr);
-    for (double v : r) ssr += v * v;
-  }
+  // Residuals only (one model evaluation per block), the blocks' on `threads` threads (each its
+  // own, each worker walking a spilled log's rows with its own BlockWalk), then summed in block
+  // order: the same sum for any thread count.
+  const std::size_t nb = f.num_blocks();
+  constexpr std::size_t kBlocksPerTask = normal::kChunkBlocks;
+  const std::size_t tasks = (nb + kBlocksPerTask - 1) / kBlocksPerTask;
+  std::vector<double> r(6 * nb);
+  std::vector<std::uint8_t> ok(tasks, 1);
+  std::vector<std::unique_ptr<normal::BlockWalk>> walks(
+      static_cast<std::size_t>(parallel::workers(tasks, threads)));
+  for (auto& w : walks) w = f.walk();
+  parallel::for_each(tasks, threads, [&](std::size_t task, int worker) {
+    normal::BlockWalk* walk = walks[static_cast<std::size_t>(worker)].get();
+    const std::size_t b1 = std::min(nb, (task + 1) * kBlocksPerTask);
+    for (std::size_t b = task * kBlocksPerTask; b < b1 && ok[task]; ++b) {
+      if (walk) walk->at(b);
+      ok[task] = f.evaluate(b, r.data() + 6 * b, nullptr) ? 1 : 0;
+    }
+  });
   f.set_point(impl_->x0);
-  return ok && std::isfinite(ssr) ? ssr : std::numeric_limits<double>::quiet_NaN();
+  double ssr = 0.0;
+  for (double v : r) ssr += v * v;
+  const bool all_ok = std::all_of(ok.begin(), ok.end(), [](std::uint8_t k) { return k != 0; });
+  return all_ok && std::isfinite(ssr) ? ssr : std::numeric_limits<double>::quiet_NaN();
 }
 
 }  // namespace zerog::ident

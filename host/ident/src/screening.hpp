@@ -38,8 +38,9 @@ class TrainingProblem {
   /// (6 × n, row-major) at the point, as the fit evaluates them. False if the evaluation failed.
   bool evaluate(std::size_t b, double* residual, double* jacobian) const;
   /// Σ_b |r_b|² (whitened block residuals, what the BIC counts) at the point moved by `step`
-  /// (n columns); NaN if an evaluation failed. The point itself is not changed.
-  double ssr_at(const Eigen::VectorXd& step) const;
+  /// (n columns); NaN if an evaluation failed. The point itself is not changed. The blocks are
+  /// evaluated on `threads` threads and summed in block order (the same sum for any count).
+  double ssr_at(const Eigen::VectorXd& step, int threads = 1) const;
 
  private:
   struct Impl;

@@ -70,6 +70,9 @@ struct Discovery {
   std::string path;               ///< the effect file written (empty if none)
   double search_seconds = 0.0;    ///< screening and pursuit (without the final refit)
   double seconds = 0.0;           ///< the whole discovery, refit included
+  /// The screening score of every column the search went on with (per axis, best first): the
+  /// sums of the scoring pass, which tests compare across thread counts.
+  std::vector<double> column_scores;
 };
 
 /// A user-defined effect offered as a candidate (proto/user_effects.md): one effect, and the
