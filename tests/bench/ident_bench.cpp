@@ -261,6 +261,8 @@ void diagnose_all_candidates(benchmark::State& state, bool exact) {
     state.counters["candidates_s"] = d.candidate_evaluation.seconds;
     state.counters["refitted"] = d.candidate_evaluation.refitted;
     state.counters["discovery_s"] = d.discovery ? d.discovery->seconds : 0.0;
+    state.counters["discovery_search_s"] = d.discovery ? d.discovery->search_seconds : 0.0;
+    state.counters["discovery_terms"] = d.discovery ? d.discovery->effect.num_terms : 0.0;
   }
 }
 void BM_DiagnoseAllCandidates(benchmark::State& state) { diagnose_all_candidates(state, false); }
