@@ -155,8 +155,8 @@ void Cycle::add_imu(const samples::ImuSample& s) noexcept {
 }
 
 void Cycle::set_compute_ns(std::int64_t ns) noexcept {
-  record_.compute_ns = ns;
-  if (box_.size() > 0 && box_.newest().cycle == record_.cycle) box_.newest().compute_ns = ns;
+  record_->compute_ns = ns;
+  if (box_.size() > 0 && box_.newest().cycle == record_->cycle) box_.newest().compute_ns = ns;
 }
 
 std::uint64_t Cycle::request(Command c) noexcept {
@@ -271,10 +271,10 @@ void Cycle::pose_missing() noexcept {
 }
 
 void Cycle::stale_message() noexcept {
-  record_.flags = kIpocStale;
-  record_.state = sm_.state();
-  record_.fault = sm_.fault();
-  box_.push(record_);
+  record_->flags = kIpocStale;
+  record_->state = sm_.state();
+  record_->fault = sm_.fault();
+  if (!box_.frozen()) box_.commit();  // kept; a pending freeze waits for keep_record()
 }
 
 void Cycle::grow_lost_run() noexcept {
@@ -287,14 +287,22 @@ void Cycle::grow_lost_run() noexcept {
 }
 
 void Cycle::push_lost_record(std::uint32_t flags) noexcept {
-  record_.flags = flags;
-  record_.state = sm_.state();
-  record_.fault = sm_.fault();
+  CycleRecord& record = open_record(true, true);
+  record.flags = flags;
+  record.state = sm_.state();
+  record.fault = sm_.fault();
   keep_record();
 }
 
+CycleRecord& Cycle::open_record(bool kept, bool carry) noexcept {
+  CycleRecord& record = kept && !box_.frozen() ? box_.next() : spare_;
+  if (carry && &record != record_) record = *record_;
+  record_ = &record;
+  return record;
+}
+
 void Cycle::keep_record() noexcept {
-  box_.push(record_);
+  if (!box_.frozen()) box_.commit();
   if (freeze_pending_) {
     box_.freeze();
     freeze_pending_ = false;
@@ -304,44 +312,44 @@ void Cycle::keep_record() noexcept {
 void Cycle::step(const proto::rsi::RobotMessage& m, CycleReply& reply) noexcept {
   run(proto::rsi::robot_sample_from_message(m));
   // The border's one conversion of the reply, from the record's (SI).
-  const samples::RobotCorrection& correction = record_.reply;
-  const proto::rsi::Reply r = proto::rsi::reply_from_correction(correction);
+  const samples::RobotCorrection& correction = record_->reply;
   reply.axis = correction.axis();
   reply.ipoc = correction.ipoc;
-  reply.rkorr = r.rkorr;
-  reply.akorr_deg = r.akorr_deg;
+  proto::rsi::kuka_units_from_correction(correction, reply.rkorr, reply.akorr_deg);
 }
 
 void Cycle::step(const samples::RobotSample& m, samples::RobotCorrection& correction) noexcept {
   run(m);
-  correction = record_.reply;
+  correction = record_->reply;
 }
 
 void Cycle::run(const samples::RobotSample& m) noexcept {
   // The answer is the record's reply (the record keeps the reply sent). A cycle that ends early
-  // answers a zero correction with this IPOC; the full cycle, run_motion's correction.
-  samples::RobotCorrection& reply = record_.reply;
-  const auto answer_zero = [&m, &reply]() noexcept {
-    reply = samples::RobotCorrection{};
-    reply.ipoc = m.ipoc;
+  // answers a zero correction with this IPOC (and keeps the last record's other fields); the
+  // full cycle, run_motion's correction. The record is written where it is kept (open_record).
+  const auto open_early = [this, &m](bool kept) noexcept -> CycleRecord& {
+    CycleRecord& record = open_record(kept, true);
+    record.cycle = cycle_;
+    record.ipoc = m.ipoc;
+    record.limit_flags = 0;
+    record.reply = samples::RobotCorrection{};
+    record.reply.ipoc = m.ipoc;
+    return record;
   };
   ++cycle_;
   ++counters_.messages;
-  record_.cycle = cycle_;
-  record_.ipoc = m.ipoc;
-  record_.limit_flags = 0;
   take_proposal();
 
   if (!configured_) {
+    CycleRecord& record = open_early(false);  // not into the black box
     data_.watchdogs.robot_lost_run = 0;
     raise(Fault::model_invalid);
-    record_.state = sm_.state();
-    record_.fault = sm_.fault();
-    answer_zero();
+    record.state = sm_.state();
+    record.fault = sm_.fault();
     return;
   }
   if (!m.has_pose && !config_.robot) {
-    answer_zero();
+    open_early(true);
     pose_missing();
     return;
   }
@@ -350,7 +358,7 @@ void Cycle::run(const samples::RobotSample& m) noexcept {
   const State state_before = sm_.state();
   const stages::Timing timing = stages::timing(config_, m, data_.clock, counters_);
   if (timing.stale) {
-    answer_zero();
+    open_early(true);
     stale_message();
     return;
   }
@@ -379,9 +387,11 @@ void Cycle::run(const samples::RobotSample& m) noexcept {
                                                           .counters = counters_});
   publish_outcome(command, motion.command_accepted);
   raise(motion.fault);
+  // Every field is written below (make_record and the reply): nothing is carried over.
+  CycleRecord& record = open_record(true, false);
   // In fault, every reply is a zero correction (proto/loop.md, "Watchdogs").
-  reply = sm_.state() == State::fault ? samples::RobotCorrection{} : motion.correction;
-  reply.ipoc = m.ipoc;
+  record.reply = sm_.state() == State::fault ? samples::RobotCorrection{} : motion.correction;
+  record.reply.ipoc = m.ipoc;
   stages::make_record({.cycle = cycle_,
                        .message = m,
                        .timing = timing,
@@ -392,7 +402,7 @@ void Cycle::run(const samples::RobotSample& m) noexcept {
                        .motion = motion,
                        .sm = sm_,
                        .zero_g = motion_},
-                      record_);
+                      record);
   keep_record();
 }
 

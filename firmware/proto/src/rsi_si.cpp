@@ -76,32 +76,41 @@ std::array<double, 3> rkorr_abc_rad(const samples::RobotCorrection& c) {
   return {abc[0], abc[1], abc[2]};
 }
 
-Reply reply_from_correction(const samples::RobotCorrection& c) {
-  // Every field named once, as robot_sample_from_message: this runs for every reply.
+void kuka_units_from_correction(const samples::RobotCorrection& c, Correction& rkorr,
+                                std::array<double, 6>& akorr_deg) {
+  // Each output written once: this runs for every reply.
   using Kind = samples::RobotCorrection::Kind;
   switch (c.kind) {
     case Kind::none:  // zeros as such: A, B, C of the identity would give B = −0
-      return {.has_rkorr = true, .rkorr = {}, .has_akorr = false, .akorr_deg = {}, .ipoc = c.ipoc};
+      break;
     case Kind::cartesian: {
       const std::array<double, 3> abc = abc_deg(c.R_correction);
-      return {.has_rkorr = true,
-              .rkorr = {c.translation_m[0] * 1e3, c.translation_m[1] * 1e3,
-                        c.translation_m[2] * 1e3, abc[0], abc[1], abc[2]},
-              .has_akorr = false,
-              .akorr_deg = {},
-              .ipoc = c.ipoc};
+      rkorr = {c.translation_m[0] * 1e3,
+               c.translation_m[1] * 1e3,
+               c.translation_m[2] * 1e3,
+               abc[0],
+               abc[1],
+               abc[2]};
+      akorr_deg = {};
+      return;
     }
-    case Kind::axes: {
-      std::array<double, 6> akorr_deg;
+    case Kind::axes:
+      rkorr = {};
       for (std::size_t i = 0; i < akorr_deg.size(); ++i) akorr_deg[i] = c.axes_rad[i] / kRadPerDeg;
-      return {.has_rkorr = false,
-              .rkorr = {},
-              .has_akorr = true,
-              .akorr_deg = akorr_deg,
-              .ipoc = c.ipoc};
-    }
+      return;
   }
-  return {.has_rkorr = false, .rkorr = {}, .has_akorr = false, .akorr_deg = {}, .ipoc = c.ipoc};
+  rkorr = {};
+  akorr_deg = {};
+}
+
+Reply reply_from_correction(const samples::RobotCorrection& c) {
+  using Kind = samples::RobotCorrection::Kind;
+  Reply r;
+  r.has_rkorr = c.kind == Kind::none || c.kind == Kind::cartesian;
+  r.has_akorr = c.kind == Kind::axes;
+  r.ipoc = c.ipoc;
+  kuka_units_from_correction(c, r.rkorr, r.akorr_deg);
+  return r;
 }
 
 samples::RobotCorrection correction_from_reply(const Reply& r) {

@@ -647,6 +647,52 @@ TEST_F(Watchdog, LostRobotCyclesFaultAtTheThresholdAndTheNextMessageGetsZero) {
             static_cast<std::uint64_t>(n));
 }
 
+TEST_F(Watchdog, WhileTheBoxIsFrozenLastIsTheLatestCycleAndTheBoxDoesNotChange) {
+  for (int i = 0; i < c.config().watchdog.ft_fault_cycles; ++i) rig.quiet(c, 0, 24);
+  ASSERT_TRUE(c.black_box().frozen());
+  const Cycle::Box& box = c.black_box();
+  const std::size_t n = box.size();
+  std::vector<std::array<std::uint64_t, 3>> kept;
+  for (std::size_t i = 0; i < n; ++i)
+    kept.push_back({box.at(i).cycle, box.at(i).flags, box.at(i).ipoc});
+  const std::uint64_t fault_cycle = box.at(n - 1).cycle;
+  EXPECT_EQ(c.last().cycle, fault_cycle);
+  // Full, lost and stale cycles after the fault: each is last(), none reaches the box.
+  rig.quiet(c);
+  EXPECT_EQ(c.last().cycle, fault_cycle + 1);
+  EXPECT_EQ(c.last().state, State::fault);
+  const double t_s = c.last().t_s;
+  c.robot_lost(RobotLoss::timeout);
+  EXPECT_EQ(c.last().cycle, fault_cycle + 1);
+  EXPECT_EQ(c.last().flags, kRobotLost);
+  EXPECT_EQ(c.last().t_s, t_s) << "a lost cycle keeps the last record's row";
+  rig.message.ipoc -= 24;  // an older datagram
+  rig.quiet(c);
+  rig.message.ipoc += 12;  // back to the next one
+  EXPECT_EQ(c.last().cycle, fault_cycle + 2);
+  EXPECT_EQ(c.last().flags, kIpocStale);
+  EXPECT_EQ(c.last().t_s, t_s);
+  c.set_compute_ns(77);
+  EXPECT_EQ(c.last().compute_ns, 77);
+  ASSERT_EQ(box.size(), n);
+  for (std::size_t i = 0; i < n; ++i) {
+    EXPECT_EQ((std::array<std::uint64_t, 3>{box.at(i).cycle, box.at(i).flags, box.at(i).ipoc}),
+              kept[i])
+        << i;
+  }
+  // Released: the next cycles are kept again, a lost one after the full one it repeats.
+  c.release_black_box();
+  rig.quiet(c);
+  EXPECT_EQ(box.at(box.size() - 1).cycle, c.last().cycle);
+  EXPECT_EQ(&box.at(box.size() - 1), &c.last());
+  const std::uint32_t full_flags = c.last().flags;
+  c.robot_lost(RobotLoss::malformed);
+  EXPECT_EQ(box.at(box.size() - 1).flags, kRobotLost);
+  EXPECT_EQ(box.at(box.size() - 2).flags, full_flags);
+  EXPECT_EQ(box.at(box.size() - 2).cycle, box.at(box.size() - 1).cycle);
+  EXPECT_EQ(box.at(box.size() - 2).t_s, box.at(box.size() - 1).t_s);
+}
+
 TEST_F(Watchdog, AnIpocGapBelowTheThresholdIsCountedAndStepsTheBodyByTheElapsedTime) {
   rig.message.ipoc += 12;  // one datagram lost
   rig.quiet(c);

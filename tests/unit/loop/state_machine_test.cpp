@@ -65,5 +65,22 @@ TEST(BlackBox, KeepsTheLastNAndFreezesOnFault) {
   EXPECT_EQ(box.at(0), 751);
 }
 
+TEST(BlackBox, ARecordFilledInPlaceIsKeptOnCommit) {
+  BlackBox<int, 4> box;
+  for (int i = 0; i < 6; ++i) {
+    box.next() = i;
+    box.commit();
+  }
+  ASSERT_EQ(box.size(), 4u);
+  EXPECT_EQ(box.at(0), 2);
+  EXPECT_EQ(box.at(3), 5);
+  EXPECT_EQ(&box.newest(), &box.at(3));
+  EXPECT_EQ(box.total_pushed(), 6u);
+  box.next() = 6;  // written, not committed: the slot was the oldest's, the newest is unchanged
+  EXPECT_EQ(box.at(3), 5);
+  EXPECT_EQ(box.size(), 4u);
+  EXPECT_EQ(box.total_pushed(), 6u);
+}
+
 }  // namespace
 }  // namespace zerog::loop

@@ -116,6 +116,32 @@ TEST(RsiSi, CorrectionToKukaKnownValues) {
   EXPECT_DOUBLE_EQ(r.rkorr.x_mm, 0.0);
 }
 
+TEST(RsiSi, KukaUnitsIntoTheCallersFieldsAreTheReplysAndOverwriteThem) {
+  samples::RobotCorrection c;
+  c.translation_m = {1e-3, -2e-4, 3e-4};
+  const double a = kPi / 180;
+  c.R_correction = {std::cos(a), -std::sin(a), 0, std::sin(a), std::cos(a), 0, 0, 0, 1};
+  c.axes_rad = {kPi / 180, 0, 0, 0, 0, -kPi / 2};
+  for (const auto kind :
+       {samples::RobotCorrection::Kind::none, samples::RobotCorrection::Kind::cartesian,
+        samples::RobotCorrection::Kind::axes}) {
+    c.kind = kind;
+    const Reply r = reply_from_correction(c);
+    Correction rkorr{7, 7, 7, 7, 7, 7};  // stale content: every field is written
+    std::array<double, 6> akorr_deg{7, 7, 7, 7, 7, 7};
+    kuka_units_from_correction(c, rkorr, akorr_deg);
+    const std::array<double, 6> rk{rkorr.x_mm,  rkorr.y_mm,  rkorr.z_mm,
+                                   rkorr.a_deg, rkorr.b_deg, rkorr.c_deg};
+    const std::array<double, 6> rr{r.rkorr.x_mm,  r.rkorr.y_mm,  r.rkorr.z_mm,
+                                   r.rkorr.a_deg, r.rkorr.b_deg, r.rkorr.c_deg};
+    for (std::size_t i = 0; i < 6; ++i) {
+      EXPECT_EQ(rk[i], rr[i]) << static_cast<int>(kind) << " " << i;
+      EXPECT_EQ(std::signbit(rk[i]), std::signbit(rr[i])) << static_cast<int>(kind) << " " << i;
+      EXPECT_EQ(akorr_deg[i], r.akorr_deg[i]) << static_cast<int>(kind) << " " << i;
+    }
+  }
+}
+
 TEST(RsiSi, NoCorrectionIsPositiveZeros) {
   // A, B, C of the identity would give B = −0 (asin(−0)): "no correction" is written as zeros.
   samples::RobotCorrection none;

@@ -1,7 +1,8 @@
 #pragma once
 // A pre-allocated ring of the most recent cycles (libfranka's habit): on a fault, the last
 // second before it is frozen and dumped outside the cycle. Real-time safe: `push` copies one
-// fixed-size record, `freeze` copies the ring once; no allocation, no locks.
+// fixed-size record (or `next` + `commit` fill the slot in place), `freeze` only marks the ring;
+// no allocation, no locks.
 #include <array>
 #include <cstddef>
 #include <cstdint>
@@ -17,6 +18,11 @@ class BlackBox {
     ring_[count_ % N] = r;
     ++count_;
   }
+  /// The slot the next record goes to (the oldest record once full), to fill it in place and
+  /// then `commit()` it: the cycle writes its record there, with no copy. Not while frozen.
+  Record& next() { return ring_[count_ % N]; }
+  /// The slot from `next()` becomes the newest record. Requires !frozen().
+  void commit() { ++count_; }
   /// The newest record, to complete it after the cycle (e.g. its measured compute time), frozen
   /// or not. Requires size() > 0.
   Record& newest() { return ring_[(count_ - 1) % N]; }

@@ -543,12 +543,12 @@ class Cycle {
   void step(const proto::rsi::RobotMessage& message, CycleReply& reply) noexcept;
 
   /// The record of the last step() (or robot_lost()).
-  const CycleRecord& last() const { return record_; }
+  const CycleRecord& last() const { return *record_; }
   /// The last cycle had its model rows and fresh samples of both sensors: enable_zero_g can be
   /// accepted (what zerog-rt's status and the Modbus `ready` input show).
   bool ready() const noexcept {
-    return record_.cycle > 0 &&
-           (record_.flags & (kNotReady | kFtHeld | kImuHeld | kPoseMissing)) == 0;
+    return record_->cycle > 0 &&
+           (record_->flags & (kNotReady | kFtHeld | kImuHeld | kPoseMissing)) == 0;
   }
   /// The program's measured time of the last step(): into its record and, if that cycle is the
   /// black box's newest entry (also the fault cycle of a frozen box), there too.
@@ -568,13 +568,18 @@ class Cycle {
   void grow_lost_run() noexcept;
   /// The black box keeps a lost cycle too: the last record marked `flags`, with the state now.
   void push_lost_record(std::uint32_t flags) noexcept;
-  /// Into the black box; frozen there if a fault was raised in this cycle.
+  /// Where this cycle's record is written, which becomes last(): the black box's next slot if
+  /// the record goes into the box (`kept`, and the box is not frozen), else spare_. `carry`:
+  /// starts as a copy of the last record (a lost cycle keeps what it has nothing new for).
+  CycleRecord& open_record(bool kept, bool carry) noexcept;
+  /// The record from open_record(true, ...) into the black box (if not frozen); frozen there if
+  /// a fault was raised in this cycle.
   void keep_record() noexcept;
   /// A message without any pose (kPoseMissing): answered, counted as a lost robot cycle.
   void pose_missing() noexcept;
   /// A message not newer than the last one (kIpocStale): answered (zero), nothing else.
   void stale_message() noexcept;
-  /// One cycle for message `m`; its answer (SI) is record_.reply, which both step()s hand on.
+  /// One cycle for message `m`; its answer (SI) is last().reply, which both step()s hand on.
   void run(const samples::RobotSample& m) noexcept;
   /// The pending command (request()), taken for this cycle.
   stages::PendingCommand take_command() noexcept;
@@ -596,8 +601,11 @@ class Cycle {
   Box box_;
   bool freeze_pending_ = false;
   /// The last cycle's record: stages::make_record's, or a lost cycle's (robot_lost(), a stale
-  /// message, no pose), which keeps the fields that cycle has nothing new for.
-  CycleRecord record_;
+  /// message, no pose), which keeps the fields that cycle has nothing new for. It is the black
+  /// box's newest entry (written there in place, not copied), or spare_ when it is not in the
+  /// box (the box is frozen, or the cycle is not kept: not configured).
+  CycleRecord* record_ = &spare_;
+  CycleRecord spare_;
   CycleCounters counters_;
 
   /// 0: none, else ticket << 8 | (1 + Command).

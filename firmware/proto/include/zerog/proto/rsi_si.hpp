@@ -35,6 +35,12 @@ RobotMessage robot_message_from_sample(const samples::RobotSample& sample);
 /// (has_* false, zero). IPOC as it is.
 Reply reply_from_correction(const samples::RobotCorrection& correction);
 
+/// reply_from_correction's RKorr and AKorr, written straight into the caller's fields (the
+/// absent one zero): for an answer kept in another struct (loop::CycleReply), with no Reply
+/// in between.
+void kuka_units_from_correction(const samples::RobotCorrection& correction, Correction& rkorr,
+                                std::array<double, 6>& akorr_deg);
+
 /// The RKorr angles A, B, C of `correction` in rad (KUKA's Euler angles of R_correction, in the
 /// ranges above) for Kind::cartesian; exact zeros otherwise. reply_from_correction's angles are
 /// these in degrees. For telemetry, which carries them in rad.
