@@ -126,15 +126,21 @@ TEST(Cycle, IdleAnswersEveryMessageWithItsIpocAndNoCorrectionAndSeesNoContact) {
   EXPECT_EQ(c.last().flags & kNotReady, 0u);
 }
 
+// The payload model with a temperature_bias of 2 N/K on Fx (none on the other axes).
+infer::DeployedModel temperature_model() {
+  infer::DeployedModel model = payload_model();
+  model.physics.effects.add(model::Effect::temperature_bias);
+  double* per_kelvin = model.physics.block(model::Effect::temperature_bias);
+  for (int k = 0; k < 6; ++k) per_kelvin[k] = k == 0 ? 2.0 : 0.0;
+  return model;
+}
+
 // The model's temperature_bias gets the F/T sensor's own temperature (the NETCANOEM thermistor)
 // once a sample brings one, held between readings; before that the configured temperature_C.
 // Rig at 35 °C with a model of 2 N/K on Fx: with the configured 25 °C the contact would show
 // 20 N; with the sensor's reading it is zero.
 TEST(Cycle, TheSensorsTemperatureReachesTheModelAndTheRecord) {
-  infer::DeployedModel model = payload_model();
-  model.physics.effects.add(model::Effect::temperature_bias);
-  double* per_kelvin = model.physics.block(model::Effect::temperature_bias);
-  for (int k = 0; k < 6; ++k) per_kelvin[k] = k == 0 ? 2.0 : 0.0;
+  const infer::DeployedModel model = temperature_model();
   Cycle c;
   ASSERT_EQ(c.configure(test_cycle_config(), model).text(), "");
   StaticRobot rig(model);  // its payload wrench is the model's at 25 °C
@@ -161,10 +167,7 @@ TEST(Cycle, TheSensorsTemperatureReachesTheModelAndTheRecord) {
 // again, every such cycle is flagged kTemperatureStale and counted, and the next fresh reading
 // ends it. Same rig as above: the fallback shows as the 20 N the configured 25 °C leaves.
 TEST(Cycle, AStaleTemperatureFallsBackToTheConfiguredOneFlaggedAndCounted) {
-  infer::DeployedModel model = payload_model();
-  model.physics.effects.add(model::Effect::temperature_bias);
-  double* per_kelvin = model.physics.block(model::Effect::temperature_bias);
-  for (int k = 0; k < 6; ++k) per_kelvin[k] = k == 0 ? 2.0 : 0.0;
+  const infer::DeployedModel model = temperature_model();
   Cycle c;
   ASSERT_EQ(c.configure(test_cycle_config(), model).text(), "");
   StaticRobot rig(model);
