@@ -1,6 +1,9 @@
 #include "zerog/ident/block_stats.hpp"
 
 #include <algorithm>
+#include <memory>
+
+#include "parallel.hpp"
 
 namespace zerog::ident {
 
@@ -29,22 +32,34 @@ Eigen::Matrix<double, 6, 1> upper(const Eigen::Vector3d& v) {
 
 }  // namespace
 
-BlockStats::BlockStats(const Dataset& data, SampleBlocks blocks, const model::EffectSet& effects)
+BlockStats::BlockStats(const Dataset& data, SampleBlocks blocks, const model::EffectSet& effects,
+                       int threads)
     : data_(&data), blocks_(std::move(blocks)) {
-  sensor_.reserve(blocks_.size());
-  R_mean_.reserve(blocks_.size());
+  // Both passes on `threads` threads (parallel.hpp) with the numbers of one: every block's means
+  // are its own, and the running sums restart at every segment, so a segment's are too.
+  sensor_.resize(blocks_.size());
+  R_mean_.resize(blocks_.size());
   std::size_t longest = 1;
+  for (const auto& [first, count] : blocks_) longest = std::max(longest, count);
+  constexpr std::size_t kTaskBlocks = 512;
+  const std::size_t block_tasks = (blocks_.size() + kTaskBlocks - 1) / kTaskBlocks;
   {
-    ResidentWindow window(data);
-    for (const auto& [first, count] : blocks_) {
-      window.advance(first + count);
-      sensor_.push_back(block_sensor_means(data, first, count));
-      Eigen::Matrix3d R = Eigen::Matrix3d::Zero();
-      const double inv_n = 1.0 / static_cast<double>(count);
-      for (std::size_t i = first; i < first + count; ++i) R += data.pose(i).R_base_sensor * inv_n;
-      R_mean_.push_back(R);
-      longest = std::max(longest, count);
-    }
+    // A worker's rows are released behind it by its own window (spill.hpp).
+    std::vector<std::unique_ptr<ResidentWindow>> windows(
+        static_cast<std::size_t>(parallel::workers(block_tasks, threads)));
+    for (auto& w : windows) w = std::make_unique<ResidentWindow>(data);
+    parallel::for_each(block_tasks, threads, [&](std::size_t task, int worker) {
+      for (std::size_t b = task * kTaskBlocks;
+           b < std::min(blocks_.size(), (task + 1) * kTaskBlocks); ++b) {
+        const auto [first, count] = blocks_[b];
+        windows[static_cast<std::size_t>(worker)]->advance(first + count);
+        sensor_[b] = block_sensor_means(data, first, count);
+        Eigen::Matrix3d R = Eigen::Matrix3d::Zero();
+        const double inv_n = 1.0 / static_cast<double>(count);
+        for (std::size_t i = first; i < first + count; ++i) R += data.pose(i).R_base_sensor * inv_n;
+        R_mean_[b] = R;
+      }
+    });
   }
   // payload_wrench reads the IMU only for the inertia effects (Dataset::imu_at: none without IMU).
   imu_ = data.columns.any_imu() && (effects.has(model::Effect::linear_inertia) ||
@@ -54,22 +69,28 @@ BlockStats::BlockStats(const Dataset& data, SampleBlocks blocks, const model::Ef
   const std::size_t n = data.size();
   partial_.assign((n / kCheckpointRows + 1) * kChannels, 0.0);
   total_.assign((n / segment_ + 1) * kChannels, 0.0);
-  Channels sum = Channels::Zero();
-  ResidentWindow window(data);
-  for (std::size_t j = 0; j < n; ++j) {
-    window.advance(j + 1);
-    sum += row_channels(j);
-    const std::size_t next = j + 1;
-    if (next % segment_ == 0 || next == n) {
-      Eigen::Map<Channels> total(&total_[(j / segment_) * kChannels]);
-      total = sum;
+  const std::size_t segments = (n + segment_ - 1) / segment_;
+  std::vector<std::unique_ptr<ResidentWindow>> windows(
+      static_cast<std::size_t>(parallel::workers(segments, threads)));
+  for (auto& w : windows) w = std::make_unique<ResidentWindow>(data);
+  parallel::for_each(segments, threads, [&](std::size_t s, int worker) {
+    ResidentWindow& window = *windows[static_cast<std::size_t>(worker)];
+    Channels sum = Channels::Zero();
+    for (std::size_t j = s * segment_; j < std::min(n, (s + 1) * segment_); ++j) {
+      window.advance(j + 1);
+      sum += row_channels(j);
+      const std::size_t next = j + 1;
+      if (next % segment_ == 0 || next == n) {
+        Eigen::Map<Channels> total(&total_[(j / segment_) * kChannels]);
+        total = sum;
+      }
+      if (next % segment_ == 0) sum.setZero();
+      if (next % kCheckpointRows == 0) {
+        Eigen::Map<Channels> partial(&partial_[(next / kCheckpointRows) * kChannels]);
+        partial = sum;
+      }
     }
-    if (next % segment_ == 0) sum.setZero();
-    if (next % kCheckpointRows == 0) {
-      Eigen::Map<Channels> partial(&partial_[(next / kCheckpointRows) * kChannels]);
-      partial = sum;
-    }
-  }
+  });
 }
 
 BlockStats::Channels BlockStats::row_channels(std::size_t j) const {

@@ -359,24 +359,51 @@ SampleBlocks make_blocks(const Dataset& data, const FitOptions& o, int m) {
 bool use(const FitOptions& o, std::size_t i) { return o.mask == nullptr || (*o.mask)[i] != 0; }
 
 // Linear least squares for bias and gravity (F = F0 + m g_S, M = M0 + (m c) × g_S): start values.
+// Per sample the rows are J = [[I, g, 0, 0], [0, 0, I, −[g]×]] (unknowns F0, m, M0, h = m c;
+// rows F, M); JᵀJ and Jᵀ(F, M) are accumulated from their nonzero entries, each formed as the
+// dense product forms it (zeros add nothing), so the sums are the dense ones: the dense 6 × 10
+// product per sample cost as much as one model evaluation of the whole log (issue 16).
 void linear_init(const Dataset& data, const FitOptions& o, model::ModelParams& p) {
-  Eigen::Matrix<double, 10, 10> A = Eigen::Matrix<double, 10, 10>::Zero();
-  Eigen::Matrix<double, 10, 1> b = Eigen::Matrix<double, 10, 1>::Zero();
+  double n = 0.0, gg = 0.0, gF = 0.0;
+  Eigen::Vector3d sg = Eigen::Vector3d::Zero(), sF = Eigen::Vector3d::Zero(),
+                  sM = Eigen::Vector3d::Zero(), sgM = Eigen::Vector3d::Zero();
+  Eigen::Vector3d diag = Eigen::Vector3d::Zero();  // Σ (g_y² + g_z², g_x² + g_z², g_x² + g_y²)
+  Eigen::Vector3d off = Eigen::Vector3d::Zero();  // Σ (−g_x g_y, −g_x g_z, −g_y g_z)
   ResidentWindow window(data);
   for (std::size_t i = 0; i < data.size(); ++i) {
     window.advance(i);
     if (!use(o, i)) continue;
     const Eigen::Vector3d g =
         data.pose(i).R_base_sensor.transpose() * Eigen::Vector3d(0, 0, -model::kStandardGravity);
-    // unknowns: F0(3) m(1) M0(3) h(3); rows: F (3), M (3)
-    Eigen::Matrix<double, 6, 10> J = Eigen::Matrix<double, 6, 10>::Zero();
-    J.block<3, 3>(0, 0).setIdentity();
-    J.block<3, 1>(0, 3) = g;
-    J.block<3, 3>(3, 4).setIdentity();
-    J.block<3, 3>(3, 7) = -model::skew<double>(g);  // h × g = −g × h
-    A += J.transpose() * J;
-    b += J.transpose() * data.measured[i];
+    const Wrench& w = data.measured[i];
+    n += 1.0;
+    sg += g;
+    gg += g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
+    sF += w.head<3>();
+    gF += g[0] * w[0] + g[1] * w[1] + g[2] * w[2];
+    sM += w.tail<3>();
+    // Columns of −[g]×: (0, −g_z, g_y), (g_z, 0, −g_x), (−g_y, g_x, 0).
+    diag[0] += g[2] * g[2] + g[1] * g[1];
+    diag[1] += g[2] * g[2] + g[0] * g[0];
+    diag[2] += g[1] * g[1] + g[0] * g[0];
+    off[0] += g[1] * -g[0];
+    off[1] += -g[2] * g[0];
+    off[2] += g[2] * -g[1];
+    sgM[0] += -g[2] * w[4] + g[1] * w[5];
+    sgM[1] += g[2] * w[3] + -g[0] * w[5];
+    sgM[2] += -g[1] * w[3] + g[0] * w[4];
   }
+  Eigen::Matrix<double, 10, 10> A = Eigen::Matrix<double, 10, 10>::Zero();
+  Eigen::Matrix<double, 10, 1> b;
+  A.block<3, 3>(0, 0) = n * Eigen::Matrix3d::Identity();
+  A.block<3, 1>(0, 3) = sg;
+  A.block<1, 3>(3, 0) = sg.transpose();
+  A(3, 3) = gg;
+  A.block<3, 3>(4, 4) = n * Eigen::Matrix3d::Identity();
+  A.block<3, 3>(4, 7) = -model::skew<double>(sg);
+  A.block<3, 3>(7, 4) = A.block<3, 3>(4, 7).transpose();
+  A.block<3, 3>(7, 7) << diag[0], off[0], off[1], off[0], diag[1], off[2], off[1], off[2], diag[2];
+  b << sF, gF, sM, sgM;
   const Eigen::Matrix<double, 10, 1> x = A.ldlt().solve(b);
   double* bias = p.block(Effect::bias);
   for (int k = 0; k < 3; ++k) bias[k] = x[k];
@@ -660,7 +687,7 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
   const bool normal_engine = o.engine == "normal" && o.loss == "none";
   if (o.engine == "normal" && !normal_engine) r.engine = "block_stats";
   std::optional<BlockStats> stats;
-  if (o.engine != "samples") stats.emplace(data, blocks_of_samples, o.effects);
+  if (o.engine != "samples") stats.emplace(data, blocks_of_samples, o.effects, o.threads);
   const std::vector<double> user_design = mean_user_design(data, r.params.user, blocks_of_samples);
   int passes = 1;
   if (!o.sigma) {
@@ -754,20 +781,42 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
         sigma[k] = std::max(std::sqrt(ss_block[k] / nb), k < 3 ? 1e-4 : 1e-5);
       continue;
     }
+    // The residuals of a round of blocks are formed on the fit's threads (each sample's on its
+    // own), then summed in sample order: the sums of one thread, for any thread count. Alone on
+    // one thread this pass took as long as the model evaluation of the whole log (issue 16).
     std::array<double, 6> ss{};
     std::size_t n = 0;
     ResidentWindow window(data);
-    for (const auto& [first, count] : blocks_of_samples) {
-      window.advance(first + count);
-      Wrench mean = Wrench::Zero();
-      for (std::size_t i = first; i < first + count; ++i) {
-        const Wrench e = data.measured[i] - predict(r.params, data, i);
-        for (int k = 0; k < 6; ++k) ss[k] += e[k] * e[k];
-        mean += e;
-        ++n;
+    constexpr std::size_t kRoundBlocks = 2048, kTaskBlocks = 256;
+    std::vector<std::size_t> at(kRoundBlocks + 1);  // a block's first residual in `e`
+    std::vector<Wrench> e;
+    for (std::size_t b0 = 0; b0 < blocks_of_samples.size(); b0 += kRoundBlocks) {
+      const std::size_t b1 = std::min(blocks_of_samples.size(), b0 + kRoundBlocks);
+      for (std::size_t b = b0; b < b1; ++b)
+        at[b - b0 + 1] = at[b - b0] + blocks_of_samples[b].second;
+      e.resize(at[b1 - b0]);
+      parallel::for_each(
+          (b1 - b0 + kTaskBlocks - 1) / kTaskBlocks, o.threads, [&](std::size_t task, int) {
+            const std::size_t t0 = b0 + task * kTaskBlocks;
+            for (std::size_t b = t0; b < std::min(b1, t0 + kTaskBlocks); ++b) {
+              const auto [first, count] = blocks_of_samples[b];
+              for (std::size_t i = 0; i < count; ++i)
+                e[at[b - b0] + i] = data.measured[first + i] - predict(r.params, data, first + i);
+            }
+          });
+      for (std::size_t b = b0; b < b1; ++b) {
+        const auto [first, count] = blocks_of_samples[b];
+        Wrench mean = Wrench::Zero();
+        for (std::size_t i = 0; i < count; ++i) {
+          const Wrench& ei = e[at[b - b0] + i];
+          for (int k = 0; k < 6; ++k) ss[k] += ei[k] * ei[k];
+          mean += ei;
+          ++n;
+        }
+        mean /= static_cast<double>(count);
+        for (int k = 0; k < 6; ++k) ss_block[k] += mean[k] * mean[k];
       }
-      mean /= static_cast<double>(count);
-      for (int k = 0; k < 6; ++k) ss_block[k] += mean[k] * mean[k];
+      window.advance(blocks_of_samples[b1 - 1].first + blocks_of_samples[b1 - 1].second);
     }
     solved.n = n;
     solved.ssr = 0.0;

@@ -84,6 +84,8 @@ TEST(BlockStats, PayloadMeanEqualsTheMeanOverTheInterpolatedSamples) {
         model::EffectSet{Effect::gravity, Effect::base_tilt, Effect::rotational_inertia,
                          Effect::sensor_rotation}}) {
     const BlockStats stats(data, blocks, effects);
+    const BlockStats on_three(data, blocks, effects, 3);  // the same numbers on any thread count
+    int differ = 0;
     for (double shift : {0.0, 0.37, -0.81, 3.0, -2.0, 5.49, -7.25}) {
       SCOPED_TRACE("effects " + std::to_string(effects.bits()) + ", shift " +
                    std::to_string(shift) + " rows");
@@ -107,6 +109,19 @@ TEST(BlockStats, PayloadMeanEqualsTheMeanOverTheInterpolatedSamples) {
         const auto [first, count] = blocks[b];
         const model::Wrench<J> ref = payload_mean_by_samples<J>(data, effects, p, first, count);
         const model::Wrench<J> got = stats.payload_mean<J>(effects, p, b);
+        const model::Wrench<J> three = on_three.payload_mean<J>(effects, p, b);
+        for (int k = 0; k < 6; ++k) {
+          differ +=
+              std::bit_cast<std::uint64_t>(three[k].a) != std::bit_cast<std::uint64_t>(got[k].a);
+          for (int d = 0; d < 16; ++d)
+            differ += std::bit_cast<std::uint64_t>(three[k].v[d]) !=
+                      std::bit_cast<std::uint64_t>(got[k].v[d]);
+        }
+        const BlockSensorMeans& s1 = stats.sensor_means(b);
+        const BlockSensorMeans& s3 = on_three.sensor_means(b);
+        differ += s1.measured != s3.measured || s1.inputs.t_rel_s != s3.inputs.t_rel_s ||
+                  s1.inputs.temperature_C != s3.inputs.temperature_C ||
+                  s1.inputs.cable_features != s3.inputs.cable_features;
         model::PayloadMeans<J> means;
         const J* tau = effects.has(Effect::imu_time_offset)
                            ? p[model::index(Effect::imu_time_offset)]
@@ -137,6 +152,7 @@ TEST(BlockStats, PayloadMeanEqualsTheMeanOverTheInterpolatedSamples) {
         EXPECT_EQ(fallbacks, 0u);
       }
     }
+    EXPECT_EQ(differ, 0) << "statistics formed on 3 threads differ from those formed on 1";
   }
 }
 
@@ -395,12 +411,12 @@ TEST(FitEngine, NormalIsBitIdenticalForAnyThreadCount) {
     const FitResult three = fit(data, o);
     ASSERT_TRUE(one.usable && two.usable && three.usable);
     ASSERT_TRUE(one.std && two.std && three.std);
+    const auto bits = [](double v) { return std::bit_cast<std::uint64_t>(v); };
     int differ = 0;
     for (Effect e : model::kAllEffects) {
       if (!effects.has(e)) continue;
       for (int i = 0; i < model::info(e).num_params; ++i) {
         const double x = one.params.block(e)[i];
-        const auto bits = [](double v) { return std::bit_cast<std::uint64_t>(v); };
         for (const FitResult* r : {&two, &three}) {
           EXPECT_EQ(bits(r->params.block(e)[i]), bits(x)) << param_label(e, i);
           const double s1 = (*one.std)[model::index(e)][i], s = (*r->std)[model::index(e)][i];
@@ -408,6 +424,11 @@ TEST(FitEngine, NormalIsBitIdenticalForAnyThreadCount) {
           differ += bits(r->params.block(e)[i]) != bits(x) || bits(s) != bits(s1);
         }
       }
+    }
+    // The residuals' figures from the last pass (formed on the threads, summed in order).
+    for (const FitResult* r : {&two, &three}) {
+      EXPECT_EQ(bits(r->bic), bits(one.bic));
+      for (int k = 0; k < 6; ++k) EXPECT_EQ(bits(r->residual_rms[k]), bits(one.residual_rms[k]));
     }
     EXPECT_EQ(three.warnings.size(), one.warnings.size());
     std::printf("[ threads  ] effects %u: %d values or stds differ between 1, 2 and 3 threads\n",

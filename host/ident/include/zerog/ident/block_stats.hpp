@@ -63,7 +63,9 @@ model::Wrench<T> payload_mean_by_samples(const Dataset& data, const model::Effec
 /// The statistics of `blocks` of `data` for the model `effects`. Keeps a pointer to `data`.
 class BlockStats {
  public:
-  BlockStats(const Dataset& data, SampleBlocks blocks, const model::EffectSet& effects);
+  /// Formed on `threads` threads, the same for any count.
+  BlockStats(const Dataset& data, SampleBlocks blocks, const model::EffectSet& effects,
+             int threads = 1);
 
   std::size_t size() const { return blocks_.size(); }
   const std::pair<std::size_t, std::size_t>& block(std::size_t b) const { return blocks_[b]; }
