@@ -285,12 +285,14 @@ void correct_errors_in_variables(const Dataset& data, const FitOptions& o,
   for (Eigen::Index q = 0; q < p; ++q) theta0[q] = *f.value[static_cast<std::size_t>(q)];
   // As the fit's covariance: columns scaled to unit diagonal of JᵀJ, and only the directions it
   // identifies (eigenvalues above 1e-9 of the largest); rank-deficient combinations keep the
-  // fit's values.
+  // fit's values. A parameter the prediction does not depend on at all (a zero column, e.g.
+  // base_tilt beside linear_inertia, which takes gravity from the IMU) keeps its value: scaled by
+  // 1/√1e-300 instead, the rounding in the eigenvectors' other columns threw it to 1e140.
   Eigen::MatrixXd J, V, M;
   Eigen::VectorXd theta = theta0, d, lambda;
   const auto subspace = [&] {
     const Eigen::MatrixXd JtJ = J.transpose() * J;
-    d = JtJ.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
+    d = JtJ.diagonal().unaryExpr([](double v) { return v > 0.0 ? 1.0 / std::sqrt(v) : 0.0; });
     const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(d.asDiagonal() * JtJ * d.asDiagonal());
     const double lmax = eig.eigenvalues().maxCoeff();
     std::vector<Eigen::Index> keep;
