@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <sstream>
 
 #include <Eigen/Dense>
@@ -575,23 +576,22 @@ std::vector<Candidate> evaluate_candidates(const Dataset& data, const Baseline& 
 }
 
 // Candidate signals for residual correlation, in plain words.
+// A signal the residual may follow: its values on samples [i0, i1) where `mask` is set, into
+// out[i − i0] (the others are not read). Formed on demand, chunk by chunk: kept as columns, the
+// forty-odd features of a 10^6-sample log held 320 MB (issue 16).
 struct Feature {
   std::string name;
-  std::vector<double> v;
+  std::function<void(std::size_t i0, std::size_t i1, const std::uint8_t* mask, double* out)> values;
 };
 
-// Each feature's values on the samples in `mask` (zero elsewhere: correlate reads no other).
-std::vector<Feature> features(const Dataset& data, const std::vector<std::uint8_t>& mask,
-                              int threads) {
+std::vector<Feature> features(const Dataset& data) {
   std::vector<Feature> f;
-  const std::size_t n = data.size();
   auto add = [&](std::string name, auto fn) {
-    Feature x{std::move(name), std::vector<double>(n, 0.0)};
-    for_each_sample_chunk(data, threads, [&](std::size_t i0, std::size_t i1) {
-      for (std::size_t i = i0; i < i1; ++i)
-        if (mask[i]) x.v[i] = fn(i);
-    });
-    f.push_back(std::move(x));
+    f.push_back({std::move(name),
+                 [fn](std::size_t i0, std::size_t i1, const std::uint8_t* mask, double* out) {
+                   for (std::size_t i = i0; i < i1; ++i)
+                     if (mask[i]) out[i - i0] = fn(i);
+                 }});
   };
   if (!data.columns.static_rows)
     add("time since start", [&](std::size_t i) { return data.pose(i).t_rel_s; });
@@ -640,22 +640,36 @@ std::vector<Feature> features(const Dataset& data, const std::vector<std::uint8_
 
 std::vector<SignalCorrelation> correlate(const Dataset& data, const std::vector<Wrench>& res,
                                          const std::vector<std::uint8_t>& mask, int threads) {
-  // Each feature's correlations on their own (one thread's sums each), then in feature order.
-  const std::vector<Feature> fs = features(data, mask, threads);
+  // Each feature's correlations on their own (one thread's sums each, in sample order, over the
+  // masked samples), then in feature order. A feature's values are formed a chunk at a time as
+  // its walk reaches them (releasing a spilled log's rows behind it).
+  const std::vector<Feature> fs = features(data);
   std::vector<std::vector<SignalCorrelation>> per(fs.size());
+  constexpr std::size_t kChunk = 4096;
   parallel::for_each(fs.size(), threads, [&](std::size_t q, int) {
     const Feature& f = fs[q];
-    for (int a = 0; a < 6; ++a) {
-      double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
-      double n = 0;
-      for (std::size_t i = 0; i < data.size(); ++i) {
+    std::array<double, 6> sx{}, sy{}, sxx{}, syy{}, sxy{};
+    double n = 0;
+    std::vector<double> x(kChunk);
+    ResidentWindow window(data);
+    for (std::size_t i0 = 0; i0 < data.size(); i0 += kChunk) {
+      const std::size_t i1 = std::min(data.size(), i0 + kChunk);
+      window.advance(i1 - 1);
+      f.values(i0, i1, mask.data(), x.data());
+      for (std::size_t i = i0; i < i1; ++i) {
         if (!mask[i]) continue;
-        const double x = f.v[i], y = res[i][a];
-        sx += x, sy += y, sxx += x * x, syy += y * y, sxy += x * y, n += 1;
+        const double xi = x[i - i0];
+        for (int a = 0; a < 6; ++a) {
+          const double y = res[i][a];
+          sx[a] += xi, sy[a] += y, sxx[a] += xi * xi, syy[a] += y * y, sxy[a] += xi * y;
+        }
+        n += 1;
       }
-      const double vx = sxx - sx * sx / n, vy = syy - sy * sy / n;
+    }
+    for (int a = 0; a < 6; ++a) {
+      const double vx = sxx[a] - sx[a] * sx[a] / n, vy = syy[a] - sy[a] * sy[a] / n;
       if (vx <= 1e-12 * n || vy <= 0) continue;
-      per[q].push_back({f.name, a, (sxy - sx * sy / n) / std::sqrt(vx * vy)});
+      per[q].push_back({f.name, a, (sxy[a] - sx[a] * sy[a] / n) / std::sqrt(vx * vy)});
     }
   });
   std::vector<SignalCorrelation> out;
