@@ -64,10 +64,17 @@ std::string log_words(const json& l, bool with_crc) {
 std::string file_crc32(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error(path.string() + ": cannot open");
-  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  // A piece at a time: a log of 10^6 rows is some 300 MB (read whole, it was the peak memory of
+  // diagnose).
+  std::vector<char> piece(std::size_t{1} << 20);
+  std::uint32_t crc = 0;
+  while (in) {
+    in.read(piece.data(), static_cast<std::streamsize>(piece.size()));
+    crc = infer::crc32(std::string_view(piece.data(), static_cast<std::size_t>(in.gcount())), crc);
+  }
   if (in.bad()) throw std::runtime_error(path.string() + ": read failed");
   char hex[9];
-  std::snprintf(hex, sizeof hex, "%08x", infer::crc32(bytes));
+  std::snprintf(hex, sizeof hex, "%08x", crc);
   return hex;
 }
 

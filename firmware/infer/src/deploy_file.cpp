@@ -511,7 +511,7 @@ const char* load_error_name(LoadError e) {
   return "invalid_value";
 }
 
-std::uint32_t crc32(std::string_view bytes) {
+std::uint32_t crc32(std::string_view bytes, std::uint32_t crc) {
   static const std::array<std::uint32_t, 256> table = [] {
     std::array<std::uint32_t, 256> t{};
     for (std::uint32_t i = 0; i < 256; ++i) {
@@ -521,7 +521,7 @@ std::uint32_t crc32(std::string_view bytes) {
     }
     return t;
   }();
-  std::uint32_t c = 0xFFFFFFFFu;
+  std::uint32_t c = crc ^ 0xFFFFFFFFu;
   for (unsigned char b : bytes) c = table[(c ^ b) & 0xFFu] ^ (c >> 8);
   return c ^ 0xFFFFFFFFu;
 }

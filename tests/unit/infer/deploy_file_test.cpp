@@ -57,6 +57,9 @@ void expect_error(const LoadResult& r, LoadError e, const std::string& words) {
 
 TEST(DeployFile, Crc32MatchesTheStandardCheckValue) {
   EXPECT_EQ(crc32("123456789"), 0xCBF43926u);  // CRC-32/ISO-HDLC check value
+  // A piece at a time (files are checked so): the CRC of the pieces before carries on.
+  EXPECT_EQ(crc32("56789", crc32("1234")), 0xCBF43926u);
+  EXPECT_EQ(crc32("", crc32("123456789")), 0xCBF43926u);
 }
 
 TEST(DeployFile, RoundTripGivesBitIdenticalPredictions) {

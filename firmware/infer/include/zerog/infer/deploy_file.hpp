@@ -63,6 +63,8 @@ std::string serialise_deployed_model(const DeployedModel& model);
 zerog::Status validate_model(const DeployedModel& model, LoadError* kind = nullptr);
 
 /// CRC-32 (IEEE 802.3 / zlib: reflected polynomial 0xEDB88320, initial and final XOR 0xFFFFFFFF).
-std::uint32_t crc32(std::string_view bytes);
+/// `crc`: the CRC of the bytes before these (as zlib's crc32(crc, …)), so that a file can be
+/// checked a piece at a time: crc32(b, crc32(a)) == crc32(a + b).
+std::uint32_t crc32(std::string_view bytes, std::uint32_t crc = 0);
 
 }  // namespace zerog::infer
