@@ -48,6 +48,22 @@ using model::Effect;
 // rank check, covariance and BIC below then come from its final normal matrix.
 constexpr int kCoreDim = 16;  // gravity 4, base_tilt 2, rotational_inertia 6, tau 1, rotation 3
 using CoreJet = ceres::Jet<double, kCoreDim>;
+// The IMU time offset's derivative alone. The block means depend on tau only, so the normal engine
+// evaluates stage 1 with CoreJet parameters on the means' values (plain doubles) and once more
+// with TauJets for tau's column: Jet arithmetic is slot by slot, so both give exactly the numbers
+// of the one CoreJet evaluation on CoreJet means, for a fraction of its multiplications.
+using TauJet = ceres::Jet<double, 1>;
+
+// What stage 1 needs at one parameter point that does not depend on the block: the IMU mount
+// (model::imu_mount) and the stage-1 parameters as Jets. The normal engine computes it once per
+// point (NormalBlocks::set_point) instead of once per block.
+struct PointStage1 {
+  model::ImuMount<double> mount;        // for residual-only evaluations
+  model::ImuMount<CoreJet> mount_core;  // with the stage-1 parameters' derivatives
+  model::ImuMount<TauJet> mount_tau;    // mount_core's values; tau's derivative (zero: not in it)
+  std::array<CoreJet, kCoreDim> core;   // stage-1 parameters, unit derivative in their own slot
+  std::array<TauJet, kCoreDim> tau;     // their values, tau's with its unit derivative
+};
 
 // Which block a BlockCost evaluates: block `block` of the statistics (if any) is the samples
 // [first, first + count), `user_design` its user terms' mean design.
@@ -60,8 +76,14 @@ struct BlockSite {
 // (the normal engine evaluates every block through one object, normal_equations.hpp).
 class BlockCostBase : public ceres::CostFunction {
  public:
+  // `point`: stage1_at(parameters), or null to compute it here.
+  // `row_stride`: the distance between rows of each jacobians[b] (0: the block's size, Ceres'
+  // layout), so the normal engine can have the blocks written straight into its 6 × n row.
   virtual bool evaluate_site(const BlockSite& site, double const* const* parameters,
-                             double* residuals, double** jacobians) const = 0;
+                             double* residuals, double** jacobians, const PointStage1* point,
+                             int row_stride) const = 0;
+  // What stage 1 needs at `parameters` whatever the block (for evaluate_site's `point`).
+  virtual PointStage1 stage1_at(double const* const* parameters) const = 0;
 };
 
 template <int kSensorDim>
@@ -100,11 +122,33 @@ class BlockCost : public BlockCostBase {
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
-    return evaluate_site({block_, first_, count_, user_design_}, parameters, residuals, jacobians);
+    return evaluate_site({block_, first_, count_, user_design_}, parameters, residuals, jacobians,
+                         nullptr, 0);
+  }
+
+  PointStage1 stage1_at(double const* const* parameters) const override {
+    model::ParamPointers<double> p{};
+    for (std::size_t b = 0; b < order_.size(); ++b) p[model::index(order_[b])] = parameters[b];
+    PointStage1 point;
+    core_jets(parameters, point.core);
+    point.mount = model::imu_mount<double>(effects_, p, data_->rig);
+    point.mount_core = model::imu_mount<CoreJet>(effects_, core_pointers(point.core), data_->rig);
+    const auto values = [](const auto& x) {
+      return x.unaryExpr([](const CoreJet& j) { return TauJet(j.a); });
+    };
+    point.mount_tau.R_nominal_true = values(point.mount_core.R_nominal_true);
+    point.mount_tau.R_sensor_imu = values(point.mount_core.R_sensor_imu);
+    point.mount_tau.p_sensor_imu = values(point.mount_core.p_sensor_imu);
+    for (int i = 0; i < kCoreDim; ++i) point.tau[i] = TauJet(point.core[i].a);
+    if (effects_.has(Effect::imu_time_offset)) {
+      const int slot = offset_[model::index(Effect::imu_time_offset)];
+      point.tau[slot] = TauJet(point.core[slot].a, 0);
+    }
+    return point;
   }
 
   bool evaluate_site(const BlockSite& site, double const* const* parameters, double* residuals,
-                     double** jacobians) const override {
+                     double** jacobians, const PointStage1* point, int row_stride) const override {
     // Stage 1's block mean; stage 2 once, on the block means of its inputs (exact: stage 2 is
     // affine in them).
     const BlockSensorMeans computed =
@@ -116,25 +160,24 @@ class BlockCost : public BlockCostBase {
     for (std::size_t b = 0; b < order_.size(); ++b) p[model::index(order_[b])] = parameters[b];
     ident::Wrench pred;
     if (jacobians == nullptr) {  // only residuals wanted: plain doubles
-      const ident::Wrench w1 = payload_mean<double>(site, p);
+      model::PayloadMeans<double> stage1_means;
+      const ident::Wrench w1 =
+          point != nullptr && stats_ != nullptr &&
+                  stats_->payload_means<double>(site.block, tau(p), stage1_means)
+              ? model::payload_wrench_mean<double, double>(effects_, p, point->mount, stage1_means)
+              : payload_mean<double>(site, p);
       pred = model::sensor_output<double>(effects_, p, mean_in, w1);
       add_user(site, parameters, pred);
       for (int r = 0; r < 6; ++r) residuals[r] = (meas[r] - pred[r]) * inv_sigma_[r];
       return true;
     }
-    // Stage-1 parameters as Jets with a unit derivative in their own slot (storage for the
-    // active blocks only: a Jet is zeroed on construction).
-    std::array<CoreJet, kCoreDim> core;
-    model::ParamPointers<CoreJet> pc{};
-    for (std::size_t b = 0; b < order_.size(); ++b) {
-      const Effect e = order_[b];
-      if (!model::is_payload_effect(e)) continue;
-      const int idx = model::index(e), off = offset_[idx];
-      for (int i = 0; i < model::info(e).num_params; ++i)
-        core[off + i] = CoreJet(parameters[b][i], off + i);
-      pc[idx] = &core[off];
-    }
-    const model::Wrench<CoreJet> w1 = payload_mean<CoreJet>(site, pc);
+    // The point's stage-1 Jets, or built here (only then: a Jet is zeroed on construction).
+    std::optional<std::array<CoreJet, kCoreDim>> core_here;
+    if (point == nullptr) core_jets(parameters, core_here.emplace());
+    const model::ParamPointers<CoreJet> pc = core_pointers(point ? point->core : *core_here);
+    model::Wrench<CoreJet> w1;
+    if (point == nullptr || !payload_mean_at_point(site, p, pc, *point, w1))
+      w1 = payload_mean<CoreJet>(site, pc);
     Eigen::Matrix<double, 6, kSensorDim> d_sensor;
     if (stats_) {
       // Stage 2 with its hand-derived derivatives (model::sensor_output_jacobian).
@@ -171,25 +214,88 @@ class BlockCost : public BlockCostBase {
     for (int r = 0; r < 6; ++r) residuals[r] = (meas[r] - pred[r]) * inv_sigma_[r];
     if (num_user_ > 0 && jacobians[order_.size()] != nullptr) {
       double* J = jacobians[order_.size()];
+      const int stride = row_stride > 0 ? row_stride : num_user_;
       for (int r = 0; r < 6; ++r)
         for (int j = 0; j < num_user_; ++j)
-          J[r * num_user_ + j] = -inv_sigma_[r] * site.user_design[6 * j + r];
+          J[r * stride + j] = -inv_sigma_[r] * site.user_design[6 * j + r];
     }
     for (std::size_t b = 0; b < order_.size(); ++b) {
       if (jacobians[b] == nullptr) continue;
       const Effect e = order_[b];
       const int n = model::info(e).num_params, off = offset_[model::index(e)];
+      const int stride = row_stride > 0 ? row_stride : n;
       const bool is_core = model::is_payload_effect(e);
       for (int r = 0; r < 6; ++r) {
         const double scale = -inv_sigma_[r];
         for (int i = 0; i < n; ++i)
-          jacobians[b][r * n + i] = scale * (is_core ? d_core(r, off + i) : d_sensor(r, off + i));
+          jacobians[b][r * stride + i] =
+              scale * (is_core ? d_core(r, off + i) : d_sensor(r, off + i));
       }
     }
     return true;
   }
 
  private:
+  // Stage-1 parameters as Jets with a unit derivative in their own slot (storage for the active
+  // blocks only: a Jet is zeroed on construction).
+  void core_jets(double const* const* parameters, std::array<CoreJet, kCoreDim>& core) const {
+    for (std::size_t b = 0; b < order_.size(); ++b) {
+      const Effect e = order_[b];
+      if (!model::is_payload_effect(e)) continue;
+      const int off = offset_[model::index(e)];
+      for (int i = 0; i < model::info(e).num_params; ++i)
+        core[off + i] = CoreJet(parameters[b][i], off + i);
+    }
+  }
+
+  // The stage-1 effects' blocks of `core` (laid out as core_jets does).
+  template <typename J>
+  model::ParamPointers<J> core_pointers(const std::array<J, kCoreDim>& core) const {
+    model::ParamPointers<J> pc{};
+    for (Effect e : order_)
+      if (model::is_payload_effect(e)) pc[model::index(e)] = &core[offset_[model::index(e)]];
+    return pc;
+  }
+
+  const double* tau(const model::ParamPointers<double>& p) const {
+    return effects_.has(Effect::imu_time_offset) ? p[model::index(Effect::imu_time_offset)]
+                                                 : nullptr;
+  }
+
+  // Stage 1's block mean from the statistics with the mount of the point (as payload_mean, the
+  // same numbers): the CoreJet evaluation on the means' values, tau's column from a TauJet one.
+  // False where the statistics do not cover the block (payload_mean's fallback then).
+  bool payload_mean_at_point(const BlockSite& site, const model::ParamPointers<double>& p,
+                             const model::ParamPointers<CoreJet>& pc, const PointStage1& point,
+                             model::Wrench<CoreJet>& w1) const {
+    if (stats_ == nullptr) return false;
+    const double* tau_s = tau(p);
+    if (tau_s == nullptr) {
+      model::PayloadMeans<double> means;
+      if (!stats_->payload_means<double>(site.block, nullptr, means)) return false;
+      w1 = model::payload_wrench_mean<CoreJet, double>(effects_, pc, point.mount_core, means);
+      return true;
+    }
+    const TauJet tau_jet(*tau_s, 0);
+    model::PayloadMeans<TauJet> means_tau;
+    if (!stats_->payload_means<TauJet>(site.block, &tau_jet, means_tau)) return false;
+    const auto values = [](const auto& x) {
+      return x.unaryExpr([](const TauJet& j) { return j.a; }).eval();
+    };
+    model::PayloadMeans<double> means;
+    means.R_base_sensor = means_tau.R_base_sensor;
+    means.specific_force_imu = values(means_tau.specific_force_imu);
+    means.angular_accel_imu = values(means_tau.angular_accel_imu);
+    means.rate_outer_imu = values(means_tau.rate_outer_imu);
+    w1 = model::payload_wrench_mean<CoreJet, double>(effects_, pc, point.mount_core, means);
+    // tau's column: the parameters' values, tau with its unit derivative.
+    const int slot = offset_[model::index(Effect::imu_time_offset)];
+    const model::Wrench<TauJet> wt = model::payload_wrench_mean<TauJet, TauJet>(
+        effects_, core_pointers(point.tau), point.mount_tau, means_tau);
+    for (int k = 0; k < 6; ++k) w1[k].v[slot] = wt[k].v[0];
+    return true;
+  }
+
   template <typename T>
   model::Wrench<T> payload_mean(const BlockSite& site, const model::ParamPointers<T>& p) const {
     if (stats_) return stats_->payload_mean<T>(effects_, p, site.block);
@@ -259,6 +365,7 @@ class NormalBlocks final : public normal::BlockEvaluator {
       free_.push_back({order.size(), num_user_});
     }
     for (Free& f : free_) f.column = std::exchange(n_, n_ + f.size);
+    stage1_ = cost_->stage1_at(blocks_.data());
   }
 
   std::size_t num_blocks() const override { return stats_.size(); }
@@ -283,6 +390,7 @@ class NormalBlocks final : public normal::BlockEvaluator {
   void set_point(const Eigen::VectorXd& x) override {
     for (const Free& f : free_)
       Eigen::Map<Eigen::VectorXd>(blocks_[f.block], f.size) = x.segment(f.column, f.size);
+    stage1_ = cost_->stage1_at(blocks_.data());
   }
   Eigen::VectorXd point() const {
     Eigen::VectorXd x(n_);
@@ -303,21 +411,13 @@ class NormalBlocks final : public normal::BlockEvaluator {
     const auto [first, count] = stats_.block(b);
     const BlockSite site{b, first, count,
                          user_design_.data() + b * 6 * static_cast<std::size_t>(num_user_)};
-    if (jacobian == nullptr) return cost_->evaluate_site(site, blocks_.data(), residual, nullptr);
-    // Each free block's 6 × size Jacobian (row-major) into its columns of the 6 × n row.
-    std::array<double, 6 * (model::kEffectCount * model::kMaxEffectParams + model::kMaxUserTerms)>
-        scratch;
+    if (jacobian == nullptr)
+      return cost_->evaluate_site(site, blocks_.data(), residual, nullptr, &stage1_, 0);
+    // Each free block's 6 × size Jacobian straight into its columns of the 6 × n row (row-major;
+    // the free blocks cover every column).
     std::array<double*, model::kEffectCount + 1> jacobians{};
-    std::size_t used = 0;
-    for (const Free& f : free_) {
-      jacobians[f.block] = scratch.data() + used;
-      used += 6 * static_cast<std::size_t>(f.size);
-    }
-    if (!cost_->evaluate_site(site, blocks_.data(), residual, jacobians.data())) return false;
-    for (const Free& f : free_)
-      for (int r = 0; r < 6; ++r)
-        std::copy_n(jacobians[f.block] + r * f.size, f.size, jacobian + r * n_ + f.column);
-    return true;
+    for (const Free& f : free_) jacobians[f.block] = jacobian + f.column;
+    return cost_->evaluate_site(site, blocks_.data(), residual, jacobians.data(), &stage1_, n_);
   }
 
  private:
@@ -333,6 +433,7 @@ class NormalBlocks final : public normal::BlockEvaluator {
   int num_user_;
   const std::vector<double>& user_design_;
   std::unique_ptr<BlockCostBase> cost_;
+  PointStage1 stage1_;  // cost_->stage1_at the point (blocks_)
   std::vector<double*> blocks_;
   std::vector<Free> free_;
   int n_ = 0;

@@ -235,6 +235,91 @@ TEST(PayloadWrenchMean, EqualsTheMeanOfPayloadWrenchForEveryEffectCombination) {
   EXPECT_EQ(payload_wrench_mean<double>(p.effects, pointers(p), means, {}), Wrench<double>::Zero());
 }
 
+// The host fit (fit.cpp, the normal engine) evaluates stage 1 with the mount computed once per
+// parameter point, with Jet parameters on means that are plain doubles, and takes the derivative
+// the means carry (the IMU time offset's) from a second evaluation with one-slot Jets. Jet
+// arithmetic is slot by slot, so that must give exactly (bit for bit) the numbers of the one
+// evaluation on Jet means: checked here for every combination of the stage-1 effects.
+TEST(PayloadWrenchMean, SplitEvaluationGivesTheNumbersOfTheJetEvaluation) {
+  using J = ceres::Jet<double, 16>;
+  using J1 = ceres::Jet<double, 1>;
+  constexpr int kTauSlot = 15;  // the parameters below take slots 0..14
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  auto vec = [&](double s) { return Eigen::Vector3d(s * u(rng), s * u(rng), s * u(rng)); };
+  const std::array<Effect, 4> optional = {Effect::base_tilt, Effect::linear_inertia,
+                                          Effect::rotational_inertia, Effect::sensor_rotation};
+  for (unsigned bits = 0; bits < 16; ++bits) {
+    EffectSet effects{Effect::gravity};
+    for (unsigned k = 0; k < 4; ++k)
+      if (bits >> k & 1u) effects.add(optional[k]);
+    std::array<std::array<J, kMaxEffectParams>, kEffectCount> values{};
+    std::array<std::array<J1, kMaxEffectParams>, kEffectCount> values1{};
+    ParamPointers<J> ptr{};
+    ParamPointers<J1> ptr1{};
+    int slot = 0;
+    for (Effect e : {Effect::gravity, Effect::base_tilt, Effect::rotational_inertia,
+                     Effect::sensor_rotation}) {
+      for (int i = 0; i < info(e).num_params; ++i) {
+        double v = 0.1 * u(rng);
+        if (e == Effect::gravity && i == 0) v = 50.0 + 50.0 * u(rng);
+        if (e == Effect::rotational_inertia && i < 3) v = 2.0 + u(rng);
+        values[index(e)][i] = J(v, slot++);
+        values1[index(e)][i] = J1(v);
+      }
+      ptr[index(e)] = values[index(e)].data();
+      ptr1[index(e)] = values1[index(e)].data();
+    }
+    RigGeometry rig;
+    rig.R_sensor_imu = rotation_from_vector<double>(vec(2.0));
+    rig.p_sensor_imu_m = vec(0.1);
+    // Means that depend on one parameter only (slot kTauSlot), as with an IMU time offset.
+    PayloadMeans<J> means;
+    PayloadMeans<double> means_value;
+    PayloadMeans<J1> means1;
+    means.R_base_sensor = means_value.R_base_sensor = means1.R_base_sensor =
+        rotation_from_vector<double>(vec(3.0));
+    const auto jet = [&](double a, double d, J& x, double& xv, J1& x1) {
+      x = J(a);
+      x.v[kTauSlot] = d;
+      xv = a;
+      x1 = J1(a);
+      x1.v[0] = d;
+    };
+    for (int r = 0; r < 3; ++r) {
+      jet(15.0 * u(rng), 30.0 * u(rng), means.specific_force_imu[r],
+          means_value.specific_force_imu[r], means1.specific_force_imu[r]);
+      jet(5.0 * u(rng), 50.0 * u(rng), means.angular_accel_imu[r], means_value.angular_accel_imu[r],
+          means1.angular_accel_imu[r]);
+      for (int c = 0; c <= r; ++c) {
+        jet(4.0 * u(rng), 8.0 * u(rng), means.rate_outer_imu(r, c),
+            means_value.rate_outer_imu(r, c), means1.rate_outer_imu(r, c));
+        means.rate_outer_imu(c, r) = means.rate_outer_imu(r, c);
+        means_value.rate_outer_imu(c, r) = means_value.rate_outer_imu(r, c);
+        means1.rate_outer_imu(c, r) = means1.rate_outer_imu(r, c);
+      }
+    }
+    const Wrench<J> expected = payload_wrench_mean<J>(effects, ptr, means, rig);
+    const ImuMount<J> mount = imu_mount(effects, ptr, rig);
+    ImuMount<J1> mount1;
+    const auto value1 = [](const J& x) { return J1(x.a); };
+    mount1.R_nominal_true = mount.R_nominal_true.unaryExpr(value1);
+    mount1.R_sensor_imu = mount.R_sensor_imu.unaryExpr(value1);
+    mount1.p_sensor_imu = mount.p_sensor_imu.unaryExpr(value1);
+    const Wrench<J> got = payload_wrench_mean<J, double>(effects, ptr, mount, means_value);
+    const Wrench<J1> got1 = payload_wrench_mean<J1, J1>(effects, ptr1, mount1, means1);
+    for (int k = 0; k < 6; ++k) {
+      EXPECT_EQ(got[k].a, expected[k].a) << "effects " << bits << " row " << k;
+      EXPECT_EQ(got1[k].a, expected[k].a) << "effects " << bits << " row " << k;
+      for (int d = 0; d < kTauSlot; ++d)
+        EXPECT_EQ(got[k].v[d], expected[k].v[d])
+            << "effects " << bits << " row " << k << " d " << d;
+      EXPECT_EQ(got[k].v[kTauSlot], 0.0) << "effects " << bits << " row " << k;
+      EXPECT_EQ(got1[k].v[0], expected[k].v[kTauSlot]) << "effects " << bits << " row " << k;
+    }
+  }
+}
+
 // sensor_output_jacobian equals autodiff of sensor_output, for random parameters and inputs and
 // every combination of the stage-2 effects, columns laid out as the fit lays them out.
 TEST(SensorOutputJacobian, EqualsAutodiffForEveryEffectCombination) {

@@ -167,13 +167,18 @@ struct PayloadMeans {
 ///   mean(ω × (I ω))_a = ε_abc (I M)_cb,
 /// the other terms are those of payload_wrench on the means (c × F with c constant; gravity_sensor
 /// is linear in R_base_sensor). tests/unit/model/predict_test.cpp checks it against the mean of
-/// payload_wrench. Real-time safe.
-template <typename T>
+/// payload_wrench.
+///
+/// This overload takes the mount already computed (imu_mount of the same `p`), so that a caller
+/// evaluating many blocks at one parameter point computes it once; and the means in their own
+/// scalar S, so that means which do not depend on the differentiated parameters can stay plain
+/// doubles (S = double with T a Jet: each product then costs a Jet times a number). Real-time
+/// safe.
+template <typename T, typename S>
 Wrench<T> payload_wrench_mean(const EffectSet& effects, const ParamPointers<T>& p,
-                              const PayloadMeans<T>& means, const RigGeometry& rig) {
+                              const ImuMount<T>& mount, const PayloadMeans<S>& means) {
   Wrench<T> w = Wrench<T>::Zero();
   if (!effects.has(Effect::gravity)) return w;
-  const ImuMount<T> mount = imu_mount(effects, p, rig);
   const Mat3<T>& R_nominal_true = mount.R_nominal_true;
   const Mat3<T>& R_sensor_imu = mount.R_sensor_imu;
   const Vec3<T>& p_sensor_imu = mount.p_sensor_imu;
@@ -202,6 +207,14 @@ Wrench<T> payload_wrench_mean(const EffectSet& effects, const ParamPointers<T>& 
   w.template head<3>() = force;
   w.template tail<3>() = torque;
   return w;
+}
+
+/// payload_wrench_mean with the mount of the rig and `p` (imu_mount). Real-time safe.
+template <typename T>
+Wrench<T> payload_wrench_mean(const EffectSet& effects, const ParamPointers<T>& p,
+                              const PayloadMeans<T>& means, const RigGeometry& rig) {
+  if (!effects.has(Effect::gravity)) return Wrench<T>::Zero();
+  return payload_wrench_mean<T, T>(effects, p, imu_mount(effects, p, rig), means);
 }
 
 /// Per-sample inputs of stage 2. Stage 2 is affine in them for fixed parameters, so the mean of
