@@ -13,6 +13,7 @@
 #include <memory>
 #include <optional>
 
+#include "growing_fit.hpp"
 #include "parallel.hpp"
 #include "screening.hpp"
 #include "zerog/ident/eiv.hpp"
@@ -732,7 +733,10 @@ std::vector<std::pair<std::size_t, std::size_t>> mask_blocks(const std::vector<s
 // One factor of a basis, tabulated over the samples.
 struct FactorColumn {
   model::Factor factor;
-  std::vector<double> v;
+  // Left uninitialised until dictionary_factors writes every sample: zeroing 74 columns of a
+  // long log first cost a serial third of the tabulation (issue 16); written on the workers,
+  // its pages are touched there.
+  std::unique_ptr<double[]> v;
 };
 
 // The discovery dictionary's factors: every base signal the log has (its value), sin and cos of
@@ -742,7 +746,7 @@ std::vector<FactorColumn> dictionary_factors(const Dataset& data, int threads) {
   const unsigned have = available_sources(data);
   std::vector<FactorColumn> out;
   auto add = [&](model::Signal s, model::FactorOp op, double eps) {
-    out.push_back({{s, op, eps}, std::vector<double>(n)});
+    out.push_back({{s, op, eps}, std::make_unique_for_overwrite<double[]>(n)});
   };
   for (int k = 0; k < model::kSignalCount; ++k) {
     const auto s = static_cast<model::Signal>(k);
@@ -757,15 +761,21 @@ std::vector<FactorColumn> dictionary_factors(const Dataset& data, int threads) {
     if (si.velocity)
       add(s, model::FactorOp::tanh, std::string_view(si.unit) == "m/s" ? 0.005 : 0.02);
   }
-  // A chunk of samples' signals at a time, then every factor's values on them (each sample on
-  // its own: the same values on any thread).
+  // A batch of samples' signals at a time, then every factor's values on them (each sample on
+  // its own: the same values on any thread). The batch's signals stay in cache while every
+  // factor reads its own signal from them: a whole chunk's (8192 samples) did not, and each
+  // factor's pass went to memory (issue 16).
+  constexpr std::size_t kBatch = 256;
   for_each_sample_chunk(data, threads, [&](std::size_t i0, std::size_t i1) {
-    std::vector<model::DictionarySignals> sig(i1 - i0);
-    for (std::size_t i = i0; i < i1; ++i) sig[i - i0] = data.dictionary(i);
-    for (FactorColumn& c : out) {
-      model::Basis b;
-      b.a = c.factor;
-      for (std::size_t i = i0; i < i1; ++i) c.v[i] = model::basis_value(b, sig[i - i0]);
+    std::vector<model::DictionarySignals> sig(std::min(kBatch, i1 - i0));
+    for (std::size_t b0 = i0; b0 < i1; b0 += kBatch) {
+      const std::size_t b1 = std::min(i1, b0 + kBatch);
+      for (std::size_t i = b0; i < b1; ++i) sig[i - b0] = data.dictionary(i);
+      for (FactorColumn& c : out) {
+        model::Basis b;
+        b.a = c.factor;
+        for (std::size_t i = b0; i < b1; ++i) c.v[i] = model::basis_value(b, sig[i - b0]);
+      }
     }
   });
   return out;
@@ -952,8 +962,8 @@ std::optional<Discovery> discover_law(const Dataset& data, const Baseline& base,
   auto basis_means = [&](std::size_t a, std::size_t b,
                          const std::vector<std::pair<std::size_t, std::size_t>>& blocks,
                          double* out) {
-    const double* fa = factors[a].v.data();
-    const double* fb = b < nf ? factors[b].v.data() : nullptr;
+    const double* fa = factors[a].v.get();
+    const double* fb = b < nf ? factors[b].v.get() : nullptr;
     constexpr std::size_t kChunk = 256;  // blocks per pass: their samples stay in cache
     for (std::size_t t0 = 0; t0 < blocks.size(); t0 += kChunk) {
       const std::size_t t1 = std::min(blocks.size(), t0 + kChunk);
@@ -1118,12 +1128,6 @@ std::optional<Discovery> discover_law(const Dataset& data, const Baseline& base,
   // Orthogonal matching pursuit over the screened columns, in the full whitened space (all six
   // axes), with the model's tangent space always in the regression.
   const Eigen::Index Nt = static_cast<Eigen::Index>(nt * 6), Nh = static_cast<Eigen::Index>(nh * 6);
-  auto embed = [&](const Column& c, bool held) {
-    const std::vector<double>& v = held ? c.held : c.train;
-    Eigen::VectorXd x = Eigen::VectorXd::Zero(held ? Nh : Nt);
-    for (std::size_t t = 0; t < v.size(); ++t) x[static_cast<Eigen::Index>(t * 6) + c.axis] = v[t];
-    return x;
-  };
   const Eigen::Map<const Eigen::VectorXd> rt(r_train.data(), Nt), rh(r_held.data(), Nh);
   const double held_base = rh.squaredNorm();
   Discovery d;
@@ -1132,85 +1136,97 @@ std::optional<Discovery> discover_law(const Dataset& data, const Baseline& base,
   // Bonferroni over every column searched: a noise column passes with probability 1 %.
   d.z_threshold = normal_two_sided_quantile(o.discovery_alpha / std::max(1, searched));
   std::vector<std::size_t> chosen;
-  Eigen::MatrixXd X_train(Nt, 0), X_held(Nh, 0);
   double held_prev = held_base;
-  // The factorization of the current fit's [J, X] on training: at the first step the tangent
-  // space's (qr, and its Q), after it the held-out check's of the accepted column (the same
-  // matrix, factored once).
-  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> aqr = std::move(qr);
-  Eigen::MatrixXd QA = std::move(Q);
+  // The current fit's columns on training, [J_sel, X] (J_sel: the tangent space's independent
+  // columns, in its pivoted QR's order; X: the accepted terms), and every candidate with it
+  // projected out, grown column by column (growing_fit.hpp): a fresh QR of [J, X] per step, its
+  // thin Q, a second one for the held-out check and every candidate's projection on all of it
+  // made half of the search (issue 16).
+  const auto ncand = static_cast<Eigen::Index>(cand.size());
+  GrowingFit gf(qr, Q, rt, o.max_discovered_terms, ncand);
+  std::vector<double> x2(cand.size(), 0.0);  // |x|² of each candidate
+  // Candidates a few at a time on the fit's threads (parallel.hpp): each candidate's data and
+  // statistic are its own, and the best is taken in candidate order, so the results do not
+  // depend on the thread count.
+  constexpr Eigen::Index kColumnsPerTask = 8;
+  const auto tasks = [&](Eigen::Index columns) {
+    return static_cast<std::size_t>((columns + kColumnsPerTask - 1) / kColumnsPerTask);
+  };
+  // Every candidate projected out of the tangent space, by one matrix product per few: a column
+  // is nonzero on one axis only, so Qᵀ x reads that axis's rows of Q.
+  parallel::for_each(tasks(ncand), o.fit.threads, [&](std::size_t task, int) {
+    const Eigen::Index j0 = static_cast<Eigen::Index>(task) * kColumnsPerTask;
+    const Eigen::Index nj = std::min(kColumnsPerTask, ncand - j0);
+    Eigen::MatrixXd G(rank, nj);
+    for (Eigen::Index j = 0; j < nj; ++j) {
+      const Column& c = cand[static_cast<std::size_t>(j0 + j)];
+      const Eigen::Map<const Eigen::MatrixXd, 0, Eigen::Stride<Eigen::Dynamic, 6>> rows(
+          Q.data() + c.axis, static_cast<Eigen::Index>(nt), rank,
+          Eigen::Stride<Eigen::Dynamic, 6>(Q.outerStride(), 6));
+      G.col(j).noalias() = rows.transpose() * Eigen::Map<const Eigen::VectorXd>(
+                                                  c.train.data(), static_cast<Eigen::Index>(nt));
+    }
+    gf.projections().middleCols(j0, nj).noalias() = -Q * G;
+    gf.coefficients().block(0, j0, rank, nj) = G;
+    for (Eigen::Index j = 0; j < nj; ++j) {
+      const Column& c = cand[static_cast<std::size_t>(j0 + j)];
+      double& xx = x2[static_cast<std::size_t>(j0 + j)];
+      for (std::size_t t = 0; t < nt; ++t) {
+        gf.projections()(static_cast<Eigen::Index>(t * 6) + c.axis, j0 + j) += c.train[t];
+        xx += c.train[t] * c.train[t];
+      }
+    }
+  });
   for (int step = 0; step < o.max_discovered_terms; ++step) {
-    // Current fit: [J, X] on training; residual r_cur.
-    if (step > 0) QA = thin_q(aqr, Nt);
-    const Eigen::VectorXd r_cur = rt - QA * (QA.transpose() * rt);
-    // Every open candidate projected out of the current fit at once (issue 16): a column is
-    // nonzero on one axis only, so QAᵀ x reads that axis's rows of QA, and the projections
-    // QA (QAᵀ x) of all candidates are one matrix product.
     std::vector<std::size_t> open;
     for (std::size_t c = 0; c < cand.size(); ++c)
       if (std::find(chosen.begin(), chosen.end(), c) == chosen.end()) open.push_back(c);
     const Eigen::Index nopen = static_cast<Eigen::Index>(open.size());
-    // The open candidates a few at a time on the fit's threads (parallel.hpp): each candidate's
-    // statistic is its own, written to its slot, and the best is taken in candidate order.
-    constexpr Eigen::Index kColumnsPerTask = 8;
+    const Eigen::VectorXd& r_cur = gf.residual();
     std::vector<double> zs(open.size(), 0.0);
     const auto statistics = [&](std::size_t task, int) {
       const Eigen::Index j0 = static_cast<Eigen::Index>(task) * kColumnsPerTask;
       const Eigen::Index nj = std::min(kColumnsPerTask, nopen - j0);
-      Eigen::MatrixXd G(QA.cols(), nj);
-      for (Eigen::Index j = 0; j < nj; ++j) {
-        const Column& c = cand[open[static_cast<std::size_t>(j0 + j)]];
-        const Eigen::Map<const Eigen::MatrixXd, 0, Eigen::Stride<Eigen::Dynamic, 6>> rows(
-            QA.data() + c.axis, static_cast<Eigen::Index>(nt), QA.cols(),
-            Eigen::Stride<Eigen::Dynamic, 6>(QA.outerStride(), 6));
-        G.col(j).noalias() = rows.transpose() * Eigen::Map<const Eigen::VectorXd>(
-                                                    c.train.data(), static_cast<Eigen::Index>(nt));
-      }
-      Eigen::MatrixXd XP(Nt, nj);
-      XP.noalias() = -QA * G;
-      for (Eigen::Index j = 0; j < nj; ++j) {
-        const Column& c = cand[open[static_cast<std::size_t>(j0 + j)]];
-        double x2 = 0.0;
-        for (std::size_t t = 0; t < nt; ++t) {
-          XP(static_cast<Eigen::Index>(t * 6) + c.axis, j) += c.train[t];
-          x2 += c.train[t] * c.train[t];
-        }
-        const auto xp = XP.col(j);
+      for (Eigen::Index j = j0; j < j0 + nj; ++j) {
+        const std::size_t c = open[static_cast<std::size_t>(j)];
+        gf.refresh(static_cast<Eigen::Index>(c));
+        const auto xp = gf.projections().col(static_cast<Eigen::Index>(c));
         const double xx = xp.squaredNorm();
-        if (!(xx > 1e-9 * x2)) continue;
+        if (!(xx > 1e-9 * x2[c])) continue;
         // Heteroscedasticity-robust statistic of the coefficient (White's sandwich, HC0, on the
         // residual with the column in the fit): moving blocks carry more noise (IMU noise × mass)
         // than dwells.
         const double num = xp.dot(r_cur);
-        const Eigen::VectorXd e = r_cur - (num / xx) * xp;
-        const double var = (xp.array().square() * e.array().square()).sum();
-        zs[static_cast<std::size_t>(j0 + j)] = var > 0 ? std::abs(num) / std::sqrt(var) : 0.0;
+        const double var =
+            (xp.array().square() * (r_cur.array() - (num / xx) * xp.array()).square()).sum();
+        zs[static_cast<std::size_t>(j)] = var > 0 ? std::abs(num) / std::sqrt(var) : 0.0;
       }
     };
-    parallel::for_each(static_cast<std::size_t>((nopen + kColumnsPerTask - 1) / kColumnsPerTask),
-                       o.fit.threads, statistics);
+    parallel::for_each(tasks(nopen), o.fit.threads, statistics);
     double best_z = 0.0;
     std::size_t best = cand.size();
     for (std::size_t j = 0; j < open.size(); ++j)
       if (zs[j] > best_z) best_z = zs[j], best = open[j];
     if (best == cand.size() || best_z < d.z_threshold) break;
     // Held-out check: the linearised refit with the new column must lower the held-out error.
-    Eigen::MatrixXd Xt(Nt, X_train.cols() + 1), Xh(Nh, X_held.cols() + 1);
-    Xt << X_train, embed(cand[best], false);
-    Xh << X_held, embed(cand[best], true);
-    Eigen::MatrixXd At(Nt, J_train.cols() + Xt.cols()), Ah(Nh, J_held.cols() + Xh.cols());
-    At << J_train, Xt;
-    Ah << J_held, Xh;
-    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> tqr(At);
-    const Eigen::VectorXd theta = tqr.solve(rt);
-    const double held_new = (rh - Ah * theta).squaredNorm();
+    // The tangent space's dependent columns (beyond its pivoted QR's rank) get no coefficient.
+    const GrowingFit::Trial trial = gf.trial(static_cast<Eigen::Index>(best));
+    Eigen::VectorXd theta_j = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(np));
+    for (Eigen::Index i = 0; i < rank; ++i)
+      theta_j[qr.colsPermutation().indices()[i]] = trial.theta[i];
+    Eigen::VectorXd pred_held = J_held * theta_j;
+    for (std::size_t i = 0; i <= chosen.size(); ++i) {
+      const Column& c = cand[i < chosen.size() ? chosen[i] : best];
+      const double w = trial.theta[rank + static_cast<Eigen::Index>(i)];
+      for (std::size_t t = 0; t < nh; ++t)
+        pred_held[static_cast<Eigen::Index>(t * 6) + c.axis] += w * c.held[t];
+    }
+    const double held_new = (rh - pred_held).squaredNorm();
     if (held_prev - held_new < o.min_term_gain * held_base) break;
     held_prev = held_new;
-    aqr = std::move(tqr);
+    gf.accept(trial);
     chosen.push_back(best);
     d.z.push_back(best_z);
-    X_train = Xt;
-    X_held = Xh;
   }
   d.search_seconds = since_start();
   if (chosen.empty()) return std::nullopt;
