@@ -161,6 +161,38 @@ TEST(Predict, AutodiffDerivativeOfForceWithRespectToMassIsGravity) {
   for (int k = 0; k < 3; ++k) EXPECT_NEAR(w[k].v[0], g[k], 1e-12);
 }
 
+// The stage-1 effects of combination `bits` (0..15): gravity, and base_tilt, linear_inertia,
+// rotational_inertia, sensor_rotation where bits 0..3 are set.
+EffectSet stage1_combination(unsigned bits) {
+  const std::array<Effect, 4> optional = {Effect::base_tilt, Effect::linear_inertia,
+                                          Effect::rotational_inertia, Effect::sensor_rotation};
+  EffectSet effects{Effect::gravity};
+  for (unsigned k = 0; k < 4; ++k)
+    if (bits >> k & 1u) effects.add(optional[k]);
+  return effects;
+}
+
+// Random stage-1 parameters (gravity, base_tilt, rotational_inertia, sensor_rotation; a mass of
+// 0–100 kg, principal inertias of 1–3 kg·m², the rest within ±0.1) as Jets, each with a unit
+// derivative in the next of consecutive slots; `make(value, slot)` makes one.
+template <typename T, typename Make>
+void random_stage1_params(std::mt19937& rng,
+                          std::array<std::array<T, kMaxEffectParams>, kEffectCount>& values,
+                          ParamPointers<T>& ptr, const Make& make) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  int slot = 0;
+  for (Effect e :
+       {Effect::gravity, Effect::base_tilt, Effect::rotational_inertia, Effect::sensor_rotation}) {
+    for (int i = 0; i < info(e).num_params; ++i) {
+      double v = 0.1 * u(rng);
+      if (e == Effect::gravity && i == 0) v = 50.0 + 50.0 * u(rng);
+      if (e == Effect::rotational_inertia && i < 3) v = 2.0 + u(rng);
+      values[index(e)][i] = make(v, slot++);
+    }
+    ptr[index(e)] = values[index(e)].data();
+  }
+}
+
 // payload_wrench_mean on the block means of the signals equals the mean of payload_wrench over
 // the block, for random parameters and signals and every combination of the stage-1 effects
 // (values and derivatives with respect to every parameter).
@@ -169,28 +201,14 @@ TEST(PayloadWrenchMean, EqualsTheMeanOfPayloadWrenchForEveryEffectCombination) {
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   auto vec = [&](double s) { return Eigen::Vector3d(s * u(rng), s * u(rng), s * u(rng)); };
-  const std::array<Effect, 4> optional = {Effect::base_tilt, Effect::linear_inertia,
-                                          Effect::rotational_inertia, Effect::sensor_rotation};
   int cases = 0;
   for (unsigned bits = 0; bits < 16; ++bits) {
     for (int trial = 0; trial < 5; ++trial) {
-      EffectSet effects{Effect::gravity};
-      for (unsigned k = 0; k < 4; ++k)
-        if (bits >> k & 1u) effects.add(optional[k]);
+      const EffectSet effects = stage1_combination(bits);
       // Random parameters, as Jets with one derivative slot per parameter (16 in all).
       std::array<std::array<J, kMaxEffectParams>, kEffectCount> values{};
       ParamPointers<J> ptr{};
-      int slot = 0;
-      for (Effect e : {Effect::gravity, Effect::base_tilt, Effect::rotational_inertia,
-                       Effect::sensor_rotation}) {
-        for (int i = 0; i < info(e).num_params; ++i) {
-          double v = 0.1 * u(rng);
-          if (e == Effect::gravity && i == 0) v = 50.0 + 50.0 * u(rng);
-          if (e == Effect::rotational_inertia && i < 3) v = 2.0 + u(rng);
-          values[index(e)][i] = J(v, slot++);
-        }
-        ptr[index(e)] = values[index(e)].data();
-      }
+      random_stage1_params(rng, values, ptr, [](double v, int slot) { return J(v, slot); });
       RigGeometry rig;
       rig.R_sensor_imu = rotation_from_vector<double>(vec(2.0));
       rig.p_sensor_imu_m = vec(0.1);
@@ -247,27 +265,17 @@ TEST(PayloadWrenchMean, SplitEvaluationGivesTheNumbersOfTheJetEvaluation) {
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   auto vec = [&](double s) { return Eigen::Vector3d(s * u(rng), s * u(rng), s * u(rng)); };
-  const std::array<Effect, 4> optional = {Effect::base_tilt, Effect::linear_inertia,
-                                          Effect::rotational_inertia, Effect::sensor_rotation};
   for (unsigned bits = 0; bits < 16; ++bits) {
-    EffectSet effects{Effect::gravity};
-    for (unsigned k = 0; k < 4; ++k)
-      if (bits >> k & 1u) effects.add(optional[k]);
+    const EffectSet effects = stage1_combination(bits);
     std::array<std::array<J, kMaxEffectParams>, kEffectCount> values{};
     std::array<std::array<J1, kMaxEffectParams>, kEffectCount> values1{};
     ParamPointers<J> ptr{};
     ParamPointers<J1> ptr1{};
-    int slot = 0;
+    random_stage1_params(rng, values, ptr, [](double v, int slot) { return J(v, slot); });
+    // The same values without derivatives (the 1-slot Jets hold only tau's).
     for (Effect e : {Effect::gravity, Effect::base_tilt, Effect::rotational_inertia,
                      Effect::sensor_rotation}) {
-      for (int i = 0; i < info(e).num_params; ++i) {
-        double v = 0.1 * u(rng);
-        if (e == Effect::gravity && i == 0) v = 50.0 + 50.0 * u(rng);
-        if (e == Effect::rotational_inertia && i < 3) v = 2.0 + u(rng);
-        values[index(e)][i] = J(v, slot++);
-        values1[index(e)][i] = J1(v);
-      }
-      ptr[index(e)] = values[index(e)].data();
+      for (int i = 0; i < info(e).num_params; ++i) values1[index(e)][i] = J1(values[index(e)][i].a);
       ptr1[index(e)] = values1[index(e)].data();
     }
     RigGeometry rig;
