@@ -54,6 +54,12 @@ done
 case "$mode" in lockstep|realtime) ;; *) echo "hil.sh: --mode lockstep or realtime" >&2; exit 2 ;; esac
 case "$bus" in local|vcan) ;; *) echo "hil.sh: --bus local or vcan" >&2; exit 2 ;; esac
 [ -z "$expect_fail" ] || [ -n "$mutant" ] || { echo "hil.sh: --expect-fail needs --mutant" >&2; exit 2; }
+# One rule for paths (proto/paths.md): a path on the command line is relative to the current
+# folder, a path inside a file is relative to that file's folder. The configuration written for
+# zerog-rt below lives in the results folder, so the paths it names are made absolute here.
+bin=$(realpath -m -- "$bin")
+out=$(realpath -m -- "$out")
+[ -z "$zerog" ] || zerog=$(realpath -m -- "$zerog")
 emu=$bin/host/emu/zerog-emu
 rt=$bin/firmware/rt/zerog-rt
 zerog=${zerog:-$bin/host/cli/zerog}
@@ -208,12 +214,31 @@ print(" ".join(str(s.getsockname()[1]) for s in held))')
     /usr/bin/python3 "$here/$plc" --port "$modbus_port" --out "$w/plc.json" >"$w/plc.out" 2>&1 &
     plc_pid=$!
   fi
-  wait $rt_pid
-  rt_status=$?
+  # Whichever side ends first: if it failed, the other is stopped at once (SIGINT, then SIGKILL
+  # after 3 s) instead of waiting for a peer that will never come, and the failed side is named.
+  local first first_status other other_name first_name
+  wait -n -p first $rt_pid $emu_pid
+  first_status=$?
+  if [ "$first" = "$rt_pid" ]; then
+    rt_status=$first_status other=$emu_pid first_name=zerog-rt other_name=zerog-emu
+  else
+    emu_status=$first_status other=$rt_pid first_name=zerog-emu other_name=zerog-rt
+  fi
+  if [ "$first_status" -ne 0 ]; then
+    local err_file=$w/rt.err
+    [ "$first_name" = zerog-emu ] && err_file=$w/emu.err
+    echo "hil.sh: $c: $first_name exited $first_status: $(tail -n 1 "$err_file" 2>/dev/null)" >&2
+    echo "hil.sh: $c: stopping $other_name" >&2
+    kill -INT $other 2>/dev/null
+    for _ in $(seq 1 30); do kill -0 $other 2>/dev/null || break; sleep 0.1; done
+    kill -KILL $other 2>/dev/null
+    [ -z "$plc_pid" ] || kill $plc_pid 2>/dev/null
+    [ -z "$sub_pid" ] || kill $sub_pid 2>/dev/null
+  fi
+  wait $other
+  if [ "$other" = "$rt_pid" ]; then rt_status=$?; else emu_status=$?; fi
   if [ -n "$stopper" ]; then kill $stopper 2>/dev/null; wait $stopper 2>/dev/null; fi
   if [ -n "$plc_pid" ]; then wait $plc_pid; plc_status=$?; fi
-  wait $emu_pid
-  emu_status=$?
   awk -v s="$emu_start" -v n="$(date +%s.%N)" 'BEGIN { printf "wall_s = %.3f\n", n - s }' \
     >>"$w/start.txt"
   rm -rf "$sockets"

@@ -364,6 +364,12 @@ int run(const Options& opt) {
     apply_mutant(opt.test_mutant, loaded.setup.cycle);
     print_err("zerog-rt: WARNING: test mutant '" + opt.test_mutant +
               "': this zerog-rt is broken on purpose (HIL tests only)");
+    if (opt.test_mutant == "exit_at_start") {
+      // As a start-up error would (a file the configuration names is missing): the HIL runner
+      // must stop the emulator and fail at once (tests/hil/CMakeLists.txt, hil_runner_stops).
+      print_err("zerog-rt: test mutant exit_at_start: exiting before the devices open");
+      return kExitStartup;
+    }
   }
   if (opt.enable_zero_g && loaded.path) {
     print_err("zerog-rt: --enable-zero-g and --collect exclude each other: choose one");
@@ -447,8 +453,9 @@ int main(int argc, char** argv) {
                  "clock (acceptance tests; proto/lockstep.md)");
   app.add_option("--test-mutant", opt.test_mutant,
                  "TEST ONLY: run a deliberately broken zerog-rt (gate_never_opens: no push is "
-                 "confirmed; watchdog_doubled: every watchdog threshold doubled)")
-      ->check(CLI::IsMember({"gate_never_opens", "watchdog_doubled"}));
+                 "confirmed; watchdog_doubled: every watchdog threshold doubled; exit_at_start: "
+                 "exits with a start-up error before the devices open)")
+      ->check(CLI::IsMember({"gate_never_opens", "watchdog_doubled", "exit_at_start"}));
   app.add_flag("--check-config", opt.check_config,
                "check the configuration, the model and the rig (and --collect's design), then "
                "exit 0 (all good) or 1");
