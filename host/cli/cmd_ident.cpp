@@ -348,6 +348,18 @@ std::vector<ident::UserCandidate> user_candidates(const std::string& list) {
   return out;
 }
 
+// The output the suggested command names (proto/paths.md): beside the log, LOG's name with
+// .fit.json (.fit2.json, … when that exists), so that running it never overwrites a file, the
+// model given to diagnose included.
+std::string suggested_fit_out(const std::string& log) {
+  for (int n = 1;; ++n) {
+    const std::filesystem::path p =
+        io::beside_input(log, n == 1 ? ".fit.json" : ".fit" + std::to_string(n) + ".json");
+    std::error_code ec;
+    if (!std::filesystem::exists(p, ec) && !ec) return p.string();
+  }
+}
+
 }  // namespace
 
 void add_ident_commands(CLI::App& app) {
@@ -432,7 +444,7 @@ void add_ident_commands(CLI::App& app) {
     auto block = std::make_shared<double>(0.0);  // 0: chosen from the log
     auto no_discover = std::make_shared<bool>(false);
     auto candidates = std::make_shared<std::string>();
-    auto discovered_out = std::make_shared<std::string>("discovered.toml");
+    auto discovered_out = std::make_shared<std::string>();  // empty: beside the log
     auto exact_candidates = std::make_shared<bool>(false);
     CLI::App* s = app.add_subcommand(
         "diagnose",
@@ -457,8 +469,8 @@ void add_ident_commands(CLI::App& app) {
         "one pass of the model with all of them and refitting only those that could be the "
         "best (slower; the screened figures are linearised)");
     s->add_option("--discovered-out", *discovered_out,
-                  "Where to write a discovered law as an effect file (proto/user_effects.md)")
-        ->capture_default_str();
+                  "Where to write a discovered law as an effect file (proto/user_effects.md); "
+                  "default: beside the log, LOG's name with .discovered.toml");
     s->add_option("--block", *block,
                   "Length of the held-out time blocks, s (every 4th block is held out); default: "
                   "60 s when the log holds 8 such blocks, else the log's length / 8 (at least "
@@ -474,7 +486,10 @@ void add_ident_commands(CLI::App& app) {
       o.fit.errors_in_variables = c->errors_in_variables;
       o.discover = !*no_discover;
       o.exact_candidates = *exact_candidates;
-      o.discovery_path = *discovered_out;
+      o.fit_out = suggested_fit_out(c->log);
+      o.discovery_path = discovered_out->empty()
+                             ? io::beside_input(c->log, ".discovered.toml").string()
+                             : *discovered_out;
       o.user_candidates = user_candidates(*candidates);
       std::optional<io::ModelFile> m;
       if (!model_path->empty()) {

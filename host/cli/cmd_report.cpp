@@ -37,7 +37,7 @@ nlohmann::json read_json(const std::string& path) {
 }
 
 struct ReportOptions {
-  std::string log, model, truth, ladder, diagnosis, out = "report", title;
+  std::string log, model, truth, ladder, diagnosis, out, title;  // out empty: beside the log
   bool allow_other_diagnosis = false, allow_other_ladder = false;
 };
 
@@ -106,7 +106,8 @@ void run_report(const ReportOptions& o) {
   const bool with_sensor = floors && floors->sensor;
   const auto heldout = ident::heldout_mask(data);
 
-  const fs::path out = fs::absolute(o.out);
+  const fs::path out =
+      fs::absolute(o.out.empty() ? io::beside_input(o.log, ".report") : fs::path(o.out));
   if (fs::exists(out) && !fs::is_directory(out))
     throw std::runtime_error(out.string() + " exists and is not a folder");
   std::random_device rd;
@@ -232,7 +233,9 @@ void add_report_command(CLI::App& app) {
   s->add_flag("--allow-other-ladder", o->allow_other_ladder,
               "Include a ladder made on another log, labelled as such, instead of refusing it");
   s->add_option("--title", o->title, "Report title");
-  s->add_option("-o,--out", o->out, "Report folder (replaced atomically)")->capture_default_str();
+  s->add_option("-o,--out", o->out,
+                "Report folder (replaced atomically); default: beside the log, LOG's name with "
+                ".report");
   s->callback([o] { run_report(*o); });
 }
 

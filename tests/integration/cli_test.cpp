@@ -456,6 +456,42 @@ TEST_F(Cli, ABadCellIsReportedWithFileLineAndColumn) {
   EXPECT_THAT(r.err, HasSubstr("1.2.3"));
 }
 
+// Default outputs go beside the input, never into the current folder (proto/paths.md): diagnose's
+// discovered law, the command it prints (a new file that is no input) and report's folder, with
+// the log named by a relative path from an empty folder.
+TEST_F(Cli, DefaultOutputsGoBesideTheInputNotIntoTheCurrentFolder) {
+  const fs::path in = dir() / "beside", cwd = dir() / "cwd";
+  fs::create_directories(in);
+  fs::create_directories(cwd);
+  Result r = run("sim --kind random --points 24 --seed 4 --effects joint6_friction -q --out " +
+                 (in / "run.csv").string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  // From cwd, the inputs as ../beside/…; the model named run.fit.json, which the suggested
+  // command must not overwrite.
+  const auto from_cwd = [&](const std::string& args) {
+    const std::string cmd = "cd " + cwd.string() + " && " + std::string(ZEROG_EXE) + " " + args +
+                            " >" + (dir() / "cwd_out.txt").string() + " 2>" +
+                            (dir() / "cwd_err.txt").string();
+    const int rc = std::system(cmd.c_str());
+    return Result{WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, slurp(dir() / "cwd_out.txt"),
+                  slurp(dir() / "cwd_err.txt")};
+  };
+  r = from_cwd("fit ../beside/run.csv -q --out ../beside/run.fit.json");
+  ASSERT_EQ(r.status, 0) << r.err;
+  r = from_cwd("diagnose ../beside/run.csv --model ../beside/run.fit.json --json -q");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto d = nlohmann::json::parse(r.out);
+  ASSERT_EQ(d["verdict"]["kind"], "discovered") << d["verdict"]["text"];
+  EXPECT_EQ(d["verdict"]["effect_file"], "../beside/run.discovered.toml");
+  EXPECT_TRUE(fs::exists(in / "run.discovered.toml"));
+  const std::string command = d["verdict"]["command"];
+  EXPECT_NE(command.find(" --out ../beside/run.fit2.json"), std::string::npos) << command;
+  r = from_cwd("report ../beside/run.csv --model ../beside/run.fit.json");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_TRUE(fs::exists(in / "run.report" / "index.html"));
+  EXPECT_TRUE(fs::is_empty(cwd)) << "a tool wrote into the current folder";
+}
+
 // The discovery loop as a user runs it: diagnose finds a law outside the library, writes the effect
 // file and prints a command; the command runs as printed and fits the law; compare, report and
 // export take the fitted model with its user-defined effect.
@@ -480,7 +516,9 @@ TEST_F(Cli, DiscoveredLawFitsWithThePrintedCommandAndTravelsToReportAndExport) {
                             command.substr(5) + " -q >/dev/null 2>" +
                             (dir() / "cmd_err.txt").string();
   ASSERT_EQ(std::system(shell.c_str()), 0) << slurp(dir() / "cmd_err.txt");
-  const fs::path fitted = dir() / "fitted.json";
+  // Beside the log, a new file (proto/paths.md): not the current folder, no input overwritten.
+  const fs::path fitted = dir() / "j6.fit.json";
+  EXPECT_NE(command.find(" --out " + fitted.string()), std::string::npos) << command;
   ASSERT_TRUE(fs::exists(fitted));
   const auto m = nlohmann::json::parse(slurp(fitted));
   ASSERT_EQ(m["user_effects"].size(), 1u);

@@ -357,6 +357,39 @@ class PendingFile {
  public:
   PendingFile(fs::path target, const std::string& text, unsigned mode = 0644)
       : target_(std::move(target)) {
+    // A constructor that throws runs no destructor: the folders it made go here.
+    try {
+      write_temporary(text, mode);
+    } catch (...) {
+      remove_created_folders();
+      throw;
+    }
+  }
+  PendingFile(const PendingFile&) = delete;
+  PendingFile& operator=(const PendingFile&) = delete;
+  ~PendingFile() {
+    if (!temp_.empty()) ::unlink(temp_.c_str());
+    // A write that did not happen leaves no folder behind either (the innermost first; one that
+    // is no longer empty stays).
+    if (!committed_) remove_created_folders();
+  }
+
+  void commit() {
+    if (::rename(temp_.c_str(), target_.c_str()) != 0) throw_errno(target_, "cannot rename", errno);
+    temp_.clear();
+    committed_ = true;
+    fs::path dir = target_.parent_path();
+    if (dir.empty()) dir = ".";
+    // Make the rename durable; some file systems refuse fsync on folders, which is harmless.
+    const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (dfd >= 0) {
+      ::fsync(dfd);
+      ::close(dfd);
+    }
+  }
+
+ private:
+  void write_temporary(const std::string& text, unsigned mode) {
     // Renaming onto a device, FIFO or folder would replace it (an --out /dev/null once turned
     // this machine's /dev/null into a regular file): only regular files are ever replaced.
     std::error_code ec;
@@ -374,6 +407,7 @@ class PendingFile {
     }
     fs::path dir = target_.parent_path();
     if (dir.empty()) dir = ".";
+    create_missing_folders(dir);
     std::string name = (dir / ("." + target_.filename().string() + ".tmp-XXXXXX")).string();
     const int fd = ::mkstemp(name.data());
     if (fd < 0) throw_errno(target_, "cannot create a temporary file in " + dir.string(), errno);
@@ -398,28 +432,34 @@ class PendingFile {
       throw_errno(target_, "cannot write", error);
     }
   }
-  PendingFile(const PendingFile&) = delete;
-  PendingFile& operator=(const PendingFile&) = delete;
-  ~PendingFile() {
-    if (!temp_.empty()) ::unlink(temp_.c_str());
+
+  void remove_created_folders() {
+    for (auto it = created_.rbegin(); it != created_.rend(); ++it) ::rmdir(it->c_str());
+    created_.clear();
   }
 
-  void commit() {
-    if (::rename(temp_.c_str(), target_.c_str()) != 0) throw_errno(target_, "cannot rename", errno);
-    temp_.clear();
-    fs::path dir = target_.parent_path();
-    if (dir.empty()) dir = ".";
-    // Make the rename durable; some file systems refuse fsync on folders, which is harmless.
-    const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-    if (dfd >= 0) {
-      ::fsync(dfd);
-      ::close(dfd);
+  // The output's folder is made if it is missing (`--out new/folder/run.csv`), outermost first;
+  // remembered so that a failed write can take them away again.
+  void create_missing_folders(const fs::path& dir) {
+    std::vector<fs::path> missing;
+    std::error_code ec;
+    for (fs::path p = dir; !p.empty() && !fs::exists(p, ec); p = p.parent_path()) {
+      missing.push_back(p);
+      if (p == p.parent_path()) break;
+    }
+    for (auto it = missing.rbegin(); it != missing.rend(); ++it) {
+      if (::mkdir(it->c_str(), 0777) == 0) {
+        created_.push_back(*it);
+      } else if (errno != EEXIST) {
+        throw_errno(target_, "cannot create the folder " + it->string(), errno);
+      }
     }
   }
 
- private:
   fs::path target_;
   std::string temp_;
+  std::vector<fs::path> created_;
+  bool committed_ = false;
 };
 
 }  // namespace
@@ -503,6 +543,12 @@ fs::path rig_path_for(const fs::path& csv) {
   fs::path rig = csv;
   rig.replace_extension(".rig.toml");
   return rig;
+}
+
+fs::path beside_input(const fs::path& input, const std::string& suffix) {
+  fs::path out = input;
+  out.replace_extension(suffix);
+  return out;
 }
 
 namespace {

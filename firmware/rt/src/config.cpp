@@ -67,20 +67,23 @@ void read_ft_bus(const TomlTable& ft, FtSection& out) {
   }
   if (ft.find("local_path") == nullptr) {
     ft.fail("local_path",
-            "is required with transport = \"local\": the absolute path of the bus socket "
-            "zerog-emu serves (--can-local PATH)");
+            "is required with transport = \"local\": the path of the bus socket zerog-emu "
+            "serves (--can-local PATH)");
   }
-  const std::string local_path = ft.string("local_path");
-  if (local_path.empty() || local_path.front() != '/') {
+  if (ft.string("local_path").empty()) {
     ft.fail("local_path",
-            "must be an absolute path (the bus socket zerog-emu --can-local serves, e.g. "
-            "\"/run/zerog/can.sock\"), is \"" +
-                local_path + "\"");
+            "must be the path of the bus socket zerog-emu --can-local serves (e.g. "
+            "\"/run/zerog/can.sock\"), is empty");
   }
+  // Relative to the configuration's folder, like every path in it (proto/paths.md).
+  const std::string local_path = ft.path("local_path").string();
   if (local_path.size() > rtio::LocalCanBus::kMaxPathBytes) {
-    ft.fail("local_path", "must be at most " + std::to_string(rtio::LocalCanBus::kMaxPathBytes) +
-                              " bytes (an AF_UNIX socket's sun_path), is " +
-                              std::to_string(local_path.size()));
+    ft.fail("local_path",
+            "must be at most " + std::to_string(rtio::LocalCanBus::kMaxPathBytes) +
+                " bytes (an AF_UNIX socket's sun_path), is " + std::to_string(local_path.size()) +
+                (local_path == ft.string("local_path")
+                     ? std::string()
+                     : " as resolved against the configuration's folder: \"" + local_path + "\""));
   }
   out.local_path = local_path;
 }
@@ -206,8 +209,8 @@ FtSection read_ft(const TomlTable& file) {
 ImuSection read_imu(const TomlTable& file) {
   const TomlTable imu = file.sub_table("imu", {"device", "baud", "identifier", "accel_range_g"});
   ImuSection i;
-  i.device = imu.string("device");
-  if (i.device.empty()) imu.fail("device", "must name a tty");
+  if (imu.string("device").empty()) imu.fail("device", "must name a tty");
+  i.device = imu.path("device").string();  // relative: to this file's folder (proto/paths.md)
   i.baud = static_cast<std::uint32_t>(imu.optional_integer("baud", 921600, 1200, 4000000));
   if (rtio::baud_to_speed(i.baud) == 0) {
     imu.fail("baud",

@@ -1372,7 +1372,7 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
         library += files + ",@" + o.user_candidates[static_cast<std::size_t>(c.user)].source;
       else
         library += files;
-      d.command = "zerog fit " + o.log_path + " --effects " + library + " --out fitted.json";
+      d.command = "zerog fit " + o.log_path + " --effects " + library + " --out " + o.fit_out;
     }
   } else {
     d.verdict = Diagnosis::Verdict::none;
@@ -1424,8 +1424,8 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
         x.path = o.discovery_path;
         const std::string model =
             o.model_text.empty() ? io::model_spec_string(d.model, o.fit.user) : o.model_text;
-        d.command = "zerog fit " + o.log_path + " --effects " + model + ",@" + x.path +
-                    " --out fitted.json";
+        d.command = "zerog fit " + o.log_path + " --effects " + model + ",@" + x.path + " --out " +
+                    o.fit_out;
       }
     }
   }

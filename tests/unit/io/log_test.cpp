@@ -619,8 +619,28 @@ TEST_F(AtomicWriteTest, WriteLogRefusesWhenTheLogOrItsRigIsAnInput) {
   EXPECT_EQ(listing(dir_), (std::vector<fs::path>{"in.csv", "in.rig.toml"}));
 }
 
+// `--out new/folder/run.csv` makes the folders it needs (proto/paths.md); a failed write takes
+// them away again.
+TEST_F(AtomicWriteTest, MakesAMissingFolderAndRemovesItWhenTheWriteFails) {
+  write_file_atomic(path("new/deeper/out.txt"), "x");
+  EXPECT_EQ(read_text(path("new/deeper/out.txt")), "x");
+  // The temporary file's name (".NAME.tmp-XXXXXX") passes NAME_MAX: the write fails after the
+  // folders were made.
+  EXPECT_THROW(write_file_atomic(path("gone/deeper/" + std::string(250, 'n')), "x"),
+               std::runtime_error);
+  EXPECT_FALSE(fs::exists(path("gone")));
+  // Under a file, no folder can be made: an error naming the output.
+  write_text(path("plain"), "file");
+  try {
+    write_file_atomic(path("plain/sub/out.txt"), "x");
+    ADD_FAILURE() << "wrote under a file";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("plain/sub/out.txt"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(listing(dir_), (std::vector<fs::path>{"new", "plain"}));
+}
+
 TEST_F(AtomicWriteTest, FailureLeavesNothingBehind) {
-  EXPECT_THROW(write_file_atomic(path("missing/out.txt"), "x"), std::runtime_error);
   fs::create_directory(path("dir.csv"));  // the target is a folder: the rename fails
   EXPECT_THROW(write_file_atomic(path("dir.csv"), "x"), std::runtime_error);
   // write_log: the rig target is a folder, so neither file may appear.

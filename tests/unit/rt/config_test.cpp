@@ -60,8 +60,8 @@ struct Expected {
   std::string why;
 };
 
-void expect_error(const std::string& text, const Expected& e) {
-  const fs::path file = "/etc/zerog/zerog-rt.toml";
+void expect_error(const std::string& text, const Expected& e,
+                  const fs::path& file = "/etc/zerog/zerog-rt.toml") {
   try {
     parse_config(text, file);
     ADD_FAILURE() << "no error; expected one at " << e.key;
@@ -295,6 +295,22 @@ TEST(RtConfig, FtTransportIsSocketCanByDefaultOrTheLocalBusSocket) {
   EXPECT_DOUBLE_EQ(c.ft.rate_hz, 500.0);
 }
 
+// One rule for paths in files (proto/paths.md): relative to the file's folder.
+TEST(RtConfig, FtLocalPathIsRelativeToTheConfigurationsFolder) {
+  const std::string local = with_line(with_local_transport(sample_text()),
+                                      "local_path = ", "local_path = \"run/can.sock\"");
+  EXPECT_EQ(parse_config(local, "/etc/zerog/zerog-rt.toml").ft.local_path,
+            fs::path("/etc/zerog/run/can.sock"));
+  EXPECT_EQ(parse_config(local, "cell/zerog-rt.toml").ft.local_path, fs::path("cell/run/can.sock"));
+  // Resolved, it may pass sun_path's 107 bytes: the error says what it was resolved to.
+  const std::string deep = "/" + std::string(100, 'd') + "/zerog-rt.toml";
+  expect_error(local,
+               {"ft.local_path", line_of(local, "local_path = "), 14,
+                "must be at most 107 bytes (an AF_UNIX socket's sun_path), is 114 as "
+                "resolved against the configuration's folder"},
+               deep);
+}
+
 TEST(RtConfig, FtTransportErrorsNameTheKeyAndWhy) {
   const std::string s = sample_text();
   const std::string local = with_local_transport(s);
@@ -306,14 +322,13 @@ TEST(RtConfig, FtTransportErrorsNameTheKeyAndWhy) {
                 "is \"vcan\""});
   expect_error(with_line(s, "transport = ", "transport = 1"),
                {"ft.transport", line_of(s, "transport = "), 13, "must be a string"});
-  // local: local_path required, absolute, short enough for sun_path.
+  // local: local_path required, not empty, short enough for sun_path (a relative one is resolved
+  // against the configuration's folder: RtConfig.FtLocalPathIsRelativeToTheConfigurationsFolder).
   expect_error(with_line(local, "local_path = ", ""),
                {"ft.local_path", ft, 1, "is required with transport = \"local\""});
-  expect_error(with_line(local, "local_path = ", "local_path = \"run/zerog/can.sock\""),
-               {"ft.local_path", line_of(local, "local_path = "), 14,
-                "must be an absolute path (the bus socket zerog-emu --can-local serves"});
   expect_error(with_line(local, "local_path = ", "local_path = \"\""),
-               {"ft.local_path", line_of(local, "local_path = "), 14, "must be an absolute path"});
+               {"ft.local_path", line_of(local, "local_path = "), 14,
+                "must be the path of the bus socket zerog-emu --can-local serves"});
   expect_error(with_line(local, "local_path = ", "local_path = \"/" + std::string(107, 'x') + "\""),
                {"ft.local_path", line_of(local, "local_path = "), 14,
                 "must be at most 107 bytes (an AF_UNIX socket's sun_path), is 108"});

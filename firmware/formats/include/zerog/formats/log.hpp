@@ -173,6 +173,11 @@ class InputError : public std::runtime_error {
 /// The sidecar path of a log: `run.csv` → `run.rig.toml`.
 std::filesystem::path rig_path_for(const std::filesystem::path& csv);
 
+/// A tool's default output beside its input (proto/paths.md): `dir/run.csv` with `.discovered.toml`
+/// → `dir/run.discovered.toml`; with `.report` → `dir/run.report`. Never the current folder unless
+/// the input is there.
+std::filesystem::path beside_input(const std::filesystem::path& input, const std::string& suffix);
+
 /// Reads a log and its rig sidecar (format version 1 or 2). Throws InputError naming file, line
 /// and column. Quaternions are returned normalised. Holds every row: a long log is better read
 /// with LogReader, chunk by chunk.

@@ -142,6 +142,9 @@ struct DiagnoseOptions {
   const std::vector<std::uint8_t>* exclude = nullptr;
   FitOptions fit;                    ///< effects = the model to diagnose; mask is set internally
   std::string log_path = "run.csv";  ///< for the suggested command
+  /// Where the suggested command writes its refitted model (zerog diagnose names a new file
+  /// beside the log: never an input, never an existing file).
+  std::string fit_out = "fitted.json";
   /// The model as given on the command line, for the suggested command (default: the effect
   /// names of `fit.effects` and `fit.user`).
   std::string model_text;
