@@ -10,30 +10,48 @@
 #                   (scripts/figures.py demo; only with the README's configuration: cable hidden)
 #   --offline       steps 1-9 only (no live run)
 #   --bin DIR       use the programs built in DIR (no install, no build)
-#   --out DIR       outputs there instead of out/demo
+#   --out DIR       outputs there instead of the repository's out/demo
+# Paths (proto/paths.md): --bin and --out are relative to the folder you run this from; the
+# default out/demo is the repository's, wherever you run it from.
+# Without --bin it installs the Debian packages the demo needs (scripts/install-deps.sh --demo)
+# and builds only the three programs it runs (zerog, zerog-rt, zerog-emu) in build/release;
+# scripts/test.sh builds everything else.
 set -euo pipefail
-cd "$(dirname "$0")/.."
-hidden=cable write_readme=0 offline=0 bin= out=out/demo
+here=$(pwd)
+root=$(cd "$(dirname "$0")/.." && pwd)
+hidden=cable write_readme=0 offline=0 bin= out=
+# A path given on the command line, made absolute against the folder the user ran this from.
+given_path() { case "$1" in /*) printf '%s' "$1" ;; *) printf '%s' "$here/$1" ;; esac; }
 while [ $# -gt 0 ]; do
   case "$1" in
     --write-readme) write_readme=1; shift ;;
     --offline) offline=1; shift ;;
-    --bin) bin=$2; shift 2 ;;
-    --out) out=$2; shift 2 ;;
+    --bin) [ $# -ge 2 ] || { echo "demo.sh: --bin needs a folder" >&2; exit 2; }
+           bin=$(given_path "$2"); shift 2 ;;
+    --out) [ $# -ge 2 ] || { echo "demo.sh: --out needs a folder" >&2; exit 2; }
+           out=$(given_path "$2"); shift 2 ;;
     -*) echo "demo.sh: unknown option $1" >&2; exit 2 ;;
     *) hidden=$1; shift ;;
   esac
 done
+cd "$root"
+# The default output folder, named relative to the repository (printed paths stay short).
+[ -n "$out" ] || out=out/demo
 if [ "$write_readme" = 1 ] && [ "$hidden" != cable ]; then
   echo "demo.sh: --write-readme writes the README's figures, which are of the default (cable)" >&2
   exit 2
 fi
+install_s=0 build_s=0
 if [ -z "$bin" ]; then
-  if [ "${ZEROG_SKIP_INSTALL:-0}" != 1 ]; then bash scripts/install-deps.sh; fi
+  if [ "${ZEROG_SKIP_INSTALL:-0}" != 1 ]; then bash scripts/install-deps.sh --demo; fi
+  install_s=$SECONDS
   cmake --preset release >/dev/null
-  cmake --build --preset release -j "$(nproc)"
+  # Only what the demo runs (and what they link): the tests and benchmarks are scripts/test.sh's.
+  cmake --build --preset release -j "$(nproc)" --target zerog zerog-rt zerog-emu
+  build_s=$((SECONDS - install_s))
   bin=build/release
 fi
+[ -x "$bin/host/cli/zerog" ] || { echo "demo.sh: $bin/host/cli/zerog is not built" >&2; exit 2; }
 zerog=$bin/host/cli/zerog
 mkdir -p "$out"
 started=$SECONDS
@@ -100,8 +118,14 @@ $zerog report "$out/run.csv" --model "$out/fit_fixed.json" --truth "$out/run.tru
   --ladder "$out/ladder.json" --diagnosis "$out/diagnosis_fixed.json" --out "$out/report"
 echo "open $out/report/index.html in a browser"
 # How long steps 1-9 took, for the README (scripts/figures.py demo).
-printf '{"hidden": "%s", "steps_1_to_9_s": %d}\n' "$hidden" $((SECONDS - started)) \
-  > "$out/timing.json"
+steps_s=$((SECONDS - started))
+# timing.json: what each part took (install and build are 0 with --bin); the live step's time is
+# added at the end (scripts/fresh_machine.sh reads it).
+write_timing() {
+  printf '{"hidden": "%s", "install_s": %d, "build_s": %d, "steps_1_to_9_s": %d, "total_s": %d}\n' \
+    "$hidden" "$install_s" "$build_s" "$steps_s" "$SECONDS" >"$out/timing.json"
+}
+write_timing
 write_figures() {
   if [ "$write_readme" = 1 ]; then /usr/bin/python3 scripts/figures.py demo "$out"; fi
 }
@@ -129,3 +153,7 @@ fi
 /usr/bin/python3 tests/hil/timing.py "$out/hil-realtime/push" --json "$out/hil-realtime/timing.json" \
   || echo "  no timing: the real-time run did not finish ($out/hil-realtime.log)"
 write_figures
+write_timing
+echo
+echo "demo.sh: done in $SECONDS s (install ${install_s} s, build ${build_s} s, steps 1-9 ${steps_s} s," \
+  "live $((SECONDS - started - steps_s)) s); outputs in $out"

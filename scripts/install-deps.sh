@@ -1,27 +1,46 @@
 #!/usr/bin/env bash
 # Installs everything zerog needs to build, test and run its demo on Debian 12.
 # Idempotent: apt-get skips what is already installed. Run as root (or with sudo).
+#   scripts/install-deps.sh          # everything scripts/test.sh needs (also the demo's)
+#   scripts/install-deps.sh --demo   # only what scripts/demo.sh needs: the build of zerog,
+#                                    # zerog-rt and zerog-emu, Python with numpy and matplotlib
 set -euo pipefail
 if [ "$(id -u)" -ne 0 ]; then SUDO=sudo; else SUDO=; fi
+demo_only=0
+case "${1:-}" in
+  "") ;;
+  --demo) demo_only=1 ;;
+  *) echo "install-deps.sh: unknown option $1 (--demo: only the demo's packages)" >&2; exit 2 ;;
+esac
+# The demo: compilers, the libraries the three programs link, the report's Python. CMake's
+# configure step looks for GoogleTest and Google Benchmark too (the release preset has tests).
 packages=(
-  build-essential cmake ninja-build pkg-config git
+  build-essential cmake ninja-build pkg-config
   libeigen3-dev libceres-dev
-  libgtest-dev libgmock-dev googletest libbenchmark-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev nlohmann-json3-dev libtomlplusplus-dev
   python3 python3-numpy python3-matplotlib
-  clang-format
-  # the fuzz targets (tests/fuzz, scripts/fuzz.sh): clang with libFuzzer and the sanitizers
-  clang libclang-rt-14-dev
-  # telemetry (Cyclone DDS, idlc) and the PLC interface (libmodbus; mbpoll as the test client)
-  cyclonedds-dev cyclonedds-tools libmodbus-dev mbpoll python3-venv
-  # the install test checks the systemd unit (systemd-analyze verify)
-  systemd
-  # vcan VM tests
-  qemu-system-x86 busybox-static linux-image-amd64 xz-utils cpio iproute2 can-utils
+  # telemetry (Cyclone DDS, idlc) and the PLC interface (libmodbus)
+  cyclonedds-dev cyclonedds-tools libmodbus-dev
 )
+if [ "$demo_only" = 0 ]; then
+  packages+=(
+    git googletest clang-format
+    # the fuzz targets (tests/fuzz, scripts/fuzz.sh): clang with libFuzzer and the sanitizers
+    clang libclang-rt-14-dev
+    # mbpoll: the Modbus test client; python3-venv: the .venv below
+    mbpoll python3-venv
+    # the install test checks the systemd unit (systemd-analyze verify)
+    systemd
+    # vcan VM tests
+    qemu-system-x86 busybox-static linux-image-amd64 xz-utils cpio iproute2 can-utils
+  )
+fi
 export DEBIAN_FRONTEND=noninteractive
 $SUDO apt-get update -qq
 $SUDO apt-get install -y -qq --no-install-recommends "${packages[@]}"
+
+if [ "$demo_only" = 1 ]; then exit 0; fi
 
 # The independent DDS subscriber of the telemetry tests: Python's cyclonedds from PyPI (its wheel
 # bundles its own Cyclone C library, so the wire types are checked against a second build).
