@@ -284,8 +284,9 @@ def value_pm(value, std, unit):
 
 def demo_blocks(out):
     """The blocks of scripts/demo.sh's run in `out` (out/demo): the table, the ladder and
-    parameters, the yardsticks in "Sensor floor and true-model reference" and the noise
-    estimates in "Calibrating a real rig"."""
+    parameters (README.md), the yardsticks in "Sensor floor and true-model reference"
+    (docs/insight-loop.md) and the noise estimates in "Calibrating a real rig"
+    (docs/calibrating.md)."""
     diag = load(os.path.join(out, "diagnosis.json"))
     diag_fixed = load(os.path.join(out, "diagnosis_fixed.json"))
     ladder = load(os.path.join(out, "ladder.json"))
