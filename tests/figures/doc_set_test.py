@@ -4,7 +4,8 @@
 Every block of the set is read and written back through write_readme, one at a time and all at
 once: the files must stay byte-identical. check_readme must agree with every block, and
 check_speed with the speed blocks (the benchmark programs replaced by the lists their blocks
-name). A block written with new text changes only the file that holds it, atomically (same mode,
+name), and tests/hil/figures.py's --check and --readme with the HIL blocks (its runs replaced by
+the blocks' own text). A block written with new text changes only the file that holds it, atomically (same mode,
 no temporary file left). A block in two files, or in none, is an error naming the files.
 
     tests/figures/doc_set_test.py [--readme README.md]     # exit 0: passed
@@ -12,6 +13,7 @@ no temporary file left). A block in two files, or in none, is an error naming th
 import argparse
 import contextlib
 import glob
+import importlib.util
 import io
 import json
 import os
@@ -134,6 +136,27 @@ def main():
             quiet(figures.write_readme, copy, {name: bodies[name]})
             os.chmod(target, stat.S_IMODE(os.stat(path).st_mode))
             expect(snapshot(os.path.dirname(copy)) == before, f"{name} written back")
+
+        # tests/hil/figures.py's command line on the same set: --check agrees, writing leaves the
+        # files as they are (its runs replaced by the blocks' own text).
+        hil_blocks = {n: bodies[n] for n in ("hil", "faults", "supervisor") if n in bodies}
+        if hil_blocks:
+            spec = importlib.util.spec_from_file_location(
+                "hil_figures", os.path.join(HERE, "..", "hil", "figures.py"))
+            hil = importlib.util.module_from_spec(spec)
+            spec.loader.exec_module(hil)
+            hil.load = lambda dirs: {}
+            hil.markdown = lambda cases: dict(hil_blocks)
+            for argv, what in ((["--check", "--readme", copy, "runs"], "--check"),
+                               (["--readme", copy, "runs"], "--readme (write)")):
+                saved, sys.argv = sys.argv, ["figures.py"] + argv
+                try:
+                    status, out = quiet(hil.main)
+                finally:
+                    sys.argv = saved
+                expect(status == 0 and snapshot(os.path.dirname(copy)) == before,
+                       f"tests/hil/figures.py {what}: status 0, every file byte-identical "
+                       f"({out.strip().splitlines()[-1] if out.strip() else ''})")
 
         # A block in two files, or in none: an error naming the files; nothing written.
         name, path = next(iter(names.items()))
