@@ -6,8 +6,9 @@
 # zerog-rt floats the part in a hardware-in-the-loop run against the emulated rig.
 # Usage: scripts/demo.sh [--write-readme] [--offline] [--bin BUILD_DIR] [--out DIR] [HIDDEN_EFFECT]
 #   HIDDEN_EFFECT   default: cable; `zerog sim --list-effects` lists them
-#   --write-readme  at the end, write the README's demo figures from this run's JSON
-#                   (scripts/figures.py demo; only with the README's configuration: cable hidden)
+#   --write-readme  at the end, write the demo's figures from this run's JSON into README.md and
+#                   docs/ (scripts/figures.py demo; only with the documented configuration: cable
+#                   hidden)
 #   --offline       steps 1-9 only (no live run)
 #   --bin DIR       use the programs built in DIR (no install, no build)
 #   --out DIR       outputs there instead of the repository's out/demo
@@ -38,7 +39,7 @@ cd "$root"
 # The default output folder, named relative to the repository (printed paths stay short).
 [ -n "$out" ] || out=out/demo
 if [ "$write_readme" = 1 ] && [ "$hidden" != cable ]; then
-  echo "demo.sh: --write-readme writes the README's figures, which are of the default (cable)" >&2
+  echo "demo.sh: --write-readme writes the documented figures, which are of the default (cable)" >&2
   exit 2
 fi
 install_s=0 build_s=0

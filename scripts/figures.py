@@ -1,22 +1,25 @@
 #!/usr/bin/python3
-"""The README's figures, written from the runs that produce them, and checked against fresh runs.
+"""The figures of README.md and docs/*.md, written from the runs that produce them, and checked.
 
-Every number in README.md that comes from a run stands between <!-- NAME:begin --> and
-<!-- NAME:end --> and is written by this module (or by tests/hil/figures.py, which uses its block
-functions) from the JSON that run wrote. With --check nothing is written: the blocks are
-computed from the given (fresh) run and compared with README.md's; any difference is printed and
-the exit status is 1.
+Every number in README.md and docs/*.md (the documentation set) that comes from a run stands
+between <!-- NAME:begin --> and <!-- NAME:end --> and is written by this module (or by
+tests/hil/figures.py, which uses its block functions) from the JSON that run wrote. A block is
+looked up by its name in the whole set: the name must occur in exactly one of its files, and the
+block is written in that file. With --check nothing is written: the blocks are computed from the
+given (fresh) run and compared with the documentation's; any difference is printed and the exit
+status is 1.
 
     scripts/figures.py demo OUT_DIR             # scripts/demo.sh's run (demo.sh --write-readme)
     scripts/figures.py discovery ZEROG          # runs zerog sim + diagnose itself (about a minute)
     scripts/figures.py speed --run BENCH_DIR    # runs the Google Benchmark programs (ten minutes
                                                 # or so: ident_bench's 10^6-sample logs)
     scripts/figures.py speed BENCH_JSON...      # or takes their --benchmark_format=json output
-    scripts/figures.py speed --check --bench-dir BENCH_DIR   # the README's timings, see below
+    scripts/figures.py speed --check --bench-dir BENCH_DIR   # the documented timings, see below
     scripts/figures.py tool-change --gtest IDENT_TEST   # ident_test's ToolChange case
     scripts/figures.py soak SOAK_JSON           # zerog-soak --report (ctest soak_hour)
     scripts/figures.py results RESULTS_MD       # zerog results' table and JSON (scripts/results.sh)
-  options: --readme README.md (default: the repository's), --check
+  options: --readme README.md (default: the repository's; the documentation set is that README
+           and every docs/*.md beside it), --check
 
 How a block is compared (--check):
   - Figures of deterministic runs (simulation and fit with a fixed seed, lockstep HIL) are
@@ -32,6 +35,7 @@ How a block is compared (--check):
 """
 import argparse
 import difflib
+import glob
 import json
 import math
 import os
@@ -97,37 +101,99 @@ def replace_block(text, name, body, readme="README.md"):
     return f"{head}{begin}\n{plain(body).strip(chr(10))}\n{end}{tail}"
 
 
-def write_readme(readme, blocks):
-    """Replaces the blocks {name: text} in `readme`, atomically (a temporary file, then rename).
-    The file is read just before it is written: other parts of it may be edited meanwhile."""
-    with open(readme, encoding="utf-8") as f:
-        text = f.read()
-    for name, body in blocks.items():
-        text = replace_block(text, name, body, readme)
+# --- The documentation set: README.md and docs/*.md ---------------------------------------------
+
+def doc_set(readme):
+    """The files of `readme`'s documentation set: the README itself, then every docs/*.md in the
+    folder beside it (sorted)."""
     folder = os.path.dirname(os.path.abspath(readme))
-    fd, tmp = tempfile.mkstemp(prefix=".README.", dir=folder)
+    return [readme] + sorted(glob.glob(os.path.join(folder, "docs", "*.md")))
+
+
+def shown(readme, path):
+    """`path` as the documentation names it: relative to the README's folder (docs/speed.md)."""
+    return os.path.relpath(os.path.abspath(path), os.path.dirname(os.path.abspath(readme)))
+
+
+def read_docs(readme):
+    """{path: text} of every file of `readme`'s documentation set."""
+    docs = {}
+    for path in doc_set(readme):
+        with open(path, encoding="utf-8") as f:
+            docs[path] = f.read()
+    return docs
+
+
+def block_file(docs, name, readme):
+    """The file of the documentation set `docs` ({path: text}) that holds the block `name`: the
+    one whose text has its begin or end marker. None or several is an error naming them."""
+    holders = [p for p, text in docs.items() if any(m in text for m in markers(name))]
+    if len(holders) != 1:
+        where = ("none of them" if not holders else
+                 f"{len(holders)} of them: {', '.join(shown(readme, p) for p in holders)}")
+        raise SystemExit(f"{readme}: the block '{name}' must be in exactly one file of README.md "
+                         f"and docs/*.md; it is in {where}")
+    return holders[0]
+
+
+def read_doc_block(docs, name, readme):
+    """(the path of the file that holds block `name`, the block's text)."""
+    path = block_file(docs, name, readme)
+    return path, read_block(docs[path], name, shown(readme, path))
+
+
+def block_names(readme):
+    """{name: path} of every block in `readme`'s documentation set (a begin marker on a line of
+    its own), in the order of the files."""
+    names = {}
+    for path, text in read_docs(readme).items():
+        for name in re.findall(r"^<!-- ([\w.-]+):begin -->$", text, flags=re.M):
+            names.setdefault(name, path)
+    return names
+
+
+def write_file(path, text):
+    """Writes `text` to `path` atomically (a temporary file beside it, then rename), keeping its
+    mode."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{os.path.basename(path)}.",
+                               dir=os.path.dirname(os.path.abspath(path)))
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as f:
             f.write(text)
             f.flush()
             os.fsync(f.fileno())
-        os.chmod(tmp, os.stat(readme).st_mode & 0o777)
-        os.replace(tmp, readme)
+        os.chmod(tmp, os.stat(path).st_mode & 0o777)
+        os.replace(tmp, path)
     except BaseException:
         os.unlink(tmp)
         raise
-    print(f"figures.py: wrote {', '.join(blocks)} in {readme}")
+
+
+def write_readme(readme, blocks):
+    """Replaces the blocks {name: text} in `readme`'s documentation set, each in the file that
+    holds it, atomically (per file: a temporary file, then rename). The files are read just
+    before they are written: other parts of them may be edited meanwhile. Every block is found
+    and replaced before any file is written."""
+    docs = read_docs(readme)
+    changed = {}
+    for name, body in blocks.items():
+        path = block_file(docs, name, readme)
+        docs[path] = replace_block(docs[path], name, body, shown(readme, path))
+        changed.setdefault(path, []).append(name)
+    for path, names in changed.items():
+        write_file(path, docs[path])
+        print(f"figures.py: wrote {', '.join(names)} in {shown(readme, path)}")
 
 
 def check_readme(readme, blocks, how):
-    """Compares the blocks {name: text} with `readme`'s; prints what differs. `how` says how the
-    figures are compared (printed with the verdict). Returns the exit status."""
-    with open(readme, encoding="utf-8") as f:
-        text = f.read()
-    shown_name = os.path.basename(readme)
+    """Compares the blocks {name: text} with those of `readme`'s documentation set; prints what
+    differs. `how` says how the figures are compared (printed with the verdict). Returns the exit
+    status."""
+    docs = read_docs(readme)
     status = 0
     for name, body in blocks.items():
-        have = read_block(text, name, readme)
+        path, have = read_doc_block(docs, name, readme)
+        shown_name = shown(readme, path)
         want = body.strip("\n")
         if matches(want, have):
             print(f"figures.py: {name}: {shown_name} agrees with the run ({how})")
@@ -135,15 +201,15 @@ def check_readme(readme, blocks, how):
         status = 1
         print(f"figures.py: {name}: {shown_name} DIFFERS from the run ({how}); "
               f"-{shown_name} +run (varying figures marked «»):")
-        shown = want.replace(VARY_BEGIN, "«").replace(VARY_END, "»")
+        shown_text = want.replace(VARY_BEGIN, "«").replace(VARY_END, "»")
         have_lines, want_lines = have.splitlines(), want.splitlines()
         if len(have_lines) == len(want_lines):
             # Line by line: only the lines that differ (a varying figure matches any number).
             for i, (h, w) in enumerate(zip(have_lines, want_lines)):
                 if not matches(w, h):
-                    print(f"  line {i + 1}:\n  -{h}\n  +{shown.splitlines()[i]}")
+                    print(f"  line {i + 1}:\n  -{h}\n  +{shown_text.splitlines()[i]}")
             continue
-        for line in difflib.unified_diff(have_lines, shown.splitlines(), shown_name, "run",
+        for line in difflib.unified_diff(have_lines, shown_text.splitlines(), shown_name, "run",
                                          lineterm="", n=0):
             print("  " + line)
     return status
@@ -218,8 +284,9 @@ def value_pm(value, std, unit):
 
 def demo_blocks(out):
     """The blocks of scripts/demo.sh's run in `out` (out/demo): the table, the ladder and
-    parameters, the yardsticks in "Sensor floor and true-model reference" and the noise
-    estimates in "Calibrating a real rig"."""
+    parameters (README.md), the yardsticks in "Sensor floor and true-model reference"
+    (docs/insight-loop.md) and the noise estimates in "Calibrating a real rig"
+    (docs/calibrating.md)."""
     diag = load(os.path.join(out, "diagnosis.json"))
     diag_fixed = load(os.path.join(out, "diagnosis_fixed.json"))
     ladder = load(os.path.join(out, "ladder.json"))
@@ -725,17 +792,16 @@ def run_benchmarks(bench_dir, save):
 
 
 def check_speed(args):
-    """Each block rewritten from the values it carries must be the README's text, and each
+    """Each block rewritten from the values it carries must be the documentation's text, and each
     benchmark it names must exist in the built programs (the same benchmark set)."""
-    with open(args.readme, encoding="utf-8") as f:
-        text = f.read()
+    docs = read_docs(args.readme)
     status = 0
     listed = {}
     for program in BENCH_PROGRAMS:
         out = run(os.path.join(args.bench_dir, program), "--benchmark_list_tests=true")
         listed[program] = set(out.split())
     for name in SPEED_BLOCKS:
-        have = read_block(text, name, args.readme)
+        _, have = read_doc_block(docs, name, args.readme)
         m = DATA.match(have.splitlines()[0])
         if not m:
             print(f"figures.py: {name}: the block's first line does not carry its values")
@@ -898,9 +964,11 @@ def cmd_results(args):
 def main():
     # --readme and --check before or after the subcommand.
     common = argparse.ArgumentParser(add_help=False)
-    common.add_argument("--readme", default=argparse.SUPPRESS, help="README.md to write or check")
+    common.add_argument("--readme", default=argparse.SUPPRESS,
+                        help="README.md whose documentation set (it and the docs/*.md beside it) "
+                             "is written or checked")
     common.add_argument("--check", action="store_true", default=argparse.SUPPRESS,
-                        help="compare with the README instead of writing it; exit 1 on a "
+                        help="compare with the documentation instead of writing it; exit 1 on a "
                              "difference")
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0], parents=[common])
     sub = ap.add_subparsers(dest="what", required=True)

@@ -2,10 +2,11 @@
 # The results table, generated: builds zerog, runs `zerog results` (paper-bp, paper-zp, physics,
 # physics + residual network float/quantised, true-model reference and sensor floor on one
 # simulated KR210/100 kg run), writes out/results/results.{md,json} and replaces the part of
-# README.md between the markers <!-- results:begin --> and <!-- results:end --> with the table
-# (atomically: a temporary file beside README.md, then rename; scripts/figures.py results). Extra
-# arguments go to `zerog results` (e.g. --seed 7).
-# Options first: --check: write nothing, compare the README's table with this run instead
+# docs/learned-residual.md between the markers <!-- results:begin --> and <!-- results:end -->
+# with the table (atomically: a temporary file beside it, then rename; scripts/figures.py
+# results, which finds the block in README.md and docs/*.md). Extra arguments go to
+# `zerog results` (e.g. --seed 7).
+# Options first: --check: write nothing, compare the documented table with this run instead
 # (exactly but for the training times; exit 1 on a difference); --bin DIR: the zerog built in
 # DIR (no install, no build).
 # Takes about 3 minutes after the build on a 2-core machine.

@@ -1018,7 +1018,8 @@ def _ratio_class(r):
 
 def _floors_table(s, seg):
     """The residual beside the two yardsticks, force and torque, all / static / moving; and
-    what each means (README "Sensor floor and true-model reference")."""
+    what each means (docs/insight-loop.md, "Sensor floor and true-model
+    reference")."""
     floor, sensor = s.get("_ref"), s.get("_sensor")
     if not floor and not sensor:
         return ('<p class="muted">No true-model reference and no sensor floor in this bundle '

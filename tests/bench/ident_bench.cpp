@@ -1,10 +1,10 @@
-// Speed of identification (figures in the README):
+// Speed of identification (figures in docs/speed.md):
 //  - zerog fit of the full effect list on 100,000 samples (issue 16's aims: at most 25 × the
 //    reference, 30 × with covariance);
 //  - zerog diagnose over all candidates on the same log (aim: at most 50 × the reference);
 //  - a reference in the same run: one double evaluation of the model over all samples, so the
 //    ratio fit / evaluation is comparable across machines.
-// These headline benchmarks run three repetitions each; the README quotes the median one.
+// These headline benchmarks run three repetitions each; docs/speed.md quotes the median one.
 // The fits use the default engine (the streamed normal equations, FitOptions::engine); the
 // *BlockStatsEngine variants time Ceres on the block sufficient statistics (the same block
 // evaluation, Ceres' dense normal equations), the *SamplesEngine variants the per-sample
@@ -14,7 +14,7 @@
 // with the peak resident memory it reached (counters peak_rss_MB, peak_growth_MB). They run size
 // by size (registered in main), so that only one size's log is held at a time. BM_ScaleReadLog:
 // reading a log file of each length into a dataset, whole or streamed (issue 16).
-// The README's tables are written from its JSON output: scripts/figures.py speed.
+// The tables of docs/speed.md are written from its JSON output: scripts/figures.py speed.
 #include <benchmark/benchmark.h>
 #include <malloc.h>
 #include <sys/resource.h>

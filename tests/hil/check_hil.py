@@ -15,7 +15,7 @@ A lockstep run (emu.json has "lockstep") is also checked for the lockstep itself
 handled, no sample request without a sample, the sensor threads done in time.
 
 Prints what it measured, one line per figure, and exits 1 if a check fails. Also writes
-DIR/check.json with the figures (for the README's tables and the demo).
+DIR/check.json with the figures (for the tables of docs/zerog-rt.md and the demo).
 """
 import argparse
 import csv

@@ -1,9 +1,13 @@
 #!/usr/bin/python3
-"""The README's hardware-in-the-loop figures from the check.json files of HIL runs
-(tests/hil/check_hil.py writes one per case).
+"""The documentation's hardware-in-the-loop figures from the check.json files of HIL runs.
+
+tests/hil/check_hil.py writes one check.json per case. The blocks are looked up in the
+documentation set of the README given (that README.md and every docs/*.md beside it; a block is
+written in the one file that holds it: docs/zerog-rt.md), with scripts/figures.py's block
+functions.
 
     tests/hil/figures.py RESULTS_DIR...                          # print the blocks
-    tests/hil/figures.py --readme README.md RESULTS_DIR...       # write them into the README
+    tests/hil/figures.py --readme README.md RESULTS_DIR...       # write them into the docs
     tests/hil/figures.py --check [--readme README.md] RESULTS_DIR...   # compare (ctest
                                                                  # hil_readme_figures)
 
@@ -28,12 +32,12 @@ import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "..", "scripts"))
-import figures as blocks  # noqa: E402  (scripts/figures.py: the README's blocks)
+import figures as blocks  # noqa: E402  (scripts/figures.py: the documentation's blocks)
 
-# The README's "Fault injection" table: one row per fault of issue 6, in this order. Per case:
-# the fault, how the emulator or tests/hil/fault_peer.py injects it, and the reaction that
-# proto/loop.md ("Watchdogs", "Faults that are not faults of the loop") documents; {thr} is the
-# case's watchdog threshold (from its check.json). The measured column comes from check.json.
+# The "Fault injection" table (docs/zerog-rt.md): one row per fault of issue 6, in this order.
+# Per case: the fault, how the emulator or tests/hil/fault_peer.py injects it, and the reaction
+# that proto/loop.md ("Watchdogs", "Faults that are not faults of the loop") documents; {thr} is
+# the case's watchdog threshold (from its check.json). The measured column comes from check.json.
 FAULTS = [
     ("fault_ft_silent", "F/T sensor silent", "the board answers nothing for 1 s",
      "hold, then `ft_stale` at {thr} cycles without a valid sample; zero correction"),
@@ -237,9 +241,11 @@ def markdown(cases):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--readme", help="README.md to write (or, with --check, to compare)")
+    ap.add_argument("--readme", help="README.md whose documentation set (it and the docs/*.md "
+                    "beside it) is written (or, with --check, compared)")
     ap.add_argument("--check", action="store_true",
-                    help="compare the README's blocks with these runs; exit 1 on a difference")
+                    help="compare the documentation's blocks with these runs; exit 1 on a "
+                         "difference")
     ap.add_argument("dirs", nargs="+")
     a = ap.parse_args()
     cases = load(a.dirs)

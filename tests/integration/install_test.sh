@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # install_test.sh BUILD_DIR: `cmake --install` into a scratch prefix lays out what a cabinet PC
-# needs (README, "Deploy to a cabinet PC"), and the systemd unit it writes is valid, names the
-# installed program and carries the real-time settings.
+# needs (docs/deploying.md, "Deploy to a cabinet PC"), and the systemd unit it writes is valid,
+# names the installed program and carries the real-time settings.
 set -euo pipefail
 build=$1
 prefix=$(mktemp -d)/usr

@@ -19,7 +19,7 @@ namespace {
 using model::Effect;
 constexpr double kDeg = std::numbers::pi / 180.0;
 
-// A figure of the README's "Tool change" paragraph, in the test's JSON output
+// A figure of the "Tool change" paragraph (docs/learned-residual.md), in the test's JSON output
 // (--gtest_output=json: scripts/figures.py tool-change writes and checks the paragraph from it).
 void record_figure(const std::string& key, double value) {
   char text[32];
@@ -120,7 +120,7 @@ TEST(ToolChange, RecoversMassAndCentreOfMassWithTheSensorModelFrozen) {
     // 3. The same tool after the sensor's zero point drifted since the calibration, in the
     //    simulated truth: 2 N and 0.2 N*m per axis, signs chosen for the largest mass error on
     //    these attitudes. The frozen zero point is now wrong; mass and centre of mass absorb it
-    //    (README "Tool change").
+    //    (docs/learned-residual.md, "Tool change").
     sim::SimConfig drifted = tool_config(sensor, seed + 100);  // the same noise as in 2.
     const double drift[6] = {2.0, -2.0, 2.0, 0.2, -0.2, 0.2};
     for (int i = 0; i < 6; ++i) drifted.params.block(Effect::bias)[i] += drift[i];

@@ -65,7 +65,8 @@ struct SegmentStats {
 SegmentStats segment_stats(const std::vector<Wrench>& residuals, const Dataset& data,
                            const std::vector<std::uint8_t>* mask = nullptr);
 
-/// The two yardsticks of a simulated run (README "Sensor floor and true-model reference"):
+/// The two yardsticks of a simulated run (docs/insight-loop.md, "Sensor floor and true-model
+/// reference"):
 /// - the true-model reference: the true model with the true parameters on the log's own noisy
 ///   signals, against its wrench. What a perfect fit of the complete model leaves; not a lower
 ///   bound: the IMU's noise enters through the regressors (mass × accelerometer noise, inertia ×

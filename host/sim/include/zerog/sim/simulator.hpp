@@ -238,8 +238,8 @@ struct SimOutput {
   /// without noise; joints, pose, temperature and time are noise-free in `log` already) and the
   /// wrench columns equal to `log`'s noisy, quantised wrench. The true model on these signals
   /// against that wrench leaves only the F/T sensor's own noise and quantisation: the sensor
-  /// floor (README "Sensor floor and true-model reference"). `zerog sim` writes it as
-  /// NAME.clean.csv.
+  /// floor (docs/insight-loop.md, "Sensor floor and true-model reference"). `zerog sim` writes
+  /// it as NAME.clean.csv.
   io::Log clean_log;
   io::ModelFile truth;
   /// Noise-free analytic angular acceleration in I for each row, delayed like the IMU (not logged).
