@@ -235,8 +235,9 @@ print(" ".join(str(s.getsockname()[1]) for s in held))')
     [ -z "$plc_pid" ] || kill $plc_pid 2>/dev/null
     [ -z "$sub_pid" ] || kill $sub_pid 2>/dev/null
   fi
-  wait $other
-  if [ "$other" = "$rt_pid" ]; then rt_status=$?; else emu_status=$?; fi
+  local other_status=0
+  wait $other || other_status=$?
+  if [ "$other" = "$rt_pid" ]; then rt_status=$other_status; else emu_status=$other_status; fi
   if [ -n "$stopper" ]; then kill $stopper 2>/dev/null; wait $stopper 2>/dev/null; fi
   if [ -n "$plc_pid" ]; then wait $plc_pid; plc_status=$?; fi
   awk -v s="$emu_start" -v n="$(date +%s.%N)" 'BEGIN { printf "wall_s = %.3f\n", n - s }' \
