@@ -18,6 +18,7 @@ status is 1.
     scripts/figures.py tool-change --gtest IDENT_TEST   # ident_test's ToolChange case
     scripts/figures.py soak SOAK_JSON           # zerog-soak --report (ctest soak_hour)
     scripts/figures.py results RESULTS_MD       # zerog results' table and JSON (scripts/results.sh)
+    scripts/figures.py first-run JSON           # scripts/fresh_machine.sh's times of the two commands
   options: --readme README.md (default: the repository's; the documentation set is that README
            and every docs/*.md beside it), --check
 
@@ -961,6 +962,30 @@ def cmd_results(args):
 
 # --- command line -------------------------------------------------------------------------------
 
+# --- first-run: scripts/fresh_machine.sh's measurement ----------------------------------------
+
+def first_run_blocks(report):
+    """The README's first-run block from scripts/fresh_machine.sh's JSON: how long the two
+    commands took from a fresh clone (times vary from run to run: any number with --check)."""
+    r = load(report)
+    d, c = r["demo"], r["ci"]
+    minutes = lambda s: vary(s / 60, ".1f")  # noqa: E731
+    stages = ", ".join(f"{name} {vary(sec, 'd')} s" for name, sec in c["stages"])
+    text = (
+        f"Measured by `scripts/fresh_machine.sh` on {r['date']} ({r['cores']} cores, "
+        f"{r['machine']}): from a fresh clone of commit `{r['commit']}`, no build tree and no "
+        f"compiler cache ({r['packages']}). **`scripts/demo.sh`: {minutes(d['total_s'])} min** "
+        f"(exit {d['status']}): install {vary(d['install_s'], 'd')} s, build of its three "
+        f"programs {vary(d['build_s'], 'd')} s, steps 1–9 {vary(d['steps_1_to_9_s'], 'd')} s, "
+        f"the live step {vary(d['live_s'], 'd')} s. **`.ci/run` (`scripts/test.sh`): "
+        f"{minutes(c['total_s'])} min** (exit {c['status']}; CI allows 90): {stages}.")
+    return {"first-run": text}
+
+
+def cmd_first_run(args):
+    return finish(args, first_run_blocks(args.report), "the text exactly; times: any number")
+
+
 def main():
     # --readme and --check before or after the subcommand.
     common = argparse.ArgumentParser(add_help=False)
@@ -1001,6 +1026,10 @@ def main():
     p.add_argument("table", help="zerog results' Markdown (out/results/results.md)")
     p.add_argument("--json", help="its --json-out (default: beside it, .json)")
     p.set_defaults(func=cmd_results)
+    p = sub.add_parser("first-run", parents=[common],
+                       help="the two commands' times from a fresh clone (fresh_machine.sh)")
+    p.add_argument("report", help="scripts/fresh_machine.sh's fresh_machine.json")
+    p.set_defaults(func=cmd_first_run)
     args = ap.parse_args()
     args.readme = getattr(args, "readme", README)
     args.check = getattr(args, "check", False)
