@@ -18,6 +18,13 @@ the presets' filters and the tests as they change:
 Targets a needed target depends on (libraries, add_dependencies) come with it. Prints one target
 per line; fails if the preset selects no test. A test whose program was not built fails in ctest
 (missing executable or required file): never a skip.
+
+--covered-by P2 --covered-build-dir DIR2 [--keep T,...]: scripts/test.sh's first stage compiles
+each GoogleTest binary once in CI (issue 26). The binaries whose cases preset P2 (asan) runs are
+left out of preset P's targets (but those named by --keep, whose checks differ without a
+sanitizer: the allocation hooks through glibc, mlockall), and --labels prints the ctest -LE
+regex that leaves their cases out of P's run. A GoogleTest binary is a target that labels its
+cases with its own name (tests/CMakeLists.txt, zerog_add_test).
 """
 import argparse
 import json
@@ -99,12 +106,24 @@ def needed(test, exes, names, lines):
     return found
 
 
+def labels_of(test):
+    for p in test.get("properties", []):
+        if p["name"] == "LABELS":
+            return p["value"] if isinstance(p["value"], list) else [p["value"]]
+    return []
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--preset", required=True, help="the test preset (CMakePresets.json)")
     ap.add_argument("--build-dir", required=True, help="its configured build directory")
     ap.add_argument("--presets-dir", help="where ctest finds CMakePresets.json (default: the source tree;"
                     " a copy whose preset points at another build directory, for trying this out)")
+    ap.add_argument("--covered-by", help="a second test preset whose GoogleTest binaries are left out")
+    ap.add_argument("--covered-build-dir", help="its configured build directory")
+    ap.add_argument("--keep", default="", help="comma list of binaries built and run all the same")
+    ap.add_argument("--labels", action="store_true",
+                    help="with --covered-by: print the ctest -LE regex of the left-out binaries")
     args = ap.parse_args()
     source_dir = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     build_dir = os.path.abspath(os.path.join(source_dir, args.build_dir))
@@ -116,10 +135,25 @@ def main():
         sys.exit(f"stage_targets: the test preset {args.preset} selects no test")
     everything = tests_of(["--test-dir", build_dir], source_dir)
 
+    covered = set()
+    if args.covered_by:
+        if not args.covered_build_dir:
+            sys.exit("stage_targets: --covered-by needs --covered-build-dir")
+        other_dir = os.path.abspath(os.path.join(source_dir, args.covered_build_dir))
+        other_names = set(codemodel_executables(other_dir, source_dir).values())
+        other = tests_of(["--preset", args.covered_by], args.presets_dir or source_dir)
+        covered = {label for t in other for label in labels_of(t) if label in other_names}
+        covered -= {k for k in args.keep.split(",") if k}
+        if args.labels:
+            print("^(" + "|".join(sorted(covered)) + ")$" if covered else "^$")
+            return
+        # Their cases need only their own binary: leave the cases out, not what others need.
+        selected = [t for t in selected if not (set(labels_of(t)) & covered)]
+
     lines = add_test_lines(build_dir)
     referenced = set().union(*(needed(t, exes, names, lines) for t in everything))
     targets = set().union(*(needed(t, exes, names, lines) for t in selected))
-    targets |= names - referenced
+    targets |= (names - referenced) - covered
     print("\n".join(sorted(targets)))
 
 
