@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# How long the README's two commands take for a newcomer: a fresh clone (the working tree's files
-# as git sees them: no build tree, no out/, no .venv), no compiler cache, then
+# How long the README's two commands take for a newcomer: a fresh clone of the committed tree (no
+# build tree, no out/, no .venv), no compiler cache, then
 #   1. scripts/demo.sh          (a): install, build its three programs, steps 1-10
 #   2. .ci/run                  (b): scripts/test.sh, every stage, as CI runs it (CI=true)
 # one after the other, each timed on the wall clock. Writes WORK/fresh_machine.json and, with
@@ -32,12 +32,14 @@ fi
 mkdir -p "$work"
 clone=$work/zerog
 [ ! -e "$clone" ] || { echo "fresh_machine.sh: $clone exists; name a new --work" >&2; exit 2; }
-mkdir -p "$clone"
-(cd "$root" && git ls-files -z --cached --others --exclude-standard \
-   | xargs -0 -I{} sh -c 'test -e "{}" && printf "%s\0" "{}"' \
-   | tar --null -T - -cf -) | tar -C "$clone" -xf - || { echo "fresh_machine.sh: copy failed" >&2; exit 1; }
-commit=$(git -C "$root" rev-parse --short HEAD)
-git -C "$root" diff --quiet HEAD || commit="$commit+changes"
+# A clone, as a newcomer and CI have it: what is committed, nothing else.
+if ! git -C "$root" diff --quiet HEAD; then
+  echo "fresh_machine.sh: the working tree has uncommitted changes; commit them first (a fresh" \
+    "clone has only what is committed)" >&2
+  exit 2
+fi
+git clone -q "$root" "$clone" || { echo "fresh_machine.sh: git clone failed" >&2; exit 1; }
+commit=$(git -C "$clone" rev-parse --short HEAD)
 # No compiler cache, whatever this shell was set up with.
 unset CCACHE_DIR CCACHE_PREFIX CMAKE_CXX_COMPILER_LAUNCHER CMAKE_C_COMPILER_LAUNCHER
 if dpkg -s qemu-system-x86 libceres-dev clang cyclonedds-dev >/dev/null 2>&1; then

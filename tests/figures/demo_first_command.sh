@@ -19,9 +19,16 @@ src=$1 bin=$2 work=$3
 fail() { echo "FAIL: $*"; exit 1; }
 rm -rf "$work" && mkdir -p "$work/zerog"
 clone=$work/zerog
-(cd "$src" && git ls-files -z --cached --others --exclude-standard \
-   | xargs -0 -I{} sh -c 'test -e "{}" && printf "%s\0" "{}"' \
-   | tar --null -T - -cf -) | tar -C "$clone" -xf - || fail "cannot copy the working tree"
+if git -C "$src" rev-parse --is-inside-work-tree >/dev/null 2>&1; then
+  (cd "$src" && git ls-files -z --cached --others --exclude-standard \
+     | xargs -0 -I{} sh -c 'test -e "{}" && printf "%s\0" "{}"' \
+     | tar --null -T - -cf -) | tar -C "$clone" -xf - || fail "cannot copy the working tree"
+else
+  # A source tree without git (an exported copy): every file but the build trees, the outputs
+  # and the Python environment, which are what .gitignore leaves out.
+  tar -C "$src" --exclude=./build --exclude=./out --exclude=./.venv --exclude=.git -cf - . \
+    | tar -C "$clone" -xf - || fail "cannot copy the source tree"
+fi
 [ -x "$clone/scripts/demo.sh" ] || fail "the copy has no scripts/demo.sh"
 [ ! -e "$clone/out" ] && [ ! -e "$clone/build" ] || fail "the copy has an out/ or build/ already"
 # A repository of its own, so that every file the demo writes shows.
