@@ -348,16 +348,21 @@ std::vector<ident::UserCandidate> user_candidates(const std::string& list) {
   return out;
 }
 
-// The output the suggested command names (proto/paths.md): beside the log, LOG's name with
-// .fit.json (.fit2.json, … when that exists), so that running it never overwrites a file, the
-// model given to diagnose included.
-std::string suggested_fit_out(const std::string& log) {
+// A new file beside the log (proto/paths.md): LOG's name with STEM and EXT, STEM2, STEM3, ...
+// when that exists. The suggested command's output (.fit.json) thus never overwrites a file, the
+// model given to diagnose included, and a discovered law (.discovered.toml) never replaces the
+// law of an earlier turn.
+std::string new_file_beside(const std::string& log, const std::string& stem, const char* ext) {
   for (int n = 1;; ++n) {
     const std::filesystem::path p =
-        io::beside_input(log, n == 1 ? ".fit.json" : ".fit" + std::to_string(n) + ".json");
+        io::beside_input(log, stem + (n == 1 ? std::string() : std::to_string(n)) + ext);
     std::error_code ec;
     if (!std::filesystem::exists(p, ec) && !ec) return p.string();
   }
+}
+
+std::string suggested_fit_out(const std::string& log) {
+  return new_file_beside(log, ".fit", ".json");
 }
 
 }  // namespace
@@ -487,9 +492,9 @@ void add_ident_commands(CLI::App& app) {
       o.discover = !*no_discover;
       o.exact_candidates = *exact_candidates;
       o.fit_out = suggested_fit_out(c->log);
-      o.discovery_path = discovered_out->empty()
-                             ? io::beside_input(c->log, ".discovered.toml").string()
-                             : *discovered_out;
+      // By default a new file: a law of an earlier turn of the loop keeps its file.
+      o.discovery_path = discovered_out->empty() ? new_file_beside(c->log, ".discovered", ".toml")
+                                                 : *discovered_out;
       o.user_candidates = user_candidates(*candidates);
       std::optional<io::ModelFile> m;
       if (!model_path->empty()) {

@@ -492,6 +492,53 @@ TEST_F(Cli, DefaultOutputsGoBesideTheInputNotIntoTheCurrentFolder) {
   EXPECT_TRUE(fs::is_empty(cwd)) << "a tool wrote into the current folder";
 }
 
+// The loop iterates (issue 25's "diagnose -> add -> diagnose -> add"): a model fitted with a law
+// discovered on one log is diagnosed on a log that hides a second law; the second law gets its
+// own name and file, the printed command runs as printed with both, and no input changes.
+TEST_F(Cli, ALawFoundOnTopOfAnEarlierOneGetsItsOwnNameAndFile) {
+  const fs::path a = dir() / "loop_a.csv", b = dir() / "loop_b.csv";
+  Result r = run("sim --kind random --points 24 --seed 6 --effects joint6_friction -q --out " +
+                 a.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  r =
+      run("sim --kind random --points 24 --seed 7 --effects joint6_friction,dress_pack_bend -q "
+          "--out " +
+          b.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  // As printed, from the test's folder.
+  const auto run_printed = [&](const std::string& command) {
+    const std::string shell = "cd " + dir().string() + " && " + std::string(ZEROG_EXE) +
+                              command.substr(5) + " -q >/dev/null 2>" +
+                              (dir() / "cmd_err.txt").string();
+    return std::system(shell.c_str());
+  };
+  r = run("diagnose " + a.string() + " --json -q");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto first = nlohmann::json::parse(r.out);
+  ASSERT_EQ(first["verdict"]["kind"], "discovered") << first["verdict"]["text"];
+  ASSERT_EQ(run_printed(first["verdict"]["command"]), 0) << slurp(dir() / "cmd_err.txt");
+  const fs::path model_a = dir() / "loop_a.fit.json";
+  ASSERT_TRUE(fs::exists(model_a));
+
+  const std::vector<fs::path> inputs = {a, b, model_a, dir() / "loop_a.discovered.toml"};
+  std::vector<std::string> before;
+  for (const fs::path& p : inputs) before.push_back(slurp(p));
+  r = run("diagnose " + b.string() + " --model " + model_a.string() + " --json -q");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto second = nlohmann::json::parse(r.out);
+  ASSERT_EQ(second["verdict"]["kind"], "discovered") << second["verdict"]["text"];
+  EXPECT_EQ(second["verdict"]["effect_file"], (dir() / "loop_b.discovered.toml").string());
+  EXPECT_THAT(slurp(dir() / "loop_b.discovered.toml"), HasSubstr("name = \"discovered_2\""));
+  const std::string command = second["verdict"]["command"];
+  ASSERT_EQ(run_printed(command), 0) << command << "\n" << slurp(dir() / "cmd_err.txt");
+  const auto m = nlohmann::json::parse(slurp(dir() / "loop_b.fit.json"));
+  ASSERT_EQ(m["user_effects"].size(), 2u) << m["user_effects"].dump();
+  EXPECT_EQ(m["user_effects"][0]["name"], "discovered");
+  EXPECT_EQ(m["user_effects"][1]["name"], "discovered_2");
+  for (std::size_t k = 0; k < inputs.size(); ++k)
+    EXPECT_EQ(slurp(inputs[k]), before[k]) << inputs[k] << " changed";
+}
+
 // The discovery loop as a user runs it: diagnose finds a law outside the library, writes the effect
 // file and prints a command; the command runs as printed and fits the law; compare, report and
 // export take the fitted model with its user-defined effect.

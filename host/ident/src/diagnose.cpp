@@ -1231,9 +1231,17 @@ std::optional<Discovery> discover_law(const Dataset& data, const Baseline& base,
   d.search_seconds = since_start();
   if (chosen.empty()) return std::nullopt;
 
-  // The effect: the chosen terms, refitted with the whole model on the training blocks.
+  // The effect: the chosen terms, refitted with the whole model on the training blocks. Named
+  // "discovered", or "discovered_2", "_3", ... when the model already carries that name (the loop
+  // iterates: a law found on top of an earlier one).
   model::UserEffects& u = d.effect;
-  const std::string name = "discovered";
+  std::string name = "discovered";
+  const auto taken = [&](const std::string& n) {
+    for (int k = 0; k < base.fit.params.user.num_effects; ++k)
+      if (io::user_effect_name(base.fit.params.user, k) == n) return true;
+    return false;
+  };
+  for (int n = 2; taken(name); ++n) name = "discovered_" + std::to_string(n);
   u.num_effects = 1;
   std::copy(name.begin(), name.end(), u.names[0].begin());
   for (std::size_t c : chosen) {
