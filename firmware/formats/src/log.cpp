@@ -539,17 +539,13 @@ const char* to_string(KinematicsOrigin origin) {
   return "imu";
 }
 
-fs::path rig_path_for(const fs::path& csv) {
-  fs::path rig = csv;
-  rig.replace_extension(".rig.toml");
-  return rig;
-}
-
 fs::path beside_input(const fs::path& input, const std::string& suffix) {
   fs::path out = input;
   out.replace_extension(suffix);
   return out;
 }
+
+fs::path rig_path_for(const fs::path& csv) { return beside_input(csv, ".rig.toml"); }
 
 namespace {
 
