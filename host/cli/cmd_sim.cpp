@@ -31,6 +31,7 @@ struct SimArgs {
   bool point_mass = false;
   bool no_noise = false;
   std::vector<std::string> sets;
+  std::vector<std::string> contacts;
   std::uint64_t seed = 1;
   double period_s = 0.012;
   double mass_kg = 100.0;
@@ -73,6 +74,7 @@ sim::SimConfig make_config(const SimArgs& a) {
   c.dwell_s = a.dwell_s;
   c.speed_fraction = a.speed_fraction;
   c.duration_limit_s = a.duration_limit_s;
+  for (const std::string& text : a.contacts) c.contacts.push_back(sim::parse_contact(text));
   for (const std::string& kv : a.sets) {
     const auto eq = kv.find('=');
     if (eq == std::string::npos)
@@ -215,6 +217,12 @@ void add_sim_command(CLI::App& app) {
   cmd->add_option("--set", args->sets,
                   "override a value, KEY=VALUE, e.g. imu_time_offset.tau=0.01 (repeatable; keys: "
                   "--list-effects)");
+  cmd->add_option("--contact", args->contacts,
+                  "a contact during the run, outside the payload model (repeatable, at most 8): "
+                  "START:DURATION:FX,FY,FZ[,MX,MY,MZ][:sensor|base][:plateau|spike] in s, N and "
+                  "N*m at the sensor origin; default sensor frame, plateau (0.1 s ramps); spike: "
+                  "one half-sine (a collision). Listed in OUT.truth.json's extra.contacts")
+      ->type_name("SPEC");
   cmd->add_option("--seed", args->seed, "seed of effect magnitudes and noise")
       ->capture_default_str();
   cmd->add_option("--period", args->period_s, "sample period, s")

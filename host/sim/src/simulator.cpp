@@ -92,6 +92,7 @@ std::vector<Binding> bindings(SimConfig& c) {
   b.push_back({"noise.torque", &c.noise.torque_Nm});
   b.push_back({"noise.accel", &c.noise.accel_mps2});
   b.push_back({"noise.gyro", &c.noise.gyro_radps});
+  b.push_back({"noise.ft_ar1", &c.noise.ft_ar1});
   b.push_back({"joint6_friction.torque", &c.joint6_friction_Nm});
   b.push_back({"joint6_friction.rate", &c.joint6_friction_rate_radps});
   b.push_back({"swivel_viscous.damping", &c.swivel_damping_Nms_per_rad});
@@ -397,7 +398,8 @@ io::ModelFile RigSimulator::truth() const {
   x["sim_effects"] = sim_effect_list_string(c.effects);
   x["noise"] = {{"force_N", c.noise.force_N},       {"torque_Nm", c.noise.torque_Nm},
                 {"accel_mps2", c.noise.accel_mps2}, {"gyro_radps", c.noise.gyro_radps},
-                {"quantize", c.noise.quantize},     {"resolution", kOmega191Resolution}};
+                {"quantize", c.noise.quantize},     {"resolution", kOmega191Resolution},
+                {"ft_ar1", c.noise.ft_ar1}};
   x["outside_model"]["joint6_friction"] = {
       {"enabled", c.effects.has(SimEffect::joint6_friction)},
       {"torque_Nm", c.joint6_friction_Nm},
@@ -500,10 +502,11 @@ Vec6 RigSimulator::wrench_of(const JointState& js, const FlangeMotion& fm, doubl
   w << force, torque;
   // A push on the payload is carried to the sensor through the payload like its weight.
   for (const ExternalWrench& push : pushes) {
-    const Eigen::Vector3d force_sensor = R_base_sensor.transpose() * push.force_base_N;
+    const Eigen::Vector3d force_sensor =
+        R_base_sensor.transpose() * push.force_base_N + push.force_sensor_N;
     w.head<3>() += force_sensor;
-    w.tail<3>() +=
-        push.point_sensor_m.cross(force_sensor) + R_base_sensor.transpose() * push.torque_base_Nm;
+    w.tail<3>() += push.point_sensor_m.cross(force_sensor) +
+                   R_base_sensor.transpose() * push.torque_base_Nm + push.torque_sensor_Nm;
   }
   if (c.effects.has(SimEffect::cable)) {
     const double* k = c.params.block(Effect::cable);
@@ -593,6 +596,70 @@ Vec6 RigSimulator::wrench_at(double t_s) const {
   return wrench_of(js, flange_motion(js.q_rad, js.qd_radps, js.qdd_radps2), t_s, {}, nullptr);
 }
 
+double Contact::factor_at(double t_s) const {
+  const double u = t_s - start_s;
+  if (u < 0.0 || u > duration_s || duration_s <= 0.0) return 0.0;
+  if (shape == Shape::spike) return std::sin(std::numbers::pi * u / duration_s);
+  const double ramp = std::min(ramp_s, 0.5 * duration_s);
+  const double edge = std::min(u, duration_s - u);
+  if (ramp <= 0.0 || edge >= ramp) return 1.0;
+  return 0.5 - 0.5 * std::cos(std::numbers::pi * edge / ramp);
+}
+
+Contact parse_contact(const std::string& text) {
+  const std::string what = "--contact '" + text + "'";
+  std::vector<std::string> parts;
+  for (std::size_t a = 0;;) {
+    const std::size_t b = text.find(':', a);
+    parts.push_back(text.substr(a, b == std::string::npos ? std::string::npos : b - a));
+    if (b == std::string::npos) break;
+    a = b + 1;
+  }
+  if (parts.size() < 3 || parts.size() > 5)
+    throw std::invalid_argument(
+        what + ": wants START:DURATION:FX,FY,FZ[,MX,MY,MZ][:sensor|base][:plateau|spike]");
+  auto number = [&](const std::string& s, const char* name) {
+    std::size_t used = 0;
+    double x = 0.0;
+    try {
+      x = std::stod(s, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != s.size() || !std::isfinite(x))
+      throw std::invalid_argument(what + ": " + name + " '" + s + "' is not a number");
+    return x;
+  };
+  Contact c;
+  c.start_s = number(parts[0], "START");
+  c.duration_s = number(parts[1], "DURATION");
+  if (c.start_s < 0.0 || c.duration_s <= 0.0)
+    throw std::invalid_argument(what + ": START must be >= 0 s and DURATION > 0 s");
+  std::vector<std::string> w;
+  for (std::size_t a = 0;;) {
+    const std::size_t b = parts[2].find(',', a);
+    w.push_back(parts[2].substr(a, b == std::string::npos ? std::string::npos : b - a));
+    if (b == std::string::npos) break;
+    a = b + 1;
+  }
+  if (w.size() != 3 && w.size() != 6)
+    throw std::invalid_argument(what + ": the wrench wants 3 forces (N) or 3 forces and 3 " +
+                                "torques (N*m), got " + std::to_string(w.size()) + " values");
+  for (std::size_t i = 0; i < w.size(); ++i)
+    c.wrench[static_cast<Eigen::Index>(i)] = number(w[i], i < 3 ? "force" : "torque");
+  for (std::size_t i = 3; i < parts.size(); ++i) {
+    if (parts[i] == "sensor" || parts[i] == "base")
+      c.base_frame = parts[i] == "base";
+    else if (parts[i] == "plateau" || parts[i] == "spike")
+      c.shape = parts[i] == "spike" ? Contact::Shape::spike : Contact::Shape::plateau;
+    else
+      throw std::invalid_argument(what + ": '" + parts[i] +
+                                  "' is neither a frame (sensor, base) nor a shape (plateau, "
+                                  "spike)");
+  }
+  return c;
+}
+
 SimOutput RigSimulator::run(const std::function<void(double)>& progress) const {
   const SimConfig& c = config_;
   double t_end = trajectory_.duration_s();
@@ -609,6 +676,21 @@ SimOutput RigSimulator::run(const std::function<void(double)>& progress) const {
   out.clean_log.samples.reserve(n);
   out.angular_accel_imu_radps2.reserve(n);
   out.truth = truth();
+  if (c.contacts.size() > 8)
+    throw std::invalid_argument("at most 8 contacts in one run, got " +
+                                std::to_string(c.contacts.size()));
+  // Outside the payload model: listed for the user and the tests, never predicted by the truth.
+  if (!c.contacts.empty()) {
+    nlohmann::json list = nlohmann::json::array();
+    for (const Contact& k : c.contacts)
+      list.push_back({{"start_s", k.start_s},
+                      {"duration_s", k.duration_s},
+                      {"wrench", std::vector<double>(k.wrench.data(), k.wrench.data() + 6)},
+                      {"frame", k.base_frame ? "base" : "sensor"},
+                      {"shape", k.shape == Contact::Shape::spike ? "spike" : "plateau"},
+                      {"ramp_s", k.ramp_s}});
+    out.truth.extra["contacts"] = list;
+  }
   out.stats.samples = n;
   out.stats.trajectory_duration_s = trajectory_.duration_s();
   out.stats.lowest_point_z_m = std::numeric_limits<double>::infinity();
@@ -619,6 +701,11 @@ SimOutput RigSimulator::run(const std::function<void(double)>& progress) const {
   ws.com_sensor_m = c.payload.com_sensor_m;
 
   detail::Rng noise(c.seed, 20);
+  if (!(c.noise.ft_ar1 >= 0.0 && c.noise.ft_ar1 < 1.0))
+    throw std::invalid_argument("noise.ft_ar1 must lie in [0, 1), got " +
+                                std::to_string(c.noise.ft_ar1));
+  std::array<double, 6> ft_noise{};  // AR(1) state per axis (white when ft_ar1 is 0)
+  const double ar1_gain = std::sqrt(1.0 - c.noise.ft_ar1 * c.noise.ft_ar1);
   const std::size_t report_every = std::max<std::size_t>(n / 20, 1);
   for (std::size_t k = 0; k < n; ++k) {
     const double t = static_cast<double>(k) * c.period_s;
@@ -632,12 +719,26 @@ SimOutput RigSimulator::run(const std::function<void(double)>& progress) const {
     s.q_base_sensor = Eigen::Quaterniond(fp.R_base_flange).normalized();
     if (s.q_base_sensor.w() < 0.0) s.q_base_sensor.coeffs() *= -1.0;
 
-    const Measurement m = measure(js, trajectory_.at(t - imu_delay_s()), t);
+    // Contacts active at t, each at its shape's share (at most a few: no allocation).
+    std::array<ExternalWrench, 8> pushes;
+    std::size_t active = 0;
+    for (const Contact& contact : c.contacts) {
+      const double f = contact.factor_at(t);
+      if (f == 0.0 || active == pushes.size()) continue;
+      ExternalWrench& p = pushes[active++];
+      const Eigen::Vector3d force = f * contact.wrench.head<3>();
+      const Eigen::Vector3d torque = f * contact.wrench.tail<3>();
+      (contact.base_frame ? p.force_base_N : p.force_sensor_N) = force;
+      (contact.base_frame ? p.torque_base_Nm : p.torque_sensor_Nm) = torque;
+    }
+    const Measurement m = measure(js, trajectory_.at(t - imu_delay_s()), t,
+                                  std::span<const ExternalWrench>(pushes.data(), active));
     Vec6 w = m.wrench_sensor;
     out.stats.max_force_N = std::max(out.stats.max_force_N, w.head<3>().norm());
     out.stats.max_torque_Nm = std::max(out.stats.max_torque_Nm, w.tail<3>().norm());
     for (int i = 0; i < 6; ++i) {
-      w[i] += (i < 3 ? c.noise.force_N : c.noise.torque_Nm) * noise.normal();
+      ft_noise[i] = c.noise.ft_ar1 * ft_noise[i] + ar1_gain * noise.normal();
+      w[i] += (i < 3 ? c.noise.force_N : c.noise.torque_Nm) * ft_noise[i];
       if (c.noise.quantize)
         w[i] = kOmega191Resolution[i] * std::round(w[i] / kOmega191Resolution[i]);
     }

@@ -97,6 +97,11 @@ struct NoiseConfig {
   double gyro_radps = 5e-4;
   bool quantize = true;         ///< Omega191 resolution (paper 000_… Table 2)
   bool imu_point_rows = false;  ///< IMU rows are point samples (see above)
+  /// F/T noise coloured, per axis an AR(1) process from row to row: e_k = φ e_{k−1} +
+  /// sqrt(1 − φ²) ε_k (same standard deviation; 0: white). Real sensors' noise is coloured by
+  /// their filters and the structure's vibration; the standard deviations of a fit that assumes
+  /// white noise are then too small (issue 25).
+  double ft_ar1 = 0.0;
   static NoiseConfig none() { return {0.0, 0.0, 0.0, 0.0, false, false}; }
   /// The defaults with point-sampled IMU rows: one raw 2 kHz STIM300 sample through its 262 Hz
   /// filter, σ = N √(262 π / 2): gyro 9e-4 rad/s, accelerometer 0.024 m/s².
@@ -134,6 +139,26 @@ struct TemperatureProfile {
   double at(double t_s) const;
 };
 
+/// A contact during a span of a simulated run (zerog sim --contact): someone pressing on the
+/// payload, a snag or a collision, i.e. a wrench the payload model must not explain. Applied at
+/// the S origin (its torque is given explicitly), in S or in B, scaled by the shape over time.
+struct Contact {
+  double start_s = 0.0;
+  double duration_s = 0.0;
+  Eigen::Matrix<double, 6, 1> wrench = Eigen::Matrix<double, 6, 1>::Zero();  ///< N, N·m
+  bool base_frame = false;  ///< wrench axes: B (true) or S (false)
+  /// plateau: full wrench between raised-cosine ramps of ramp_s at both ends (a push);
+  /// spike: one half-sine over the duration (a collision).
+  enum class Shape { plateau, spike } shape = Shape::plateau;
+  double ramp_s = 0.1;
+  /// 0..1: the share of the wrench at time t (0 outside [start_s, start_s + duration_s]).
+  double factor_at(double t_s) const;
+};
+
+/// Parses zerog sim --contact: START:DURATION:FX,FY,FZ[,MX,MY,MZ][:sensor|base][:plateau|spike]
+/// (s, s, N, N·m). Throws std::invalid_argument naming the part that is wrong.
+Contact parse_contact(const std::string& text);
+
 struct SimConfig {
   std::uint64_t seed = 1;
   SimEffectSet effects = kDefaultSimEffects;
@@ -156,6 +181,9 @@ struct SimConfig {
   double dwell_s = 2.0;
   double speed_fraction = 0.3;
   double duration_limit_s = 0.0;  ///< 0: the whole trajectory
+  /// Contacts during the run (outside the payload model; the truth file lists them in
+  /// extra.contacts).
+  std::vector<Contact> contacts;
 };
 
 /// A configuration with seeded effect magnitudes (each clearly above the noise):
@@ -206,6 +234,10 @@ struct ExternalWrench {
   Eigen::Vector3d force_base_N = Eigen::Vector3d::Zero();
   Eigen::Vector3d point_sensor_m = Eigen::Vector3d::Zero();
   Eigen::Vector3d torque_base_Nm = Eigen::Vector3d::Zero();
+  /// A force and torque given in S instead (added to the ones in B): F_S += force_sensor_N,
+  /// M_S += p × force_sensor_N + torque_sensor_Nm.
+  Eigen::Vector3d force_sensor_N = Eigen::Vector3d::Zero();
+  Eigen::Vector3d torque_sensor_Nm = Eigen::Vector3d::Zero();
 };
 
 /// What the sensors on the flange read for one joint state, noise-free, with every switched truth
