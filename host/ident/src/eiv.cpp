@@ -361,10 +361,23 @@ void correct_errors_in_variables(const Dataset& data, const FitOptions& o,
       if (shift > s.max_shift_std) s.max_shift_std = shift, s.max_shift_param = f.label[qi];
       const double sd = std::sqrt(std::max(cov(q, q), 0.0));
       const auto [e, i] = f.where[qi];
-      if (e >= 0)
-        (*r.std)[static_cast<std::size_t>(e)][static_cast<std::size_t>(i)] = sd;
-      else
-        r.user_std[static_cast<std::size_t>(i)] = sd;
+      const auto ei = static_cast<std::size_t>(e), ii = static_cast<std::size_t>(i);
+      // The robust deviation's share above the model-based one (fit.hpp, std_kind) carries
+      // over to the corrected fit's model-based deviation.
+      double white = f.fit_std[qi];
+      if (e >= 0 && r.std_white)
+        white = (*r.std_white)[ei][ii];
+      else if (e < 0 && ii < r.user_std_white.size())
+        white = r.user_std_white[ii];
+      const double inflation =
+          std::isfinite(white) && white > 0.0 ? std::max(1.0, f.fit_std[qi] / white) : 1.0;
+      if (e >= 0) {
+        (*r.std)[ei][ii] = sd * inflation;
+        if (r.std_white) (*r.std_white)[ei][ii] = sd;
+      } else {
+        r.user_std[ii] = sd * inflation;
+        if (ii < r.user_std_white.size()) r.user_std_white[ii] = sd;
+      }
     }
   }
   s.applied = true;

@@ -712,6 +712,42 @@ void solve_normal_pass(const Dataset& data, const BlockStats& stats,
   solved.normal_JtJ = std::move(summary.at_solution.JtJ);
 }
 
+// Σ_c g_c g_cᵀ · C / (C − 1): the scores Jᵀr of the blocks summed over clusters of `cluster_s`
+// of log time (by each block's first row; a table's rows, without time, are each a cluster) at
+// the evaluator's point. `clusters` gets C.
+Eigen::MatrixXd cluster_meat(const NormalBlocks& nb, const Dataset& data,
+                             const SampleBlocks& blocks, double cluster_s, int* clusters) {
+  const int p = nb.num_params();
+  Eigen::MatrixXd meat = Eigen::MatrixXd::Zero(p, p);
+  Eigen::VectorXd g = Eigen::VectorXd::Zero(p);
+  Eigen::Matrix<double, 6, Eigen::Dynamic, Eigen::RowMajor> J(6, p);
+  Eigen::Matrix<double, 6, 1> res;
+  const auto walk = nb.walk();
+  long current = -1;
+  int count = 0;
+  const bool by_time = !data.columns.static_rows && cluster_s > 0.0;
+  for (std::size_t b = 0; b < nb.num_blocks(); ++b) {
+    if (walk) walk->at(b);
+    const std::size_t first = blocks[b].first;
+    const long id =
+        by_time ? static_cast<long>(std::floor((data.t_s[first] - data.t_s.front()) / cluster_s))
+                : static_cast<long>(b);
+    if (id != current) {
+      if (current >= 0) meat.selfadjointView<Eigen::Lower>().rankUpdate(g);
+      g.setZero();
+      current = id;
+      ++count;
+    }
+    if (!nb.evaluate(b, res.data(), J.data())) continue;
+    g.noalias() += J.transpose() * res;
+  }
+  if (current >= 0) meat.selfadjointView<Eigen::Lower>().rankUpdate(g);
+  meat = meat.selfadjointView<Eigen::Lower>();
+  *clusters = count;
+  if (count > 1) meat *= static_cast<double>(count) / static_cast<double>(count - 1);
+  return meat;
+}
+
 }  // namespace
 
 std::string param_label(Effect e, int i) {
@@ -1016,20 +1052,50 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
         cov = ceres_cov.transpose();  // column-major view of the row-major result
       }
     }
+    // The cluster-robust covariance (a sandwich): (JᵀJ)⁻¹ (Σ_c g_c g_cᵀ) (JᵀJ)⁻¹ with g_c the
+    // score Jᵀr of cluster c's blocks, before cov is scaled by s².
+    std::optional<Eigen::MatrixXd> robust;
+    if (o.std_kind != "white" && o.std_kind != "robust")
+      throw std::runtime_error("unknown std kind '" + o.std_kind + "' (robust, white)");
+    r.std_kind = o.loss == "none" ? o.std_kind : "white";
+    // A robust loss has its own score (ψ(r) Jᵀ, not Jᵀr): the model-based figures stand.
+    if (o.std_kind == "robust" && o.loss == "none") {
+      std::optional<BlockStats> own;
+      const BlockStats& st =
+          stats ? *stats : own.emplace(data, blocks_of_samples, o.effects, o.threads);
+      std::vector<bool> frozen_flags;
+      for (Effect e : order) frozen_flags.push_back(is_frozen(e));
+      std::array<double, 6> inv_sigma;
+      for (int k = 0; k < 6; ++k) inv_sigma[k] = 1.0 / sigma[k];
+      NormalBlocks nb(data, st, r.params, order, frozen_flags, inv_sigma, user_design);
+      if (nb.num_params() == p) {
+        const Eigen::MatrixXd meat =
+            cluster_meat(nb, data, blocks_of_samples, o.cluster_s, &r.clusters);
+        if (r.clusters > 1) robust = cov * meat * cov;
+      }
+    }
     const double s2 = solved.ssr / std::max(1.0, n_res - r.num_params);
     cov *= s2;
-    ParamArray stds{};
+    ParamArray stds{}, white{};
     for (auto& a : stds) a.fill(std::numeric_limits<double>::quiet_NaN());
+    for (auto& a : white) a.fill(std::numeric_limits<double>::quiet_NaN());
     r.user_std.assign(static_cast<std::size_t>(num_user), std::numeric_limits<double>::quiet_NaN());
+    r.user_std_white = r.user_std;
     for (int q = 0; q < p; ++q) {
-      const double sd = deficient[q] ? std::numeric_limits<double>::quiet_NaN()
-                                     : std::sqrt(std::max(cov(q, q), 0.0));
-      if (names[q].first)
+      const double nan = std::numeric_limits<double>::quiet_NaN();
+      const double w = deficient[q] ? nan : std::sqrt(std::max(cov(q, q), 0.0));
+      const double sd =
+          deficient[q] || !robust ? w : std::sqrt(std::max({cov(q, q), (*robust)(q, q), 0.0}));
+      if (names[q].first) {
         stds[model::index(*names[q].first)][names[q].second] = sd;
-      else
+        white[model::index(*names[q].first)][names[q].second] = w;
+      } else {
         r.user_std[static_cast<std::size_t>(names[q].second)] = sd;
+        r.user_std_white[static_cast<std::size_t>(names[q].second)] = w;
+      }
     }
     r.std = stds;
+    r.std_white = white;
     for (int a = 0; a < p; ++a) {
       for (int b = a + 1; b < p; ++b) {
         if (deficient[a] || deficient[b]) continue;
@@ -1047,6 +1113,106 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
   if (eiv && r.usable) correct_errors_in_variables(data, o, blocks_of_samples, r);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return r;
+}
+
+Consistency check_consistency(const Dataset& data, const FitOptions& o, const FitResult& full) {
+  Consistency c;
+  const std::size_t n = data.size();
+  std::vector<std::size_t> used;
+  for (std::size_t i = 0; i < n; ++i)
+    if (use(o, i)) used.push_back(i);
+  // Free parameters of the full fit, by name.
+  struct Param {
+    Effect e;
+    int k;
+  };
+  std::vector<Param> params;
+  for (Effect e : model::kAllEffects)
+    if (full.params.effects.has(e) && !(o.frozen.has(e)))
+      for (int k = 0; k < model::info(e).num_params; ++k) params.push_back({e, k});
+  auto half = [&](std::size_t a, std::size_t b, Consistency::Half& h) {
+    h.first_row = used[a];
+    h.last_row = used[b - 1];
+    std::vector<std::uint8_t> mask(n, 0);
+    for (std::size_t q = a; q < b; ++q) mask[used[q]] = 1;
+    FitOptions ho = o;
+    ho.mask = &mask;
+    ho.initial = &full.params;
+    ho.progress = nullptr;
+    try {
+      const FitResult r = fit(data, ho);
+      h.usable = r.usable;
+      h.params = r.params;
+      h.std = r.std;
+      if (!r.usable) h.note = "the fit of this half is not usable (" + r.termination + ")";
+      for (const Warning& w : r.warnings)
+        if (w.kind == "rank_deficient") h.note += (h.note.empty() ? "" : "; ") + w.message;
+    } catch (const std::exception& e) {
+      h.note = e.what();
+    }
+  };
+  if (used.size() >= 4) {
+    half(0, used.size() / 2, c.first);
+    half(used.size() / 2, used.size(), c.second);
+  } else {
+    c.first.note = c.second.note = "too few rows to split";
+  }
+  c.max_half_z = std::numeric_limits<double>::quiet_NaN();
+  if (c.first.usable && c.second.usable && c.first.std && c.second.std) {
+    for (const Param& q : params) {
+      const double s1 = (*c.first.std)[model::index(q.e)][q.k];
+      const double s2 = (*c.second.std)[model::index(q.e)][q.k];
+      if (!std::isfinite(s1) || !std::isfinite(s2) || s1 + s2 <= 0.0) continue;
+      const double z = std::abs(c.first.params.block(q.e)[q.k] - c.second.params.block(q.e)[q.k]) /
+                       std::hypot(s1, s2);
+      if (!(z <= c.max_half_z)) {  // NaN at the start
+        c.max_half_z = z;
+        c.max_half_param = param_label(q.e, q.k);
+      }
+    }
+  }
+  if (std::isfinite(c.max_half_z) && c.max_half_z > 3.0) {
+    std::ostringstream os;
+    os.precision(4);
+    os << "the answer depends on which half of the data is used: " << c.max_half_param
+       << " differs by " << c.max_half_z
+       << " standard deviations between the halves; something changed between them (the "
+          "sensor's bias drifted, a missing effect, an event) that the printed +- do not cover";
+    c.warnings.push_back({"split_half", os.str()});
+  }
+  // Plain weights instead of the per-axis noise estimate.
+  FitOptions wo = o;
+  wo.sigma = std::array<double, 6>{1, 1, 1, 0.1, 0.1, 0.1};
+  wo.initial = &full.params;
+  wo.progress = nullptr;
+  wo.covariance = false;
+  try {
+    const FitResult r = fit(data, wo);
+    c.weighting_usable = r.usable;
+    c.unweighted = r.params;
+  } catch (const std::exception&) {
+    c.weighting_usable = false;
+  }
+  if (c.weighting_usable && full.std) {
+    for (const Param& q : params) {
+      const double sd = (*full.std)[model::index(q.e)][q.k];
+      if (!std::isfinite(sd) || sd <= 0.0) continue;
+      const double z = std::abs(c.unweighted.block(q.e)[q.k] - full.params.block(q.e)[q.k]) / sd;
+      if (z > c.max_weight_shift) {
+        c.max_weight_shift = z;
+        c.max_weight_param = param_label(q.e, q.k);
+      }
+    }
+    if (c.max_weight_shift > 3.0) {
+      std::ostringstream os;
+      os.precision(4);
+      os << "the answer depends on the weighting: with plain weights (1 N, 0.1 N*m) "
+         << c.max_weight_param << " moves by " << c.max_weight_shift
+         << " standard deviations; the model misses something that the weights trade off";
+      c.warnings.push_back({"weighting", os.str()});
+    }
+  }
+  return c;
 }
 
 std::vector<std::uint8_t> static_mask(const Dataset& data) {

@@ -49,6 +49,13 @@ struct FitOptions {
   int block_samples = 8;
   int threads = 2;         ///< the normal engine's result is bit-identical for any count
   bool covariance = true;  ///< compute standard deviations and identifiability
+  /// What the standard deviations are (docs/calibrating.md, "What ± means"). "robust" (the
+  /// default): the larger of the model-based one and a cluster-robust (sandwich) one, whose
+  /// clusters are `cluster_s` of log time (a table's rows, without time, each its own): it holds
+  /// when the noise is coloured or the model misses something. "white": the model-based one
+  /// alone, (JᵀJ)⁻¹ s², right only for white, correctly modelled noise.
+  std::string std_kind = "robust";
+  double cluster_s = 10.0;
   const std::vector<std::uint8_t>* mask = nullptr;  ///< use sample i only if (*mask)[i] == 1
   const model::ModelParams* initial = nullptr;      ///< start values (others: linear init)
   /// Effects of `effects` whose parameter blocks are held constant at their `initial` values
@@ -86,6 +93,12 @@ struct FitResult {
   model::ModelParams params;
   std::optional<ParamArray> std;  ///< standard deviations (absent where unidentifiable: NaN)
   std::vector<double> user_std;   ///< of params.user's coefficients (with `std`; NaN likewise)
+  /// The model-based standard deviations ((JᵀJ)⁻¹ s²: white, correctly modelled noise), which
+  /// `std` equals with std_kind "white" and bounds from below with "robust".
+  std::optional<ParamArray> std_white;
+  std::vector<double> user_std_white;
+  std::string std_kind;  ///< FitOptions::std_kind as applied
+  int clusters = 0;      ///< clusters of the robust covariance (0 with "white")
   bool usable = false;
   std::string termination;
   std::string engine;  ///< the engine that ran (FitOptions::engine; "block_stats" where "normal"
@@ -104,6 +117,34 @@ struct FitResult {
 /// Fits the effects in `options.effects` to `data`. Accepts the solution only if Ceres reports
 /// it usable; otherwise `usable` is false and `termination` says why.
 FitResult fit(const Dataset& data, const FitOptions& options);
+
+/// Does the answer depend on which half of the data is used, or on the weighting (issue 25:
+/// standard deviations that assume white, correctly modelled noise can be far too small)? The
+/// fit again on the first and on the second half of its rows (in row order: time, or a table's
+/// recording order), and once with plain weights (1 N, 0.1 N·m per axis group, not the per-axis
+/// noise estimate).
+struct Consistency {
+  struct Half {
+    std::size_t first_row = 0, last_row = 0;  ///< 0-based, of the rows used
+    bool usable = false;
+    model::ModelParams params;
+    std::optional<ParamArray> std;
+    std::string note;  ///< why it tells nothing (not usable, rank deficient), or empty
+  };
+  Half first, second;
+  /// Largest |first − second| / sqrt(std1² + std2²) over the parameters both halves identify,
+  /// and its parameter ("gravity.mass [kg]"); NaN when no parameter is comparable.
+  double max_half_z = 0.0;
+  std::string max_half_param;
+  bool weighting_usable = false;
+  model::ModelParams unweighted;
+  /// Largest |unweighted − fit| / std over the fit's parameters, and its parameter.
+  double max_weight_shift = 0.0;
+  std::string max_weight_param;
+  std::vector<Warning> warnings;  ///< "split_half", "weighting" (above 3)
+};
+/// `full` is fit(data, o); the halves and the unweighted fit use `o` otherwise.
+Consistency check_consistency(const Dataset& data, const FitOptions& o, const FitResult& full);
 
 /// 1 for the static samples of `data` (Dataset::moving == 0), 0 while the sensor moves.
 std::vector<std::uint8_t> static_mask(const Dataset& data);
