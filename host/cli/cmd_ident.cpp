@@ -14,6 +14,7 @@
 #include "zerog/formats/log.hpp"
 #include "zerog/ident/compare.hpp"
 #include "zerog/ident/diagnose.hpp"
+#include "zerog/ident/events.hpp"
 #include "zerog/ident/fit.hpp"
 #include "zerog/ident/kinematics_sources.hpp"
 #include "zerog/io/effect_file.hpp"
@@ -34,7 +35,28 @@ struct Common {
   std::string engine = ident::FitOptions{}.engine;  ///< --engine (fit, diagnose, ladder)
   /// --errors-in-variables (fit, diagnose, ladder): ident::FitOptions::errors_in_variables
   std::string errors_in_variables = ident::FitOptions{}.errors_in_variables;
+  std::string exclude;  ///< --exclude (fit, compare, diagnose, ladder): ident::ExcludeSpec
 };
+
+void add_exclude(CLI::App* c, Common& o) {
+  c->add_option("--exclude", o.exclude,
+                "Leave rows out: log-time spans START:END (s, as the log's time column says) and "
+                "data rows rows:A-B or row:A (1 is the first data row), comma separated; e.g. "
+                "the events zerog diagnose names (a contact is not payload physics)")
+      ->type_name("SPANS");
+}
+
+// The rows --exclude leaves out (1 = out), or empty for none.
+std::vector<std::uint8_t> excluded_rows(const Common& c, const ident::Dataset& data) {
+  if (c.exclude.empty()) return {};
+  return ident::exclude_mask(data, ident::parse_exclude(c.exclude), c.log);
+}
+
+std::size_t count_set(const std::vector<std::uint8_t>& m) {
+  std::size_t k = 0;
+  for (std::uint8_t v : m) k += v ? 1 : 0;
+  return k;
+}
 
 void add_common(CLI::App* c, Common& o) {
   c->add_option("log", o.log, "Log to read (zerog log format, NAME.csv with NAME.rig.toml)")
@@ -97,10 +119,82 @@ nlohmann::json fit_json(const ident::FitResult& r) {
     j["errors_in_variables"]["max_shift_std"] = e.max_shift_std;
     j["errors_in_variables"]["max_shift_param"] = e.max_shift_param;
   }
+  j["std_kind"] = r.std_kind.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.std_kind);
+  j["clusters"] = r.clusters;
   j["warnings"] = nlohmann::json::array();
   for (const auto& w : r.warnings)
     j["warnings"].push_back({{"kind", w.kind}, {"message", w.message}});
   return j;
+}
+
+// What the printed +- is (docs/calibrating.md, "What +- means").
+std::string std_meaning(const ident::FitResult& r, double cluster_s) {
+  if (r.std_kind == "robust" && r.clusters > 1) {
+    char b[256];
+    std::snprintf(b, sizeof b,
+                  "std: the larger of the model-based and the cluster-robust (sandwich, %d "
+                  "clusters of %g s) standard deviation",
+                  r.clusters, cluster_s);
+    return b;
+  }
+  return "std: model-based ((J^T J)^-1 s^2), right only for white, correctly modelled noise";
+}
+
+nlohmann::json consistency_json(const ident::Consistency& c) {
+  auto half = [](const ident::Consistency::Half& h) {
+    return nlohmann::json{
+        {"first_row", h.first_row + 1},
+        {"last_row", h.last_row + 1},
+        {"usable", h.usable},
+        {"note", h.note.empty() ? nlohmann::json(nullptr) : nlohmann::json(h.note)},
+        {"mass_kg", h.usable && h.params.effects.has(model::Effect::gravity)
+                        ? nlohmann::json(h.params.block(model::Effect::gravity)[0])
+                        : nlohmann::json(nullptr)}};
+  };
+  nlohmann::json j = {{"first_half", half(c.first)},
+                      {"second_half", half(c.second)},
+                      {"max_half_z", std::isfinite(c.max_half_z) ? nlohmann::json(c.max_half_z)
+                                                                 : nlohmann::json(nullptr)},
+                      {"max_half_param", c.max_half_param},
+                      {"weighting_usable", c.weighting_usable},
+                      {"max_weight_shift_std", c.max_weight_shift},
+                      {"max_weight_param", c.max_weight_param},
+                      {"warnings", nlohmann::json::array()}};
+  for (const auto& w : c.warnings)
+    j["warnings"].push_back({{"kind", w.kind}, {"message", w.message}});
+  return j;
+}
+
+void print_consistency(const ident::Consistency& c, const ident::FitResult& r) {
+  const bool grav = r.params.effects.has(model::Effect::gravity);
+  auto half = [&](const char* name, const ident::Consistency::Half& h) {
+    std::printf("  %s half (rows %zu-%zu): ", name, h.first_row + 1, h.last_row + 1);
+    if (!h.note.empty() && !h.usable) {
+      std::printf("cannot tell: %s\n", h.note.c_str());
+      return;
+    }
+    if (grav && h.std) {
+      const double* g = h.params.block(model::Effect::gravity);
+      const auto& sd = (*h.std)[model::index(model::Effect::gravity)];
+      std::printf("mass %.4f +- %.4f kg, c %.3f %.3f %.3f +- %.3f %.3f %.3f mm", g[0], sd[0],
+                  1e3 * g[1], 1e3 * g[2], 1e3 * g[3], 1e3 * sd[1], 1e3 * sd[2], 1e3 * sd[3]);
+    }
+    if (!h.note.empty()) std::printf(" (%s)", h.note.c_str());
+    std::printf("\n");
+  };
+  std::printf("consistency (fit again on each half of the rows, and with plain weights):\n");
+  half("first", c.first);
+  half("second", c.second);
+  if (std::isfinite(c.max_half_z))
+    std::printf("  largest difference between the halves: %.1f std (%s)\n", c.max_half_z,
+                c.max_half_param.c_str());
+  if (c.weighting_usable)
+    std::printf(
+        "  plain weights (1 N, 0.1 N*m) instead of the per-axis noise: largest shift %.1f "
+        "std (%s)\n",
+        c.max_weight_shift, c.max_weight_param.c_str());
+  for (const auto& w : c.warnings)
+    std::printf("warning (%s): %s\n", w.kind.c_str(), w.message.c_str());
 }
 
 std::string param_table(const model::ModelParams& p, const std::optional<ident::ParamArray>& std,
@@ -181,7 +275,8 @@ bool write_fitted_model(const Common& c, const io::ModelFile& m, const std::stri
 
 void run_fit(const Common& c, const std::string& effects, const std::string& out,
              const std::string& loss, double loss_scale, int max_iter, int block_samples,
-             const std::string& truth_path) {
+             const std::string& truth_path, const std::string& std_kind, double cluster_s,
+             bool consistency) {
   // Streamed: the log's rows go straight into the dataset, never held whole (issue 16).
   io::Rig rig;
   const ident::Dataset data = ident::read_dataset(c.log, &rig);
@@ -196,17 +291,40 @@ void run_fit(const Common& c, const std::string& effects, const std::string& out
   o.threads = c.threads;
   o.engine = c.engine;
   o.errors_in_variables = c.errors_in_variables;
+  o.std_kind = std_kind;
+  o.cluster_s = cluster_s;
   o.progress = progress(c);
+  const std::vector<std::uint8_t> out_rows = excluded_rows(c, data);
+  std::vector<std::uint8_t> keep;
+  if (!out_rows.empty()) {
+    keep.resize(out_rows.size());
+    for (std::size_t i = 0; i < keep.size(); ++i) keep[i] = out_rows[i] ? 0 : 1;
+    o.mask = &keep;
+  }
   const ident::FitResult r = ident::fit(data, o);
-  const io::ModelFile m = fitted_model_file(r, rig, c.log, data);
+  io::ModelFile m = fitted_model_file(r, rig, c.log, data);
+  // The model remembers what its fit left out: zerog diagnose of it on the same log leaves it
+  // out too (the loop goes on without the events).
+  if (!out_rows.empty())
+    m.extra["fit"]["exclude"] = {{"spans", c.exclude}, {"rows", count_set(out_rows)}};
+  std::optional<ident::Consistency> cons;
+  if (consistency && r.usable) {
+    if (o.progress) o.progress("fit: consistency: each half of the rows, and plain weights");
+    cons = ident::check_consistency(data, o, r);
+    m.extra["fit"]["consistency"] = consistency_json(*cons);
+  }
   std::optional<io::ModelFile> truth;
   if (!truth_path.empty()) truth = io::read_model(truth_path);
   if (write_fitted_model(c, m, out, {c.log, io::rig_path_for(c.log)})) return;
   std::printf("fitted %s on %zu samples in %.2f s (%d iterations): %s\n",
               io::model_spec_string(r.params.effects, r.params.user, spec.files).c_str(), r.samples,
               r.seconds, r.iterations, r.termination.c_str());
+  if (!out_rows.empty())
+    std::printf("left out (--exclude %s): %zu of %zu rows\n", c.exclude.c_str(),
+                count_set(out_rows), data.size());
   std::printf("%s",
               param_table(r.params, r.std, truth ? &truth->params : nullptr, r.user_std).c_str());
+  std::printf("%s\n", std_meaning(r, cluster_s).c_str());
   std::printf("residual RMS: Fx %.3f  Fy %.3f  Fz %.3f N   Mx %.3f  My %.3f  Mz %.3f N*m\n",
               r.residual_rms[0], r.residual_rms[1], r.residual_rms[2], r.residual_rms[3],
               r.residual_rms[4], r.residual_rms[5]);
@@ -226,6 +344,7 @@ void run_fit(const Common& c, const std::string& effects, const std::string& out
     std::printf("errors in variables: not applied (%s)\n", eiv.reason.c_str());
   for (const auto& w : r.warnings)
     std::printf("warning (%s): %s\n", w.kind.c_str(), w.message.c_str());
+  if (cons) print_consistency(*cons, r);
   if (!out.empty()) std::printf("wrote %s\n", out.c_str());
 }
 
@@ -314,9 +433,16 @@ void run_compare(const Common& c, const std::string& model_path, const std::stri
   ident::check_signals(m.params.effects, data);
   ident::check_signals(m.params.user, data);
   const auto res = ident::residuals(m.params, data);
-  const ident::Comparison cmp = ident::compare(res, data, nullptr, bins);
+  const std::vector<std::uint8_t> out_rows = excluded_rows(c, data);
+  std::vector<std::uint8_t> keep;
+  for (std::uint8_t v : out_rows) keep.push_back(v ? 0 : 1);
+  const std::vector<std::uint8_t>* kept = out_rows.empty() ? nullptr : &keep;
+  const ident::Comparison cmp = ident::compare(res, data, kept, bins);
+  // Where it fails, in time: the residual over the log, and the spans that stand out.
+  const auto line = ident::timeline(res, data, out_rows.empty() ? nullptr : &out_rows);
+  const ident::SpanScan scan = ident::find_spans(res, data, out_rows.empty() ? nullptr : &out_rows);
   std::optional<ident::Floors> floors;
-  if (!truth_path.empty()) floors = ident::floors(truth_path, data);
+  if (!truth_path.empty()) floors = ident::floors(truth_path, data, kept);
   if (c.json) {
     nlohmann::json j = ident::to_json(cmp);
     j["kind"] = "zerog-compare";
@@ -324,6 +450,9 @@ void run_compare(const Common& c, const std::string& model_path, const std::stri
     j["log"] = c.log;
     j["model"] = model_path;
     j["effects"] = io::effect_list_string(m.params.effects);
+    j["exclude"] = c.exclude.empty() ? nlohmann::json(nullptr) : nlohmann::json(c.exclude);
+    j["timeline"] = ident::to_json(line);
+    j["span_scan"] = ident::to_json(scan);
     floors_into(j, floors ? &*floors : nullptr);
     std::cout << j.dump(2) << "\n";
     return;
@@ -331,7 +460,22 @@ void run_compare(const Common& c, const std::string& model_path, const std::stri
   std::printf("model %s (%s) against %s, %zu samples (%zu static, %zu moving)\n",
               model_path.c_str(), io::effect_list_string(m.params.effects).c_str(), c.log.c_str(),
               cmp.all.count, cmp.stat.count, cmp.moving.count);
+  if (!out_rows.empty())
+    std::printf("left out (--exclude %s): %zu rows\n", c.exclude.c_str(), count_set(out_rows));
   std::printf("%s", ident::format_comparison(cmp, floors ? &*floors : nullptr).c_str());
+  if (!scan.possible) {
+    std::printf("in time: %s\n", scan.note.c_str());
+  } else if (scan.spans.empty()) {
+    std::printf("in time: no span stands out (steps above %.1f of their spread over %.2f s)\n",
+                scan.z_step, scan.window_s);
+  } else {
+    std::printf("in time: %zu span(s) stand out%s:\n%s", scan.spans.size(),
+                scan.recurring ? " (recurring through the log: the model's, not events)" : "",
+                ident::format_spans(scan.spans).c_str());
+    if (!scan.recurring)
+      std::printf("zerog diagnose %s -m %s tells events from physics\n", c.log.c_str(),
+                  model_path.c_str());
+  }
 }
 
 // "@a.toml,@b.toml": each file one candidate (diagnose and ladder --candidates).
@@ -379,9 +523,13 @@ void add_ident_commands(CLI::App& app) {
     auto truth = std::make_shared<std::string>();
     auto block_samples = std::make_shared<int>(8);
     auto tool_change = std::make_shared<bool>(false);
+    auto std_kind = std::make_shared<std::string>("robust");
+    auto cluster_s = std::make_shared<double>(10.0);
+    auto no_consistency = std::make_shared<bool>(false);
     auto base = std::make_shared<std::string>();
     CLI::App* s = app.add_subcommand("fit", "Fit a model (a list of effects) to a log with Ceres");
     add_common(s, *c);
+    add_exclude(s, *c);
     add_engine(s, *c);
     add_errors_in_variables(s, *c);
     auto* effects_opt =
@@ -410,13 +558,27 @@ void add_ident_commands(CLI::App& app) {
         ->check(CLI::Range(1, 1000))
         ->capture_default_str();
     s->add_option("--truth", *truth, "Truth model (from zerog sim) to print beside the estimates");
+    s->add_option("--std", *std_kind,
+                  "What +- is: robust (the larger of the model-based and a cluster-robust "
+                  "sandwich standard deviation: coloured noise, a model that misses something) or "
+                  "white (model-based only: white, correctly modelled noise)")
+        ->check(CLI::IsMember({"robust", "white"}))
+        ->capture_default_str();
+    s->add_option("--cluster", *cluster_s,
+                  "Cluster length of the robust standard deviation, s of log time (a table's rows "
+                  "are each a cluster)")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    s->add_flag("--no-consistency", *no_consistency,
+                "Skip the check that fits each half of the rows and plain weights again");
     s->callback([=] {
       if (*tool_change) {
         run_tool_change(*c, *base, *out, *loss, *loss_scale, *max_iter, *block_samples, *truth);
         return;
       }
       if (!base->empty()) throw std::invalid_argument("--base is for --tool-change");
-      run_fit(*c, *effects, *out, *loss, *loss_scale, *max_iter, *block_samples, *truth);
+      run_fit(*c, *effects, *out, *loss, *loss_scale, *max_iter, *block_samples, *truth, *std_kind,
+              *cluster_s, !*no_consistency);
     });
   }
   // compare
@@ -429,6 +591,7 @@ void add_ident_commands(CLI::App& app) {
         "compare",
         "Measured against predicted per axis: RMS and max error, static/moving, by joint angle");
     add_common(s, *c);
+    add_exclude(s, *c);
     s->add_option("-m,--model", *model_path, "Model file (from zerog fit)")
         ->required()
         ->check(CLI::ExistingFile);
@@ -455,6 +618,7 @@ void add_ident_commands(CLI::App& app) {
         "diagnose",
         "Rank the effects a model lacks by how much they reduce the error on held-out data");
     add_common(s, *c);
+    add_exclude(s, *c);
     add_engine(s, *c);
     add_errors_in_variables(s, *c);
     s->add_option("-m,--model", *model_path,
@@ -518,10 +682,30 @@ void add_ident_commands(CLI::App& app) {
       nlohmann::json made_for = {
           {"model", model_identity(o.fit.effects, o.fit.user, m ? *model_path : std::string())},
           {"log", log_identity(c->log)}};
+      // What to leave out: --exclude, else what the model's own fit on this log left out.
+      std::string exclude = c->exclude;
+      if (exclude.empty() && m && m->extra.contains("fit") && m->extra["fit"].contains("exclude") &&
+          m->extra["fit"].contains("log") && m->extra["fit"]["log"].is_string()) {
+        std::error_code ec;
+        const std::string fitted_log = m->extra["fit"]["log"].get<std::string>();
+        if (std::filesystem::equivalent(fitted_log, c->log, ec) && !ec) {
+          exclude = m->extra["fit"]["exclude"].value("spans", std::string());
+          if (!exclude.empty() && !c->quiet)
+            std::fprintf(stderr, "diagnose: leaving out what %s's fit left out: %s\n",
+                         model_path->c_str(), exclude.c_str());
+        }
+      }
+      std::vector<std::uint8_t> out_rows;
+      if (!exclude.empty())
+        out_rows = ident::exclude_mask(data, ident::parse_exclude(exclude), c->log);
+      if (!out_rows.empty()) {
+        o.exclude = &out_rows;
+        o.exclude_text = exclude;
+      }
       const ident::Diagnosis d = ident::diagnose(data, o);
       if (c->json) {
         nlohmann::json j = ident::to_json(d);
-        j["version"] = 2;  // "made_for" (proto/json_output.md)
+        j["version"] = 3;  // "made_for", events (proto/json_output.md)
         j["made_for"] = std::move(made_for);
         std::cout << j.dump(2) << "\n";
       } else {
@@ -544,6 +728,7 @@ void add_ident_commands(CLI::App& app) {
                                      "From a minimal model, add the best effect step by step while "
                                      "it pays; print the error at each step");
     add_common(s, *c);
+    add_exclude(s, *c);
     add_engine(s, *c);
     add_errors_in_variables(s, *c);
     s->add_option("--start", *start, "Effects to start from (@FILE: a user-defined effect)")
@@ -582,6 +767,11 @@ void add_ident_commands(CLI::App& app) {
       o.diagnose.fit.effects = spec.effects;
       o.diagnose.fit.user = spec.user;
       o.diagnose.user_candidates = user_candidates(*candidates);
+      const std::vector<std::uint8_t> out_rows = excluded_rows(*c, data);
+      if (!out_rows.empty()) {
+        o.diagnose.exclude = &out_rows;
+        o.diagnose.exclude_text = c->exclude;
+      }
       const ident::BlockChoice split = ident::choose_blocks(data, *block);
       if (o.diagnose.progress) o.diagnose.progress("ladder: held-out split: " + split.text);
       const auto steps = ident::ladder(data, o);

@@ -236,10 +236,10 @@ def load_summary(path):
                           "delta_bic": c.num(cd["delta_bic"], w + ".delta_bic")})
         v = c.obj(dg["verdict"], "diagnosis.verdict", ("kind", "text"))
         kind = c.string(v["kind"], "diagnosis.verdict.kind")
-        if kind not in ("effect", "none", "nothing_left", "discovered"):
+        if kind not in ("effect", "none", "nothing_left", "discovered", "event"):
             c.fail("diagnosis.verdict.kind",
-                   "expected \"effect\", \"none\", \"nothing_left\" or \"discovered\", got %s"
-                   % json.dumps(kind))
+                   "expected \"effect\", \"none\", \"nothing_left\", \"discovered\" or "
+                   "\"event\", got %s" % json.dumps(kind))
         verdict = {"kind": kind,
                    "effect": c.string(v.get("effect"), "diagnosis.verdict.effect", True),
                    "text": c.string(v["text"], "diagnosis.verdict.text"),
@@ -257,6 +257,16 @@ def load_summary(path):
         if kind == "discovered" and not laws:
             c.fail("diagnosis.discovery", "must hold the law's terms when kind is \"discovered\"")
         verdict["laws"] = laws
+        # Spans the verdict calls events (diagnosis version 3; docs/insight-loop.md, "Events are
+        # not physics"): shaded in the time series.
+        events = []
+        for i, ev in enumerate(c.lst(dg.get("events", []), "diagnosis.events")):
+            we = "diagnosis.events[%d]" % i
+            c.obj(ev, we, ("t0_s", "t1_s"))
+            events.append((c.num(ev["t0_s"], we + ".t0_s"), c.num(ev["t1_s"], we + ".t1_s")))
+        if kind == "event" and not events:
+            c.fail("diagnosis.events", "must name the spans when kind is \"event\"")
+        verdict["events"] = events
         corr = []
         for i, cs in enumerate(c.lst(dg.get("correlated_signals", []),
                                      "diagnosis.correlated_signals")):
@@ -553,6 +563,20 @@ class Figures:
     def _sensor_rms(self):
         return self.s["_sensor"]["all"]["rms"] if self.s.get("_sensor") else None
 
+    def _event_runs(self, t):
+        """(start, width) of the diagnosis' events within the plotted times (this model's
+        diagnosis only; t in the plot's time axis)."""
+        dg = self.s.get("diagnosis")
+        if not dg or dg["made_for"]["match"] != "same" or len(t) == 0:
+            return []
+        off = self.t0 or 0.0
+        runs = []
+        for a, b in dg["verdict"].get("events", []):
+            a, b = max(a - off, float(t[0])), min(b - off, float(t[-1]))
+            if b > a:
+                runs.append((a, b - a))
+        return runs
+
     # -- (3) measured vs predicted over time
     def timeseries(self):
         """Whole log; min/max-decimated when long. Returns (file, decimated)."""
@@ -589,6 +613,7 @@ class Figures:
         outer = fig.add_gridspec(6, 1, hspace=0.32)
         moving_runs = self._runs(self.moving[sl], t)
         held_runs = self._runs(self.heldout[sl], t) if self.heldout is not None else []
+        event_runs = self._event_runs(t)
         seg = self.s["compare"]["segments"]
         first = None
         axes_list = []
@@ -605,6 +630,10 @@ class Figures:
             if held_runs:
                 axr.broken_barh(held_runs, (0.0, 0.08), transform=axr.get_xaxis_transform(),
                                 color="tab:purple", alpha=0.7, zorder=3)
+            if event_runs:
+                for x in (ax, axr):
+                    x.broken_barh(event_runs, (0, 1), transform=x.get_xaxis_transform(),
+                                  color="#f6c9c9", alpha=0.8, zorder=1)
             meas = self.c[a + "_meas"][sl]
             pred = self.c[a + "_pred"][sl]
             k = self._minmax_idx(meas, MAX_PLOT_POINTS)
@@ -642,6 +671,8 @@ class Figures:
         extra = [Patch(color="#dbe8f5", label="moving segment")]
         if held_runs:
             extra.append(Patch(color="tab:purple", alpha=0.7, label="held-out block"))
+        if event_runs:
+            extra.append(Patch(color="#f6c9c9", alpha=0.8, label="event (diagnosis)"))
         handles = h + h2 + extra
         fig.legend(handles, [x.get_label() for x in handles], loc="upper center",
                    ncol=min(6, len(handles)), frameon=False, fontsize=9,
@@ -1088,7 +1119,10 @@ def build_html(s, cols, figs, notes, warnings):
                 "none": "No single effect explains the rest",
                 "nothing_left": "Nothing left to explain",
                 "discovered": "No library effect; discovered law: <b>%s</b>"
-                              % esc("; ".join(v.get("laws", [])))}[v["kind"]]
+                              % esc("; ".join(v.get("laws", []))),
+                "event": "Events, not physics: <b>%d span%s</b> (shaded red in the time series)"
+                         % (len(v.get("events", [])), "" if len(v.get("events", [])) == 1
+                            else "s")}[v["kind"]]
         w('<div class="verdict %s" id="verdict"><div>%s</div><div>%s</div>' % (
             v["kind"], head, esc(v["text"])))
         if v["command"]:

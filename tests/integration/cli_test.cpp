@@ -97,7 +97,8 @@ TEST_F(Cli, FitCompareDiagnoseLadderPrintJsonOfTheDocumentedKinds) {
   EXPECT_THAT(j["verdict"]["command"].get<std::string>(),
               HasSubstr("--effects bias,gravity,linear_inertia,rotational_inertia,cable"));
   // What it was made for: the model (sorted names, its file and CRC-32) and the log.
-  EXPECT_EQ(j["version"], 2);
+  EXPECT_EQ(j["version"], 3);
+  EXPECT_EQ(j["events"].size(), 0u);
   EXPECT_EQ(j["made_for"]["model"]["effects"],
             nlohmann::json({"bias", "gravity", "linear_inertia", "rotational_inertia"}));
   EXPECT_EQ(j["made_for"]["model"]["file"], model);
@@ -535,6 +536,86 @@ TEST_F(Cli, ALawFoundOnTopOfAnEarlierOneGetsItsOwnNameAndFile) {
   ASSERT_EQ(m["user_effects"].size(), 2u) << m["user_effects"].dump();
   EXPECT_EQ(m["user_effects"][0]["name"], "discovered");
   EXPECT_EQ(m["user_effects"][1]["name"], "discovered_2");
+  for (std::size_t k = 0; k < inputs.size(); ++k)
+    EXPECT_EQ(slurp(inputs[k]), before[k]) << inputs[k] << " changed";
+}
+
+// A touch is not physics, through the program: zerog sim --contact on top of a law outside the
+// library; diagnose names the event and prints the refit without it; the printed command runs; its
+// model remembers the span, so diagnose of it goes on to the law (not to the push), and compare
+// shows the span in time. No input changes.
+TEST_F(Cli, AnEventIsNamedRefittedWithoutAndTheLoopGoesOnToThePhysics) {
+  const fs::path log = dir() / "touch.csv";
+  Result r =
+      run("sim --kind oa --seed 4 --effects joint6_friction --contact 250.4:3:0,0,-12 -q "
+          "--out " +
+          log.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto truth = nlohmann::json::parse(slurp(dir() / "touch.truth.json"));
+  ASSERT_EQ(truth["extra"]["contacts"].size(), 1u);
+  const auto run_printed = [&](const std::string& command) {
+    const std::string shell = "cd " + dir().string() + " && " + std::string(ZEROG_EXE) +
+                              command.substr(5) + " -q >/dev/null 2>" +
+                              (dir() / "cmd_err.txt").string();
+    return std::system(shell.c_str());
+  };
+  const std::vector<fs::path> inputs = {log, dir() / "touch.rig.toml"};
+  std::vector<std::string> before;
+  for (const fs::path& p : inputs) before.push_back(slurp(p));
+
+  r = run("diagnose " + log.string() + " --json -q");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto first = nlohmann::json::parse(r.out);
+  ASSERT_EQ(first["verdict"]["kind"], "event") << first["verdict"]["text"];
+  ASSERT_EQ(first["events"].size(), 1u);
+  EXPECT_NEAR(first["events"][0]["t0_s"].get<double>(), 250.4, 0.2);
+  EXPECT_NEAR(first["events"][0]["mean_wrench"][2].get<double>(), -12.0, 1.8);
+  // The law found without the span is the friction's, not the push's.
+  if (!first["discovery"].is_null()) {
+    for (const auto& t : first["discovery"]["terms"])
+      EXPECT_EQ(t["basis"], "tanh(qd6/0.02)") << first["discovery"].dump();
+  }
+  const std::string command = first["verdict"]["command"];
+  EXPECT_THAT(command, HasSubstr("--exclude"));
+  ASSERT_EQ(run_printed(command), 0) << command << "\n" << slurp(dir() / "cmd_err.txt");
+  const fs::path model = dir() / "touch.fit.json";
+  ASSERT_TRUE(fs::exists(model));
+  const auto m = nlohmann::json::parse(slurp(model));
+  EXPECT_EQ(m["extra"]["fit"]["exclude"]["spans"], first["exclude"]);
+
+  // The next turn leaves the span out and finds the law.
+  r = run("diagnose " + log.string() + " --model " + model.string() + " --json -q");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto second = nlohmann::json::parse(r.out);
+  EXPECT_EQ(second["verdict"]["kind"], "discovered") << second["verdict"]["text"];
+  EXPECT_EQ(second["exclude"], first["exclude"]);
+  const std::string command2 = second["verdict"]["command"];
+  EXPECT_THAT(command2, HasSubstr("--exclude"));
+  ASSERT_EQ(run_printed(command2), 0) << command2 << "\n" << slurp(dir() / "cmd_err.txt");
+  const fs::path model2 = dir() / "touch.fit2.json";
+  ASSERT_TRUE(fs::exists(model2));
+
+  // compare of the model with the law says where it fails in time: the push.
+  r = run("compare " + log.string() + " --model " + model2.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("in time: 1 span(s) stand out"));
+  // Without the law the friction's steps recur at every move of A6: the model's, not events.
+  r = run("compare " + log.string() + " --model " + model.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("recurring through the log"));
+  r = run("compare " + log.string() + " --model " + model2.string() + " --json");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto cmp = nlohmann::json::parse(r.out);
+  EXPECT_EQ(cmp["timeline"].size(), 60u);
+  ASSERT_EQ(cmp["span_scan"]["spans"].size(), 1u);
+
+  // A bad --exclude names what is wrong.
+  r = run("fit " + log.string() + " --exclude 5:1 -q");
+  EXPECT_NE(r.status, 0) << r.out;
+  EXPECT_THAT(r.err, HasSubstr("--exclude item '5:1'"));
+  r = run("fit " + log.string() + " --exclude 5000:5001 -q");
+  EXPECT_NE(r.status, 0);
+  EXPECT_THAT(r.err, HasSubstr("no row of"));
   for (std::size_t k = 0; k < inputs.size(); ++k)
     EXPECT_EQ(slurp(inputs[k]), before[k]) << inputs[k] << " changed";
 }

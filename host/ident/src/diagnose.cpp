@@ -1294,7 +1294,11 @@ std::vector<Effect> candidate_effects(const model::EffectSet& m, const Dataset& 
   return out;
 }
 
-Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
+namespace {
+
+// The diagnosis of the physics: the model's held-out error, the candidates, a law (diagnose()
+// looks for events first).
+Diagnosis diagnose_physics(const Dataset& data, const DiagnoseOptions& o) {
   Diagnosis d;
   d.model = o.fit.effects;
   d.kinematics = kinematics_feeds(d.model, data);
@@ -1441,6 +1445,208 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
   return d;
 }
 
+// The parameters of the diagnosis' answer: the model with the effect or law it proposes, else
+// the baseline.
+const model::ModelParams& answer_params(const Diagnosis& d) {
+  if (d.verdict == Diagnosis::Verdict::effect && !d.candidates.empty())
+    return d.candidates[0].fit.params;
+  if (d.verdict == Diagnosis::Verdict::discovered && d.discovery) return d.discovery->fit.params;
+  return d.baseline.params;
+}
+
+// How far a span's mean residual stands from the level around it (the rows within two windows
+// before and after it that `skip` does not exclude), in the scan's scale units.
+double span_deviation(const std::vector<Wrench>& res, const Span& s, std::size_t window,
+                      const std::vector<std::uint8_t>& skip, const std::array<double, 6>& scale) {
+  std::array<double, 6> in{}, out{};
+  double n_in = 0.0, n_out = 0.0;
+  for (std::size_t i = s.first; i <= s.last; ++i) {
+    for (int k = 0; k < 6; ++k) in[static_cast<std::size_t>(k)] += res[i][k];
+    n_in += 1.0;
+  }
+  const std::size_t lo = s.first > 2 * window ? s.first - 2 * window : 0;
+  const std::size_t hi = std::min(res.size(), s.last + 1 + 2 * window);
+  for (std::size_t i = lo; i < hi; ++i) {
+    if ((i >= s.first && i <= s.last) || skip[i]) continue;
+    for (int k = 0; k < 6; ++k) out[static_cast<std::size_t>(k)] += res[i][k];
+    n_out += 1.0;
+  }
+  if (n_in == 0.0 || n_out == 0.0) return std::numeric_limits<double>::infinity();
+  double z = 0.0;
+  for (std::size_t k = 0; k < 6; ++k)
+    z = std::max(z, std::abs(in[k] / n_in - out[k] / n_out) / scale[k]);
+  return z;
+}
+
+std::string join_exclude(const std::string& a, const std::string& b) {
+  if (a.empty()) return b;
+  if (b.empty()) return a;
+  return a + "," + b;
+}
+
+}  // namespace
+
+Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
+  const std::size_t n = data.size();
+  // Every command printed keeps the rows the user left out.
+  auto finish = [&](Diagnosis d) {
+    if (d.exclude.empty()) d.exclude = o.exclude_text;
+    if (!d.command.empty() && d.command.find(" --exclude ") == std::string::npos &&
+        !d.exclude.empty())
+      d.command += " --exclude " + d.exclude;
+    return d;
+  };
+  if (!o.events || data.columns.static_rows) return finish(diagnose_physics(data, o));
+  std::vector<std::uint8_t> user(n, 0);
+  if (o.exclude) user = *o.exclude;
+
+  // The model on every row kept; its residual scanned for spans that stand out (events.hpp);
+  // refitted without the spans found and scanned again (a long contact pulls the first fit
+  // towards itself) until the spans stay, at most three times.
+  if (o.progress) o.progress("diagnose: looking for events (spans that stand out in time)");
+  FitOptions fo = o.fit;
+  fo.progress = nullptr;
+  std::vector<std::uint8_t> use(n), in_spans(n, 0);
+  SpanScan scan;
+  model::ModelParams scanned_params;
+  bool fitted = false;
+  try {
+    for (int turn = 0; turn < 3; ++turn) {
+      for (std::size_t i = 0; i < n; ++i) use[i] = (user[i] || in_spans[i]) ? 0 : 1;
+      fo.mask = &use;
+      const FitResult f = fit(data, fo);
+      if (!f.usable) break;
+      fitted = true;
+      scanned_params = f.params;
+      SpanScan next = find_spans(residuals(f.params, data), data, &user, o.event_options);
+      bool same = turn > 0 && next.spans.size() == scan.spans.size();
+      for (std::size_t q = 0; same && q < next.spans.size(); ++q)
+        same = next.spans[q].first + next.window_rows >= scan.spans[q].first &&
+               scan.spans[q].first + next.window_rows >= next.spans[q].first &&
+               next.spans[q].last + next.window_rows >= scan.spans[q].last &&
+               scan.spans[q].last + next.window_rows >= next.spans[q].last;
+      scan = std::move(next);
+      in_spans = span_mask(data, scan.spans);
+      if (same || scan.spans.empty() || scan.recurring) break;
+    }
+  } catch (const std::exception&) {
+    // A model that cannot be fitted on all kept rows: the physics diagnosis says why.
+    return finish(diagnose_physics(data, o));
+  }
+  if (!fitted) return finish(diagnose_physics(data, o));
+
+  std::vector<Span> events;
+  std::string note;
+  if (o.events_mutant_every_span) {
+    events = scan.spans;
+  } else if (scan.recurring) {
+    note = std::to_string(scan.spans.size()) + " spans stand out, covering " +
+           fmt("%.0f", 100 * scan.coverage) +
+           "% of the log: a pattern that recurs is the model's, not events";
+  } else {
+    std::size_t tied = 0;
+    for (const Span& s : scan.spans) {
+      if (s.tied_to_motion())
+        ++tied;
+      else
+        events.push_back(s);
+    }
+    if (tied)
+      note = std::to_string(tied) +
+             " span(s) start and end with the robot's motion: physics of the motion, not events";
+  }
+  auto plain = [&](std::string why) {
+    Diagnosis d = diagnose_physics(data, o);
+    d.scan = scan;
+    d.spans_note = std::move(why);
+    return finish(std::move(d));
+  };
+  if (events.empty()) {
+    // A missing effect's residual can hide an event (its steps at every move set the scale):
+    // with the effect or law the diagnosis proposes, the residual is scanned once more.
+    Diagnosis d = diagnose_physics(data, o);
+    if (d.verdict == Diagnosis::Verdict::effect || d.verdict == Diagnosis::Verdict::discovered) {
+      SpanScan again = find_spans(residuals(answer_params(d), data), data, &user, o.event_options);
+      if (!again.recurring && !again.spans.empty()) {
+        for (const Span& s : again.spans)
+          if (!s.tied_to_motion() || o.events_mutant_every_span) events.push_back(s);
+        if (!events.empty()) scan = std::move(again);
+      }
+    }
+    if (events.empty()) {
+      d.scan = scan;
+      d.spans_note = note;
+      return finish(std::move(d));
+    }
+  }
+
+  // The rest of the log diagnosed without them; a span that the answer (the model with what it
+  // proposes), fitted elsewhere, predicts is physics after all.
+  std::optional<Diagnosis> rest;
+  std::string rest_error;
+  for (int turn = 0; turn < 2 && !events.empty(); ++turn) {
+    const std::vector<std::uint8_t> without = span_mask(data, events, user);
+    DiagnoseOptions inner = o;
+    inner.exclude = &without;
+    inner.discovery_path.clear();  // the command below refits first; a later turn writes it
+    inner.progress = nullptr;
+    rest.reset();
+    rest_error.clear();
+    try {
+      rest = diagnose_physics(data, inner);
+    } catch (const std::exception& e) {
+      rest_error = e.what();
+    }
+    if (o.events_mutant_every_span) break;
+    const std::vector<Wrench> res = residuals(rest ? answer_params(*rest) : scanned_params, data);
+    std::vector<Span> kept;
+    for (const Span& s : events)
+      if (span_deviation(res, s, scan.window_rows, without, scan.scale) >= scan.z_step)
+        kept.push_back(s);
+    if (kept.size() == events.size()) break;
+    note = std::to_string(events.size() - kept.size()) +
+           " span(s) that stood out are predicted by the model fitted without them: physics";
+    events = std::move(kept);
+  }
+  if (events.empty()) return plain(note);
+
+  Diagnosis d;
+  if (rest) {
+    d = std::move(*rest);
+  } else {
+    d.model = o.fit.effects;
+    d.kinematics = kinematics_feeds(d.model, data);
+    d.kinematics_json = kinematics_json(d.kinematics, data);
+    d.kinematics_text = format_kinematics(d.kinematics, data);
+    d.baseline.params = scanned_params;
+  }
+  d.scan = scan;
+  d.events = events;
+  d.spans_note = note;
+  d.exclude = join_exclude(o.exclude_text, exclude_text(events));
+  const std::string outside_verdict = d.text;
+  d.verdict = Diagnosis::Verdict::event;
+  std::ostringstream os;
+  os << "Events, not physics: " << events.size()
+     << (events.size() == 1 ? " span where" : " spans where")
+     << " the residual leaves its level and comes back (a contact, a collision or a snag: a "
+        "wrench from outside the payload). No effect or law is proposed for "
+     << (events.size() == 1 ? "it" : "them") << ":\n"
+     << format_spans(events, "  ");
+  if (rest)
+    os << "Without " << (events.size() == 1 ? "it" : "them") << ": " << outside_verdict;
+  else
+    os << "The rest of the log cannot be diagnosed on its own (" << rest_error
+       << "); refit without the spans, and record a longer log to diagnose the physics.";
+  d.text = os.str();
+  const std::string model =
+      o.model_text.empty() ? io::model_spec_string(d.model, o.fit.user) : o.model_text;
+  d.command = !d.command.empty() ? d.command + " --exclude " + d.exclude
+                                 : "zerog fit " + o.log_path + " --effects " + model +
+                                       " --exclude " + d.exclude + " --out " + o.fit_out;
+  return d;
+}
+
 std::vector<LadderStep> ladder(const Dataset& data, const LadderOptions& o) {
   std::vector<LadderStep> steps;
   const Split split = make_split(data, o.diagnose);
@@ -1542,7 +1748,7 @@ nlohmann::json to_json(const Diagnosis& d) {
     cj["params"] = p;
     j["candidates"].push_back(cj);
   }
-  const char* kinds[] = {"effect", "none", "nothing_left", "discovered"};
+  const char* kinds[] = {"effect", "none", "nothing_left", "discovered", "event"};
   if (d.discovery) {
     const Discovery& x = *d.discovery;
     nlohmann::json dj;
@@ -1576,6 +1782,11 @@ nlohmann::json to_json(const Diagnosis& d) {
                           : nlohmann::json(nullptr)},
       {"text", d.text},
       {"command", d.command.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.command)}};
+  j["events"] = nlohmann::json::array();
+  for (const Span& s : d.events) j["events"].push_back(to_json(s));
+  j["span_scan"] = to_json(d.scan);
+  j["spans_note"] = d.spans_note.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.spans_note);
+  j["exclude"] = d.exclude.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.exclude);
   j["correlated_signals"] = nlohmann::json::array();
   for (const auto& s : d.correlated)
     j["correlated_signals"].push_back(
@@ -1602,6 +1813,12 @@ nlohmann::json to_json(const std::vector<LadderStep>& steps) {
 std::string format_diagnosis(const Diagnosis& d) {
   std::ostringstream os;
   os << "model: " << io::effect_list_string(d.model) << "\n";
+  if (d.verdict == Diagnosis::Verdict::event && d.split.blocks == 0) {
+    // Events in a log too short to diagnose without them: no held-out figures to show.
+    os << d.kinematics_text << "\n" << d.text << "\n";
+    os << "refit without them:  " << d.command << "\n";
+    return os.str();
+  }
   os << "held-out split: " << d.split.text << "\n";
   os << d.kinematics_text;
   os << "held-out error: force RMS " << fmt("%.3f", d.baseline_heldout.stats.force_rms)
@@ -1648,8 +1865,12 @@ std::string format_diagnosis(const Diagnosis& d) {
       os << "  " << d.discovery->laws[t] << "   (z " << fmt("%.1f", d.discovery->z[t]) << ")\n";
     if (!d.discovery->path.empty()) os << "effect file: " << d.discovery->path << "\n";
   }
+  if (!d.spans_note.empty()) os << "\nspans in time: " << d.spans_note << "\n";
+  if (!d.exclude.empty()) os << "\nleft out (--exclude): " << d.exclude << "\n";
   os << "\n" << d.text << "\n";
-  if (!d.command.empty()) os << "add it:  " << d.command << "\n";
+  if (!d.command.empty())
+    os << (d.verdict == Diagnosis::Verdict::event ? "refit without them:  " : "add it:  ")
+       << d.command << "\n";
   return os.str();
 }
 

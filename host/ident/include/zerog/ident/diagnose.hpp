@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "zerog/ident/compare.hpp"
+#include "zerog/ident/events.hpp"
 #include "zerog/ident/fit.hpp"
 #include "zerog/ident/kinematics_sources.hpp"
 
@@ -128,7 +129,19 @@ struct Diagnosis {
   CandidateEvaluation candidate_evaluation;   ///< screened or refitted, and why
   std::vector<SignalCorrelation> correlated;  ///< strongest first
   std::optional<Discovery> discovery;         ///< when verdict is `discovered`
-  enum class Verdict { effect, none, nothing_left, discovered } verdict = Verdict::none;
+  /// The step detector's scan of the model's residual, refitted without the spans it found
+  /// (events.hpp); `possible` false for a table without time or when switched off.
+  SpanScan scan;
+  /// Spans the verdict calls events: they stand out, are few, and no effect of the diagnosis
+  /// fitted without them explains them. Not empty exactly when verdict is `event`; then every
+  /// figure above (baseline, candidates, discovery) is of the log without them.
+  std::vector<Span> events;
+  /// Why the scan's spans are not events, when it found some (recurring, tied to the motion,
+  /// explained by the physics); empty otherwise.
+  std::string spans_note;
+  /// The rows the diagnosis left out, as --exclude takes them: the user's and the events'.
+  std::string exclude;
+  enum class Verdict { effect, none, nothing_left, discovered, event } verdict = Verdict::none;
   std::string text;     ///< plain words
   std::string command;  ///< the command that adds the effect, if any
 };
@@ -138,8 +151,17 @@ struct DiagnoseOptions {
   double block_s = 0.0;
   int every = 4;            ///< every n-th block is held out
   int heldout_offset = -1;  ///< which block of each `every` is held out (default the last)
-  /// Samples neither fitted nor scored (e.g. a final test set kept for a later comparison).
+  /// Samples neither fitted nor scored (e.g. a final test set kept for a later comparison, or
+  /// --exclude).
   const std::vector<std::uint8_t>* exclude = nullptr;
+  /// `exclude` as --exclude takes it, for the suggested command ("" if none or not expressible).
+  std::string exclude_text;
+  /// Look for events (a contact, a collision) before blaming the physics (events.hpp).
+  bool events = true;
+  EventOptions event_options;
+  /// Test only: a mutant that takes every span the detector finds for an event (no recurrence,
+  /// motion or physics check); the events tests must fail with it.
+  bool events_mutant_every_span = false;
   FitOptions fit;                    ///< effects = the model to diagnose; mask is set internally
   std::string log_path = "run.csv";  ///< for the suggested command
   /// Where the suggested command writes its refitted model (zerog diagnose names a new file
