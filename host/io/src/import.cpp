@@ -594,14 +594,19 @@ Mapping read_mapping(const fs::path& mapping, bool rig_given) {
                  "takes ω̇ from the robot: use kinematics = \"auto\" to keep the logged ω̇ "
                  "(and take what the IMU lacks from the robot), or remove 'angular_accel'");
   }
-  // Rows without time are static samples: they cannot be put on another file's time base.
+  // Rows without time are static samples: they cannot be put on another file's time base. A
+  // static table split over files (poses in one, wrenches in another) joins row by row: every
+  // file without time, the same number of rows (checked when they are read).
+  const FileSpec* timed = nullptr;
+  for (const FileSpec& file : m.files)
+    if (file.has_time) timed = &file;
   for (const FileSpec& file : m.files) {
-    if (file.has_time || m.files.size() == 1) continue;
+    if (file.has_time || timed == nullptr) continue;
     throw_at(mapping, file.where,
-             "files." + file.name +
-                 " has no 'time': a file without time holds static samples (one row per pose) "
-                 "and cannot be merged with other files; give every file time = { column = …, "
-                 "unit = … }, or put all quantities of the static table into one file");
+             "files." + file.name + " has no 'time' but files." + timed->name +
+                 " has: a file without time holds static samples (one row per pose) and cannot "
+                 "be put on another file's time base; give every file time = { column = …, "
+                 "unit = … }, or none (a static table split over files is joined row by row)");
   }
   return m;
 }
@@ -1177,6 +1182,20 @@ ImportResult import_recordings(const fs::path& mapping_path,
     r.time_offset_s = f.time_offset_s;
     result.report.files.push_back(r);
   }
+  // A static table split over files: row i of each file is pose i.
+  if (!mapping.files.front().has_time) {
+    for (std::size_t f = 1; f < series.size(); ++f) {
+      if (series[f].t.size() == series.front().t.size()) continue;
+      throw InputError(mapping.files[f].path, 0, 0,
+                       "files." + mapping.files[f].name + " has " +
+                           std::to_string(series[f].t.size()) + " rows and files." +
+                           mapping.files.front().name + " (" +
+                           mapping.files.front().path.filename().string() + ") " +
+                           std::to_string(series.front().t.size()) +
+                           ": a static table split over files without time is joined row by row, "
+                           "so every file needs one row per pose, in the same order");
+    }
+  }
 
   // The rig.
   Log& log = result.log;
@@ -1453,6 +1472,11 @@ std::string ImportReport::summary() const {
                   master.c_str(), files.empty() ? "?" : files.front().path.filename().c_str(),
                   rows_out);
     out += buffer;
+    for (std::size_t f = 1; f < files.size(); ++f) {
+      std::snprintf(buffer, sizeof buffer, "  joined row by row with '%s' (%s, %zu rows)\n",
+                    files[f].name.c_str(), files[f].path.filename().c_str(), files[f].rows_read);
+      out += buffer;
+    }
     if (!rig_source.empty()) out += "rig: " + rig_source + "\n";
     out += joints;
     return out;

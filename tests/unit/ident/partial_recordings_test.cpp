@@ -16,6 +16,7 @@
 #include <fstream>
 #include <numbers>
 #include <random>
+#include <sstream>
 #include <string>
 
 #include "zerog/formats/log.hpp"
@@ -30,6 +31,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using model::Effect;
+using ::testing::AllOf;
 using ::testing::HasSubstr;
 constexpr double kDeg = std::numbers::pi / 180.0;
 constexpr double kG = model::kStandardGravity;
@@ -204,6 +206,75 @@ TEST(StaticTable, BiasAndGravityFromTheTableOnSeveralSeeds) {
     ASSERT_TRUE(li.usable) << li.termination;
     EXPECT_LT(std::abs(li.params.block(Effect::gravity)[0] / truth.mass_kg - 1.0), 0.01);
   }
+  fs::remove_all(dir);
+}
+
+// A static table split over two headerless files, row for row (issue 25, item 7): the wrenches
+// in one, the poses and accelerations in the other, as many cells record them. Joined, it is the
+// one-file table; a file with a row missing, or one file with time and one without, is refused
+// with a message that says what would make it work.
+TEST(StaticTable, SplitOverTwoFilesIsJoinedRowByRow) {
+  const auto points = appendix_c_points();
+  const fs::path dir = fresh_dir("split");
+  const sim::RigSimulator simulator(sim::default_sim_config(5));
+  const std::string table = static_table(simulator, points, 5);
+  const io::Log whole = import_table(dir, table);
+  // Cells 1-6 into wrench.csv, 7-18 into pose.csv (the comment line dropped: headerless).
+  std::string wrench, pose;
+  std::istringstream in(table);
+  for (std::string line; std::getline(in, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    std::size_t cut = 0;
+    for (int k = 0; k < 6; ++k) cut = line.find(", ", cut) + 2;
+    wrench += line.substr(0, cut - 2) + "\n";
+    pose += line.substr(cut) + "\n";
+  }
+  write_text(dir / "wrench.csv", wrench);
+  write_text(dir / "pose.csv", pose);
+  const std::string mapping =
+      "format = \"zerog-import\"\nversion = 1\nrig_file = \"rig.rig.toml\"\nmaster = \"ft\"\n\n"
+      "[files.ft]\npath = \"wrench.csv\"\nheader = false\ndelimiter = \", \"\n"
+      "force = { columns = [1, 2, 3], unit = \"N\" }\n"
+      "torque = { columns = [4, 5, 6], unit = \"N*m\" }\n\n"
+      "[files.pose]\npath = \"pose.csv\"\nheader = false\ndelimiter = \", \"\n"
+      "orientation = { type = \"matrix\", columns = [1, 2, 3, 4, 5, 6, 7, 8, 9] }\n"
+      "specific_force = { columns = [10, 11, 12], unit = \"g\" }\n";
+  write_text(dir / "split.toml", mapping);
+  const io::ImportResult joined = io::import_recordings(dir / "split.toml");
+  ASSERT_TRUE(joined.log.columns.static_rows);
+  ASSERT_EQ(joined.log.samples.size(), whole.samples.size());
+  for (std::size_t i = 0; i < whole.samples.size(); ++i) {
+    EXPECT_EQ(joined.log.samples[i].force_sensor_N, whole.samples[i].force_sensor_N) << i;
+    EXPECT_EQ(joined.log.samples[i].torque_sensor_Nm, whole.samples[i].torque_sensor_Nm) << i;
+    // The rows of a second file pass the merge's bracket (weight 0 on the next row): equal
+    // within rounding.
+    EXPECT_LT(
+        (joined.log.samples[i].q_base_sensor.coeffs() - whole.samples[i].q_base_sensor.coeffs())
+            .norm(),
+        1e-12)
+        << i;
+    EXPECT_LT(
+        (joined.log.samples[i].specific_force_imu_mps2 - whole.samples[i].specific_force_imu_mps2)
+            .norm(),
+        1e-12)
+        << i;
+  }
+  EXPECT_THAT(joined.report.summary(), HasSubstr("joined row by row with 'pose'"));
+
+  // One pose short: refused, naming both files' rows.
+  write_text(dir / "pose.csv", pose.substr(0, pose.rfind('\n', pose.size() - 2) + 1));
+  EXPECT_THAT([&] { (void)io::import_recordings(dir / "split.toml"); },
+              ::testing::ThrowsMessage<io::InputError>(
+                  AllOf(HasSubstr("files.pose has 14 rows and files.ft (wrench.csv) 15"),
+                        HasSubstr("one row per pose, in the same order"))));
+  // Time in one file only: refused, saying give time to all or none.
+  write_text(dir / "pose.csv", pose);
+  std::string timed = mapping;
+  timed.insert(timed.find("force = "), "time = { column = 1, unit = \"s\" }\n");
+  write_text(dir / "timed.toml", timed);
+  EXPECT_THAT([&] { (void)io::import_recordings(dir / "timed.toml"); },
+              ::testing::ThrowsMessage<io::InputError>(
+                  HasSubstr("files.pose has no 'time' but files.ft has")));
   fs::remove_all(dir);
 }
 
