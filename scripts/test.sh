@@ -12,6 +12,7 @@
 #      offline identification and learning tests and the host pipeline's end-to-end numeric runs
 #      (labels ident_test, growing_fit_test, learn_test, robot_import_test, cli_test,
 #      discovery_test, diagnose_screening_test, insight_loop_test, events_test, uncertainty_test,
+#      table_diagnosis_test,
 #      results_test, recordings_test),
 #      the host CLI's end-to-end scripts (label host_cli: install, bag import, zerog watch), the
 #      pure Python tests (label python_only: nothing to instrument) and the other HIL motion

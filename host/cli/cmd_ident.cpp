@@ -625,7 +625,9 @@ void add_ident_commands(CLI::App& app) {
                   "Fitted model to diagnose (its effects and start values)")
         ->check(CLI::ExistingFile);
     s->add_option("-e,--effects", *effects,
-                  "Or: the effects of the model to diagnose (@FILE: a user-defined effect)");
+                  "Or: the effects of the model to diagnose (@FILE: a user-defined effect); "
+                  "default bias,gravity,linear_inertia,rotational_inertia (a static table: "
+                  "bias,gravity)");
     s->add_option("--candidates", *candidates,
                   "User-defined effects to try beside the library's: @FILE,@FILE "
                   "(proto/user_effects.md)");
@@ -672,8 +674,11 @@ void add_ident_commands(CLI::App& app) {
                                                  ? std::vector<std::filesystem::path>{}
                                                  : std::vector<std::filesystem::path>{*model_path});
       } else {
-        const io::ModelSpec spec = io::parse_model_spec(
-            effects->empty() ? io::effect_list_string(model::kDefaultModel) : *effects);
+        // A static table feeds no inertia: its default model is bias and gravity.
+        const std::string fallback = data.columns.static_rows
+                                         ? std::string("bias,gravity")
+                                         : io::effect_list_string(model::kDefaultModel);
+        const io::ModelSpec spec = io::parse_model_spec(effects->empty() ? fallback : *effects);
         o.fit.effects = spec.effects;
         o.fit.user = spec.user;
         o.model_text = io::model_spec_string(spec.effects, spec.user, spec.files);

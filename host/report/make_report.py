@@ -236,10 +236,10 @@ def load_summary(path):
                           "delta_bic": c.num(cd["delta_bic"], w + ".delta_bic")})
         v = c.obj(dg["verdict"], "diagnosis.verdict", ("kind", "text"))
         kind = c.string(v["kind"], "diagnosis.verdict.kind")
-        if kind not in ("effect", "none", "nothing_left", "discovered", "event"):
+        if kind not in ("effect", "none", "nothing_left", "discovered", "event", "outliers"):
             c.fail("diagnosis.verdict.kind",
-                   "expected \"effect\", \"none\", \"nothing_left\", \"discovered\" or "
-                   "\"event\", got %s" % json.dumps(kind))
+                   "expected \"effect\", \"none\", \"nothing_left\", \"discovered\", "
+                   "\"event\" or \"outliers\", got %s" % json.dumps(kind))
         verdict = {"kind": kind,
                    "effect": c.string(v.get("effect"), "diagnosis.verdict.effect", True),
                    "text": c.string(v["text"], "diagnosis.verdict.text"),
@@ -1120,6 +1120,7 @@ def build_html(s, cols, figs, notes, warnings):
                 "nothing_left": "Nothing left to explain",
                 "discovered": "No library effect; discovered law: <b>%s</b>"
                               % esc("; ".join(v.get("laws", []))),
+                "outliers": "Outlier poses of the table (left out of the fit it proposes)",
                 "event": "Events, not physics: <b>%d span%s</b> (shaded red in the time series)"
                          % (len(v.get("events", [])), "" if len(v.get("events", [])) == 1
                             else "s")}[v["kind"]]

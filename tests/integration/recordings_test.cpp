@@ -10,8 +10,8 @@
 //     stamped on a clock 12 ms late (the analogue of imu_time_offset: a delay between joints and
 //     wrench) → `zerog import` with kinematics = "robot" → fit → diagnose: imu_time_offset must
 //     rank first, and adding it must lower the held-out error.
-// (c) the static table of calib/static_table: diagnose refuses it saying what works for a
-//     table, and `zerog fit` fits it.
+// (c) the static table of calib/static_table: diagnose cross-validates it (leave-one-out over
+//     its 15 poses) and proposes nothing for the clean table, and `zerog fit` fits it.
 // (d) an accelerometer-only IMU beside the pose (kinematics = "auto"), and a wrench logged in the
 //     base frame: import → fit → compare → diagnose.
 //
@@ -350,16 +350,20 @@ TEST_F(Recordings, JointsOnlyWithAJointDelayDiagnosesTheTimeOffset) {
 
 // ---- (c) a static table ---------------------------------------------------------------------
 
-TEST_F(Recordings, StaticTableDiagnoseSaysWhatWorksAndFitWorks) {
+TEST_F(Recordings, StaticTableIsDiagnosedByCrossValidationAndFitWorks) {
   const fs::path table = kSource / "calib/static_table";
   const Result imported =
       run("import --mapping " + (table / "mapping.toml").string() + " --out " + path("static.csv"));
   ASSERT_EQ(imported.status, 0) << imported.err;
-  const Result d = run("diagnose " + path("static.csv") + " --effects bias,gravity -q");
-  EXPECT_NE(d.status, 0);
-  EXPECT_THAT(d.err, HasSubstr("static table of 15 rows"));
-  EXPECT_THAT(d.err, HasSubstr("record more poses"));
-  EXPECT_THAT(d.err, HasSubstr("`zerog fit` on this table"));
+  // The default model of a table is bias and gravity (a table feeds no inertia).
+  const Result d = run("diagnose " + path("static.csv") + " --json -q");
+  ASSERT_EQ(d.status, 0) << d.err;
+  const auto j = nlohmann::json::parse(d.out);
+  EXPECT_THAT(j["split"]["text"].get<std::string>(), HasSubstr("leave-one-out"));
+  EXPECT_EQ(j["split"]["blocks"], 15);
+  EXPECT_EQ(j["verdict"]["kind"], "nothing_left") << j["verdict"]["text"];
+  EXPECT_TRUE(j["outliers"].empty());
+  EXPECT_EQ(j["model"], nlohmann::json({"bias", "gravity"}));
   // What it names works.
   const Result f = run("fit " + path("static.csv") + " --effects bias,gravity --json -q");
   ASSERT_EQ(f.status, 0) << f.err;

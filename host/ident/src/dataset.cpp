@@ -302,7 +302,7 @@ void check_signals(const model::EffectSet& effects, const Dataset& data) {
       throw std::runtime_error(effect +
                                "needs IMU columns (imu_f*_mps2 or imu_w*_radps) that the log "
                                "lacks (map 'specific_force' or 'angular_rate' in the import)");
-    if ((e == Effect::imu_time_offset || e == Effect::bias_drift) && c.static_rows)
+    if (e == Effect::imu_time_offset && c.static_rows)
       throw std::runtime_error(effect +
                                "needs time (t_s), which this log of static rows lacks (map "
                                "'time' in the import)");

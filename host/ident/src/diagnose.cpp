@@ -1496,7 +1496,8 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
       d.command += " --exclude " + d.exclude;
     return d;
   };
-  if (!o.events || data.columns.static_rows) return finish(diagnose_physics(data, o));
+  if (data.columns.static_rows) return finish(diagnose_table(data, o));
+  if (!o.events) return finish(diagnose_physics(data, o));
   std::vector<std::uint8_t> user(n, 0);
   if (o.exclude) user = *o.exclude;
 
@@ -1731,6 +1732,8 @@ nlohmann::json to_json(const Diagnosis& d) {
     cj["gain"] = c.gain;
     cj["axis_gain"] = c.axis_gain;
     cj["delta_bic"] = c.delta_bic;
+    cj["better_rows"] =
+        c.better_rows >= 0.0 ? nlohmann::json(c.better_rows) : nlohmann::json(nullptr);
     cj["figures"] = c.screened ? "screened" : "refitted";
     nlohmann::json p = nlohmann::json::object();
     if (c.user >= 0) {
@@ -1748,7 +1751,7 @@ nlohmann::json to_json(const Diagnosis& d) {
     cj["params"] = p;
     j["candidates"].push_back(cj);
   }
-  const char* kinds[] = {"effect", "none", "nothing_left", "discovered", "event"};
+  const char* kinds[] = {"effect", "none", "nothing_left", "discovered", "event", "outliers"};
   if (d.discovery) {
     const Discovery& x = *d.discovery;
     nlohmann::json dj;
@@ -1784,6 +1787,9 @@ nlohmann::json to_json(const Diagnosis& d) {
       {"command", d.command.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.command)}};
   j["events"] = nlohmann::json::array();
   for (const Span& s : d.events) j["events"].push_back(to_json(s));
+  j["outliers"] = nlohmann::json::array();
+  for (const Outlier& x : d.outliers)
+    j["outliers"].push_back({{"row", x.row + 1}, {"z", x.z}, {"residual", x.residual}});
   j["span_scan"] = to_json(d.scan);
   j["spans_note"] = d.spans_note.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.spans_note);
   j["exclude"] = d.exclude.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.exclude);
@@ -1821,26 +1827,34 @@ std::string format_diagnosis(const Diagnosis& d) {
   }
   os << "held-out split: " << d.split.text << "\n";
   os << d.kinematics_text;
-  os << "held-out error: force RMS " << fmt("%.3f", d.baseline_heldout.stats.force_rms)
-     << " N, torque RMS " << fmt("%.3f", d.baseline_heldout.stats.torque_rms)
-     << " N*m; white-noise estimate force "
-     << fmt("%.3f", std::sqrt((d.noise_rms[0] * d.noise_rms[0] + d.noise_rms[1] * d.noise_rms[1] +
-                               d.noise_rms[2] * d.noise_rms[2]) /
-                              3))
-     << " N, torque "
-     << fmt("%.3f", std::sqrt((d.noise_rms[3] * d.noise_rms[3] + d.noise_rms[4] * d.noise_rms[4] +
-                               d.noise_rms[5] * d.noise_rms[5]) /
-                              3))
-     << " N*m (" << fmt("%.0f", 100 * d.structured_fraction) << "% structured)\n\n";
+  if (d.split.text.rfind("k-fold", 0) == 0) {  // a static table (diagnose_table)
+    os << "cross-validated error: force RMS " << fmt("%.3f", d.baseline_heldout.stats.force_rms)
+       << " N, torque RMS " << fmt("%.3f", d.baseline_heldout.stats.torque_rms) << " N*m\n\n";
+  } else {
+    os << "held-out error: force RMS " << fmt("%.3f", d.baseline_heldout.stats.force_rms)
+       << " N, torque RMS " << fmt("%.3f", d.baseline_heldout.stats.torque_rms)
+       << " N*m; white-noise estimate force "
+       << fmt("%.3f", std::sqrt((d.noise_rms[0] * d.noise_rms[0] + d.noise_rms[1] * d.noise_rms[1] +
+                                 d.noise_rms[2] * d.noise_rms[2]) /
+                                3))
+       << " N, torque "
+       << fmt("%.3f", std::sqrt((d.noise_rms[3] * d.noise_rms[3] + d.noise_rms[4] * d.noise_rms[4] +
+                                 d.noise_rms[5] * d.noise_rms[5]) /
+                                3))
+       << " N*m (" << fmt("%.0f", 100 * d.structured_fraction) << "% structured)\n\n";
+  }
   char line[200];
-  std::snprintf(line, sizeof line, "%-4s %-20s %8s %11s %12s %10s  %s\n", "rank", "effect", "gain",
-                "force rms", "torque rms", "dBIC", "per-axis gain Fx Fy Fz Mx My Mz");
+  const bool table = !d.candidates.empty() && d.candidates[0].better_rows >= 0.0;
+  std::snprintf(line, sizeof line, "%-4s %-20s %8s %11s %12s %11s  %s\n", "rank", "effect", "gain",
+                "force rms", "torque rms", table ? "better rows" : "dBIC",
+                "per-axis gain Fx Fy Fz Mx My Mz");
   os << line;
   int r = 0;
   for (const auto& c : d.candidates) {
-    std::snprintf(line, sizeof line, "%-4d %-20s %7.1f%% %9.3f N %8.3f N*m %10.0f ", ++r,
+    std::snprintf(line, sizeof line, "%-4d %-20s %7.1f%% %9.3f N %8.3f N*m %11.0f%s ", ++r,
                   c.name.c_str(), 100 * c.gain, c.heldout.stats.force_rms,
-                  c.heldout.stats.torque_rms, c.delta_bic);
+                  c.heldout.stats.torque_rms, table ? 100 * c.better_rows : c.delta_bic,
+                  table ? "%" : " ");
     os << line;
     for (double g : c.axis_gain) os << fmt(" %4.0f%%", 100 * g);
     os << (c.screened ? "  screened" : "") << "\n";
@@ -1869,7 +1883,9 @@ std::string format_diagnosis(const Diagnosis& d) {
   if (!d.exclude.empty()) os << "\nleft out (--exclude): " << d.exclude << "\n";
   os << "\n" << d.text << "\n";
   if (!d.command.empty())
-    os << (d.verdict == Diagnosis::Verdict::event ? "refit without them:  " : "add it:  ")
+    os << (d.verdict == Diagnosis::Verdict::event || d.verdict == Diagnosis::Verdict::outliers
+               ? "refit without them:  "
+               : "add it:  ")
        << d.command << "\n";
   return os.str();
 }

@@ -33,7 +33,7 @@ model::PoseSignals stored_pose(const io::Log& log, std::size_t i) {
   const io::Sample& s = log.samples[i];
   model::PoseSignals p;
   p.R_base_sensor = s.q_base_sensor.normalized().toRotationMatrix();
-  p.t_rel_s = log.columns.static_rows ? 0.0 : s.t_s - log.samples.front().t_s;
+  p.t_rel_s = s.t_s - log.samples.front().t_s;
   p.temperature_C = log.columns.temperature ? s.temperature_C : model::kTemperatureReferenceC;
   p.joints_rad = s.joints_rad;
   return p;

@@ -193,9 +193,15 @@ TEST(StaticTable, BiasAndGravityFromTheTableOnSeveralSeeds) {
     EXPECT_LT(torque_bias_error, kTorqueBiasTolerance_Nm);
 
     // What the table cannot feed is refused, naming what would make it work.
-    fo.effects = {Effect::bias, Effect::gravity, Effect::bias_drift};
+    fo.effects = {Effect::bias, Effect::gravity, Effect::imu_time_offset};
     EXPECT_THAT([&] { (void)fit(data, fo); },
                 ::testing::ThrowsMessage<std::runtime_error>(HasSubstr("needs time (t_s)")));
+    // A drift over the rows (their order is the table's time order) is fitted, per row; this
+    // table has none.
+    fo.effects = {Effect::bias, Effect::gravity, Effect::bias_drift};
+    const FitResult drift = fit(data, fo);
+    ASSERT_TRUE(drift.usable) << drift.termination;
+    EXPECT_LT(std::abs(drift.params.block(Effect::bias_drift)[0]) * 14.0, 1.0);
     fo.effects = {Effect::bias, Effect::gravity, Effect::linear_inertia,
                   Effect::rotational_inertia};
     EXPECT_THAT([&] { (void)fit(data, fo); },

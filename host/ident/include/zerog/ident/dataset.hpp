@@ -58,7 +58,9 @@ struct Dataset {
   model::PoseSignals pose(std::size_t i) const {
     model::PoseSignals p;
     p.R_base_sensor = q_base_sensor[i].toRotationMatrix();
-    p.t_rel_s = columns.static_rows ? 0.0 : t_s[i] - t_s.front();
+    // A table's rows count 0, 1, … (proto/log_format.md): its row index is its time order, so
+    // that a drift over the rows (bias_drift, per row) can be fitted.
+    p.t_rel_s = t_s[i] - t_s.front();
     if (!temperature_C.empty()) p.temperature_C = temperature_C[i];
     p.joints_rad = joints_rad[i];
     return p;

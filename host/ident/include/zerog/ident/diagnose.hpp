@@ -30,6 +30,9 @@ struct Candidate {
   double gain = 0.0;  ///< fraction of the baseline's held-out noise-whitened MSE removed
   std::array<double, 6> axis_gain{};  ///< per-axis fraction of held-out MSE removed
   double delta_bic = 0.0;             ///< BIC(candidate) − BIC(baseline), on the training samples
+  /// A table's diagnosis (diagnose_table): the share of rows the candidate predicts better in
+  /// cross-validation (no BIC there: delta_bic is 0); -1 otherwise.
+  double better_rows = -1.0;
   /// True: the figures (fit.params, heldout, gains, delta_bic) are the screening's: one
   /// Gauss–Newton step of the baseline plus this candidate from the baseline's solution
   /// (linearised, not iterated; fit.params is that step, held-out figures are exact for it).
@@ -110,6 +113,13 @@ inline constexpr std::size_t kMinSplitSamples = 100;
 /// shorter than 8 × 0.5 s = 4 s, or with fewer than 100 samples on a side.
 BlockChoice choose_blocks(const Dataset& data, double block_s, int every = 4, int offset = -1);
 
+/// A pose of a static table that stands out of the cross-validated residual (diagnose_table).
+struct Outlier {
+  std::size_t row = 0;  ///< 0-based sample index (data row row + 1)
+  double z = 0.0;       ///< largest |residual − median| / robust spread over the axes
+  std::array<double, 6> residual{};  ///< its cross-validated residual, S (N, N·m)
+};
+
 struct Diagnosis {
   BlockChoice split;  ///< the held-out split's blocks
   /// Which source fed which effect of the model (JSON "kinematics_sources").
@@ -141,7 +151,16 @@ struct Diagnosis {
   std::string spans_note;
   /// The rows the diagnosis left out, as --exclude takes them: the user's and the events'.
   std::string exclude;
-  enum class Verdict { effect, none, nothing_left, discovered, event } verdict = Verdict::none;
+  /// A table's poses that stand out (verdict `outliers`; diagnose_table).
+  std::vector<Outlier> outliers;
+  enum class Verdict {
+    effect,
+    none,
+    nothing_left,
+    discovered,
+    event,
+    outliers
+  } verdict = Verdict::none;
   std::string text;     ///< plain words
   std::string command;  ///< the command that adds the effect, if any
 };
@@ -196,7 +215,17 @@ struct DiagnoseOptions {
 /// The effects a model may still add, given the signals in the log.
 std::vector<model::Effect> candidate_effects(const model::EffectSet& model, const Dataset& data);
 
+/// A log with time: events first (events.hpp), then the held-out time blocks. A static table
+/// (rows without time): diagnose_table.
 Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& options);
+
+/// A static table of at least 10 poses (docs/insight-loop.md, "Small tables"): k-fold
+/// cross-validation over the rows instead of time blocks (leave-one-out up to 30 rows, else 10
+/// interleaved folds), poses that stand out of the cross-validated residual named as outliers
+/// (and left out of what follows), and each effect the table can feed, a drift over the row
+/// order (bias_drift, per row) among them, kept if it lowers the cross-validated error by 5 %
+/// and for most rows. Throws std::runtime_error for fewer than 10 rows.
+Diagnosis diagnose_table(const Dataset& data, const DiagnoseOptions& options);
 
 struct LadderStep {
   model::EffectSet effects;
