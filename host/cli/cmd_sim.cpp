@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "commands.hpp"
+#include "zerog/formats/detail/csv_scan.hpp"
 #include "zerog/formats/log.hpp"
 #include "zerog/io/model_file.hpp"
 #include "zerog/sim/design.hpp"
@@ -80,14 +81,8 @@ sim::SimConfig make_config(const SimArgs& a) {
     if (eq == std::string::npos)
       throw std::invalid_argument("--set wants key=value, got '" + kv + "'");
     const std::string value = kv.substr(eq + 1);
-    std::size_t used = 0;
     double x = 0.0;
-    try {
-      x = std::stod(value, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used == 0 || used != value.size())
+    if (io::detail::parse_number(value, x) != io::detail::NumberStatus::ok)
       throw std::invalid_argument("--set " + kv + ": '" + value + "' is not a number");
     sim::set_config_value(c, kv.substr(0, eq), x);
   }

@@ -6,6 +6,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "zerog/formats/detail/csv_scan.hpp"
 #include "zerog/ident/compare.hpp"
 
 namespace zerog::ident {
@@ -282,14 +283,8 @@ ExcludeSpec parse_exclude(const std::string& text) {
   ExcludeSpec spec;
   spec.text = text;
   auto number = [&](const std::string& s, const std::string& item) {
-    std::size_t used = 0;
     double x = 0.0;
-    try {
-      x = std::stod(s, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used == 0 || used != s.size() || !std::isfinite(x))
+    if (io::detail::parse_number(s, x) != io::detail::NumberStatus::ok)
       throw std::invalid_argument("--exclude item '" + item + "': '" + s + "' is not a number");
     return x;
   };

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "random.hpp"
+#include "zerog/formats/detail/csv_scan.hpp"
 #include "zerog/model/dictionary.hpp"
 #include "zerog/model/rotation.hpp"
 
@@ -619,14 +620,8 @@ Contact parse_contact(const std::string& text) {
     throw std::invalid_argument(
         what + ": wants START:DURATION:FX,FY,FZ[,MX,MY,MZ][:sensor|base][:plateau|spike]");
   auto number = [&](const std::string& s, const char* name) {
-    std::size_t used = 0;
     double x = 0.0;
-    try {
-      x = std::stod(s, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used == 0 || used != s.size() || !std::isfinite(x))
+    if (io::detail::parse_number(s, x) != io::detail::NumberStatus::ok)
       throw std::invalid_argument(what + ": " + name + " '" + s + "' is not a number");
     return x;
   };

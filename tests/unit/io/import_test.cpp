@@ -996,14 +996,16 @@ TEST_F(ImportTest, RefusalsNameFileLineColumnAndTheFix) {
   // time_offset_s without a time column.
   map = static_mapping() + "time_offset_s = 0.5\n";
   expect_mapping_error(map, "0.5", "'files.table.time_offset_s' needs a time column");
-  // A second file, and one of them has no time: they cannot be merged.
+  // A second file with time beside one without: they cannot be merged (all without time would
+  // join row by row).
   map = static_mapping();
   map.insert(map.find("[rig]"), "master = \"more\"\n");
   map +=
       "[files.more]\npath = \"table.csv\"\nheader = false\n"
       "time = { column = 1, unit = \"s\" }\ntemperature = { column = 2, unit = \"C\" }\n";
   expect_mapping_error(map, "[files.table]",
-                       "files.table has no 'time': a file without time holds static samples");
+                       "files.table has no 'time' but files.more has: a file without time holds "
+                       "static samples");
   // A column number beyond the row: reported at the first data row (line 2, after the comment),
   // just past its end.
   write_text(path("map.toml"), static_mapping("[1, 2, 30]"));
