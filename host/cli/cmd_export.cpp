@@ -98,6 +98,14 @@ void run_export(const ExportArgs& a) {
   if (!fit.rig_name.empty() && fit.rig_name != rig.name)
     throw std::runtime_error(a.model + ": fitted on rig '" + fit.rig_name + "', but " + a.rig +
                              " describes rig '" + rig.name + "'");
+  // A drift fitted over a static table's rows is per row, not per second (docs/insight-loop.md,
+  // "Small tables"): the cycle would read it as a drift in time.
+  if (fit.params.effects.has(model::Effect::bias_drift) && fit.extra.contains("fit") &&
+      fit.extra["fit"].value("static_rows", false))
+    throw std::runtime_error(a.model +
+                             ": its bias_drift was fitted over a static table's rows (per row, not "
+                             "per second); fit the drift on a log with time, or export the model "
+                             "without bias_drift");
   infer::DeployedModel m;
   m.rig = learn::rig_description(rig);
   m.physics = fit.params;

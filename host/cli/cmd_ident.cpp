@@ -254,6 +254,8 @@ io::ModelFile fitted_model_file(const ident::FitResult& r, const io::Rig& rig,
   m.rig_name = rig.name;
   m.extra["fit"] = fit_json(r);
   m.extra["fit"]["log"] = log_path;
+  // Rows without time: a drift is per row there (zerog export refuses to deploy it).
+  m.extra["fit"]["static_rows"] = data.columns.static_rows;
   // Which source (IMU, or the robot's joints or pose) fed which effect (proto/json_output.md).
   m.extra["fit"]["kinematics_sources"] =
       ident::kinematics_json(ident::kinematics_feeds(r.params.effects, data), data);

@@ -666,6 +666,34 @@ TEST_F(Cli, DiscoveredLawFitsWithThePrintedCommandAndTravelsToReportAndExport) {
   EXPECT_NE(slurp(dir() / "deployed.zgm").find("tanh(qd6/0.02)"), std::string::npos);
 }
 
+// A drift over a static table's rows is per row: the table is diagnosed, the drift fits, and
+// zerog export refuses to deploy it as a drift in time (the mutant: without static_rows in the
+// model file, the export goes through).
+TEST_F(Cli, ADriftFittedOverATablesRowsIsNotDeployed) {
+  const fs::path src = fs::path(ZEROG_SOURCE_DIR) / "calib/static_table";
+  for (const char* f : {"mapping.toml", "rig.rig.toml", "table.csv"})
+    fs::copy_file(src / f, dir() / f, fs::copy_options::overwrite_existing);
+  const fs::path log = dir() / "table_log.csv";
+  Result r =
+      run("import --mapping " + (dir() / "mapping.toml").string() + " --out " + log.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const fs::path model = dir() / "drift.json";
+  r = run("fit " + log.string() + " --effects bias,gravity,bias_drift -q --out " + model.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string export_cmd = "export --model " + model.string() + " --rig " +
+                                 (dir() / "rig.rig.toml").string() + " --out " +
+                                 (dir() / "drift.zgm").string() + " -q";
+  r = run(export_cmd);
+  EXPECT_NE(r.status, 0);
+  EXPECT_THAT(r.err, HasSubstr("fitted over a static table's rows"));
+  EXPECT_FALSE(fs::exists(dir() / "drift.zgm"));
+  auto m = nlohmann::json::parse(slurp(model));
+  m["extra"]["fit"]["static_rows"] = false;  // the mutant
+  std::ofstream(model) << m.dump(2);
+  r = run(export_cmd);
+  EXPECT_EQ(r.status, 0) << r.err;
+}
+
 // A model fitted on an ω̇ other than the one zerog-rt's cycle computes (the 5-point difference
 // of the gyro): the simulator's log imported with kinematics = "auto" carries the gyro's
 // Savitzky–Golay derivative as imu_dw*_radps2. export warns, naming both (also with -q), and
