@@ -1299,11 +1299,7 @@ namespace {
 // The diagnosis of the physics: the model's held-out error, the candidates, a law (diagnose()
 // looks for events first).
 Diagnosis diagnose_physics(const Dataset& data, const DiagnoseOptions& o) {
-  Diagnosis d;
-  d.model = o.fit.effects;
-  d.kinematics = kinematics_feeds(d.model, data);
-  d.kinematics_json = kinematics_json(d.kinematics, data);
-  d.kinematics_text = format_kinematics(d.kinematics, data);
+  Diagnosis d = start_diagnosis(o.fit.effects, data);
   const Split split = make_split(data, o);
   d.split = split.blocks;
   if (o.progress) o.progress("diagnose: held-out split: " + split.blocks.text);
@@ -1486,6 +1482,15 @@ std::string join_exclude(const std::string& a, const std::string& b) {
 
 }  // namespace
 
+Diagnosis start_diagnosis(const model::EffectSet& model, const Dataset& data) {
+  Diagnosis d;
+  d.model = model;
+  d.kinematics = kinematics_feeds(d.model, data);
+  d.kinematics_json = kinematics_json(d.kinematics, data);
+  d.kinematics_text = format_kinematics(d.kinematics, data);
+  return d;
+}
+
 Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
   const std::size_t n = data.size();
   // Every command printed keeps the rows the user left out.
@@ -1581,8 +1586,35 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
     }
   }
 
+  // The physics the whole log asks for: the effect or law of its diagnosis with the spans in
+  // (a long pose-dependent residual, a missing cable in a short run, can look like an
+  // excursion, and leaving it out can leave the rest without what identifies the effect).
+  std::optional<model::ModelParams> whole_answer;
+  if (!o.events_mutant_every_span) {
+    DiagnoseOptions all = o;
+    all.discovery_path.clear();
+    all.progress = nullptr;
+    try {
+      const Diagnosis whole = diagnose_physics(data, all);
+      // Its answer, with its best library candidate too when that pays something (a law can
+      // take the verdict while a library effect explains part of the rest).
+      model::ModelParams p = answer_params(whole);
+      bool any = whole.verdict == Diagnosis::Verdict::effect ||
+                 whole.verdict == Diagnosis::Verdict::discovered;
+      if (!whole.candidates.empty() && whole.candidates[0].user < 0 &&
+          whole.candidates[0].gain > 0.02 && !p.effects.has(whole.candidates[0].effect)) {
+        const model::Effect e = whole.candidates[0].effect;
+        p.effects.add(e);
+        p.values[model::index(e)] = whole.candidates[0].fit.params.values[model::index(e)];
+        any = true;
+      }
+      if (any) whole_answer = p;
+    } catch (const std::exception&) {
+      // Nothing the whole log asks for: the rest's diagnosis alone decides.
+    }
+  }
   // The rest of the log diagnosed without them; a span that the answer (the model with what it
-  // proposes), fitted elsewhere, predicts is physics after all.
+  // proposes: the rest's, or the whole log's), fitted elsewhere, predicts is physics after all.
   std::optional<Diagnosis> rest;
   std::string rest_error;
   for (int turn = 0; turn < 2 && !events.empty(); ++turn) {
@@ -1600,9 +1632,29 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
     }
     if (o.events_mutant_every_span) break;
     const std::vector<Wrench> res = residuals(rest ? answer_params(*rest) : scanned_params, data);
+    std::vector<Wrench> res_whole;
+    if (whole_answer) {
+      std::vector<std::uint8_t> keep(n);
+      for (std::size_t i = 0; i < n; ++i) keep[i] = without[i] ? 0 : 1;
+      FitOptions wo = o.fit;
+      wo.effects = whole_answer->effects;
+      wo.user = whole_answer->user;
+      wo.initial = &*whole_answer;
+      wo.mask = &keep;
+      wo.covariance = false;
+      wo.progress = nullptr;
+      try {
+        const FitResult r = fit(data, wo);
+        if (r.usable) res_whole = residuals(r.params, data);
+      } catch (const std::exception&) {
+        // The whole log's effect cannot be fitted without the spans: the rest decides.
+      }
+    }
     std::vector<Span> kept;
     for (const Span& s : events)
-      if (span_deviation(res, s, scan.window_rows, without, scan.scale) >= scan.z_step)
+      if (span_deviation(res, s, scan.window_rows, without, scan.scale) >= scan.z_step &&
+          (res_whole.empty() ||
+           span_deviation(res_whole, s, scan.window_rows, without, scan.scale) >= scan.z_step))
         kept.push_back(s);
     if (kept.size() == events.size()) break;
     note = std::to_string(events.size() - kept.size()) +
@@ -1615,10 +1667,7 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
   if (rest) {
     d = std::move(*rest);
   } else {
-    d.model = o.fit.effects;
-    d.kinematics = kinematics_feeds(d.model, data);
-    d.kinematics_json = kinematics_json(d.kinematics, data);
-    d.kinematics_text = format_kinematics(d.kinematics, data);
+    d = start_diagnosis(o.fit.effects, data);
     d.baseline.params = scanned_params;
   }
   d.scan = scan;

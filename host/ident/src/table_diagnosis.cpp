@@ -68,11 +68,7 @@ ErrorStats stats_of(const std::vector<Wrench>& e, const std::vector<std::size_t>
 }  // namespace
 
 Diagnosis diagnose_table(const Dataset& data, const DiagnoseOptions& o) {
-  Diagnosis d;
-  d.model = o.fit.effects;
-  d.kinematics = kinematics_feeds(d.model, data);
-  d.kinematics_json = kinematics_json(d.kinematics, data);
-  d.kinematics_text = format_kinematics(d.kinematics, data);
+  Diagnosis d = start_diagnosis(o.fit.effects, data);
   check_signals(o.fit.effects, data);
   check_signals(o.fit.user, data);
   std::vector<std::size_t> rows;

@@ -215,6 +215,10 @@ struct DiagnoseOptions {
 /// The effects a model may still add, given the signals in the log.
 std::vector<model::Effect> candidate_effects(const model::EffectSet& model, const Dataset& data);
 
+/// A diagnosis of `model` on `data` with nothing in it yet but the model and where its
+/// kinematics come from (kinematics_feeds, their JSON and text).
+Diagnosis start_diagnosis(const model::EffectSet& model, const Dataset& data);
+
 /// A log with time: events first (events.hpp), then the held-out time blocks. A static table
 /// (rows without time): diagnose_table.
 Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& options);
