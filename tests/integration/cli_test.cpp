@@ -575,6 +575,8 @@ TEST_F(Cli, AnEventIsNamedRefittedWithoutAndTheLoopGoesOnToThePhysics) {
     for (const auto& t : first["discovery"]["terms"])
       EXPECT_EQ(t["basis"], "tanh(qd6/0.02)") << first["discovery"].dump();
   }
+  // An event's diagnosis writes no law file (the law comes on a later turn, fitted without it).
+  EXPECT_FALSE(fs::exists(dir() / "touch.discovered.toml"));
   const std::string command = first["verdict"]["command"];
   EXPECT_THAT(command, HasSubstr("--exclude"));
   ASSERT_EQ(run_printed(command), 0) << command << "\n" << slurp(dir() / "cmd_err.txt");

@@ -1296,6 +1296,30 @@ std::vector<Effect> candidate_effects(const model::EffectSet& m, const Dataset& 
 
 namespace {
 
+// A discovered law's effect file (at o.discovery_path, if set) and the command that adds it. Apart
+// from the diagnosis, so that diagnose() writes it only when the verdict is the law's (not for a
+// diagnosis it consulted on the way to an event).
+void write_discovery(Diagnosis& d, const DiagnoseOptions& o) {
+  if (d.verdict != Diagnosis::Verdict::discovered || !d.discovery || o.discovery_path.empty())
+    return;
+  Discovery& x = *d.discovery;
+  std::vector<std::string> comment = {
+      "Discovered by zerog diagnose on " + o.log_path + " (proto/user_effects.md).",
+      "Held-out error removed: " + fmt("%.1f", 100 * x.gain) + " %."};
+  for (const std::string& law : x.laws) comment.push_back(law);
+  io::write_effect_file(o.discovery_path,
+                        io::effect_file_text(x.effect, 0, &x.std,
+                                             "found by zerog diagnose: no library effect "
+                                             "explained the residual",
+                                             comment),
+                        {o.log_path});
+  x.path = o.discovery_path;
+  const std::string model =
+      o.model_text.empty() ? io::model_spec_string(d.model, o.fit.user) : o.model_text;
+  d.command =
+      "zerog fit " + o.log_path + " --effects " + model + ",@" + x.path + " --out " + o.fit_out;
+}
+
 // The diagnosis of the physics: the model's held-out error, the candidates, a law (diagnose()
 // looks for events first).
 Diagnosis diagnose_physics(const Dataset& data, const DiagnoseOptions& o) {
@@ -1418,23 +1442,7 @@ Diagnosis diagnose_physics(const Dataset& data, const DiagnoseOptions& o) {
          << "% of the held-out error (force RMS " << fmt("%.3f", h.force_rms) << " -> "
          << fmt("%.3f", x.heldout.stats.force_rms) << " N, torque RMS " << fmt("%.3f", h.torque_rms)
          << " -> " << fmt("%.3f", x.heldout.stats.torque_rms) << " N*m).";
-      if (!o.discovery_path.empty()) {
-        std::vector<std::string> comment = {
-            "Discovered by zerog diagnose on " + o.log_path + " (proto/user_effects.md).",
-            "Held-out error removed: " + fmt("%.1f", 100 * x.gain) + " %."};
-        for (const std::string& law : x.laws) comment.push_back(law);
-        io::write_effect_file(o.discovery_path,
-                              io::effect_file_text(x.effect, 0, &x.std,
-                                                   "found by zerog diagnose: no library effect "
-                                                   "explained the residual",
-                                                   comment),
-                              {o.log_path});
-        x.path = o.discovery_path;
-        const std::string model =
-            o.model_text.empty() ? io::model_spec_string(d.model, o.fit.user) : o.model_text;
-        d.command = "zerog fit " + o.log_path + " --effects " + model + ",@" + x.path + " --out " +
-                    o.fit_out;
-      }
+      write_discovery(d, o);
     }
   }
   d.text = os.str();
@@ -1512,6 +1520,7 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
   if (o.progress) o.progress("diagnose: looking for events (spans that stand out in time)");
   FitOptions fo = o.fit;
   fo.progress = nullptr;
+  fo.covariance = false;  // only the residual is scanned
   std::vector<std::uint8_t> use(n), in_spans(n, 0);
   SpanScan scan;
   model::ModelParams scanned_params;
@@ -1561,8 +1570,20 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
       note = std::to_string(tied) +
              " span(s) start and end with the robot's motion: physics of the motion, not events";
   }
+  // The whole log's physics diagnosis, once, and without writing a law's file: that is written
+  // only when it is the verdict (plain()).
+  std::optional<Diagnosis> whole_log;
+  auto physics = [&]() -> const Diagnosis& {
+    if (!whole_log) {
+      DiagnoseOptions all = o;
+      all.discovery_path.clear();
+      whole_log = diagnose_physics(data, all);
+    }
+    return *whole_log;
+  };
   auto plain = [&](std::string why) {
-    Diagnosis d = diagnose_physics(data, o);
+    Diagnosis d = physics();
+    write_discovery(d, o);
     d.scan = scan;
     d.spans_note = std::move(why);
     return finish(std::move(d));
@@ -1570,7 +1591,7 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
   if (events.empty()) {
     // A missing effect's residual can hide an event (its steps at every move set the scale):
     // with the effect or law the diagnosis proposes, the residual is scanned once more.
-    Diagnosis d = diagnose_physics(data, o);
+    const Diagnosis& d = physics();
     if (d.verdict == Diagnosis::Verdict::effect || d.verdict == Diagnosis::Verdict::discovered) {
       SpanScan again = find_spans(residuals(answer_params(d), data), data, &user, o.event_options);
       if (!again.recurring && !again.spans.empty()) {
@@ -1579,11 +1600,7 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
         if (!events.empty()) scan = std::move(again);
       }
     }
-    if (events.empty()) {
-      d.scan = scan;
-      d.spans_note = note;
-      return finish(std::move(d));
-    }
+    if (events.empty()) return plain(note);
   }
 
   // The physics the whole log asks for: the effect or law of its diagnosis with the spans in
@@ -1591,11 +1608,8 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
   // excursion, and leaving it out can leave the rest without what identifies the effect).
   std::optional<model::ModelParams> whole_answer;
   if (!o.events_mutant_every_span) {
-    DiagnoseOptions all = o;
-    all.discovery_path.clear();
-    all.progress = nullptr;
     try {
-      const Diagnosis whole = diagnose_physics(data, all);
+      const Diagnosis& whole = physics();
       // Its answer, with its best library candidate too when that pays something (a law can
       // take the verdict while a library effect explains part of the rest).
       model::ModelParams p = answer_params(whole);

@@ -50,7 +50,7 @@ bool cv_residuals(const Dataset& data, FitOptions fo, const std::vector<std::siz
   return true;
 }
 
-// Σ over the rows and axes of (e / scale)², and the RMS per axis.
+// Σ over the rows and axes of (e / scale)².
 double whitened_ss(const std::vector<Wrench>& e, const std::vector<std::size_t>& rows,
                    const Vec6& scale) {
   double ss = 0.0;
