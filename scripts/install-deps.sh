@@ -45,9 +45,10 @@ if [ "$demo_only" = 1 ]; then exit 0; fi
 # The independent DDS subscriber of the telemetry tests: Python's cyclonedds from PyPI (its wheel
 # bundles its own Cyclone C library, so the wire types are checked against a second build).
 # `zerog import --bag` reads ROS 2 bags (sqlite3, MCAP) with PyPI's pure-Python rosbags (no ROS
-# installation; host/io/bag_to_csv.py).
+# installation; host/io/bag_to_csv.py), and writes the rig it found in the bag with tomli-w.
 venv="$(cd "$(dirname "$0")/.." && pwd)/.venv"
-if ! "$venv/bin/python" -c 'import cyclonedds, rosbags' 2>/dev/null; then
+if ! "$venv/bin/python" -c 'import cyclonedds, rosbags, tomli_w' 2>/dev/null; then
   [ -x "$venv/bin/python" ] || /usr/bin/python3 -m venv "$venv"
-  "$venv/bin/pip" install -q --disable-pip-version-check 'cyclonedds==11.0.1' 'rosbags==0.11.9'
+  "$venv/bin/pip" install -q --disable-pip-version-check 'cyclonedds==11.0.1' 'rosbags==0.11.9' \
+    'tomli-w==1.0.0'
 fi

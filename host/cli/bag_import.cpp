@@ -99,6 +99,9 @@ BagConversion::BagConversion(const BagTopics& t, const fs::path& keep_dir) {
   if (!t.joints.empty()) args.insert(args.end(), {"--joints", t.joints});
   if (!t.joint_names.empty()) args.insert(args.end(), {"--joint-names", t.joint_names});
   if (!t.tf.empty()) args.insert(args.end(), {"--tf", t.tf});
+  if (!t.rig.empty()) args.insert(args.end(), {"--rig", t.rig});
+  if (!t.robot.empty()) args.insert(args.end(), {"--robot", t.robot});
+  if (!t.flange.empty()) args.insert(args.end(), {"--flange", t.flange});
   const fs::path err = dir_ / "bag_to_csv.err";
   const int status = run(args, err);
   const std::string message = read_text(err);

@@ -13,8 +13,11 @@ struct BagTopics {
   std::string wrench;       ///< geometry_msgs/msg/WrenchStamped (required: the log's rows)
   std::string imu;          ///< sensor_msgs/msg/Imu ("" = none)
   std::string joints;       ///< sensor_msgs/msg/JointState ("" = none)
-  std::string joint_names;  ///< the 6 joint names A1..A6, comma-separated ("" = first six)
+  std::string joint_names;  ///< the robot's joints by name, its order ("" = the robot's names)
   std::string tf;           ///< "BASE:SENSOR" from /tf and /tf_static ("" = no pose)
+  std::string rig;          ///< the rig file: what the bag does not say ("" = none)
+  std::string robot;        ///< a robot file, if the rig names none ("" = the rig's)
+  std::string flange;       ///< the TF frame of the flange ("" = the robot's ros_flange, tool0)
 };
 
 /// The converted bag: the CSV files and mapping.toml in a directory that is removed again when

@@ -26,11 +26,16 @@ struct ImportOptions {
 
 void run_import(const ImportOptions& o) {
   if (o.out.empty() && !o.dry_run) throw CLI::RequiredError("--out (or --dry-run)");
-  std::optional<std::filesystem::path> rig;
-  if (!o.rig.empty()) rig = o.rig;
   if (o.mapping.empty() == o.bag.bag.empty()) throw CLI::ValidationError("give --mapping or --bag");
+  // A bag's rig is the mapping's [rig] table: --rig with what the bag's TF and stamps say.
+  std::optional<std::filesystem::path> rig;
+  if (!o.rig.empty() && o.bag.bag.empty()) rig = o.rig;
   std::optional<BagConversion> bag;
-  if (!o.bag.bag.empty()) bag.emplace(o.bag, o.bag_csv);
+  if (!o.bag.bag.empty()) {
+    BagTopics topics = o.bag;
+    topics.rig = o.rig;
+    bag.emplace(topics, o.bag_csv);
+  }
   io::ImportResult result;
   try {
     result = io::import_recordings(bag ? bag->mapping() : std::filesystem::path(o.mapping), rig);
@@ -40,7 +45,10 @@ void run_import(const ImportOptions& o) {
     throw std::runtime_error(
         std::string(e.what()) + "\n(in the files made from the bag " + o.bag.bag +
         ": --bag-csv DIR keeps them" +
-        (o.bag.tf.empty() ? "; the sensor's pose comes from --tf BASE:SENSOR" : "") + ")");
+        (o.bag.tf.empty() && o.bag.joints.empty()
+             ? "; the sensor's pose comes from --tf BASE:SENSOR, or from --joints with a robot"
+             : "") +
+        ")");
   }
   if (bag) result.inputs.push_back(o.bag.bag);
   if (!o.dry_run) io::write_log(result.log, o.out, result.inputs);
@@ -71,7 +79,16 @@ void add_import_command(CLI::App& app) {
   cmd->add_option("--imu", b.imu, "--bag: sensor_msgs/msg/Imu topic")->needs(bag);
   cmd->add_option("--joints", b.joints, "--bag: sensor_msgs/msg/JointState topic")->needs(bag);
   cmd->add_option("--joint-names", b.joint_names,
-                  "--bag: the joints A1..A6 by name, comma-separated (default: the first six)")
+                  "--bag: the robot's joints by their JointState names, comma-separated, in the "
+                  "robot's order (default: the robot file's ros_name or name of each joint)")
+      ->needs(bag);
+  cmd->add_option("--robot", b.robot,
+                  "--bag: robot file (calib/robots/) for the joints, if the rig names none")
+      ->needs(bag)
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--flange", b.flange,
+                  "--bag: the TF frame of the robot's flange, for the sensor's mounting from "
+                  "/tf_static (default: the robot file's ros_flange, else tool0)")
       ->needs(bag);
   cmd->add_option("--tf", b.tf, "--bag: BASE:SENSOR, the sensor's pose from /tf and /tf_static")
       ->needs(bag);
@@ -84,7 +101,7 @@ void add_import_command(CLI::App& app) {
                   "written atomically and never over an input file");
   cmd->add_option("--rig", options->rig,
                   "rig file (NAME.rig.toml) to use instead of the mapping's [rig] table or "
-                  "rig_file")
+                  "rig_file; with --bag, what the bag does not say (its TF gives the mountings)")
       ->check(CLI::ExistingFile);
   cmd->add_flag("--dry-run", options->dry_run,
                 "read, check and merge everything and print the summary, but write nothing");
@@ -102,7 +119,7 @@ void add_import_command(CLI::App& app) {
       "\n"
       "A ROS 2 bag (needs rosbags in .venv: scripts/install-deps.sh):\n"
       "  zerog import --bag run_bag --wrench /ft --imu /imu --joints /joint_states \\\n"
-      "      --tf base_link:ft_sensor --rig my.rig.toml --out run.csv");
+      "      --robot calib/robots/kr210_r2700.robot.toml --out run.csv");
   cmd->callback([options] {
     if (!options->bag.bag.empty() && options->bag.wrench.empty())
       throw CLI::RequiredError("--wrench (the WrenchStamped topic of --bag)");

@@ -19,8 +19,11 @@ robot::FrameTransform to_frame_transform(const Transform& t) {
 
 robot::RobotModel robot_from_toml(const toml::table& table, const std::filesystem::path& file,
                                   const Transform& flange_sensor, const std::string& prefix) {
-  const TomlTable t(table, file, prefix, {"name", "convention", "joint", "flange", "source"},
+  const TomlTable t(table, file, prefix,
+                    {"name", "convention", "joint", "flange", "source", "ros_flange"},
                     "proto/robot_kinematics.md");
+  // ROS names (for zerog import --bag, which reads them itself): strings, checked here.
+  (void)t.optional_string("ros_flange", {});
   robot::RobotModel m;
   const std::string convention = t.string("convention");
   if (convention == "dh")
@@ -40,8 +43,11 @@ robot::RobotModel robot_from_toml(const toml::table& table, const std::filesyste
     const std::string key = "joint[" + std::to_string(i + 1) + "]";
     const toml::table* row = (*rows)[static_cast<std::size_t>(i)].as_table();
     if (row == nullptr) t.fail("joint", key + " must be a table");
-    const TomlTable j(*row, t.file(), t.name(key) + ".",
-                      {"name", "a_m", "alpha_deg", "d_m", "theta_offset_deg", "sign", "column"});
+    const TomlTable j(
+        *row, t.file(), t.name(key) + ".",
+        {"name", "a_m", "alpha_deg", "d_m", "theta_offset_deg", "sign", "column", "ros_name"});
+    (void)j.optional_string("name", {});
+    (void)j.optional_string("ros_name", {});
     robot::DhJoint& dh = m.joints[static_cast<std::size_t>(i)];
     dh.a_m = j.number("a_m", NumberRange{});
     dh.alpha_rad = j.number("alpha_deg", NumberRange{}) * kRadPerDeg;

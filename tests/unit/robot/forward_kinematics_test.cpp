@@ -186,6 +186,15 @@ TEST(RobotToml, RefusesBadTablesNamingTheKey) {
                 .find("robot.joint[2].column"),
             std::string::npos);
   EXPECT_NE(refusal("convention = \"dh\"\n").find("'robot.joint'"), std::string::npos);
+  // The ROS names (zerog import --bag reads them) must be strings.
+  EXPECT_NE(
+      refusal("convention = \"dh\"\n" + joint + "ros_name = 3\n").find("robot.joint[1].ros_name"),
+      std::string::npos);
+  EXPECT_NE(refusal("convention = \"dh\"\nros_flange = [1]\n" + joint).find("robot.ros_flange"),
+            std::string::npos);
+  EXPECT_EQ(refusal("convention = \"dh\"\nros_flange = \"tool0\"\n" + joint +
+                    "ros_name = \"joint_a1\"\n"),
+            "");
   EXPECT_EQ(refusal("convention = \"dh\"\n" + joint), "");
   fs::remove_all(dir);
 }
