@@ -1299,13 +1299,28 @@ namespace {
 // A discovered law's effect file (at o.discovery_path, if set) and the command that adds it. Apart
 // from the diagnosis, so that diagnose() writes it only when the verdict is the law's (not for a
 // diagnosis it consulted on the way to an event).
+// The --effects text of the model as given with `effects` in place of its library effects: the
+// library names first, then the model's effect files (as the user wrote them).
+std::string model_with(const model::EffectSet& effects, const Diagnosis& d,
+                       const DiagnoseOptions& o) {
+  const std::string model =
+      o.model_text.empty() ? io::model_spec_string(d.model, o.fit.user) : o.model_text;
+  const std::string files = model.find(",@") != std::string::npos
+                                ? model.substr(model.find(",@"))
+                                : (model.rfind('@', 0) == 0 ? "," + model : std::string());
+  return io::effect_list_string(effects) + files;
+}
+
 void write_discovery(Diagnosis& d, const DiagnoseOptions& o) {
   if (d.verdict != Diagnosis::Verdict::discovered || !d.discovery || o.discovery_path.empty())
     return;
   Discovery& x = *d.discovery;
   std::vector<std::string> comment = {
       "Discovered by zerog diagnose on " + o.log_path + " (proto/user_effects.md).",
-      "Held-out error removed: " + fmt("%.1f", 100 * x.gain) + " %."};
+      "Held-out error removed: " + fmt("%.1f", 100 * x.gain) + " %" +
+          (x.with_effect.empty() ? "."
+                                 : " with " + x.with_effect + " (the law alone: " +
+                                       fmt("%.1f", 100 * x.law_gain) + " % beyond it).")};
   for (const std::string& law : x.laws) comment.push_back(law);
   io::write_effect_file(o.discovery_path,
                         io::effect_file_text(x.effect, 0, &x.std,
@@ -1315,9 +1330,66 @@ void write_discovery(Diagnosis& d, const DiagnoseOptions& o) {
                         {o.log_path});
   x.path = o.discovery_path;
   const std::string model =
-      o.model_text.empty() ? io::model_spec_string(d.model, o.fit.user) : o.model_text;
+      x.with_effect.empty()
+          ? (o.model_text.empty() ? io::model_spec_string(d.model, o.fit.user) : o.model_text)
+          : model_with(x.with_effects, d, o);
   d.command =
       "zerog fit " + o.log_path + " --effects " + model + ",@" + x.path + " --out " + o.fit_out;
+}
+
+// A library effect pays on its own when it removes at least this share of the held-out error
+// and the information criterion takes it; the law is then searched on top of it.
+constexpr double kPaysOnItsOwn = 0.10;
+// ...and it stays in the proposal only if the model with the law but without it is worse by at
+// least this share of the baseline's held-out error.
+constexpr double kStillNeeded = 0.02;
+
+// The law when no library effect explains the residual. If the best library candidate pays on its
+// own but leaves structure (a library effect and a law outside the library hidden together), the
+// law is searched on top of it: searched alone, in a residual the effect dominates, it comes out
+// mangled (a cable's gravity seen as sin(q2)·tanh(qd6)) and the loop needs a turn per confusion.
+// Both are proposed together if each is needed; otherwise the law on top of the model as given.
+std::optional<Discovery> discover_beyond(const Dataset& data, const Baseline& base,
+                                         const Split& split, const DiagnoseOptions& o,
+                                         const Diagnosis& d) {
+  if (!d.candidates.empty() && d.candidates[0].user < 0 && d.candidates[0].gain >= kPaysOnItsOwn &&
+      d.candidates[0].delta_bic < 0) {
+    const Candidate& c = d.candidates[0];
+    if (o.progress)
+      o.progress("diagnose: " + c.name + " pays on its own; searching the law on top of it");
+    Baseline on = fit_baseline(data, c.effects, o.fit.user, split, o, &c.fit.params);
+    on.heldout = heldout_error(on.res, split.heldout, d.noise_rms);
+    std::optional<Discovery> x = discover_law(data, on, split, o, d.noise_rms);
+    if (x && x->gain >= o.min_law_gain) {
+      // Without the library effect, the law alone: is the effect still needed?
+      FitOptions fo = o.fit;
+      fo.effects = base.fit.params.effects;
+      fo.user = base.fit.params.user;
+      io::append_user_effects(fo.user, x->effect);
+      fo.mask = &split.train;
+      fo.covariance = false;
+      fo.initial = nullptr;
+      fo.progress = nullptr;
+      const FitResult alone = fit(data, fo);
+      const double alone_mse =
+          alone.usable
+              ? heldout_error(residuals_of(alone.params, data, &split.heldout, o.fit.threads),
+                              split.heldout, d.noise_rms)
+                    .whitened_mse
+              : std::numeric_limits<double>::infinity();
+      if ((alone_mse - x->heldout.whitened_mse) / base.heldout.whitened_mse >= kStillNeeded) {
+        x->with_effect = c.name;
+        x->with_effects = c.effects;
+        x->law_gain = x->gain;
+        x->gain = 1.0 - x->heldout.whitened_mse / base.heldout.whitened_mse;
+        return x;
+      }
+    }
+  }
+  std::optional<Discovery> x = discover_law(data, base, split, o, d.noise_rms);
+  if (x && x->gain < o.min_law_gain) x.reset();
+  if (x) x->law_gain = x->gain;
+  return x;
 }
 
 // The diagnosis of the physics: the model's held-out error, the candidates, a law (diagnose()
@@ -1393,17 +1465,9 @@ Diagnosis diagnose_physics(const Dataset& data, const DiagnoseOptions& o) {
     }
     os << ". Estimated: " << param_summary(c) << ".";
     {
-      const std::string model =
-          o.model_text.empty() ? io::model_spec_string(d.model, o.fit.user) : o.model_text;
       // The model as given plus the candidate: a library name goes before the files.
-      std::string library = io::effect_list_string(c.effects);
-      const std::string files = model.find(",@") != std::string::npos
-                                    ? model.substr(model.find(",@"))
-                                    : (model.rfind('@', 0) == 0 ? "," + model : std::string());
-      if (c.user >= 0)
-        library += files + ",@" + o.user_candidates[static_cast<std::size_t>(c.user)].source;
-      else
-        library += files;
+      std::string library = model_with(c.effects, d, o);
+      if (c.user >= 0) library += ",@" + o.user_candidates[static_cast<std::size_t>(c.user)].source;
       d.command = "zerog fit " + o.log_path + " --effects " + library + " --out " + o.fit_out;
     }
   } else {
@@ -1411,8 +1475,7 @@ Diagnosis diagnose_physics(const Dataset& data, const DiagnoseOptions& o) {
     if (o.discover) {
       if (o.progress)
         o.progress("diagnose: no library effect explains it; searching the signal dictionary");
-      d.discovery = discover_law(data, base, split, o, d.noise_rms);
-      if (d.discovery && d.discovery->gain < o.min_law_gain) d.discovery.reset();
+      d.discovery = discover_beyond(data, base, split, o, d);
     }
     os << "No library effect explains the remaining structure: "
        << fmt("%.0f", 100 * d.structured_fraction) << "% of the held-out error is structured, ";
@@ -1434,12 +1497,19 @@ Diagnosis diagnose_physics(const Dataset& data, const DiagnoseOptions& o) {
     if (d.discovery) {
       Discovery& x = *d.discovery;
       d.verdict = Diagnosis::Verdict::discovered;
-      os << " Discovered in the signal dictionary (" << x.dictionary_size
-         << " basis-axis columns searched, each term |z| > " << fmt("%.1f", x.z_threshold)
-         << " and validated on held-out blocks): ";
+      os << " Discovered in the signal dictionary";
+      if (!x.with_effect.empty())
+        os << " on top of " << x.with_effect << " (which pays on its own but leaves structure)";
+      os << " (" << x.dictionary_size << " basis-axis columns searched, each term |z| > "
+         << fmt("%.1f", x.z_threshold) << " and validated on held-out blocks): ";
       for (std::size_t j = 0; j < x.laws.size(); ++j) os << (j ? "; " : "") << x.laws[j];
-      os << ". Adding it removes " << fmt("%.0f", 100 * x.gain)
-         << "% of the held-out error (force RMS " << fmt("%.3f", h.force_rms) << " -> "
+      if (!x.with_effect.empty())
+        os << ". Adding " << x.with_effect << " and the law (each is needed; the law removes "
+           << fmt("%.0f", 100 * x.law_gain) << "% of what " << x.with_effect << " leaves) removes "
+           << fmt("%.0f", 100 * x.gain);
+      else
+        os << ". Adding it removes " << fmt("%.0f", 100 * x.gain);
+      os << "% of the held-out error (force RMS " << fmt("%.3f", h.force_rms) << " -> "
          << fmt("%.3f", x.heldout.stats.force_rms) << " N, torque RMS " << fmt("%.3f", h.torque_rms)
          << " -> " << fmt("%.3f", x.heldout.stats.torque_rms) << " N*m).";
       write_discovery(d, o);
@@ -1831,6 +1901,9 @@ nlohmann::json to_json(const Diagnosis& d) {
     }
     dj["heldout"] = heldout_json(x.heldout);
     dj["gain"] = x.gain;
+    dj["law_gain"] = x.law_gain;
+    dj["with_effect"] =
+        x.with_effect.empty() ? nlohmann::json(nullptr) : nlohmann::json(x.with_effect);
     dj["seconds"] = x.seconds;
     dj["dictionary_size"] = x.dictionary_size;
     dj["z_threshold"] = x.z_threshold;

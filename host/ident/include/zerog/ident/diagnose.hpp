@@ -62,12 +62,18 @@ struct SignalCorrelation {
 /// then orthogonal matching pursuit on the training blocks, each term validated on the held-out
 /// blocks; the terms found are refitted with the whole model (Ceres) for values and deviations.
 struct Discovery {
-  model::UserEffects effect;      ///< one user effect ("discovered"), fitted coefficients
-  std::vector<double> std;        ///< standard deviation of each coefficient
-  std::vector<double> z;          ///< each term's screening statistic when it was chosen
-  FitResult fit;                  ///< the model with the discovered effect, on the training blocks
-  HeldOut heldout;                ///< of that fit (noise-whitened MSE with the diagnosis' scale)
-  double gain = 0.0;              ///< share of the baseline's held-out whitened MSE it removes
+  model::UserEffects effect;  ///< one user effect ("discovered"), fitted coefficients
+  std::vector<double> std;    ///< standard deviation of each coefficient
+  std::vector<double> z;      ///< each term's screening statistic when it was chosen
+  FitResult fit;              ///< the model with the discovered effect, on the training blocks
+  HeldOut heldout;            ///< of that fit (noise-whitened MSE with the diagnosis' scale)
+  double gain = 0.0;          ///< share of the baseline's held-out whitened MSE it removes
+  /// The library effect the law was searched on top of ("" = the model as given): the best
+  /// candidate, when it pays on its own but leaves structure; the proposal adds both, and
+  /// `gain` is theirs together.
+  std::string with_effect;
+  model::EffectSet with_effects;  ///< the model with that effect (when with_effect is set)
+  double law_gain = 0.0;          ///< the law's own share, over the model with with_effect
   int dictionary_size = 0;        ///< candidate columns (basis × axis) searched
   double z_threshold = 0.0;       ///< a term must pass this (Bonferroni over the dictionary)
   std::vector<std::string> laws;  ///< "Mz += 1.49 ± 0.01 N*m · tanh(qd6/0.02)"
