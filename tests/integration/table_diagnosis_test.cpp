@@ -5,7 +5,9 @@
 //    is proposed for a clean table;
 //  - following the advice (the printed command's effects and --exclude), the mass is within 1 %;
 //  - both ways: a clean table names no outlier and no drift (a check that always fires fails),
-//    a step a hundredth the size is not called a drift, nine rows are refused.
+//    a step a hundredth the size is not called a drift, nine rows are refused;
+//  - a table whose rig says its rows are not in the order recorded (row_order = "unknown") gets
+//    no drift: the same step is not called bias_drift, and fitting one is refused.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -175,6 +177,30 @@ TEST(SmallTables, AStepBelowTheNoiseIsNotADriftAndNineRowsAreRefused) {
     FAIL() << "9 rows diagnosed";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("at least 10 poses"), std::string::npos) << e.what();
+  }
+}
+
+TEST(SmallTables, RowsNotInTheOrderRecordedGetNoDrift) {
+  io::Log log = table(1, 50, Flaw::step);
+  // The step is a drift while the rows are in the order recorded (the default)...
+  const ident::Diagnosis ordered = ident::diagnose(ident::make_dataset(log), options());
+  ASSERT_FALSE(ordered.candidates.empty());
+  EXPECT_EQ(ordered.candidates[0].name, "bias_drift") << ordered.text;
+  // ...and nothing may drift over rows in no known order.
+  log.rig.rows_in_recorded_order = false;
+  const ident::Dataset data = ident::make_dataset(log);
+  const ident::Diagnosis d = ident::diagnose(data, options());
+  for (const ident::Candidate& c : d.candidates) EXPECT_NE(c.name, "bias_drift") << d.text;
+  EXPECT_EQ(d.command.find("bias_drift"), std::string::npos) << d.command;
+  EXPECT_NE(d.split.text.find("row_order = \"unknown\""), std::string::npos) << d.split.text;
+  ident::FitOptions fo;
+  fo.effects = {Effect::bias, Effect::gravity, Effect::bias_drift};
+  try {
+    ident::fit(data, fo);
+    FAIL() << "bias_drift fitted over rows in no known order";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("not in the order they were recorded"), std::string::npos)
+        << e.what();
   }
 }
 

@@ -280,6 +280,8 @@ std::string format_rig(const Rig& rig) {
   out += "ft_rate_hz = " + toml_float(rig.ft_rate_hz) + "\n";
   out += "imu_rate_hz = " + toml_float(rig.imu_rate_hz) + "\n";
   out += "floor_z_m = " + toml_float(rig.floor_z_m) + "\n";
+  if (!rig.rows_in_recorded_order)
+    out += "row_order = \"unknown\"  # a table's rows are not in the order recorded\n";
   out += transform("flange_sensor", "sensor frame S in the flange frame F", rig.flange_sensor);
   out += transform("sensor_imu", "IMU frame I in the sensor frame S", rig.sensor_imu);
   // Only when said: a rig that does not say stays as every rig before the table.
@@ -967,10 +969,10 @@ KinematicsRecord kinematics_from_toml(const TomlTable& t) {
 
 Rig rig_from_toml(const toml::table& table, const fs::path& file, bool embedded,
                   const std::string& key_prefix, bool* has_period) {
-  const TomlTable t(
-      table, file, key_prefix,
-      {"format", "version", "name", "robot", "robot_file", "sample_period_s", "ft_rate_hz",
-       "imu_rate_hz", "floor_z_m", "flange_sensor", "sensor_imu", "kinematics", "imu_sampling"});
+  const TomlTable t(table, file, key_prefix,
+                    {"format", "version", "name", "robot", "robot_file", "sample_period_s",
+                     "ft_rate_hz", "imu_rate_hz", "floor_z_m", "flange_sensor", "sensor_imu",
+                     "kinematics", "imu_sampling", "row_order"});
   if (!embedded || t.find("format") != nullptr) {
     const std::string format = t.string("format");
     if (format != "zerog-rig") t.fail("format", "must be \"zerog-rig\", is \"" + format + "\"");
@@ -992,6 +994,13 @@ Rig rig_from_toml(const toml::table& table, const fs::path& file, bool embedded,
   rig.ft_rate_hz = t.optional_number("ft_rate_hz", 0.0, {0.0, false});
   rig.imu_rate_hz = t.optional_number("imu_rate_hz", 0.0, {0.0, false});
   rig.floor_z_m = t.optional_number("floor_z_m", 0.0);
+  const std::string row_order = t.optional_string("row_order", "recorded");
+  if (row_order != "recorded" && row_order != "unknown")
+    t.fail("row_order",
+           "must be \"recorded\" (a table's rows in the order they were recorded) "
+           "or \"unknown\", is \"" +
+               row_order + "\"");
+  rig.rows_in_recorded_order = row_order == "recorded";
   rig.flange_sensor = transform_from_toml(t, "flange_sensor");
   rig.sensor_imu = transform_from_toml(t, "sensor_imu");
   read_robot(t, rig);

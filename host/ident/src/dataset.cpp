@@ -74,6 +74,7 @@ Dataset DatasetBuilder::finish(const io::Rig& rig) {
   d.rig.p_sensor_imu_m = rig.sensor_imu.p_m;
   d.kinematics = rig.kinematics;
   d.imu_sampling = rig.imu_sampling;
+  d.rows_in_recorded_order = rig.rows_in_recorded_order;
   d.dt_s = (d.t_s.back() - d.t_s.front()) / static_cast<double>(n - 1);
   d.release_rows(0, n);
   if (d.columns.static_rows) return std::move(d_);
@@ -302,6 +303,12 @@ void check_signals(const model::EffectSet& effects, const Dataset& data) {
       throw std::runtime_error(effect +
                                "needs IMU columns (imu_f*_mps2 or imu_w*_radps) that the log "
                                "lacks (map 'specific_force' or 'angular_rate' in the import)");
+    if (e == Effect::bias_drift && c.static_rows && !data.rows_in_recorded_order)
+      throw std::runtime_error(effect +
+                               "drifts over the table's row order, but the rig says the rows are "
+                               "not in the order they were recorded (row_order = \"unknown\"): "
+                               "nothing can drift over them (log time, or keep the rows in the "
+                               "order recorded and set row_order = \"recorded\")");
     if (e == Effect::imu_time_offset && c.static_rows)
       throw std::runtime_error(effect +
                                "needs time (t_s), which this log of static rows lacks (map "

@@ -95,6 +95,10 @@ Diagnosis diagnose_table(const Dataset& data, const DiagnoseOptions& o) {
                  std::to_string(n) +
                  " poses has no time blocks to hold out; each row is predicted by the fit of the "
                  "others)";
+  if (!data.rows_in_recorded_order)
+    d.split.text +=
+        "; the rig says the rows are not in the order recorded (row_order = \"unknown\"), so "
+        "no drift over them is tried";
   if (o.progress) o.progress("diagnose: " + d.split.text);
 
   FitOptions base = o.fit;

@@ -10,6 +10,7 @@
 #include <optional>
 #include <span>
 #include <string_view>
+#include <unordered_map>
 
 #include "zerog/formats/detail/csv_scan.hpp"
 #include "zerog/formats/detail/rig_toml.hpp"
@@ -159,12 +160,15 @@ struct FileSpec {
   int skip_lines = 0;
   bool header = true;    ///< the first data line names the columns
   bool has_time = true;  ///< a time column is mapped (else rows are static samples)
+  /// A static file's pose index column is mapped (refs[0]): files are joined by its value.
+  bool has_index = false;
+  std::string index_name;  ///< the index column's name (header, or "column N")
   toml::source_region where;
   std::string time_unit;
   double time_scale = 1.0;
   double time_offset_s = 0.0;
   double max_gap_s = std::numeric_limits<double>::infinity();
-  std::vector<ColumnRef> refs;  ///< refs[0] is the time column if has_time
+  std::vector<ColumnRef> refs;  ///< refs[0] is the time column if has_time, else the pose index
   std::vector<QuantitySpec> quantities;
 };
 
@@ -392,9 +396,9 @@ char read_delimiter(const TomlTable& t) {
 FileSpec read_file_spec(const std::string& name, const toml::node& node, const fs::path& mapping) {
   const std::string prefix = "files." + name + ".";
   if (!node.is_table()) throw_at(mapping, node.source(), "'files." + name + "' must be a table");
-  std::vector<std::string_view> known = {"path",    "delimiter",     "decimal",
-                                         "comment", "skip_lines",    "header",
-                                         "time",    "time_offset_s", "max_gap_s"};
+  std::vector<std::string_view> known = {"path",       "delimiter", "decimal", "comment",
+                                         "skip_lines", "header",    "time",    "time_offset_s",
+                                         "max_gap_s",  "pose_index"};
   for (const auto& qi : quantity_infos()) known.push_back(qi.key);
   const TomlTable t(*node.as_table(), mapping, prefix, known);
 
@@ -443,6 +447,19 @@ FileSpec read_file_spec(const std::string& name, const toml::node& node, const f
                  "'" + t.name(key) + "' needs a time column: add time = { column = …, unit = … }");
       }
     }
+  }
+  if (const toml::node* index = t.find("pose_index")) {
+    if (file.has_time)
+      throw_at(mapping, index->source(),
+               "'" + t.name("pose_index") +
+                   "' joins the rows of static tables (files without time); this file has "
+                   "time, and is merged by it");
+    if (!index->is_table())
+      throw_at(mapping, index->source(),
+               "'" + t.name("pose_index") + "' must be a table, e.g. { column = \"pose\" }");
+    const TomlTable idx(*index->as_table(), mapping, prefix + "pose_index.", {"column"});
+    add_ref(file, idx, "column", idx.require("column"));
+    file.has_index = true;
   }
   if (t.find("time_offset_s") != nullptr) {
     file.time_offset_s = t.number(t.require("time_offset_s"), "time_offset_s");
@@ -601,6 +618,15 @@ Mapping read_mapping(const fs::path& mapping, bool rig_given) {
   for (const FileSpec& file : m.files)
     if (file.has_time) timed = &file;
   for (const FileSpec& file : m.files) {
+    if (file.has_index == m.files.front().has_index || file.has_time) continue;
+    const FileSpec& with = file.has_index ? file : m.files.front();
+    const FileSpec& without = file.has_index ? m.files.front() : file;
+    throw_at(mapping, without.where,
+             "files." + with.name + " has a pose_index and files." + without.name +
+                 " has none: static tables are joined by pose index (every file names its "
+                 "pose column) or row by row (none does)");
+  }
+  for (const FileSpec& file : m.files) {
     if (file.has_time || timed == nullptr) continue;
     throw_at(mapping, file.where,
              "files." + file.name + " has no 'time' but files." + timed->name +
@@ -736,6 +762,7 @@ Series read_series(FileSpec& spec, const fs::path& mapping) {
   const std::size_t num_cells = cells.size();
   // Without a header the line just read is the first data row.
   bool pending_row = !spec.header;
+  std::unordered_map<double, int> index_lines;  // pose index -> its line (has_index)
 
   Series series;
   std::vector<double> raw(spec.refs.size());
@@ -765,8 +792,22 @@ Series read_series(FileSpec& spec, const fs::path& mapping) {
       const std::string why = detail::number_error(status, unquote(cell.text), spec.refs[j].name);
       throw InputError(spec.path, n, detail::char_column(line, cell.offset), why);
     }
-    const double t = spec.has_time ? raw[0] * spec.time_scale + spec.time_offset_s
-                                   : static_cast<double>(series.t.size());
+    const double t = spec.has_time    ? raw[0] * spec.time_scale + spec.time_offset_s
+                     : spec.has_index ? raw[0]
+                                      : static_cast<double>(series.t.size());
+    if (spec.has_index) {
+      const int column = detail::char_column(line, cells[spec.refs[0].cell].offset);
+      if (t != std::floor(t))
+        throw InputError(
+            spec.path, n, column,
+            "pose index " + num(t) + " (column '" + spec.refs[0].name + "') is not a whole number");
+      const auto [seen, fresh] = index_lines.emplace(t, n);
+      if (!fresh)
+        throw InputError(spec.path, n, column,
+                         "pose index " + num(t) + " (column '" + spec.refs[0].name +
+                             "') is at line " + std::to_string(seen->second) +
+                             " already: each pose once per file");
+    }
     if (spec.has_time && !series.t.empty() && !(t > series.t.back())) {
       throw InputError(spec.path, n, detail::char_column(line, cells[spec.refs[0].cell].offset),
                        std::string("time ") +
@@ -811,6 +852,48 @@ Series read_series(FileSpec& spec, const fs::path& mapping) {
                      spec.header ? "no data rows after the header" : "no data rows");
   }
   return series;
+}
+
+// Keeps `rows` of a series (in that order), renumbering them 0, 1, … (a static table's time).
+void select_rows(Series& s, const std::vector<std::size_t>& rows) {
+  const std::size_t old_rows = s.t.size();
+  for (auto& v : s.values) {
+    if (v.empty()) continue;
+    const std::size_t width = v.size() / old_rows;
+    std::vector<double> kept;
+    kept.reserve(rows.size() * width);
+    for (std::size_t r : rows)
+      kept.insert(kept.end(), v.begin() + r * width, v.begin() + (r + 1) * width);
+    v = std::move(kept);
+  }
+  s.t.resize(rows.size());
+  for (std::size_t i = 0; i < rows.size(); ++i) s.t[i] = static_cast<double>(i);
+}
+
+// Static tables joined by pose index: the master's rows in its order, each other file's row with
+// the same index beside it. A master row whose index another file lacks is dropped (counted for
+// that file), as are other files' rows whose index the master lacks (counted, not used).
+void join_by_pose_index(std::vector<Series>& series, ImportReport& report) {
+  std::vector<std::unordered_map<double, std::size_t>> row_of(series.size());
+  for (std::size_t f = 1; f < series.size(); ++f)
+    for (std::size_t j = 0; j < series[f].t.size(); ++j) row_of[f].emplace(series[f].t[j], j);
+  std::vector<std::vector<std::size_t>> keep(series.size());
+  for (std::size_t i = 0; i < series.front().t.size(); ++i) {
+    bool all = true;
+    for (std::size_t f = 1; f < series.size(); ++f) {
+      if (row_of[f].count(series.front().t[i]) != 0) continue;
+      ++report.files[f].master_rows_unmatched;
+      all = false;
+    }
+    if (!all) continue;
+    keep.front().push_back(i);
+    for (std::size_t f = 1; f < series.size(); ++f)
+      keep[f].push_back(row_of[f].at(series.front().t[i]));
+  }
+  for (std::size_t f = 0; f < series.size(); ++f) {
+    if (f > 0) report.files[f].rows_unused = series[f].t.size() - keep[f].size();
+    select_rows(series[f], keep[f]);
+  }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1182,8 +1265,11 @@ ImportResult import_recordings(const fs::path& mapping_path,
     r.time_offset_s = f.time_offset_s;
     result.report.files.push_back(r);
   }
-  // A static table split over files: row i of each file is pose i.
-  if (!mapping.files.front().has_time) {
+  // A static table split over files: row i of each file is pose i, or the rows with the same
+  // pose index.
+  if (!mapping.files.front().has_time && mapping.files.front().has_index)
+    join_by_pose_index(series, result.report);
+  else if (!mapping.files.front().has_time) {
     for (std::size_t f = 1; f < series.size(); ++f) {
       if (series[f].t.size() == series.front().t.size()) continue;
       throw InputError(mapping.files[f].path, 0, 0,
@@ -1193,9 +1279,12 @@ ImportResult import_recordings(const fs::path& mapping_path,
                            mapping.files.front().path.filename().string() + ") " +
                            std::to_string(series.front().t.size()) +
                            ": a static table split over files without time is joined row by row, "
-                           "so every file needs one row per pose, in the same order");
+                           "so every file needs one row per pose, in the same order (or give "
+                           "each file pose_index = { column = … } to join by a pose number)");
     }
   }
+  if (!mapping.files.front().has_time && mapping.files.front().has_index)
+    result.report.pose_index = mapping.files.front().refs[0].name;
 
   // The rig.
   Log& log = result.log;
@@ -1282,7 +1371,7 @@ ImportResult import_recordings(const fs::path& mapping_path,
   const Eigen::Matrix3d R_sensor_imu = log.rig.sensor_imu.q.normalized().toRotationMatrix();
 
   const std::vector<double>& t_master = series.front().t;
-  result.report.master_rows = t_master.size();
+  result.report.master_rows = result.report.files.front().rows_read;  // before a pose join
   std::vector<Bracket> brackets(mapping.files.size());
   std::vector<std::size_t> cursor(mapping.files.size(), 0);
   log.samples.reserve(t_master.size());
@@ -1473,8 +1562,24 @@ std::string ImportReport::summary() const {
                   rows_out);
     out += buffer;
     for (std::size_t f = 1; f < files.size(); ++f) {
-      std::snprintf(buffer, sizeof buffer, "  joined row by row with '%s' (%s, %zu rows)\n",
-                    files[f].name.c_str(), files[f].path.filename().c_str(), files[f].rows_read);
+      if (pose_index.empty()) {
+        std::snprintf(buffer, sizeof buffer, "  joined row by row with '%s' (%s, %zu rows)\n",
+                      files[f].name.c_str(), files[f].path.filename().c_str(), files[f].rows_read);
+      } else {
+        std::snprintf(buffer, sizeof buffer,
+                      "  joined by pose index ('%s') with '%s' (%s, %zu rows): %zu master rows "
+                      "dropped (their pose not in it), %zu of its rows not used (their pose not "
+                      "in the master)\n",
+                      pose_index.c_str(), files[f].name.c_str(), files[f].path.filename().c_str(),
+                      files[f].rows_read, files[f].master_rows_unmatched, files[f].rows_unused);
+      }
+      out += buffer;
+    }
+    if (!pose_index.empty()) {
+      std::snprintf(buffer, sizeof buffer,
+                    "rows out: %zu of %zu master rows, in the master's order (log row i is its "
+                    "i-th kept pose)\n",
+                    rows_out, master_rows);
       out += buffer;
     }
     if (!rig_source.empty()) out += "rig: " + rig_source + "\n";

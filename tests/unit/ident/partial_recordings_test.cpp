@@ -284,6 +284,81 @@ TEST(StaticTable, SplitOverTwoFilesIsJoinedRowByRow) {
   fs::remove_all(dir);
 }
 
+TEST(StaticTable, SplitByPoseIndexIsJoinedByIt) {
+  // The wrench file numbers its poses 1..15 in order but pose 9 failed (no wrench); the pose file
+  // lists all 15 in another order. Joined by the index: 14 rows, each with its own pose.
+  const auto points = appendix_c_points();
+  const fs::path dir = fresh_dir("pose_index");
+  const sim::RigSimulator simulator(sim::default_sim_config(5));
+  const std::string table = static_table(simulator, points, 5);
+  const io::Log whole = import_table(dir, table);
+  std::vector<std::string> wrench, pose;
+  std::istringstream in(table);
+  for (std::string line; std::getline(in, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    std::size_t cut = 0;
+    for (int k = 0; k < 6; ++k) cut = line.find(", ", cut) + 2;
+    const std::string index = std::to_string(wrench.size() + 1);
+    wrench.push_back(index + ", " + line.substr(0, cut - 2) + "\n");
+    pose.push_back(line.substr(cut) + ", " + index + "\n");
+  }
+  ASSERT_EQ(wrench.size(), 15u);
+  std::string wrench_text = "pose, fx, fy, fz, tx, ty, tz\n", pose_text;
+  for (std::size_t i = 0; i < wrench.size(); ++i)
+    if (i != 8) wrench_text += wrench[i];
+  const std::size_t order[] = {14, 3, 0, 7, 8, 1, 12, 5, 10, 2, 13, 6, 4, 11, 9};
+  for (std::size_t i : order) pose_text += pose[i];
+  write_text(dir / "wrench.csv", wrench_text);
+  write_text(dir / "pose.csv", pose_text);
+  const std::string mapping =
+      "format = \"zerog-import\"\nversion = 1\nrig_file = \"rig.rig.toml\"\nmaster = \"ft\"\n\n"
+      "[files.ft]\npath = \"wrench.csv\"\ndelimiter = \", \"\npose_index = { column = \"pose\" }\n"
+      "force = { columns = [\"fx\", \"fy\", \"fz\"], unit = \"N\" }\n"
+      "torque = { columns = [\"tx\", \"ty\", \"tz\"], unit = \"N*m\" }\n\n"
+      "[files.pose]\npath = \"pose.csv\"\nheader = false\ndelimiter = \", \"\n"
+      "pose_index = { column = 13 }\n"
+      "orientation = { type = \"matrix\", columns = [1, 2, 3, 4, 5, 6, 7, 8, 9] }\n"
+      "specific_force = { columns = [10, 11, 12], unit = \"g\" }\n";
+  write_text(dir / "split.toml", mapping);
+  const io::ImportResult joined = io::import_recordings(dir / "split.toml");
+  ASSERT_TRUE(joined.log.columns.static_rows);
+  ASSERT_EQ(joined.log.samples.size(), 14u);
+  for (std::size_t i = 0; i < 14; ++i) {
+    const io::Sample& want = whole.samples[i < 8 ? i : i + 1];
+    const io::Sample& got = joined.log.samples[i];
+    EXPECT_EQ(got.t_s, static_cast<double>(i));
+    EXPECT_EQ(got.force_sensor_N, want.force_sensor_N) << i;
+    // The same rotation (a quaternion up to sign: the reader keeps neighbours in one
+    // hemisphere, and the rows came in another order).
+    EXPECT_LT(std::min((got.q_base_sensor.coeffs() - want.q_base_sensor.coeffs()).norm(),
+                       (got.q_base_sensor.coeffs() + want.q_base_sensor.coeffs()).norm()),
+              1e-12)
+        << i;
+    EXPECT_LT((got.specific_force_imu_mps2 - want.specific_force_imu_mps2).norm(), 1e-12) << i;
+  }
+  EXPECT_THAT(joined.report.summary(),
+              AllOf(HasSubstr("joined by pose index ('pose') with 'pose'"),
+                    HasSubstr("0 master rows dropped"), HasSubstr("1 of its rows not used"),
+                    HasSubstr("rows out: 14 of 14 master rows")));
+
+  // A pose twice in a file, a fractional index, an index in one file only: refused, saying where.
+  write_text(dir / "pose.csv", pose_text + pose[3]);
+  EXPECT_THAT(
+      [&] { (void)io::import_recordings(dir / "split.toml"); },
+      ::testing::ThrowsMessage<io::InputError>(AllOf(
+          HasSubstr("pose.csv:16:"), HasSubstr("pose index 4"), HasSubstr("at line 2 already"))));
+  write_text(dir / "pose.csv", pose_text.substr(0, pose_text.rfind(", ")) + ", 10.5\n");
+  EXPECT_THAT([&] { (void)io::import_recordings(dir / "split.toml"); },
+              ::testing::ThrowsMessage<io::InputError>(HasSubstr("is not a whole number")));
+  std::string half = mapping;
+  half.erase(half.find("pose_index = { column = 13 }\n"), 29);
+  write_text(dir / "half.toml", half);
+  EXPECT_THAT([&] { (void)io::import_recordings(dir / "half.toml"); },
+              ::testing::ThrowsMessage<io::InputError>(
+                  HasSubstr("files.ft has a pose_index and files.pose has none")));
+  fs::remove_all(dir);
+}
+
 TEST(StaticTable, ToolChangeFromTheTable) {
   // The sensor model (bias) is known, e.g. from a calibration run: here the simulator's truth.
   // A new tool of 60 kg is held through the 15 attitudes; only its gravity is re-identified.

@@ -553,6 +553,24 @@ TEST_F(RigReadTest, ImuSamplingTable) {
   expect_error(kRig + "\n[imu_sampling]\ngyro_noise_radps = -1.0\n", 17, 20, "must be >= 0");
 }
 
+// row_order (issue 25): optional, "recorded" by default and then not written; "unknown" reads
+// back; anything else names the key.
+TEST_F(RigReadTest, RowOrder) {
+  write_text(path("r.rig.toml"), kRig);
+  EXPECT_TRUE(read_rig(path("r.rig.toml")).rows_in_recorded_order);
+  write_rig(read_rig(path("r.rig.toml")), path("w.rig.toml"));
+  EXPECT_EQ(read_text(path("w.rig.toml")).find("row_order"), std::string::npos);
+  write_text(path("u.rig.toml"), replace(kRig, "ft_rate_hz = 1000.0\n",
+                                         "ft_rate_hz = 1000.0\nrow_order = \"unknown\"\n"));
+  const Rig unordered = read_rig(path("u.rig.toml"));
+  EXPECT_FALSE(unordered.rows_in_recorded_order);
+  write_rig(unordered, path("v.rig.toml"));
+  EXPECT_FALSE(read_rig(path("v.rig.toml")).rows_in_recorded_order);
+  expect_error(
+      replace(kRig, "ft_rate_hz = 1000.0\n", "ft_rate_hz = 1000.0\nrow_order = \"sorted\"\n"), 7,
+      13, "must be \"recorded\"");
+}
+
 // ---- atomic writing -------------------------------------------------------------------------
 
 using AtomicWriteTest = test::TempDirTest;

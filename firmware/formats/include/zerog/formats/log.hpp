@@ -110,6 +110,10 @@ struct Rig {
   double ft_rate_hz = 0.0;         ///< native F/T rate, 0 if unknown
   double imu_rate_hz = 0.0;        ///< native IMU rate, 0 if unknown
   double floor_z_m = 0.0;          ///< floor height in the base frame (for designs), m
+  /// A table's rows (no t_s) are in the order they were recorded (`row_order = "recorded"`, the
+  /// default: the row index is their time order), or not (`"unknown"`: sorted, merged, shuffled;
+  /// then nothing may drift over them).
+  bool rows_in_recorded_order = true;
 };
 
 /// Which optional column groups the log has. Initialise by name (`Columns{.joints = true}`).

@@ -35,6 +35,8 @@ struct Dataset {
   /// How the IMU rows were formed and their noise, as the rig says (point samples or means;
   /// FitOptions::errors_in_variables).
   io::ImuSampling imu_sampling;
+  /// The rig's row_order: a table's rows in the order recorded (their index is their time).
+  bool rows_in_recorded_order = true;
   double dt_s = 0.012;  ///< mean row period (IMU time shifts interpolate on this grid)
   Column<double> t_s;
   /// Sensor attitude in base, the logged quaternion normalised. Stored rather than the matrix

@@ -29,6 +29,10 @@ struct ImportFileReport {
   std::size_t master_rows_before = 0;  ///< master time before this file's first sample
   std::size_t master_rows_after = 0;   ///< master time after this file's last sample
   std::size_t master_rows_in_gap = 0;  ///< between two samples further apart than max_gap_s
+  /// A static table joined by pose index: master rows whose index this file lacks, and this
+  /// file's rows whose index the master lacks (not used).
+  std::size_t master_rows_unmatched = 0;
+  std::size_t rows_unused = 0;
 };
 
 /// The summary of an import: rows in and out per file, rows dropped and why.
@@ -37,6 +41,7 @@ struct ImportReport {
   std::size_t master_rows = 0;          ///< rows of the master file
   std::size_t rows_out = 0;             ///< rows of the log (master rows covered by every file)
   bool static_rows = false;             ///< no time column: rows are static samples
+  std::string pose_index;               ///< static files joined by this column ("" = row by row)
   std::string rig_source;               ///< where the rig came from, for the summary
   /// What the mapped joints fed (the pose, the kinematics) and whether the log holds them (only
   /// with 6 joints: q1_rad..q6_rad), for the summary.
