@@ -103,6 +103,26 @@ P_TOOL_FT = (0.01, -0.02, 0.06)
 NAMES = ["joint_a3", "joint_a1", "gripper", "joint_a2", "joint_a6", "joint_a5", "joint_a4"]
 
 
+def wrench_msg(r, frame):
+    """The log row's wrench as geometry_msgs/WrenchStamped in `frame`."""
+    return M["geometry_msgs/msg/WrenchStamped"](
+        header=header(r["t_s"], frame),
+        wrench=M["geometry_msgs/msg/Wrench"](force=vec(r["Fx_N"], r["Fy_N"], r["Fz_N"]),
+                                             torque=vec(r["Mx_Nm"], r["My_Nm"], r["Mz_Nm"])))
+
+
+def imu_msg(r, frame):
+    """The log row's IMU columns as sensor_msgs/Imu in `frame` (no orientation)."""
+    cov = np.zeros(9)
+    return M["sensor_msgs/msg/Imu"](
+        header=header(r["t_s"], frame), orientation=quat((0.0, 0.0, 0.0, 1.0)),
+        orientation_covariance=cov,
+        angular_velocity=vec(r["imu_wx_radps"], r["imu_wy_radps"], r["imu_wz_radps"]),
+        angular_velocity_covariance=cov,
+        linear_acceleration=vec(r["imu_fx_mps2"], r["imu_fy_mps2"], r["imu_fz_mps2"]),
+        linear_acceleration_covariance=cov)
+
+
 def write_bag(path, plugin, rows):
     with Writer(path, version=8, storage_plugin=plugin) as w:
         c_ft = w.add_connection("/ft", "geometry_msgs/msg/WrenchStamped", typestore=TS)
@@ -119,21 +139,10 @@ def write_bag(path, plugin, rows):
             transform=M["geometry_msgs/msg/Transform"](translation=vec(*P_TOOL_FT),
                                                        rotation=quat(Q_TOOL_FT)))
         put(c_st, rows[0]["t_s"], M["tf2_msgs/msg/TFMessage"](transforms=[static]))
-        cov = np.zeros(9)
         for r in rows:
             t = r["t_s"]
-            put(c_ft, t, M["geometry_msgs/msg/WrenchStamped"](
-                header=header(t, "ft_sensor"),
-                wrench=M["geometry_msgs/msg/Wrench"](force=vec(r["Fx_N"], r["Fy_N"], r["Fz_N"]),
-                                                     torque=vec(r["Mx_Nm"], r["My_Nm"],
-                                                                r["Mz_Nm"]))))
-            put(c_imu, t, M["sensor_msgs/msg/Imu"](
-                header=header(t, "ft_sensor"), orientation=quat((0.0, 0.0, 0.0, 1.0)),
-                orientation_covariance=cov,
-                angular_velocity=vec(r["imu_wx_radps"], r["imu_wy_radps"], r["imu_wz_radps"]),
-                angular_velocity_covariance=cov,
-                linear_acceleration=vec(r["imu_fx_mps2"], r["imu_fy_mps2"], r["imu_fz_mps2"]),
-                linear_acceleration_covariance=cov))
+            put(c_ft, t, wrench_msg(r, "ft_sensor"))
+            put(c_imu, t, imu_msg(r, "ft_sensor"))
             q = {f"joint_a{k}": r[f"q{k}_rad"] for k in range(1, 7)}
             q["gripper"] = 0.01
             put(c_js, t, M["sensor_msgs/msg/JointState"](
@@ -247,21 +256,10 @@ def write_joint_bag(path, rows, names, joints_of, with_tf=True):
         if with_tf:
             put(c_st, rows[0]["t_s"], M["tf2_msgs/msg/TFMessage"](
                 transforms=[fixed("/tool0", "ft_sensor"), fixed("tool0", "/imu_link")]))
-        cov = np.zeros(9)
         for r in rows:
             t = r["t_s"]
-            put(c_ft, t, M["geometry_msgs/msg/WrenchStamped"](
-                header=header(t, "/ft_sensor"),
-                wrench=M["geometry_msgs/msg/Wrench"](force=vec(r["Fx_N"], r["Fy_N"], r["Fz_N"]),
-                                                     torque=vec(r["Mx_Nm"], r["My_Nm"],
-                                                                r["Mz_Nm"]))))
-            put(c_imu, t, M["sensor_msgs/msg/Imu"](
-                header=header(t, "imu_link"), orientation=quat((0.0, 0.0, 0.0, 1.0)),
-                orientation_covariance=cov,
-                angular_velocity=vec(r["imu_wx_radps"], r["imu_wy_radps"], r["imu_wz_radps"]),
-                angular_velocity_covariance=cov,
-                linear_acceleration=vec(r["imu_fx_mps2"], r["imu_fy_mps2"], r["imu_fz_mps2"]),
-                linear_acceleration_covariance=cov))
+            put(c_ft, t, wrench_msg(r, "/ft_sensor"))
+            put(c_imu, t, imu_msg(r, "imu_link"))
             q = joints_of(r)
             put(c_js, t, M["sensor_msgs/msg/JointState"](
                 header=header(t, ""), name=names, position=np.array([q[n] for n in names]),

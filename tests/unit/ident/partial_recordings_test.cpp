@@ -219,6 +219,20 @@ TEST(StaticTable, BiasAndGravityFromTheTableOnSeveralSeeds) {
 // in one, the poses and accelerations in the other, as many cells record them. Joined, it is the
 // one-file table; a file with a row missing, or one file with time and one without, is refused
 // with a message that says what would make it work.
+// The table's data lines (comments dropped) cut after the sixth cell: the wrench part and the
+// pose part (orientation matrix and specific force) of each row.
+std::vector<std::pair<std::string, std::string>> split_rows(const std::string& table) {
+  std::vector<std::pair<std::string, std::string>> rows;
+  std::istringstream in(table);
+  for (std::string line; std::getline(in, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    std::size_t cut = 0;
+    for (int k = 0; k < 6; ++k) cut = line.find(", ", cut) + 2;
+    rows.emplace_back(line.substr(0, cut - 2), line.substr(cut));
+  }
+  return rows;
+}
+
 TEST(StaticTable, SplitOverTwoFilesIsJoinedRowByRow) {
   const auto points = appendix_c_points();
   const fs::path dir = fresh_dir("split");
@@ -227,13 +241,9 @@ TEST(StaticTable, SplitOverTwoFilesIsJoinedRowByRow) {
   const io::Log whole = import_table(dir, table);
   // Cells 1-6 into wrench.csv, 7-18 into pose.csv (the comment line dropped: headerless).
   std::string wrench, pose;
-  std::istringstream in(table);
-  for (std::string line; std::getline(in, line);) {
-    if (line.empty() || line[0] == '#') continue;
-    std::size_t cut = 0;
-    for (int k = 0; k < 6; ++k) cut = line.find(", ", cut) + 2;
-    wrench += line.substr(0, cut - 2) + "\n";
-    pose += line.substr(cut) + "\n";
+  for (const auto& [w, p] : split_rows(table)) {
+    wrench += w + "\n";
+    pose += p + "\n";
   }
   write_text(dir / "wrench.csv", wrench);
   write_text(dir / "pose.csv", pose);
@@ -293,14 +303,10 @@ TEST(StaticTable, SplitByPoseIndexIsJoinedByIt) {
   const std::string table = static_table(simulator, points, 5);
   const io::Log whole = import_table(dir, table);
   std::vector<std::string> wrench, pose;
-  std::istringstream in(table);
-  for (std::string line; std::getline(in, line);) {
-    if (line.empty() || line[0] == '#') continue;
-    std::size_t cut = 0;
-    for (int k = 0; k < 6; ++k) cut = line.find(", ", cut) + 2;
+  for (const auto& [w, p] : split_rows(table)) {
     const std::string index = std::to_string(wrench.size() + 1);
-    wrench.push_back(index + ", " + line.substr(0, cut - 2) + "\n");
-    pose.push_back(line.substr(cut) + ", " + index + "\n");
+    wrench.push_back(index + ", " + w + "\n");
+    pose.push_back(p + ", " + index + "\n");
   }
   ASSERT_EQ(wrench.size(), 15u);
   std::string wrench_text = "pose, fx, fy, fz, tx, ty, tz\n", pose_text;
