@@ -31,6 +31,7 @@ struct SimArgs {
   std::string effects;
   bool point_mass = false;
   bool no_noise = false;
+  bool real_robot = false;
   std::vector<std::string> sets;
   std::vector<std::string> contacts;
   std::uint64_t seed = 1;
@@ -71,6 +72,7 @@ sim::SimConfig make_config(const SimArgs& a) {
   c.effects = sim::parse_sim_effects(a.effects);
   if (a.point_mass) c.effects.remove(sim::SimEffect::rotational_inertia);
   if (a.no_noise) c.noise = sim::NoiseConfig::none();
+  if (a.real_robot) sim::make_real_robot(c, !a.no_noise);
   c.period_s = a.period_s;
   c.dwell_s = a.dwell_s;
   c.speed_fraction = a.speed_fraction;
@@ -209,6 +211,11 @@ void add_sim_command(CLI::App& app) {
   cmd->add_flag("--point-mass", args->point_mass,
                 "payload as a point mass (no rotational inertia)");
   cmd->add_flag("--no-noise", args->no_noise, "no sensor noise and no quantisation");
+  cmd->add_flag("--real-robot", args->real_robot,
+                "a robot that is not rigid (proto/sim_robot.md): elastic joints of a KR 210 "
+                "class arm, encoder quantisation of the logged joints, the STIM300's bias "
+                "instability (the last two not with --no-noise); --set elastic.*, noise.encoder, "
+                "noise.*_bias change them");
   cmd->add_option("--set", args->sets,
                   "override a value, KEY=VALUE, e.g. imu_time_offset.tau=0.01 (repeatable; keys: "
                   "--list-effects)");

@@ -94,6 +94,17 @@ std::vector<Binding> bindings(SimConfig& c) {
   b.push_back({"noise.accel", &c.noise.accel_mps2});
   b.push_back({"noise.gyro", &c.noise.gyro_radps});
   b.push_back({"noise.ft_ar1", &c.noise.ft_ar1});
+  b.push_back({"noise.encoder", &c.noise.encoder_rad});
+  b.push_back({"noise.gyro_bias", &c.noise.gyro_bias_radps});
+  b.push_back({"noise.accel_bias", &c.noise.accel_bias_mps2});
+  b.push_back({"noise.imu_bias_tau", &c.noise.imu_bias_tau_s});
+  for (std::size_t i = 0; i < 6; ++i) {
+    JointElasticity& j = c.elastic.joints[i];
+    const std::string a = std::to_string(i + 1);
+    b.push_back({"elastic.k" + a, &j.stiffness_Nm_per_rad});
+    b.push_back({"elastic.f" + a, &j.mode_hz});
+    b.push_back({"elastic.zeta" + a, &j.damping_ratio});
+  }
   b.push_back({"joint6_friction.torque", &c.joint6_friction_Nm});
   b.push_back({"joint6_friction.rate", &c.joint6_friction_rate_radps});
   b.push_back({"swivel_viscous.damping", &c.swivel_damping_Nms_per_rad});
@@ -265,6 +276,14 @@ SimConfig default_sim_config(std::uint64_t seed) {
   return c;
 }
 
+void make_real_robot(SimConfig& config, bool sensors) {
+  config.elastic = kr210_elasticity();
+  if (!sensors) return;
+  config.noise.encoder_rad = kRsiJointResolutionRad;
+  config.noise.gyro_bias_radps = kStim300GyroBiasInstabilityRadps;
+  config.noise.accel_bias_mps2 = kStim300AccelBiasInstabilityMps2;
+}
+
 void set_config_value(SimConfig& config, const std::string& key, double value) {
   if (!std::isfinite(value)) throw std::invalid_argument("--set " + key + ": value must be finite");
   if (key == "noise.quantize") {
@@ -273,6 +292,14 @@ void set_config_value(SimConfig& config, const std::string& key, double value) {
   }
   if (key == "noise.imu_point_rows") {
     config.noise.imu_point_rows = value != 0.0;
+    return;
+  }
+  if (key == "elastic.on") {  // the KR 210 defaults, unless joints were set already
+    config.elastic.enabled = value != 0.0;
+    bool any = false;
+    for (const JointElasticity& j : config.elastic.joints)
+      any = any || j.stiffness_Nm_per_rad > 0.0;
+    if (config.elastic.enabled && !any) config.elastic.joints = kr210_elasticity().joints;
     return;
   }
   for (const Binding& b : bindings(config)) {
@@ -289,8 +316,8 @@ void set_config_value(SimConfig& config, const std::string& key, double value) {
       known += (known.empty() ? "" : ", ") + group + ".*";
   }
   throw std::invalid_argument("unknown --set key '" + key + "' (groups: " + known +
-                              ", noise.quantize, noise.imu_point_rows; --list-effects prints "
-                              "every key)");
+                              ", noise.quantize, noise.imu_point_rows, elastic.on; --list-effects "
+                              "prints every key)");
 }
 
 std::vector<std::pair<std::string, double>> config_values(const SimConfig& config) {
@@ -299,6 +326,7 @@ std::vector<std::pair<std::string, double>> config_values(const SimConfig& confi
   for (const Binding& b : bindings(copy)) out.emplace_back(b.key, *b.value);
   out.emplace_back("noise.quantize", config.noise.quantize ? 1.0 : 0.0);
   out.emplace_back("noise.imu_point_rows", config.noise.imu_point_rows ? 1.0 : 0.0);
+  out.emplace_back("elastic.on", config.elastic.enabled ? 1.0 : 0.0);
   return out;
 }
 
@@ -401,6 +429,26 @@ io::ModelFile RigSimulator::truth() const {
                 {"accel_mps2", c.noise.accel_mps2}, {"gyro_radps", c.noise.gyro_radps},
                 {"quantize", c.noise.quantize},     {"resolution", kOmega191Resolution},
                 {"ft_ar1", c.noise.ft_ar1}};
+  // Only when on: truth files of the rigid robot stay as before.
+  if (c.noise.encoder_rad > 0.0) x["noise"]["encoder_rad"] = c.noise.encoder_rad;
+  if (c.noise.gyro_bias_radps > 0.0 || c.noise.accel_bias_mps2 > 0.0)
+    x["noise"]["imu_bias"] = {{"gyro_radps", c.noise.gyro_bias_radps},
+                              {"accel_mps2", c.noise.accel_bias_mps2},
+                              {"tau_s", c.noise.imu_bias_tau_s},
+                              {"process", "first-order Gauss-Markov per axis"}};
+  if (c.elastic.enabled) {
+    nlohmann::json joints = nlohmann::json::array();
+    for (const JointElasticity& j : c.elastic.joints)
+      joints.push_back({{"stiffness_Nm_per_rad", j.stiffness_Nm_per_rad},
+                        {"mode_hz", j.mode_hz},
+                        {"damping_ratio", j.damping_ratio}});
+    x["elastic_robot"] = {
+        {"joints", joints},
+        {"model",
+         "link = motor + deflection; deflection'' = w^2 (tau/k - deflection) - 2 zeta w "
+         "deflection' - motor'' per joint (host/sim/include/zerog/sim/elastic.hpp); the log's "
+         "joints and pose are the motor side, the clean log's the link side"}};
+  }
   x["outside_model"]["joint6_friction"] = {
       {"enabled", c.effects.has(SimEffect::joint6_friction)},
       {"torque_Nm", c.joint6_friction_Nm},
@@ -655,6 +703,57 @@ Contact parse_contact(const std::string& text) {
   return c;
 }
 
+namespace {
+
+// The pose the controller reports for joint angles q: nominal kinematics, nominal mounting.
+void set_nominal_pose(io::Sample& s, const JointVector& q, const SimConfig& c) {
+  const FlangePose fp = forward_kinematics(q);
+  s.p_base_sensor_m = fp.p_base_flange_m + fp.R_base_flange * c.p_flange_sensor_m;
+  s.q_base_sensor = Eigen::Quaterniond(fp.R_base_flange).normalized();
+  if (s.q_base_sensor.w() < 0.0) s.q_base_sensor.coeffs() *= -1.0;
+}
+
+// The payload's load on the joints (elastic.hpp): its weight at its centre of mass, as a force
+// in B and a moment about the flange origin. Its inertia is not a load here: it is part of each
+// link's effective inertia k/ω² (counting it again, 12 ms late, would feed the ringing back).
+JointVector payload_load(const JointVector& link_q_rad, const Measurement& m, const SimConfig& c) {
+  const Eigen::Vector3d lever =
+      m.flange.R_base_flange * c.p_flange_sensor_m + m.R_base_sensor * c.payload.com_sensor_m;
+  const Eigen::Vector3d force(0.0, 0.0, -model::kStandardGravity * c.payload.mass_kg);
+  // The flange Jacobian at the link angles that gave this measurement's flange pose.
+  return joint_torques(link_q_rad, force, lever.cross(force));
+}
+
+// IMU bias instability per axis: b_k = a b_{k−1} + σ sqrt(1 − a²) ε, a = exp(−T/τ), started from
+// its stationary distribution (a random turn-on value of the same σ).
+struct ImuBias {
+  ImuBias(const NoiseConfig& n, double period_s, detail::Rng& rng)
+      : a_(n.imu_bias_tau_s > 0.0 ? std::exp(-period_s / n.imu_bias_tau_s) : 1.0),
+        gyro_sigma_(n.gyro_bias_radps),
+        accel_sigma_(n.accel_bias_mps2),
+        rng_(rng) {
+    for (int i = 0; i < 3; ++i) {
+      gyro_radps[i] = gyro_sigma_ > 0.0 ? gyro_sigma_ * rng_.normal() : 0.0;
+      accel_mps2[i] = accel_sigma_ > 0.0 ? accel_sigma_ * rng_.normal() : 0.0;
+    }
+  }
+  void step() {
+    const double g = std::sqrt(1.0 - a_ * a_);
+    for (int i = 0; i < 3; ++i) {
+      if (gyro_sigma_ > 0.0) gyro_radps[i] = a_ * gyro_radps[i] + gyro_sigma_ * g * rng_.normal();
+      if (accel_sigma_ > 0.0) accel_mps2[i] = a_ * accel_mps2[i] + accel_sigma_ * g * rng_.normal();
+    }
+  }
+  Eigen::Vector3d gyro_radps = Eigen::Vector3d::Zero();
+  Eigen::Vector3d accel_mps2 = Eigen::Vector3d::Zero();
+
+ private:
+  double a_, gyro_sigma_, accel_sigma_;
+  detail::Rng& rng_;
+};
+
+}  // namespace
+
 SimOutput RigSimulator::run(const std::function<void(double)>& progress) const {
   const SimConfig& c = config_;
   double t_end = trajectory_.duration_s();
@@ -702,17 +801,33 @@ SimOutput RigSimulator::run(const std::function<void(double)>& progress) const {
   std::array<double, 6> ft_noise{};  // AR(1) state per axis (white when ft_ar1 is 0)
   const double ar1_gain = std::sqrt(1.0 - c.noise.ft_ar1 * c.noise.ft_ar1);
   const std::size_t report_every = std::max<std::size_t>(n / 20, 1);
+  // A robot that is not rigid (elastic.hpp): the payload moves with the link side, the encoders
+  // and the controller's pose report the motor side.
+  ElasticArm arm(c.elastic);
+  JointVector load{};
+  if (c.elastic.enabled) {
+    const JointState start = trajectory_.at(0.0);
+    for (int pass = 0; pass < 3; ++pass) {  // the static sag under the load it changes
+      JointState link = start;
+      for (std::size_t i = 0; i < 6; ++i) link.q_rad[i] += arm.deflection_rad()[i];
+      load = payload_load(link.q_rad, measure(link, 0.0), c);
+      arm.settle(0.0, load);
+    }
+  }
+  // IMU bias instability: a first-order Gauss–Markov process per axis (NoiseConfig).
+  ImuBias bias(c.noise, c.period_s, noise);
   for (std::size_t k = 0; k < n; ++k) {
     const double t = static_cast<double>(k) * c.period_s;
     io::Sample s;
     s.t_s = t;
-    const JointState js = trajectory_.at(t);
-    s.joints_rad = js.q_rad;
-    // Logged pose: what the controller reports, nominal (no tilt, no mounting error).
-    const FlangePose fp = forward_kinematics(js.q_rad);
-    s.p_base_sensor_m = fp.p_base_flange_m + fp.R_base_flange * c.p_flange_sensor_m;
-    s.q_base_sensor = Eigen::Quaterniond(fp.R_base_flange).normalized();
-    if (s.q_base_sensor.w() < 0.0) s.q_base_sensor.coeffs() *= -1.0;
+    const JointState motor = trajectory_.at(t);
+    const JointState js = c.elastic.enabled ? arm.advance(t, trajectory_, load) : motor;
+    s.joints_rad = motor.q_rad;
+    if (c.noise.encoder_rad > 0.0)
+      for (double& q : s.joints_rad) q = c.noise.encoder_rad * std::round(q / c.noise.encoder_rad);
+    // Logged pose: what the controller reports from its encoders, nominal (no tilt, no mounting
+    // error, no elasticity).
+    set_nominal_pose(s, s.joints_rad, c);
 
     // Contacts active at t, each at its shape's share (at most a few: no allocation).
     std::array<ExternalWrench, 8> pushes;
@@ -726,8 +841,17 @@ SimOutput RigSimulator::run(const std::function<void(double)>& progress) const {
       (contact.base_frame ? p.force_base_N : p.force_sensor_N) = force;
       (contact.base_frame ? p.torque_base_Nm : p.torque_sensor_Nm) = torque;
     }
-    const Measurement m = measure(js, trajectory_.at(t - imu_delay_s()), t,
-                                  std::span<const ExternalWrench>(pushes.data(), active));
+    // With elasticity the IMU delay shifts the motor path and keeps the link's deflection at t.
+    JointState js_imu = trajectory_.at(t - imu_delay_s());
+    if (c.elastic.enabled)
+      for (std::size_t i = 0; i < 6; ++i) {
+        js_imu.q_rad[i] += js.q_rad[i] - motor.q_rad[i];
+        js_imu.qd_radps[i] += js.qd_radps[i] - motor.qd_radps[i];
+        js_imu.qdd_radps2[i] += js.qdd_radps2[i] - motor.qdd_radps2[i];
+      }
+    const Measurement m =
+        measure(js, js_imu, t, std::span<const ExternalWrench>(pushes.data(), active));
+    if (c.elastic.enabled) load = payload_load(js.q_rad, m, c);
     Vec6 w = m.wrench_sensor;
     out.stats.max_force_N = std::max(out.stats.max_force_N, w.head<3>().norm());
     out.stats.max_torque_Nm = std::max(out.stats.max_torque_Nm, w.tail<3>().norm());
@@ -744,9 +868,18 @@ SimOutput RigSimulator::run(const std::function<void(double)>& progress) const {
     s.specific_force_imu_mps2 = imu.specific_force_imu_mps2;
     s.angular_rate_imu_radps = imu.angular_rate_imu_radps;
     s.temperature_C = c.temperature.at(t);
-    out.clean_log.samples.push_back(s);  // noise-free signals, the noisy wrench
-    for (int i = 0; i < 3; ++i) s.specific_force_imu_mps2[i] += c.noise.accel_mps2 * noise.normal();
-    for (int i = 0; i < 3; ++i) s.angular_rate_imu_radps[i] += c.noise.gyro_radps * noise.normal();
+    // The clean log: noise-free signals (the link's joints and pose when the robot is elastic),
+    // the noisy wrench.
+    io::Sample& clean = out.clean_log.samples.emplace_back(s);
+    if (c.elastic.enabled || c.noise.encoder_rad > 0.0) {
+      clean.joints_rad = js.q_rad;
+      set_nominal_pose(clean, js.q_rad, c);
+    }
+    bias.step();
+    for (int i = 0; i < 3; ++i)
+      s.specific_force_imu_mps2[i] += c.noise.accel_mps2 * noise.normal() + bias.accel_mps2[i];
+    for (int i = 0; i < 3; ++i)
+      s.angular_rate_imu_radps[i] += c.noise.gyro_radps * noise.normal() + bias.gyro_radps[i];
 
     const double z = lowest_point_z(js.q_rad, ws);
     out.stats.lowest_point_z_m = std::min(out.stats.lowest_point_z_m, z);

@@ -20,6 +20,7 @@
 #include "zerog/io/model_file.hpp"
 #include "zerog/model/effects.hpp"
 #include "zerog/sim/design.hpp"
+#include "zerog/sim/elastic.hpp"
 #include "zerog/sim/trajectory.hpp"
 
 namespace zerog::sim {
@@ -102,6 +103,15 @@ struct NoiseConfig {
   /// their filters and the structure's vibration; the standard deviations of a fit that assumes
   /// white noise are then too small (issue 25).
   double ft_ar1 = 0.0;
+  /// Encoder quantisation of the logged joints (and of the pose the controller reports from
+  /// them), rad; 0: exact.
+  double encoder_rad = 0.0;
+  /// IMU bias instability per axis: a first-order Gauss–Markov process of this standard
+  /// deviation and correlation time, started at a random value of the same σ (a turn-on bias);
+  /// 0: none. The STIM300's datasheet values are in stim300_bias() below.
+  double gyro_bias_radps = 0.0;
+  double accel_bias_mps2 = 0.0;
+  double imu_bias_tau_s = 300.0;
   static NoiseConfig none() { return {0.0, 0.0, 0.0, 0.0, false, false}; }
   /// The defaults with point-sampled IMU rows: one raw 2 kHz STIM300 sample through its 262 Hz
   /// filter, σ = N √(262 π / 2): gyro 9e-4 rad/s, accelerometer 0.024 m/s².
@@ -184,7 +194,23 @@ struct SimConfig {
   /// Contacts during the run (outside the payload model; the truth file lists them in
   /// extra.contacts).
   std::vector<Contact> contacts;
+  /// Joint elasticity (elastic.hpp; off: the rigid robot every run before).
+  ElasticityConfig elastic;
 };
+
+/// KUKA RSI reports the axis angles (AIPos) with 4 decimals of a degree: 1e-4°
+/// (proto/sim_robot.md).
+inline constexpr double kRsiJointResolutionRad = 1e-4 * 3.14159265358979323846 / 180.0;
+/// STIM300 bias instability (Safran datasheet TS1524 rev. 9, as quoted in proto/sim_robot.md):
+/// gyro 0.5 °/h, accelerometer (10 g) 0.05 mg.
+inline constexpr double kStim300GyroBiasInstabilityRadps =
+    0.5 * 3.14159265358979323846 / 180.0 / 3600.0;
+inline constexpr double kStim300AccelBiasInstabilityMps2 = 0.05e-3 * 9.80665;
+
+/// A robot that is not rigid (zerog sim --real-robot, proto/sim_robot.md): the KR 210 class
+/// joint elasticity (kr210_elasticity()), and with `sensors` the logged joints quantised to the
+/// RSI's resolution and the STIM300's bias instability.
+void make_real_robot(SimConfig& config, bool sensors);
 
 /// A configuration with seeded effect magnitudes (each clearly above the noise):
 ///   bias F0 ±(20..60) N, M0 ±(1..5) N·m; base_tilt alpha, beta ±(2..5) mrad;

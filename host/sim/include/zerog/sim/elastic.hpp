@@ -1,0 +1,74 @@
+#pragma once
+// A robot that is not rigid (issue 28): each joint's link follows its motor through a torsional
+// spring and damper, so the payload lags, overshoots and rings after a motion, and sags under
+// its own weight, while the encoders (motor side) report the commanded path.
+//
+// Per joint i, in the controller's joint coordinates (q = motor angle, q + δ = link angle), with
+// the link's effective inertia J_i about the axis taken constant through its natural frequency
+// ω_i = sqrt(k_i / J_i):
+//
+//   J_i (q̈_i + δ̈_i) = −k_i δ_i − d_i δ̇_i + τ_i        (d_i = 2 ζ_i sqrt(k_i J_i))
+//   δ̈_i = ω_i² (τ_i / k_i − δ_i) − 2 ζ_i ω_i δ̇_i − q̈_i
+//
+// τ_i is the payload's load on joint i: τ = Jᵀ(q) w, the flange Jacobian's transpose applied to
+// the wrench the payload's weight exerts on the flange (force in B, moment about the flange
+// origin), i.e. the virtual work of the load over the joint's motion; the payload's inertia is in
+// J_i. At rest δ = τ / k (the static sag).
+// Simplifications (documented in proto/sim_robot.md): the joints are decoupled (no inertia
+// coupling between axes), J_i does not change with the pose, the arm's own weight is not a load
+// (its sag is a fixed function of the pose that the controller's absolute-accuracy calibration
+// absorbs), and the load is taken from the previous row (12 ms earlier).
+//
+// Frames (proto/frames.md): B robot base (inertial), F flange. Not real-time code, allocation-free.
+#include <Eigen/Core>
+#include <array>
+
+#include "zerog/sim/kinematics.hpp"
+#include "zerog/sim/trajectory.hpp"
+
+namespace zerog::sim {
+
+/// One joint's elasticity. stiffness 0: a rigid joint (δ = 0).
+struct JointElasticity {
+  double stiffness_Nm_per_rad = 0.0;  ///< k_i
+  double mode_hz = 0.0;               ///< the link's natural frequency on the joint spring
+  double damping_ratio = 0.0;         ///< ζ_i
+};
+
+struct ElasticityConfig {
+  bool enabled = false;
+  std::array<JointElasticity, 6> joints{};
+  double substep_s = 0.001;  ///< integration step (semi-implicit Euler); ω·dt ≤ 0.1 at 15 Hz
+};
+
+/// The KR 210 R2700 class defaults (proto/sim_robot.md has their sources).
+ElasticityConfig kr210_elasticity();
+
+/// Joint torques (N·m, controller joint coordinates) of a wrench on the flange: τ = Jᵀ w, with
+/// J the flange Jacobian (linear velocity of the flange origin and angular velocity, base axes,
+/// per unit joint rate) by central differences of forward_kinematics.
+JointVector joint_torques(const JointVector& q_rad, const Eigen::Vector3d& force_base_N,
+                          const Eigen::Vector3d& moment_flange_base_Nm);
+
+class ElasticArm {
+ public:
+  explicit ElasticArm(const ElasticityConfig& config);
+  /// Static equilibrium under the load torques `tau` at time t_s (δ = τ/k, δ̇ = 0).
+  void settle(double t_s, const JointVector& tau);
+  /// Integrates from the last time to t_s under the motor path `motor` (its accelerations at each
+  /// sub-step) and the load torques `tau` (the newest known, continued along their slope since the
+  /// previous call's); returns the link state at t_s:
+  /// q + δ, q̇ + δ̇, q̈ + δ̈.
+  JointState advance(double t_s, const PtpTrajectory& motor, const JointVector& tau);
+  const JointVector& deflection_rad() const { return delta_; }
+
+ private:
+  ElasticityConfig config_;
+  double t_s_ = 0.0;
+  JointVector delta_{};
+  JointVector delta_dot_{};
+  JointVector delta_ddot_{};
+  JointVector tau_last_{};  ///< the load of the previous call
+};
+
+}  // namespace zerog::sim

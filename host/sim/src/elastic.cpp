@@ -1,0 +1,90 @@
+#include "zerog/sim/elastic.hpp"
+
+#include <cmath>
+#include <numbers>
+
+namespace zerog::sim {
+
+ElasticityConfig kr210_elasticity() {
+  ElasticityConfig c;
+  c.enabled = true;
+  // Stiffness: Dumas, Caro, Cherif, Garnier, Furet, "Joint stiffness identification of
+  // industrial serial robots" (KUKA KR240-2, Table 2; HAL hal-00633095). Modes: the main axes in
+  // the 5-15 Hz of a KR 210 class arm with a heavy payload (an assumption, not a measurement:
+  // proto/sim_robot.md); the wrist axes from the stiffness and the 100 kg payload's inertia about
+  // each wrist axis at home. Damping ratio 0.05: an assumption (lightly damped gearboxes).
+  c.joints = {{{3.8e6, 6.0, 0.05},
+               {6.6e6, 8.0, 0.05},
+               {3.9e6, 10.0, 0.05},
+               {5.6e5, 55.0, 0.05},
+               {6.6e5, 23.0, 0.05},
+               {4.7e5, 50.0, 0.05}}};
+  return c;
+}
+
+JointVector joint_torques(const JointVector& q_rad, const Eigen::Vector3d& force_base_N,
+                          const Eigen::Vector3d& moment_flange_base_Nm) {
+  JointVector tau{};
+  constexpr double h = 1e-6;
+  for (std::size_t i = 0; i < 6; ++i) {
+    JointVector plus = q_rad, minus = q_rad;
+    plus[i] += h;
+    minus[i] -= h;
+    const FlangePose a = forward_kinematics(plus);
+    const FlangePose b = forward_kinematics(minus);
+    // Flange origin velocity and angular velocity per unit q̇_i (base axes).
+    const Eigen::Vector3d v = (a.p_base_flange_m - b.p_base_flange_m) / (2.0 * h);
+    const Eigen::Matrix3d dR = (a.R_base_flange - b.R_base_flange) / (2.0 * h);
+    const Eigen::Matrix3d W = dR * forward_kinematics(q_rad).R_base_flange.transpose();
+    const Eigen::Vector3d w(W(2, 1), W(0, 2), W(1, 0));  // skew-symmetric part: Ṙ Rᵀ = [ω]×
+    tau[i] = v.dot(force_base_N) + w.dot(moment_flange_base_Nm);
+  }
+  return tau;
+}
+
+ElasticArm::ElasticArm(const ElasticityConfig& config) : config_(config) {}
+
+void ElasticArm::settle(double t_s, const JointVector& tau) {
+  t_s_ = t_s;
+  for (std::size_t i = 0; i < 6; ++i) {
+    const JointElasticity& j = config_.joints[i];
+    delta_[i] = j.stiffness_Nm_per_rad > 0.0 ? tau[i] / j.stiffness_Nm_per_rad : 0.0;
+    delta_dot_[i] = 0.0;
+    delta_ddot_[i] = 0.0;
+  }
+  tau_last_ = tau;
+}
+
+JointState ElasticArm::advance(double t_s, const PtpTrajectory& motor, const JointVector& tau) {
+  const double span = t_s - t_s_;
+  const int steps = span > 0.0 ? static_cast<int>(std::ceil(span / config_.substep_s - 1e-9)) : 0;
+  const double dt = steps > 0 ? span / steps : 0.0;
+  for (int s = 1; s <= steps; ++s) {
+    const JointState m = motor.at(t_s_ + dt * s);
+    // The load continues its last slope over the interval: a load held constant would step at
+    // every row and ring the wrist's modes at the row rate.
+    const double along = static_cast<double>(s) / steps;
+    for (std::size_t i = 0; i < 6; ++i) {
+      const JointElasticity& j = config_.joints[i];
+      if (j.stiffness_Nm_per_rad <= 0.0) continue;
+      const double w = 2.0 * std::numbers::pi * j.mode_hz;
+      const double load = tau[i] + along * (tau[i] - tau_last_[i]);
+      const double acc = w * w * (load / j.stiffness_Nm_per_rad - delta_[i]) -
+                         2.0 * j.damping_ratio * w * delta_dot_[i] - m.qdd_radps2[i];
+      delta_dot_[i] += dt * acc;  // semi-implicit Euler: velocity first
+      delta_[i] += dt * delta_dot_[i];
+      delta_ddot_[i] = acc;
+    }
+  }
+  t_s_ = t_s;
+  tau_last_ = tau;
+  JointState link = motor.at(t_s);
+  for (std::size_t i = 0; i < 6; ++i) {
+    link.q_rad[i] += delta_[i];
+    link.qd_radps[i] += delta_dot_[i];
+    link.qdd_radps2[i] += delta_ddot_[i];
+  }
+  return link;
+}
+
+}  // namespace zerog::sim

@@ -1,0 +1,166 @@
+// The elastic robot of the simulator (issue 28, item 1; host/sim/include/zerog/sim/elastic.hpp):
+// the joint torques of a flange wrench, the static sag, the ringing after a move at the joint's
+// mode and damping, and a run of zerog sim --real-robot against the rigid run (the log keeps the
+// motor side, the clean log and the physics the link side).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <random>
+
+#include "zerog/sim/elastic.hpp"
+#include "zerog/sim/simulator.hpp"
+
+namespace zerog::sim {
+namespace {
+
+// τ = Jᵀ w is the virtual work of the wrench: for a small joint step dq, τ·dq equals the work
+// F·dp + M·dθ of the flange's displacement.
+TEST(ElasticJointTorques, AreTheVirtualWorkOfTheFlangeWrench) {
+  std::mt19937_64 rng(4);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int trial = 0; trial < 20; ++trial) {
+    JointVector q = kr210_home();
+    for (double& v : q) v += 0.5 * u(rng);
+    const Eigen::Vector3d F(300 * u(rng), 300 * u(rng), 900 * u(rng));
+    const Eigen::Vector3d M(80 * u(rng), 80 * u(rng), 80 * u(rng));
+    const JointVector tau = joint_torques(q, F, M);
+    for (std::size_t i = 0; i < 6; ++i) {
+      // Central: from q − h to q + h along joint i.
+      constexpr double h = 1e-5;
+      JointVector lo = q, hi = q;
+      lo[i] -= h;
+      hi[i] += h;
+      const FlangePose a = forward_kinematics(lo), b = forward_kinematics(hi);
+      const Eigen::AngleAxisd turn(b.R_base_flange * a.R_base_flange.transpose());
+      const double work =
+          F.dot(b.p_base_flange_m - a.p_base_flange_m) + M.dot(turn.angle() * turn.axis());
+      EXPECT_NEAR(tau[i] * 2.0 * h, work, 1e-8 * std::abs(work) + 1e-10)
+          << "joint " << i + 1 << ", trial " << trial;
+    }
+  }
+}
+
+// A 1 kN weight hanging at the flange in the home pose loads A2 and A3 (horizontal axes) and
+// not A1 (vertical): a check of the sign and the axis, not only of the algebra.
+TEST(ElasticJointTorques, AWeightAtHomeLoadsTheHorizontalAxesOnly) {
+  const JointVector tau =
+      joint_torques(kr210_home(), Eigen::Vector3d(0, 0, -1000), Eigen::Vector3d::Zero());
+  EXPECT_NEAR(tau[0], 0.0, 1e-6);
+  // At home the flange is 1.765 m from A1 and 1.415 m beyond A2: about 1.4 kN·m on A2.
+  EXPECT_GT(std::abs(tau[1]), 1300.0);
+  EXPECT_GT(std::abs(tau[2]), 1000.0);
+}
+
+// The wrist's default modes are the stiffness over the 100 kg payload's inertia about each wrist
+// axis at home (J = uᵀ I_c u + m |(c − P) × u|², P on the axis): within 10 %.
+TEST(ElasticDefaults, WristModesAreTheStiffnessOverThePayloadsInertia) {
+  const SimConfig c = default_sim_config(1);
+  const ElasticityConfig e = kr210_elasticity();
+  const FlangePose f = forward_kinematics(kr210_home());
+  const Eigen::Vector3d z = f.R_base_flange.col(2);
+  const Eigen::Vector3d wrist = f.p_base_flange_m - 0.215 * z;  // A4/A5 axes meet here
+  const Eigen::Vector3d com =
+      f.p_base_flange_m + f.R_base_flange * (c.p_flange_sensor_m + c.payload.com_sensor_m);
+  const Eigen::Matrix3d I =
+      f.R_base_flange * c.payload.inertia_com_sensor_kgm2 * f.R_base_flange.transpose();
+  // At home A4 and A6 lie along the flange's z (through the wrist centre), A5 along base y.
+  const std::array<std::pair<Eigen::Vector3d, Eigen::Vector3d>, 3> axes = {
+      {{wrist, z}, {wrist, Eigen::Vector3d::UnitY()}, {f.p_base_flange_m, z}}};
+  for (std::size_t k = 0; k < 3; ++k) {
+    const auto& [p, u] = axes[k];
+    const double J = u.dot(I * u) + c.payload.mass_kg * ((com - p).cross(u)).squaredNorm();
+    const JointElasticity& j = e.joints[3 + k];
+    const double f_hz = std::sqrt(j.stiffness_Nm_per_rad / J) / (2.0 * std::numbers::pi);
+    EXPECT_NEAR(j.mode_hz, f_hz, 0.1 * f_hz) << "A" << 4 + k << ": J = " << J << " kg m^2";
+  }
+}
+
+PtpTrajectory one_move(double a2_deg) {
+  const JointVector home = kr210_home();
+  JointVector there = home;
+  there[1] += a2_deg * std::numbers::pi / 180.0;
+  return PtpTrajectory({home, there}, kr210_ptp_limits(0.3), 3.0);
+}
+
+// At rest under a constant load the link sags by τ/k; after a move it rings at the joint's mode
+// with the joint's damping (zero crossings and logarithmic decrement of δ).
+TEST(ElasticArm, SagsByTheLoadOverTheStiffnessAndRingsAtItsMode) {
+  ElasticityConfig c;
+  c.enabled = true;
+  c.joints[1] = {2.0e6, 8.0, 0.04};
+  const PtpTrajectory path = one_move(20.0);
+  ElasticArm arm(c);
+  JointVector tau{};
+  tau[1] = 1500.0;
+  arm.settle(0.0, tau);
+  EXPECT_DOUBLE_EQ(arm.deflection_rad()[1], 1500.0 / 2.0e6);
+  // The move, then its dwell: sample δ − τ/k every millisecond after the motion ends.
+  double t = 0.0;
+  bool moved = false;  // through the first dwell, the move, to the dwell after it
+  while (!moved || path.at(t).qd_radps[1] != 0.0) {
+    t += 0.001;
+    arm.advance(t, path, tau);
+    moved = moved || path.at(t).qd_radps[1] != 0.0;
+    ASSERT_LT(t, 60.0);
+  }
+  std::vector<double> d;
+  for (int k = 0; k < 1500; ++k) {
+    t += 0.001;
+    arm.advance(t, path, tau);
+    d.push_back(arm.deflection_rad()[1] - 1500.0 / 2.0e6);
+  }
+  std::vector<double> crossings;
+  for (std::size_t k = 1; k < d.size(); ++k)
+    if ((d[k - 1] < 0.0) != (d[k] < 0.0))
+      crossings.push_back(static_cast<double>(k - 1) + d[k - 1] / (d[k - 1] - d[k]));
+  ASSERT_GE(crossings.size(), 10u);
+  const double period_ms = 2.0 * (crossings[9] - crossings[1]) / 8.0;
+  const double f_damped = 8.0 * std::sqrt(1.0 - 0.04 * 0.04);
+  EXPECT_NEAR(1000.0 / period_ms, f_damped, 0.02 * f_damped);
+  // Peaks one period apart: ln(a_k / a_{k+1}) = 2π ζ / sqrt(1 − ζ²).
+  double a0 = 0.0, a1 = 0.0;
+  const auto p = static_cast<std::size_t>(std::lround(period_ms));
+  for (std::size_t k = 0; k < p; ++k) a0 = std::max(a0, std::abs(d[k]));
+  for (std::size_t k = p; k < 2 * p; ++k) a1 = std::max(a1, std::abs(d[k]));
+  const double zeta = std::log(a0 / a1) / (2.0 * std::numbers::pi);
+  EXPECT_NEAR(zeta, 0.04, 0.01);
+  // A rigid joint (stiffness 0) never deflects.
+  EXPECT_EQ(arm.deflection_rad()[0], 0.0);
+}
+
+// zerog sim --real-robot against the rigid run of the same seed: the logged joints are the motor
+// side (the same path, quantised to the encoder's step), the clean log's joints the link side
+// (sagging by tenths of a milliradian under 100 kg), and the true model on the logged pose no
+// longer reaches the sensor floor while on the clean log's it does.
+TEST(RealRobot, LogsTheMotorSideAndMovesThePayloadWithTheLink) {
+  DesignOptions o;
+  o.kind = DesignKind::random;
+  o.points = 4;
+  o.seed = 3;
+  SimConfig rigid = default_sim_config(5);
+  rigid.duration_limit_s = 30.0;
+  SimConfig real = rigid;
+  make_real_robot(real, true);
+  const auto points = make_design(o).points_rad;
+  const SimOutput a = RigSimulator(rigid, points).run();
+  const SimOutput b = RigSimulator(real, points).run();
+  ASSERT_EQ(a.log.samples.size(), b.log.samples.size());
+  double max_enc = 0.0, max_sag = 0.0;
+  for (std::size_t k = 0; k < a.log.samples.size(); ++k)
+    for (std::size_t i = 0; i < 6; ++i) {
+      max_enc = std::max(max_enc,
+                         std::abs(b.log.samples[k].joints_rad[i] - a.log.samples[k].joints_rad[i]));
+      max_sag = std::max(
+          max_sag, std::abs(b.clean_log.samples[k].joints_rad[i] - a.log.samples[k].joints_rad[i]));
+    }
+  EXPECT_LE(max_enc, 0.5 * real.noise.encoder_rad + 1e-15);
+  EXPECT_GT(max_sag, 1e-4);
+  EXPECT_LT(max_sag, 1e-2);
+  EXPECT_TRUE(b.truth.extra.contains("elastic_robot"));
+  EXPECT_TRUE(b.truth.extra["noise"].contains("imu_bias"));
+  EXPECT_FALSE(a.truth.extra.contains("elastic_robot"));
+}
+
+}  // namespace
+}  // namespace zerog::sim
