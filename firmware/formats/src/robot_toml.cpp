@@ -11,6 +11,19 @@ namespace {
 
 constexpr double kRadPerDeg = std::numbers::pi / 180.0;
 
+// The keys of a [[robot.joint]] row (proto/robot_kinematics.md; the elasticity: sim_robot.md).
+const std::vector<std::string_view> kJointKeys = {"name",
+                                                  "a_m",
+                                                  "alpha_deg",
+                                                  "d_m",
+                                                  "theta_offset_deg",
+                                                  "sign",
+                                                  "column",
+                                                  "ros_name",
+                                                  "stiffness_Nm_per_rad",
+                                                  "mode_hz",
+                                                  "damping_ratio"};
+
 }  // namespace
 
 robot::FrameTransform to_frame_transform(const Transform& t) {
@@ -43,11 +56,13 @@ robot::RobotModel robot_from_toml(const toml::table& table, const std::filesyste
     const std::string key = "joint[" + std::to_string(i + 1) + "]";
     const toml::table* row = (*rows)[static_cast<std::size_t>(i)].as_table();
     if (row == nullptr) t.fail("joint", key + " must be a table");
-    const TomlTable j(
-        *row, t.file(), t.name(key) + ".",
-        {"name", "a_m", "alpha_deg", "d_m", "theta_offset_deg", "sign", "column", "ros_name"});
+    const TomlTable j(*row, t.file(), t.name(key) + ".", kJointKeys);
     (void)j.optional_string("name", {});
     (void)j.optional_string("ros_name", {});
+    // The elasticity (read_robot_elasticity, for the simulator): numbers in range when given.
+    (void)j.optional_number("stiffness_Nm_per_rad", 1.0, {0.0, true});
+    (void)j.optional_number("mode_hz", 1.0, {0.0, true});
+    (void)j.optional_number("damping_ratio", 0.0, {0.0, false});
     robot::DhJoint& dh = m.joints[static_cast<std::size_t>(i)];
     dh.a_m = j.number("a_m", NumberRange{});
     dh.alpha_rad = j.number("alpha_deg", NumberRange{}) * kRadPerDeg;
@@ -111,6 +126,35 @@ std::string quoted(const std::string& s) {
 }
 
 }  // namespace
+
+std::vector<JointElasticityEntry> read_robot_elasticity(const std::filesystem::path& toml) {
+  (void)read_robot_file(toml);  // the whole file checked as a robot file first
+  const toml::table file = parse_toml_file(toml);
+  const toml::array& rows = *file["robot"]["joint"].as_array();
+  std::vector<JointElasticityEntry> out(rows.size());
+  std::vector<TomlTable> tables;
+  std::size_t with = 0;
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    tables.emplace_back(*rows[i].as_table(), toml, "robot.joint[" + std::to_string(i + 1) + "].",
+                        std::vector<std::string_view>{
+                            "name", "a_m", "alpha_deg", "d_m", "theta_offset_deg", "sign", "column",
+                            "ros_name", "stiffness_Nm_per_rad", "mode_hz", "damping_ratio"});
+    const TomlTable& j = tables.back();
+    if (j.find("stiffness_Nm_per_rad") == nullptr && j.find("mode_hz") == nullptr &&
+        j.find("damping_ratio") == nullptr)
+      continue;
+    out[i] = {j.number("stiffness_Nm_per_rad", 0.0, true), j.number("mode_hz", 0.0, true),
+              j.number("damping_ratio", 0.0, false)};
+    ++with;
+  }
+  if (with == 0) return {};
+  for (std::size_t i = 0; i < rows.size(); ++i)
+    if (out[i].stiffness_Nm_per_rad == 0.0)
+      tables[i].fail("stiffness_Nm_per_rad",
+                     "is missing: give the elasticity of every joint or of none "
+                     "(proto/sim_robot.md)");
+  return out;
+}
 
 robot::RobotModel read_robot_file(const std::filesystem::path& toml) {
   return read_robot(toml, nullptr).model;

@@ -5,9 +5,11 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
 #include <numbers>
 #include <random>
 
+#include "zerog/formats/robot_toml.hpp"
 #include "zerog/sim/elastic.hpp"
 #include "zerog/sim/simulator.hpp"
 
@@ -73,6 +75,39 @@ TEST(ElasticDefaults, WristModesAreTheStiffnessOverThePayloadsInertia) {
     const JointElasticity& j = e.joints[3 + k];
     const double f_hz = std::sqrt(j.stiffness_Nm_per_rad / J) / (2.0 * std::numbers::pi);
     EXPECT_NEAR(j.mode_hz, f_hz, 0.1 * f_hz) << "A" << 4 + k << ": J = " << J << " kg m^2";
+  }
+}
+
+// The robot file is the one description: the simulator's defaults are its values.
+TEST(ElasticDefaults, AreTheRobotFilesValues) {
+  const auto file = io::read_robot_elasticity(std::string(ZEROG_SOURCE_DIR) +
+                                              "/calib/robots/kr210_r2700.robot.toml");
+  const ElasticityConfig e = kr210_elasticity();
+  ASSERT_EQ(file.size(), 6u);
+  for (std::size_t i = 0; i < 6; ++i) {
+    EXPECT_EQ(file[i].stiffness_Nm_per_rad, e.joints[i].stiffness_Nm_per_rad) << i;
+    EXPECT_EQ(file[i].mode_hz, e.joints[i].mode_hz) << i;
+    EXPECT_EQ(file[i].damping_ratio, e.joints[i].damping_ratio) << i;
+  }
+  // A file without elasticity gives none; one with it for some joints only is refused.
+  EXPECT_TRUE(io::read_robot_elasticity(std::string(ZEROG_SOURCE_DIR) +
+                                        "/calib/robots/lbr_iiwa14_r820.robot.toml")
+                  .empty());
+  const std::string path = ::testing::TempDir() + "/half_elastic.robot.toml";
+  {
+    std::ofstream f(path);
+    f << "format = \"zerog-robot\"\nversion = 1\n[robot]\nconvention = \"dh\"\n"
+         "[[robot.joint]]\na_m = 0.1\nalpha_deg = 0\nd_m = 0.2\nstiffness_Nm_per_rad = 1e5\n"
+         "mode_hz = 5\ndamping_ratio = 0.1\n"
+         "[[robot.joint]]\na_m = 0.1\nalpha_deg = 0\nd_m = 0.2\n";
+  }
+  try {
+    io::read_robot_elasticity(path);
+    FAIL() << "half an elastic robot was read";
+  } catch (const std::exception& error) {
+    EXPECT_NE(std::string(error.what()).find("robot.joint[2].stiffness_Nm_per_rad"),
+              std::string::npos)
+        << error.what();
   }
 }
 
