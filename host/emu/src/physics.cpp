@@ -54,7 +54,8 @@ PayloadPhysics::PayloadPhysics(sim::SimConfig config, std::vector<Push> pushes,
                                double physics_rate_hz)
     : simulator_(std::move(config)),
       pushes_(checked(std::move(pushes))),
-      rate_hz_(physics_rate_hz) {
+      rate_hz_(physics_rate_hz),
+      arm_(simulator_.config().elastic) {
   if (!(std::isfinite(rate_hz_) && rate_hz_ > 0.0))
     throw std::invalid_argument("physics rate must be positive");
   delay_steps_ = static_cast<std::size_t>(std::llround(simulator_.imu_delay_s() * rate_hz_));
@@ -90,18 +91,37 @@ PhysicsSample PayloadPhysics::evaluate(const sim::JointState& js, const sim::Joi
 
 PhysicsSample PayloadPhysics::step(const sim::JointState& js) {
   const double t_s = static_cast<double>(steps_) / rate_hz_;
+  const double h = 1.0 / rate_hz_;
+  const sim::SimConfig& c = simulator_.config();
+  // The payload moves with the link side (sim/elastic.hpp); the servo's js is the motor side.
+  sim::JointState link = js;
+  if (arm_.enabled()) {
+    if (!settled_) {  // the static sag under the weight it changes
+      for (int pass = 0; pass < 3; ++pass) {
+        sim::JointState sagged = js;
+        for (std::size_t i = 0; i < 6; ++i) sagged.q_rad[i] += arm_.deflection_rad()[i];
+        load_ = sim::weight_load(sagged.q_rad, evaluate(sagged, sagged, t_s).truth.R_base_sensor,
+                                 c.p_flange_sensor_m, c.payload.com_sensor_m, c.payload.mass_kg);
+        arm_.settle(t_s, load_);
+      }
+      settled_ = true;
+    }
+    link = arm_.step(js, h, load_);
+  }
   const std::size_t n = history_.size();
-  history_[steps_ % n] = js;
+  history_[steps_ % n] = link;
   // The state delay_steps_ ago (the first state until there is one that old).
   const std::uint64_t back = steps_ >= delay_steps_ ? steps_ - delay_steps_ : 0;
   const sim::JointState& js_imu = history_[back % n];
-  PhysicsSample s = evaluate(js, js_imu, t_s);
-  const sim::NoiseConfig& noise = simulator_.config().noise;
+  PhysicsSample s = evaluate(link, js_imu, t_s);
+  if (arm_.enabled())
+    load_ = sim::weight_load(link.q_rad, s.truth.R_base_sensor, c.p_flange_sensor_m,
+                             c.payload.com_sensor_m, c.payload.mass_kg);
+  const sim::NoiseConfig& noise = c.noise;
   for (int i = 0; i < 6; ++i)
     s.wrench_sensor_noisy[i] += (i < 3 ? noise.force_N : noise.torque_Nm) * normal_(rng_);
 
-  const double h = 1.0 / rate_hz_;
-  const Eigen::Vector3d& com = simulator_.config().payload.com_sensor_m;
+  const Eigen::Vector3d& com = c.payload.com_sensor_m;
   for (std::size_t k = 0; k < pushes_.size(); ++k) {
     const double f = pushes_[k].factor(t_s);
     if (f == 0.0) continue;

@@ -1,7 +1,10 @@
 #include "zerog/sim/elastic.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
+
+#include "zerog/model/effects.hpp"
 
 namespace zerog::sim {
 
@@ -55,36 +58,60 @@ void ElasticArm::settle(double t_s, const JointVector& tau) {
   tau_last_ = tau;
 }
 
+void ElasticArm::integrate(double dt, const JointVector& motor_qdd, const JointVector& load) {
+  for (std::size_t i = 0; i < 6; ++i) {
+    const JointElasticity& j = config_.joints[i];
+    if (j.stiffness_Nm_per_rad <= 0.0) continue;
+    const double w = 2.0 * std::numbers::pi * j.mode_hz;
+    const double acc = w * w * (load[i] / j.stiffness_Nm_per_rad - delta_[i]) -
+                       2.0 * j.damping_ratio * w * delta_dot_[i] - motor_qdd[i];
+    delta_dot_[i] += dt * acc;  // semi-implicit Euler: velocity first
+    delta_[i] += dt * delta_dot_[i];
+    delta_ddot_[i] = acc;
+  }
+}
+
+JointState ElasticArm::link_of(JointState motor) const {
+  for (std::size_t i = 0; i < 6; ++i) {
+    motor.q_rad[i] += delta_[i];
+    motor.qd_radps[i] += delta_dot_[i];
+    motor.qdd_radps2[i] += delta_ddot_[i];
+  }
+  return motor;
+}
+
 JointState ElasticArm::advance(double t_s, const PtpTrajectory& motor, const JointVector& tau) {
   const double span = t_s - t_s_;
   const int steps = span > 0.0 ? static_cast<int>(std::ceil(span / config_.substep_s - 1e-9)) : 0;
   const double dt = steps > 0 ? span / steps : 0.0;
   for (int s = 1; s <= steps; ++s) {
-    const JointState m = motor.at(t_s_ + dt * s);
     // The load continues its last slope over the interval: a load held constant would step at
     // every row and ring the wrist's modes at the row rate.
     const double along = static_cast<double>(s) / steps;
-    for (std::size_t i = 0; i < 6; ++i) {
-      const JointElasticity& j = config_.joints[i];
-      if (j.stiffness_Nm_per_rad <= 0.0) continue;
-      const double w = 2.0 * std::numbers::pi * j.mode_hz;
-      const double load = tau[i] + along * (tau[i] - tau_last_[i]);
-      const double acc = w * w * (load / j.stiffness_Nm_per_rad - delta_[i]) -
-                         2.0 * j.damping_ratio * w * delta_dot_[i] - m.qdd_radps2[i];
-      delta_dot_[i] += dt * acc;  // semi-implicit Euler: velocity first
-      delta_[i] += dt * delta_dot_[i];
-      delta_ddot_[i] = acc;
-    }
+    JointVector load{};
+    for (std::size_t i = 0; i < 6; ++i) load[i] = tau[i] + along * (tau[i] - tau_last_[i]);
+    integrate(dt, motor.at(t_s_ + dt * s).qdd_radps2, load);
   }
   t_s_ = t_s;
   tau_last_ = tau;
-  JointState link = motor.at(t_s);
-  for (std::size_t i = 0; i < 6; ++i) {
-    link.q_rad[i] += delta_[i];
-    link.qd_radps[i] += delta_dot_[i];
-    link.qdd_radps2[i] += delta_ddot_[i];
-  }
-  return link;
+  return link_of(motor.at(t_s));
+}
+
+JointState ElasticArm::step(const JointState& motor, double dt, const JointVector& tau) {
+  const int steps = std::max(1, static_cast<int>(std::ceil(dt / config_.substep_s - 1e-9)));
+  for (int s = 0; s < steps; ++s) integrate(dt / steps, motor.qdd_radps2, tau);
+  t_s_ += dt;
+  tau_last_ = tau;
+  return link_of(motor);
+}
+
+JointVector weight_load(const JointVector& link_q_rad, const Eigen::Matrix3d& R_base_sensor,
+                        const Eigen::Vector3d& p_flange_sensor_m,
+                        const Eigen::Vector3d& com_sensor_m, double mass_kg) {
+  const FlangePose f = forward_kinematics(link_q_rad);
+  const Eigen::Vector3d lever = f.R_base_flange * p_flange_sensor_m + R_base_sensor * com_sensor_m;
+  const Eigen::Vector3d force(0.0, 0.0, -model::kStandardGravity * mass_kg);
+  return joint_torques(link_q_rad, force, lever.cross(force));
 }
 
 }  // namespace zerog::sim

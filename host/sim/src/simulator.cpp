@@ -713,15 +713,10 @@ void set_nominal_pose(io::Sample& s, const JointVector& q, const SimConfig& c) {
   if (s.q_base_sensor.w() < 0.0) s.q_base_sensor.coeffs() *= -1.0;
 }
 
-// The payload's load on the joints (elastic.hpp): its weight at its centre of mass, as a force
-// in B and a moment about the flange origin. Its inertia is not a load here: it is part of each
-// link's effective inertia k/ω² (counting it again, 12 ms late, would feed the ringing back).
+// The payload's weight on the joints (elastic.hpp), at the link angles of this measurement.
 JointVector payload_load(const JointVector& link_q_rad, const Measurement& m, const SimConfig& c) {
-  const Eigen::Vector3d lever =
-      m.flange.R_base_flange * c.p_flange_sensor_m + m.R_base_sensor * c.payload.com_sensor_m;
-  const Eigen::Vector3d force(0.0, 0.0, -model::kStandardGravity * c.payload.mass_kg);
-  // The flange Jacobian at the link angles that gave this measurement's flange pose.
-  return joint_torques(link_q_rad, force, lever.cross(force));
+  return weight_load(link_q_rad, m.R_base_sensor, c.p_flange_sensor_m, c.payload.com_sensor_m,
+                     c.payload.mass_kg);
 }
 
 // IMU bias instability per axis: b_k = a b_{k−1} + σ sqrt(1 − a²) ε, a = exp(−T/τ), started from

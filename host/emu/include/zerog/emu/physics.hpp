@@ -77,9 +77,12 @@ class PayloadPhysics {
   PhysicsSample evaluate(const sim::JointState& js, const sim::JointState& js_imu,
                          double t_s) const;
 
-  /// One physics step at t = step count / rate: keeps the joint history the IMU time offset
-  /// needs, evaluates, adds seeded F/T white noise (SimConfig::noise force_N, torque_Nm per
-  /// sample) and integrates the pushes. Call once per step, in order. Does not allocate.
+  /// One physics step at t = step count / rate for the servo's (motor-side) joint state `js`:
+  /// with SimConfig::elastic on, moves the link side by one step of the elastic arm
+  /// (sim/elastic.hpp, loaded by the payload's weight) and evaluates the payload on it; keeps the
+  /// joint history the IMU time offset needs, evaluates, adds seeded F/T white noise
+  /// (SimConfig::noise force_N, torque_Nm per sample) and integrates the pushes. Call once per
+  /// step, in order. Does not allocate.
   PhysicsSample step(const sim::JointState& js);
   std::uint64_t steps() const { return steps_; }
   /// One entry per push, in scenario order.
@@ -93,6 +96,9 @@ class PayloadPhysics {
   std::size_t delay_steps_ = 0;
   std::uint64_t steps_ = 0;
   std::vector<PushIntegral> integrals_;
+  sim::ElasticArm arm_;      // the link side when SimConfig::elastic is on
+  sim::JointVector load_{};  // the payload's weight on the joints, of the last step
+  bool settled_ = false;     // the arm started at its static sag
   std::mt19937_64 rng_;
   std::normal_distribution<double> normal_{0.0, 1.0};
 };

@@ -50,6 +50,14 @@ ElasticityConfig kr210_elasticity();
 JointVector joint_torques(const JointVector& q_rad, const Eigen::Vector3d& force_base_N,
                           const Eigen::Vector3d& moment_flange_base_Nm);
 
+/// The payload's weight as a load on the joints: m g (g = −9.80665 m/s² along B's z) at its
+/// centre of mass `com_sensor_m` (in the sensor frame S, at `p_flange_sensor_m` on the flange, S
+/// turned R_base_sensor in B), through joint_torques at the link angles. Its inertia is not a
+/// load: it is part of each link's effective inertia k/ω².
+JointVector weight_load(const JointVector& link_q_rad, const Eigen::Matrix3d& R_base_sensor,
+                        const Eigen::Vector3d& p_flange_sensor_m,
+                        const Eigen::Vector3d& com_sensor_m, double mass_kg);
+
 class ElasticArm {
  public:
   explicit ElasticArm(const ElasticityConfig& config);
@@ -60,9 +68,16 @@ class ElasticArm {
   /// previous call's); returns the link state at t_s:
   /// q + δ, q̇ + δ̇, q̈ + δ̈.
   JointState advance(double t_s, const PtpTrajectory& motor, const JointVector& tau);
+  /// One step of `dt` for a motor state given from outside (the emulator's servo): the motor's
+  /// acceleration and the load held over the step (sub-divided to substep_s); returns the link
+  /// state at the step's end.
+  JointState step(const JointState& motor, double dt, const JointVector& tau);
   const JointVector& deflection_rad() const { return delta_; }
+  bool enabled() const { return config_.enabled; }
 
  private:
+  void integrate(double dt, const JointVector& motor_qdd, const JointVector& load);
+  JointState link_of(JointState motor) const;
   ElasticityConfig config_;
   double t_s_ = 0.0;
   JointVector delta_{};
