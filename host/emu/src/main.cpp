@@ -123,6 +123,10 @@ int run(const Args& a) {
   if (!a.imu_link.empty()) {
     emu::Stim300EmulatorConfig c;
     c.seed = scenario.sim.seed;
+    // The scenario's noise.gyro_bias / accel_bias / imu_bias_tau (proto/sim_robot.md).
+    c.gyro_bias_radps = scenario.sim.noise.gyro_bias_radps;
+    c.accel_bias_mps2 = scenario.sim.noise.accel_bias_mps2;
+    c.bias_tau_s = scenario.sim.noise.imu_bias_tau_s;
     imu = std::make_unique<emu::Stim300Emulator>(c);
   }
   emu::RigEmulator emulator(scenario, options, board.get(), imu.get());

@@ -84,6 +84,18 @@ Stim300Emulator::Stim300Emulator(const Stim300EmulatorConfig& config)
                                 std::to_string(config.identifier) +
                                 " is not a normal-mode datagram of proto::stim300::kDatagramTable");
   }
+  if (!finite_non_negative(config.gyro_bias_radps) ||
+      !finite_non_negative(config.accel_bias_mps2) || !(config.bias_tau_s > 0.0) ||
+      !(config.datagram_period_s > 0.0) || !std::isfinite(config.bias_tau_s) ||
+      !std::isfinite(config.datagram_period_s))
+    throw std::invalid_argument(
+        "Stim300EmulatorConfig: gyro_bias_radps and accel_bias_mps2 must be finite and >= 0, "
+        "bias_tau_s and datagram_period_s finite and > 0");
+  bias_a_ = std::exp(-config.datagram_period_s / config.bias_tau_s);
+  for (int i = 0; i < 3; ++i) {  // the turn-on value: the process's stationary spread
+    if (config.gyro_bias_radps > 0.0) gyro_bias_[i] = config.gyro_bias_radps * normal_(rng_);
+    if (config.accel_bias_mps2 > 0.0) accel_bias_[i] = config.accel_bias_mps2 * normal_(rng_);
+  }
   if (!finite_non_negative(config.gyro_noise_radps) ||
       !finite_non_negative(config.accel_noise_mps2) ||
       !finite_non_negative(config.incl_noise_mps2)) {
@@ -256,11 +268,20 @@ stim300::RawDatagram Stim300Emulator::make_raw_locked(const ImuTruthSample& trut
                                                       ImuFault fault) {
   stim300::RawDatagram raw;
   raw.identifier = identifier;
+  const double bias_gain = std::sqrt(1.0 - bias_a_ * bias_a_);
+  for (int i = 0; i < 3; ++i) {  // bias instability: one Gauss–Markov step per datagram
+    if (config_.gyro_bias_radps > 0.0)
+      gyro_bias_[i] = bias_a_ * gyro_bias_[i] + config_.gyro_bias_radps * bias_gain * normal_(rng_);
+    if (config_.accel_bias_mps2 > 0.0)
+      accel_bias_[i] =
+          bias_a_ * accel_bias_[i] + config_.accel_bias_mps2 * bias_gain * normal_(rng_);
+  }
   for (int i = 0; i < 3; ++i) {  // the same noise draws whatever the identifier carries
-    raw.rate.counts[i] =
-        stim300::rate_counts(truth.rate_imu_radps[i] + config_.gyro_noise_radps * normal_(rng_));
-    raw.accel.counts[i] = stim300::accel_counts(
-        truth.specific_force_imu_mps2[i] + config_.accel_noise_mps2 * normal_(rng_), config_.scale);
+    raw.rate.counts[i] = stim300::rate_counts(truth.rate_imu_radps[i] + gyro_bias_[i] +
+                                              config_.gyro_noise_radps * normal_(rng_));
+    raw.accel.counts[i] = stim300::accel_counts(truth.specific_force_imu_mps2[i] + accel_bias_[i] +
+                                                    config_.accel_noise_mps2 * normal_(rng_),
+                                                config_.scale);
     raw.incl.counts[i] = stim300::incl_counts(truth.specific_force_imu_mps2[i] +
                                               config_.incl_noise_mps2 * normal_(rng_));
   }

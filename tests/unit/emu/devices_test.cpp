@@ -743,6 +743,40 @@ TEST(Stim300Emulator, NoiseHasTheConfiguredSigmaAndRepeatsWithTheSeed) {
   }
 }
 
+TEST(Stim300Emulator, BiasInstabilityIsACorrelatedProcessOfTheConfiguredSigma) {
+  // No white noise; a bias of σ with a correlation time of 50 ms (so that 4 s hold 80 of them):
+  // the error's spread is σ and neighbouring datagrams agree (lag-1 correlation exp(−0.5/50)).
+  Stim300EmulatorConfig config = noiseless();
+  config.gyro_bias_radps = 2e-3;
+  config.accel_bias_mps2 = 0.05;
+  config.bias_tau_s = 0.05;
+  config.seed = 9;
+  Stim300Emulator emulator(config);
+  ASSERT_EQ(emulator.open().text(), "");
+  rtio::Stim300Imu imu(reader_config(emulator.slave_path()));
+  ASSERT_EQ(imu.start(), rtio::ImuStartStatus::ok);
+  const ImuTruthSample t = truth(10);
+  constexpr int kSamples = 8000;
+  std::vector<double> gyro, accel;
+  for (int k = 0; k < kSamples; ++k) {
+    ASSERT_TRUE(emulator.write_sample(t));
+    rtio::ImuSample s;
+    ASSERT_EQ(imu.read_sample(s), rtio::ImuReadStatus::sample) << k;
+    gyro.push_back(s.rate_rad_s[0] - t.rate_imu_radps[0]);
+    accel.push_back(s.accel_m_s2[1] - t.specific_force_imu_mps2[1]);
+  }
+  for (const auto& [e, sigma] : {std::pair{&gyro, 2e-3}, std::pair{&accel, 0.05}}) {
+    double m = 0.0, v = 0.0, c = 0.0;
+    for (double x : *e) m += x / kSamples;
+    for (std::size_t k = 0; k < e->size(); ++k) {
+      v += ((*e)[k] - m) * ((*e)[k] - m);
+      if (k > 0) c += ((*e)[k] - m) * ((*e)[k - 1] - m);
+    }
+    EXPECT_NEAR(std::sqrt(v / kSamples), sigma, 0.3 * sigma);
+    EXPECT_GT(c / v, 0.98);  // a white error of the same σ gives about 0
+  }
+}
+
 TEST(Stim300Emulator, CounterGapsAreSeenByTheReader) {
   Stim300Emulator emulator(noiseless());
   ASSERT_EQ(emulator.open().text(), "");

@@ -42,6 +42,13 @@ struct Stim300EmulatorConfig {
   double gyro_noise_radps = 9e-4;
   double accel_noise_mps2 = 0.024;
   double incl_noise_mps2 = 0.024;  ///< the inclinometers, same σ as the accelerometers
+  /// Bias instability per axis (proto/sim_robot.md): a first-order Gauss–Markov process of this σ
+  /// and correlation time, one step per datagram of `datagram_period_s`, started at a random
+  /// value of the same σ; 0: none. A scenario's noise.gyro_bias / noise.accel_bias set them.
+  double gyro_bias_radps = 0.0;
+  double accel_bias_mps2 = 0.0;
+  double bias_tau_s = 300.0;
+  double datagram_period_s = 1.0 / 2000.0;
   std::uint64_t seed = 1;
   std::uint16_t latency_us = 400;  ///< the datagram's latency field (sampling → transmission)
   /// Accelerometer range of the emulated unit: must match the reader's
@@ -158,6 +165,9 @@ class Stim300Emulator {
   std::uint8_t counter_ = 0;
   std::mt19937_64 rng_;
   std::normal_distribution<double> normal_{0.0, 1.0};
+  double bias_a_ = 1.0;                 // exp(−period/τ) of the bias process
+  std::array<double, 3> gyro_bias_{};   // rad/s, I axes
+  std::array<double, 3> accel_bias_{};  // m/s², I axes
   std::array<std::uint8_t, kBufferSize> buffer_{};
   std::array<std::uint8_t, kBufferSize> pending_{};
   std::size_t pending_begin_ = 0;
