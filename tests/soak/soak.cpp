@@ -384,6 +384,12 @@ class Soak {
   std::uint64_t proposals_accepted_ = 0, proposals_refused_ = 0;
   std::map<std::string, std::uint64_t> faults_injected_, faults_raised_, disturbances_;
   std::vector<std::pair<std::uint64_t, std::string>> fault_log_;  ///< (fault cycle, name)
+  /// The faults whose cycles got a black box, and those raised while the box still held the
+  /// fault before (not yet dumped and released: the cycle counts them, black_boxes_lost). Only
+  /// an unplanned robot_late can come that soon: the plan waits for the box to be free.
+  std::vector<std::pair<std::uint64_t, std::string>> boxed_log_, lost_log_;
+  std::uint64_t boxes_lost_seen_ = 0;
+  std::uint64_t lost_from_unplanned_ = 0;  ///< of lost_log_, the unplanned robot_late faults
   std::uint64_t max_raise_latency_ = 0;
   std::uint64_t pace_waits_ = 0;
   double pace_wait_s_ = 0.0;
@@ -510,12 +516,12 @@ void Soak::start_episode(std::uint64_t p, Inject kind, bool as_fault) {
 
 void Soak::plan(std::uint64_t p) {
   if (episode_ || p < quiet_until_ || awaiting_) return;
-  const std::uint64_t faults = fault_log_.size();
+  const std::uint64_t faults = boxed_log_.size();
   // The black box of the last fault must have been dumped and released first (one box).
   // The cycle releases the box in its first cycle out of fault after the dump: wait for the
   // dump's file, then for a few cycles out of fault.
   if (faults > 0 && !box_dumped_) {
-    const fs::path box = dir_ / ("blackbox-" + std::to_string(fault_log_.back().first) + ".csv");
+    const fs::path box = dir_ / ("blackbox-" + std::to_string(boxed_log_.back().first) + ".csv");
     if (fs::exists(box)) {
       box_dumped_ = true;
       box_dumped_at_ = p;
@@ -794,7 +800,15 @@ void Soak::after_transitions(std::uint64_t p) {
     tr.cause = loop::fault_name(snap_.fault);
     ++faults_raised_[tr.cause];
     fault_log_.emplace_back(tr.cycle, tr.cause);
-    box_dumped_ = false;
+    const std::uint64_t lost = runtime_->cycle().counters().black_boxes_lost;
+    const bool box_lost = lost > boxes_lost_seen_;
+    boxes_lost_seen_ = lost;
+    if (box_lost) {
+      lost_log_.emplace_back(tr.cycle, tr.cause);
+    } else {
+      boxed_log_.emplace_back(tr.cycle, tr.cause);
+      box_dumped_ = false;
+    }
     Episode* e = episode_ ? &*episode_ : (awaiting_ ? &*awaiting_ : nullptr);
     if ((e == nullptr || e->expect == loop::Fault::none || e->raised) &&
         snap_.fault == loop::Fault::robot_late && unplanned_timeouts_ > 0 &&
@@ -802,6 +816,7 @@ void Soak::after_transitions(std::uint64_t p) {
       // Robot cycles really were lost (this program was descheduled longer than the receive
       // timeout, three times in a row): the right fault, not an injected one. Reported.
       ++faults_from_unplanned_;
+      if (box_lost) ++lost_from_unplanned_;
     } else if (e == nullptr || e->expect == loop::Fault::none || e->raised) {
       fail(where + "fault " + tr.cause + " raised without an injected fault" +
            (e ? std::string(" (during ") + inject_name(e->kind) + ")" : std::string()));
@@ -1073,19 +1088,25 @@ void Soak::check_files() {
     check(entry.path().extension() != ".partial", "left behind: " + entry.path().string());
 
   // One black box per fault, named for its fault cycle, naming its fault, 256 records.
+  // A fault raised while the box still held the one before has none, and is counted: only an
+  // unplanned robot_late may be one of those (lost_log_).
   const std::vector<fs::path>& boxes = runtime_->black_box_paths();
-  check_eq(boxes.size(), fault_log_.size(), "black boxes dumped vs faults raised");
-  for (std::size_t i = 0; i < fault_log_.size(); ++i) {
-    const auto& [cycle, name] = fault_log_[i];
+  check_eq(boxes.size(), boxed_log_.size(), "black boxes dumped vs faults raised with a free box");
+  check_eq(lost_log_.size(), lost_from_unplanned_,
+           "faults without a box (box still held) vs those from unplanned robot timeouts");
+  check_eq(runtime_->cycle().counters().black_boxes_lost, lost_log_.size(),
+           "black_boxes_lost vs faults seen without a box");
+  for (std::size_t i = 0; i < boxed_log_.size(); ++i) {
+    const auto& [cycle, name] = boxed_log_[i];
     const fs::path box = dir_ / ("blackbox-" + std::to_string(cycle) + ".csv");
     if (!fs::exists(box)) {
       fail("no black box for fault " + name + " at cycle " + std::to_string(cycle) +
-           (i > 0 ? " (the fault before: cycle " + std::to_string(fault_log_[i - 1].first) + ")"
+           (i > 0 ? " (the fault before: cycle " + std::to_string(boxed_log_[i - 1].first) + ")"
                   : std::string()));
     }
   }
-  for (std::size_t i = 0; i < boxes.size() && i < fault_log_.size(); ++i) {
-    const auto& [cycle, name] = fault_log_[i];
+  for (std::size_t i = 0; i < boxes.size() && i < boxed_log_.size(); ++i) {
+    const auto& [cycle, name] = boxed_log_[i];
     check_eq(boxes[i].filename().string(), "blackbox-" + std::to_string(cycle) + ".csv",
              "black box file name");
     std::ifstream in(boxes[i]);
@@ -1178,9 +1199,9 @@ void Soak::finish_checks(const json& s) {
   check_eq(log_rows_, rec.log_rows, "run.csv rows vs log_rows");
   check_eq(rec.log_rows, rec.records - rec.skipped_stale - rec.skipped_no_samples - rec.rejected,
            "rows = records − stale − before samples − rejected");
-  check_eq(rec.black_boxes, faults, "recorder black_boxes vs faults");
-  check_eq(th.black_box_releases + (runtime_->cycle().black_box().frozen() ? 1u : 0u), faults,
-           "black boxes released (+ one still frozen) vs faults");
+  check_eq(rec.black_boxes, boxed_log_.size(), "recorder black_boxes vs faults with a box");
+  check_eq(th.black_box_releases + (runtime_->cycle().black_box().frozen() ? 1u : 0u),
+           boxed_log_.size(), "black boxes released (+ one still frozen) vs faults with a box");
 
   // The summary says the same.
   const json& sc = s.at("cycles");
@@ -1198,7 +1219,7 @@ void Soak::finish_checks(const json& s) {
            "summary robot replies");
   check_eq(s.at("transitions_total").get<std::uint64_t>(), seen_.size(),
            "summary transitions_total");
-  check_eq(s.at("black_box_dumps").size(), faults, "summary black_box_dumps");
+  check_eq(s.at("black_box_dumps").size(), boxed_log_.size(), "summary black_box_dumps");
   check_eq(s.at("rings").at("records").at("dropped").get<std::uint64_t>(), 0u,
            "summary rings.records.dropped");
   check_eq(s.at("rings").at("ft").at("dropped").get<std::uint64_t>(), 0u,
@@ -1285,6 +1306,7 @@ json Soak::report(const json& summary) const {
       {"proposals_refused", proposals_refused_},
       {"transitions", runtime_->cycle().state_machine().total_transitions()},
       {"black_boxes", runtime_->black_box_paths().size()},
+      {"black_boxes_lost", lost_log_.size()},
       {"records", rec.records},
       {"records_dropped", runtime_->record_ring().dropped()},
       {"cycles_csv_rows", cycles_rows_},
