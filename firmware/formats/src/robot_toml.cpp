@@ -90,9 +90,10 @@ robot::RobotModel robot_from_toml(const toml::table& table, const std::filesyste
 
 namespace {
 
-// Reads a robot file; `rig_flange_sensor`, if given, replaces the file's [flange_sensor].
-RobotDescription read_robot(const std::filesystem::path& toml, const Transform* rig_flange_sensor) {
-  const toml::table file = parse_toml_file(toml);
+// A robot file already parsed (`file`, read from `toml`); `rig_flange_sensor`, if given,
+// replaces the file's [flange_sensor].
+RobotDescription robot_of_file(const toml::table& file, const std::filesystem::path& toml,
+                               const Transform* rig_flange_sensor) {
   const TomlTable top(file, toml, "", {"format", "version", "robot", "flange_sensor"});
   const std::string format = top.string("format");
   if (format != "zerog-robot") top.fail("format", "must be \"zerog-robot\", is \"" + format + "\"");
@@ -107,6 +108,11 @@ RobotDescription read_robot(const std::filesystem::path& toml, const Transform* 
   out.name = robot["name"].value_or(std::string());
   out.model = robot_from_toml(robot, toml, flange_sensor);
   return out;
+}
+
+// Reads a robot file (robot_of_file).
+RobotDescription read_robot(const std::filesystem::path& toml, const Transform* rig_flange_sensor) {
+  return robot_of_file(parse_toml_file(toml), toml, rig_flange_sensor);
 }
 
 // Shortest text that reads back exactly, always with a '.' or an exponent (a TOML float).
@@ -128,8 +134,8 @@ std::string quoted(const std::string& s) {
 }  // namespace
 
 std::vector<JointElasticityEntry> read_robot_elasticity(const std::filesystem::path& toml) {
-  (void)read_robot_file(toml);  // the whole file checked as a robot file first
   const toml::table file = parse_toml_file(toml);
+  (void)robot_of_file(file, toml, nullptr);  // the whole file checked as a robot file first
   const toml::array& rows = *file["robot"]["joint"].as_array();
   std::vector<JointElasticityEntry> out(rows.size());
   std::vector<TomlTable> tables;

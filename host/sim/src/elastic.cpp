@@ -29,6 +29,7 @@ JointVector joint_torques(const JointVector& q_rad, const Eigen::Vector3d& force
                           const Eigen::Vector3d& moment_flange_base_Nm) {
   JointVector tau{};
   constexpr double h = 1e-6;
+  const Eigen::Matrix3d R_t = forward_kinematics(q_rad).R_base_flange.transpose();
   for (std::size_t i = 0; i < 6; ++i) {
     JointVector plus = q_rad, minus = q_rad;
     plus[i] += h;
@@ -38,7 +39,7 @@ JointVector joint_torques(const JointVector& q_rad, const Eigen::Vector3d& force
     // Flange origin velocity and angular velocity per unit q̇_i (base axes).
     const Eigen::Vector3d v = (a.p_base_flange_m - b.p_base_flange_m) / (2.0 * h);
     const Eigen::Matrix3d dR = (a.R_base_flange - b.R_base_flange) / (2.0 * h);
-    const Eigen::Matrix3d W = dR * forward_kinematics(q_rad).R_base_flange.transpose();
+    const Eigen::Matrix3d W = dR * R_t;
     const Eigen::Vector3d w(W(2, 1), W(0, 2), W(1, 0));  // skew-symmetric part: Ṙ Rᵀ = [ω]×
     tau[i] = v.dot(force_base_N) + w.dot(moment_flange_base_Nm);
   }
