@@ -299,6 +299,7 @@ std::string format_rig(const Rig& rig) {
   if (k.mode != "imu" || k.derived() || k.angular_accel != KinematicsOrigin::imu) {
     out += "\n[kinematics]  # where the IMU columns came from (zerog import)\n";
     out += "mode = " + toml_string(k.mode) + "\n";
+    if (k.crossover_hz > 0.0) out += "crossover_hz = " + toml_float(k.crossover_hz) + "\n";
     out += std::string("angular_rate = \"") + to_string(k.angular_rate) + "\"\n";
     out += std::string("specific_force = \"") + to_string(k.specific_force) + "\"\n";
     out += "angular_rate_reason = " + toml_string(k.angular_rate_reason) + "\n";
@@ -535,6 +536,8 @@ const char* to_string(KinematicsOrigin origin) {
       return "pose";
     case KinematicsOrigin::logged:
       return "logged";
+    case KinematicsOrigin::fused:
+      return "fused";
     case KinematicsOrigin::imu:
       break;
   }
@@ -891,11 +894,12 @@ KinematicsOrigin origin_from_toml(const TomlTable& k, std::string_view key) {
   const std::string v = k.optional_string(key, "imu");
   // "logged" only for the angular acceleration: imu_w* and imu_f* logged are "imu".
   const bool accel = key == "angular_accel";
-  for (KinematicsOrigin o : {KinematicsOrigin::imu, KinematicsOrigin::joints,
-                             KinematicsOrigin::pose, KinematicsOrigin::logged}) {
+  for (KinematicsOrigin o :
+       {KinematicsOrigin::imu, KinematicsOrigin::joints, KinematicsOrigin::pose,
+        KinematicsOrigin::logged, KinematicsOrigin::fused}) {
     if (v == to_string(o) && (accel || o != KinematicsOrigin::logged)) return o;
   }
-  k.fail(key, std::string("must be \"imu\", \"joints\"") +
+  k.fail(key, std::string("must be \"imu\", \"joints\", \"fused\"") +
                   (accel ? ", \"pose\" or \"logged\"" : " or \"pose\"") + ", is \"" + v + "\"");
 }
 
@@ -935,11 +939,13 @@ KinematicsRecord kinematics_from_toml(const TomlTable& t) {
                                                  "accel_period_s",
                                                  "accel_bandwidth_hz",
                                                  "accel_noise_gain",
-                                                 "accel_cutoff_hz"});
+                                                 "accel_cutoff_hz",
+                                                 "crossover_hz"});
   KinematicsRecord r;
   r.mode = k.optional_string("mode", "imu");
-  if (r.mode != "imu" && r.mode != "robot" && r.mode != "auto")
-    k.fail("mode", "must be \"imu\", \"robot\" or \"auto\", is \"" + r.mode + "\"");
+  if (r.mode != "imu" && r.mode != "robot" && r.mode != "auto" && r.mode != "fused")
+    k.fail("mode", "must be \"imu\", \"robot\", \"auto\" or \"fused\", is \"" + r.mode + "\"");
+  r.crossover_hz = k.optional_number("crossover_hz", 0.0, NumberRange{0.0, false});
   r.angular_rate = origin_from_toml(k, "angular_rate");
   r.specific_force = origin_from_toml(k, "specific_force");
   r.angular_rate_reason = k.optional_string("angular_rate_reason", "");

@@ -1,5 +1,6 @@
 #include "zerog/formats/robot_toml.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <string>
@@ -52,6 +53,7 @@ robot::RobotModel robot_from_toml(const toml::table& table, const std::filesyste
                         " [[robot.joint]] tables, one per joint from the base outwards");
   m.joint_count = static_cast<int>(rows->size());
   std::array<bool, robot::kMaxJoints> column_used{};
+  std::vector<int> elastic_rows;
   for (int i = 0; i < m.joint_count; ++i) {
     const std::string key = "joint[" + std::to_string(i + 1) + "]";
     const toml::table* row = (*rows)[static_cast<std::size_t>(i)].as_table();
@@ -59,10 +61,14 @@ robot::RobotModel robot_from_toml(const toml::table& table, const std::filesyste
     const TomlTable j(*row, t.file(), t.name(key) + ".", kJointKeys);
     (void)j.optional_string("name", {});
     (void)j.optional_string("ros_name", {});
-    // The elasticity (read_robot_elasticity, for the simulator): numbers in range when given.
-    (void)j.optional_number("stiffness_Nm_per_rad", 1.0, {0.0, true});
-    (void)j.optional_number("mode_hz", 1.0, {0.0, true});
-    (void)j.optional_number("damping_ratio", 0.0, {0.0, false});
+    // The elasticity (proto/sim_robot.md): all three keys or none.
+    if (j.find("stiffness_Nm_per_rad") != nullptr || j.find("mode_hz") != nullptr ||
+        j.find("damping_ratio") != nullptr) {
+      m.elasticity[static_cast<std::size_t>(i)] = {j.number("stiffness_Nm_per_rad", 0.0, true),
+                                                   j.number("mode_hz", 0.0, true),
+                                                   j.number("damping_ratio", 0.0, false)};
+      elastic_rows.push_back(i);
+    }
     robot::DhJoint& dh = m.joints[static_cast<std::size_t>(i)];
     dh.a_m = j.number("a_m", NumberRange{});
     dh.alpha_rad = j.number("alpha_deg", NumberRange{}) * kRadPerDeg;
@@ -77,6 +83,16 @@ robot::RobotModel robot_from_toml(const toml::table& table, const std::filesyste
                            " a second time (each joint column once)");
     column_used[static_cast<std::size_t>(column - 1)] = true;
     m.input_index[static_cast<std::size_t>(i)] = static_cast<int>(column - 1);
+  }
+  if (!elastic_rows.empty() && static_cast<int>(elastic_rows.size()) != m.joint_count) {
+    int first = 0;
+    while (std::find(elastic_rows.begin(), elastic_rows.end(), first) != elastic_rows.end())
+      ++first;
+    const std::string key = "joint[" + std::to_string(first + 1) + "]";
+    const TomlTable j(*(*rows)[static_cast<std::size_t>(first)].as_table(), t.file(),
+                      t.name(key) + ".", kJointKeys);
+    j.fail("stiffness_Nm_per_rad",
+           "is missing: give the elasticity of every joint or of none (proto/sim_robot.md)");
   }
   if (t.find("flange") != nullptr) {
     const TomlTable f(t.table("flange"), t.file(), t.name("flange") + ".", {"p_m", "q_wxyz"});
@@ -134,31 +150,12 @@ std::string quoted(const std::string& s) {
 }  // namespace
 
 std::vector<JointElasticityEntry> read_robot_elasticity(const std::filesystem::path& toml) {
-  const toml::table file = parse_toml_file(toml);
-  (void)robot_of_file(file, toml, nullptr);  // the whole file checked as a robot file first
-  const toml::array& rows = *file["robot"]["joint"].as_array();
-  std::vector<JointElasticityEntry> out(rows.size());
-  std::vector<TomlTable> tables;
-  std::size_t with = 0;
-  for (std::size_t i = 0; i < rows.size(); ++i) {
-    tables.emplace_back(*rows[i].as_table(), toml, "robot.joint[" + std::to_string(i + 1) + "].",
-                        std::vector<std::string_view>{
-                            "name", "a_m", "alpha_deg", "d_m", "theta_offset_deg", "sign", "column",
-                            "ros_name", "stiffness_Nm_per_rad", "mode_hz", "damping_ratio"});
-    const TomlTable& j = tables.back();
-    if (j.find("stiffness_Nm_per_rad") == nullptr && j.find("mode_hz") == nullptr &&
-        j.find("damping_ratio") == nullptr)
-      continue;
-    out[i] = {j.number("stiffness_Nm_per_rad", 0.0, true), j.number("mode_hz", 0.0, true),
-              j.number("damping_ratio", 0.0, false)};
-    ++with;
-  }
-  if (with == 0) return {};
-  for (std::size_t i = 0; i < rows.size(); ++i)
-    if (out[i].stiffness_Nm_per_rad == 0.0)
-      tables[i].fail("stiffness_Nm_per_rad",
-                     "is missing: give the elasticity of every joint or of none "
-                     "(proto/sim_robot.md)");
+  const robot::RobotModel model = read_robot(toml, nullptr).model;
+  if (!model.elastic()) return {};
+  std::vector<JointElasticityEntry> out(static_cast<std::size_t>(model.joint_count));
+  for (std::size_t i = 0; i < out.size(); ++i)
+    out[i] = {model.elasticity[i].stiffness_Nm_per_rad, model.elasticity[i].mode_hz,
+              model.elasticity[i].damping_ratio};
   return out;
 }
 
@@ -186,6 +183,11 @@ std::string robot_toml_text(const std::string& table, const std::string& name,
     out += "theta_offset_deg = " + float_text(j.theta_offset_rad / kRadPerDeg) + "\n";
     out += "sign = " + std::string(j.sign < 0.0 ? "-1" : "1") + "\n";
     out += "column = " + std::to_string(model.input_index[static_cast<std::size_t>(i)] + 1) + "\n";
+    const robot::JointElasticity& e = model.elasticity[static_cast<std::size_t>(i)];
+    if (!e.rigid())
+      out += "stiffness_Nm_per_rad = " + float_text(e.stiffness_Nm_per_rad) +
+             "\nmode_hz = " + float_text(e.mode_hz) +
+             "\ndamping_ratio = " + float_text(e.damping_ratio) + "\n";
   }
   const robot::FrameTransform& f = model.last_flange;
   if (!f.R.isIdentity(0.0) || !f.p_m.isZero(0.0)) {

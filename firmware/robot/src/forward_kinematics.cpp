@@ -1,5 +1,7 @@
 #include "zerog/robot/forward_kinematics.hpp"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 
 namespace zerog::robot {
@@ -50,6 +52,30 @@ Pose sensor_pose(const RobotModel& model, std::span<const double> q_rad) {
   pose.p_m += pose.R * model.flange_sensor.p_m;
   pose.R = pose.R * model.flange_sensor.R;
   return pose;
+}
+
+void joint_torques(const RobotModel& model, std::span<const double> q_rad,
+                   const Eigen::Vector3d& force_base_N,
+                   const Eigen::Vector3d& moment_flange_base_Nm, std::span<double> tau_Nm) {
+  constexpr double h = 1e-6;
+  const std::size_t n = static_cast<std::size_t>(model.joint_count);
+  std::array<double, kMaxJoints> q{};
+  std::copy_n(q_rad.begin(), n, q.begin());
+  const std::span<const double> joints(q.data(), n);
+  const Eigen::Matrix3d R_t = flange_pose(model, joints).R.transpose();
+  for (std::size_t k = 0; k < n; ++k) {
+    const double q_k = q[k];
+    q[k] = q_k + h;
+    const Pose a = flange_pose(model, joints);
+    q[k] = q_k - h;
+    const Pose b = flange_pose(model, joints);
+    q[k] = q_k;
+    // Flange origin velocity and angular velocity per unit q̇_k (B axes).
+    const Eigen::Vector3d v = (a.p_m - b.p_m) / (2.0 * h);
+    const Eigen::Matrix3d W = (a.R - b.R) / (2.0 * h) * R_t;
+    const Eigen::Vector3d w(W(2, 1), W(0, 2), W(1, 0));  // skew-symmetric part: Ṙ Rᵀ = [ω]×
+    tau_Nm[k] = v.dot(force_base_N) + w.dot(moment_flange_base_Nm);
+  }
 }
 
 }  // namespace zerog::robot

@@ -25,6 +25,9 @@ std::string omega_dot_method(const Dataset& data) {
            io::to_string(k.angular_rate);
   if (k.angular_accel == io::KinematicsOrigin::imu)
     return "the gyro differenced at import by Savitzky-Golay (imu_dw*_radps2 columns)";
+  if (k.angular_accel == io::KinematicsOrigin::fused)
+    return "fused at import: the joints' Savitzky-Golay second derivative, the gyro below the "
+           "crossover (imu_dw*_radps2 columns)";
   return std::string("the robot's Savitzky-Golay second derivative from the ") +
          io::to_string(k.angular_accel) + " at import (imu_dw*_radps2 columns)";
 }
@@ -44,6 +47,8 @@ std::string omega_dot_source(const Dataset& data) {
       return "joints";
     case io::KinematicsOrigin::pose:
       return "pose";
+    case io::KinematicsOrigin::fused:
+      return "fused";
     case io::KinematicsOrigin::logged:
       break;
   }

@@ -5,6 +5,7 @@
 #include <numbers>
 
 #include "zerog/model/effects.hpp"
+#include "zerog/robot/forward_kinematics.hpp"
 
 namespace zerog::sim {
 
@@ -27,22 +28,9 @@ ElasticityConfig kr210_elasticity() {
 
 JointVector joint_torques(const JointVector& q_rad, const Eigen::Vector3d& force_base_N,
                           const Eigen::Vector3d& moment_flange_base_Nm) {
+  static const robot::RobotModel kr210 = robot::kr210_r2700();
   JointVector tau{};
-  constexpr double h = 1e-6;
-  const Eigen::Matrix3d R_t = forward_kinematics(q_rad).R_base_flange.transpose();
-  for (std::size_t i = 0; i < 6; ++i) {
-    JointVector plus = q_rad, minus = q_rad;
-    plus[i] += h;
-    minus[i] -= h;
-    const FlangePose a = forward_kinematics(plus);
-    const FlangePose b = forward_kinematics(minus);
-    // Flange origin velocity and angular velocity per unit q̇_i (base axes).
-    const Eigen::Vector3d v = (a.p_base_flange_m - b.p_base_flange_m) / (2.0 * h);
-    const Eigen::Matrix3d dR = (a.R_base_flange - b.R_base_flange) / (2.0 * h);
-    const Eigen::Matrix3d W = dR * R_t;
-    const Eigen::Vector3d w(W(2, 1), W(0, 2), W(1, 0));  // skew-symmetric part: Ṙ Rᵀ = [ω]×
-    tau[i] = v.dot(force_base_N) + w.dot(moment_flange_base_Nm);
-  }
+  robot::joint_torques(kr210, q_rad, force_base_N, moment_flange_base_Nm, tau);
   return tau;
 }
 
@@ -62,10 +50,8 @@ void ElasticArm::settle(double t_s, const JointVector& tau) {
 void ElasticArm::integrate(double dt, const JointVector& motor_qdd, const JointVector& load) {
   for (std::size_t i = 0; i < 6; ++i) {
     const JointElasticity& j = config_.joints[i];
-    if (j.stiffness_Nm_per_rad <= 0.0) continue;
-    const double w = 2.0 * std::numbers::pi * j.mode_hz;
-    const double acc = w * w * (load[i] / j.stiffness_Nm_per_rad - delta_[i]) -
-                       2.0 * j.damping_ratio * w * delta_dot_[i] - motor_qdd[i];
+    if (j.rigid()) continue;
+    const double acc = robot::deflection_accel(j, delta_[i], delta_dot_[i], motor_qdd[i], load[i]);
     delta_dot_[i] += dt * acc;  // semi-implicit Euler: velocity first
     delta_[i] += dt * delta_dot_[i];
     delta_ddot_[i] = acc;

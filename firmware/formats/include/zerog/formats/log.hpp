@@ -35,13 +35,17 @@ struct Transform {
 /// stream through the rig's robot, or from the pose stream (robot::derive_kinematics). For the
 /// angular acceleration `imu` is the gyro differenced at import, and `logged` a ω̇ the recording
 /// itself held (the import mapping's `angular_accel`), used as logged.
-enum class KinematicsOrigin : std::uint8_t { imu, joints, pose, logged };
+/// fused: the joints and the IMU together (zerog import's kinematics = "fused", issue 28).
+enum class KinematicsOrigin : std::uint8_t { imu, joints, pose, logged, fused };
 const char* to_string(KinematicsOrigin origin);
 
 /// The rig's `[kinematics]` table: per IMU group its origin, and the differentiator that derived
 /// it (zero when nothing is derived). host/ident reads it to say which source fed which effect.
 struct KinematicsRecord {
-  std::string mode = "imu";  ///< the import mapping's `kinematics`: "imu", "robot" or "auto"
+  /// the import mapping's `kinematics`: "imu", "robot", "auto" or "fused"
+  std::string mode = "imu";
+  /// "fused": below it the IMU, above it the joints (Hz; 0 for the other modes).
+  double crossover_hz = 0.0;
   KinematicsOrigin angular_rate = KinematicsOrigin::imu;    ///< of imu_w*_radps, if present
   KinematicsOrigin specific_force = KinematicsOrigin::imu;  ///< of imu_f*_mps2, if present
   std::string angular_rate_reason;    ///< why (robot::choose_sources' sentence)

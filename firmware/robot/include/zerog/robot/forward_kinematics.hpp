@@ -23,4 +23,14 @@ Pose flange_pose(const RobotModel& model, std::span<const double> q_rad);
 /// Pose of the F/T sensor frame S in B: flange_pose · flange_sensor. Same preconditions.
 Pose sensor_pose(const RobotModel& model, std::span<const double> q_rad);
 
+/// Joint torques of a wrench on the flange, τ = Jᵀ w (the virtual work of the wrench over each
+/// joint's motion): `force_base_N` in B, `moment_flange_base_Nm` about the flange origin, B axes.
+/// J is the flange Jacobian (linear velocity of the flange origin and angular velocity, B axes,
+/// per unit rate of each recorded joint) by central differences of flange_pose (step 1e-6 rad).
+/// `tau_Nm[k]` is recorded joint k's torque (N·m); `q_rad` and `tau_Nm` hold at least
+/// model.joint_count values. Not for the cycle (2 · joint_count forward kinematics).
+void joint_torques(const RobotModel& model, std::span<const double> q_rad,
+                   const Eigen::Vector3d& force_base_N,
+                   const Eigen::Vector3d& moment_flange_base_Nm, std::span<double> tau_Nm);
+
 }  // namespace zerog::robot

@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
+#include <numbers>
 #include <string>
 
 #include "zerog/status.hpp"
@@ -37,6 +38,31 @@ struct DhJoint {
   double sign = 1.0;              ///< +1 or −1: the controller's joint direction against z
 };
 
+/// One joint's elasticity (proto/sim_robot.md; a robot file's optional stiffness_Nm_per_rad,
+/// mode_hz, damping_ratio): the link follows the motor through a torsional spring k and damper,
+/// its effective inertia k / ω² (ω = 2π mode_hz). stiffness 0: a rigid joint.
+struct JointElasticity {
+  double stiffness_Nm_per_rad = 0.0;  ///< k_i
+  double mode_hz = 0.0;               ///< the link's natural frequency on the joint spring
+  double damping_ratio = 0.0;         ///< ζ_i
+  bool rigid() const { return stiffness_Nm_per_rad <= 0.0; }
+};
+
+/// The link's deflection acceleration δ̈ of one elastic joint (controller joint coordinates: q =
+/// motor angle, q + δ = link angle), with the link's inertia J taken constant through its natural
+/// frequency ω = sqrt(k / J):
+///   J (q̈ + δ̈) = −k δ − d δ̇ + τ   (d = 2 ζ sqrt(k J))   ⇒   δ̈ = ω² (τ / k − δ) − 2 ζ ω δ̇ − q̈
+/// τ is the load torque on the joint (N·m), q̈ the motor's acceleration. At rest δ = τ / k. The
+/// one formula of the elastic joint: the simulator's arm and the fused kinematics' deflection
+/// both step it. 0 for a rigid joint.
+inline double deflection_accel(const JointElasticity& j, double delta_rad, double delta_dot_radps,
+                               double motor_qdd_radps2, double load_Nm) {
+  if (j.rigid()) return 0.0;
+  const double w = 2.0 * std::numbers::pi * j.mode_hz;
+  return w * w * (load_Nm / j.stiffness_Nm_per_rad - delta_rad) -
+         2.0 * j.damping_ratio * w * delta_dot_radps - motor_qdd_radps2;
+}
+
 /// A rigid transform: the pose of a child frame in a parent frame.
 struct FrameTransform {
   Eigen::Matrix3d R = Eigen::Matrix3d::Identity();  ///< child axes in parent (R_parent_child)
@@ -54,6 +80,14 @@ struct RobotModel {
   FrameTransform last_flange;
   /// F/T sensor frame S in the flange frame F (the rig's `flange_sensor`).
   FrameTransform flange_sensor;
+  /// Each DH row's joint elasticity (all rigid unless the robot file gives it).
+  std::array<JointElasticity, kMaxJoints> elasticity{};
+  /// True when some joint is elastic.
+  bool elastic() const {
+    for (int i = 0; i < joint_count; ++i)
+      if (!elasticity[static_cast<std::size_t>(i)].rigid()) return true;
+    return false;
+  }
 };
 
 /// Checks a model before use: ok(), or invalid_setting naming the field refused as a path in

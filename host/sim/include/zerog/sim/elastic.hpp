@@ -23,17 +23,14 @@
 #include <Eigen/Core>
 #include <array>
 
+#include "zerog/robot/robot_model.hpp"
 #include "zerog/sim/kinematics.hpp"
 #include "zerog/sim/trajectory.hpp"
 
 namespace zerog::sim {
 
-/// One joint's elasticity. stiffness 0: a rigid joint (δ = 0).
-struct JointElasticity {
-  double stiffness_Nm_per_rad = 0.0;  ///< k_i
-  double mode_hz = 0.0;               ///< the link's natural frequency on the joint spring
-  double damping_ratio = 0.0;         ///< ζ_i
-};
+/// One joint's elasticity (the robot model's: stiffness 0 is a rigid joint).
+using JointElasticity = robot::JointElasticity;
 
 struct ElasticityConfig {
   bool enabled = false;
@@ -45,8 +42,7 @@ struct ElasticityConfig {
 ElasticityConfig kr210_elasticity();
 
 /// Joint torques (N·m, controller joint coordinates) of a wrench on the flange: τ = Jᵀ w, with
-/// J the flange Jacobian (linear velocity of the flange origin and angular velocity, base axes,
-/// per unit joint rate) by central differences of forward_kinematics.
+/// robot::joint_torques on the KR 210 R2700 (robot::kr210_r2700()).
 JointVector joint_torques(const JointVector& q_rad, const Eigen::Vector3d& force_base_N,
                           const Eigen::Vector3d& moment_flange_base_Nm);
 
