@@ -15,6 +15,7 @@
 #include "zerog/formats/detail/csv_scan.hpp"
 #include "zerog/formats/detail/rig_toml.hpp"
 #include "zerog/formats/robot_toml.hpp"
+#include "zerog/io/fused_kinematics.hpp"
 #include "zerog/model/effects.hpp"
 #include "zerog/model/rotation.hpp"
 #include "zerog/robot/derive_kinematics.hpp"
@@ -191,6 +192,10 @@ struct Mapping {
   double kinematics_bandwidth_hz = 5.0;  ///< the differentiator's bandwidth (choose_sg_window)
   /// The bandwidth of ω̇'s differentiator (the gyro's first or the robot's second derivative).
   double kinematics_accel_bandwidth_hz = kDefaultAccelBandwidthHz;
+  /// kinematics = "fused" (fused_kinematics.hpp): the joints and the IMU together; `kinematics`
+  /// then stays `imu` for the checks of the logged columns.
+  bool fused = false;
+  double kinematics_crossover_hz = kFusedCrossoverHz;
 };
 
 const Unit& find_unit(const TomlTable& t, const std::vector<Unit>& units) {
@@ -474,9 +479,10 @@ FileSpec read_file_spec(const std::string& name, const toml::node& node, const f
 
 Mapping read_mapping(const fs::path& mapping, bool rig_given) {
   const toml::table root = detail::parse_toml_file(mapping);
-  const TomlTable top(root, mapping, "",
-                      {"format", "version", "master", "pose_of", "rig_file", "rig", "files",
-                       "kinematics", "kinematics_bandwidth_hz", "kinematics_accel_bandwidth_hz"});
+  const TomlTable top(
+      root, mapping, "",
+      {"format", "version", "master", "pose_of", "rig_file", "rig", "files", "kinematics",
+       "kinematics_bandwidth_hz", "kinematics_accel_bandwidth_hz", "kinematics_crossover_hz"});
   if (top.string("format") != "zerog-import") {
     throw_at(mapping, top.require("format").source(),
              "'format' must be \"zerog-import\" (this is not an import mapping)");
@@ -529,14 +535,21 @@ Mapping read_mapping(const fs::path& mapping, bool rig_given) {
     m.kinematics = robot::KinematicsMode::robot;
   else if (m.kinematics_text == "auto")
     m.kinematics = robot::KinematicsMode::automatic;
+  else if (m.kinematics_text == "fused")
+    m.fused = true;
   else if (m.kinematics_text != "imu")
     top.fail("kinematics",
              "must be \"imu\" (the default: the IMU columns as logged), \"robot\" (ω, ω̇ and "
              "the specific force derived from the joints with the rig's robot, or from the "
-             "pose) or \"auto\" (each from the IMU where it has it, else from the robot), is \"" +
+             "pose), \"auto\" (each from the IMU where it has it, else from the robot) or "
+             "\"fused\" (the joints and the IMU together), is \"" +
                  m.kinematics_text + "\"");
-  m.kinematics_bandwidth_hz =
-      top.optional_number("kinematics_bandwidth_hz", 5.0, NumberRange{0.0, true});
+  m.kinematics_bandwidth_hz = top.optional_number(
+      "kinematics_bandwidth_hz", m.fused ? kFusedBandwidthHz : 5.0, NumberRange{0.0, true});
+  if (!m.fused && top.find("kinematics_crossover_hz") != nullptr)
+    top.fail("kinematics_crossover_hz", "is for kinematics = \"fused\" only");
+  m.kinematics_crossover_hz =
+      top.optional_number("kinematics_crossover_hz", kFusedCrossoverHz, NumberRange{0.0, true});
   m.kinematics_accel_bandwidth_hz = top.optional_number(
       "kinematics_accel_bandwidth_hz", kDefaultAccelBandwidthHz, NumberRange{0.0, true});
 
@@ -1245,6 +1258,132 @@ void derive_from_robot(const Mapping& m, const fs::path& mapping_path,
 
 // -------------------------------------------------------------------------------------------------
 
+// kinematics = "fused" (fused_kinematics.hpp): every IMU column from the joints and the IMU
+// together. Needs time, the joints with the rig's robot, the accelerometer and the gyro.
+void fuse_joints_and_imu(const Mapping& m, const fs::path& mapping_path,
+                         const std::vector<Series>& series,
+                         const std::array<int, kQuantityCount>& source, ImportResult& result) {
+  Log& log = result.log;
+  const auto refuse = [&](const std::string& why) {
+    throw_at(mapping_path, m.kinematics_where, "'kinematics = \"fused\"': " + why);
+  };
+  const int joints_file = source[static_cast<int>(Quantity::joints)];
+  if (log.columns.static_rows)
+    refuse("rows without time (a static table) have no motion to fuse; use kinematics = \"imu\"");
+  if (joints_file < 0)
+    refuse(
+        "the joints are not mapped: map 'joints' (and give the rig its robot) to fuse them "
+        "with the IMU, or use kinematics = \"imu\"");
+  if (!log.rig.robot_model)
+    refuse(quantity_file(m, source, Quantity::joints) + " is mapped, but the rig (" +
+           result.report.rig_source +
+           ") does not describe the robot: give it robot_file = \"…/calib/robots/"
+           "kr210_r2700.robot.toml\" or a [robot] table (proto/log_format.md)");
+  if (!log.columns.specific_force || !log.columns.angular_rate)
+    refuse(std::string("the IMU's ") +
+           (log.columns.specific_force ? "angular_rate" : "specific_force") +
+           " is not mapped; the fusion needs the accelerometer and the gyro: map both, or use "
+           "kinematics = \"auto\" (each signal from the IMU where it is logged, else the robot)");
+  if (log.columns.angular_accel)
+    refuse(quantity_file(m, source, Quantity::angular_accel) +
+           " is a logged angular acceleration, which the fusion would replace: use "
+           "kinematics = \"auto\" to keep it, or remove 'angular_accel'");
+  const robot::RobotModel model =
+      robot_for_joints(m, mapping_path, log, source, "fuse them with the IMU");
+  const std::vector<double>& t = series[static_cast<std::size_t>(joints_file)].t;
+  const double period_s = median_period(t);
+  const FusionSettings settings =
+      fusion_settings(period_s, m.kinematics_bandwidth_hz, m.kinematics_accel_bandwidth_hz,
+                      m.kinematics_crossover_hz);
+  const std::size_t window = static_cast<std::size_t>(2 * settings.sg.half_width + 1);
+  if (t.size() < window ||
+      t.size() < static_cast<std::size_t>(2 * settings.accel_sg.half_width + 1))
+    refuse(quantity_file(m, source, Quantity::joints) + " has " + std::to_string(t.size()) +
+           " rows; the differentiator needs at least " + std::to_string(window) +
+           ": record longer or raise kinematics_bandwidth_hz");
+  const std::size_t rows = log.samples.size();
+  std::vector<double> row_t(rows);
+  std::vector<Eigen::Vector3d> f(rows), w(rows), force(rows), torque(rows);
+  for (std::size_t r = 0; r < rows; ++r) {
+    const Sample& s = log.samples[r];
+    row_t[r] = s.t_s;
+    f[r] = s.specific_force_imu_mps2;
+    w[r] = s.angular_rate_imu_radps;
+    force[r] = s.force_sensor_N;
+    torque[r] = s.torque_sensor_Nm;
+  }
+  FusionInput in;
+  in.robot = &model;
+  in.joint_t_s = t;
+  in.joints_rad =
+      series[static_cast<std::size_t>(joints_file)].values[static_cast<int>(Quantity::joints)];
+  in.row_t_s = row_t;
+  in.imu_specific_force_mps2 = f;
+  in.imu_angular_rate_radps = w;
+  in.force_sensor_N = force;
+  in.torque_sensor_Nm = torque;
+  in.R_sensor_imu = log.rig.sensor_imu.q.normalized().toRotationMatrix();
+  in.p_sensor_imu_m = log.rig.sensor_imu.p_m;
+  const FusionResult fused = fuse_kinematics(in, settings);
+  for (std::size_t r = 0; r < rows; ++r) {
+    Sample& s = log.samples[r];
+    s.specific_force_imu_mps2 = fused.specific_force_mps2[r];
+    s.angular_rate_imu_radps = fused.angular_rate_radps[r];
+    s.angular_accel_imu_radps2 = fused.angular_accel_radps2[r];
+  }
+  log.columns.angular_accel = true;
+  KinematicsRecord& k = log.rig.kinematics;
+  k.mode = "fused";
+  k.crossover_hz = settings.crossover_hz;
+  k.angular_rate = k.specific_force = k.angular_accel = KinematicsOrigin::fused;
+  const std::string why = "the joints (" + log.rig.robot + (fused.elastic ? ", elastic" : "") +
+                          ") above " + num(settings.crossover_hz) + " Hz, the IMU below";
+  k.angular_rate_reason = k.specific_force_reason = k.angular_accel_reason = why;
+  k.sg_half_width = settings.sg.half_width;
+  k.sg_order = settings.sg.order;
+  k.period_s = period_s;
+  k.bandwidth_hz = m.kinematics_bandwidth_hz;
+  k.lag_s = 0.0;
+  k.noise_gain_rate_per_s = robot::sg_noise_gain(settings.sg, 1, period_s);
+  k.noise_gain_accel_per_s2 = robot::sg_noise_gain(settings.sg, 2, period_s);
+  k.cutoff_rate_hz = robot::sg_cutoff_hz(settings.sg, 1, period_s);
+  k.cutoff_accel_hz = robot::sg_cutoff_hz(settings.sg, 2, period_s);
+  k.accel_sg_half_width = settings.accel_sg.half_width;
+  k.accel_sg_order = settings.accel_sg.order;
+  k.accel_period_s = period_s;
+  k.accel_bandwidth_hz = m.kinematics_accel_bandwidth_hz;
+  k.accel_noise_gain = robot::sg_noise_gain(settings.accel_sg, 2, period_s);
+  k.accel_cutoff_hz = robot::sg_cutoff_hz(settings.accel_sg, 2, period_s);
+  std::string text =
+      "kinematics = \"fused\": angular rate, specific force and angular "
+      "acceleration from " +
+      why + " (zero phase)\n";
+  char line[400];
+  std::snprintf(line, sizeof line,
+                "  joints of files.%s (%zu rows, median period %.4g s): Savitzky-Golay M = %d "
+                "(-3 dB %.3g Hz rate / %.3g Hz acceleration), omega_dot M = %d (-3 dB %.3g Hz); "
+                "the IMU corrected %.3g m/s^2 and %.3g rad/s RMS\n",
+                m.files[static_cast<std::size_t>(joints_file)].name.c_str(), t.size(), period_s,
+                settings.sg.half_width, k.cutoff_rate_hz, k.cutoff_accel_hz,
+                settings.accel_sg.half_width, k.accel_cutoff_hz,
+                fused.correction_specific_force_mps2, fused.correction_angular_rate_radps);
+  text += line;
+  if (fused.elastic) {
+    text += "  the link's deflection from the robot file's elasticity (mean / RMS about it, mrad):";
+    for (std::size_t j = 0; j < fused.deflection_rms_rad.size(); ++j) {
+      std::snprintf(line, sizeof line, " A%zu %.3g/%.3g", j + 1, 1e3 * fused.deflection_mean_rad[j],
+                    1e3 * fused.deflection_rms_rad[j]);
+      text += line;
+    }
+    text += "\n";
+  } else {
+    text +=
+        "  the robot file gives no elasticity: the joints are taken as the link's (a rigid "
+        "arm); the IMU corrects only below the crossover\n";
+  }
+  result.report.kinematics = text;
+}
+
 ImportResult import_recordings(const fs::path& mapping_path,
                                const std::optional<fs::path>& rig_file) {
   Mapping mapping = read_mapping(mapping_path, rig_file.has_value());
@@ -1512,6 +1651,10 @@ ImportResult import_recordings(const fs::path& mapping_path,
     log.rig.kinematics.angular_accel_reason =
         "logged in " + quantity_file(mapping, source, Quantity::angular_accel) +
         " (used as logged)";
+  }
+  if (mapping.fused) {
+    fuse_joints_and_imu(mapping, mapping_path, series, source, result);
+    return result;
   }
   if (mapping.kinematics == robot::KinematicsMode::imu) {  // the columns as logged
     refuse_accel_without_rate();

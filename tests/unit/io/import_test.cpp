@@ -962,6 +962,20 @@ TEST_F(ImportTest, LoggedAngularAccelerationComesThroughOrIsRefused) {
   std::tie(line, column) = line_column_of(map, "{ columns = [\"dwx\"");
   expect_input_error([&] { (void)import_recordings(path("m.toml")); }, path("m.toml"), line, column,
                      "kinematics = \"robot\" takes ω̇ from the robot: use kinematics = \"auto\"");
+  // Refused: kinematics = "fused" (issue 28) needs the joints with the rig's robot; its
+  // crossover is for it only.
+  map = mapping("kinematics = \"fused\"\n", gyro);
+  write_text(path("m.toml"), map);
+  std::tie(line, column) = line_column_of(map, "kinematics = \"fused\"");
+  column += static_cast<int>(std::string("kinematics = ").size());
+  expect_input_error([&] { (void)import_recordings(path("m.toml")); }, path("m.toml"), line, column,
+                     "'kinematics = \"fused\"': the joints are not mapped: map 'joints' (and "
+                     "give the rig its robot) to fuse them with the IMU");
+  map = mapping("kinematics_crossover_hz = 0.5\n", gyro);
+  write_text(path("m.toml"), map);
+  std::tie(line, column) = line_column_of(map, "0.5");
+  expect_input_error([&] { (void)import_recordings(path("m.toml")); }, path("m.toml"), line, column,
+                     "'kinematics_crossover_hz' is for kinematics = \"fused\" only");
   // An unknown unit names the accepted ones.
   map = mapping(
       "", gyro + "angular_accel = { columns = [\"dwx\", \"dwy\", \"dwz\"], unit = \"rad/s\" }\n");
