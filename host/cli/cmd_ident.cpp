@@ -16,6 +16,7 @@
 #include "zerog/ident/diagnose.hpp"
 #include "zerog/ident/events.hpp"
 #include "zerog/ident/fit.hpp"
+#include "zerog/ident/ft_floor.hpp"
 #include "zerog/ident/kinematics_sources.hpp"
 #include "zerog/io/effect_file.hpp"
 #include "zerog/io/model_file.hpp"
@@ -445,9 +446,13 @@ void run_compare(const Common& c, const std::string& model_path, const std::stri
   const ident::SpanScan scan = ident::find_spans(res, data, out_rows.empty() ? nullptr : &out_rows);
   std::optional<ident::Floors> floors;
   if (!truth_path.empty()) floors = ident::floors(truth_path, data, kept);
+  const ident::FtFloor ft = ident::ft_floor(data);
+  const ident::ErrorVsFloor error{cmp.stat.force_rms, cmp.stat.torque_rms, cmp.moving.force_rms,
+                                  cmp.moving.torque_rms};
   if (c.json) {
     nlohmann::json j = ident::to_json(cmp);
     j["kind"] = "zerog-compare";
+    j["ft_floor"] = ident::to_json(ft, &error);
     j["version"] = 2;
     j["log"] = c.log;
     j["model"] = model_path;
@@ -465,6 +470,7 @@ void run_compare(const Common& c, const std::string& model_path, const std::stri
   if (!out_rows.empty())
     std::printf("left out (--exclude %s): %zu rows\n", c.exclude.c_str(), count_set(out_rows));
   std::printf("%s", ident::format_comparison(cmp, floors ? &*floors : nullptr).c_str());
+  std::printf("%s", ident::format_ft_floor(ft, &error).c_str());
   if (!scan.possible) {
     std::printf("in time: %s\n", scan.note.c_str());
   } else if (scan.spans.empty()) {
@@ -795,6 +801,21 @@ void add_ident_commands(CLI::App& app) {
       }
       j["version"] = 3;  // the floors' keys below, "made_for" (proto/json_output.md)
       floors_into(j, floors ? &*floors : nullptr);
+      // The F/T-only floor against the last step's held-out error (ft_floor.hpp).
+      const ident::FtFloor ft = ident::ft_floor(data);
+      j["ft_floor"] = ident::to_json(ft, nullptr);
+      std::string ft_text = ident::format_ft_floor(ft, nullptr);
+      if (ft.known && !steps.empty() && ft.force_rms > 0.0 && ft.torque_rms > 0.0) {
+        const ident::ErrorStats& last = steps.back().heldout.stats;
+        j["ft_floor"]["heldout_ratio"] = {{"force", last.force_rms / ft.force_rms},
+                                          {"torque", last.torque_rms / ft.torque_rms}};
+        char line[200];
+        std::snprintf(line, sizeof line,
+                      "  the last step's held-out error against it: %.2fx (force) / %.2fx "
+                      "(torque)\n",
+                      last.force_rms / ft.force_rms, last.torque_rms / ft.torque_rms);
+        ft_text += line;
+      }
       // A ladder is made for its log; it climbs from its own start, not from one model.
       j["made_for"] = {{"model", nullptr},
                        {"start", model_identity(spec.effects, spec.user)["effects"]},
@@ -823,6 +844,7 @@ void add_ident_commands(CLI::App& app) {
       std::printf("%s", ident::format_ladder(steps).c_str());
       std::printf("%s", ident::format_kinematics(feeds, data).c_str());
       if (floors) std::printf("%s", ident::format_floors(*floors, "held-out").c_str());
+      std::printf("%s", ft_text.c_str());
       if (!out->empty()) std::printf("wrote %s\n", out->c_str());
       if (!plot->empty()) std::printf("plotted %s\n", plot->c_str());
     });
