@@ -673,6 +673,87 @@ TEST_F(Cli, DiscoveredLawFitsWithThePrintedCommandAndTravelsToReportAndExport) {
 // command, diagnose its model, ... until nothing is left; the model then matches the true-model
 // reference within 1.1x (force and torque RMS over the log), no command fails, and no file any
 // turn read (the log, its rig, every model and law of earlier turns) is changed.
+// Issue 28, items 3 and 4, as a user runs them: a run on the elastic robot imported again with
+// kinematics = "fused" (the mapping reads the zerog log as a file, proto/import_mapping.md), fitted
+// and compared. On this 24-point random design the fused log's model is within 1.6x the sensor
+// floor in force and 2.6x in torque (measured 1.45x, 2.28x; the IMU's 4.6x and 11x; the OA run of
+// the demo gives 1.20x, 1.69x: robot_kinematics.md), the F/T-only floor compare prints without a
+// truth is the simulator's sensor floor within 10 % (force), and the inputs stay as they were.
+// Two seeds.
+TEST_F(Cli, FusedKinematicsBringTheElasticRobotsFitToTheSensorFloor) {
+  for (int seed : {3, 9}) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    const fs::path sub = dir() / ("fused_" + std::to_string(seed));
+    fs::create_directories(sub);
+    const fs::path log = sub / "run.csv";
+    Result r = run("sim --kind random --points 24 --real-robot --seed " + std::to_string(seed) +
+                   " -q --out " + log.string());
+    ASSERT_EQ(r.status, 0) << r.err;
+    const std::string before = slurp(log);
+    // The simulator's mountings, which the mapping's rig repeats with the robot file.
+    const std::string rig = slurp(sub / "run.rig.toml");
+    ASSERT_THAT(rig, HasSubstr("[flange_sensor]  # sensor frame S in the flange frame F\np_m = "
+                               "[0.0, 0.0, 0.06]\nq_wxyz = [1.0, 0.0, 0.0, 0.0]"));
+    ASSERT_THAT(rig, HasSubstr("[sensor_imu]  # IMU frame I in the sensor frame S\np_m = [0.0, "
+                               "0.0, 0.0]\nq_wxyz = [1.0, 0.0, 0.0, 0.0]"));
+    std::ofstream(sub / "fused.toml")
+        << "format = \"zerog-import\"\nversion = 1\nkinematics = \"fused\"\n"
+           "[rig]\nname = \"elastic\"\nrobot = \"KR 210 R2700\"\nrobot_file = \""
+        << ZEROG_SOURCE_DIR << "/calib/robots/kr210_r2700.robot.toml\"\n"
+        << "[rig.flange_sensor]\np_m = [0.0, 0.0, 0.06]\nq_wxyz = [1.0, 0.0, 0.0, 0.0]\n"
+           "[rig.sensor_imu]\np_m = [0.0, 0.0, 0.0]\nq_wxyz = [1.0, 0.0, 0.0, 0.0]\n"
+           "[files.log]\npath = \"run.csv\"\ntime = { column = \"t_s\", unit = \"s\" }\n"
+           "force = { columns = [\"Fx_N\", \"Fy_N\", \"Fz_N\"], unit = \"N\" }\n"
+           "torque = { columns = [\"Mx_Nm\", \"My_Nm\", \"Mz_Nm\"], unit = \"N*m\" }\n"
+           "joints = { columns = [\"q1_rad\", \"q2_rad\", \"q3_rad\", \"q4_rad\", \"q5_rad\", "
+           "\"q6_rad\"], unit = \"rad\" }\n"
+           "specific_force = { columns = [\"imu_fx_mps2\", \"imu_fy_mps2\", \"imu_fz_mps2\"], "
+           "unit = \"m/s^2\" }\n"
+           "angular_rate = { columns = [\"imu_wx_radps\", \"imu_wy_radps\", \"imu_wz_radps\"], "
+           "unit = \"rad/s\" }\n";
+    r = run("import --mapping " + (sub / "fused.toml").string() + " --out " +
+            (sub / "fused.csv").string());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_THAT(r.out, HasSubstr("kinematics = \"fused\""));
+    EXPECT_THAT(r.out, HasSubstr("the link's deflection from the robot file's elasticity"));
+    EXPECT_THAT(slurp(sub / "fused.rig.toml"), HasSubstr("mode = \"fused\""));
+    const std::string truth = (sub / "run.truth.json").string();
+    nlohmann::json cmp[2];
+    const char* names[2] = {"run", "fused"};
+    for (int k = 0; k < 2; ++k) {
+      const std::string csv = (sub / (std::string(names[k]) + ".csv")).string();
+      const std::string model = (sub / (std::string(names[k]) + "_fit.json")).string();
+      r = run("fit " + csv + " -q --effects bias,gravity,linear_inertia,rotational_inertia --out " +
+              model);
+      ASSERT_EQ(r.status, 0) << r.err;
+      r = run("compare " + csv + " --model " + model + " --truth " + truth + " --json -q");
+      ASSERT_EQ(r.status, 0) << r.err;
+      cmp[k] = nlohmann::json::parse(r.out);
+    }
+    const auto rms = [](const nlohmann::json& j, const char* what, const char* key) {
+      return j[what]["all"][key].get<double>();
+    };
+    const double floor_f = rms(cmp[1], "sensor_floor", "force_rms");
+    const double floor_m = rms(cmp[1], "sensor_floor", "torque_rms");
+    const double imu_f = rms(cmp[0], "segments", "force_rms") / floor_f;
+    const double imu_m = rms(cmp[0], "segments", "torque_rms") / floor_m;
+    const double fused_f = rms(cmp[1], "segments", "force_rms") / floor_f;
+    const double fused_m = rms(cmp[1], "segments", "torque_rms") / floor_m;
+    std::printf(
+        "seed %d: force / torque over the sensor floor: IMU %.2f / %.2f, fused %.2f / %.2f\n", seed,
+        imu_f, imu_m, fused_f, fused_m);
+    EXPECT_GT(imu_f, 3.0);
+    EXPECT_LT(fused_f, 1.6);
+    EXPECT_LT(fused_m, 2.6);
+    EXPECT_LT(fused_m, 0.25 * imu_m);
+    const nlohmann::json& ft = cmp[1]["ft_floor"];
+    ASSERT_TRUE(ft["known"].get<bool>()) << ft.dump();
+    EXPECT_NEAR(ft["force_rms"].get<double>(), floor_f, 0.1 * floor_f);
+    EXPECT_LT(ft["ratio"]["force_rest"].get<double>(), 1.5);
+    EXPECT_EQ(slurp(log), before);
+  }
+}
+
 TEST_F(Cli, TheLoopAsPrintedReachesTheTrueModelReferenceWithoutTouchingItsInputs) {
   struct Case {
     std::string effects;
