@@ -126,6 +126,28 @@ FusionSettings fusion_settings(double period_s, double bandwidth_hz, double acce
   return s;
 }
 
+RowSignals row_signals(const Log& log) {
+  RowSignals r;
+  for (const Sample& s : log.samples) {
+    r.t_s.push_back(s.t_s);
+    r.specific_force_mps2.push_back(s.specific_force_imu_mps2);
+    r.angular_rate_radps.push_back(s.angular_rate_imu_radps);
+    r.force_N.push_back(s.force_sensor_N);
+    r.torque_Nm.push_back(s.torque_sensor_Nm);
+  }
+  return r;
+}
+
+FusionInput fusion_input(const RowSignals& rows) {
+  FusionInput in;
+  in.row_t_s = rows.t_s;
+  in.imu_specific_force_mps2 = rows.specific_force_mps2;
+  in.imu_angular_rate_radps = rows.angular_rate_radps;
+  in.force_sensor_N = rows.force_N;
+  in.torque_sensor_Nm = rows.torque_Nm;
+  return in;
+}
+
 void zero_phase_lowpass(std::span<const double> t_s, std::span<Eigen::Vector3d> values,
                         double cutoff_hz) {
   const std::size_t n = values.size();

@@ -1035,6 +1035,31 @@ void differentiate_gyro(const Mapping& m, const std::vector<Series>& series,
   result.report.kinematics += buffer;
 }
 
+// The record of the pose's differentiator (ω and the specific force) and of ω̇'s, as the rig's
+// [kinematics] keeps them (log_format.md).
+void record_differentiator(KinematicsRecord& r, const robot::SgSettings& sg, double period_s,
+                           double bandwidth_hz) {
+  r.sg_half_width = sg.half_width;
+  r.sg_order = sg.order;
+  r.period_s = period_s;
+  r.bandwidth_hz = bandwidth_hz;
+  r.lag_s = 0.0;  // centred window
+  r.noise_gain_rate_per_s = robot::sg_noise_gain(sg, 1, period_s);
+  r.noise_gain_accel_per_s2 = robot::sg_noise_gain(sg, 2, period_s);
+  r.cutoff_rate_hz = robot::sg_cutoff_hz(sg, 1, period_s);
+  r.cutoff_accel_hz = robot::sg_cutoff_hz(sg, 2, period_s);
+}
+
+void record_accel_differentiator(KinematicsRecord& r, const robot::SgSettings& sg, double period_s,
+                                 double bandwidth_hz) {
+  r.accel_sg_half_width = sg.half_width;
+  r.accel_sg_order = sg.order;
+  r.accel_period_s = period_s;
+  r.accel_bandwidth_hz = bandwidth_hz;
+  r.accel_noise_gain = robot::sg_noise_gain(sg, 2, period_s);
+  r.accel_cutoff_hz = robot::sg_cutoff_hz(sg, 2, period_s);
+}
+
 void derive_from_robot(const Mapping& m, const fs::path& mapping_path,
                        const std::vector<Series>& series,
                        const std::array<int, kQuantityCount>& source, ImportResult& result) {
@@ -1210,12 +1235,8 @@ void derive_from_robot(const Mapping& m, const fs::path& mapping_path,
   if (derive_accel) {
     log.columns.angular_accel = true;
     record.angular_accel = origin;
-    record.accel_sg_half_width = accel_settings.sg.half_width;
-    record.accel_sg_order = accel_settings.sg.order;
-    record.accel_period_s = period_s;
-    record.accel_bandwidth_hz = m.kinematics_accel_bandwidth_hz;
-    record.accel_noise_gain = robot::sg_noise_gain(accel_settings.sg, 2, period_s);
-    record.accel_cutoff_hz = robot::sg_cutoff_hz(accel_settings.sg, 2, period_s);
+    record_accel_differentiator(record, accel_settings.sg, period_s,
+                                m.kinematics_accel_bandwidth_hz);
     char line[200];
     std::snprintf(line, sizeof line,
                   "angular acceleration: its own Savitzky-Golay second derivative M = %d, order "
@@ -1225,15 +1246,7 @@ void derive_from_robot(const Mapping& m, const fs::path& mapping_path,
                   record.accel_cutoff_hz, record.accel_noise_gain);
     result.report.kinematics += line;
   }
-  record.sg_half_width = sg.half_width;
-  record.sg_order = sg.order;
-  record.period_s = period_s;
-  record.bandwidth_hz = m.kinematics_bandwidth_hz;
-  record.lag_s = 0.0;  // centred window
-  record.noise_gain_rate_per_s = robot::sg_noise_gain(sg, 1, period_s);
-  record.noise_gain_accel_per_s2 = robot::sg_noise_gain(sg, 2, period_s);
-  record.cutoff_rate_hz = robot::sg_cutoff_hz(sg, 1, period_s);
-  record.cutoff_accel_hz = robot::sg_cutoff_hz(sg, 2, period_s);
+  record_differentiator(record, sg, period_s, m.kinematics_bandwidth_hz);
 
   char buffer[400];
   std::snprintf(buffer, sizeof buffer,
@@ -1302,26 +1315,12 @@ void fuse_joints_and_imu(const Mapping& m, const fs::path& mapping_path,
            " rows; the differentiator needs at least " + std::to_string(window) +
            ": record longer or raise kinematics_bandwidth_hz");
   const std::size_t rows = log.samples.size();
-  std::vector<double> row_t(rows);
-  std::vector<Eigen::Vector3d> f(rows), w(rows), force(rows), torque(rows);
-  for (std::size_t r = 0; r < rows; ++r) {
-    const Sample& s = log.samples[r];
-    row_t[r] = s.t_s;
-    f[r] = s.specific_force_imu_mps2;
-    w[r] = s.angular_rate_imu_radps;
-    force[r] = s.force_sensor_N;
-    torque[r] = s.torque_sensor_Nm;
-  }
-  FusionInput in;
+  const RowSignals signals = row_signals(log);
+  FusionInput in = fusion_input(signals);
   in.robot = &model;
   in.joint_t_s = t;
   in.joints_rad =
       series[static_cast<std::size_t>(joints_file)].values[static_cast<int>(Quantity::joints)];
-  in.row_t_s = row_t;
-  in.imu_specific_force_mps2 = f;
-  in.imu_angular_rate_radps = w;
-  in.force_sensor_N = force;
-  in.torque_sensor_Nm = torque;
   in.R_sensor_imu = log.rig.sensor_imu.q.normalized().toRotationMatrix();
   in.p_sensor_imu_m = log.rig.sensor_imu.p_m;
   const FusionResult fused = fuse_kinematics(in, settings);
@@ -1339,21 +1338,8 @@ void fuse_joints_and_imu(const Mapping& m, const fs::path& mapping_path,
   const std::string why = "the joints (" + log.rig.robot + (fused.elastic ? ", elastic" : "") +
                           ") above " + num(settings.crossover_hz) + " Hz, the IMU below";
   k.angular_rate_reason = k.specific_force_reason = k.angular_accel_reason = why;
-  k.sg_half_width = settings.sg.half_width;
-  k.sg_order = settings.sg.order;
-  k.period_s = period_s;
-  k.bandwidth_hz = m.kinematics_bandwidth_hz;
-  k.lag_s = 0.0;
-  k.noise_gain_rate_per_s = robot::sg_noise_gain(settings.sg, 1, period_s);
-  k.noise_gain_accel_per_s2 = robot::sg_noise_gain(settings.sg, 2, period_s);
-  k.cutoff_rate_hz = robot::sg_cutoff_hz(settings.sg, 1, period_s);
-  k.cutoff_accel_hz = robot::sg_cutoff_hz(settings.sg, 2, period_s);
-  k.accel_sg_half_width = settings.accel_sg.half_width;
-  k.accel_sg_order = settings.accel_sg.order;
-  k.accel_period_s = period_s;
-  k.accel_bandwidth_hz = m.kinematics_accel_bandwidth_hz;
-  k.accel_noise_gain = robot::sg_noise_gain(settings.accel_sg, 2, period_s);
-  k.accel_cutoff_hz = robot::sg_cutoff_hz(settings.accel_sg, 2, period_s);
+  record_differentiator(k, settings.sg, period_s, m.kinematics_bandwidth_hz);
+  record_accel_differentiator(k, settings.accel_sg, period_s, m.kinematics_accel_bandwidth_hz);
   std::string text =
       "kinematics = \"fused\": angular rate, specific force and angular "
       "acceleration from " +

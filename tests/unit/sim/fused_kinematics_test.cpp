@@ -74,26 +74,14 @@ Errors errors_of(const FusionResult& r, const Log& clean) {
 
 FusionResult fuse(const Log& log, const robot::RobotModel& model) {
   const std::size_t n = log.samples.size();
-  std::vector<double> t(n), q(6 * n);
-  std::vector<Eigen::Vector3d> f(n), w(n), force(n), torque(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    const Sample& s = log.samples[i];
-    t[i] = s.t_s;
-    for (std::size_t j = 0; j < 6; ++j) q[6 * i + j] = s.joints_rad[j];
-    f[i] = s.specific_force_imu_mps2;
-    w[i] = s.angular_rate_imu_radps;
-    force[i] = s.force_sensor_N;
-    torque[i] = s.torque_sensor_Nm;
-  }
-  FusionInput in;
+  std::vector<double> q(6 * n);
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t j = 0; j < 6; ++j) q[6 * i + j] = log.samples[i].joints_rad[j];
+  const RowSignals rows = row_signals(log);
+  FusionInput in = fusion_input(rows);
   in.robot = &model;
-  in.joint_t_s = t;
+  in.joint_t_s = rows.t_s;
   in.joints_rad = q;
-  in.row_t_s = t;
-  in.imu_specific_force_mps2 = f;
-  in.imu_angular_rate_radps = w;
-  in.force_sensor_N = force;
-  in.torque_sensor_Nm = torque;
   const FusionSettings s = fusion_settings(0.012);  // zerog import's defaults at 12 ms
   return fuse_kinematics(in, s);
 }

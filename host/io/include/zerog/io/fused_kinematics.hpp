@@ -30,6 +30,7 @@
 #include <span>
 #include <vector>
 
+#include "zerog/formats/log.hpp"
 #include "zerog/robot/robot_model.hpp"
 #include "zerog/robot/savitzky_golay.hpp"
 
@@ -87,6 +88,15 @@ struct FusionResult {
   double correction_angular_rate_radps = 0.0;
   bool elastic = false;  ///< step 1 ran (the robot has elasticity)
 };
+
+/// A log's rows as FusionInput reads them (the IMU as logged, the measured wrench), owned.
+struct RowSignals {
+  std::vector<double> t_s;
+  std::vector<Eigen::Vector3d> specific_force_mps2, angular_rate_radps, force_N, torque_Nm;
+};
+RowSignals row_signals(const Log& log);
+/// A FusionInput over `rows` (which must outlive it), its robot, joints and mountings unset.
+FusionInput fusion_input(const RowSignals& rows);
 
 /// Runs the three steps. Throws std::runtime_error naming what is wrong (sizes, a stream too
 /// short for the differentiator).
