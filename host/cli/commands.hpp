@@ -14,5 +14,6 @@ void add_decode_rsi_command(CLI::App& app);  // cmd_decode_rsi.cpp
 void add_learn_commands(CLI::App& app);      // cmd_learn.cpp: train, results
 void add_export_command(CLI::App& app);      // cmd_export.cpp
 void add_watch_command(CLI::App& app);       // cmd_watch.cpp: live telemetry (DDS)
+void add_gate_command(CLI::App& app);        // cmd_gate.cpp: the contact gate from the noise
 
 }  // namespace zerog::cli

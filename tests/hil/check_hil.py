@@ -200,6 +200,29 @@ def contact_noise(run, t0, t1, what):
     print(f"  contact noise against the floor: {force_ratio:.2f}x (force), {torque_ratio:.2f}x (torque)")
 
 
+def gate_checks(run):
+    """`zerog gate` on this run's cycles.csv (hil.sh ran it): the thresholds it advises, replayed
+    on the same untouched run, confirm no push."""
+    try:
+        with open(f"{run.dir}/gate.json") as f:
+            gate = json.load(f)
+    except (OSError, ValueError) as e:
+        check(False, f"zerog gate wrote gate.json ({e})")
+        return
+    check(gate.get("known") is True, f"zerog gate measured the noise at rest "
+          f"({gate.get('cycles')} cycles{'' if gate.get('known') else ': ' + str(gate.get('note'))})")
+    if not gate.get("known"):
+        return
+    f, m = gate["force_N"], gate["torque_Nm"]
+    figure("gate_force_N", f["threshold"])
+    figure("gate_torque_Nm", m["threshold"])
+    print(f"  zerog gate: force {f['threshold']:.3f} N (sigma {f['sigma']:.3f}), torque "
+          f"{m['threshold']:.3f} N*m (sigma {m['sigma']:.4f}), {gate['cycles']} cycles at rest")
+    check(f["confirms_at_threshold"] == 0 and m["confirms_at_threshold"] == 0,
+          f"the advised gate confirms no push on the untouched run (force "
+          f"{f['confirms_at_threshold']}, torque {m['confirms_at_threshold']})")
+
+
 def case_push(run):
     t_en = common_checks(run)
     push = run.emu["pushes"][0]
@@ -303,6 +326,7 @@ def case_drift(run):
         return
     t0 = t_en + 1.0
     contact_noise(run, t0, t0 + 10.0, "at_rest")
+    gate_checks(run)
     sel = run.window(t0, t0 + 10.0)
     span = run.t[sel][-1] - run.t[sel][0]
     p = run.p_com[sel]

@@ -257,6 +257,12 @@ print(" ".join(str(s.getsockname()[1]) for s in held))')
     tail -n 5 "$w/rt.err" "$w/emu.err" >&2
     return 1
   fi
+  # The contact gate from this run's noise at rest (docs/zerog-rt.md, "Setting the contact
+  # gate"): the drift cases float untouched; check_hil.py checks the replay.
+  case "$c" in drift*)
+    "$zerog" gate "$w/rec/cycles.csv" --config "$w/zerog-rt.toml" --json >"$w/gate.json" \
+      2>"$w/gate.err" || echo "hil.sh: $c: zerog gate failed (see gate.err)" >&2 ;;
+  esac
   /usr/bin/python3 "$here/check_hil.py" --case "$c" --dir "$w" --scenario "$scenario" \
     --rt-config "$w/zerog-rt.toml" \
     | tee "$w/check.txt"

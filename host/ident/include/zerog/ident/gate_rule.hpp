@@ -1,0 +1,66 @@
+#pragma once
+// The contact gate's threshold from the measured noise (issue 28, item 4; `zerog gate`,
+// docs/zerog-rt.md "Setting the contact gate"). zerog-rt confirms a push when the contact force
+// at the virtual centre of mass (|F|), or the torque about it (|M|), stays above its threshold
+// for contact_confirm_cycles cycles in a row (control::ContactGate). The lower the threshold, the
+// gentler the push that moves the part, and the likelier the noise alone confirms one.
+//
+// The rule: from a recording of zerog-rt at rest in zero-g (cycles.csv; the cycles whose virtual
+// body has not moved: no push was confirmed), the contact wrench's RMS per axis (its mean
+// included: a model offset is seen by the gate too) gives σ² = (RMS_x² + RMS_y² + RMS_z²) / 3; the
+// norm of three such axes exceeds t with p(t) = Q₃(t²/σ²), the χ² tail with 3 degrees of freedom
+// (Q₃(x) = erfc(√(x/2)) + √(2x/π) e^(−x/2)), and `confirm` cycles in a row, taken as
+// independent, with p(t)^confirm. The threshold is the smallest t whose expected false confirms,
+// cycles per hour × p(t)^confirm, stay below `false_per_hour` (default 0.01: one per 100 hours
+// of zero-g). The cycles are not independent (the IMU's differenced noise spans 5 cycles): the
+// lag-1 correlation of the norm is reported, and the recording is replayed through the gate at
+// the threshold (it must not confirm) and at the configured one.
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+
+#include "zerog/loop/cycle.hpp"
+
+namespace zerog::ident {
+
+struct GateRuleOptions {
+  Eigen::Vector3d com_sensor_m = Eigen::Vector3d::Zero();  ///< the virtual centre of mass in S
+  int confirm_cycles = 3;                                  ///< contact_confirm_cycles
+  double false_per_hour = 0.01;
+  double force_now_N = 2.0;  ///< the configured thresholds, replayed for comparison
+  double torque_now_Nm = 0.3;
+};
+
+struct GateGroup {
+  std::array<double, 3> rms{};            ///< per axis, the mean included
+  double sigma = 0.0;                     ///< sqrt(mean of rms²)
+  double lag1 = 0.0;                      ///< lag-1 correlation of the norm over the cycles used
+  double threshold = 0.0;                 ///< the rule's
+  double false_per_hour = 0.0;            ///< expected at the threshold (independent cycles)
+  std::size_t confirms_at_threshold = 0;  ///< replayed through the gate
+  std::size_t confirms_now = 0;           ///< at the configured threshold
+};
+
+struct GateAdvice {
+  bool known = false;
+  std::string note;        ///< why not (too few cycles at rest)
+  std::size_t cycles = 0;  ///< zero-g cycles at rest used
+  double cycle_s = 0.0;    ///< median dt_s
+  GateGroup force, torque;
+};
+
+/// At least this many zero-g cycles at rest.
+inline constexpr std::size_t kMinGateCycles = 200;
+
+GateAdvice gate_rule(const std::vector<loop::CycleRecord>& cycles, const GateRuleOptions& options);
+
+/// Q₃(x): P(χ²₃ > x).
+double chi2_3_tail(double x);
+
+std::string format_gate_advice(const GateAdvice& a, const GateRuleOptions& options);
+nlohmann::json to_json(const GateAdvice& a, const GateRuleOptions& options);
+
+}  // namespace zerog::ident

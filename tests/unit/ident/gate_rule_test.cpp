@@ -1,0 +1,88 @@
+// The contact gate's threshold from the measured noise (issue 28, item 4;
+// host/ident/include/zerog/ident/gate_rule.hpp).
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "zerog/ident/gate_rule.hpp"
+
+namespace zerog::ident {
+namespace {
+
+using ::testing::HasSubstr;
+
+TEST(GateRule, TheChiSquareTailOfThreeDegrees) {
+  // Tables: P(χ²₃ > 7.815) = 0.05, P(χ²₃ > 11.345) = 0.01, P(χ²₃ > 16.266) = 0.001.
+  EXPECT_NEAR(chi2_3_tail(7.815), 0.05, 1e-4);
+  EXPECT_NEAR(chi2_3_tail(11.345), 0.01, 1e-5);
+  EXPECT_NEAR(chi2_3_tail(16.266), 0.001, 1e-6);
+  EXPECT_EQ(chi2_3_tail(0.0), 1.0);
+}
+
+// Zero-g cycles at 12 ms with white contact noise σ_F per force axis and σ_M per torque axis; a
+// push at cycle `push` (20 N for 10 cycles) after which the body moves.
+std::vector<loop::CycleRecord> cycles(double sigma_F, double sigma_M, std::uint64_t seed,
+                                      std::size_t n, std::size_t push) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> g(0.0, 1.0);
+  std::vector<loop::CycleRecord> out(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    loop::CycleRecord& r = out[i];
+    r.cycle = i + 1;
+    r.dt_s = 0.012;
+    r.state = i < 10 ? loop::State::idle : loop::State::zero_g;
+    for (int k = 0; k < 3; ++k) r.contact[static_cast<std::size_t>(k)] = sigma_F * g(rng);
+    for (int k = 3; k < 6; ++k) r.contact[static_cast<std::size_t>(k)] = sigma_M * g(rng);
+    if (i >= push && i < push + 10) r.contact[0] += 20.0;
+    if (i >= push + 3) r.body.v_world_mps = Eigen::Vector3d(0.01, 0.0, 0.0);
+  }
+  return out;
+}
+
+TEST(GateRule, TheThresholdKeepsTheNoiseOutOnThreeSeeds) {
+  GateRuleOptions o;  // the centre of mass at the sensor: the torque is the contact's own
+  for (const std::uint64_t seed : {1u, 2u, 3u}) {
+    const GateAdvice a = gate_rule(cycles(0.6, 0.06, seed, 20000, 15000), o);
+    ASSERT_TRUE(a.known) << a.note;
+    // The push's cycles and everything after it are left out; so are the idle ones.
+    // Zero-g from cycle 10; the body moves from 15003: the confirm + 2 cycles before it go too.
+    EXPECT_EQ(a.cycles, 15003u - 10u - (static_cast<std::size_t>(o.confirm_cycles) + 2u));
+    EXPECT_NEAR(a.force.sigma, 0.6, 0.6 * 0.02);
+    EXPECT_NEAR(a.torque.sigma, 0.06, 0.06 * 0.02);
+    // The rule: cycles/h × Q₃(t²/σ²)³ = 0.01 at 12 ms gives t = 3.72 σ.
+    EXPECT_NEAR(a.force.threshold / a.force.sigma, 3.72, 0.01);
+    EXPECT_LE(a.force.false_per_hour, 0.01);
+    EXPECT_EQ(a.force.confirms_at_threshold, 0u);
+    EXPECT_EQ(a.torque.confirms_at_threshold, 0u);
+    // A threshold at 1.5 σ is confirmed by the noise alone, many times.
+    GateRuleOptions low = o;
+    low.force_now_N = 1.5 * 0.6;
+    EXPECT_GT(gate_rule(cycles(0.6, 0.06, seed, 20000, 15000), low).force.confirms_now, 50u);
+  }
+  // A lower target rate asks for a higher threshold.
+  GateRuleOptions strict = o;
+  strict.false_per_hour = 1e-4;
+  EXPECT_GT(gate_rule(cycles(0.6, 0.06, 1, 20000, 15000), strict).force.threshold,
+            gate_rule(cycles(0.6, 0.06, 1, 20000, 15000), o).force.threshold);
+  // The torque about the virtual centre of mass: a force noise 0.2 m from it adds to it.
+  GateRuleOptions com = o;
+  com.com_sensor_m = Eigen::Vector3d(0.0, 0.0, 0.2);
+  const GateAdvice a = gate_rule(cycles(0.6, 0.06, 1, 20000, 15000), com);
+  EXPECT_NEAR(a.torque.sigma, std::sqrt(0.06 * 0.06 + (2.0 / 3.0) * 0.12 * 0.12), 0.003);
+  const std::string text = format_gate_advice(a, com);
+  EXPECT_THAT(text, HasSubstr("force_deadband_N = "));
+  EXPECT_THAT(text, HasSubstr("torque_deadband_Nm = "));
+  EXPECT_EQ(to_json(a, com)["force_N"]["confirms_at_threshold"], 0);
+}
+
+TEST(GateRule, TooFewCyclesAtRestSaySo) {
+  const GateAdvice a = gate_rule(cycles(0.6, 0.06, 1, 150, 100000), GateRuleOptions{});
+  EXPECT_FALSE(a.known);
+  EXPECT_THAT(a.note, HasSubstr("record zerog-rt in zero-g with nobody touching"));
+  EXPECT_THAT(format_gate_advice(a, GateRuleOptions{}), HasSubstr("gate: not known"));
+}
+
+}  // namespace
+}  // namespace zerog::ident
