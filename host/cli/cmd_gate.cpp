@@ -58,9 +58,10 @@ void add_gate_command(CLI::App& app) {
       j["cycles_csv"] = a->cycles;
       j["config"] = a->config.empty() ? nlohmann::json(nullptr) : nlohmann::json(a->config);
       std::cout << j.dump(2) << "\n";
-    } else {
+    } else if (advice.known) {
       std::printf("%s", ident::format_gate_advice(advice, o).c_str());
     }
+    // Not known: the reason once, as the error (exit 1; the JSON above says it too).
     if (!advice.known) throw std::runtime_error(advice.note);
   });
 }
