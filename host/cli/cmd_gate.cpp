@@ -47,6 +47,7 @@ void add_gate_command(CLI::App& app) {
       const rt::RtConfig c = rt::read_config(a->config);
       o.com_sensor_m = c.com_sensor_m;
       o.confirm_cycles = c.limits.contact_confirm_cycles;
+      o.release_fraction = c.limits.contact_release_fraction;
       o.force_now_N = c.limits.force_deadband_N;
       o.torque_now_Nm = c.limits.torque_deadband_Nm;
     }

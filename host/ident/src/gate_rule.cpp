@@ -5,24 +5,27 @@
 #include <cstdio>
 #include <numbers>
 
+#include "zerog/control/motion.hpp"
 #include "zerog/control/virtual_body.hpp"
 
 namespace zerog::ident {
 
 namespace {
 
-// Cycles in a row above `t` reaching `confirm`: how often the gate would confirm (a run counts
-// once; the gate then stays open until released, which this replay does not model).
-std::size_t confirms(const std::vector<double>& norm, const std::vector<std::size_t>& gaps,
-                     double t, int confirm) {
-  std::size_t out = 0;
-  int run = 0;
-  for (std::size_t i = 0; i < norm.size(); ++i) {
-    if (gaps[i]) run = 0;  // not consecutive cycles
-    run = norm[i] > t ? run + 1 : 0;
-    if (run == confirm) ++out;
+// The recording replayed through zerog-rt's own gate (control::ContactGate) at threshold `t`:
+// how many times it would have confirmed a push, and in how many cycles it was open (the noise
+// driving the body). A gap in the cycles restarts the gate.
+void replay(const std::vector<Eigen::Vector3d>& x, const std::vector<std::size_t>& gaps, double t,
+            double dt_s, const GateRuleOptions& o, std::size_t& confirms, std::size_t& open) {
+  control::ContactGate gate;
+  confirms = open = 0;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    if (gaps[i]) gate.reset();
+    const bool was_open = gate.is_open();
+    (void)gate.step(x[i], dt_s, t, o.release_fraction * t, o.confirm_cycles);
+    if (gate.is_open() && !was_open) ++confirms;
+    if (gate.is_open()) ++open;
   }
-  return out;
 }
 
 double lag1(const std::vector<double>& v) {
@@ -39,7 +42,8 @@ double lag1(const std::vector<double>& v) {
 }
 
 GateGroup group(const std::vector<Eigen::Vector3d>& x, const std::vector<std::size_t>& gaps,
-                double cycles_per_hour, const GateRuleOptions& o, double now) {
+                double cycle_s, const GateRuleOptions& o, double now) {
+  const double cycles_per_hour = 3600.0 / cycle_s;
   GateGroup g;
   double sum = 0.0;
   for (int k = 0; k < 3; ++k) {
@@ -60,8 +64,8 @@ GateGroup group(const std::vector<Eigen::Vector3d>& x, const std::vector<std::si
   while (rate(t) > o.false_per_hour && t < 100.0 * g.sigma) t += 1e-3 * g.sigma;
   g.threshold = t;
   g.false_per_hour = rate(t);
-  g.confirms_at_threshold = confirms(norm, gaps, t, o.confirm_cycles);
-  g.confirms_now = confirms(norm, gaps, now, o.confirm_cycles);
+  replay(x, gaps, t, cycle_s, o, g.confirms_at_threshold, g.open_cycles_at_threshold);
+  replay(x, gaps, now, cycle_s, o, g.confirms_now, g.open_cycles_now);
   return g;
 }
 
@@ -114,9 +118,8 @@ GateAdvice gate_rule(const std::vector<loop::CycleRecord>& cycles, const GateRul
   }
   std::nth_element(dt.begin(), dt.begin() + static_cast<std::ptrdiff_t>(dt.size() / 2), dt.end());
   a.cycle_s = dt[dt.size() / 2];
-  const double per_hour = 3600.0 / a.cycle_s;
-  a.force = group(force, gaps, per_hour, o, o.force_now_N);
-  a.torque = group(torque, gaps, per_hour, o, o.torque_now_Nm);
+  a.force = group(force, gaps, a.cycle_s, o, o.force_now_N);
+  a.torque = group(torque, gaps, a.cycle_s, o, o.torque_now_Nm);
   a.known = true;
   return a;
 }
@@ -135,9 +138,11 @@ std::string format_gate_advice(const GateAdvice& a, const GateRuleOptions& o) {
     std::snprintf(line, sizeof line,
                   "  %s: contact RMS %.3g / %.3g / %.3g %s (sigma %.3g), lag-1 correlation of "
                   "the norm %.2f; threshold %.3g %s (%.3g false confirms/h if independent; "
-                  "replayed: %zu confirms), configured %.3g %s (replayed: %zu confirms)\n",
+                  "replayed: %zu confirms), configured %.3g %s (replayed: %zu confirms, open %zu "
+                  "cycles)\n",
                   name, g.rms[0], g.rms[1], g.rms[2], unit, g.sigma, g.lag1, g.threshold, unit,
-                  g.false_per_hour, g.confirms_at_threshold, now, unit, g.confirms_now);
+                  g.false_per_hour, g.confirms_at_threshold, now, unit, g.confirms_now,
+                  g.open_cycles_now);
     out += line;
   };
   one("force at the virtual centre of mass", "N", a.force, o.force_now_N);
@@ -163,7 +168,9 @@ nlohmann::json to_json(const GateAdvice& a, const GateRuleOptions& o) {
                           {"threshold", x.threshold},
                           {"false_per_hour", x.false_per_hour},
                           {"confirms_at_threshold", x.confirms_at_threshold},
-                          {"confirms_now", x.confirms_now}};
+                          {"confirms_now", x.confirms_now},
+                          {"open_cycles_at_threshold", x.open_cycles_at_threshold},
+                          {"open_cycles_now", x.open_cycles_now}};
   };
   return {{"known", true},
           {"cycles", a.cycles},

@@ -56,10 +56,15 @@ TEST(GateRule, TheThresholdKeepsTheNoiseOutOnThreeSeeds) {
     EXPECT_LE(a.force.false_per_hour, 0.01);
     EXPECT_EQ(a.force.confirms_at_threshold, 0u);
     EXPECT_EQ(a.torque.confirms_at_threshold, 0u);
-    // A threshold at 1.5 σ is confirmed by the noise alone, many times.
+    EXPECT_EQ(a.force.open_cycles_at_threshold, 0u);
+    // A threshold at 1.5 σ is confirmed by the noise alone, and zerog-rt's gate (replayed, with
+    // its release at half the threshold) then stays open: the noise drives the body in most
+    // cycles.
     GateRuleOptions low = o;
     low.force_now_N = 1.5 * 0.6;
-    EXPECT_GT(gate_rule(cycles(0.6, 0.06, seed, 20000, 15000), low).force.confirms_now, 50u);
+    const GateAdvice noisy = gate_rule(cycles(0.6, 0.06, seed, 20000, 15000), low);
+    EXPECT_GE(noisy.force.confirms_now, 5u);
+    EXPECT_GT(noisy.force.open_cycles_now, noisy.cycles / 2);
   }
   // A lower target rate asks for a higher threshold.
   GateRuleOptions strict = o;

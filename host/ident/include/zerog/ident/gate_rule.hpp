@@ -13,8 +13,9 @@
 // independent, with p(t)^confirm. The threshold is the smallest t whose expected false confirms,
 // cycles per hour × p(t)^confirm, stay below `false_per_hour` (default 0.01: one per 100 hours
 // of zero-g). The cycles are not independent (the IMU's differenced noise spans 5 cycles): the
-// lag-1 correlation of the norm is reported, and the recording is replayed through the gate at
-// the threshold (it must not confirm) and at the configured one.
+// lag-1 correlation of the norm is reported, and the recording is replayed through zerog-rt's
+// own gate (control::ContactGate) at the threshold (it must not confirm) and at the configured
+// one.
 #include <cstddef>
 #include <string>
 #include <vector>
@@ -29,6 +30,7 @@ namespace zerog::ident {
 struct GateRuleOptions {
   Eigen::Vector3d com_sensor_m = Eigen::Vector3d::Zero();  ///< the virtual centre of mass in S
   int confirm_cycles = 3;                                  ///< contact_confirm_cycles
+  double release_fraction = 0.5;                           ///< contact_release_fraction
   double false_per_hour = 0.01;
   double force_now_N = 2.0;  ///< the configured thresholds, replayed for comparison
   double torque_now_Nm = 0.3;
@@ -42,6 +44,8 @@ struct GateGroup {
   double false_per_hour = 0.0;            ///< expected at the threshold (independent cycles)
   std::size_t confirms_at_threshold = 0;  ///< replayed through the gate
   std::size_t confirms_now = 0;           ///< at the configured threshold
+  /// Cycles the replayed gate was open (the noise driving the body), at each threshold.
+  std::size_t open_cycles_at_threshold = 0, open_cycles_now = 0;
 };
 
 struct GateAdvice {
