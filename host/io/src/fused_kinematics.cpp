@@ -40,23 +40,19 @@ void joint_derivative(std::span<const double> t_s, std::span<const double> q, st
   }
 }
 
-// The link's deflection of every joint at every joint sample (row-major, recorded order).
-struct Deflection {
-  std::vector<double> delta;
-};
-
-// Step 1.
-Deflection deflection(const FusionInput& in, const FusionSettings& s, FusionResult& result) {
+// Step 1: the link's deflection δ of every joint at every joint sample (row-major, recorded
+// order).
+std::vector<double> deflection(const FusionInput& in, const FusionSettings& s,
+                               FusionResult& result) {
   const robot::RobotModel& model = *in.robot;
   const std::size_t J = static_cast<std::size_t>(model.joint_count);
   const std::size_t n = in.joint_t_s.size();
-  Deflection out{std::vector<double>(n * J, 0.0)};
-  std::vector<double>& delta = out.delta;
+  std::vector<double> delta(n * J, 0.0);
   result.deflection_mean_rad.assign(J, 0.0);
   result.deflection_rms_rad.assign(J, 0.0);
-  if (!model.elastic()) return out;
+  if (!model.elastic()) return delta;
   result.elastic = true;
-  // Recorded joint k is DH row `row_of[k]`: its elasticity.
+  // The elasticity of each recorded joint (DH row i reads recorded joint input_index[i]).
   std::vector<robot::JointElasticity> elasticity(J);
   for (std::size_t i = 0; i < J; ++i)
     elasticity[static_cast<std::size_t>(model.input_index[i])] = model.elasticity[i];
@@ -111,7 +107,7 @@ Deflection deflection(const FusionInput& in, const FusionSettings& s, FusionResu
     result.deflection_mean_rad[k] = mean;
     result.deflection_rms_rad[k] = std::sqrt(square / static_cast<double>(n));
   }
-  return out;
+  return delta;
 }
 
 }  // namespace
@@ -172,15 +168,14 @@ FusionResult fuse_kinematics(const FusionInput& in, const FusionSettings& s) {
       in.torque_sensor_Nm.size() != rows)
     throw std::runtime_error("fused kinematics: the joint stream and the rows disagree in size");
   FusionResult result;
-  const Deflection flex = deflection(in, s, result);
+  const std::vector<double> delta = deflection(in, s, result);
 
   // Step 2: the link's motion. The motor's part through s.sg (the encoders' quantisation
   // filtered); the deflection's, a smooth ODE output, through the wider s.accel_sg as
   // derive(q + δ) − derive(q) on the same samples, in which the quantisation cancels; ω̇ all
   // through s.accel_sg.
-  const std::vector<double>& link = flex.delta;  // q + δ below
-  std::vector<double> q_link(in.joints_rad.begin(), in.joints_rad.end());
-  for (std::size_t i = 0; i < q_link.size(); ++i) q_link[i] += link[i];
+  std::vector<double> q_link(in.joints_rad.begin(), in.joints_rad.end());  // q + δ
+  for (std::size_t i = 0; i < q_link.size(); ++i) q_link[i] += delta[i];
   std::vector<robot::SensorKinematics> motor(n), link_wide(n), motor_wide(n);
   robot::DifferentiatorSettings with;
   with.sg = s.sg;

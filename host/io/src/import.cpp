@@ -1308,9 +1308,12 @@ void fuse_joints_and_imu(const Mapping& m, const fs::path& mapping_path,
   const FusionSettings settings =
       fusion_settings(period_s, m.kinematics_bandwidth_hz, m.kinematics_accel_bandwidth_hz,
                       m.kinematics_crossover_hz);
-  const std::size_t window = static_cast<std::size_t>(2 * settings.sg.half_width + 1);
-  if (t.size() < window ||
-      t.size() < static_cast<std::size_t>(2 * settings.accel_sg.half_width + 1))
+  // The widest of the fusion's three Savitzky–Golay windows.
+  const std::size_t window =
+      static_cast<std::size_t>(2 * std::max({settings.sg.half_width, settings.accel_sg.half_width,
+                                             settings.excitation_sg.half_width}) +
+                               1);
+  if (t.size() < window)
     refuse(quantity_file(m, source, Quantity::joints) + " has " + std::to_string(t.size()) +
            " rows; the differentiator needs at least " + std::to_string(window) +
            ": record longer or raise kinematics_bandwidth_hz");
