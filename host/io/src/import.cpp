@@ -1315,8 +1315,10 @@ void fuse_joints_and_imu(const Mapping& m, const fs::path& mapping_path,
                                1);
   if (t.size() < window)
     refuse(quantity_file(m, source, Quantity::joints) + " has " + std::to_string(t.size()) +
-           " rows; the differentiator needs at least " + std::to_string(window) +
-           ": record longer or raise kinematics_bandwidth_hz");
+           " rows; the fusion's widest Savitzky-Golay window needs at least " +
+           std::to_string(window) +
+           " (the motor's acceleration at 5 Hz, or kinematics_bandwidth_hz and "
+           "kinematics_accel_bandwidth_hz): record longer, or use kinematics = \"imu\"");
   const std::size_t rows = log.samples.size();
   const RowSignals signals = row_signals(log);
   FusionInput in = fusion_input(signals);
