@@ -1,6 +1,5 @@
 #include "zerog/formats/robot_toml.hpp"
 
-#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <string>
@@ -53,7 +52,7 @@ robot::RobotModel robot_from_toml(const toml::table& table, const std::filesyste
                         " [[robot.joint]] tables, one per joint from the base outwards");
   m.joint_count = static_cast<int>(rows->size());
   std::array<bool, robot::kMaxJoints> column_used{};
-  std::vector<int> elastic_rows;
+  int first_rigid = -1, elastic_rows = 0;  // the elasticity: every joint or none
   for (int i = 0; i < m.joint_count; ++i) {
     const std::string key = "joint[" + std::to_string(i + 1) + "]";
     const toml::table* row = (*rows)[static_cast<std::size_t>(i)].as_table();
@@ -67,7 +66,9 @@ robot::RobotModel robot_from_toml(const toml::table& table, const std::filesyste
       m.elasticity[static_cast<std::size_t>(i)] = {j.number("stiffness_Nm_per_rad", 0.0, true),
                                                    j.number("mode_hz", 0.0, true),
                                                    j.number("damping_ratio", 0.0, false)};
-      elastic_rows.push_back(i);
+      ++elastic_rows;
+    } else if (first_rigid < 0) {
+      first_rigid = i;
     }
     robot::DhJoint& dh = m.joints[static_cast<std::size_t>(i)];
     dh.a_m = j.number("a_m", NumberRange{});
@@ -84,12 +85,9 @@ robot::RobotModel robot_from_toml(const toml::table& table, const std::filesyste
     column_used[static_cast<std::size_t>(column - 1)] = true;
     m.input_index[static_cast<std::size_t>(i)] = static_cast<int>(column - 1);
   }
-  if (!elastic_rows.empty() && static_cast<int>(elastic_rows.size()) != m.joint_count) {
-    int first = 0;
-    while (std::find(elastic_rows.begin(), elastic_rows.end(), first) != elastic_rows.end())
-      ++first;
-    const std::string key = "joint[" + std::to_string(first + 1) + "]";
-    const TomlTable j(*(*rows)[static_cast<std::size_t>(first)].as_table(), t.file(),
+  if (elastic_rows > 0 && first_rigid >= 0) {
+    const std::string key = "joint[" + std::to_string(first_rigid + 1) + "]";
+    const TomlTable j(*(*rows)[static_cast<std::size_t>(first_rigid)].as_table(), t.file(),
                       t.name(key) + ".", kJointKeys);
     j.fail("stiffness_Nm_per_rad",
            "is missing: give the elasticity of every joint or of none (proto/sim_robot.md)");
@@ -148,16 +146,6 @@ std::string quoted(const std::string& s) {
 }
 
 }  // namespace
-
-std::vector<JointElasticityEntry> read_robot_elasticity(const std::filesystem::path& toml) {
-  const robot::RobotModel model = read_robot(toml, nullptr).model;
-  if (!model.elastic()) return {};
-  std::vector<JointElasticityEntry> out(static_cast<std::size_t>(model.joint_count));
-  for (std::size_t i = 0; i < out.size(); ++i)
-    out[i] = {model.elasticity[i].stiffness_Nm_per_rad, model.elasticity[i].mode_hz,
-              model.elasticity[i].damping_ratio};
-  return out;
-}
 
 robot::RobotModel read_robot_file(const std::filesystem::path& toml) {
   return read_robot(toml, nullptr).model;

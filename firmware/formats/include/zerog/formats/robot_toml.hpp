@@ -42,18 +42,6 @@ RobotDescription read_robot_file(const std::filesystem::path& toml, const Transf
 std::string robot_toml_text(const std::string& table, const std::string& name,
                             const robot::RobotModel& model);
 
-/// One joint's elasticity as a robot file gives it (optional keys of [[robot.joint]]:
-/// stiffness_Nm_per_rad > 0, mode_hz > 0, damping_ratio >= 0, all three or none;
-/// proto/sim_robot.md). For the simulator; the firmware's RobotModel is rigid.
-struct JointElasticityEntry {
-  double stiffness_Nm_per_rad = 0.0;
-  double mode_hz = 0.0;
-  double damping_ratio = 0.0;
-};
-/// The elasticity of every joint of a robot file, in row order; empty if no joint gives it (a
-/// file that gives it for some joints only is an error naming the first joint without).
-std::vector<JointElasticityEntry> read_robot_elasticity(const std::filesystem::path& toml);
-
 /// `t` as a rotation matrix and offset (R_parent_child, p_parent_child).
 robot::FrameTransform to_frame_transform(const Transform& t);
 
