@@ -169,7 +169,7 @@ AXES = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
 
 
 def contact_noise(run, t0, t1, what):
-    """The contact wrench's noise (measured − predicted, eval_* − pred_* of cycles.csv) in
+    """The contact wrench's noise (measured − predicted, contact_* of cycles.csv) in
     zero-g between t0 and t1, against the F/T-only floor per cycle: the measured wrench's own
     white noise, from its second differences over the same cycles (1.4826 median|d| / √6, as
     zerog compare's; host/ident/include/zerog/ident/ft_floor.hpp). Figures, no limit: issue 28's
@@ -180,12 +180,10 @@ def contact_noise(run, t0, t1, what):
     if np.count_nonzero(sel) < 30:
         print(f"  contact noise ({what}): fewer than 30 zero-g cycles, not measured")
         return
-    units = ("N", "N", "N", "N*m", "N*m", "N*m")
-    measured = np.stack([c[f"eval_{a}_{u.replace('*', '')}"] for a, u in zip(AXES, units)], axis=1)
-    predicted = np.stack([c[f"pred_{a}_{u.replace('*', '')}"] for a, u in zip(AXES, units)], axis=1)
-    r = (measured - predicted)[sel]
+    columns = [f"{a}_{'N' if a[0] == 'F' else 'Nm'}" for a in AXES]
+    r = np.stack([c[f"contact_{k}"] for k in columns], axis=1)[sel]
     rms = np.sqrt(np.mean(r ** 2, axis=0))
-    m = measured[sel]
+    m = np.stack([c[f"eval_{k}"] for k in columns], axis=1)[sel]
     d = m[2:] - 2 * m[1:-1] + m[:-2]
     floor = 1.4826 * np.median(np.abs(d), axis=0) / np.sqrt(6.0)
     pooled = lambda v, k: float(np.sqrt(np.mean(v[k:k + 3] ** 2)))

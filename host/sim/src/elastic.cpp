@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numbers>
 
 #include "zerog/model/effects.hpp"
 #include "zerog/robot/forward_kinematics.hpp"
