@@ -1,5 +1,6 @@
 #include "zerog/robot/forward_kinematics.hpp"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -52,6 +53,43 @@ Pose sensor_pose(const RobotModel& model, std::span<const double> q_rad) {
   pose.p_m += pose.R * model.flange_sensor.p_m;
   pose.R = pose.R * model.flange_sensor.R;
   return pose;
+}
+
+void sensor_jacobian(const RobotModel& model, std::span<const double> q_rad,
+                     Eigen::Matrix<double, 6, kMaxJoints>& jacobian, Pose* pose_out) {
+  std::array<Eigen::Vector3d, kMaxJoints> axis, origin;
+  Pose pose;  // frame reached so far, in B
+  for (int i = 0; i < model.joint_count; ++i) {
+    const DhJoint& j = model.joints[i];
+    const double theta =
+        j.sign * q_rad[static_cast<std::size_t>(model.input_index[i])] + j.theta_offset_rad;
+    if (model.convention == DhConvention::dh) {
+      axis[i] = pose.R.col(2);  // Rz(θ) turns about frame i−1's z
+      origin[i] = pose.p_m;
+      const Eigen::Matrix3d Rz = rot_z(theta);
+      pose.p_m += pose.R * (Rz * Eigen::Vector3d(j.a_m, 0.0, j.d_m));
+      pose.R = pose.R * Rz * rot_x(j.alpha_rad);
+    } else {
+      const Eigen::Matrix3d Rx = rot_x(j.alpha_rad);
+      axis[i] = pose.R * Rx.col(2);  // Rz(θ) after Rx(α) Tx(a)
+      origin[i] = pose.p_m + pose.R * Eigen::Vector3d(j.a_m, 0.0, 0.0);
+      pose.p_m +=
+          pose.R * (Eigen::Vector3d(j.a_m, 0.0, 0.0) + Rx * Eigen::Vector3d(0.0, 0.0, j.d_m));
+      pose.R = pose.R * Rx * rot_z(theta);
+    }
+  }
+  pose.p_m += pose.R * model.last_flange.p_m;
+  pose.R = pose.R * model.last_flange.R;
+  pose.p_m += pose.R * model.flange_sensor.p_m;
+  pose.R = pose.R * model.flange_sensor.R;
+  jacobian.setZero();
+  for (int i = 0; i < model.joint_count; ++i) {
+    const int k = model.input_index[i];
+    const double sign = model.joints[i].sign;
+    jacobian.col(k).head<3>() = sign * axis[i].cross(pose.p_m - origin[i]);
+    jacobian.col(k).tail<3>() = sign * axis[i];
+  }
+  if (pose_out != nullptr) *pose_out = pose;
 }
 
 void joint_torques(const RobotModel& model, std::span<const double> q_rad,

@@ -88,16 +88,9 @@ std::vector<double> deflection(const FusionInput& in, const FusionSettings& s,
     double d = tau[k] / e.stiffness_Nm_per_rad, v = 0.0;  // settled at the first sample
     delta[k] = d;
     for (std::size_t i = 1; i < n; ++i) {
-      const double span = in.joint_t_s[i] - in.joint_t_s[i - 1];
-      const int steps = std::max(1, static_cast<int>(std::ceil(span / s.substep_s - 1e-9)));
-      const double h = span / steps;
-      for (int m = 1; m <= steps; ++m) {
-        const double along = (m - 0.5) / steps;  // inputs linear between the samples
-        const double a_in = qdd[(i - 1) * J + k] + along * (qdd[i * J + k] - qdd[(i - 1) * J + k]);
-        const double load = tau[(i - 1) * J + k] + along * (tau[i * J + k] - tau[(i - 1) * J + k]);
-        v += h * robot::deflection_accel(e, d, v, a_in, load);  // semi-implicit Euler
-        d += h * v;
-      }
+      robot::advance_deflection(e, d, v, in.joint_t_s[i] - in.joint_t_s[i - 1], s.substep_s,
+                                qdd[(i - 1) * J + k], qdd[i * J + k], tau[(i - 1) * J + k],
+                                tau[i * J + k]);
       delta[i * J + k] = d;
     }
     double mean = 0.0, square = 0.0;

@@ -23,6 +23,15 @@ Pose flange_pose(const RobotModel& model, std::span<const double> q_rad);
 /// Pose of the F/T sensor frame S in B: flange_pose · flange_sensor. Same preconditions.
 Pose sensor_pose(const RobotModel& model, std::span<const double> q_rad);
 
+/// The geometric Jacobian of the F/T sensor frame S at `q_rad`, from one pass of the chain: column
+/// k (recorded joint k) is the linear velocity of S's origin (rows 0-2) and the angular velocity
+/// (rows 3-5) per unit rate of that joint, both in B axes: sign · (z × (p_S − p_axis), z) for
+/// the joint's axis z through p_axis (standard DH: frame i−1's z; modified DH: z after Rx(α),
+/// through the origin moved by a). Columns joint_count.. are zero. Also the pose of S
+/// (`pose_out`, if given). Real-time safe; same preconditions as flange_pose.
+void sensor_jacobian(const RobotModel& model, std::span<const double> q_rad,
+                     Eigen::Matrix<double, 6, kMaxJoints>& jacobian, Pose* pose_out = nullptr);
+
 /// Joint torques of a wrench on the flange, τ = Jᵀ w (the virtual work of the wrench over each
 /// joint's motion): `force_base_N` in B, `moment_flange_base_Nm` about the flange origin, B axes.
 /// J is the flange Jacobian (linear velocity of the flange origin and angular velocity, B axes,

@@ -7,7 +7,9 @@
 // A pure value type: no parsing here (the host reads it from TOML with
 // zerog/formats/robot_toml.hpp), no allocation; validate() once at configuration.
 #include <Eigen/Core>
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <numbers>
 #include <string>
@@ -61,6 +63,30 @@ inline double deflection_accel(const JointElasticity& j, double delta_rad, doubl
   const double w = 2.0 * std::numbers::pi * j.mode_hz;
   return w * w * (load_Nm / j.stiffness_Nm_per_rad - delta_rad) -
          2.0 * j.damping_ratio * w * delta_dot_radps - motor_qdd_radps2;
+}
+
+/// One elastic joint's deflection δ and its rate δ̇ carried over `span_s` seconds by
+/// semi-implicit Euler steps of at most `substep_s` (δ̇ += h δ̈, then δ += h δ̇), the motor's
+/// acceleration and the load taken linear between their values at the span's start (`qdd0`,
+/// `load0`) and end (`qdd1`, `load1`). Returns δ̈ at the end. The one integration of
+/// deflection_accel: the fused kinematics of `zerog import` (whole log) and the cycle's motion
+/// estimator (one row at a time) both call it. Real-time safe; a rigid joint stays at 0.
+inline double advance_deflection(const JointElasticity& j, double& delta_rad,
+                                 double& delta_dot_radps, double span_s, double substep_s,
+                                 double qdd0_radps2, double qdd1_radps2, double load0_Nm,
+                                 double load1_Nm) {
+  if (j.rigid()) return 0.0;
+  const int steps =
+      span_s > 0.0 ? std::max(1, static_cast<int>(std::ceil(span_s / substep_s - 1e-9))) : 0;
+  const double h = steps > 0 ? span_s / steps : 0.0;
+  for (int m = 1; m <= steps; ++m) {
+    const double along = (m - 0.5) / steps;  // inputs linear between the two ends
+    const double qdd = qdd0_radps2 + along * (qdd1_radps2 - qdd0_radps2);
+    const double load = load0_Nm + along * (load1_Nm - load0_Nm);
+    delta_dot_radps += h * deflection_accel(j, delta_rad, delta_dot_radps, qdd, load);
+    delta_rad += h * delta_dot_radps;
+  }
+  return deflection_accel(j, delta_rad, delta_dot_radps, qdd1_radps2, load1_Nm);
 }
 
 /// A rigid transform: the pose of a child frame in a parent frame.
