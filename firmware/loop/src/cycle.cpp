@@ -89,6 +89,7 @@ Status check_config(const CycleConfig& c) {
                                        std::pair{"pose_check_angle_rad", c.pose_check_angle_rad}}) {
     if (!positive_finite(value)) return Status::invalid(setting, "must be positive");
   }
+  if (Status st = check_estimator_config(c.motion); !st.ok()) return std::move(st).within("motion");
   if (c.robot) {
     if (Status st = robot::validate(*c.robot); !st.ok()) return std::move(st).within("robot");
     if (c.robot->joint_count != 6)
@@ -104,6 +105,11 @@ Status Cycle::configure(const CycleConfig& config, infer::DeployedModel model) {
   const bool network = model.network.has_value();
   if (Status st = inference_.configure(std::move(model)); !st.ok())
     return std::move(st).within("model");
+  const infer::RigDescription& rig = inference_.model().rig;
+  if (Status st = data_.model.estimator.configure(
+          config.motion, rig.q_sensor_imu.toRotationMatrix(), rig.p_sensor_imu_m, config.robot);
+      !st.ok())
+    return std::move(st).within("motion");
   config_ = config;
   use_network_ = network;
   motion_ = control::ZeroGMotion(config.body, config.limits, config.p_sensor_com_m);

@@ -267,6 +267,21 @@ ModelResult evaluate_model(const CycleConfig& config, infer::Inference& inferenc
   physics_imu.specific_force_imu = model::interpolate_uniform<3>(f.data(), n, index);
   physics_imu.angular_rate_imu = model::interpolate_uniform<3>(w.data(), n, index);
   physics_imu.angular_accel_imu = wdot;
+  // The fused path (motion_estimator.hpp): the same rows, the robot's poses and joints, the
+  // IMU below the crossover. Its test mutant "one row late" takes the estimate of the row
+  // before the model's (the rows c−D−1 … c+D−1) and advances on those.
+  if (config.motion.source == MotionSource::fused) {
+    const int late = config.motion.mutant_one_row_late ? 1 : 0;
+    std::array<const model::FeatureSignals*, 5> window;
+    for (int j = 0; j < n; ++j)
+      window[static_cast<std::size_t>(j)] = &row_back(rows, n - 1 - j + late).signals;
+    const Row& at = row_back(rows, D + late);
+    if (rows.total >= static_cast<std::uint64_t>(n + late) &&
+        model.estimator.update(std::span(window.data(), static_cast<std::size_t>(n)), at.wrench,
+                               physics_imu, model.estimate)) {
+      physics_imu = model.estimate.imu;
+    }
+  }
 
   // The signal dictionary's kinematics at the centre row (user-defined effects): central
   // differences of the joints and the sensor position over its neighbours.

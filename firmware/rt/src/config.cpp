@@ -105,7 +105,8 @@ const std::vector<std::string_view> kLimitsKeys{
 const std::vector<std::string_view> kWatchdogKeys{"ft_fault_cycles", "imu_fault_cycles",
                                                   "robot_fault_cycles", "robot_late_cycles",
                                                   "model_fault_cycles"};
-const std::vector<std::string_view> kFilterKeys{"angular_accel_order"};
+const std::vector<std::string_view> kFilterKeys{"angular_accel_order", "motion", "crossover_hz",
+                                                "load_bandwidth_hz", "excitation_hz"};
 const std::vector<std::string_view> kCollectionKeys{"speed_fraction", "dwell_s",
                                                     "max_axis_step_rad", "approach_speed_radps",
                                                     "approach_accel_radps2"};
@@ -301,15 +302,33 @@ loop::WatchdogConfig read_watchdog(const TomlTable& file) {
   return w;
 }
 
-// [filter]: the angular-acceleration difference's order.
-int read_filter(const TomlTable& file) {
+// [filter]: the angular-acceleration difference's order and the payload's motion
+// (loop/motion_estimator.hpp; proto/rt_config.md, "[filter]").
+void read_filter(const TomlTable& file, RtConfig& c) {
   const TomlTable filter = file.sub_table("filter", kFilterKeys);
   const auto order = static_cast<int>(filter.optional_integer("angular_accel_order", 4, 2, 4));
   if (order == 3) {
     filter.fail("angular_accel_order",
                 "must be 4 (5-point difference, 2 rows late) or 2 (3-point, 1 row late), is 3");
   }
-  return order;
+  c.angular_accel_order = order;
+  loop::MotionEstimatorConfig& m = c.motion;
+  const std::string source = filter.optional_string("motion", "imu");
+  if (source == "fused") {
+    m.source = loop::MotionSource::fused;
+  } else if (source == "imu") {
+    m.source = loop::MotionSource::imu;
+  } else {
+    filter.fail("motion",
+                "must be \"fused\" (the robot's poses and joints with the IMU below "
+                "crossover_hz) or \"imu\" (the IMU as it comes), is \"" +
+                    source + "\"");
+  }
+  m.crossover_hz = filter.optional_number("crossover_hz", m.crossover_hz, {0.0, true, 10.0, false});
+  m.load_bandwidth_hz =
+      filter.optional_number("load_bandwidth_hz", m.load_bandwidth_hz, {0.0, true, 100.0, false});
+  m.excitation_hz =
+      filter.optional_number("excitation_hz", m.excitation_hz, {0.0, true, 100.0, false});
 }
 
 // [realtime]: memory locking, the cycle thread's priority and CPU.
@@ -416,6 +435,9 @@ std::pair<std::string_view, std::string_view> file_key(std::string_view setting)
           {"period_s", {"robot", "cycle_ms"}},
           {"temperature_C", {"model", "temperature_C"}},
           {"angular_accel_order", {"filter", "angular_accel_order"}},
+          {"motion.crossover_hz", {"filter", "crossover_hz"}},
+          {"motion.load_bandwidth_hz", {"filter", "load_bandwidth_hz"}},
+          {"motion.excitation_hz", {"filter", "excitation_hz"}},
           {"body.mass_kg", {"body", "mass_kg"}},
           {"body.inertia_body_kgm2", {"body", "inertia_kgm2"}},
           {"p_sensor_com_m", {"body", "com_sensor_m"}},
@@ -478,7 +500,7 @@ RtConfig read_tables(const toml::table& root, const fs::path& path) {
   read_body(file, c);
   c.limits = read_limits(file);
   c.watchdog = read_watchdog(file);
-  c.angular_accel_order = read_filter(file);
+  read_filter(file, c);
   c.realtime = read_realtime(file);
   c.collection = read_collection(file);
   read_record(file, c);
@@ -536,6 +558,7 @@ loop::CycleConfig cycle_config(const RtConfig& c) {
   out.period_s = c.robot.cycle_s();
   out.ipoc_unit_s = 0.001;
   out.angular_accel_order = c.angular_accel_order;
+  out.motion = c.motion;
   out.temperature_C = c.temperature_C;
   out.watchdog = c.watchdog;
   out.body = c.body;

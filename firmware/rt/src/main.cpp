@@ -87,6 +87,12 @@ void apply_mutant(const std::string& name, loop::CycleConfig& cycle) {
     for (int* w : {&cycle.watchdog.ft_fault_cycles, &cycle.watchdog.imu_fault_cycles,
                    &cycle.watchdog.robot_fault_cycles, &cycle.watchdog.robot_late_cycles})
       *w *= 2;
+  } else if (name == "estimator_without_imu") {  // the fused motion without the IMU's share
+    cycle.motion.mutant_without_imu = true;
+  } else if (name == "estimator_without_joints") {  // the IMU alone: the raw path
+    cycle.motion.source = loop::MotionSource::imu;
+  } else if (name == "estimator_one_row_late") {  // the estimate of the row before the model's
+    cycle.motion.mutant_one_row_late = true;
   }
 }
 
@@ -454,8 +460,12 @@ int main(int argc, char** argv) {
   app.add_option("--test-mutant", opt.test_mutant,
                  "TEST ONLY: run a deliberately broken zerog-rt (gate_never_opens: no push is "
                  "confirmed; watchdog_doubled: every watchdog threshold doubled; exit_at_start: "
-                 "exits with a start-up error before the devices open)")
-      ->check(CLI::IsMember({"gate_never_opens", "watchdog_doubled", "exit_at_start"}));
+                 "exits with a start-up error before the devices open; estimator_without_imu, "
+                 "estimator_without_joints, estimator_one_row_late: the motion estimator without "
+                 "the IMU's share, the IMU alone, the estimate one row late)")
+      ->check(CLI::IsMember({"gate_never_opens", "watchdog_doubled", "exit_at_start",
+                             "estimator_without_imu", "estimator_without_joints",
+                             "estimator_one_row_late"}));
   app.add_flag("--check-config", opt.check_config,
                "check the configuration, the model and the rig (and --collect's design), then "
                "exit 0 (all good) or 1");

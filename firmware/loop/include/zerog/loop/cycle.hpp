@@ -38,6 +38,7 @@
 #include "zerog/control/motion.hpp"
 #include "zerog/infer/inference.hpp"
 #include "zerog/loop/black_box.hpp"
+#include "zerog/loop/motion_estimator.hpp"
 #include "zerog/loop/state_machine.hpp"
 #include "zerog/model/dictionary.hpp"
 #include "zerog/proto/rsi.hpp"
@@ -73,6 +74,10 @@ struct CycleConfig {
   double period_s = 0.012;      ///< nominal robot cycle (RSI: 0.004 or 0.012)
   double ipoc_unit_s = 0.001;   ///< IPOC counts milliseconds (KUKA)
   int angular_accel_order = 4;  ///< 4: 5-point central difference (delay 2 rows); 2: 3-point (1)
+  /// The payload's motion the model reads (motion_estimator.hpp): `fused` (the robot's poses
+  /// and joints, the IMU below the crossover) or `imu` (the IMU as it comes). The same rows
+  /// either way: the model is evaluated delay_rows() back.
+  MotionEstimatorConfig motion;
   /// Sensor temperature fed to the model until the F/T sensor reports its own (FtSample::
   /// temperature_valid: the NETCANOEM thermistor with a configured conversion), and always when
   /// it never does. The sensor's reading wins: it is the temperature of the part that drifts.
@@ -328,6 +333,9 @@ struct ModelData {
   /// The signal dictionary's kinematics of that evaluation (the centre row's signals and their
   /// central differences). Kept here and rewritten in place, not built afresh every cycle.
   model::KinematicInputs kinematics;
+  /// The payload's motion under MotionSource::fused (configured by Cycle::configure).
+  MotionEstimator estimator;
+  MotionEstimate estimate;  ///< its last update
 };
 
 /// run_motion() in collection mode: approach the path's start, then follow it.

@@ -111,6 +111,8 @@ struct RtConfig {
   control::MotionLimits limits;                            ///< [limits]
   loop::WatchdogConfig watchdog;                           ///< [watchdog]
   int angular_accel_order = 4;                             ///< [filter]
+  loop::MotionEstimatorConfig
+      motion;  ///< [filter] motion, crossover_hz, load_bandwidth_hz, excitation_hz
   RealtimeSection realtime;
   CollectionSection collection;
   std::optional<std::filesystem::path> record_dir;  ///< [record] dir

@@ -1,0 +1,130 @@
+#pragma once
+// The payload's motion for the model, every cycle (issue 28, item 2; proto/loop.md, "Motion
+// estimator"): the specific force, angular rate and angular acceleration at the IMU that the
+// physics reads, estimated from the robot's poses and joints and from the IMU, instead of the
+// IMU alone.
+//
+// Why: the model's inertial terms take the payload's acceleration; from the IMU alone the
+// accelerometer's white noise × mass and the gyro's differenced noise × inertia enter every
+// prediction (4× and 8× the F/T sensor's own noise in the contact wrench, issue 28). The
+// robot's pose (RIst, or the kinematics of AIPos) is nearly noise-free but is the MOTOR side
+// of elastic gearboxes, and knows nothing of a tilted base or a sensor mounted off its nominal.
+//
+// The filter, per cycle, on the row the model is evaluated on (the centre c of the rows
+// c−D … c+D, D = Cycle::delay_rows()):
+// 1. the motor side's motion at c: a quadratic least-squares fit in time over the 2D+1 rows
+//    (robot::LocalPolyFit) of the sensor origin's position (acceleration a_B, B axes), of the
+//    rotation vectors r_k = Log(R_cᵀ R_k) (ω_S = ṙ(0), ω̇_S = r̈(0), S axes; as
+//    robot::derive_kinematics) and of the joints (the motor's q̇, q̈);
+// 2. with an elastic robot (the rig's robot file, robot::RobotModel::elasticity), the link's
+//    deflection δ per joint, integrated one row at a time (robot::advance_deflection) from the
+//    static sag, driven by the motor's q̈ low-passed at excitation_hz (two first-order stages:
+//    the encoders' quantisation differenced must not ring the modes) and by the load τ = Jᵀ w
+//    of the measured wrench low-passed at load_bandwidth_hz; the link then turns by J_ω δ and
+//    moves with the extra J_ω δ̇, J_ω δ̈, J_v δ̈ (the Jacobian's rate terms neglected);
+// 3. the IMU below crossover_hz: the difference IMU − robot (specific force and rate, IMU
+//    axes) is low-passed (first order, causal) and added to the robot's signal. This is the
+//    steady-state Kalman filter of a slowly wandering offset between the two sources (a random
+//    walk b) seen through the IMU's white noise: its gain K = 1 − exp(−2π f_c Δt) per row; the
+//    first rows average (K = 1/n while 1/n > K: the filter's gain from an unknown start).
+//    What the IMU corrects: the sag the model of step 2 misses, a tilted base, the mounting;
+//    what the robot gives: everything faster, free of the IMU's white noise.
+//    ω̇ is the robot's alone (the derivative of a 0.1 Hz correction is below the noise).
+//
+// Delay: the fit is centred on row c, so the estimate is that of the row the model is
+// evaluated on: the measured and predicted wrench are of the same instant; the contact wrench
+// is D rows late, as with the IMU's central difference (D = 2: 24 ms at 12 ms). Step 3 is
+// causal at c (its lag is that of a 0.1 Hz first order, on a signal that moves slower).
+//
+// Frames (proto/frames.md): B base, S sensor (RIst's TCP), I IMU (the rig's sensor_imu). SI.
+// Life cycle: configure() at start-up; update() every cycle: no allocation, no exceptions.
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <span>
+
+#include "zerog/model/features.hpp"
+#include "zerog/model/predict.hpp"
+#include "zerog/robot/robot_model.hpp"
+#include "zerog/status.hpp"
+
+namespace zerog::loop {
+
+/// Where the model's payload motion comes from (zerog-rt's [filter] motion).
+enum class MotionSource : std::uint8_t {
+  imu,    ///< the IMU as it comes (the rows' mean, ω̇ by central difference): the raw path
+  fused,  ///< MotionEstimator: the robot's poses and joints, the IMU below the crossover
+};
+
+struct MotionEstimatorConfig {
+  /// imu by default: on an elastic arm the fused path is not yet stable after a push
+  /// (proto/loop.md, "Motion estimator": the A1 mode's loop through the virtual body).
+  MotionSource source = MotionSource::imu;
+  double crossover_hz = 0.1;       ///< below it the IMU, above it the robot
+  double load_bandwidth_hz = 3.0;  ///< the measured wrench as the joints' load
+  double excitation_hz = 5.0;      ///< the motor's acceleration that drives the modes
+  double substep_s = 1e-3;         ///< the deflection's integration step
+  /// Gravity in B, m/s² (B's z up: a tilt of the base is left to the IMU's share).
+  Eigen::Vector3d gravity_base_mps2{0.0, 0.0, -9.80665};
+  /// Test mutants (zerog-rt --test-mutant only; the HIL checks must fail on each): the IMU's
+  /// share dropped, or the estimate of the row before the model's used (one cycle late).
+  bool mutant_without_imu = false;
+  bool mutant_one_row_late = false;
+};
+
+/// Whether `c` can be used: ok(), or invalid_setting naming the field ("crossover_hz", …).
+zerog::Status check_estimator_config(const MotionEstimatorConfig& c);
+
+/// What the estimator says about its last update (for tests and the record).
+struct MotionEstimate {
+  model::ImuSignals<double> imu;  ///< at the centre row, I axes (what the physics reads)
+  /// The robot's part alone (before the IMU's share), I axes.
+  Eigen::Vector3d specific_force_robot_imu = Eigen::Vector3d::Zero();
+  Eigen::Vector3d angular_rate_robot_imu = Eigen::Vector3d::Zero();
+  /// The IMU's share (the low-passed difference IMU − robot), I axes.
+  Eigen::Vector3d specific_force_offset = Eigen::Vector3d::Zero();
+  Eigen::Vector3d angular_rate_offset = Eigen::Vector3d::Zero();
+  std::array<double, robot::kMaxJoints> deflection_rad{};  ///< δ per recorded joint at c
+};
+
+class MotionEstimator {
+ public:
+  /// Start-up: the settings, the IMU's pose in S (the rig's sensor_imu) and the robot (its
+  /// elasticity and Jacobian; none: the poses alone, a rigid arm). Not real-time safe.
+  zerog::Status configure(const MotionEstimatorConfig& config, const Eigen::Matrix3d& R_sensor_imu,
+                          const Eigen::Vector3d& p_sensor_imu_m,
+                          const std::optional<robot::RobotModel>& robot);
+  const MotionEstimatorConfig& config() const { return config_; }
+  /// Forget the past (the next update starts afresh: static sag, the IMU's share averaged anew).
+  void reset() noexcept;
+
+  /// One row: `rows` are the 2D+1 rows c−D … c+D (oldest first, times increasing), `wrench`
+  /// the measured wrench of row c (S, N and N·m), `imu_at_c` the IMU at row c (the rows' mean,
+  /// aligned to the F/T as the model wants it; ω̇ unused). False (and `out` untouched) if the
+  /// rows' times do not determine the fit. Real-time safe.
+  bool update(std::span<const model::FeatureSignals* const> rows,
+              const std::array<double, 6>& wrench, const model::ImuSignals<double>& imu_at_c,
+              MotionEstimate& out) noexcept;
+
+ private:
+  MotionEstimatorConfig config_;
+  Eigen::Matrix3d R_sensor_imu_ = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d p_sensor_imu_m_ = Eigen::Vector3d::Zero();
+  bool have_robot_ = false;
+  bool elastic_ = false;
+  robot::RobotModel robot_;
+  std::array<robot::JointElasticity, robot::kMaxJoints> elasticity_{};  ///< per recorded joint
+
+  // State at the last update's centre row.
+  bool started_ = false;
+  double t_s_ = 0.0;
+  std::uint64_t updates_ = 0;
+  std::array<double, 6> wrench_lp_{};
+  std::array<double, robot::kMaxJoints> qdd_lp1_{}, qdd_lp2_{};  ///< the excitation's stages
+  std::array<double, robot::kMaxJoints> tau_{};                  ///< the load at t_s_
+  std::array<double, robot::kMaxJoints> delta_{}, delta_dot_{};
+  Eigen::Vector3d offset_f_ = Eigen::Vector3d::Zero(), offset_w_ = Eigen::Vector3d::Zero();
+};
+
+}  // namespace zerog::loop

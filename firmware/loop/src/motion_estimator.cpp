@@ -1,0 +1,196 @@
+#include "zerog/loop/motion_estimator.hpp"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "zerog/model/rotation.hpp"
+#include "zerog/robot/forward_kinematics.hpp"
+#include "zerog/robot/savitzky_golay.hpp"
+
+namespace zerog::loop {
+namespace {
+
+// A first-order low-pass's gain for a step of dt at corner f (the exact discretisation of
+// dy/dt = 2πf (x − y) for x held over the step).
+double lowpass_gain(double f_hz, double dt_s) {
+  return 1.0 - std::exp(-2.0 * std::numbers::pi * f_hz * dt_s);
+}
+
+Eigen::Matrix3d row_rotation(const model::FeatureSignals& s) {
+  return Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(s.R_base_sensor.data());
+}
+
+}  // namespace
+
+zerog::Status check_estimator_config(const MotionEstimatorConfig& c) {
+  auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
+  if (!positive(c.crossover_hz)) return zerog::Status::invalid("crossover_hz", "must be positive");
+  if (!positive(c.load_bandwidth_hz))
+    return zerog::Status::invalid("load_bandwidth_hz", "must be positive");
+  if (!positive(c.excitation_hz))
+    return zerog::Status::invalid("excitation_hz", "must be positive");
+  if (!(positive(c.substep_s) && c.substep_s <= 0.01))
+    return zerog::Status::invalid("substep_s", "must be in (0, 0.01] s");
+  if (!c.gravity_base_mps2.allFinite())
+    return zerog::Status::invalid("gravity_base_mps2", "must be finite");
+  return {};
+}
+
+zerog::Status MotionEstimator::configure(const MotionEstimatorConfig& config,
+                                         const Eigen::Matrix3d& R_sensor_imu,
+                                         const Eigen::Vector3d& p_sensor_imu_m,
+                                         const std::optional<robot::RobotModel>& robot) {
+  if (zerog::Status st = check_estimator_config(config); !st.ok()) return st;
+  config_ = config;
+  R_sensor_imu_ = R_sensor_imu;
+  p_sensor_imu_m_ = p_sensor_imu_m;
+  have_robot_ = robot.has_value();
+  elastic_ = have_robot_ && robot->elastic();
+  if (have_robot_) robot_ = *robot;
+  elasticity_ = {};
+  if (have_robot_) {
+    // DH row i reads recorded joint input_index[i].
+    for (int i = 0; i < robot_.joint_count; ++i)
+      elasticity_[static_cast<std::size_t>(robot_.input_index[i])] =
+          robot_.elasticity[static_cast<std::size_t>(i)];
+  }
+  reset();
+  return {};
+}
+
+void MotionEstimator::reset() noexcept {
+  started_ = false;
+  updates_ = 0;
+  t_s_ = 0.0;
+  wrench_lp_ = {};
+  qdd_lp1_ = {};
+  qdd_lp2_ = {};
+  tau_ = {};
+  delta_ = {};
+  delta_dot_ = {};
+  offset_f_.setZero();
+  offset_w_.setZero();
+}
+
+bool MotionEstimator::update(std::span<const model::FeatureSignals* const> rows,
+                             const std::array<double, 6>& wrench,
+                             const model::ImuSignals<double>& imu_at_c,
+                             MotionEstimate& out) noexcept {
+  const std::size_t n = rows.size();
+  if (n < 3 || n % 2 == 0) return false;
+  const std::size_t c = n / 2;
+  const model::FeatureSignals& centre = *rows[c];
+  const double t_c = centre.t_s;
+  const double half_span = std::max(rows[n - 1]->t_s - t_c, t_c - rows[0]->t_s);
+  if (!(half_span > 0.0)) return false;
+  if (started_ && !(t_c > t_s_)) return false;
+
+  // 1. The motor side's motion at c: a quadratic fit over the rows.
+  robot::LocalPolyFit fit(2);
+  for (std::size_t k = 0; k < n; ++k) fit.add(rows[k]->t_s - t_c, half_span);
+  if (!fit.solve()) return false;
+  const Eigen::Matrix3d R_c = row_rotation(centre);
+  // The row's F/T and IMU are the means of the samples of the cycle that ended at t_c, centred
+  // half a row interval before the pose (taken when the robot's message came): the motion is
+  // evaluated there (τ* < 0), so that predicted and measured are of the same instant. One row
+  // late (the mutant) would be a whole interval off; at τ = 0, half (measured: proto/loop.md).
+  const double at = -0.5 * (t_c - rows[c - 1]->t_s);
+  Eigen::Vector3d a_B = Eigen::Vector3d::Zero(), w_S = Eigen::Vector3d::Zero(),
+                  wd_S = Eigen::Vector3d::Zero(), r_at = Eigen::Vector3d::Zero();
+  const int J = have_robot_ ? robot_.joint_count : 0;
+  std::array<double, robot::kMaxJoints> qdd{};
+  for (std::size_t k = 0; k < n; ++k) {
+    const model::FeatureSignals& row = *rows[k];
+    const double tau = row.t_s - t_c;
+    // The quadratic's value, slope and curvature at τ* from its derivatives at 0.
+    const double d0 = fit.weight(tau, 0), d1 = fit.weight(tau, 1), d2 = fit.weight(tau, 2);
+    const double w0 = d0 + at * d1 + 0.5 * at * at * d2, w1 = d1 + at * d2, w2 = d2;
+    const Eigen::Vector3d p = Eigen::Map<const Eigen::Vector3d>(row.p_base_sensor_m.data());
+    a_B += w2 * p;
+    const Eigen::AngleAxisd turn(Eigen::Matrix3d(R_c.transpose() * row_rotation(row)));
+    const Eigen::Vector3d r = turn.angle() * turn.axis();
+    r_at += w0 * r;
+    w_S += w1 * r;
+    wd_S += w2 * r;
+    for (int j = 0; j < J; ++j)
+      qdd[static_cast<std::size_t>(j)] += w2 * row.joints_rad[static_cast<std::size_t>(j)];
+  }
+  Eigen::Vector3d omega_B = R_c * w_S, omega_dot_B = R_c * wd_S;
+  const Eigen::Matrix3d R_at = R_c * model::rotation_from_vector<double>(r_at);
+  Eigen::Matrix3d R_link = R_at;
+
+  // 2. The link's deflection at c.
+  const double dt = started_ ? t_c - t_s_ : 0.0;
+  if (elastic_) {
+    Eigen::Matrix<double, 6, robot::kMaxJoints> jac;
+    robot::sensor_jacobian(robot_, std::span<const double>(centre.joints_rad.data(), 6), jac);
+    const double k_load = started_ ? lowpass_gain(config_.load_bandwidth_hz, dt) : 1.0;
+    for (int i = 0; i < 6; ++i) wrench_lp_[i] += k_load * (wrench[i] - wrench_lp_[i]);
+    const Eigen::Vector3d F_B = R_c * Eigen::Vector3d(wrench_lp_[0], wrench_lp_[1], wrench_lp_[2]);
+    const Eigen::Vector3d M_B = R_c * Eigen::Vector3d(wrench_lp_[3], wrench_lp_[4], wrench_lp_[5]);
+    const double k_exc = started_ ? lowpass_gain(config_.excitation_hz, dt) : 0.0;
+    Eigen::Vector3d theta = Eigen::Vector3d::Zero(), dw = Eigen::Vector3d::Zero(),
+                    dwd = Eigen::Vector3d::Zero(), da = Eigen::Vector3d::Zero();
+    for (int j = 0; j < J; ++j) {
+      const std::size_t u = static_cast<std::size_t>(j);
+      const double tau1 = jac.col(j).head<3>().dot(F_B) + jac.col(j).tail<3>().dot(M_B);
+      const double qdd0 = qdd_lp2_[u];
+      qdd_lp1_[u] += k_exc * (qdd[u] - qdd_lp1_[u]);
+      qdd_lp2_[u] += k_exc * (qdd_lp1_[u] - qdd_lp2_[u]);
+      const robot::JointElasticity& e = elasticity_[u];
+      double ddot = 0.0;
+      if (!started_) {
+        delta_[u] = e.rigid() ? 0.0 : tau1 / e.stiffness_Nm_per_rad;  // the static sag
+        delta_dot_[u] = 0.0;
+      } else {
+        ddot = robot::advance_deflection(e, delta_[u], delta_dot_[u], dt, config_.substep_s, qdd0,
+                                         qdd_lp2_[u], tau_[u], tau1);
+      }
+      tau_[u] = tau1;
+      const Eigen::Vector3d Jv = jac.col(j).head<3>(), Jw = jac.col(j).tail<3>();
+      theta += Jw * delta_[u];
+      dw += Jw * delta_dot_[u];
+      dwd += Jw * ddot;
+      da += Jv * ddot;
+      out.deflection_rad[u] = delta_[u];
+    }
+    R_link = model::rotation_from_vector<double>(theta) * R_at;
+    omega_B += dw;
+    omega_dot_B += dwd;
+    a_B += da;
+  }
+
+  // The robot's signals at the IMU (rigid-body transfer from S's origin), I axes.
+  const Eigen::Vector3d f_S = R_link.transpose() * (a_B - config_.gravity_base_mps2);
+  const Eigen::Vector3d omega_S = R_link.transpose() * omega_B;
+  const Eigen::Vector3d omega_dot_S = R_link.transpose() * omega_dot_B;
+  const Eigen::Vector3d& r = p_sensor_imu_m_;
+  const Eigen::Vector3d f_I =
+      R_sensor_imu_.transpose() * (f_S + omega_dot_S.cross(r) + omega_S.cross(omega_S.cross(r)));
+  const Eigen::Vector3d omega_I = R_sensor_imu_.transpose() * omega_S;
+  const Eigen::Vector3d omega_dot_I = R_sensor_imu_.transpose() * omega_dot_S;
+
+  // 3. The IMU below the crossover.
+  ++updates_;
+  if (!config_.mutant_without_imu) {
+    const double k_steady = started_ ? lowpass_gain(config_.crossover_hz, dt) : 1.0;
+    const double k = std::max(k_steady, 1.0 / static_cast<double>(updates_));
+    offset_f_ += k * (imu_at_c.specific_force_imu - f_I - offset_f_);
+    offset_w_ += k * (imu_at_c.angular_rate_imu - omega_I - offset_w_);
+  }
+  started_ = true;
+  t_s_ = t_c;
+
+  out.specific_force_robot_imu = f_I;
+  out.angular_rate_robot_imu = omega_I;
+  out.specific_force_offset = offset_f_;
+  out.angular_rate_offset = offset_w_;
+  out.imu.specific_force_imu = f_I + offset_f_;
+  out.imu.angular_rate_imu = omega_I + offset_w_;
+  out.imu.angular_accel_imu = omega_dot_I;
+  return true;
+}
+
+}  // namespace zerog::loop

@@ -1,0 +1,150 @@
+// The cycle's motion estimator (firmware/loop/motion_estimator.hpp; issue 28, item 2): the robot's
+// poses give the motion of the row's sensor means exactly for a motion the fit represents, the
+// IMU's share finds a constant offset (a tilted base) and nothing faster, and the cycle with it
+// does not allocate. The HIL checks (tests/hil, *_fused cases) measure the noise.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <array>
+#include <cmath>
+
+#include "alloc_count.hpp"
+#include "loop_fixtures.hpp"
+#include "zerog/loop/cycle.hpp"
+#include "zerog/loop/motion_estimator.hpp"
+#include "zerog/model/rotation.hpp"
+
+namespace zerog::loop {
+namespace {
+
+constexpr double kDt = 0.012;
+const Eigen::Vector3d kA{0.3, -0.2, 0.1};  // constant acceleration of S's origin, B, m/s²
+const Eigen::Vector3d kW{0.0, 0.0, 0.4};   // constant rate about B's z, rad/s
+
+// Row k of a motion with constant acceleration and constant rate about B's z.
+model::FeatureSignals row_at(double t) {
+  model::FeatureSignals s;
+  s.t_s = t;
+  const Eigen::Vector3d p = Eigen::Vector3d(1.0, 0.2, 1.5) + 0.5 * kA * t * t;
+  const Eigen::Matrix3d R = model::rot_z(kW.z() * t) * model::rot_x(0.3);
+  for (int r = 0; r < 3; ++r) {
+    s.p_base_sensor_m[r] = p[r];
+    for (int c = 0; c < 3; ++c) s.R_base_sensor[3 * r + c] = R(r, c);
+  }
+  return s;
+}
+
+// The specific force and rate of that motion at time t, S axes (IMU = S here).
+model::ImuSignals<double> truth_at(double t, const Eigen::Vector3d& g) {
+  const Eigen::Matrix3d R = model::rot_z(kW.z() * t) * model::rot_x(0.3);
+  model::ImuSignals<double> imu;
+  imu.specific_force_imu = R.transpose() * (kA - g);
+  imu.angular_rate_imu = R.transpose() * kW;
+  return imu;
+}
+
+TEST(MotionEstimator, GivesTheMotionAtTheCentreOfTheRowsMeans) {
+  MotionEstimator e;
+  MotionEstimatorConfig config;
+  config.source = MotionSource::fused;
+  ASSERT_TRUE(e.configure(config, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero(), {}).ok());
+  MotionEstimate out;
+  for (int c = 2; c < 40; ++c) {
+    std::array<model::FeatureSignals, 5> rows;
+    std::array<const model::FeatureSignals*, 5> window;
+    for (int j = 0; j < 5; ++j) {
+      rows[j] = row_at((c - 2 + j) * kDt);
+      window[j] = &rows[j];
+    }
+    // The row's means are centred half an interval before its pose.
+    const double t_mean = c * kDt - 0.5 * kDt;
+    const model::ImuSignals<double> truth = truth_at(t_mean, config.gravity_base_mps2);
+    ASSERT_TRUE(e.update(window, {}, truth, out));
+    EXPECT_LT((out.specific_force_robot_imu - truth.specific_force_imu).norm(), 1e-6) << c;
+    EXPECT_LT((out.angular_rate_robot_imu - truth.angular_rate_imu).norm(), 1e-6) << c;
+    EXPECT_LT(out.imu.angular_accel_imu.norm(), 1e-6) << c;
+    EXPECT_LT(out.specific_force_offset.norm(), 1e-6) << "the IMU agrees: no offset";
+  }
+}
+
+// A base tilted by 3 mrad: the IMU sees gravity turned, the robot does not. The IMU's share
+// takes the offset in; its white noise it takes in only through the 0.1 Hz low-pass.
+TEST(MotionEstimator, TheImusShareFindsATiltAndFiltersItsNoise) {
+  for (const bool without_imu : {false, true}) {
+    MotionEstimator e;
+    MotionEstimatorConfig config;
+    config.source = MotionSource::fused;
+    config.mutant_without_imu = without_imu;
+    ASSERT_TRUE(e.configure(config, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero(), {}).ok());
+    const Eigen::Vector3d g_tilted = model::rot_x(0.003) * config.gravity_base_mps2;
+    std::uint64_t state = 12345;
+    auto noise = [&] {  // uniform, σ = 0.01 m/s²
+      state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+      return 0.01 * std::sqrt(12.0) * (static_cast<double>(state >> 11) * 0x1.0p-53 - 0.5);
+    };
+    MotionEstimate out;
+    double square = 0.0;
+    int n = 0;
+    for (int c = 2; c < 2000; ++c) {
+      std::array<model::FeatureSignals, 5> rows;
+      std::array<const model::FeatureSignals*, 5> window;
+      for (int j = 0; j < 5; ++j) {
+        rows[j] = row_at(0.0);  // at rest
+        rows[j].t_s = (c - 2 + j) * kDt;
+        window[j] = &rows[j];
+      }
+      model::ImuSignals<double> imu = truth_at(0.0, g_tilted);
+      const Eigen::Vector3d clean = imu.specific_force_imu;
+      imu.specific_force_imu += Eigen::Vector3d(noise(), noise(), noise());
+      ASSERT_TRUE(e.update(window, {}, imu, out));
+      if (c > 1000) {
+        square += (out.imu.specific_force_imu - clean).squaredNorm() / 3.0;
+        ++n;
+      }
+    }
+    const double rms = std::sqrt(square / n);
+    if (without_imu) {
+      EXPECT_GT(rms, 0.02) << "without the IMU the tilt (9.8 m/s² x 3 mrad) stays";
+    } else {
+      EXPECT_LT(rms, 0.0015) << "the tilt found, the IMU's 0.01 m/s² noise filtered";
+    }
+  }
+}
+
+TEST(MotionEstimator, RefusesSettingsThatCannotWork) {
+  MotionEstimatorConfig c;
+  c.crossover_hz = 0.0;
+  EXPECT_EQ(check_estimator_config(c).setting(), "crossover_hz");
+  c = {};
+  c.substep_s = 0.1;
+  EXPECT_EQ(check_estimator_config(c).setting(), "substep_s");
+  CycleConfig cycle = test::test_cycle_config();
+  cycle.motion.excitation_hz = -1.0;
+  EXPECT_EQ(check_config(cycle).setting(), "motion.excitation_hz");
+}
+
+// The cycle with the fused path and the elastic KR 210 (its deflection stepped every cycle)
+// allocates nothing.
+TEST(MotionEstimator, TheCycleWithItDoesNotAllocate) {
+  CycleConfig config = test::test_cycle_config();
+  config.motion.source = MotionSource::fused;
+  robot::RobotModel arm = robot::kr210_r2700();
+  for (int i = 0; i < 6; ++i) arm.elasticity[i] = {1e6, 8.0, 0.05};
+  config.robot = arm;
+  Cycle c;
+  ASSERT_EQ(c.configure(config, test::payload_model()).text(), "");
+  test::StaticRobot rig;
+  for (int i = 0; i < 6; ++i) rig.quiet(c);
+  ASSERT_TRUE(c.request(Command::enable_zero_g));
+  rig.quiet(c);
+  ASSERT_EQ(c.state_machine().state(), State::zero_g);
+  zerog::test::AllocGuard guard("Cycle::step (fused motion)");
+  for (int i = 0; i < 200; ++i) rig.cycle(c, test::push(i < 50 ? 30.0 : 0.0, 5.0, 0.0));
+  guard.stop();
+  EXPECT_EQ(guard.allocations(), 0u) << guard.first_call();
+  EXPECT_EQ(guard.frees(), 0u) << guard.first_call();
+  EXPECT_TRUE(std::isfinite(c.last().predicted[0]));
+}
+
+}  // namespace
+}  // namespace zerog::loop
