@@ -168,12 +168,20 @@ def common_checks(run, expect_fault=False):
 AXES = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
 
 
+# The cases run with zerog-rt's motion estimator ([filter] motion = "fused", CASE_fused.rt.toml):
+# their contact noise at rest is held to 1.5x the F/T-only floor on every axis (issue 28).
+FUSED_REST_LIMIT = 1.5
+# While the part spins freely (spin) the noise is a figure: issue 28 asks 2x in motion, the
+# estimator gives 2.4x / 4.3x there (proto/loop.md, "Motion estimator": not yet met).
+FUSED = {"on": False}
+
+
 def contact_noise(run, t0, t1, what):
     """The contact wrench's noise (measured − predicted, contact_* of cycles.csv) in
     zero-g between t0 and t1, against the F/T-only floor per cycle: the measured wrench's own
     white noise, from its second differences over the same cycles (1.4826 median|d| / √6, as
-    zerog compare's; host/ident/include/zerog/ident/ft_floor.hpp). Figures, no limit: issue 28's
-    in-cycle estimator is what is to bring the ratio to 1.5."""
+    zerog compare's; host/ident/include/zerog/ident/ft_floor.hpp). A figure for the IMU's path;
+    a check (every axis within FUSED_REST_LIMIT) for the motion estimator's at rest."""
     c = run.cycles
     t = np.array([run.ipoc_to_t(i) for i in c["ipoc"]])
     sel = (c["state"] == "zero_g") & (t >= t0) & (t <= t1)
@@ -196,6 +204,12 @@ def contact_noise(run, t0, t1, what):
     print(f"  F/T-only floor per cycle (second differences of the measured wrench): " +
           ", ".join(f"{a} {v:.3f}" for a, v in zip(AXES, floor)))
     print(f"  contact noise against the floor: {force_ratio:.2f}x (force), {torque_ratio:.2f}x (torque)")
+    if FUSED["on"] and what == "at_rest":
+        limit = FUSED_REST_LIMIT
+        worst = int(np.argmax(rms / floor))
+        check(bool(np.all(rms <= limit * floor)),
+              f"motion estimator: contact noise {what.replace('_', ' ')} within {limit}x the F/T "
+              f"floor on every axis (worst {AXES[worst]} {rms[worst] / floor[worst]:.2f}x)")
 
 
 def gate_checks(run):
@@ -360,6 +374,7 @@ def case_spin(run):
     print(f"  |L| = {np.linalg.norm(L0):.4f} N·m·s, turned {math.degrees(turn):.0f}° in 10 s, "
           f"ω direction wandered {wander:.1f}°")
     check(turn > 1.0, f"the part really turned ({turn:.2f} rad)")
+    contact_noise(run, t0, t0 + 10.0, "moving")
     limit = 0.005 if run.lockstep else 0.02
     check(dev < limit, f"angular momentum (world) kept within {100 * dev:.3f} % over 10 s "
                        f"(limit {100 * limit:g} %)")
@@ -1056,7 +1071,9 @@ def main():
     else:
         # CASE_elastic: the same scenario on the robot that is not rigid (proto/sim_robot.md),
         # held to the same checks.
-        base = a.case.removesuffix("_elastic")
+        # CASE_fused: the same scenario with zerog-rt's motion estimator, and its noise check.
+        FUSED["on"] = a.case.endswith("_fused")
+        base = a.case.removesuffix("_fused").removesuffix("_elastic")
         {"push": case_push, "drift": case_drift, "spin": case_spin, "tumble": case_tumble,
          "supervisor": case_supervisor}[base](run)
     if run.lockstep:

@@ -23,6 +23,8 @@
 #include "zerog/emu/ati_board.hpp"
 #include "zerog/emu/stim300_emulator.hpp"
 #include "zerog/proto/rsi.hpp"
+#include "zerog/robot/robot_model.hpp"
+#include "zerog/sim/elastic.hpp"
 
 namespace zerog::emu {
 namespace {
@@ -137,6 +139,17 @@ io::Rig emulator_rig(const Scenario& scenario, const sim::RigSimulator& simulato
   rig.sample_period_s = scenario.cycle_s();
   rig.ft_rate_hz = 0.0;  // as fast as zerog-rt asks: the board answers each request
   rig.imu_rate_hz = kImuRateHz;
+  // The arm that is not rigid (proto/sim_robot.md): the rig names its robot file's kinematics
+  // and elasticity (calib/robots/kr210_r2700.robot.toml, sim::kr210_elasticity() keeps them
+  // equal), as a cell's rig would; the emulated arm may be set otherwise by the scenario
+  // (elastic.k1…, the real robot is not its file). zerog-rt's motion estimator steps it.
+  if (simulator.config().elastic.enabled) {
+    robot::RobotModel arm =
+        robot::kr210_r2700({rig.flange_sensor.q.toRotationMatrix(), rig.flange_sensor.p_m});
+    const sim::ElasticityConfig file = sim::kr210_elasticity();
+    for (std::size_t i = 0; i < file.joints.size(); ++i) arm.elasticity[i] = file.joints[i];
+    rig.robot_model = arm;
+  }
   return rig;
 }
 
