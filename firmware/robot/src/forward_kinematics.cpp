@@ -22,9 +22,12 @@ Eigen::Matrix3d rot_x(double angle) {
   return R;
 }
 
-}  // namespace
-
-Pose flange_pose(const RobotModel& model, std::span<const double> q_rad) {
+// The chain from B to the flange F. With `axes`, each DH row's joint axis (unit, B) and a point
+// on it: standard DH turns about frame i−1's z through its origin, modified DH about the z after
+// Rx(α) Tx(a).
+Pose chain(const RobotModel& model, std::span<const double> q_rad,
+           std::array<Eigen::Vector3d, kMaxJoints>* axis = nullptr,
+           std::array<Eigen::Vector3d, kMaxJoints>* origin = nullptr) {
   Pose pose;  // frame reached so far, in B
   for (int i = 0; i < model.joint_count; ++i) {
     const DhJoint& j = model.joints[i];
@@ -32,12 +35,20 @@ Pose flange_pose(const RobotModel& model, std::span<const double> q_rad) {
         j.sign * q_rad[static_cast<std::size_t>(model.input_index[i])] + j.theta_offset_rad;
     if (model.convention == DhConvention::dh) {
       // Rz(θ) Tz(d) Tx(a) Rx(α): origin moves by Rz(θ) (a, 0, d).
+      if (axis != nullptr) {
+        (*axis)[i] = pose.R.col(2);
+        (*origin)[i] = pose.p_m;
+      }
       const Eigen::Matrix3d Rz = rot_z(theta);
       pose.p_m += pose.R * (Rz * Eigen::Vector3d(j.a_m, 0.0, j.d_m));
       pose.R = pose.R * Rz * rot_x(j.alpha_rad);
     } else {
       // Rx(α_{i−1}) Tx(a_{i−1}) Rz(θ) Tz(d): origin moves by (a, 0, 0) + Rx(α) (0, 0, d).
       const Eigen::Matrix3d Rx = rot_x(j.alpha_rad);
+      if (axis != nullptr) {
+        (*axis)[i] = pose.R * Rx.col(2);
+        (*origin)[i] = pose.p_m + pose.R * Eigen::Vector3d(j.a_m, 0.0, 0.0);
+      }
       pose.p_m +=
           pose.R * (Eigen::Vector3d(j.a_m, 0.0, 0.0) + Rx * Eigen::Vector3d(0.0, 0.0, j.d_m));
       pose.R = pose.R * Rx * rot_z(theta);
@@ -46,50 +57,36 @@ Pose flange_pose(const RobotModel& model, std::span<const double> q_rad) {
   pose.p_m += pose.R * model.last_flange.p_m;
   pose.R = pose.R * model.last_flange.R;
   return pose;
+}
+
+// F → S: the rig's flange_sensor.
+Pose to_sensor(const RobotModel& model, Pose pose) {
+  pose.p_m += pose.R * model.flange_sensor.p_m;
+  pose.R = pose.R * model.flange_sensor.R;
+  return pose;
+}
+
+}  // namespace
+
+Pose flange_pose(const RobotModel& model, std::span<const double> q_rad) {
+  return chain(model, q_rad);
 }
 
 Pose sensor_pose(const RobotModel& model, std::span<const double> q_rad) {
-  Pose pose = flange_pose(model, q_rad);
-  pose.p_m += pose.R * model.flange_sensor.p_m;
-  pose.R = pose.R * model.flange_sensor.R;
-  return pose;
+  return to_sensor(model, chain(model, q_rad));
 }
 
 void sensor_jacobian(const RobotModel& model, std::span<const double> q_rad,
-                     Eigen::Matrix<double, 6, kMaxJoints>& jacobian, Pose* pose_out) {
+                     Eigen::Matrix<double, 6, kMaxJoints>& jacobian) {
   std::array<Eigen::Vector3d, kMaxJoints> axis, origin;
-  Pose pose;  // frame reached so far, in B
-  for (int i = 0; i < model.joint_count; ++i) {
-    const DhJoint& j = model.joints[i];
-    const double theta =
-        j.sign * q_rad[static_cast<std::size_t>(model.input_index[i])] + j.theta_offset_rad;
-    if (model.convention == DhConvention::dh) {
-      axis[i] = pose.R.col(2);  // Rz(θ) turns about frame i−1's z
-      origin[i] = pose.p_m;
-      const Eigen::Matrix3d Rz = rot_z(theta);
-      pose.p_m += pose.R * (Rz * Eigen::Vector3d(j.a_m, 0.0, j.d_m));
-      pose.R = pose.R * Rz * rot_x(j.alpha_rad);
-    } else {
-      const Eigen::Matrix3d Rx = rot_x(j.alpha_rad);
-      axis[i] = pose.R * Rx.col(2);  // Rz(θ) after Rx(α) Tx(a)
-      origin[i] = pose.p_m + pose.R * Eigen::Vector3d(j.a_m, 0.0, 0.0);
-      pose.p_m +=
-          pose.R * (Eigen::Vector3d(j.a_m, 0.0, 0.0) + Rx * Eigen::Vector3d(0.0, 0.0, j.d_m));
-      pose.R = pose.R * Rx * rot_z(theta);
-    }
-  }
-  pose.p_m += pose.R * model.last_flange.p_m;
-  pose.R = pose.R * model.last_flange.R;
-  pose.p_m += pose.R * model.flange_sensor.p_m;
-  pose.R = pose.R * model.flange_sensor.R;
+  const Pose sensor = to_sensor(model, chain(model, q_rad, &axis, &origin));
   jacobian.setZero();
   for (int i = 0; i < model.joint_count; ++i) {
     const int k = model.input_index[i];
     const double sign = model.joints[i].sign;
-    jacobian.col(k).head<3>() = sign * axis[i].cross(pose.p_m - origin[i]);
+    jacobian.col(k).head<3>() = sign * axis[i].cross(sensor.p_m - origin[i]);
     jacobian.col(k).tail<3>() = sign * axis[i];
   }
-  if (pose_out != nullptr) *pose_out = pose;
 }
 
 void joint_torques(const RobotModel& model, std::span<const double> q_rad,

@@ -3,6 +3,7 @@
 // model checks and the file reader's refusals, and no allocation.
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -207,6 +208,51 @@ TEST(RobotForwardKinematics, DoesNotAllocate) {
   for (int i = 0; i < 100; ++i) sum += sensor_pose(model, q).p_m.x();
   EXPECT_EQ(test::allocation_count(), before);
   EXPECT_TRUE(std::isfinite(sum));
+}
+
+}  // namespace
+}  // namespace zerog::robot
+
+namespace zerog::robot {
+namespace {
+
+// sensor_jacobian (the cycle's motion estimator) against central differences of sensor_pose, at
+// random joints, on the KR 210 (standard DH, KUKA's joint signs) and the iiwa (modified DH, 7
+// joints), with a sensor offset and a permuted joint order.
+TEST(RobotForwardKinematics, SensorJacobianIsTheDerivativeOfThePose) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> angle(-1.5, 1.5);
+  FrameTransform mount;
+  mount.p_m = Eigen::Vector3d(0.01, -0.02, 0.06);
+  mount.R = Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  RobotModel permuted = kr210_r2700(mount);
+  permuted.input_index = {5, 4, 3, 2, 1, 0, 6, 7};
+  RobotModel iiwa = io::read_robot_file(calib("lbr_iiwa14_r820.robot.toml"));
+  iiwa.flange_sensor = mount;
+  for (const RobotModel& model : {kr210_r2700(mount), permuted, iiwa}) {
+    for (int trial = 0; trial < 5; ++trial) {
+      std::array<double, kMaxJoints> q{};
+      for (int k = 0; k < model.joint_count; ++k) q[k] = angle(rng);
+      const std::span<const double> joints(q.data(), static_cast<std::size_t>(model.joint_count));
+      Eigen::Matrix<double, 6, kMaxJoints> J;
+      sensor_jacobian(model, joints, J);
+      const Eigen::Matrix3d R_t = sensor_pose(model, joints).R.transpose();
+      constexpr double h = 1e-6;
+      for (int k = 0; k < model.joint_count; ++k) {
+        std::array<double, kMaxJoints> qa = q, qb = q;
+        qa[k] += h;
+        qb[k] -= h;
+        const Pose a = sensor_pose(model, std::span<const double>(qa.data(), joints.size()));
+        const Pose b = sensor_pose(model, std::span<const double>(qb.data(), joints.size()));
+        const Eigen::Vector3d v = (a.p_m - b.p_m) / (2 * h);
+        const Eigen::Matrix3d W = (a.R - b.R) / (2 * h) * R_t;
+        const Eigen::Vector3d w(W(2, 1), W(0, 2), W(1, 0));
+        EXPECT_LT((J.col(k).head<3>() - v).norm(), 1e-7) << "joint " << k;
+        EXPECT_LT((J.col(k).tail<3>() - w).norm(), 1e-7) << "joint " << k;
+      }
+      for (int k = model.joint_count; k < kMaxJoints; ++k) EXPECT_EQ(J.col(k).norm(), 0.0);
+    }
+  }
 }
 
 }  // namespace

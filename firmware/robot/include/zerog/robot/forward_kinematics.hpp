@@ -27,10 +27,10 @@ Pose sensor_pose(const RobotModel& model, std::span<const double> q_rad);
 /// k (recorded joint k) is the linear velocity of S's origin (rows 0-2) and the angular velocity
 /// (rows 3-5) per unit rate of that joint, both in B axes: sign · (z × (p_S − p_axis), z) for
 /// the joint's axis z through p_axis (standard DH: frame i−1's z; modified DH: z after Rx(α),
-/// through the origin moved by a). Columns joint_count.. are zero. Also the pose of S
-/// (`pose_out`, if given). Real-time safe; same preconditions as flange_pose.
+/// through the origin moved by a). Columns joint_count.. are zero. Real-time safe; same
+/// preconditions as flange_pose.
 void sensor_jacobian(const RobotModel& model, std::span<const double> q_rad,
-                     Eigen::Matrix<double, 6, kMaxJoints>& jacobian, Pose* pose_out = nullptr);
+                     Eigen::Matrix<double, 6, kMaxJoints>& jacobian);
 
 /// Joint torques of a wrench on the flange, τ = Jᵀ w (the virtual work of the wrench over each
 /// joint's motion): `force_base_N` in B, `moment_flange_base_Nm` about the flange origin, B axes.
