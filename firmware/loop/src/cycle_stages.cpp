@@ -191,6 +191,8 @@ RowResult assemble_row(const CycleConfig& config, const samples::RobotSample& m,
     ++counters.imu_held_cycles;
   }
   now.held = out.flags & (kFtHeld | kImuHeld);
+  now.ft_n = window.ft_n;
+  now.imu_n = window.imu_n;
   out.sensors = {window.ft_n, window.ft_critical, window.ft_saturated, window.imu_n};
   window = SensorWindow{};
   now.wrench = rows.last_wrench;
@@ -278,7 +280,7 @@ ModelResult evaluate_model(const CycleConfig& config, infer::Inference& inferenc
     const Row& at = row_back(rows, D + late);
     if (rows.total >= static_cast<std::uint64_t>(n + late) &&
         model.estimator.update(std::span(window.data(), static_cast<std::size_t>(n)), at.wrench,
-                               physics_imu, model.estimate)) {
+                               physics_imu, {.ft = at.ft_n, .imu = at.imu_n}, model.estimate)) {
       physics_imu = model.estimate.imu;
     }
   }

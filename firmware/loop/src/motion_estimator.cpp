@@ -33,6 +33,11 @@ zerog::Status check_estimator_config(const MotionEstimatorConfig& c) {
     return zerog::Status::invalid("excitation_hz", "must be positive");
   if (!(positive(c.substep_s) && c.substep_s <= 0.01))
     return zerog::Status::invalid("substep_s", "must be in (0, 0.01] s");
+  auto non_negative = [](double v) { return std::isfinite(v) && v >= 0.0; };
+  if (!non_negative(c.ft_rate_hz)) return zerog::Status::invalid("ft_rate_hz", "must be >= 0");
+  if (!non_negative(c.imu_rate_hz)) return zerog::Status::invalid("imu_rate_hz", "must be >= 0");
+  if (!non_negative(c.ft_delay_s)) return zerog::Status::invalid("ft_delay_s", "must be >= 0");
+  if (!non_negative(c.imu_delay_s)) return zerog::Status::invalid("imu_delay_s", "must be >= 0");
   if (!c.gravity_base_mps2.allFinite())
     return zerog::Status::invalid("gravity_base_mps2", "must be finite");
   return {};
@@ -70,13 +75,40 @@ void MotionEstimator::reset() noexcept {
   tau_ = {};
   delta_ = {};
   delta_dot_ = {};
-  offset_f_.setZero();
   offset_w_.setZero();
+  bias_I_.setZero();
+  error_B_.setZero();
+  P_ = Eigen::Matrix<double, 6, 6>::Identity() * kPriorVariance;
+}
+
+void MotionEstimator::update_force_offsets(const Eigen::Vector3d& y, const Eigen::Matrix3d& R_IB,
+                                           double k_steady) noexcept {
+  // The Kalman filter of the two offsets x = (b_I, e_B), y = b_I + R_IB e_B + v (header, step
+  // 3). Units: the IMU's white noise variance per row is the unit (r = 1); a random walk of
+  // variance q per row has the steady-state gain K with q = K² r / (1 − K) (the scalar
+  // filter's Riccati equation), shared half and half so that their sum, all a still payload
+  // sees, follows at the crossover.
+  if (k_steady > 0.0) {
+    const double q = 0.5 * k_steady * k_steady / (1.0 - k_steady);
+    P_.diagonal().array() += q;
+  }
+  Eigen::Matrix<double, 3, 6> H;
+  H << Eigen::Matrix3d::Identity(), R_IB;
+  const Eigen::Matrix3d S = H * P_ * H.transpose() + Eigen::Matrix3d::Identity();
+  const Eigen::Matrix<double, 6, 3> PHt = P_ * H.transpose();
+  const Eigen::Matrix<double, 6, 3> K = S.ldlt().solve(PHt.transpose()).transpose();
+  const Eigen::Vector3d innovation = y - bias_I_ - R_IB * error_B_;
+  const Eigen::Matrix<double, 6, 1> dx = K * innovation;
+  bias_I_ += dx.head<3>();
+  error_B_ += dx.tail<3>();
+  // Joseph form: P stays symmetric and positive under rounding over hours of rows.
+  const Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Identity() - K * H;
+  P_ = A * P_ * A.transpose() + K * K.transpose();
 }
 
 bool MotionEstimator::update(std::span<const model::FeatureSignals* const> rows,
                              const std::array<double, 6>& wrench,
-                             const model::ImuSignals<double>& imu_at_c,
+                             const model::ImuSignals<double>& imu_at_c, const WindowCounts& counts,
                              MotionEstimate& out) noexcept {
   const std::size_t n = rows.size();
   if (n < 3 || n % 2 == 0) return false;
@@ -92,34 +124,44 @@ bool MotionEstimator::update(std::span<const model::FeatureSignals* const> rows,
   for (std::size_t k = 0; k < n; ++k) fit.add(rows[k]->t_s - t_c, half_span);
   if (!fit.solve()) return false;
   const Eigen::Matrix3d R_c = row_rotation(centre);
-  // The row's F/T and IMU are the means of the samples of the cycle that ended at t_c, centred
-  // half a row interval before the pose (taken when the robot's message came): the motion is
-  // evaluated there (τ* < 0), so that predicted and measured are of the same instant. One row
-  // late (the mutant) would be a whole interval off; at τ = 0, half (measured: proto/loop.md).
-  const double at = -0.5 * (t_c - rows[c - 1]->t_s);
-  Eigen::Vector3d a_B = Eigen::Vector3d::Zero(), w_S = Eigen::Vector3d::Zero(),
-                  wd_S = Eigen::Vector3d::Zero(), r_at = Eigen::Vector3d::Zero();
+  // The instants the centre row's means stand for (header, "Instants").
+  const double row_dt = t_c - rows[c - 1]->t_s;
+  auto instant = [row_dt](int n_samples, double rate_hz, double delay_s) {
+    if (n_samples > 0 && rate_hz > 0.0)
+      return -0.5 * static_cast<double>(n_samples - 1) / rate_hz - delay_s;
+    return -0.5 * row_dt - delay_s;
+  };
+  const double t_ft = instant(counts.ft, config_.ft_rate_hz, config_.ft_delay_s);
+  const double t_imu = instant(counts.imu, config_.imu_rate_hz, config_.imu_delay_s);
+  // The quadratics' value, slope and curvature at 0 (rotation vectors r, in c's axes).
+  Eigen::Vector3d a_B = Eigen::Vector3d::Zero(), r0 = Eigen::Vector3d::Zero(),
+                  r1 = Eigen::Vector3d::Zero(), r2 = Eigen::Vector3d::Zero();
   const int J = have_robot_ ? robot_.joint_count : 0;
   std::array<double, robot::kMaxJoints> qdd{};
   for (std::size_t k = 0; k < n; ++k) {
     const model::FeatureSignals& row = *rows[k];
     const double tau = row.t_s - t_c;
-    // The quadratic's value, slope and curvature at τ* from its derivatives at 0.
     const double d0 = fit.weight(tau, 0), d1 = fit.weight(tau, 1), d2 = fit.weight(tau, 2);
-    const double w0 = d0 + at * d1 + 0.5 * at * at * d2, w1 = d1 + at * d2, w2 = d2;
     const Eigen::Vector3d p = Eigen::Map<const Eigen::Vector3d>(row.p_base_sensor_m.data());
-    a_B += w2 * p;
+    a_B += d2 * p;
     const Eigen::AngleAxisd turn(Eigen::Matrix3d(R_c.transpose() * row_rotation(row)));
     const Eigen::Vector3d r = turn.angle() * turn.axis();
-    r_at += w0 * r;
-    w_S += w1 * r;
-    wd_S += w2 * r;
+    r0 += d0 * r;
+    r1 += d1 * r;
+    r2 += d2 * r;
     for (int j = 0; j < J; ++j)
-      qdd[static_cast<std::size_t>(j)] += w2 * row.joints_rad[static_cast<std::size_t>(j)];
+      qdd[static_cast<std::size_t>(j)] += d2 * row.joints_rad[static_cast<std::size_t>(j)];
   }
-  Eigen::Vector3d omega_B = R_c * w_S, omega_dot_B = R_c * wd_S;
-  const Eigen::Matrix3d R_at = R_c * model::rotation_from_vector<double>(r_at);
-  Eigen::Matrix3d R_link = R_at;
+  const Eigen::Vector3d wd_S = r2;
+  // The motor side at an instant τ (≤ 0) from c: attitude and rate, B axes.
+  auto attitude_at = [&](double tau) {
+    return Eigen::Matrix3d(
+        R_c * model::rotation_from_vector<double>(r0 + tau * r1 + 0.5 * tau * tau * r2));
+  };
+  auto rate_at = [&](double tau) { return Eigen::Vector3d(R_c * (r1 + tau * r2)); };
+  Eigen::Vector3d omega_dot_B = R_c * wd_S;
+  Eigen::Matrix3d R_link = attitude_at(t_ft), R_link_imu = attitude_at(t_imu);
+  Eigen::Vector3d omega_B = rate_at(t_ft), omega_B_imu = rate_at(t_imu);
 
   // 2. The link's deflection at c.
   const double dt = started_ ? t_c - t_s_ : 0.0;
@@ -156,38 +198,55 @@ bool MotionEstimator::update(std::span<const model::FeatureSignals* const> rows,
       da += Jv * ddot;
       out.deflection_rad[u] = delta_[u];
     }
-    R_link = model::rotation_from_vector<double>(theta) * R_at;
+    const Eigen::Matrix3d turn = model::rotation_from_vector<double>(theta);
+    R_link = turn * R_link;
+    R_link_imu = turn * R_link_imu;
     omega_B += dw;
+    omega_B_imu += dw;
     omega_dot_B += dwd;
     a_B += da;
   }
 
-  // The robot's signals at the IMU (rigid-body transfer from S's origin), I axes.
-  const Eigen::Vector3d f_S = R_link.transpose() * (a_B - config_.gravity_base_mps2);
-  const Eigen::Vector3d omega_S = R_link.transpose() * omega_B;
-  const Eigen::Vector3d omega_dot_S = R_link.transpose() * omega_dot_B;
+  // The robot's signals at the IMU (rigid-body transfer from S's origin), I axes, at the F/T's
+  // instant (the output) and at the IMU's (the comparison of step 3).
   const Eigen::Vector3d& r = p_sensor_imu_m_;
-  const Eigen::Vector3d f_I =
-      R_sensor_imu_.transpose() * (f_S + omega_dot_S.cross(r) + omega_S.cross(omega_S.cross(r)));
-  const Eigen::Vector3d omega_I = R_sensor_imu_.transpose() * omega_S;
-  const Eigen::Vector3d omega_dot_I = R_sensor_imu_.transpose() * omega_dot_S;
+  auto at_imu = [&](const Eigen::Matrix3d& R, const Eigen::Vector3d& w_B, Eigen::Vector3d& f_I,
+                    Eigen::Vector3d& w_I) {
+    const Eigen::Vector3d f_S = R.transpose() * (a_B - config_.gravity_base_mps2);
+    const Eigen::Vector3d w_S = R.transpose() * w_B;
+    const Eigen::Vector3d wd_S_link = R.transpose() * omega_dot_B;
+    f_I = R_sensor_imu_.transpose() * (f_S + wd_S_link.cross(r) + w_S.cross(w_S.cross(r)));
+    w_I = R_sensor_imu_.transpose() * w_S;
+  };
+  Eigen::Vector3d f_I, omega_I, f_I_cmp, omega_I_cmp;
+  at_imu(R_link, omega_B, f_I, omega_I);
+  at_imu(R_link_imu, omega_B_imu, f_I_cmp, omega_I_cmp);
+  const Eigen::Vector3d omega_dot_I = R_sensor_imu_.transpose() * R_link.transpose() * omega_dot_B;
 
   // 3. The IMU below the crossover.
   ++updates_;
   if (!config_.mutant_without_imu) {
     const double k_steady = started_ ? lowpass_gain(config_.crossover_hz, dt) : 1.0;
     const double k = std::max(k_steady, 1.0 / static_cast<double>(updates_));
-    offset_f_ += k * (imu_at_c.specific_force_imu - f_I - offset_f_);
-    offset_w_ += k * (imu_at_c.angular_rate_imu - omega_I - offset_w_);
+    offset_w_ += k * (imu_at_c.angular_rate_imu - omega_I_cmp - offset_w_);
+    update_force_offsets(imu_at_c.specific_force_imu - f_I_cmp,
+                         R_sensor_imu_.transpose() * R_link_imu.transpose(),
+                         started_ ? k_steady : 0.0);
   }
+  const Eigen::Vector3d offset_f =
+      bias_I_ + R_sensor_imu_.transpose() * R_link.transpose() * error_B_;
   started_ = true;
   t_s_ = t_c;
 
+  out.ft_instant_s = t_ft;
+  out.imu_instant_s = t_imu;
   out.specific_force_robot_imu = f_I;
   out.angular_rate_robot_imu = omega_I;
-  out.specific_force_offset = offset_f_;
+  out.specific_force_offset = offset_f;
+  out.specific_force_bias_imu = bias_I_;
+  out.specific_force_error_base = error_B_;
   out.angular_rate_offset = offset_w_;
-  out.imu.specific_force_imu = f_I + offset_f_;
+  out.imu.specific_force_imu = f_I + offset_f;
   out.imu.angular_rate_imu = omega_I + offset_w_;
   out.imu.angular_accel_imu = omega_dot_I;
   return true;

@@ -105,8 +105,9 @@ const std::vector<std::string_view> kLimitsKeys{
 const std::vector<std::string_view> kWatchdogKeys{"ft_fault_cycles", "imu_fault_cycles",
                                                   "robot_fault_cycles", "robot_late_cycles",
                                                   "model_fault_cycles"};
-const std::vector<std::string_view> kFilterKeys{"angular_accel_order", "motion", "crossover_hz",
-                                                "load_bandwidth_hz", "excitation_hz"};
+const std::vector<std::string_view> kFilterKeys{
+    "angular_accel_order", "motion",     "crossover_hz", "load_bandwidth_hz",
+    "excitation_hz",       "ft_delay_s", "imu_delay_s"};
 const std::vector<std::string_view> kCollectionKeys{"speed_fraction", "dwell_s",
                                                     "max_axis_step_rad", "approach_speed_radps",
                                                     "approach_accel_radps2"};
@@ -329,6 +330,8 @@ void read_filter(const TomlTable& file, RtConfig& c) {
       filter.optional_number("load_bandwidth_hz", m.load_bandwidth_hz, {0.0, true, 100.0, false});
   m.excitation_hz =
       filter.optional_number("excitation_hz", m.excitation_hz, {0.0, true, 100.0, false});
+  m.ft_delay_s = filter.optional_number("ft_delay_s", m.ft_delay_s, {0.0, false, 0.1, false});
+  m.imu_delay_s = filter.optional_number("imu_delay_s", m.imu_delay_s, {0.0, false, 0.1, false});
 }
 
 // [realtime]: memory locking, the cycle thread's priority and CPU.
@@ -438,6 +441,9 @@ std::pair<std::string_view, std::string_view> file_key(std::string_view setting)
           {"motion.crossover_hz", {"filter", "crossover_hz"}},
           {"motion.load_bandwidth_hz", {"filter", "load_bandwidth_hz"}},
           {"motion.excitation_hz", {"filter", "excitation_hz"}},
+          {"motion.ft_delay_s", {"filter", "ft_delay_s"}},
+          {"motion.imu_delay_s", {"filter", "imu_delay_s"}},
+          {"motion.ft_rate_hz", {"ft", "rate_hz"}},
           {"body.mass_kg", {"body", "mass_kg"}},
           {"body.inertia_body_kgm2", {"body", "inertia_kgm2"}},
           {"p_sensor_com_m", {"body", "com_sensor_m"}},
@@ -559,6 +565,7 @@ loop::CycleConfig cycle_config(const RtConfig& c) {
   out.ipoc_unit_s = 0.001;
   out.angular_accel_order = c.angular_accel_order;
   out.motion = c.motion;
+  out.motion.ft_rate_hz = c.ft.rate_hz;  // the rig's IMU rate: setup.cpp
   out.temperature_C = c.temperature_C;
   out.watchdog = c.watchdog;
   out.body = c.body;

@@ -88,6 +88,7 @@ Setup load_setup(const RtConfig& config) {
   // The rig's robot (its flange_sensor is the rig's): the pose from AIPos without RIst, and the
   // check of RIst (proto/rt_config.md, "[robot]").
   s.cycle.robot = s.rig.robot_model;
+  s.cycle.motion.imu_rate_hz = s.rig.imu_rate_hz;
   // The loop's own checks, on a scratch cycle (configure takes the model). The configuration's
   // own fields passed them when the file was read (rt/config.cpp names the key); what is new
   // here is the rig's robot and the model.

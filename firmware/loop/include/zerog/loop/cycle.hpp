@@ -277,6 +277,7 @@ struct Row {
   std::array<double, 6> wrench{};  ///< F/T, sensor frame, N / N·m
   double t_s = 0.0;
   std::uint32_t held = 0;             ///< kFtHeld | kImuHeld of the cycle that made the row
+  int ft_n = 0, imu_n = 0;            ///< samples in the row's means (0: held)
   bool temperature_measured = false;  ///< signals.temperature_C is the F/T sensor's reading
   double temperature_age_s = 0.0;     ///< its age when it came with a sample, s
 };

@@ -22,14 +22,26 @@
 //    the encoders' quantisation differenced must not ring the modes) and by the load τ = Jᵀ w
 //    of the measured wrench low-passed at load_bandwidth_hz; the link then turns by J_ω δ and
 //    moves with the extra J_ω δ̇, J_ω δ̈, J_v δ̈ (the Jacobian's rate terms neglected);
-// 3. the IMU below crossover_hz: the difference IMU − robot (specific force and rate, IMU
-//    axes) is low-passed (first order, causal) and added to the robot's signal. This is the
-//    steady-state Kalman filter of a slowly wandering offset between the two sources (a random
-//    walk b) seen through the IMU's white noise: its gain K = 1 − exp(−2π f_c Δt) per row; the
-//    first rows average (K = 1/n while 1/n > K: the filter's gain from an unknown start).
+// 3. the IMU below crossover_hz, compared with the robot at the IMU mean's instant: the
+//    difference y = IMU − robot (specific force, I axes) is the sum of two slowly wandering
+//    offsets, the accelerometer's bias b_I (fixed in I) and the error of the assumed gravity
+//    e_B (fixed in B: a tilted base, a mounting the robot file does not know), y = b_I + R_IB e_B
+//    + white noise. A Kalman filter of (b_I, e_B) as random walks tracks both; while the payload
+//    turns they separate, so a tilt is not lagged like an offset turning with the IMU. Each
+//    walk's variance per row is set from crossover_hz (the steady-state gain K = 1 − exp(−2π f_c
+//    Δt) of one offset alone: q = K² r / (1 − K)), half to each; the prior is finite (the first
+//    rows average). The rate's offset is fixed in I: a first-order low-pass of the difference
+//    (the same gain, K = max(K, 1/n) at the start). ω̇ is the robot's alone.
 //    What the IMU corrects: the sag the model of step 2 misses, a tilted base, the mounting;
 //    what the robot gives: everything faster, free of the IMU's white noise.
-//    ω̇ is the robot's alone (the derivative of a 0.1 Hz correction is below the noise).
+//
+// Instants: the row's F/T and IMU values are means of the samples of the window that ended at
+// the robot's message (the row's time t_c); n samples at rate f, the last `delay` before the
+// message, stand for t_c − (n − 1) / (2 f) − delay. The robot's fit is evaluated at the IMU's
+// instant for the comparison of step 3 and at the F/T's for the output, so that the predicted
+// wrench is of the measured one's instant. Comparing at the wrong instant is not harmless:
+// the offsets of step 3 absorb the lag of a steady turn (a constant in B), and the output then
+// has the IMU's instant (measured: proto/loop.md, "Motion estimator").
 //
 // Delay: the fit is centred on row c, so the estimate is that of the row the model is
 // evaluated on: the measured and predicted wrench are of the same instant; the contact wrench
@@ -65,6 +77,14 @@ struct MotionEstimatorConfig {
   double load_bandwidth_hz = 3.0;  ///< the measured wrench as the joints' load
   double excitation_hz = 5.0;      ///< the motor's acceleration that drives the modes
   double substep_s = 1e-3;         ///< the deflection's integration step
+  /// The rates of the samples that make a row (zerog-rt: [ft] rate_hz, the rig's imu_rate_hz)
+  /// and the time from a window's last sample to the robot's message beyond what the count
+  /// says (0 in lockstep, where the window's last samples are taken at the message): the
+  /// instants the row's means stand for (header, "Instants"). A rate of 0: half a row.
+  double ft_rate_hz = 0.0;
+  double imu_rate_hz = 0.0;
+  double ft_delay_s = 0.0;
+  double imu_delay_s = 0.0;
   /// Gravity in B, m/s² (B's z up: a tilt of the base is left to the IMU's share).
   Eigen::Vector3d gravity_base_mps2{0.0, 0.0, -9.80665};
   /// Test mutants (zerog-rt --test-mutant only; the HIL checks must fail on each): the IMU's
@@ -76,16 +96,27 @@ struct MotionEstimatorConfig {
 /// Whether `c` can be used: ok(), or invalid_setting naming the field ("crossover_hz", …).
 zerog::Status check_estimator_config(const MotionEstimatorConfig& c);
 
+/// How many samples made the centre row's means (0: held from an earlier row).
+struct WindowCounts {
+  int ft = 0;
+  int imu = 0;
+};
+
 /// What the estimator says about its last update (for tests and the record).
 struct MotionEstimate {
   model::ImuSignals<double> imu;  ///< at the centre row, I axes (what the physics reads)
   /// The robot's part alone (before the IMU's share), I axes.
   Eigen::Vector3d specific_force_robot_imu = Eigen::Vector3d::Zero();
   Eigen::Vector3d angular_rate_robot_imu = Eigen::Vector3d::Zero();
-  /// The IMU's share (the low-passed difference IMU − robot), I axes.
+  /// The IMU's share (the filtered difference IMU − robot), I axes; the specific force's is
+  /// the sum of its two parts below.
   Eigen::Vector3d specific_force_offset = Eigen::Vector3d::Zero();
+  Eigen::Vector3d specific_force_bias_imu = Eigen::Vector3d::Zero();    ///< b_I, I axes
+  Eigen::Vector3d specific_force_error_base = Eigen::Vector3d::Zero();  ///< e_B, B axes
   Eigen::Vector3d angular_rate_offset = Eigen::Vector3d::Zero();
   std::array<double, robot::kMaxJoints> deflection_rad{};  ///< δ per recorded joint at c
+  double ft_instant_s = 0.0;   ///< the F/T mean's instant, from the centre row's time (≤ 0)
+  double imu_instant_s = 0.0;  ///< the IMU mean's
 };
 
 class MotionEstimator {
@@ -105,7 +136,7 @@ class MotionEstimator {
   /// rows' times do not determine the fit. Real-time safe.
   bool update(std::span<const model::FeatureSignals* const> rows,
               const std::array<double, 6>& wrench, const model::ImuSignals<double>& imu_at_c,
-              MotionEstimate& out) noexcept;
+              const WindowCounts& counts, MotionEstimate& out) noexcept;
 
  private:
   MotionEstimatorConfig config_;
@@ -124,7 +155,19 @@ class MotionEstimator {
   std::array<double, robot::kMaxJoints> qdd_lp1_{}, qdd_lp2_{};  ///< the excitation's stages
   std::array<double, robot::kMaxJoints> tau_{};                  ///< the load at t_s_
   std::array<double, robot::kMaxJoints> delta_{}, delta_dot_{};
-  Eigen::Vector3d offset_f_ = Eigen::Vector3d::Zero(), offset_w_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d offset_w_ = Eigen::Vector3d::Zero();
+  // Step 3's Kalman filter of the specific force's two offsets, in units of the variance of the
+  // IMU's row mean (the STIM300's VRW 0.06 m/s/√h over 12 ms: about (0.009 m/s²)²,
+  // proto/sim_robot.md). The prior of each part: σ = 10 such units (≈ 0.1 m/s²: a 10 mrad
+  // tilt or a 10 mg bias), broad for
+  // their sum (the first rows average), not so broad that the first small turns of the payload
+  // split the two by their noise.
+  static constexpr double kPriorVariance = 100.0;
+  Eigen::Vector3d bias_I_ = Eigen::Vector3d::Zero(), error_B_ = Eigen::Vector3d::Zero();
+  Eigen::Matrix<double, 6, 6> P_ = Eigen::Matrix<double, 6, 6>::Identity() * kPriorVariance;
+
+  void update_force_offsets(const Eigen::Vector3d& y, const Eigen::Matrix3d& R_IB,
+                            double k_steady) noexcept;
 };
 
 }  // namespace zerog::loop
