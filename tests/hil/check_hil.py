@@ -171,8 +171,8 @@ AXES = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
 # The cases run with zerog-rt's motion estimator ([filter] motion = "fused", CASE_fused.rt.toml):
 # their contact noise at rest is held to 1.5x the F/T-only floor on every axis (issue 28).
 FUSED_REST_LIMIT = 1.5
-# While the part spins freely (spin) the noise is a figure: issue 28 asks 2x in motion, the
-# estimator gives 2.4x / 4.3x there (proto/loop.md, "Motion estimator": not yet met).
+# While the part moves (spin: it turns freely after a push), 2x on every axis (issue 28).
+FUSED_MOVING_LIMIT = 2.0
 FUSED = {"on": False}
 
 
@@ -181,7 +181,8 @@ def contact_noise(run, t0, t1, what):
     zero-g between t0 and t1, against the F/T-only floor per cycle: the measured wrench's own
     white noise, from its second differences over the same cycles (1.4826 median|d| / √6, as
     zerog compare's; host/ident/include/zerog/ident/ft_floor.hpp). A figure for the IMU's path;
-    a check (every axis within FUSED_REST_LIMIT) for the motion estimator's at rest."""
+    a check for the motion estimator's (every axis within FUSED_REST_LIMIT at rest,
+    FUSED_MOVING_LIMIT moving)."""
     c = run.cycles
     t = np.array([run.ipoc_to_t(i) for i in c["ipoc"]])
     sel = (c["state"] == "zero_g") & (t >= t0) & (t <= t1)
@@ -204,8 +205,8 @@ def contact_noise(run, t0, t1, what):
     print(f"  F/T-only floor per cycle (second differences of the measured wrench): " +
           ", ".join(f"{a} {v:.3f}" for a, v in zip(AXES, floor)))
     print(f"  contact noise against the floor: {force_ratio:.2f}x (force), {torque_ratio:.2f}x (torque)")
-    if FUSED["on"] and what == "at_rest":
-        limit = FUSED_REST_LIMIT
+    if FUSED["on"]:
+        limit = FUSED_REST_LIMIT if what == "at_rest" else FUSED_MOVING_LIMIT
         worst = int(np.argmax(rms / floor))
         check(bool(np.all(rms <= limit * floor)),
               f"motion estimator: contact noise {what.replace('_', ' ')} within {limit}x the F/T "
@@ -349,6 +350,30 @@ def case_drift(run):
         check(d == 0.0, f"drift with no push: {d * 1e3:.6f} mm in {span:.1f} s (must be 0)")
     else:
         check(d < 1e-3, f"drift with no push: {d * 1e3:.3f} mm in {span:.1f} s (limit 1 mm)")
+
+
+def case_glide(run):
+    """A guided glide: the push sends the part at about 0.5 m/s; while it glides, its speed
+    stays J/m and the contact noise is held to the moving limit (the fused case)."""
+    t_en = common_checks(run)
+    push = run.emu["pushes"][0]
+    if t_en is not None:
+        contact_noise(run, t_en + 0.5, push["start_s"] - 0.05, "at_rest")
+    t0 = push["start_s"] + push["duration_s"] + 0.3
+    t1 = float(run.t[-1]) - 0.2
+    sel = run.window(t0, t1)
+    J = np.array(push["integrated_impulse_N_s"])
+    v_expected = J / run.mass
+    v = run.v_com[sel]
+    speed = np.linalg.norm(v, axis=1)
+    err = float(np.max(np.linalg.norm(v - v_expected, axis=1)) / np.linalg.norm(v_expected))
+    figure("glide_speed_mps", [float(speed.min()), float(speed.max())])
+    figure("glide_velocity_error", err)
+    print(f"  glide {t0:.1f}–{t1:.1f} s: speed {speed.min():.3f}–{speed.max():.3f} m/s, J/m "
+          f"{np.linalg.norm(v_expected):.3f} m/s, largest deviation {100 * err:.2f} %")
+    check(bool(np.all(speed > 0.45)), "the part glides at 0.5 m/s (over 0.45 m/s throughout)")
+    check(err < 0.02, f"and keeps J/m within 2 % ({100 * err:.2f} %)")
+    contact_noise(run, t0, t1, "moving")
 
 
 def free_window(run):
@@ -1075,6 +1100,7 @@ def main():
         FUSED["on"] = a.case.endswith("_fused")
         base = a.case.removesuffix("_fused").removesuffix("_elastic")
         {"push": case_push, "drift": case_drift, "spin": case_spin, "tumble": case_tumble,
+         "glide": case_glide,
          "supervisor": case_supervisor}[base](run)
     if run.lockstep:
         lockstep_checks(run, a.case)
