@@ -236,7 +236,47 @@ def gate_checks(run):
           f"{f['confirms_at_threshold']}, torque {m['confirms_at_threshold']})")
 
 
-def case_push(run):
+def first_moving_cycle(run, t_from):
+    """The first cycle from t_from on whose virtual body moves (body_v* of cycles.csv): where
+    the gate confirmed the push (in lockstep the body is exactly still before)."""
+    c = run.cycles
+    t = np.array([run.ipoc_to_t(i) for i in c["ipoc"]])
+    v = np.stack([c["body_vx_mps"], c["body_vy_mps"], c["body_vz_mps"]], axis=1)
+    moving = np.nonzero((t >= t_from) & (np.linalg.norm(v, axis=1) > 0.0))[0]
+    return (int(round((t[moving[0]] - t_from) / run.cycle_s)) if len(moving) else None)
+
+
+def case_nudge(run):
+    """The gentlest push (1 N for 0.5 s) with the gate at a third of today's: confirmed within
+    the push, the part moves off at J/m within 2 % (issue 28)."""
+    push = run.emu["pushes"][0]
+    k = first_moving_cycle(run, push["start_s"])
+    figure("nudge_confirm_cycle", k)
+    print(f"  the push moved the body {k} cycles after it began")
+    check(k is not None and k * run.cycle_s < push["duration_s"],
+          "the gate confirmed the 1 N push while it lasted")
+    case_push(run, limit=0.02)
+
+
+def case_quiet(run):
+    """Ten minutes of zero-g, nobody touching the part, the gate at a third of today's: no
+    contact confirmed, so the part does not move (lockstep: exactly)."""
+    t_en = common_checks(run)
+    if t_en is None:
+        return
+    contact_noise(run, t_en + 1.0, float(run.t[-1]), "at_rest")
+    sel = run.window(t_en + 1.0, float(run.t[-1]))
+    span = run.t[sel][-1] - run.t[sel][0]
+    d = np.linalg.norm(run.p_com[sel] - run.p_com[sel][0], axis=1).max()
+    k = first_moving_cycle(run, t_en + 1.0)
+    figure("quiet_s", span)
+    figure("quiet_drift_mm", d * 1e3)
+    check(span >= 599.0, f"ten minutes of zero-g observed ({span:.1f} s)")
+    check(k is None and d == 0.0, f"no false contact: the body never moved ({d * 1e3:.6f} mm"
+          f"{'' if k is None else f', first at {t_en + 1.0 + k * run.cycle_s:.2f} s'})")
+
+
+def case_push(run, limit=None):
     t_en = common_checks(run)
     push = run.emu["pushes"][0]
     if t_en is not None:
@@ -259,7 +299,8 @@ def case_push(run):
     p_lin = run.mass * v
     print(f"  momentum m·v = ({p_lin[0]:.3f}, {p_lin[1]:.3f}, {p_lin[2]:.3f}) N·s against the "
           f"impulse J: the part floated off with {100 * np.linalg.norm(p_lin) / np.linalg.norm(J):.1f} % of it")
-    limit = 0.01 if run.lockstep else 0.03
+    if limit is None:
+        limit = 0.01 if run.lockstep else 0.03
     check(err < limit, f"velocity settles at J/m: error {100 * err:.2f} % (limit {100 * limit:g} %)")
     spread = np.linalg.norm(run.v_com[sel] - v, axis=1).max() / np.linalg.norm(v_expected)
     figure("push_velocity_spread", spread)
@@ -1100,7 +1141,7 @@ def main():
         FUSED["on"] = a.case.endswith("_fused")
         base = a.case.removesuffix("_fused").removesuffix("_elastic")
         {"push": case_push, "drift": case_drift, "spin": case_spin, "tumble": case_tumble,
-         "glide": case_glide,
+         "glide": case_glide, "nudge": case_nudge, "quiet": case_quiet,
          "supervisor": case_supervisor}[base](run)
     if run.lockstep:
         lockstep_checks(run, a.case)
