@@ -406,8 +406,8 @@ def main(argv):
         import plotly.graph_objects as go
         from plotly.subplots import make_subplots
     except ImportError as e:
-        print("plotly is not installed for %s (%s): scripts/install-deps.sh installs it into "
-              "the project's .venv, whose python zerog report uses (by hand: "
+        print("%s cannot import plotly and numpy (%s): scripts/install-deps.sh installs them "
+              "into the project's .venv, whose python zerog report uses (by hand: "
               "ZEROG_PYTHON=.venv/bin/python)" % (sys.executable, e), file=sys.stderr)
         return EXIT_NO_PLOTLY
     bundle, out = argv
