@@ -296,7 +296,7 @@ class Page:
             if "q%d_rad" % j in self.c:
                 cols["A%d" % j] = ("deg", np.degrees(self.c["q%d_rad" % j]))
         for col, name, unit in (("omega_norm_radps", "|ω|", "rad/s"),
-                                ("omega_dot_norm_radps2", "|ω̇|", "rad/s²")):
+                                ("omega_dot_norm_radps2", "|dω/dt|", "rad/s²")):
             if col in self.c:
                 cols[name] = (unit, self.c[col])
         seg = self.moving.astype(np.uint8)
