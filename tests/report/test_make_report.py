@@ -653,7 +653,8 @@ class ReportTest(unittest.TestCase):
     # -- the interactive page (interactive.html; in a browser: test_report_browser.py)
 
     def test_without_plotly_the_static_report_says_why(self):
-        make_bundle(self.bundle)
+        # (the minimal bundle: fewer figures to draw)
+        make_bundle(self.bundle, floor=False, optional=False, ladder=False, diagnosis=False)
         p = run(self.bundle, self.out)
         page, pngs = self.assertReportOk(p)
         self.assertIn("timeseries.png", pngs)
@@ -664,7 +665,7 @@ class ReportTest(unittest.TestCase):
         self.assertNotIn("Traceback", p.stderr)
 
     def test_a_failing_interactive_page_leaves_the_static_report(self):
-        make_bundle(self.bundle)
+        make_bundle(self.bundle, floor=False, optional=False, ladder=False, diagnosis=False)
         for python, words in (("/nonexistent/python", "cannot run /nonexistent/python"),
                               ("/bin/false", "interactive_report.py failed (exit status 1)")):
             p = run(self.bundle, self.out, python)
