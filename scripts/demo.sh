@@ -118,6 +118,11 @@ $zerog diagnose "$out/run.csv" --model "$out/fit_fixed.json" \
 $zerog report "$out/run.csv" --model "$out/fit_fixed.json" --truth "$out/run.truth.json" \
   --ladder "$out/ladder.json" --diagnosis "$out/diagnosis_fixed.json" --out "$out/report"
 echo "open $out/report/index.html in a browser"
+# Its interactive page (zoom, hover for the pose, one axis at a time) needs plotly in .venv
+# (install-deps.sh --demo installs it); without it the report says why.
+if [ -f "$out/report/interactive.html" ]; then
+  echo "  zoom into the time series: $out/report/interactive.html (works offline)"
+fi
 # How long steps 1-9 took, for the README (scripts/figures.py demo).
 steps_s=$((SECONDS - started))
 # timing.json: what each part took (install and build are 0 with --bin); the live step's time is

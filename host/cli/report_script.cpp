@@ -33,6 +33,10 @@ void run_report_script(const std::vector<std::string>& args) {
   // Debian's python3 has python3-matplotlib; a python3 earlier on PATH may not.
   const std::string python = fs::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
   const std::string script = report_script().string();
+  // Its interactive page (interactive_report.py) needs plotly, a PyPI package in the project's
+  // .venv (scripts/install-deps.sh): make_report.py runs that part with $ZEROG_PYTHON, the venv's
+  // python as for `zerog import --bag` (bag_import.cpp), unless the user named another.
+  ::setenv("ZEROG_PYTHON", ZEROG_VENV_PYTHON, /*overwrite=*/0);
   std::vector<char*> argv;
   argv.push_back(const_cast<char*>(python.c_str()));
   argv.push_back(const_cast<char*>(script.c_str()));

@@ -1,5 +1,6 @@
 #pragma once
-// Runs host/report/make_report.py (matplotlib) with Debian's python3.
+// Runs host/report/make_report.py (matplotlib) with Debian's python3; its interactive page
+// with the project's .venv python (plotly), named to it in $ZEROG_PYTHON.
 #include <string>
 #include <vector>
 

@@ -3,9 +3,12 @@
 
 Usage: /usr/bin/python3 make_report.py BUNDLE_DIR OUT_DIR
 
-Run by `zerog report`. The script only draws what the bundle holds; it never refits. It is
-installed as a single file, so it must stay self-contained (standard library, numpy,
-matplotlib).
+Run by `zerog report`. The script only draws what the bundle holds; it never refits. It needs
+the standard library, numpy and matplotlib (Debian's python3). The interactive page beside
+index.html (interactive.html: zoomable time series, residual against any signal) is plotly's,
+a PyPI package in the project's .venv: interactive_report.py, installed beside this file, draws
+it with $ZEROG_PYTHON (zerog report sets it to the .venv's python), else with this Python.
+Without plotly there the report is the static one and says why (interactive_page below).
 """
 
 import argparse
@@ -15,6 +18,7 @@ import json
 import math
 import os
 import shutil
+import subprocess
 import sys
 import tempfile
 
@@ -32,6 +36,8 @@ MAX_SCATTER_POINTS = 5000    # per scatter panel
 ZOOM_SAMPLES = 1500           # width of the zoomed time-series window
 N_SIGNAL_BINS = 40
 MAX_CORRELATED = 6
+INTERACTIVE = "interactive.html"   # the interactive page, beside index.html
+EXIT_NO_PLOTLY = 3                  # interactive_report.py: plotly is not installed there
 AXIS_COLORS = ["tab:blue", "tab:orange", "tab:green", "tab:blue", "tab:orange", "tab:green"]
 
 SHORT_SIGNALS = {
@@ -465,6 +471,36 @@ def signal_values(col, cols, np):
     return v
 
 
+def runs(np, mask, t):
+    """(start, width) time spans where mask is true, each widened by half a sample period on
+    both sides (broken_barh; the shaded spans of interactive_report.py)."""
+    if not mask.any():
+        return []
+    m = mask.astype(np.int8)
+    d = np.diff(np.concatenate(([0], m, [0])))
+    starts = np.flatnonzero(d == 1)
+    ends = np.flatnonzero(d == -1) - 1
+    half = 0.5 * (float(np.median(np.diff(t))) if len(t) > 1 else 0.0)
+    return [(t[a] - half, (t[b] - t[a]) + 2 * half) for a, b in zip(starts, ends)]
+
+
+def minmax_idx(np, y, max_points):
+    """Indices of y to plot, at most about max_points: all of them when y is short, else the
+    first and last sample and the minimum and maximum of each of max_points/2 equal bins, so a
+    spike survives the decimation (interactive_report.py decimates with it too)."""
+    n = len(y)
+    if n <= max_points:
+        return np.arange(n)
+    nb = max_points // 2
+    size = -(-n // nb)
+    pad = nb * size - n
+    yy = np.concatenate((y, np.full(pad, y[-1]))) if pad else y
+    yy = yy.reshape(nb, size)
+    base = np.arange(nb) * size
+    idx = np.concatenate((base + yy.argmin(axis=1), base + yy.argmax(axis=1), [0, n - 1]))
+    return np.unique(np.minimum(idx, n - 1))
+
+
 # ---------------------------------------------------------------------------------------------
 # Figures
 
@@ -500,30 +536,10 @@ class Figures:
 
     # -- helpers
     def _runs(self, mask, t):
-        """(start, width) time spans where mask is true, for broken_barh."""
-        np = self.np
-        if not mask.any():
-            return []
-        m = mask.astype(np.int8)
-        d = np.diff(np.concatenate(([0], m, [0])))
-        starts = np.flatnonzero(d == 1)
-        ends = np.flatnonzero(d == -1) - 1
-        half = 0.5 * (float(np.median(np.diff(t))) if len(t) > 1 else 0.0)
-        return [(t[a] - half, (t[b] - t[a]) + 2 * half) for a, b in zip(starts, ends)]
+        return runs(self.np, mask, t)
 
     def _minmax_idx(self, y, max_points):
-        np = self.np
-        n = len(y)
-        if n <= max_points:
-            return np.arange(n)
-        nb = max_points // 2
-        size = -(-n // nb)
-        pad = nb * size - n
-        yy = np.concatenate((y, np.full(pad, y[-1]))) if pad else y
-        yy = yy.reshape(nb, size)
-        base = np.arange(nb) * size
-        idx = np.concatenate((base + yy.argmin(axis=1), base + yy.argmax(axis=1), [0, n - 1]))
-        return np.unique(np.minimum(idx, n - 1))
+        return minmax_idx(self.np, y, max_points)
 
     def _binned(self, x, ys, nbins=N_SIGNAL_BINS, min_count=5):
         """Binned mean and std of each row of ys against x; robust range (0.5..99.5 %)."""
@@ -1138,6 +1154,13 @@ def build_html(s, cols, figs, notes, warnings):
 
     nav = [("residuals", "Residual table"), ("time", "Time series"), ("hist", "Histograms"),
            ("where", "Where it fails")]
+    if figs.get("interactive"):
+        w('<p class="interactive"><a href="%s"><b>Interactive page</b></a>: the time series '
+          "zoomable on one linked time axis (hover for the pose, one wrench axis at a time) "
+          "and the residual against any signal; works offline.</p>" % esc(figs["interactive"]))
+    else:
+        w('<p class="muted" id="no-interactive">No interactive page: %s.</p>'
+          % esc(notes.get("no_interactive", "not made").rstrip(".")))
     if s["ladder"]:
         nav.append(("ladder", "Ladder" if s["ladder"]["made_for"]["match"] == "same"
                      else _label("ladder", s["ladder"]["made_for"])))
@@ -1218,6 +1241,9 @@ def build_html(s, cols, figs, notes, warnings):
         cap += (" <b>Decimated for plotting:</b> %d samples drawn with min/max decimation to "
                 "about %d points per curve (every local extreme kept)." % (
                     len(cols["t_s"]), MAX_PLOT_POINTS))
+    if figs.get("interactive"):
+        cap += (' To zoom, hover and pick axes: the <a href="%s">interactive page</a>.'
+                % esc(figs["interactive"]))
     w(_img(figs["timeseries"], "measured vs predicted per axis", cap))
     if figs.get("zoom"):
         a, b, ta, tb = notes["zoom"]
@@ -1433,11 +1459,45 @@ def render(bundle, outdir_tmp, s, cols, np, plt):
         figs["ladder"] = figs_obj.ladder()
     if s["diagnosis"]:
         figs["diagnosis"] = figs_obj.candidates()
+    figs["interactive"], notes["no_interactive"] = interactive_page(bundle, outdir_tmp)
+    if notes["no_interactive"]:
+        print("make_report: note: no interactive page: %s" % notes["no_interactive"],
+              file=sys.stderr)
     page = build_html(s, cols, figs, notes, warnings)
     with open(os.path.join(outdir_tmp, "index.html"), "w", encoding="utf-8") as f:
         f.write(page)
     for wmsg in warnings:
         print("make_report: warning: %s" % wmsg, file=sys.stderr)
+
+
+def interactive_page(bundle, outdir):
+    """Writes OUT_DIR/interactive.html with interactive_report.py (plotly) run by $ZEROG_PYTHON
+    (zerog report: the project's .venv python), else by this Python. Returns (its file name,
+    None) or (None, why there is none): plotly not installed there, no such Python, or a
+    failure of the script (then the static report is written all the same)."""
+    script = os.path.join(os.path.dirname(os.path.abspath(__file__)), "interactive_report.py")
+    python = os.environ.get("ZEROG_PYTHON") or sys.executable
+    out = os.path.join(outdir, INTERACTIVE)
+    if not os.path.isfile(script):
+        return None, "%s is missing (it is installed beside make_report.py)" % script
+    try:
+        p = subprocess.run([python, script, bundle, out], capture_output=True, text=True,
+                           timeout=900)
+    except OSError as e:
+        return None, ("cannot run %s (%s): scripts/install-deps.sh makes the project's .venv "
+                      "with plotly" % (python, e.strerror or e))
+    except subprocess.TimeoutExpired:
+        return None, "%s did not finish in 900 s" % script
+    if p.returncode == 0 and os.path.isfile(out):
+        return INTERACTIVE, None
+    for leftover in (out, out + ".tmp"):
+        if os.path.exists(leftover):
+            os.remove(leftover)
+    lines = p.stderr.strip().splitlines()
+    if p.returncode == EXIT_NO_PLOTLY and lines:
+        return None, lines[-1]
+    return None, "%s failed (exit status %d): %s" % (
+        os.path.basename(script), p.returncode, " / ".join(lines[-3:]) or "no message")
 
 
 def _inside(child, parent):

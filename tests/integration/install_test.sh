@@ -10,6 +10,7 @@ fail() { echo "install_test: FAIL: $*" >&2; exit 1; }
 
 cmake --install "$build" --prefix "$prefix" >/dev/null
 for f in bin/zerog-rt bin/zerog bin/zerog-emu share/zerog/zerog-rt.sample.toml \
+         share/zerog/make_report.py share/zerog/interactive_report.py \
          share/zerog/proto/rt_config.md share/zerog/proto/rsi.md lib/systemd/system/zerog-rt.service; do
   [ -e "$prefix/$f" ] || fail "cmake --install did not install $f"
 done

@@ -3,6 +3,12 @@
 
 Run: /usr/bin/python3 tests/report/test_make_report.py   (registered with ctest as report_script)
 Set ZEROG_REPORT_KEEP=DIR to keep the rendered full report in DIR for a look.
+
+The interactive page (interactive.html, plotly) is drawn by the Python in $ZEROG_PYTHON. The
+tests give make_report.py one that cannot import plotly, unless they test the page: those use
+the project's .venv python (ZEROG_TEST_VENV_PYTHON, else .venv/bin/python of this tree) and are
+skipped without plotly there, but fail instead when ZEROG_REQUIRE_VENV=1 (CI; CMakeLists.txt).
+The page in a real browser: test_report_browser.py.
 """
 
 import html
@@ -19,9 +25,46 @@ import unittest
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 SCRIPT = os.path.join(HERE, "..", "..", "host", "report", "make_report.py")
+INTERACTIVE_SCRIPT = os.path.join(HERE, "..", "..", "host", "report", "interactive_report.py")
 PYTHON = "/usr/bin/python3"
 AXES = ["Fx", "Fy", "Fz", "Mx", "My", "Mz"]
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+VENV_PYTHON = os.environ.get("ZEROG_TEST_VENV_PYTHON") or os.path.join(
+    HERE, "..", "..", ".venv", "bin", "python")
+REQUIRE_VENV = os.environ.get("ZEROG_REQUIRE_VENV") == "1"
+NO_INTERACTIVE = "make_report: note: no interactive page: "
+_NO_PLOTLY = []  # the Python without plotly (setUpModule)
+
+
+def setUpModule():
+    # Debian's python3 without its site packages: cannot import plotly even where Debian's
+    # python3-plotly is installed (nor numpy: interactive_report.py says it cannot import them).
+    d = tempfile.mkdtemp(prefix="zerog-report-noplotly-")
+    path = os.path.join(d, "python-without-plotly")
+    with open(path, "w") as f:
+        f.write('#!/bin/sh\nexec %s -S "$@"\n' % PYTHON)
+    os.chmod(path, 0o755)
+    _NO_PLOTLY[:] = [d, path]
+
+
+def tearDownModule():
+    shutil.rmtree(_NO_PLOTLY[0], ignore_errors=True)
+
+
+def venv_with_plotly(test):
+    """The .venv python when it imports plotly; else skips `test` (fails it in CI)."""
+    why = None
+    if not os.access(VENV_PYTHON, os.X_OK):
+        why = "%s is missing" % VENV_PYTHON
+    elif subprocess.run([VENV_PYTHON, "-c", "import plotly, numpy"],
+                        capture_output=True).returncode != 0:
+        why = "%s cannot import plotly" % VENV_PYTHON
+    if why:
+        why += " (scripts/install-deps.sh installs plotly into .venv)"
+        if REQUIRE_VENV:
+            test.fail(why)
+        test.skipTest(why)
+    return VENV_PYTHON
 
 
 def rms(v):
@@ -191,9 +234,29 @@ def make_bundle(path, n=1500, floor=True, optional=True, ladder=True, diagnosis=
     return summary
 
 
-def run(bundle, out):
+def run(bundle, out, python=None):
+    """make_report.py BUNDLE OUT; its interactive page drawn by `python` (default: one without
+    plotly, so the report is the static one)."""
+    env = dict(os.environ, ZEROG_PYTHON=python or _NO_PLOTLY[1])
     return subprocess.run([PYTHON, SCRIPT, bundle, out], capture_output=True, text=True,
-                          timeout=300)
+                          timeout=300, env=env)
+
+
+def plotly_figure(page, div_id):
+    """(data, layout) of the figure plotly's to_html wrote into `page` for the div `div_id`."""
+    m = re.search(r'Plotly\.newPlot\(\s*"%s",\s*' % re.escape(div_id), page)
+    if not m:
+        raise AssertionError("no Plotly.newPlot for %s" % div_id)
+    dec = json.JSONDecoder()
+    data, i = dec.raw_decode(page, m.end())
+    while page[i] in ", \t\r\n":
+        i += 1
+    return data, dec.raw_decode(page, i)[0]
+
+
+def other_stderr(p):
+    """stderr without the note that the report has no interactive page."""
+    return "".join(x + "\n" for x in p.stderr.splitlines() if not x.startswith(NO_INTERACTIVE))
 
 
 class ReportTest(unittest.TestCase):
@@ -205,7 +268,7 @@ class ReportTest(unittest.TestCase):
     def tearDown(self):
         shutil.rmtree(self.tmp, ignore_errors=True)
 
-    def assertReportOk(self, p):
+    def assertReportOk(self, p, interactive=False):
         self.assertEqual(p.returncode, 0, "script failed:\n" + p.stderr)
         index = os.path.join(self.out, "index.html")
         self.assertTrue(os.path.isfile(index))
@@ -223,7 +286,10 @@ class ReportTest(unittest.TestCase):
                 self.assertEqual(f.read(8), PNG_MAGIC, name + " is not a PNG")
         # every PNG written is referenced, and nothing else was left behind
         on_disk = set(os.listdir(self.out))
-        self.assertEqual(on_disk, set(pngs) | {"index.html"})
+        self.assertEqual(on_disk, set(pngs) | {"index.html"} |
+                         ({"interactive.html"} if interactive else set()))
+        self.assertEqual('href="interactive.html"' in page, interactive)
+        self.assertEqual('id="no-interactive"' in page, not interactive)
         self.assertEqual(os.listdir(os.path.dirname(self.out)), ["report"],
                          "temporary folders left beside OUT_DIR")
         return page, set(pngs)
@@ -246,7 +312,7 @@ class ReportTest(unittest.TestCase):
         self.assertEqual(pngs, {"timeseries.png", "residual_hist.png", "diagnosis_signals.png",
                                 "residual_vs_signals.png", "joint_bins.png", "ladder.png",
                                 "diagnosis.png"})
-        self.assertEqual(p.stderr, "", "no warnings expected on a consistent bundle")
+        self.assertEqual(other_stderr(p), "", "no warnings expected on a consistent bundle")
         # header, verdict, command (escaped), paths
         self.assertIn("Test report &lt;KR210 &amp; payload&gt;", page)
         self.assertIn("logs/sim_payload100.csv", page)
@@ -583,6 +649,124 @@ class ReportTest(unittest.TestCase):
         p = run(self.bundle, self.tmp)  # OUT_DIR containing the bundle would delete it
         self.assertNotEqual(p.returncode, 0)
         self.assertTrue(os.path.isfile(os.path.join(self.bundle, "summary.json")))
+
+    # -- the interactive page (interactive.html; in a browser: test_report_browser.py)
+
+    def test_without_plotly_the_static_report_says_why(self):
+        # (the minimal bundle: fewer figures to draw)
+        make_bundle(self.bundle, floor=False, optional=False, ladder=False, diagnosis=False)
+        p = run(self.bundle, self.out)
+        page, pngs = self.assertReportOk(p)
+        self.assertIn("timeseries.png", pngs)
+        self.assertEqual(p.stderr.count(NO_INTERACTIVE), 1, p.stderr)
+        for words in ("cannot import plotly", "scripts/install-deps.sh"):
+            self.assertIn(words, p.stderr)
+            self.assertIn(html.escape(words), page)
+        self.assertNotIn("Traceback", p.stderr)
+
+    def test_a_failing_interactive_page_leaves_the_static_report(self):
+        make_bundle(self.bundle, floor=False, optional=False, ladder=False, diagnosis=False)
+        for python, words in (("/nonexistent/python", "cannot run /nonexistent/python"),
+                              ("/bin/false", "interactive_report.py failed (exit status 1)")):
+            p = run(self.bundle, self.out, python)
+            page, _ = self.assertReportOk(p)
+            self.assertIn(NO_INTERACTIVE + words, p.stderr)
+            self.assertIn(html.escape(words), page)
+            shutil.rmtree(self.out)
+
+    def _interactive(self, **summary):
+        """interactive.html of the full bundle (summary.json's keys replaced by `summary`),
+        written by interactive_report.py alone with the .venv's plotly."""
+        python = venv_with_plotly(self)
+        make_bundle(self.bundle)
+        path = os.path.join(self.bundle, "summary.json")
+        with open(path) as f:
+            s = json.load(f)
+        s.update(summary)
+        with open(path, "w") as f:
+            json.dump(s, f)
+        out = os.path.join(self.tmp, "interactive.html")
+        p = subprocess.run([python, INTERACTIVE_SCRIPT, self.bundle, out], capture_output=True,
+                           text=True, timeout=300)
+        self.assertEqual((p.returncode, p.stderr), (0, ""))
+        with open(out, encoding="utf-8") as f:
+            return f.read()
+
+    def test_interactive_page_is_self_contained(self):
+        # through make_report.py, as zerog report runs it: the page beside index.html, linked
+        make_bundle(self.bundle)
+        p = run(self.bundle, self.out, venv_with_plotly(self))
+        page, _ = self.assertReportOk(p, interactive=True)
+        self.assertEqual(p.stderr, "")
+        with open(os.path.join(self.out, "interactive.html"), encoding="utf-8") as f:
+            ia = f.read()
+        # plotly.js is in the page; no script, style or font comes from elsewhere (offline)
+        self.assertRegex(ia, r"plotly\.js v\d+\.\d+")
+        self.assertIsNone(re.search(r"<script[^>]*\ssrc\s*=", ia), "a script loaded by src")
+        self.assertFalse('src="http' in ia)
+        self.assertIsNone(re.search(r"<link[^>]*href", ia), "a stylesheet loaded by href")
+        self.assertIsNone(re.search(r"@import|url\(\s*['\"]?https?:", ia))
+        self.assertLess(os.path.getsize(os.path.join(self.out, "interactive.html")), 8e6)
+        # both figures, the pose line and the way back
+        for needle in ('id="timeseries"', 'id="vs_signal"', 'id="pose"', 'id="zerog-pose"',
+                       'href="index.html"', "Test report &lt;KR210 &amp; payload&gt;",
+                       "all 1500 samples"):
+            self.assertTrue(needle in ia, needle)
+        # the index links it above the tables and under the time series
+        self.assertEqual(page.count('href="interactive.html"'), 2)
+
+    def test_interactive_page_shades_what_the_bundle_marks(self):
+        # moving segments and held-out blocks from data.csv; the events of a diagnosis of this
+        # model only (as in timeseries.png), clipped to the log
+        def shapes(ia):
+            out = {}
+            for sh in plotly_figure(ia, "timeseries")[1]["shapes"]:
+                out.setdefault(sh["name"], []).append(sh)
+            return out
+        ia = self._interactive()
+        sh = shapes(ia)
+        self.assertEqual(sorted(sh), ["held-out block", "moving segment"])
+        half = 0.006  # half a sample period: a run covers its samples' whole periods
+        self.assertEqual([(round(x["x0"], 6), round(x["x1"], 6)) for x in sh["moving segment"]],
+                         [(round(100 + 0.012 * a - half, 6), round(100 + 0.012 * b + half, 6))
+                          for a, b in ((150, 299), (450, 599), (750, 899), (1050, 1199),
+                                       (1350, 1499))])
+        self.assertEqual(len(sh["held-out block"]), 2 * 3)  # rows 400-499, 900-999, 1400-1499
+        self.assertEqual({x["yref"] for x in sh["held-out block"]}, {"y2 domain", "y4 domain"})
+        self.assertEqual([x["showlegend"] for x in sh["moving segment"]], [True] + [False] * 4)
+        events = [{"t0_s": 105.0, "t1_s": 106.5}, {"t0_s": 110.0, "t1_s": 999.0},
+                  {"t0_s": 10.0, "t1_s": 20.0}]   # the last one before the log
+        verdict = {"kind": "event", "effect": None, "command": None,
+                   "text": "Two spans are events, not physics."}
+        with open(os.path.join(self.bundle, "summary.json")) as f:
+            dg = json.load(f)["diagnosis"]
+        dg.update(verdict=verdict, events=events)
+        ia = self._interactive(diagnosis=dg)
+        ev = shapes(ia)["event (diagnosis)"]
+        self.assertEqual([(x["x0"], round(x["x1"], 6)) for x in ev],
+                         [(105.0, 106.5), (110.0, round(100 + 0.012 * 1499, 6))])
+        self.assertTrue("the diagnosis' events (red, 2)" in ia)
+        ia = self._interactive(diagnosis=dg, diagnosis_for={"match": "other", "text": "x"})
+        self.assertNotIn("event (diagnosis)", shapes(ia))
+
+    def test_interactive_dropdown_offers_every_signal(self):
+        ia = self._interactive()
+        menu = plotly_figure(ia, "timeseries")[1]["updatemenus"][0]["buttons"]
+        self.assertEqual([b["label"] for b in menu], ["all axes", "forces", "torques"] + AXES)
+        data = plotly_figure(ia, "timeseries")[0]
+        for b in menu[3:]:  # each axis button shows that axis' traces and hides the others
+            self.assertEqual([v is not False for v in b["args"][0]["visible"]],
+                             [d["meta"]["axis"] == b["label"] for d in data], b["label"])
+        _, layout = plotly_figure(ia, "vs_signal")
+        signals = [b["label"] for b in layout["updatemenus"][0]["buttons"]]
+        # the diagnosis' correlated signals first (its missing column left out), then the
+        # joint angles and velocities, the IMU's norms, temperature, time
+        self.assertEqual(signals[:2], ["|ω̇| (rad/s²)", "A5 angle (deg)"])
+        for x in ("A1 angle (deg)", "A6 velocity (rad/s)", "|ω| (rad/s)", "|f − g| (m/s²)",
+                  "temperature (°C)", "time t_s (s)"):
+            self.assertIn(x, signals)
+        self.assertEqual(len(signals), len(set(signals)))
+        self.assertFalse([x for x in signals if "not_a_column" in x or "_meas" in x])
 
 
 if __name__ == "__main__":
