@@ -31,6 +31,10 @@ zerog::Status check_estimator_config(const MotionEstimatorConfig& c) {
     return zerog::Status::invalid("load_bandwidth_hz", "must be positive");
   if (!positive(c.excitation_hz))
     return zerog::Status::invalid("excitation_hz", "must be positive");
+  if (!(std::isfinite(c.ringing_radps) && c.ringing_radps >= 0.0))
+    return zerog::Status::invalid("ringing_radps", "must be >= 0");
+  if (!(std::isfinite(c.mode_gain) && c.mode_gain >= 0.0 && c.mode_gain <= 1.0))
+    return zerog::Status::invalid("mode_gain", "must be in [0, 1]");
   if (!(positive(c.substep_s) && c.substep_s <= 0.01))
     return zerog::Status::invalid("substep_s", "must be in (0, 0.01] s");
   auto non_negative = [](double v) { return std::isfinite(v) && v >= 0.0; };
@@ -76,6 +80,7 @@ void MotionEstimator::reset() noexcept {
   delta_ = {};
   delta_dot_ = {};
   offset_w_.setZero();
+  residual_ms_ = 0.0;
   bias_I_.setZero();
   error_B_.setZero();
   P_ = Eigen::Matrix<double, 6, 6>::Identity() * kPriorVariance;
@@ -163,6 +168,12 @@ bool MotionEstimator::update(std::span<const model::FeatureSignals* const> rows,
   Eigen::Matrix3d R_link = attitude_at(t_ft), R_link_imu = attitude_at(t_imu);
   Eigen::Vector3d omega_B = rate_at(t_ft), omega_B_imu = rate_at(t_imu);
 
+  const Eigen::Vector3d omega_B_imu_motor = omega_B_imu;  // step 4's reference
+  const bool ringing_on =
+      config_.ringing_radps > 0.0 && !config_.mutant_without_ringing && !config_.mutant_without_imu;
+  const double threshold = 3.0 * config_.ringing_radps;
+  const double schedule =
+      ringing_on ? residual_ms_ / (residual_ms_ + threshold * threshold) : 0.0;  // last row's
   // 2. The link's deflection at c.
   const double dt = started_ ? t_c - t_s_ : 0.0;
   if (elastic_) {
@@ -198,6 +209,23 @@ bool MotionEstimator::update(std::span<const model::FeatureSignals* const> rows,
       da += Jv * ddot;
       out.deflection_rad[u] = delta_[u];
     }
+    // 4a. The gyro corrects the main axes' modelled rates while the arm rings.
+    if (started_ && schedule > 0.0 && config_.mode_gain > 0.0) {
+      const Eigen::Vector3d w_gyro_B =
+          R_link_imu * R_sensor_imu_ * (imu_at_c.angular_rate_imu - offset_w_);
+      const Eigen::Vector3d e = w_gyro_B - (omega_B_imu + dw);
+      Eigen::Matrix<double, 3, robot::kMaxJoints> Jw =
+          Eigen::Matrix<double, 3, robot::kMaxJoints>::Zero();
+      for (int j = 0; j < std::min(J, kObservedAxes); ++j)
+        if (!elasticity_[static_cast<std::size_t>(j)].rigid()) Jw.col(j) = jac.col(j).tail<3>();
+      const Eigen::Matrix3d A = Jw * Jw.transpose() + kDamping * Eigen::Matrix3d::Identity();
+      const Eigen::Matrix<double, robot::kMaxJoints, 1> d = Jw.transpose() * A.ldlt().solve(e);
+      const double g = schedule * config_.mode_gain;
+      for (int j = 0; j < std::min(J, kObservedAxes); ++j) {
+        delta_dot_[static_cast<std::size_t>(j)] += g * d[j];
+        dw += jac.col(j).tail<3>() * (g * d[j]);
+      }
+    }
     const Eigen::Matrix3d turn = model::rotation_from_vector<double>(theta);
     R_link = turn * R_link;
     R_link_imu = turn * R_link_imu;
@@ -222,6 +250,15 @@ bool MotionEstimator::update(std::span<const model::FeatureSignals* const> rows,
   at_imu(R_link, omega_B, f_I, omega_I);
   at_imu(R_link_imu, omega_B_imu, f_I_cmp, omega_I_cmp);
   const Eigen::Vector3d omega_dot_I = R_sensor_imu_.transpose() * R_link.transpose() * omega_dot_B;
+
+  // 4. How much the gyro disagrees with the rigid robot (the next row's schedule).
+  if (ringing_on && started_) {
+    const Eigen::Vector3d e =
+        imu_at_c.angular_rate_imu - offset_w_ -
+        R_sensor_imu_.transpose() * R_link_imu.transpose() * omega_B_imu_motor;
+    residual_ms_ +=
+        (1.0 - std::exp(-dt / kRingingWindow_s)) * (e.squaredNorm() / 3.0 - residual_ms_);
+  }
 
   // 3. The IMU below the crossover.
   ++updates_;
@@ -249,6 +286,12 @@ bool MotionEstimator::update(std::span<const model::FeatureSignals* const> rows,
   out.imu.specific_force_imu = f_I + offset_f;
   out.imu.angular_rate_imu = omega_I + offset_w_;
   out.imu.angular_accel_imu = omega_dot_I;
+  // 4b. Toward the IMU as it comes while the arm rings.
+  out.ringing = schedule;
+  out.imu.specific_force_imu +=
+      schedule * (imu_at_c.specific_force_imu - out.imu.specific_force_imu);
+  out.imu.angular_rate_imu += schedule * (imu_at_c.angular_rate_imu - out.imu.angular_rate_imu);
+  out.imu.angular_accel_imu += schedule * (imu_at_c.angular_accel_imu - out.imu.angular_accel_imu);
   return true;
 }
 

@@ -93,6 +93,8 @@ void apply_mutant(const std::string& name, loop::CycleConfig& cycle) {
     cycle.motion.source = loop::MotionSource::imu;
   } else if (name == "estimator_one_row_late") {  // the estimate of the row before the model's
     cycle.motion.mutant_one_row_late = true;
+  } else if (name == "estimator_without_ringing") {  // the elastic arm's ringing left unseen
+    cycle.motion.mutant_without_ringing = true;
   }
 }
 
@@ -461,11 +463,12 @@ int main(int argc, char** argv) {
                  "TEST ONLY: run a deliberately broken zerog-rt (gate_never_opens: no push is "
                  "confirmed; watchdog_doubled: every watchdog threshold doubled; exit_at_start: "
                  "exits with a start-up error before the devices open; estimator_without_imu, "
-                 "estimator_without_joints, estimator_one_row_late: the motion estimator without "
-                 "the IMU's share, the IMU alone, the estimate one row late)")
+                 "estimator_without_joints, estimator_one_row_late, estimator_without_ringing: the "
+                 "motion estimator without the IMU's share, the IMU alone, the estimate one row "
+                 "late, the ringing arm's step left out)")
       ->check(CLI::IsMember({"gate_never_opens", "watchdog_doubled", "exit_at_start",
                              "estimator_without_imu", "estimator_without_joints",
-                             "estimator_one_row_late"}));
+                             "estimator_one_row_late", "estimator_without_ringing"}));
   app.add_flag("--check-config", opt.check_config,
                "check the configuration, the model and the rig (and --collect's design), then "
                "exit 0 (all good) or 1");

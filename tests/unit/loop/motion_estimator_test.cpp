@@ -7,6 +7,7 @@
 #include <Eigen/Geometry>
 #include <array>
 #include <cmath>
+#include <numbers>
 
 #include "alloc_count.hpp"
 #include "loop_fixtures.hpp"
@@ -168,10 +169,61 @@ TEST(MotionEstimator, TheImusShareFindsATiltAndFiltersItsNoise) {
   }
 }
 
+// Step 4: at rest the gyro's row noise leaves the robot's output alone; when the IMU shows an
+// oscillation the robot does not (a link ringing against its motor), the output follows the
+// IMU within a few rows; with the step left out (the mutant) it never does.
+TEST(MotionEstimator, WhileTheArmRingsTheImuTakesOver) {
+  for (const bool without : {false, true}) {
+    MotionEstimator e;
+    MotionEstimatorConfig config;
+    config.source = MotionSource::fused;
+    config.mutant_without_ringing = without;
+    ASSERT_TRUE(e.configure(config, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero(), {}).ok());
+    std::uint64_t state = 777;
+    auto noise = [&] {  // uniform, σ = 1e-4 rad/s: the emulated gyro's row mean
+      state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+      return 1e-4 * std::sqrt(12.0) * (static_cast<double>(state >> 11) * 0x1.0p-53 - 0.5);
+    };
+    MotionEstimate out;
+    double worst_rest = 0.0, worst_follow = 0.0;
+    for (int c = 2; c < 1200; ++c) {
+      std::array<model::FeatureSignals, 5> rows;
+      std::array<const model::FeatureSignals*, 5> window;
+      for (int j = 0; j < 5; ++j) {
+        rows[j] = row_at(0.0);  // the robot at rest
+        rows[j].t_s = (c - 2 + j) * kDt;
+        window[j] = &rows[j];
+      }
+      const double t = c * kDt;
+      model::ImuSignals<double> imu = truth_at(0.0, config.gravity_base_mps2);
+      imu.angular_rate_imu = Eigen::Vector3d(noise(), noise(), noise());  // still, as the robot
+      // From row 600 on, the link rings at 6 Hz, 5e-3 rad/s about x, unseen by the robot.
+      const Eigen::Vector3d ring =
+          c >= 600 ? Eigen::Vector3d(5e-3 * std::sin(2.0 * std::numbers::pi * 6.0 * t), 0.0, 0.0)
+                   : Eigen::Vector3d::Zero();
+      imu.angular_rate_imu += ring;
+      ASSERT_TRUE(e.update(window, {}, imu, {}, out));
+      if (c > 300 && c < 600) worst_rest = std::max(worst_rest, out.ringing);
+      if (c > 640) worst_follow = std::max(worst_follow, (out.imu.angular_rate_imu - ring).norm());
+    }
+    if (without) {
+      EXPECT_EQ(out.ringing, 0.0);
+      EXPECT_GT(worst_follow, 4e-3) << "the ringing stays unseen";
+    } else {
+      EXPECT_LT(worst_rest, 0.02) << "at rest the gyro's noise does not open step 4";
+      EXPECT_GT(out.ringing, 0.8);
+      EXPECT_LT(worst_follow, 1.5e-3) << "while it rings the output follows the gyro";
+    }
+  }
+}
+
 TEST(MotionEstimator, RefusesSettingsThatCannotWork) {
   MotionEstimatorConfig c;
   c.crossover_hz = 0.0;
   EXPECT_EQ(check_estimator_config(c).setting(), "crossover_hz");
+  c = {};
+  c.mode_gain = 1.5;
+  EXPECT_EQ(check_estimator_config(c).setting(), "mode_gain");
   c = {};
   c.substep_s = 0.1;
   EXPECT_EQ(check_estimator_config(c).setting(), "substep_s");

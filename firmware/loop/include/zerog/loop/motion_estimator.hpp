@@ -34,6 +34,17 @@
 //    (the same gain, K = max(K, 1/n) at the start). ω̇ is the robot's alone.
 //    What the IMU corrects: the sag the model of step 2 misses, a tilted base, the mounting;
 //    what the robot gives: everything faster, free of the IMU's white noise.
+// 4. while the arm rings (elastic robot after a push, a stop): the gyro's disagreement with the
+//    rigid robot's rate, its mean square over kRingingWindow_s (50 ms), sets a schedule
+//    s = e² / (e² + (3 ringing_radps)²): near 0 at rest (the gyro's row noise is about 1e-4
+//    rad/s), near 1 while the link oscillates against the motor. With s, (a) the gyro's residual
+//    against the modelled link rate corrects the modes' rates (δ̇ += s · mode_gain · J_ω⁺ e,
+//    main axes A1–A3, damped least squares: a Luenberger observer, gain-scheduled), and (b) the
+//    output moves toward the IMU as it comes by s (its rate, specific force and the central
+//    difference's ω̇). Why: the modelled ringing misses about 10 % of the real one, and a miss in
+//    the mode band closes a loop through the virtual body (measured: proto/loop.md). This is
+//    not the Kalman filter with the modes as states that the method calls for; it is the
+//    measured-stable step toward it.
 //
 // Instants: the row's F/T and IMU values are means of the samples of the window that ended at
 // the robot's message (the row's time t_c); n samples at rate f, the last `delay` before the
@@ -70,13 +81,19 @@ enum class MotionSource : std::uint8_t {
 };
 
 struct MotionEstimatorConfig {
-  /// imu by default: on an elastic arm the fused path is not yet stable after a push
-  /// (proto/loop.md, "Motion estimator": the A1 mode's loop through the virtual body).
+  /// imu by default: on an elastic arm the fused path is stable (step 4) but not yet within
+  /// its noise targets (proto/loop.md, "The elastic arm").
   MotionSource source = MotionSource::imu;
   double crossover_hz = 0.1;       ///< below it the IMU, above it the robot
   double load_bandwidth_hz = 3.0;  ///< the measured wrench as the joints' load
   double excitation_hz = 5.0;      ///< the motor's acceleration that drives the modes
   double substep_s = 1e-3;         ///< the deflection's integration step
+  /// Step 4 (header): the gyro's disagreement with the rigid robot (RMS per axis over
+  /// kRingingWindow_s) at which the IMU takes a tenth of the output; 0: step 4 off.
+  double ringing_radps = 3e-4;
+  /// Step 4: the share of the gyro's residual that corrects the modes' rates per row, at full
+  /// schedule.
+  double mode_gain = 0.5;
   /// The rates of the samples that make a row (zerog-rt: [ft] rate_hz, the rig's imu_rate_hz)
   /// and the time from a window's last sample to the robot's message beyond what the count
   /// says (0 in lockstep, where the window's last samples are taken at the message): the
@@ -91,6 +108,7 @@ struct MotionEstimatorConfig {
   /// share dropped, or the estimate of the row before the model's used (one cycle late).
   bool mutant_without_imu = false;
   bool mutant_one_row_late = false;
+  bool mutant_without_ringing = false;  ///< step 4 dropped (the elastic arm then rings up)
 };
 
 /// Whether `c` can be used: ok(), or invalid_setting naming the field ("crossover_hz", …).
@@ -115,6 +133,7 @@ struct MotionEstimate {
   Eigen::Vector3d specific_force_error_base = Eigen::Vector3d::Zero();  ///< e_B, B axes
   Eigen::Vector3d angular_rate_offset = Eigen::Vector3d::Zero();
   std::array<double, robot::kMaxJoints> deflection_rad{};  ///< δ per recorded joint at c
+  double ringing = 0.0;        ///< step 4's schedule s in [0, 1): the IMU's share of the output
   double ft_instant_s = 0.0;   ///< the F/T mean's instant, from the centre row's time (≤ 0)
   double imu_instant_s = 0.0;  ///< the IMU mean's
 };
@@ -156,6 +175,7 @@ class MotionEstimator {
   std::array<double, robot::kMaxJoints> tau_{};                  ///< the load at t_s_
   std::array<double, robot::kMaxJoints> delta_{}, delta_dot_{};
   Eigen::Vector3d offset_w_ = Eigen::Vector3d::Zero();
+  double residual_ms_ = 0.0;  ///< step 4: the gyro's mean-square disagreement, (rad/s)²
   // Step 3's Kalman filter of the specific force's two offsets, in units of the variance of the
   // IMU's row mean (the STIM300's VRW 0.06 m/s/√h over 12 ms: about (0.009 m/s²)²,
   // proto/sim_robot.md). The prior of each part: σ = 10 such units (≈ 0.1 m/s²: a 10 mrad
@@ -163,6 +183,9 @@ class MotionEstimator {
   // their sum (the first rows average), not so broad that the first small turns of the payload
   // split the two by their noise.
   static constexpr double kPriorVariance = 100.0;
+  static constexpr double kRingingWindow_s = 0.05;  ///< step 4's mean square
+  static constexpr int kObservedAxes = 3;           ///< step 4a: A1–A3 (their modes < Nyquist)
+  static constexpr double kDamping = 1e-6;          ///< step 4a's least squares (A2 ∥ A3)
   Eigen::Vector3d bias_I_ = Eigen::Vector3d::Zero(), error_B_ = Eigen::Vector3d::Zero();
   Eigen::Matrix<double, 6, 6> P_ = Eigen::Matrix<double, 6, 6>::Identity() * kPriorVariance;
 
