@@ -6,7 +6,10 @@
 // BM_CycleStep/0,1 step with the RSI message in KUKA units (Cycle::step(RobotMessage,
 // CycleReply&): the border's conversions both ways included); BM_CycleStepSi/0,1 step with the SI
 // sample as zerog-rt's RSI endpoint hands it (Cycle::step(RobotSample, RobotCorrection&): the
-// cycle alone, conversions excluded, as in zerog-rt where rtio converts).
+// cycle alone, conversions excluded, as in zerog-rt where rtio converts). BM_CycleStepFused/0,1:
+// as BM_CycleStepSi with the motion estimator ([filter] motion = "fused") on the elastic KR 210
+// (its deflection stepped every cycle, proto/loop.md "Motion estimator"): its cost is the ratio
+// to BM_CycleStepSi of the same run.
 #include <benchmark/benchmark.h>
 
 #include <random>
@@ -15,6 +18,7 @@
 #include "infer_fixtures.hpp"
 #include "zerog/loop/cycle.hpp"
 #include "zerog/proto/rsi_si.hpp"
+#include "zerog/robot/robot_model.hpp"
 
 namespace {
 
@@ -55,11 +59,19 @@ void BM_ModelOnly(benchmark::State& state) {
 }
 
 // `si`: step with the SI sample (the conversion to it made once, up front), else with the message.
-void cycle_step(benchmark::State& state, bool si) {
+void cycle_step(benchmark::State& state, bool si, bool fused = false) {
   const int kind = static_cast<int>(state.range(0));
   loop::CycleConfig config;
   config.period_s = 0.012;
   config.p_sensor_com_m = Eigen::Vector3d(0.03, -0.02, 0.25);
+  if (fused) {
+    config.motion.source = loop::MotionSource::fused;
+    config.motion.ft_rate_hz = 500.0;
+    config.motion.imu_rate_hz = 2000.0;
+    robot::RobotModel arm = robot::kr210_r2700();
+    for (int i = 0; i < 6; ++i) arm.elasticity[i] = {1e6, 8.0, 0.05};
+    config.robot = arm;
+  }
   loop::Cycle cycle;
   if (!cycle.configure(config, make_model(kind)).ok()) std::abort();
   std::mt19937_64 rng(3);
@@ -123,10 +135,12 @@ void cycle_step(benchmark::State& state, bool si) {
 
 void BM_CycleStep(benchmark::State& state) { cycle_step(state, false); }
 void BM_CycleStepSi(benchmark::State& state) { cycle_step(state, true); }
+void BM_CycleStepFused(benchmark::State& state) { cycle_step(state, true, true); }
 
 }  // namespace
 
 BENCHMARK(BM_ModelOnly)->Arg(0)->Arg(1);
 BENCHMARK(BM_CycleStep)->Arg(0)->Arg(1);
 BENCHMARK(BM_CycleStepSi)->Arg(0)->Arg(1);
+BENCHMARK(BM_CycleStepFused)->Arg(0)->Arg(1);
 BENCHMARK_MAIN();
