@@ -139,7 +139,7 @@ def main():
 
         # tests/hil/figures.py's command line on the same set: --check agrees, writing leaves the
         # files as they are (its runs replaced by the blocks' own text).
-        hil_blocks = {n: bodies[n] for n in ("hil", "faults", "supervisor") if n in bodies}
+        hil_blocks = {n: bodies[n] for n in ("hil", "faults", "supervisor", "feel") if n in bodies}
         if hil_blocks:
             spec = importlib.util.spec_from_file_location(
                 "hil_figures", os.path.join(HERE, "..", "hil", "figures.py"))

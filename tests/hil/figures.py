@@ -12,8 +12,9 @@ functions.
                                                                  # hil_readme_figures)
 
 Blocks: hil (the motion cases: the figures of seed 11, the lowest seed in the runs, and the
-range over all seeds), faults ("Fault injection": one row per fault of issue 6) and supervisor
-(the PLC and telemetry run). A block is written only when the runs have every case it needs.
+range over all seeds), faults ("Fault injection": one row per fault of issue 6), supervisor
+(the PLC and telemetry run) and feel (per motion path, the contact noise against the F/T floor
+and the gate zerog gate advises: the smallest push that moves the part; issue 28). A block is written only when the runs have every case it needs.
 
 --check compares exactly: a lockstep run depends on its seed only (tests/hil/determinism.sh).
 The cases with a peer on the wall clock (a `# plc =` scenario: the Modbus and DDS peers, the PLC
@@ -232,10 +233,45 @@ def supervisor_markdown(cases):
     return text
 
 
+def feel_markdown(cases):
+    """The feel block (issue 28): per motion path, the contact wrench's noise against the F/T-only
+    floor of the cycle at rest (drift) and while the part turns (spin), and the gate `zerog gate`
+    advises from the drift's zero-g at rest: the smallest push that moves the part."""
+    paths = (("the IMU as it comes (`motion = \"imu\"`, the default)", ""),
+             ("the motion estimator (`motion = \"fused\"`)", "_fused"))
+    need = [f"{k}{suffix}" for _, suffix in paths for k in ("drift", "spin")]
+    if not all(k in cases for k in need):
+        return None
+    seeds = sorted(cases["drift"])
+    if any(sorted(cases[k]) != seeds for k in need):
+        raise SystemExit("figures.py: the feel block's cases ran with different seeds")
+    mode = mode_of(cases["drift"])
+
+    def ratio(k, key, i):
+        return blocks.span([cases[k][s][key][i] for s in seeds], lambda x: f"{x:.2f}") + "×"
+
+    def gate(k, key, unit, decimals):
+        return blocks.span([cases[k][s][key] for s in seeds],
+                           lambda x: f"{x:.{decimals}f}") + f" {unit}"
+
+    seed_list = f"{seeds[0]}–{seeds[-1]}" if len(seeds) > 2 else ", ".join(map(str, seeds))
+    out = [f"| motion path ({mode}, seeds {seed_list}) | contact noise at rest / F/T floor "
+           "(force, torque) | turning (spin) | smallest push that moves the part (`zerog gate`: "
+           "force, torque) |", "|---|---|---|---|"]
+    for name, suffix in paths:
+        d, sp = f"drift{suffix}", f"spin{suffix}"
+        out.append(f"| {name} | {ratio(d, 'contact_over_floor_at_rest', 0)}, "
+                   f"{ratio(d, 'contact_over_floor_at_rest', 1)} | "
+                   f"{ratio(sp, 'contact_over_floor_moving', 0)}, "
+                   f"{ratio(sp, 'contact_over_floor_moving', 1)} | "
+                   f"{gate(d, 'gate_force_N', 'N', 2)}, {gate(d, 'gate_torque_Nm', 'N·m', 3)} |")
+    return "\n".join(out)
+
+
 def markdown(cases):
     """{block: text} of the blocks these runs have every case for."""
     out = {"hil": motion_markdown(cases), "faults": fault_markdown(cases),
-           "supervisor": supervisor_markdown(cases)}
+           "supervisor": supervisor_markdown(cases), "feel": feel_markdown(cases)}
     return {k: v for k, v in out.items() if v is not None}
 
 
@@ -253,7 +289,7 @@ def main():
     if not texts:
         raise SystemExit(f"figures.py: no block has all its cases in {' '.join(a.dirs)}")
     if a.check:
-        missing = [b for b in ("hil", "faults", "supervisor") if b not in texts]
+        missing = [b for b in ("hil", "faults", "supervisor", "feel") if b not in texts]
         if missing:
             print(f"figures.py: the runs lack cases of the block(s) {', '.join(missing)}")
             return 1
