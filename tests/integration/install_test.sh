@@ -11,7 +11,9 @@ fail() { echo "install_test: FAIL: $*" >&2; exit 1; }
 cmake --install "$build" --prefix "$prefix" >/dev/null
 for f in bin/zerog-rt bin/zerog bin/zerog-emu share/zerog/zerog-rt.sample.toml \
          share/zerog/make_report.py share/zerog/interactive_report.py \
-         share/zerog/proto/rt_config.md share/zerog/proto/rsi.md lib/systemd/system/zerog-rt.service; do
+         share/zerog/proto/rt_config.md share/zerog/proto/rsi.md lib/systemd/system/zerog-rt.service \
+         share/zerog/kuka/zerog_rsi_ethernet.xml share/zerog/kuka/zerog_rsi.rsi.xml \
+         share/zerog/kuka/README.md; do
   [ -e "$prefix/$f" ] || fail "cmake --install did not install $f"
 done
 "$prefix/bin/zerog-rt" --help >/dev/null || fail "the installed zerog-rt does not run"
