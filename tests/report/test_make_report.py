@@ -234,6 +234,17 @@ def make_bundle(path, n=1500, floor=True, optional=True, ladder=True, diagnosis=
     return summary
 
 
+def make_bundle_with(bundle, keys):
+    """The full bundle with `keys` of its summary.json replaced."""
+    make_bundle(bundle)
+    path = os.path.join(bundle, "summary.json")
+    with open(path) as f:
+        s = json.load(f)
+    s.update(keys)
+    with open(path, "w") as f:
+        json.dump(s, f)
+
+
 def run(bundle, out, python=None):
     """make_report.py BUNDLE OUT; its interactive page drawn by `python` (default: one without
     plotly, so the report is the static one)."""
@@ -421,13 +432,7 @@ class ReportTest(unittest.TestCase):
 
     def _with(self, **keys):
         """The full bundle with `keys` of summary.json replaced; returns the rendered page."""
-        make_bundle(self.bundle)
-        path = os.path.join(self.bundle, "summary.json")
-        with open(path) as f:
-            s = json.load(f)
-        s.update(keys)
-        with open(path, "w") as f:
-            json.dump(s, f)
+        make_bundle_with(self.bundle, keys)
         page, _ = self.assertReportOk(run(self.bundle, self.out))
         return page
 
@@ -678,13 +683,7 @@ class ReportTest(unittest.TestCase):
         """interactive.html of the full bundle (summary.json's keys replaced by `summary`),
         written by interactive_report.py alone with the .venv's plotly."""
         python = venv_with_plotly(self)
-        make_bundle(self.bundle)
-        path = os.path.join(self.bundle, "summary.json")
-        with open(path) as f:
-            s = json.load(f)
-        s.update(summary)
-        with open(path, "w") as f:
-            json.dump(s, f)
+        make_bundle_with(self.bundle, summary)
         out = os.path.join(self.tmp, "interactive.html")
         p = subprocess.run([python, INTERACTIVE_SCRIPT, self.bundle, out], capture_output=True,
                            text=True, timeout=300)
