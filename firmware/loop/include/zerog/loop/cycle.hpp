@@ -553,6 +553,8 @@ class Cycle {
 
   /// The record of the last step() (or robot_lost()).
   const CycleRecord& last() const { return *record_; }
+  /// The motion estimator's last update ([filter] motion = "fused"; tests and diagnostics).
+  const MotionEstimate& motion_estimate() const { return data_.model.estimate; }
   /// The last cycle had its model rows and fresh samples of both sensors: enable_zero_g can be
   /// accepted (what zerog-rt's status and the Modbus `ready` input show).
   bool ready() const noexcept {
