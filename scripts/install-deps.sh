@@ -56,9 +56,11 @@ if [ "$demo_only" = 0 ]; then
   # bundles its own Cyclone C library, so the wire types are checked against a second build).
   # `zerog import --bag` reads ROS 2 bags (sqlite3, MCAP) with the pure-Python rosbags (no ROS
   # installation; host/io/bag_to_csv.py), and writes the rig it found in the bag with tomli-w.
-  # selenium drives the Debian chromium above in the report's browser test.
-  pypi+=('cyclonedds==11.0.1' 'rosbags==0.11.9' 'tomli-w==1.0.0' 'selenium==4.51.0')
-  modules+=,cyclonedds,rosbags,tomli_w,selenium
+  # selenium drives the Debian chromium above in the report's browser test. `zerog export-mcap`
+  # writes MCAP with PyPI's mcap (the format's reference library; rosbags gives the ROS 2
+  # message definitions and the CDR), and the round-trip test opens the file with its reader.
+  pypi+=('cyclonedds==11.0.1' 'rosbags==0.11.9' 'tomli-w==1.0.0' 'selenium==4.51.0' 'mcap==1.6.0')
+  modules+=,cyclonedds,rosbags,tomli_w,selenium,mcap
 fi
 venv="$(cd "$(dirname "$0")/.." && pwd)/.venv"
 if ! "$venv/bin/python" -c "import $modules" 2>/dev/null; then

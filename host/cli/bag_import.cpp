@@ -97,6 +97,7 @@ BagConversion::BagConversion(const BagTopics& t, const fs::path& keep_dir) {
                                    "--out",         dir_.string(),   "--wrench", t.wrench};
   if (!t.imu.empty()) args.insert(args.end(), {"--imu", t.imu});
   if (!t.joints.empty()) args.insert(args.end(), {"--joints", t.joints});
+  if (!t.temperature.empty()) args.insert(args.end(), {"--temperature", t.temperature});
   if (!t.joint_names.empty()) args.insert(args.end(), {"--joint-names", t.joint_names});
   if (!t.tf.empty()) args.insert(args.end(), {"--tf", t.tf});
   if (!t.rig.empty()) args.insert(args.end(), {"--rig", t.rig});

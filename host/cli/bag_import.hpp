@@ -13,6 +13,7 @@ struct BagTopics {
   std::string wrench;       ///< geometry_msgs/msg/WrenchStamped (required: the log's rows)
   std::string imu;          ///< sensor_msgs/msg/Imu ("" = none)
   std::string joints;       ///< sensor_msgs/msg/JointState ("" = none)
+  std::string temperature;  ///< sensor_msgs/msg/Temperature, °C → temp_C ("" = none)
   std::string joint_names;  ///< the robot's joints by name, its order ("" = the robot's names)
   std::string tf;           ///< "BASE:SENSOR" from /tf and /tf_static ("" = no pose)
   std::string rig;          ///< the rig file: what the bag does not say ("" = none)

@@ -78,6 +78,9 @@ void add_import_command(CLI::App& app) {
   cmd->add_option("--wrench", b.wrench, "--bag: geometry_msgs/msg/WrenchStamped topic")->needs(bag);
   cmd->add_option("--imu", b.imu, "--bag: sensor_msgs/msg/Imu topic")->needs(bag);
   cmd->add_option("--joints", b.joints, "--bag: sensor_msgs/msg/JointState topic")->needs(bag);
+  cmd->add_option("--temperature", b.temperature,
+                  "--bag: sensor_msgs/msg/Temperature topic (the F/T sensor's, °C: temp_C)")
+      ->needs(bag);
   cmd->add_option("--joint-names", b.joint_names,
                   "--bag: the robot's joints by their JointState names, comma-separated, in the "
                   "robot's order (default: the robot file's ros_name or name of each joint)")

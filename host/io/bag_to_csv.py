@@ -48,6 +48,7 @@ except ImportError as missing:  # pragma: no cover - exercised by zerog's error 
 WRENCH = "geometry_msgs/msg/WrenchStamped"
 IMU = "sensor_msgs/msg/Imu"
 JOINTS = "sensor_msgs/msg/JointState"
+TEMPERATURE = "sensor_msgs/msg/Temperature"
 TF = "tf2_msgs/msg/TFMessage"
 
 
@@ -56,10 +57,13 @@ class BagError(Exception):
 
 
 def stamp_s(msg, receive_ns):
+    """The stamp in s: the double nearest to the stamp's nanoseconds (Python's int / int is
+    correctly rounded), so a stamp written from a time t (to the nanosecond) reads back as the
+    double nearest that decimal time, not one a product of two roundings lands on."""
     st = msg.header.stamp
     if st.sec == 0 and st.nanosec == 0:
-        return receive_ns * 1e-9
-    return st.sec + st.nanosec * 1e-9
+        return receive_ns / 1_000_000_000
+    return (st.sec * 1_000_000_000 + st.nanosec) / 1_000_000_000
 
 
 def connections(reader, topic, msgtype):
@@ -444,6 +448,18 @@ time = {{ column = "t_s", unit = "s" }}
 specific_force = {{ columns = ["ax", "ay", "az"], unit = "m/s^2" }}
 angular_rate = {{ columns = ["wx", "wy", "wz"], unit = "rad/s" }}
 """
+        if a.temperature:
+            temp = read_topic(reader, a.temperature, TEMPERATURE)
+            rows = strictly_increasing([(stamp_s(m, t), m.temperature) for t, m in temp],
+                                       a.temperature)
+            write_csv(out / "temperature.csv", ["t_s", "temp_C"], rows)
+            mapping += f"""
+# {a.temperature}: {len(rows)} messages (°C)
+[files.temperature]
+path = "temperature.csv"
+time = {{ column = "t_s", unit = "s" }}
+temperature = {{ column = "temp_C", unit = "C" }}
+"""
         if a.joints:
             joints = read_topic(reader, a.joints, JOINTS)
             given = [n.strip() for n in a.joint_names.split(",")] if a.joint_names else []
@@ -543,6 +559,7 @@ def main():
     ap.add_argument("--wrench", required=True, help="geometry_msgs/msg/WrenchStamped topic")
     ap.add_argument("--imu", help="sensor_msgs/msg/Imu topic")
     ap.add_argument("--joints", help="sensor_msgs/msg/JointState topic")
+    ap.add_argument("--temperature", help="sensor_msgs/msg/Temperature topic (°C): temp_C")
     ap.add_argument("--joint-names", help="the robot's joints in its order, comma-separated")
     ap.add_argument("--tf", help="BASE:SENSOR frames of the pose, from /tf and /tf_static")
     ap.add_argument("--rig", help="the rig file: what the bag does not say")

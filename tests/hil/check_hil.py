@@ -336,6 +336,19 @@ def check_telemetry_run(run):
     figure("telemetry_samples_by_topic", topics)
     check(status == 0, f"telemetry: every topic received, values match cycles.csv "
                        f"(check_telemetry.py exit {status})")
+    # The ROS 2 side: the rt/ topics read with types from rosbags' ROS 2 message definitions.
+    try:
+        with open(f"{run.dir}/ros2.status") as f:
+            status = int(f.read().strip())
+        with open(f"{run.dir}/ros2.txt") as f:
+            report = f.read().strip().splitlines()
+    except (OSError, ValueError):
+        check(False, "ROS 2 telemetry: hil.sh ran no check_ros2_telemetry.py")
+        return
+    for line in report[-14:]:
+        print(f"    {line}")
+    check(status == 0, f"ROS 2 telemetry: every rt/ topic received as ROS 2's types, values match "
+                       f"cycles.csv (check_ros2_telemetry.py exit {status})")
 
 
 def case_supervisor(run):

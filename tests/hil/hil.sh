@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # hil.sh --bin BUILD_DIR --out DIR [--mode lockstep|realtime] [--bus local|vcan] [--seed N]
-#        [--mutant NAME --expect-fail TEXT] [--zerog PATH] CASE...
+#        [--mutant NAME --expect-fail TEXT] [--ros2-mutant NAME --expect-fail TEXT]
+#        [--zerog PATH] CASE...
 #
 # Hardware-in-the-loop run of zerog-rt against the rig emulator (zerog-emu: KR 210 controller
 # over RSI/UDP with servo lag, ATI NETCANOEM board on a CAN bus, STIM300 on a pty, all driven by
@@ -26,13 +27,17 @@
 # A scenario with a `# plc = SCRIPT` line has no --enable-zero-g: SCRIPT (in tests/hil/, the
 # cell PLC over Modbus) runs beside zerog-rt and enables zero-g itself. A template with
 # @DDS_DOMAIN@ gets DDS telemetry: the independent Python subscriber (the repository's .venv)
-# records every topic during the run and check_telemetry.py compares it with cycles.csv.
+# records every topic during the run and check_telemetry.py compares it with cycles.csv; beside
+# it the ROS 2-side subscriber (types from rosbags' ROS 2 message definitions) records every rt/
+# topic and check_ros2_telemetry.py compares it with cycles.csv too.
+#   --ros2-mutant NAME: that subscriber's types broken on purpose (ros2_subscriber.py --mutant
+#       type_name|member_order); with --expect-fail TEXT the run passes only if it is caught.
 # Results per case in DIR/CASE/. Exit status 0 if every case passed, else 1. A failed check is a
 # failure: there is no retry and no "inconclusive".
 set -uo pipefail
 
 here=$(cd "$(dirname "$0")" && pwd)
-bin= out= mode=lockstep bus=local seed= mutant= expect_fail= zerog=
+bin= out= mode=lockstep bus=local seed= mutant= expect_fail= zerog= ros2_mutant=
 cases=()
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -42,6 +47,7 @@ while [ $# -gt 0 ]; do
     --bus) bus=$2; shift 2 ;;
     --seed) seed=$2; shift 2 ;;
     --mutant) mutant=$2; shift 2 ;;
+    --ros2-mutant) ros2_mutant=$2; shift 2 ;;
     --expect-fail) expect_fail=$2; shift 2 ;;
     --zerog) zerog=$2; shift 2 ;;
     -*) echo "hil.sh: unknown option $1" >&2; exit 2 ;;
@@ -53,7 +59,8 @@ done
     "[--seed N] [--mutant NAME --expect-fail TEXT] [--zerog PATH] CASE..." >&2; exit 2; }
 case "$mode" in lockstep|realtime) ;; *) echo "hil.sh: --mode lockstep or realtime" >&2; exit 2 ;; esac
 case "$bus" in local|vcan) ;; *) echo "hil.sh: --bus local or vcan" >&2; exit 2 ;; esac
-[ -z "$expect_fail" ] || [ -n "$mutant" ] || { echo "hil.sh: --expect-fail needs --mutant" >&2; exit 2; }
+[ -z "$expect_fail" ] || [ -n "$mutant$ros2_mutant" ] || {
+  echo "hil.sh: --expect-fail needs --mutant or --ros2-mutant" >&2; exit 2; }
 # One rule for paths (proto/paths.md): a path on the command line is relative to the current
 # folder, a path inside a file is relative to that file's folder. The configuration written for
 # zerog-rt below lives in the results folder, so the paths it names are made absolute here.
@@ -117,21 +124,27 @@ for kind in (socket.SOCK_DGRAM, socket.SOCK_DGRAM, socket.SOCK_STREAM):
 print(" ".join(str(s.getsockname()[1]) for s in held))')
   read -r rt_port robot_port modbus_port <<<"$ports"
   # The DDS subscriber first: Python and its imports take a while.
-  local domain=$((220 + rt_port % 12)) dds= sub_pid=  # 220..231: the telemetry tests use 10..219
+  local domain=$((220 + rt_port % 12)) dds= sub_pid= ros2_pid=  # 220..231: the telemetry tests use 10..219
   if grep -q '@DDS_DOMAIN@' "$template"; then
     dds=$here/../../.venv/bin/python
     "$dds" "$here/../telemetry/dds_subscriber.py" --domain $domain --interface lo \
       --peer 127.0.0.1 --no-multicast --duration $((${duration%.*} * 20 + 120)) --idle 3 \
       --out "$w/telemetry.jsonl" --ready "$w/telemetry.ready" 2>"$w/telemetry.err" &
     sub_pid=$!
+    "$dds" "$here/../telemetry/ros2_subscriber.py" --domain $domain --interface lo \
+      --peer 127.0.0.1 --no-multicast --duration $((${duration%.*} * 20 + 120)) --idle 3 \
+      ${ros2_mutant:+--mutant "$ros2_mutant"} --out "$w/ros2.jsonl" --ready "$w/ros2.ready" \
+      2>"$w/ros2.err" &
+    ros2_pid=$!
     for _ in $(seq 1 300); do
-      [ -f "$w/telemetry.ready" ] && break
-      kill -0 $sub_pid 2>/dev/null || break
+      [ -f "$w/telemetry.ready" ] && [ -f "$w/ros2.ready" ] && break
+      kill -0 $sub_pid 2>/dev/null && kill -0 $ros2_pid 2>/dev/null || break
       sleep 0.1
     done
-    [ -f "$w/telemetry.ready" ] || { echo "hil.sh: $c: the DDS subscriber did not start:" >&2;
-                                      cat "$w/telemetry.err" >&2; kill $sub_pid 2>/dev/null;
-                                      return 1; }
+    [ -f "$w/telemetry.ready" ] && [ -f "$w/ros2.ready" ] || {
+      echo "hil.sh: $c: a DDS subscriber did not start:" >&2
+      cat "$w/telemetry.err" "$w/ros2.err" >&2; kill $sub_pid $ros2_pid 2>/dev/null; return 1; }
+    sub_pid="$sub_pid $ros2_pid"
   fi
   # The payload's truth model and the rig first, and zerog export, before the emulator's clock
   # starts.
@@ -250,6 +263,9 @@ print(" ".join(str(s.getsockname()[1]) for s in held))')
     "$dds" "$here/../telemetry/check_telemetry.py" --received "$w/telemetry.jsonl" \
       --cycles "$w/rec/cycles.csv" --expect-crc "$crc" --min-fraction 0.95 >"$w/telemetry.txt" 2>&1
     echo $? >"$w/telemetry.status"
+    "$dds" "$here/../telemetry/check_ros2_telemetry.py" --received "$w/ros2.jsonl" \
+      --cycles "$w/rec/cycles.csv" --expect-crc "$crc" --min-fraction 0.95 >"$w/ros2.txt" 2>&1
+    echo $? >"$w/ros2.status"
   fi
   [ $plc_status -eq 0 ] || echo "hil.sh: $c: the PLC script exited $plc_status (see plc.json)" >&2
   if [ $rt_status -ne 0 ] || [ $emu_status -ne 0 ]; then
@@ -271,19 +287,19 @@ print(" ".join(str(s.getsockname()[1]) for s in held))')
 
 status=0
 for c in "${cases[@]}"; do
-  w=$out/$c${seed:+-seed$seed}${mutant:+-$mutant}
+  w=$out/$c${seed:+-seed$seed}${mutant:+-$mutant}${ros2_mutant:+-ros2-$ros2_mutant}
   run_case "$c" "$w"
   st=$?
   if [ -n "$expect_fail" ]; then
     # A mutant must be caught: the case fails, and by the check named.
     if [ $st -eq 0 ]; then
-      echo "hil.sh: $c: the mutant $mutant PASSED the checks: they cannot see what it breaks" >&2
+      echo "hil.sh: $c: the mutant $mutant$ros2_mutant PASSED the checks: they cannot see what it breaks" >&2
       status=1
     elif ! grep -F -- "FAIL" "$w/check.txt" 2>/dev/null | grep -qF -- "$expect_fail"; then
-      echo "hil.sh: $c: the mutant $mutant failed, but not the check '$expect_fail'" >&2
+      echo "hil.sh: $c: the mutant $mutant$ros2_mutant failed, but not the check '$expect_fail'" >&2
       status=1
     else
-      echo "hil.sh: $c: mutant $mutant caught by '$expect_fail'"
+      echo "hil.sh: $c: mutant $mutant$ros2_mutant caught by '$expect_fail'"
     fi
   elif [ $st -ne 0 ]; then
     status=1

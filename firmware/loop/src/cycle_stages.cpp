@@ -127,7 +127,13 @@ Timing timing(const CycleConfig& config, const samples::RobotSample& m, ClockDat
     clock.have_delay = true;
     clock.last_delay = m.delay;
   }
-  out.t_s = static_cast<double>(m.ipoc - clock.first_ipoc) * config.ipoc_unit_s;
+  // The double nearest the robot's time: n units / (units per second) when a second is a whole
+  // number of units (KUKA: 1000 ms), a correctly rounded division. n · 0.001 is one ulp off in
+  // one cycle of seven (0.036000000000000004), which a nanosecond ROS header stamp cannot carry
+  // back (proto/ros2_bags.md, "MCAP from a recording").
+  const double n = static_cast<double>(m.ipoc - clock.first_ipoc);
+  const double units_per_s = 1.0 / config.ipoc_unit_s;
+  out.t_s = units_per_s == std::nearbyint(units_per_s) ? n / units_per_s : n * config.ipoc_unit_s;
   return out;
 }
 

@@ -407,9 +407,10 @@ std::optional<modbus::ServerConfig> read_modbus(const TomlTable& file) {
 // [telemetry]: absent, none (proto/telemetry.md, "Configuration"). Checked with
 // telemetry::check_config, the channel's own rules.
 std::optional<telemetry::TelemetryConfig> read_telemetry(const TomlTable& file) {
-  const TomlTable tel = file.sub_table(
-      "telemetry",
-      {"domain_id", "interface", "peers", "allow_multicast", "topic_prefix", "health_period_s"});
+  const TomlTable tel =
+      file.sub_table("telemetry", {"domain_id", "interface", "peers", "allow_multicast",
+                                   "topic_prefix", "health_period_s", "ros2", "ros_namespace",
+                                   "base_frame", "sensor_frame", "imu_frame", "joint_names"});
   if (!tel.present()) return std::nullopt;
   telemetry::TelemetryConfig t;
   t.domain_id = static_cast<int>(tel.optional_integer("domain_id", t.domain_id, 0, 232));
@@ -429,6 +430,13 @@ std::optional<telemetry::TelemetryConfig> read_telemetry(const TomlTable& file) 
   t.topic_prefix = tel.optional_string("topic_prefix", t.topic_prefix);
   t.health_period_s =
       tel.optional_number("health_period_s", t.health_period_s, {0.0, true, 60.0, false});
+  // The ROS 2 topics (proto/telemetry.md, "ROS 2 topics").
+  t.ros2 = tel.optional_boolean("ros2", t.ros2);
+  t.ros_namespace = tel.optional_string("ros_namespace", t.ros_namespace);
+  t.base_frame = tel.optional_string("base_frame", t.base_frame);
+  t.sensor_frame = tel.optional_string("sensor_frame", t.sensor_frame);
+  t.imu_frame = tel.optional_string("imu_frame", t.imu_frame);
+  if (tel.find("joint_names") != nullptr) t.joint_names = tel.strings("joint_names", 6);
   if (const Status st = telemetry::check_config(t); !st.ok()) fail_setting(tel, st);
   return t;
 }

@@ -41,6 +41,10 @@ struct TelemetryChannel::Dds {
   dds_entity_t participant = 0;
   dds_entity_t wrench = 0, imu = 0, robot = 0, command = 0, body = 0, timing = 0;
   dds_entity_t health = 0, model = 0;
+  // ROS 2 topics (config.ros2).
+  dds_entity_t ros_wrench = 0, ros_wrench_at_eval = 0, ros_wrench_predicted = 0,
+               ros_wrench_contact = 0, ros_imu = 0, ros_joints = 0, ros_sensor_pose = 0,
+               ros_body_pose = 0, ros_body_twist = 0, ros_diagnostics = 0;
 
   ~Dds() {
     if (participant > 0) dds_delete(participant);
@@ -115,6 +119,48 @@ Status TelemetryChannel::start() {
   writer(&zerog_telemetry_TimingSample_desc, "timing", stream_qos, dds->timing);
   writer(&zerog_telemetry_Health_desc, "health", state_qos, dds->health);
   writer(&zerog_telemetry_ModelIdentity_desc, "model", state_qos, dds->model);
+  if (config_.ros2) {
+    // ROS 2's QoS profiles (rmw/qos_profiles.h): rmw_qos_profile_sensor_data (best-effort,
+    // keep-last 5, volatile) for the streams; transient-local (reliable, keep-last 1,
+    // transient-local: rclcpp's QoS(1).transient_local()) for the diagnostics.
+    dds_qos_t* sensor_qos = dds_create_qos();
+    dds_qset_reliability(sensor_qos, DDS_RELIABILITY_BEST_EFFORT, 0);
+    dds_qset_history(sensor_qos, DDS_HISTORY_KEEP_LAST, 5);
+    dds_qset_durability(sensor_qos, DDS_DURABILITY_VOLATILE);
+    const auto ros_writer = [&](const dds_topic_descriptor_t* desc, const char* name,
+                                const dds_qos_t* qos, dds_entity_t& out) {
+      if (!error.empty()) return;
+      const std::string topic_name = ros_dds_topic(config_.ros_namespace, name);
+      const dds_entity_t topic =
+          dds_create_topic(dds->participant, desc, topic_name.c_str(), qos, nullptr);
+      if (topic < 0) {
+        error = dds_error("dds_create_topic(" + topic_name + ")", topic);
+        return;
+      }
+      out = dds_create_writer(dds->participant, topic, qos, nullptr);
+      if (out < 0) error = dds_error("dds_create_writer(" + topic_name + ")", out);
+    };
+    namespace t = ros_topic;
+    const auto* wrench_desc = &geometry_msgs_msg_dds__WrenchStamped__desc;
+    ros_writer(wrench_desc, t::kWrench, sensor_qos, dds->ros_wrench);
+    ros_writer(wrench_desc, t::kWrenchAtEval, sensor_qos, dds->ros_wrench_at_eval);
+    ros_writer(wrench_desc, t::kWrenchPredicted, sensor_qos, dds->ros_wrench_predicted);
+    ros_writer(wrench_desc, t::kWrenchContact, sensor_qos, dds->ros_wrench_contact);
+    ros_writer(&sensor_msgs_msg_dds__Imu__desc, t::kImu, sensor_qos, dds->ros_imu);
+    ros_writer(&sensor_msgs_msg_dds__JointState__desc, t::kJointStates, sensor_qos,
+               dds->ros_joints);
+    const auto* pose_desc = &geometry_msgs_msg_dds__PoseStamped__desc;
+    ros_writer(pose_desc, t::kSensorPose, sensor_qos, dds->ros_sensor_pose);
+    ros_writer(pose_desc, t::kBodyPose, sensor_qos, dds->ros_body_pose);
+    ros_writer(&geometry_msgs_msg_dds__TwistStamped__desc, t::kBodyTwist, sensor_qos,
+               dds->ros_body_twist);
+    dds_qset_history(state_qos, DDS_HISTORY_KEEP_LAST, 1);
+    ros_writer(&diagnostic_msgs_msg_dds__DiagnosticArray__desc, t::kDiagnostics, state_qos,
+               dds->ros_diagnostics);
+    dds_delete_qos(sensor_qos);
+    ros_frames_ = std::make_unique<Ros2Frames>(config_);
+    ros_messages_ = std::make_unique<Ros2CycleMessages>();
+  }
   dds_delete_qos(stream_qos);
   dds_delete_qos(state_qos);
   if (!error.empty()) return failed(error);
@@ -141,6 +187,7 @@ void TelemetryChannel::stop(double ack_timeout_s) {
   const auto timeout = static_cast<dds_duration_t>(ack_timeout_s * 1e9);
   dds_wait_for_acks(dds_->health, timeout);
   dds_wait_for_acks(dds_->model, timeout);
+  if (dds_->ros_diagnostics > 0) dds_wait_for_acks(dds_->ros_diagnostics, timeout);
   dds_.reset();
   started_ = false;
 }
@@ -169,7 +216,10 @@ int TelemetryChannel::subscribers() const {
   if (!started_) return 0;
   dds_publication_matched_status_t status{};
   if (dds_get_publication_matched_status(dds_->wrench, &status) < 0) return 0;
-  return static_cast<int>(status.current_count);
+  int count = static_cast<int>(status.current_count);
+  if (dds_->ros_wrench > 0 && dds_get_publication_matched_status(dds_->ros_wrench, &status) >= 0)
+    count += static_cast<int>(status.current_count);
+  return count;
 }
 
 void TelemetryChannel::publisher_loop() {
@@ -224,6 +274,19 @@ bool TelemetryChannel::drain_one() {
   const TimingSample timing =
       to_timing(r, period_s, config_.nominal_period_s, health_in_.datagrams_lost);
   write(dds_->timing, &timing);
+  if (ros_messages_ != nullptr) {
+    Ros2CycleMessages& m = *ros_messages_;
+    to_ros2(r, body_, *ros_frames_, m);
+    write(dds_->ros_wrench, &m.wrench);
+    write(dds_->ros_wrench_at_eval, &m.wrench_at_eval);
+    write(dds_->ros_wrench_predicted, &m.wrench_predicted);
+    write(dds_->ros_wrench_contact, &m.wrench_contact);
+    write(dds_->ros_imu, &m.imu);
+    write(dds_->ros_joints, &m.joints);
+    write(dds_->ros_sensor_pose, &m.sensor_pose);
+    write(dds_->ros_body_pose, &m.body_pose);
+    write(dds_->ros_body_twist, &m.body_twist);
+  }
   if (errors != 0) write_errors_.fetch_add(errors, std::memory_order_relaxed);
 
   newest_ = r;
@@ -249,6 +312,12 @@ void TelemetryChannel::publish_health(bool force) {
     write_errors_.fetch_add(1, std::memory_order_relaxed);
   } else {
     health_published_.fetch_add(1, std::memory_order_relaxed);
+  }
+  if (dds_->ros_diagnostics > 0) {
+    const Ros2Diagnostics d = ros2_diagnostics(h, model_);
+    const RosDiagnosticArray a = diagnostics_message(d, ros_diagnostics_storage_);
+    if (dds_write(dds_->ros_diagnostics, &a) < 0)
+      write_errors_.fetch_add(1, std::memory_order_relaxed);
   }
   last_health_ns_ = now;
   last_state_ = state;

@@ -842,7 +842,9 @@ Series read_series(FileSpec& spec, const fs::path& mapping) {
         continue;
       }
       if (q.what != Quantity::orientation) {
-        for (int k = 0; k < q.num_refs; ++k) out.push_back(r[k] * q.scale + q.offset);
+        // Without an offset, no addition: −0 + 0 would read a logged −0 as +0.
+        for (int k = 0; k < q.num_refs; ++k)
+          out.push_back(q.offset == 0.0 ? r[k] * q.scale : r[k] * q.scale + q.offset);
         continue;
       }
       std::size_t leftmost = line.size();
@@ -923,6 +925,7 @@ template <int N>
 Eigen::Matrix<double, N, 1> at(const std::vector<double>& v, const Bracket& b) {
   const Eigen::Map<const Eigen::Matrix<double, N, 1>> a(v.data() + b.k0 * N);
   const Eigen::Map<const Eigen::Matrix<double, N, 1>> c(v.data() + b.k1 * N);
+  if (b.alpha == 0.0) return a;  // the sample as it is (−0 + 0 · (c − a) would be +0)
   return a + b.alpha * (c - a);
 }
 
@@ -1524,7 +1527,10 @@ ImportResult import_recordings(const fs::path& mapping_path,
         continue;
       }
       std::size_t& k = cursor[f];
-      while (k + 1 < tf.size() && tf[k + 1] < t) ++k;
+      // A master row at one of this file's samples takes that sample as it is: a + 1 · (c − a)
+      // is c only to an ulp of the larger of the two (a 1e-21 rate came back as 7e-21, a −0
+      // as 0), so the bracket starts at the sample, never ends on it.
+      while (k + 1 < tf.size() && tf[k + 1] <= t) ++k;
       Bracket& b = brackets[f];
       if (k + 1 == tf.size() || tf[k] == t) {
         b = {k, k, 0.0};
@@ -1553,7 +1559,9 @@ ImportResult import_recordings(const fs::path& mapping_path,
       const Bracket& b = bracket(Quantity::joints);
       const auto n = static_cast<std::size_t>(joint_columns);
       for (std::size_t j = 0; j < n; ++j)
-        joints_row[j] = q[b.k0 * n + j] + b.alpha * (q[b.k1 * n + j] - q[b.k0 * n + j]);
+        joints_row[j] = b.alpha == 0.0
+                            ? q[b.k0 * n + j]
+                            : q[b.k0 * n + j] + b.alpha * (q[b.k1 * n + j] - q[b.k0 * n + j]);
     }
     if (pose_from_joints) {
       const robot::Pose pose = robot::sensor_pose(

@@ -10,6 +10,7 @@
 #include "zerog/proto/rsi_si.hpp"
 #include "zerog/telemetry/config.hpp"
 #include "zerog/telemetry/convert.hpp"
+#include "zerog/telemetry/ros2.hpp"
 
 namespace zerog::telemetry {
 namespace {
@@ -266,6 +267,93 @@ TEST(TelemetryConfig, ChecksNameTheSetting) {
   c = {};
   c.poll_period_s = 1.0;
   expect_setting(check_config(c), "poll_period_s", "(0, 0.1]");
+}
+
+TEST(TelemetryRos2, StampIsTheCycleTimeToTheNanosecond) {
+  RosTime t = ros_time(0.164);
+  EXPECT_EQ(t.sec_, 0);
+  EXPECT_EQ(t.nanosec_, 164'000'000u);
+  t = ros_time(12345.678901234);
+  EXPECT_EQ(t.sec_, 12345);
+  EXPECT_EQ(t.nanosec_, 678'901'234u);
+  t = ros_time(0.0);
+  EXPECT_EQ(t.sec_, 0);
+  EXPECT_EQ(t.nanosec_, 0u);
+  EXPECT_EQ(ros_dds_topic("/zerog", "wrench"), "rt/zerog/wrench");
+  EXPECT_EQ(ros_dds_topic("/", "wrench"), "rt/wrench");
+}
+
+TEST(TelemetryRos2, MessagesCarryTheRecordInRosOrderAndFrames) {
+  const loop::CycleRecord r = sample_record();
+  TelemetryConfig c;
+  c.sensor_frame = "ft";
+  const Ros2Frames frames(c);
+  Ros2CycleMessages m;
+  to_ros2(r, sample_body(), frames, m);
+  EXPECT_STREQ(m.wrench.header_.frame_id_, "ft");
+  EXPECT_EQ(m.wrench.header_.stamp_.nanosec_, 164'000'000u);
+  EXPECT_EQ(m.wrench.wrench_.force_.x_, r.wrench_measured[0]);
+  EXPECT_EQ(m.wrench.wrench_.torque_.z_, r.wrench_measured[5]);
+  EXPECT_EQ(m.wrench_at_eval.wrench_.force_.y_, r.wrench_at_eval[1]);
+  EXPECT_EQ(m.wrench_predicted.wrench_.torque_.x_, r.predicted[3]);
+  EXPECT_EQ(m.wrench_contact.wrench_.force_.z_, r.contact[2]);
+  EXPECT_STREQ(m.imu.header_.frame_id_, "imu_link");
+  EXPECT_EQ(m.imu.linear_acceleration_.z_, 9.8);
+  EXPECT_EQ(m.imu.angular_velocity_.y_, 0.02);
+  EXPECT_EQ(m.imu.orientation_covariance_[0], -1.0);
+  ASSERT_EQ(m.joints.name_._length, 6u);
+  EXPECT_STREQ(m.joints.name_._buffer[2], "joint_a3");
+  EXPECT_EQ(m.joints.position_._buffer[5], r.joints_rad[5]);
+  // ROS's quaternion order is x, y, z, w.
+  EXPECT_STREQ(m.sensor_pose.header_.frame_id_, "base_link");
+  EXPECT_EQ(m.sensor_pose.pose_.orientation_.y_, r.q_base_sensor.y());
+  EXPECT_EQ(m.sensor_pose.pose_.orientation_.w_, r.q_base_sensor.w());
+  EXPECT_EQ(m.sensor_pose.pose_.position_.z_, 3.0);
+  EXPECT_EQ(m.body_pose.pose_.orientation_.x_, r.body.q_world_body.x());
+  EXPECT_EQ(m.body_twist.twist_.linear_.y_, -0.2);
+  const CommandSample command = to_command(r, sample_body());
+  EXPECT_EQ(m.body_twist.twist_.angular_.z_, command.omega_world_radps[2]);
+}
+
+TEST(TelemetryRos2, DiagnosticsHoldHealthAndModel) {
+  loop::CycleRecord r = sample_record();
+  r.state = loop::State::fault;
+  r.fault = loop::Fault::ft_stale;
+  const HealthSample h = to_health(7, &r, ChannelCounters{3, 3, 0, 0, 1}, RuntimeHealth{});
+  ModelIdentityInfo model;
+  model.rig_name = "rig";
+  model.effects = {"gravity", "inertia"};
+  model.deploy_crc32 = 0xABCD;
+  const Ros2Diagnostics d = ros2_diagnostics(h, model);
+  Ros2DiagnosticsStorage storage;
+  const RosDiagnosticArray a = diagnostics_message(d, storage);
+  ASSERT_EQ(a.status_._length, 2u);
+  EXPECT_EQ(a.status_._buffer[0].level_, 2);  // ERROR in the fault state
+  EXPECT_STREQ(a.status_._buffer[0].message_, "state fault, fault ft_stale");
+  EXPECT_STREQ(a.status_._buffer[1].name_, "zerog-rt: model");
+  bool crc = false;
+  for (std::uint32_t i = 0; i < a.status_._buffer[1].values_._length; ++i) {
+    const auto& kv = a.status_._buffer[1].values_._buffer[i];
+    if (std::strcmp(kv.key_, "deploy_crc32") == 0) crc = std::strcmp(kv.value_, "0x0000abcd") == 0;
+  }
+  EXPECT_TRUE(crc);
+}
+
+TEST(TelemetryRos2, ConfigRefusesNamesRosRefuses) {
+  TelemetryConfig c;
+  c.ros_namespace = "zerog";
+  EXPECT_EQ(check_config(c).setting(), "ros_namespace");
+  c = {};
+  c.sensor_frame = "/ft_sensor";
+  EXPECT_EQ(check_config(c).setting(), "sensor_frame");
+  c = {};
+  c.base_frame = "base link";
+  EXPECT_EQ(check_config(c).setting(), "base_frame");
+  c = {};
+  c.joint_names.pop_back();
+  EXPECT_EQ(check_config(c).setting(), "joint_names");
+  c.ros2 = false;  // not checked when off
+  EXPECT_TRUE(check_config(c).ok());
 }
 
 TEST(TelemetryConfig, CycloneXmlForLoopbackWithoutMulticast) {

@@ -34,3 +34,26 @@ add_test(NAME telemetry_watch
                  $<TARGET_FILE:zerog-telemetry-replay> ${CMAKE_CURRENT_BINARY_DIR}/telemetry_watch
                  ${_zerog_watch_domain})
 set_tests_properties(telemetry_watch PROPERTIES LABELS "dds;host_cli" TIMEOUT 60 RESOURCE_LOCK dds)
+
+# ROS 2-side: the rt/ topics against a subscriber whose types come from rosbags' ROS 2 message
+# definitions (tests/telemetry/ros2_subscriber.py), values checked against the replay's
+# cycles.csv; and its mutants, each of which must fail the check naming what broke: a wrong type
+# name (ROS 1's WrenchStamped: the wrench topics stay silent) and a wrong member order
+# (Vector3 as y, x, z: every vector's x differs).
+math(EXPR _zerog_ros2_domain "${_zerog_dds_domain} + 30")
+set(_zerog_ros2_check "import cyclonedds.domain, rosbags.typesys")
+foreach(variant "" "type_name;wrench: no message arrived" "member_order;wrench.force.x at cycle")
+  if(variant STREQUAL "")
+    set(_name telemetry_ros2_python)
+    set(_args "")
+  else()
+    list(GET variant 0 _mutant)
+    list(GET variant 1 _text)
+    set(_name telemetry_ros2_mutant_${_mutant})
+    set(_args " '${_mutant}' '${_text}'")
+  endif()
+  add_test(NAME ${_name}
+           COMMAND sh -c "if ! '${ZEROG_PY_DDS}' -c '${_zerog_ros2_check}' 2>/dev/null; then ${_zerog_dds_skip}; fi; exec sh '${PROJECT_SOURCE_DIR}/tests/telemetry/ros2_replay_test.sh' '$<TARGET_FILE:zerog-telemetry-replay>' '${ZEROG_PY_DDS}' '${CMAKE_CURRENT_BINARY_DIR}/${_name}' ${_zerog_ros2_domain}${_args}")
+  set_tests_properties(${_name} PROPERTIES LABELS dds SKIP_RETURN_CODE 77 TIMEOUT 120
+                                           RESOURCE_LOCK dds)
+endforeach()

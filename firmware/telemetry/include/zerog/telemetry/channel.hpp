@@ -4,7 +4,9 @@
 // converts (convert.hpp) and writes the high-rate topics (best-effort, keep-last), Health on
 // every change and every health period, and the model identity once (reliable, transient-local:
 // late subscribers get the last Health and the identity). A full ring drops the record; drops
-// and failed writes are counted and published in Health.
+// and failed writes are counted and published in Health. With config.ros2 the same thread
+// writes each record again as ROS 2 messages on `rt/` topics (ros2.hpp), and Health and the
+// identity as a diagnostic_msgs/DiagnosticArray; the cycle's work is the same one offer().
 //
 //   TelemetryChannel channel(config, model_identity(model, file, crc), cycle_config.body);
 //   channel.start();                      // start-up: creates the DDS domain and the thread
@@ -23,6 +25,7 @@
 #include "zerog/rtio/spsc_ring.hpp"
 #include "zerog/telemetry/config.hpp"
 #include "zerog/telemetry/convert.hpp"
+#include "zerog/telemetry/ros2.hpp"
 
 namespace zerog::telemetry {
 
@@ -81,7 +84,8 @@ class TelemetryChannel {
   /// Real-time safe.
   void set_body_params(const control::BodyParams& body) noexcept;
 
-  /// Readers matched to the wrench topic now (0 before start()). Not real-time safe.
+  /// Readers matched to the wrench topics now (zerog/wrench and, with ros2, the rt/ one; 0
+  /// before start()). Not real-time safe.
   int subscribers() const;
   /// Counters so far (any thread; a snapshot).
   ChannelCounters counters() const;
@@ -130,6 +134,10 @@ class TelemetryChannel {
   std::atomic<std::uint64_t> published_{0};
   std::atomic<std::uint64_t> write_errors_{0};
   std::atomic<std::uint64_t> health_published_{0};
+  // ROS 2 topics (config_.ros2): made in start(), used by the publisher thread.
+  std::unique_ptr<Ros2Frames> ros_frames_;
+  std::unique_ptr<Ros2CycleMessages> ros_messages_;
+  Ros2DiagnosticsStorage ros_diagnostics_storage_;
 };
 
 }  // namespace zerog::telemetry

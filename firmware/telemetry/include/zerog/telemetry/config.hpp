@@ -28,6 +28,23 @@ struct TelemetryConfig {
   double nominal_period_s = 0.004;
   /// How long the publisher thread sleeps when its queue is empty (s).
   double poll_period_s = 0.001;
+
+  // ROS 2 topics (proto/telemetry.md, "ROS 2 topics"): ROS 2's message types on `rt/` DDS
+  // topics, beside the zerog/ ones, written by the same publisher thread from the same record.
+  /// Publish them.
+  bool ros2 = true;
+  /// ROS namespace of the topics ("/zerog" → ROS /zerog/wrench → DDS rt/zerog/wrench).
+  std::string ros_namespace = "/zerog";
+  /// header.frame_id of what is in the robot's base frame (poses, twists).
+  std::string base_frame = "base_link";
+  /// header.frame_id of the wrenches (the F/T sensor frame S).
+  std::string sensor_frame = "ft_sensor";
+  /// header.frame_id of the IMU sample (frame I).
+  std::string imu_frame = "imu_link";
+  /// sensor_msgs/JointState names of A1..A6 (the robot's URDF names: the robot file's
+  /// `ros_name`s; ROS-Industrial's KUKA descriptions call them joint_a1..joint_a6).
+  std::vector<std::string> joint_names = {"joint_a1", "joint_a2", "joint_a3",
+                                          "joint_a4", "joint_a5", "joint_a6"};
 };
 
 /// ok() if `config` can be used; otherwise invalid_setting naming the TelemetryConfig field
