@@ -53,7 +53,7 @@ foreach(variant "" "type_name;wrench: no message arrived" "member_order;wrench.f
     set(_args " '${_mutant}' '${_text}'")
   endif()
   add_test(NAME ${_name}
-           COMMAND sh -c "if ! '${ZEROG_PY_DDS}' -c '${_zerog_ros2_check}' 2>/dev/null; then ${_zerog_dds_skip}; fi; exec sh '${PROJECT_SOURCE_DIR}/tests/telemetry/ros2_replay_test.sh' '$<TARGET_FILE:zerog-telemetry-replay>' '${ZEROG_PY_DDS}' '${CMAKE_CURRENT_BINARY_DIR}/${_name}' ${_zerog_ros2_domain}${_args}")
+           COMMAND sh -c "if ! '${ZEROG_PY_DDS}' -c '${_zerog_ros2_check}' 2>/dev/null; then ${_zerog_dds_skip}; fi; exec sh '${PROJECT_SOURCE_DIR}/tests/telemetry/replay_test.sh' '$<TARGET_FILE:zerog-telemetry-replay>' '${ZEROG_PY_DDS}' '${CMAKE_CURRENT_BINARY_DIR}/${_name}' ${_zerog_ros2_domain} ros2${_args}")
   set_tests_properties(${_name} PROPERTIES LABELS dds SKIP_RETURN_CODE 77 TIMEOUT 120
                                            RESOURCE_LOCK dds)
 endforeach()
