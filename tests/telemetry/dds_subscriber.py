@@ -180,6 +180,52 @@ def cyclone_xml(interface, peers, multicast):
     return xml + "</Domain></CycloneDDS>"
 
 
+def participant(args):
+    """(Domain, DomainParticipant) on args.domain with args.interface / peer / no_multicast. Keep
+    the Domain object: once it is collected, the participant would get a default domain."""
+    domain = Domain(args.domain, cyclone_xml(args.interface, args.peer, not args.no_multicast))
+    return domain, DomainParticipant(args.domain)
+
+
+def reader_qos():
+    """(streams, state): the readers' QoS. Best-effort volatile with a deep history for the
+    per-cycle streams (deeper than a writer's: it only keeps this script from losing samples
+    between two take()s), reliable transient-local for the state a late reader must get."""
+    return (Qos(Policy.Reliability.BestEffort, Policy.History.KeepLast(4096),
+                Policy.Durability.Volatile),
+            Qos(Policy.Reliability.Reliable(1_000_000_000), Policy.History.KeepLast(64),
+                Policy.Durability.TransientLocal))
+
+
+def listen(readers, out_path, duration, idle, encode, stop=lambda counts: False):
+    """Takes every sample of `readers` ({name: DataReader}) into `out_path` as JSON lines
+    (`encode(name, sample)`), for at most `duration` s, until `idle` s pass without a sample once
+    some came (0: never), or until `stop(counts)`; returns the counts per reader."""
+    counts = {name: 0 for name in readers}
+    t0 = time.monotonic()
+    last = None
+    with open(out_path, "w") as out:
+        while time.monotonic() - t0 < duration:
+            got = 0
+            for name, reader in readers.items():
+                for s in reader.take(N=256):
+                    if not isinstance(s, IdlStruct):
+                        continue  # an invalid sample: the writer went away (unregister)
+                    out.write(json.dumps(encode(name, s)) + "\n")
+                    counts[name] += 1
+                    got += 1
+            now = time.monotonic()
+            if got:
+                last = now
+            if stop(counts):
+                break
+            if idle and last is not None and now - last > idle:
+                break
+            if not got:
+                time.sleep(0.005)
+    return counts
+
+
 def plain(sample):
     def fix(v):
         if isinstance(v, float) and not math.isfinite(v):
@@ -207,14 +253,8 @@ def main():
     ap.add_argument("--ready", default="", help="touch this file once the readers exist")
     args = ap.parse_args()
 
-    # Keep the Domain object: once it is collected, the participant would get a default domain.
-    domain = Domain(args.domain, cyclone_xml(args.interface, args.peer, not args.no_multicast))
-    dp = DomainParticipant(args.domain)
-    assert domain is not None
-    stream_qos = Qos(Policy.Reliability.BestEffort, Policy.History.KeepLast(4096),
-                     Policy.Durability.Volatile)
-    state_qos = Qos(Policy.Reliability.Reliable(1_000_000_000), Policy.History.KeepLast(64),
-                    Policy.Durability.TransientLocal)
+    domain, dp = participant(args)
+    stream_qos, state_qos = reader_qos()
     readers = {}
     for name, cls in STREAMS.items():
         readers[name] = DataReader(dp, Topic(dp, args.prefix + name, cls), qos=stream_qos)
@@ -222,29 +262,10 @@ def main():
         readers[name] = DataReader(dp, Topic(dp, args.prefix + name, cls), qos=state_qos)
     if args.ready:
         open(args.ready, "w").close()
-
-    counts = {name: 0 for name in readers}
-    t0 = time.monotonic()
-    last = None
-    with open(args.out, "w") as out:
-        while time.monotonic() - t0 < args.duration:
-            got = 0
-            for name, reader in readers.items():
-                for s in reader.take(N=256):
-                    if not isinstance(s, IdlStruct):
-                        continue  # an invalid sample: the writer went away (unregister)
-                    out.write(json.dumps({"topic": name, "sample": plain(s)}) + "\n")
-                    counts[name] += 1
-                    got += 1
-            now = time.monotonic()
-            if got:
-                last = now
-            if args.samples and counts["wrench"] >= args.samples and counts["model"] > 0:
-                break
-            if args.idle and last is not None and now - last > args.idle:
-                break
-            if not got:
-                time.sleep(0.005)
+    counts = listen(readers, args.out, args.duration, args.idle,
+                    lambda name, s: {"topic": name, "sample": plain(s)},
+                    lambda c: args.samples and c["wrench"] >= args.samples and c["model"] > 0)
+    assert domain is not None
     print("dds_subscriber: " + ", ".join(f"{k} {v}" for k, v in counts.items()), file=sys.stderr)
     return 0
 

@@ -17,15 +17,11 @@ check_ros2_telemetry.py sees it: `type_name` (WrenchStamped without dds_:: and t
 underscore: ROS 1's name) or `member_order` (geometry_msgs/Vector3 declared y, x, z).
 """
 import argparse
-import json
 import math
 import sys
-import time
 import types
 from dataclasses import dataclass, fields
 
-from cyclonedds.core import Policy, Qos
-from cyclonedds.domain import Domain, DomainParticipant
 from cyclonedds.idl import IdlStruct
 from cyclonedds.idl.annotations import final
 import cyclonedds.idl.types as t
@@ -33,6 +29,9 @@ from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 from rosbags.typesys import Stores, get_typestore
 from rosbags.typesys.base import Nodetype
+
+# The DDS plumbing only (participant, QoS, the take loop), not zerog's types.
+from dds_subscriber import listen, participant, reader_qos  # noqa: E402
 
 # ROS topic (in the namespace) → ROS message type. The same list as proto/telemetry.md's.
 STREAMS = {
@@ -125,19 +124,6 @@ def plain(sample):
     return sample
 
 
-def cyclone_xml(interface, peers, multicast):
-    """The configuration zerog::telemetry::cyclone_xml builds (proto/telemetry.md)."""
-    xml = '<CycloneDDS><Domain id="any"><General>'
-    if interface:
-        xml += f'<Interfaces><NetworkInterface name="{interface}"/></Interfaces>'
-    xml += f"<AllowMulticast>{'true' if multicast else 'false'}</AllowMulticast></General>"
-    if peers:
-        xml += "<Discovery><ParticipantIndex>auto</ParticipantIndex><Peers>"
-        xml += "".join(f'<Peer address="{p}"/>' for p in peers)
-        xml += "</Peers></Discovery>"
-    return xml + "</Domain></CycloneDDS>"
-
-
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--domain", type=int, default=0)
@@ -156,44 +142,23 @@ def main():
     args = ap.parse_args()
 
     builder = TypeBuilder(Stores[args.distro], args.mutant)
-    domain = Domain(args.domain, cyclone_xml(args.interface, args.peer, not args.no_multicast))
-    dp = DomainParticipant(args.domain)
-    assert domain is not None  # keep the Domain alive with the participant
-    # rmw_qos_profile_sensor_data is keep-last 5; a deeper reader queue only keeps this script
+    domain, dp = participant(args)
+    # rmw_qos_profile_sensor_data is keep-last 5 (best-effort, volatile); the latched profile
+    # reliable, keep-last 1, transient-local: the readers' deeper histories only keep this script
     # from losing samples between two take()s (history is the reader's own).
-    sensor_qos = Qos(Policy.Reliability.BestEffort, Policy.History.KeepLast(4096),
-                     Policy.Durability.Volatile)
-    latched_qos = Qos(Policy.Reliability.Reliable(1_000_000_000), Policy.History.KeepLast(64),
-                      Policy.Durability.TransientLocal)
+    sensor_qos, latched_qos = reader_qos()
     prefix = "rt" + args.namespace.rstrip("/") + "/"
-    readers = {}
+    readers, ros_types = {}, {}
     for topics, qos in ((STREAMS, sensor_qos), (LATCHED, latched_qos)):
         for name, ros_type in topics.items():
             cls = builder.build(ros_type)
-            readers[name] = (DataReader(dp, Topic(dp, prefix + name, cls), qos=qos), ros_type)
+            readers[name] = DataReader(dp, Topic(dp, prefix + name, cls), qos=qos)
+            ros_types[name] = ros_type
     if args.ready:
         open(args.ready, "w").close()
-
-    counts = {name: 0 for name in readers}
-    t0 = time.monotonic()
-    last = None
-    with open(args.out, "w") as out:
-        while time.monotonic() - t0 < args.duration:
-            got = 0
-            for name, (reader, ros_type) in readers.items():
-                for s in reader.take(N=256):
-                    if not isinstance(s, IdlStruct):
-                        continue  # an invalid sample: the writer went away
-                    out.write(json.dumps({"topic": name, "type": ros_type, "msg": plain(s)}) + "\n")
-                    counts[name] += 1
-                    got += 1
-            now = time.monotonic()
-            if got:
-                last = now
-            if args.idle and last is not None and now - last > args.idle:
-                break
-            if not got:
-                time.sleep(0.005)
+    counts = listen(readers, args.out, args.duration, args.idle,
+                    lambda name, s: {"topic": name, "type": ros_types[name], "msg": plain(s)})
+    assert domain is not None
     print("ros2_subscriber: " + ", ".join(f"{k} {v}" for k, v in counts.items()), file=sys.stderr)
     return 0
 
