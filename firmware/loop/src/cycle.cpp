@@ -324,6 +324,16 @@ void Cycle::step(const proto::rsi::RobotMessage& m, CycleReply& reply) noexcept 
   proto::rsi::kuka_units_from_correction(correction, reply.rkorr, reply.akorr_deg);
 }
 
+samples::RobotCorrection Cycle::zero_reply(std::uint64_t ipoc) const noexcept {
+  // A session with a collection path talks AKorr throughout, zeros when not moving: the
+  // controller's context for it (an AXISCORR object) takes AKorr and nothing else
+  // (firmware/rt/deploy/kuka/README.md, "Calibration collection"). Otherwise RKorr zeros.
+  samples::RobotCorrection c;
+  c.ipoc = ipoc;
+  if (path_ != nullptr) c.kind = samples::RobotCorrection::Kind::axes;
+  return c;
+}
+
 void Cycle::step(const samples::RobotSample& m, samples::RobotCorrection& correction) noexcept {
   run(m);
   correction = record_->reply;
@@ -338,8 +348,7 @@ void Cycle::run(const samples::RobotSample& m) noexcept {
     record.cycle = cycle_;
     record.ipoc = m.ipoc;
     record.limit_flags = 0;
-    record.reply = samples::RobotCorrection{};
-    record.reply.ipoc = m.ipoc;
+    record.reply = zero_reply(m.ipoc);
     return record;
   };
   ++cycle_;
@@ -396,8 +405,13 @@ void Cycle::run(const samples::RobotSample& m) noexcept {
   // Every field is written below (make_record and the reply): nothing is carried over.
   CycleRecord& record = open_record(true, false);
   // In fault, every reply is a zero correction (proto/loop.md, "Watchdogs").
-  record.reply = sm_.state() == State::fault ? samples::RobotCorrection{} : motion.correction;
-  record.reply.ipoc = m.ipoc;
+  if (sm_.state() == State::fault ||
+      motion.correction.kind == samples::RobotCorrection::Kind::none) {
+    record.reply = zero_reply(m.ipoc);
+  } else {
+    record.reply = motion.correction;
+    record.reply.ipoc = m.ipoc;
+  }
   stages::make_record({.cycle = cycle_,
                        .message = m,
                        .timing = timing,

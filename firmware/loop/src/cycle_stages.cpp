@@ -372,6 +372,9 @@ MotionResult run_motion(const CycleConfig& config, const MotionInputs& in,
     bool allowed = true;
     if (c == Command::enable_zero_g && !in.model.ready) allowed = false;
     if (c == Command::start_collection && in.path == nullptr) allowed = false;
+    // A session with a collection path answers with axis corrections only (below): its RSI
+    // context on the controller takes AKorr and no RKorr (firmware/rt/deploy/kuka/README.md).
+    if (c == Command::enable_zero_g && in.path != nullptr) allowed = false;
     if (allowed) allowed = sm.command(c, in.cycle);
     out.command_accepted = allowed;
     if (!allowed) {

@@ -829,5 +829,43 @@ TEST(Cycle, CollectionApproachesThePathThenFollowsItWithAxisCorrectionsAndStops)
   EXPECT_LT(cycles * kPeriod, 3.0);
 }
 
+// The controller's RSI context for a collection takes AKorr and nothing else
+// (firmware/rt/deploy/kuka/zerog_rsi_collect_ethernet.xml): with a path set, every reply is AKorr,
+// zeros when not collecting (before, after, in fault), and zero-g (RKorr) cannot be enabled.
+TEST(Cycle, ASessionWithACollectionPathAnswersAxisCorrectionsOnly) {
+  Cycle c;
+  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()).text(), "");
+  StaticRobot rig;
+  const std::array<double, 6> now = proto::rsi::joints_to_rad(rig.message.joints_deg);
+  RampPath path(now, 0.01, 0.1);
+  for (int i = 0; i < 6; ++i) EXPECT_FALSE(rig.quiet(c).axis);  // no path: RKorr zeros
+  c.set_collection_path(&path);
+  for (int i = 0; i < 3; ++i) {
+    const CycleReply r = rig.quiet(c);
+    EXPECT_TRUE(r.axis);
+    for (double a : r.akorr_deg) EXPECT_EQ(a, 0.0);
+  }
+  ASSERT_TRUE(c.request(Command::enable_zero_g));
+  EXPECT_TRUE(rig.quiet(c).axis);
+  EXPECT_EQ(c.state_machine().state(), State::idle);
+  EXPECT_NE(c.last().flags & kCommandRefused, 0u);
+  ASSERT_TRUE(c.request(Command::start_collection));
+  bool done = false;
+  for (int i = 0; i < 500 && !done; ++i) {
+    EXPECT_TRUE(rig.quiet(c).axis);
+    done = (c.last().flags & kCollectionDone) != 0;
+  }
+  ASSERT_TRUE(done);
+  const CycleReply after = rig.quiet(c);
+  EXPECT_TRUE(after.axis);
+  for (double a : after.akorr_deg) EXPECT_EQ(a, 0.0);
+  // A fault's zero correction is AKorr too.
+  for (int i = 0; i < c.config().watchdog.imu_fault_cycles + 1; ++i) rig.quiet(c, 4, 0);
+  ASSERT_EQ(c.state_machine().state(), State::fault);
+  const CycleReply faulted = rig.quiet(c, 4, 0);
+  EXPECT_TRUE(faulted.axis);
+  for (double a : faulted.akorr_deg) EXPECT_EQ(a, 0.0);
+}
+
 }  // namespace
 }  // namespace zerog::loop

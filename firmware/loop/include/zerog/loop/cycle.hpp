@@ -512,7 +512,9 @@ class Cycle {
   int delay_rows() const { return config_.angular_accel_order / 2; }
 
   /// Collection mode follows this path (not owned; must outlive the cycle). Not real-time safe
-  /// to change while collecting: set it in idle.
+  /// to change while collecting: set it in idle. With a path set, every reply is an axis
+  /// correction (AKorr; zeros when not collecting) and enable_zero_g is refused: the
+  /// controller's RSI context for a collection takes AKorr only (proto/loop.md, step 7).
   void set_collection_path(const JointPath* path) { path_ = path; }
 
   // --- every cycle (real-time safe) ---------------------------------------------------------
@@ -590,6 +592,9 @@ class Cycle {
   void pose_missing() noexcept;
   /// A message not newer than the last one (kIpocStale): answered (zero), nothing else.
   void stale_message() noexcept;
+  /// The zero correction answered with `ipoc` (idle, fault, a cycle that ends early): AKorr
+  /// zeros when a collection path is set, else RKorr zeros.
+  samples::RobotCorrection zero_reply(std::uint64_t ipoc) const noexcept;
   /// One cycle for message `m`; its answer (SI) is last().reply, which both step()s hand on.
   void run(const samples::RobotSample& m) noexcept;
   /// The pending command (request()), taken for this cycle.
