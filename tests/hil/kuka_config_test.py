@@ -17,13 +17,21 @@ real zerog-rt over real UDP:
           values as numbers) and the datagram's IPOC; zerog-rt's summary must show every datagram
           read, none malformed, no pose taken from the joints when RIst is sent.
 
+A configuration whose RECEIVE list is the axis correction AKorr.A1..A6 (zerog_rsi_collect_ethernet.xml,
+--config) is the calibration collection's: zerog-rt is then started with --collect on a zerog
+design, its context (zerog_rsi_collect.rsi.xml) must wire AKorr into AXISCORR, every reply must
+be AKorr (zeros before the approach starts), some must move the axes, and zerog-rt's summary must
+count every reply as an axis reply.
+
 --mutant send|receive runs the same check on a copy of the file with one element renamed
-(send: DEF_AIPos -> DEF_ASPos, the set-point that zerog-rt skips; receive: RKorr -> RKor on the
-six RKorr TAGs) and passes only if the check fails with that element's mismatch named.
+(send: DEF_AIPos -> DEF_ASPos, the set-point that zerog-rt skips; receive: RKorr -> RKor, or
+AKorr -> AKor, on the six correction TAGs) and passes only if the check fails with that
+element's mismatch named.
 
 Exit 0 on success, 1 on a failed check, 2 on a usage or set-up error (a program missing, the
 emulator not coming up). Run by ctest (tests/hil/CMakeLists.txt: hil_kuka_config,
-hil_kuka_config_mutant_send, hil_kuka_config_mutant_receive).
+hil_kuka_config_mutant_send, hil_kuka_config_mutant_receive, hil_kuka_config_collect,
+hil_kuka_config_collect_mutant_receive).
 """
 import argparse
 import json
@@ -75,6 +83,9 @@ BUILTIN_SEND = {
 ZEROG_READS = {"RIst", "AIPos", "EIPos", "Delay"}
 ZEROG_REQUIRES = {"AIPos"}  # and IPOC, which the controller always adds
 TYPES = {"BOOL", "STRING", "LONG", "DOUBLE"}  # the comment in kuka_experimental's ros_rsi_ethernet.xml
+# What zerog-rt answers (proto/rsi.md) and the RSI 3.x object that takes it, inputs 1..6 in this
+# order (cjlh's POSCORR context; kuka_experimental's ros_rsi.rsi.xml for AXISCORR).
+CORRECTIONS = {"RKorr": ("POSCORR", POSE), "AKorr": ("AXISCORR", AXES)}
 
 
 class SetupError(Exception):
@@ -186,20 +197,33 @@ def check_context(path, context, elements, problems):
                         f"{pathlib.Path(path).name!r}")
     channel = {int(e.indx): e.tag for e in elements
                if e.section == "RECEIVE" and e.indx.isdigit()}
-    poscorr = [o for o in objects.values() if o.get("ObjType") == "POSCORR"]
-    if len(poscorr) != 1:
-        problems.append(f"static: {context}: {len(poscorr)} POSCORR objects, want 1")
+    kind = correction_kind(elements)
+    if kind is None:
+        problems.append(f"static: {path}: RECEIVE has neither RKorr nor AKorr: zerog-rt answers "
+                        f"one of them ({sorted(CORRECTIONS)})")
+        return
+    obj_type, attributes = CORRECTIONS[kind]
+    corr = [o for o in objects.values() if o.get("ObjType") == obj_type]
+    if len(corr) != 1:
+        problems.append(f"static: {context}: {len(corr)} {obj_type} objects, want 1 for {kind}")
         return
     wired = {}
-    for i in poscorr[0].iter("Input"):
+    for i in corr[0].iter("Input"):
         if i.get("OutObjID") != ethernet[0].get("ObjID"):
             continue
-        # RSI 3.x contexts count from 1: InIdx 1 is CorrX, OutIdx k is RECEIVE's INDX k
+        # RSI 3.x contexts count from 1: InIdx 1 is CorrX (or A1), OutIdx k is RECEIVE's INDX k
         # (kuka_experimental's ros_rsi.rsi.xml and ros_rsi_ethernet.xml).
         wired[int(i.get("InIdx"))] = channel.get(int(i.get("OutIdx")))
-    want = {k + 1: f"RKorr.{a}" for k, a in enumerate(POSE)}
+    want = {k + 1: f"{kind}.{a}" for k, a in enumerate(attributes)}
     if wired != want:
-        problems.append(f"static: {context}: POSCORR inputs come from {wired}, want {want}")
+        problems.append(f"static: {context}: {obj_type} inputs come from {wired}, want {want}")
+
+
+def correction_kind(elements):
+    """RKorr or AKorr: the correction element the RECEIVE list holds (None: neither)."""
+    names = {e.tag.partition(".")[0] for e in elements if e.section == "RECEIVE"}
+    kinds = [k for k in CORRECTIONS if k in names]
+    return kinds[0] if len(kinds) == 1 else None
 
 
 # ------------------------------------------------------------------ the datagram and the reply
@@ -296,7 +320,7 @@ def run(cmd, log, **kw):
                          + pathlib.Path(log).read_text())
 
 
-def live_checks(args, work, sentype, elements, send, receive, problems):
+def live_checks(args, work, sentype, elements, send, receive, problems, collect):
     emu = pathlib.Path(args.bin) / "host/emu/zerog-emu"
     rt = pathlib.Path(args.bin) / "firmware/rt/zerog-rt"
     zerog = pathlib.Path(args.zerog) if args.zerog else pathlib.Path(args.bin) / "host/cli/zerog"
@@ -307,6 +331,10 @@ def live_checks(args, work, sentype, elements, send, receive, problems):
          "--write-rig", work / "rig.rig.toml", "--write-only"], work / "emu-write.out")
     run([zerog, "export", "--model", work / "truth-model.json", "--rig", work / "rig.rig.toml",
          "--out", work / "model.zgm", "-q"], work / "export.out")
+    collect_args = []
+    if collect:
+        run([zerog, "design", "--kind", "oa", "--out", work / "design.csv"], work / "design.out")
+        collect_args = ["--collect", work / "design.csv"]
     # Our controller socket; zerog-rt's port; the emulator's robot socket; and the socket the
     # emulator's robot sends to, held open and never read (so that zerog-rt sees only us).
     controller, rt_sock, emu_sock, sink = free_ports(4)
@@ -343,7 +371,7 @@ def live_checks(args, work, sentype, elements, send, receive, problems):
             raise SetupError("zerog-emu did not come up:\n" + (work / "emu.err").read_text())
         rt_p = subprocess.Popen(
             [rt, "--config", work / "zerog-rt.toml", "--duration", "30",
-             "--summary-out", work / "rt.json"],
+             "--summary-out", work / "rt.json", *collect_args],
             cwd=work, stdout=open(work / "rt.out", "w"), stderr=open(work / "rt.err", "w"))
         procs.append(rt_p)
         # zerog-rt says "zerog-rt: running: ..." (stderr) once its threads run. Then a warm-up of at most
@@ -375,7 +403,7 @@ def live_checks(args, work, sentype, elements, send, receive, problems):
             except (BlockingIOError, socket.timeout):
                 break
         controller.settimeout(CYCLE_MS / 1000.0)
-        answered, seen = 0, set()
+        answered, moving, seen = 0, 0, set()
         t0 = time.monotonic()
         for n in range(DATAGRAMS):
             ipoc += CYCLE_MS
@@ -396,8 +424,14 @@ def live_checks(args, work, sentype, elements, send, receive, problems):
                 if answered == 1:
                     (work / "reply.xml").write_bytes(data)
                 check_reply(data, ipoc, sentype, receive, problems, seen)
+                akorr = ET.fromstring(data).find("AKorr")
+                if akorr is not None and any(float(v) != 0.0 for v in akorr.attrib.values()):
+                    moving += 1
             next_t = t0 + (n + 1) * CYCLE_MS / 1000.0
             time.sleep(max(0.0, next_t - time.monotonic()))
+        if collect and moving == 0:
+            problems.append(f"live: zerog-rt started with --collect answered {answered} datagrams, "
+                            "none moving an axis (the approach to the design's first point)")
         if answered != DATAGRAMS:
             problems.append(f"live: zerog-rt answered {answered} of {DATAGRAMS} datagrams in time "
                             f"(first datagram: {work / 'datagram.xml'})")
@@ -425,6 +459,12 @@ def live_checks(args, work, sentype, elements, send, receive, problems):
     if robot["messages"] != sent:
         problems.append(f"live: zerog-rt read {robot['messages']} messages of {sent} sent "
                         f"(foreign {robot['foreign']})")
+    axis_replies = summary["cycle_thread"]["axis_replies"]
+    replies = summary["cycle_thread"]["replies_ok"]
+    if axis_replies != (replies if collect else 0):
+        problems.append(f"live: zerog-rt counted {axis_replies} axis replies of {replies}, want "
+                        f"{'all' if collect else 'none'} ({'AKorr' if collect else 'RKorr'} "
+                        "in RECEIVE)")
     if "RIst" in send and summary["cycles"]["poses_from_joints"] != 0:
         problems.append(f"live: zerog-rt took {summary['cycles']['poses_from_joints']} poses from "
                         "the joints although RIst was sent")
@@ -435,7 +475,10 @@ def check(args, path, context, work):
     config, send, receive = static_checks(path, context, args.sample_toml, problems)
     _, elements = read_config(path)
     sentype = config.get("SENTYPE", ("zerog", 0))[0]
-    live_checks(args, work, sentype, elements, send, receive, problems)
+    # An AKorr configuration is the calibration collection's: zerog-rt drives a design path.
+    # Decided on the file as given (a mutant's renamed element must not change the mode).
+    collect = correction_kind(read_config(args.config)[1]) == "AKorr"
+    live_checks(args, work, sentype, elements, send, receive, problems, collect)
     return problems
 
 
@@ -445,7 +488,8 @@ def mutate(src, dst, which):
     if which == "send":
         old, new, must = 'TAG="DEF_AIPos"', 'TAG="DEF_ASPos"', ("missing_element", "<AIPos>")
     else:
-        old, new, must = 'TAG="RKorr.', 'TAG="RKor.', ("<RKor>", "<RKorr>")
+        kind = correction_kind(read_config(src)[1])
+        old, new, must = f'TAG="{kind}.', f'TAG="{kind[:-1]}.', (f"<{kind[:-1]}>", f"<{kind}>")
     if old not in text:
         raise SetupError(f"{src}: no {old} to rename for the {which} mutant")
     pathlib.Path(dst).write_text(text.replace(old, new))
