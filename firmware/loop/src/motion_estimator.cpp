@@ -111,6 +111,153 @@ void MotionEstimator::update_force_offsets(const Eigen::Vector3d& y, const Eigen
   P_ = A * P_ * A.transpose() + K * K.transpose();
 }
 
+// Step 1's result: the motor side's motion at the centre row c, from the quadratic fits of the
+// rows' poses and joints (rotation vectors r in c's axes; the rest in B).
+struct MotionEstimator::MotorMotion {
+  Eigen::Matrix3d R_c;
+  Eigen::Vector3d a_B = Eigen::Vector3d::Zero();
+  Eigen::Vector3d r0 = Eigen::Vector3d::Zero(), r1 = Eigen::Vector3d::Zero(),
+                  r2 = Eigen::Vector3d::Zero();
+  std::array<double, robot::kMaxJoints> qdd{};
+  /// Attitude and rate (B axes) at an instant τ (≤ 0) from c.
+  Eigen::Matrix3d attitude_at(double tau) const {
+    return Eigen::Matrix3d(
+        R_c * model::rotation_from_vector<double>(r0 + tau * r1 + 0.5 * tau * tau * r2));
+  }
+  Eigen::Vector3d rate_at(double tau) const { return Eigen::Vector3d(R_c * (r1 + tau * r2)); }
+};
+
+// The link side's motion (B axes) at the F/T's instant (the output) and at the IMU's (step 3's
+// comparison): the motor side's, then turned and sped up by the joints' deflection (step 2).
+struct MotionEstimator::LinkMotion {
+  Eigen::Matrix3d R_ft, R_imu;
+  Eigen::Vector3d omega_ft, omega_imu;
+  Eigen::Vector3d omega_dot_B, a_B;
+};
+
+namespace {
+
+// The robot's signals at the IMU (rigid-body transfer from S's origin by r), I axes, for the
+// link at attitude R with rate w_B.
+void at_imu(const Eigen::Matrix3d& R_sensor_imu, const Eigen::Vector3d& r,
+            const Eigen::Vector3d& gravity_B, const Eigen::Matrix3d& R, const Eigen::Vector3d& w_B,
+            const Eigen::Vector3d& omega_dot_B, const Eigen::Vector3d& a_B, Eigen::Vector3d& f_I,
+            Eigen::Vector3d& w_I) {
+  const Eigen::Vector3d f_S = R.transpose() * (a_B - gravity_B);
+  const Eigen::Vector3d w_S = R.transpose() * w_B;
+  const Eigen::Vector3d wd_S_link = R.transpose() * omega_dot_B;
+  f_I = R_sensor_imu.transpose() * (f_S + wd_S_link.cross(r) + w_S.cross(w_S.cross(r)));
+  w_I = R_sensor_imu.transpose() * w_S;
+}
+
+}  // namespace
+
+bool MotionEstimator::fit_motor_side(std::span<const model::FeatureSignals* const> rows,
+                                     MotorMotion& m) const noexcept {
+  const std::size_t n = rows.size();
+  const std::size_t c = n / 2;
+  const double t_c = rows[c]->t_s;
+  const double half_span = std::max(rows[n - 1]->t_s - t_c, t_c - rows[0]->t_s);
+  robot::LocalPolyFit fit(2);
+  for (std::size_t k = 0; k < n; ++k) fit.add(rows[k]->t_s - t_c, half_span);
+  if (!fit.solve()) return false;
+  m.R_c = row_rotation(*rows[c]);
+  // The quadratics' value, slope and curvature at 0.
+  const int J = have_robot_ ? robot_.joint_count : 0;
+  for (std::size_t k = 0; k < n; ++k) {
+    const model::FeatureSignals& row = *rows[k];
+    const double tau = row.t_s - t_c;
+    const double d0 = fit.weight(tau, 0), d1 = fit.weight(tau, 1), d2 = fit.weight(tau, 2);
+    const Eigen::Vector3d p = Eigen::Map<const Eigen::Vector3d>(row.p_base_sensor_m.data());
+    m.a_B += d2 * p;
+    const Eigen::AngleAxisd turn(Eigen::Matrix3d(m.R_c.transpose() * row_rotation(row)));
+    const Eigen::Vector3d r = turn.angle() * turn.axis();
+    m.r0 += d0 * r;
+    m.r1 += d1 * r;
+    m.r2 += d2 * r;
+    for (int j = 0; j < J; ++j)
+      m.qdd[static_cast<std::size_t>(j)] += d2 * row.joints_rad[static_cast<std::size_t>(j)];
+  }
+  return true;
+}
+
+void MotionEstimator::deflect(const MotorMotion& m, const model::FeatureSignals& centre,
+                              const std::array<double, 6>& wrench,
+                              const model::ImuSignals<double>& imu_at_c, double dt, double schedule,
+                              LinkMotion& link, MotionEstimate& out) noexcept {
+  const int J = have_robot_ ? robot_.joint_count : 0;
+  Eigen::Matrix<double, 6, robot::kMaxJoints> jac;
+  robot::sensor_jacobian(robot_, std::span<const double>(centre.joints_rad.data(), 6), jac);
+  const double k_load = started_ ? lowpass_gain(config_.load_bandwidth_hz, dt) : 1.0;
+  for (int i = 0; i < 6; ++i) wrench_lp_[i] += k_load * (wrench[i] - wrench_lp_[i]);
+  const Eigen::Vector3d F_B = m.R_c * Eigen::Vector3d(wrench_lp_[0], wrench_lp_[1], wrench_lp_[2]);
+  const Eigen::Vector3d M_B = m.R_c * Eigen::Vector3d(wrench_lp_[3], wrench_lp_[4], wrench_lp_[5]);
+  const double k_exc = started_ ? lowpass_gain(config_.excitation_hz, dt) : 0.0;
+  Eigen::Vector3d theta = Eigen::Vector3d::Zero(), dw = Eigen::Vector3d::Zero(),
+                  dwd = Eigen::Vector3d::Zero(), da = Eigen::Vector3d::Zero();
+  for (int j = 0; j < J; ++j) {
+    const std::size_t u = static_cast<std::size_t>(j);
+    const double tau1 = jac.col(j).head<3>().dot(F_B) + jac.col(j).tail<3>().dot(M_B);
+    const double qdd0 = qdd_lp2_[u];
+    qdd_lp1_[u] += k_exc * (m.qdd[u] - qdd_lp1_[u]);
+    qdd_lp2_[u] += k_exc * (qdd_lp1_[u] - qdd_lp2_[u]);
+    const robot::JointElasticity& e = elasticity_[u];
+    double ddot = 0.0;
+    if (!started_) {
+      delta_[u] = e.rigid() ? 0.0 : tau1 / e.stiffness_Nm_per_rad;  // the static sag
+      delta_dot_[u] = 0.0;
+    } else {
+      ddot = robot::advance_deflection(e, delta_[u], delta_dot_[u], dt, config_.substep_s, qdd0,
+                                       qdd_lp2_[u], tau_[u], tau1);
+    }
+    tau_[u] = tau1;
+    const Eigen::Vector3d Jv = jac.col(j).head<3>(), Jw = jac.col(j).tail<3>();
+    theta += Jw * delta_[u];
+    dw += Jw * delta_dot_[u];
+    dwd += Jw * ddot;
+    da += Jv * ddot;
+    out.deflection_rad[u] = delta_[u];
+  }
+  // 4a. The gyro corrects the main axes' modelled rates while the arm rings.
+  if (started_ && schedule > 0.0 && config_.mode_gain > 0.0) {
+    const Eigen::Vector3d w_gyro_B =
+        link.R_imu * R_sensor_imu_ * (imu_at_c.angular_rate_imu - offset_w_);
+    const Eigen::Vector3d e = w_gyro_B - (link.omega_imu + dw);
+    Eigen::Matrix<double, 3, robot::kMaxJoints> Jw =
+        Eigen::Matrix<double, 3, robot::kMaxJoints>::Zero();
+    for (int j = 0; j < std::min(J, kObservedAxes); ++j)
+      if (!elasticity_[static_cast<std::size_t>(j)].rigid()) Jw.col(j) = jac.col(j).tail<3>();
+    const Eigen::Matrix3d A = Jw * Jw.transpose() + kDamping * Eigen::Matrix3d::Identity();
+    const Eigen::Matrix<double, robot::kMaxJoints, 1> d = Jw.transpose() * A.ldlt().solve(e);
+    const double g = schedule * config_.mode_gain;
+    for (int j = 0; j < std::min(J, kObservedAxes); ++j) {
+      delta_dot_[static_cast<std::size_t>(j)] += g * d[j];
+      dw += jac.col(j).tail<3>() * (g * d[j]);
+    }
+  }
+  const Eigen::Matrix3d turn = model::rotation_from_vector<double>(theta);
+  link.R_ft = turn * link.R_ft;
+  link.R_imu = turn * link.R_imu;
+  link.omega_ft += dw;
+  link.omega_imu += dw;
+  link.omega_dot_B += dwd;
+  link.a_B += da;
+}
+
+void MotionEstimator::track_offsets(const model::ImuSignals<double>& imu_at_c,
+                                    const Eigen::Vector3d& f_I_cmp,
+                                    const Eigen::Vector3d& omega_I_cmp,
+                                    const Eigen::Matrix3d& R_link_imu, double dt) noexcept {
+  ++updates_;
+  if (config_.mutant_without_imu) return;
+  const double k_steady = started_ ? lowpass_gain(config_.crossover_hz, dt) : 1.0;
+  const double k = std::max(k_steady, 1.0 / static_cast<double>(updates_));
+  offset_w_ += k * (imu_at_c.angular_rate_imu - omega_I_cmp - offset_w_);
+  update_force_offsets(imu_at_c.specific_force_imu - f_I_cmp,
+                       R_sensor_imu_.transpose() * R_link_imu.transpose(),
+                       started_ ? k_steady : 0.0);
+}
+
 bool MotionEstimator::update(std::span<const model::FeatureSignals* const> rows,
                              const std::array<double, 6>& wrench,
                              const model::ImuSignals<double>& imu_at_c, const WindowCounts& counts,
@@ -125,10 +272,8 @@ bool MotionEstimator::update(std::span<const model::FeatureSignals* const> rows,
   if (started_ && !(t_c > t_s_)) return false;
 
   // 1. The motor side's motion at c: a quadratic fit over the rows.
-  robot::LocalPolyFit fit(2);
-  for (std::size_t k = 0; k < n; ++k) fit.add(rows[k]->t_s - t_c, half_span);
-  if (!fit.solve()) return false;
-  const Eigen::Matrix3d R_c = row_rotation(centre);
+  MotorMotion motor;
+  if (!fit_motor_side(rows, motor)) return false;
   // The instants the centre row's means stand for (header, "Instants").
   const double row_dt = t_c - rows[c - 1]->t_s;
   auto instant = [row_dt](int n_samples, double rate_hz, double delay_s) {
@@ -138,140 +283,46 @@ bool MotionEstimator::update(std::span<const model::FeatureSignals* const> rows,
   };
   const double t_ft = instant(counts.ft, config_.ft_rate_hz, config_.ft_delay_s);
   const double t_imu = instant(counts.imu, config_.imu_rate_hz, config_.imu_delay_s);
-  // The quadratics' value, slope and curvature at 0 (rotation vectors r, in c's axes).
-  Eigen::Vector3d a_B = Eigen::Vector3d::Zero(), r0 = Eigen::Vector3d::Zero(),
-                  r1 = Eigen::Vector3d::Zero(), r2 = Eigen::Vector3d::Zero();
-  const int J = have_robot_ ? robot_.joint_count : 0;
-  std::array<double, robot::kMaxJoints> qdd{};
-  for (std::size_t k = 0; k < n; ++k) {
-    const model::FeatureSignals& row = *rows[k];
-    const double tau = row.t_s - t_c;
-    const double d0 = fit.weight(tau, 0), d1 = fit.weight(tau, 1), d2 = fit.weight(tau, 2);
-    const Eigen::Vector3d p = Eigen::Map<const Eigen::Vector3d>(row.p_base_sensor_m.data());
-    a_B += d2 * p;
-    const Eigen::AngleAxisd turn(Eigen::Matrix3d(R_c.transpose() * row_rotation(row)));
-    const Eigen::Vector3d r = turn.angle() * turn.axis();
-    r0 += d0 * r;
-    r1 += d1 * r;
-    r2 += d2 * r;
-    for (int j = 0; j < J; ++j)
-      qdd[static_cast<std::size_t>(j)] += d2 * row.joints_rad[static_cast<std::size_t>(j)];
-  }
-  const Eigen::Vector3d wd_S = r2;
-  // The motor side at an instant τ (≤ 0) from c: attitude and rate, B axes.
-  auto attitude_at = [&](double tau) {
-    return Eigen::Matrix3d(
-        R_c * model::rotation_from_vector<double>(r0 + tau * r1 + 0.5 * tau * tau * r2));
-  };
-  auto rate_at = [&](double tau) { return Eigen::Vector3d(R_c * (r1 + tau * r2)); };
-  Eigen::Vector3d omega_dot_B = R_c * wd_S;
-  Eigen::Matrix3d R_link = attitude_at(t_ft), R_link_imu = attitude_at(t_imu);
-  Eigen::Vector3d omega_B = rate_at(t_ft), omega_B_imu = rate_at(t_imu);
+  LinkMotion link{.R_ft = motor.attitude_at(t_ft),
+                  .R_imu = motor.attitude_at(t_imu),
+                  .omega_ft = motor.rate_at(t_ft),
+                  .omega_imu = motor.rate_at(t_imu),
+                  .omega_dot_B = motor.R_c * motor.r2,
+                  .a_B = motor.a_B};
+  const Eigen::Vector3d omega_B_imu_motor = link.omega_imu;  // step 4's reference
 
-  const Eigen::Vector3d omega_B_imu_motor = omega_B_imu;  // step 4's reference
   const bool ringing_on =
       config_.ringing_radps > 0.0 && !config_.mutant_without_ringing && !config_.mutant_without_imu;
   const double threshold = 3.0 * config_.ringing_radps;
   const double schedule =
       ringing_on ? residual_ms_ / (residual_ms_ + threshold * threshold) : 0.0;  // last row's
-  // 2. The link's deflection at c.
+  // 2. The link's deflection at c (and 4a).
   const double dt = started_ ? t_c - t_s_ : 0.0;
-  if (elastic_) {
-    Eigen::Matrix<double, 6, robot::kMaxJoints> jac;
-    robot::sensor_jacobian(robot_, std::span<const double>(centre.joints_rad.data(), 6), jac);
-    const double k_load = started_ ? lowpass_gain(config_.load_bandwidth_hz, dt) : 1.0;
-    for (int i = 0; i < 6; ++i) wrench_lp_[i] += k_load * (wrench[i] - wrench_lp_[i]);
-    const Eigen::Vector3d F_B = R_c * Eigen::Vector3d(wrench_lp_[0], wrench_lp_[1], wrench_lp_[2]);
-    const Eigen::Vector3d M_B = R_c * Eigen::Vector3d(wrench_lp_[3], wrench_lp_[4], wrench_lp_[5]);
-    const double k_exc = started_ ? lowpass_gain(config_.excitation_hz, dt) : 0.0;
-    Eigen::Vector3d theta = Eigen::Vector3d::Zero(), dw = Eigen::Vector3d::Zero(),
-                    dwd = Eigen::Vector3d::Zero(), da = Eigen::Vector3d::Zero();
-    for (int j = 0; j < J; ++j) {
-      const std::size_t u = static_cast<std::size_t>(j);
-      const double tau1 = jac.col(j).head<3>().dot(F_B) + jac.col(j).tail<3>().dot(M_B);
-      const double qdd0 = qdd_lp2_[u];
-      qdd_lp1_[u] += k_exc * (qdd[u] - qdd_lp1_[u]);
-      qdd_lp2_[u] += k_exc * (qdd_lp1_[u] - qdd_lp2_[u]);
-      const robot::JointElasticity& e = elasticity_[u];
-      double ddot = 0.0;
-      if (!started_) {
-        delta_[u] = e.rigid() ? 0.0 : tau1 / e.stiffness_Nm_per_rad;  // the static sag
-        delta_dot_[u] = 0.0;
-      } else {
-        ddot = robot::advance_deflection(e, delta_[u], delta_dot_[u], dt, config_.substep_s, qdd0,
-                                         qdd_lp2_[u], tau_[u], tau1);
-      }
-      tau_[u] = tau1;
-      const Eigen::Vector3d Jv = jac.col(j).head<3>(), Jw = jac.col(j).tail<3>();
-      theta += Jw * delta_[u];
-      dw += Jw * delta_dot_[u];
-      dwd += Jw * ddot;
-      da += Jv * ddot;
-      out.deflection_rad[u] = delta_[u];
-    }
-    // 4a. The gyro corrects the main axes' modelled rates while the arm rings.
-    if (started_ && schedule > 0.0 && config_.mode_gain > 0.0) {
-      const Eigen::Vector3d w_gyro_B =
-          R_link_imu * R_sensor_imu_ * (imu_at_c.angular_rate_imu - offset_w_);
-      const Eigen::Vector3d e = w_gyro_B - (omega_B_imu + dw);
-      Eigen::Matrix<double, 3, robot::kMaxJoints> Jw =
-          Eigen::Matrix<double, 3, robot::kMaxJoints>::Zero();
-      for (int j = 0; j < std::min(J, kObservedAxes); ++j)
-        if (!elasticity_[static_cast<std::size_t>(j)].rigid()) Jw.col(j) = jac.col(j).tail<3>();
-      const Eigen::Matrix3d A = Jw * Jw.transpose() + kDamping * Eigen::Matrix3d::Identity();
-      const Eigen::Matrix<double, robot::kMaxJoints, 1> d = Jw.transpose() * A.ldlt().solve(e);
-      const double g = schedule * config_.mode_gain;
-      for (int j = 0; j < std::min(J, kObservedAxes); ++j) {
-        delta_dot_[static_cast<std::size_t>(j)] += g * d[j];
-        dw += jac.col(j).tail<3>() * (g * d[j]);
-      }
-    }
-    const Eigen::Matrix3d turn = model::rotation_from_vector<double>(theta);
-    R_link = turn * R_link;
-    R_link_imu = turn * R_link_imu;
-    omega_B += dw;
-    omega_B_imu += dw;
-    omega_dot_B += dwd;
-    a_B += da;
-  }
+  if (elastic_) deflect(motor, centre, wrench, imu_at_c, dt, schedule, link, out);
 
-  // The robot's signals at the IMU (rigid-body transfer from S's origin), I axes, at the F/T's
-  // instant (the output) and at the IMU's (the comparison of step 3).
-  const Eigen::Vector3d& r = p_sensor_imu_m_;
-  auto at_imu = [&](const Eigen::Matrix3d& R, const Eigen::Vector3d& w_B, Eigen::Vector3d& f_I,
-                    Eigen::Vector3d& w_I) {
-    const Eigen::Vector3d f_S = R.transpose() * (a_B - config_.gravity_base_mps2);
-    const Eigen::Vector3d w_S = R.transpose() * w_B;
-    const Eigen::Vector3d wd_S_link = R.transpose() * omega_dot_B;
-    f_I = R_sensor_imu_.transpose() * (f_S + wd_S_link.cross(r) + w_S.cross(w_S.cross(r)));
-    w_I = R_sensor_imu_.transpose() * w_S;
-  };
+  // The robot's signals at the IMU, I axes, at the F/T's instant (the output) and at the IMU's
+  // (the comparison of step 3).
   Eigen::Vector3d f_I, omega_I, f_I_cmp, omega_I_cmp;
-  at_imu(R_link, omega_B, f_I, omega_I);
-  at_imu(R_link_imu, omega_B_imu, f_I_cmp, omega_I_cmp);
-  const Eigen::Vector3d omega_dot_I = R_sensor_imu_.transpose() * R_link.transpose() * omega_dot_B;
+  at_imu(R_sensor_imu_, p_sensor_imu_m_, config_.gravity_base_mps2, link.R_ft, link.omega_ft,
+         link.omega_dot_B, link.a_B, f_I, omega_I);
+  at_imu(R_sensor_imu_, p_sensor_imu_m_, config_.gravity_base_mps2, link.R_imu, link.omega_imu,
+         link.omega_dot_B, link.a_B, f_I_cmp, omega_I_cmp);
+  const Eigen::Vector3d omega_dot_I =
+      R_sensor_imu_.transpose() * link.R_ft.transpose() * link.omega_dot_B;
 
   // 4. How much the gyro disagrees with the rigid robot (the next row's schedule).
   if (ringing_on && started_) {
     const Eigen::Vector3d e =
         imu_at_c.angular_rate_imu - offset_w_ -
-        R_sensor_imu_.transpose() * R_link_imu.transpose() * omega_B_imu_motor;
+        R_sensor_imu_.transpose() * link.R_imu.transpose() * omega_B_imu_motor;
     residual_ms_ +=
         (1.0 - std::exp(-dt / kRingingWindow_s)) * (e.squaredNorm() / 3.0 - residual_ms_);
   }
 
   // 3. The IMU below the crossover.
-  ++updates_;
-  if (!config_.mutant_without_imu) {
-    const double k_steady = started_ ? lowpass_gain(config_.crossover_hz, dt) : 1.0;
-    const double k = std::max(k_steady, 1.0 / static_cast<double>(updates_));
-    offset_w_ += k * (imu_at_c.angular_rate_imu - omega_I_cmp - offset_w_);
-    update_force_offsets(imu_at_c.specific_force_imu - f_I_cmp,
-                         R_sensor_imu_.transpose() * R_link_imu.transpose(),
-                         started_ ? k_steady : 0.0);
-  }
+  track_offsets(imu_at_c, f_I_cmp, omega_I_cmp, link.R_imu, dt);
   const Eigen::Vector3d offset_f =
-      bias_I_ + R_sensor_imu_.transpose() * R_link.transpose() * error_B_;
+      bias_I_ + R_sensor_imu_.transpose() * link.R_ft.transpose() * error_B_;
   started_ = true;
   t_s_ = t_c;
 

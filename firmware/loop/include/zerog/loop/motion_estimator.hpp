@@ -189,6 +189,17 @@ class MotionEstimator {
   Eigen::Vector3d bias_I_ = Eigen::Vector3d::Zero(), error_B_ = Eigen::Vector3d::Zero();
   Eigen::Matrix<double, 6, 6> P_ = Eigen::Matrix<double, 6, 6>::Identity() * kPriorVariance;
 
+  // update()'s phases (motion_estimator.cpp): 1, 2 with 4a, 3.
+  struct MotorMotion;
+  struct LinkMotion;
+  bool fit_motor_side(std::span<const model::FeatureSignals* const> rows,
+                      MotorMotion& m) const noexcept;
+  void deflect(const MotorMotion& m, const model::FeatureSignals& centre,
+               const std::array<double, 6>& wrench, const model::ImuSignals<double>& imu_at_c,
+               double dt, double schedule, LinkMotion& link, MotionEstimate& out) noexcept;
+  void track_offsets(const model::ImuSignals<double>& imu_at_c, const Eigen::Vector3d& f_I_cmp,
+                     const Eigen::Vector3d& omega_I_cmp, const Eigen::Matrix3d& R_link_imu,
+                     double dt) noexcept;
   void update_force_offsets(const Eigen::Vector3d& y, const Eigen::Matrix3d& R_IB,
                             double k_steady) noexcept;
 };
