@@ -517,338 +517,363 @@ std::string suggested_fit_out(const std::string& log) {
   return new_file_beside(log, ".fit", ".json");
 }
 
+// The options of `zerog diagnose` and `zerog ladder` (add_*_command below).
+struct DiagnoseArgs {
+  Common c;
+  std::string model_path, effects, candidates;
+  std::string discovered_out;  // empty: beside the log
+  double block = 0.0;          // 0: chosen from the log
+  bool no_discover = false, exact_candidates = false;
+};
+
+struct LadderArgs {
+  Common c;
+  std::string start = io::effect_list_string(model::kMinimalModel);
+  double min_gain = 0.02;
+  double block = 0.0;  // 0: chosen from the log
+  std::string out, truth, plot, candidates;
+  bool exact_candidates = false;
+};
+
+// What diagnose leaves out: --exclude, else what the model's own fit on this log left out.
+std::string inherited_exclude(const DiagnoseArgs& a, std::optional<io::ModelFile>& m) {
+  std::string exclude = a.c.exclude;
+  if (exclude.empty() && m && m->extra.contains("fit") && m->extra["fit"].contains("exclude") &&
+      m->extra["fit"].contains("log") && m->extra["fit"]["log"].is_string()) {
+    std::error_code ec;
+    const std::string fitted_log = m->extra["fit"]["log"].get<std::string>();
+    if (std::filesystem::equivalent(fitted_log, a.c.log, ec) && !ec) {
+      exclude = m->extra["fit"]["exclude"].value("spans", std::string());
+      if (!exclude.empty() && !a.c.quiet)
+        std::fprintf(stderr, "diagnose: leaving out what %s's fit left out: %s\n",
+                     a.model_path.c_str(), exclude.c_str());
+    }
+  }
+  return exclude;
+}
+
+void run_diagnose(const DiagnoseArgs& a) {
+  const ident::Dataset data = ident::read_dataset(a.c.log);
+  ident::DiagnoseOptions o;
+  o.block_s = a.block;
+  o.log_path = a.c.log;
+  o.progress = progress(a.c);
+  o.fit.threads = a.c.threads;
+  o.fit.engine = a.c.engine;
+  o.fit.errors_in_variables = a.c.errors_in_variables;
+  o.discover = !a.no_discover;
+  o.exact_candidates = a.exact_candidates;
+  o.fit_out = suggested_fit_out(a.c.log);
+  // By default a new file: a law of an earlier turn of the loop keeps its file.
+  o.discovery_path = a.discovered_out.empty() ? new_file_beside(a.c.log, ".discovered", ".toml")
+                                              : a.discovered_out;
+  o.user_candidates = user_candidates(a.candidates);
+  std::optional<io::ModelFile> m;
+  if (!a.model_path.empty()) {
+    m = io::read_model(a.model_path);
+    o.fit.effects = m->params.effects;
+    o.fit.user = m->params.user;
+    o.fit.initial = &m->params;
+    // The suggested command names the model file for its user effects (@fit.json).
+    o.model_text = io::model_spec_string(m->params.effects, m->params.user,
+                                         m->params.user.empty()
+                                             ? std::vector<std::filesystem::path>{}
+                                             : std::vector<std::filesystem::path>{a.model_path});
+  } else {
+    // A static table feeds no inertia: its default model is bias and gravity.
+    const std::string fallback = data.columns.static_rows
+                                     ? std::string("bias,gravity")
+                                     : io::effect_list_string(model::kDefaultModel);
+    const io::ModelSpec spec = io::parse_model_spec(a.effects.empty() ? fallback : a.effects);
+    o.fit.effects = spec.effects;
+    o.fit.user = spec.user;
+    o.model_text = io::model_spec_string(spec.effects, spec.user, spec.files);
+  }
+  // What this diagnosis is of (zerog report checks it): the model, its file, the log.
+  nlohmann::json made_for = {
+      {"model", model_identity(o.fit.effects, o.fit.user, m ? a.model_path : std::string())},
+      {"log", log_identity(a.c.log)}};
+  const std::string exclude = inherited_exclude(a, m);
+  std::vector<std::uint8_t> out_rows;
+  if (!exclude.empty())
+    out_rows = ident::exclude_mask(data, ident::parse_exclude(exclude), a.c.log);
+  if (!out_rows.empty()) {
+    o.exclude = &out_rows;
+    o.exclude_text = exclude;
+  }
+  const ident::Diagnosis d = ident::diagnose(data, o);
+  if (a.c.json) {
+    nlohmann::json j = ident::to_json(d);
+    j["version"] = 3;  // "made_for", events (proto/json_output.md)
+    j["made_for"] = std::move(made_for);
+    std::cout << j.dump(2) << "\n";
+  } else {
+    std::printf("%s", ident::format_diagnosis(d).c_str());
+  }
+}
+
+// The F/T-only floor against the last step's held-out error (ft_floor.hpp): into j, and its text.
+std::string ladder_ft_floor(nlohmann::json& j, const std::vector<ident::LadderStep>& steps,
+                            const ident::Dataset& data) {
+  const ident::FtFloor ft = ident::ft_floor(data);
+  j["ft_floor"] = ident::to_json(ft, nullptr);
+  std::string ft_text = ident::format_ft_floor(ft, nullptr);
+  if (ft.known && !steps.empty() && ft.force_rms > 0.0 && ft.torque_rms > 0.0) {
+    const ident::ErrorStats& last = steps.back().heldout.stats;
+    j["ft_floor"]["heldout_ratio"] = {{"force", last.force_rms / ft.force_rms},
+                                      {"torque", last.torque_rms / ft.torque_rms}};
+    char line[200];
+    std::snprintf(line, sizeof line,
+                  "  the last step's held-out error against it: %.2fx (force) / %.2fx "
+                  "(torque)\n",
+                  last.force_rms / ft.force_rms, last.torque_rms / ft.torque_rms);
+    ft_text += line;
+  }
+  return ft_text;
+}
+
+// The ladder's plot (matplotlib, through the report script) into `plot`, never over an input.
+void plot_ladder(const nlohmann::json& j, const std::string& plot,
+                 const std::vector<std::filesystem::path>& inputs) {
+  for (const auto& in : inputs)
+    if (std::filesystem::weakly_canonical(in) == std::filesystem::weakly_canonical(plot))
+      throw std::runtime_error(plot + " is an input of this run; refusing to overwrite it");
+  const std::string tmp = plot + ".ladder.json.tmp";
+  io::write_file_atomic(tmp, j.dump() + "\n", inputs);
+  try {
+    run_report_script({"--ladder-plot", tmp, plot});
+  } catch (...) {
+    std::filesystem::remove(tmp);
+    throw;
+  }
+  std::filesystem::remove(tmp);
+}
+
+void run_ladder(const LadderArgs& a) {
+  const ident::Dataset data = ident::read_dataset(a.c.log);
+  ident::LadderOptions o;
+  o.min_gain = a.min_gain;
+  o.diagnose.block_s = a.block;
+  o.diagnose.log_path = a.c.log;
+  o.diagnose.progress = progress(a.c);
+  o.diagnose.fit.threads = a.c.threads;
+  o.diagnose.fit.engine = a.c.engine;
+  o.diagnose.fit.errors_in_variables = a.c.errors_in_variables;
+  o.diagnose.exact_candidates = a.exact_candidates;
+  const io::ModelSpec spec = io::parse_model_spec(a.start);
+  o.diagnose.fit.effects = spec.effects;
+  o.diagnose.fit.user = spec.user;
+  o.diagnose.user_candidates = user_candidates(a.candidates);
+  const std::vector<std::uint8_t> out_rows = excluded_rows(a.c, data);
+  if (!out_rows.empty()) {
+    o.diagnose.exclude = &out_rows;
+    o.diagnose.exclude_text = a.c.exclude;
+  }
+  const ident::BlockChoice split = ident::choose_blocks(data, a.block);
+  if (o.diagnose.progress) o.diagnose.progress("ladder: held-out split: " + split.text);
+  const auto steps = ident::ladder(data, o);
+  nlohmann::json j = ident::to_json(steps);
+  j["split"] = ident::to_json(split);
+  // Which source fed which effect of the ladder's last (largest) model.
+  const auto feeds =
+      ident::kinematics_feeds(steps.empty() ? o.diagnose.fit.effects : steps.back().effects, data);
+  j["kinematics_sources"] = ident::kinematics_json(feeds, data);
+  std::optional<ident::Floors> floors;
+  if (!a.truth.empty()) {
+    const auto mask = ident::heldout_mask(data, split.block_s);
+    floors = ident::floors(a.truth, data, &mask);
+  }
+  j["version"] = 3;  // the floors' keys below, "made_for" (proto/json_output.md)
+  floors_into(j, floors ? &*floors : nullptr);
+  const std::string ft_text = ladder_ft_floor(j, steps, data);
+  // A ladder is made for its log; it climbs from its own start, not from one model.
+  j["made_for"] = {{"model", nullptr},
+                   {"start", model_identity(spec.effects, spec.user)["effects"]},
+                   {"log", log_identity(a.c.log)}};
+  const std::vector<std::filesystem::path> inputs = {a.c.log, io::rig_path_for(a.c.log)};
+  if (!a.out.empty()) io::write_file_atomic(a.out, j.dump(2) + "\n", inputs);
+  if (!a.plot.empty()) plot_ladder(j, a.plot, inputs);
+  if (a.c.json) {
+    std::cout << j.dump(2) << "\n";
+    return;
+  }
+  std::printf("held-out split: %s\n", split.text.c_str());
+  std::printf("%s", ident::format_ladder(steps).c_str());
+  std::printf("%s", ident::format_kinematics(feeds, data).c_str());
+  if (floors) std::printf("%s", ident::format_floors(*floors, "held-out").c_str());
+  std::printf("%s", ft_text.c_str());
+  if (!a.out.empty()) std::printf("wrote %s\n", a.out.c_str());
+  if (!a.plot.empty()) std::printf("plotted %s\n", a.plot.c_str());
+}
+
+void add_fit_command(CLI::App& app) {
+  auto c = std::make_shared<Common>();
+  auto effects = std::make_shared<std::string>(io::effect_list_string(model::kDefaultModel));
+  auto out = std::make_shared<std::string>();
+  auto loss = std::make_shared<std::string>("none");
+  auto loss_scale = std::make_shared<double>(3.0);
+  auto max_iter = std::make_shared<int>(50);
+  auto truth = std::make_shared<std::string>();
+  auto block_samples = std::make_shared<int>(8);
+  auto tool_change = std::make_shared<bool>(false);
+  auto std_kind = std::make_shared<std::string>("robust");
+  auto cluster_s = std::make_shared<double>(10.0);
+  auto no_consistency = std::make_shared<bool>(false);
+  auto base = std::make_shared<std::string>();
+  CLI::App* s = app.add_subcommand("fit", "Fit a model (a list of effects) to a log with Ceres");
+  add_common(s, *c);
+  add_exclude(s, *c);
+  add_engine(s, *c);
+  add_errors_in_variables(s, *c);
+  auto* effects_opt =
+      s->add_option("-e,--effects", *effects,
+                    "Comma-separated effects (proto/effects.md); @FILE adds a user-defined "
+                    "effect (proto/user_effects.md)")
+          ->capture_default_str();
+  s->add_flag("--tool-change", *tool_change,
+              "After an end-effector change: fit only the payload (gravity: mass, centre of "
+              "mass) on the static samples of LOG, every other effect of --base held at its "
+              "values (paper 001 section 3.2)")
+      ->excludes(effects_opt);
+  s->add_option("--base", *base, "With --tool-change: the previous fit (model file) to keep")
+      ->check(CLI::ExistingFile);
+  s->add_option("-o,--out", *out, "Model file to write (JSON, written atomically)");
+  s->add_option("--loss", *loss, "Robust loss: none, huber, cauchy")
+      ->check(CLI::IsMember({"none", "huber", "cauchy"}))
+      ->capture_default_str();
+  s->add_option("--loss-scale", *loss_scale, "Robust loss scale, in per-axis noise units")
+      ->capture_default_str();
+  s->add_option("--max-iterations", *max_iter, "Solver iterations per pass")->capture_default_str();
+  s->add_option("--block-samples", *block_samples,
+                "Compare model and measurement on means of this many consecutive samples (1 = "
+                "each sample)")
+      ->check(CLI::Range(1, 1000))
+      ->capture_default_str();
+  s->add_option("--truth", *truth, "Truth model (from zerog sim) to print beside the estimates");
+  s->add_option("--std", *std_kind,
+                "What +- is: robust (the larger of the model-based and a cluster-robust "
+                "sandwich standard deviation: coloured noise, a model that misses something) or "
+                "white (model-based only: white, correctly modelled noise)")
+      ->check(CLI::IsMember({"robust", "white"}))
+      ->capture_default_str();
+  s->add_option("--cluster", *cluster_s,
+                "Cluster length of the robust standard deviation, s of log time (a table's rows "
+                "are each a cluster)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  s->add_flag("--no-consistency", *no_consistency,
+              "Skip the check that fits each half of the rows and plain weights again");
+  s->callback([=] {
+    if (*tool_change) {
+      run_tool_change(*c, *base, *out, *loss, *loss_scale, *max_iter, *block_samples, *truth);
+      return;
+    }
+    if (!base->empty()) throw std::invalid_argument("--base is for --tool-change");
+    run_fit(*c, *effects, *out, *loss, *loss_scale, *max_iter, *block_samples, *truth, *std_kind,
+            *cluster_s, !*no_consistency);
+  });
+}
+
+void add_compare_command(CLI::App& app) {
+  auto c = std::make_shared<Common>();
+  auto model_path = std::make_shared<std::string>();
+  auto truth = std::make_shared<std::string>();
+  auto bins = std::make_shared<int>(6);
+  CLI::App* s = app.add_subcommand(
+      "compare",
+      "Measured against predicted per axis: RMS and max error, static/moving, by joint angle");
+  add_common(s, *c);
+  add_exclude(s, *c);
+  s->add_option("-m,--model", *model_path, "Model file (from zerog fit)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  s->add_option("--truth", *truth,
+                "Truth model (from zerog sim): also print the true-model reference and the "
+                "sensor floor")
+      ->check(CLI::ExistingFile);
+  s->add_option("--bins", *bins, "Joint-angle bins per joint")
+      ->check(CLI::Range(1, 100))
+      ->capture_default_str();
+  s->callback([=] { run_compare(*c, *model_path, *truth, *bins); });
+}
+
+void add_diagnose_command(CLI::App& app) {
+  auto a = std::make_shared<DiagnoseArgs>();
+  CLI::App* s = app.add_subcommand(
+      "diagnose",
+      "Rank the effects a model lacks by how much they reduce the error on held-out data");
+  add_common(s, a->c);
+  add_exclude(s, a->c);
+  add_engine(s, a->c);
+  add_errors_in_variables(s, a->c);
+  s->add_option("-m,--model", a->model_path,
+                "Fitted model to diagnose (its effects and start values)")
+      ->check(CLI::ExistingFile);
+  s->add_option("-e,--effects", a->effects,
+                "Or: the effects of the model to diagnose (@FILE: a user-defined effect); "
+                "default bias,gravity,linear_inertia,rotational_inertia (a static table: "
+                "bias,gravity)");
+  s->add_option("--candidates", a->candidates,
+                "User-defined effects to try beside the library's: @FILE,@FILE "
+                "(proto/user_effects.md)");
+  s->add_flag("--no-discover", a->no_discover,
+              "When no library effect explains the residual, do not search the signal "
+              "dictionary for a law");
+  s->add_flag(
+      "--exact-candidates", a->exact_candidates,
+      "Refit every candidate effect (a warm-started fit each) instead of screening them from "
+      "one pass of the model with all of them and refitting only those that could be the "
+      "best (slower; the screened figures are linearised)");
+  s->add_option("--discovered-out", a->discovered_out,
+                "Where to write a discovered law as an effect file (proto/user_effects.md); "
+                "default: beside the log, LOG's name with .discovered.toml");
+  s->add_option("--block", a->block,
+                "Length of the held-out time blocks, s (every 4th block is held out); default: "
+                "60 s when the log holds 8 such blocks, else the log's length / 8 (at least "
+                "0.5 s)");
+  s->callback([a] { run_diagnose(*a); });
+}
+
+void add_ladder_command(CLI::App& app) {
+  auto a = std::make_shared<LadderArgs>();
+  CLI::App* s = app.add_subcommand("ladder",
+                                   "From a minimal model, add the best effect step by step while "
+                                   "it pays; print the error at each step");
+  add_common(s, a->c);
+  add_exclude(s, a->c);
+  add_engine(s, a->c);
+  add_errors_in_variables(s, a->c);
+  s->add_option("--start", a->start, "Effects to start from (@FILE: a user-defined effect)")
+      ->capture_default_str();
+  s->add_option("--candidates", a->candidates,
+                "User-defined effects the ladder may add beside the library's: @FILE,@FILE");
+  s->add_flag(
+      "--exact-candidates", a->exact_candidates,
+      "Refit every candidate effect (a warm-started fit each) instead of screening them from "
+      "one pass of the model with all of them and refitting only those that could be the "
+      "best (slower; the screened figures are linearised)");
+  s->add_option("--min-gain", a->min_gain,
+                "Smallest share of held-out error an effect must remove to be added")
+      ->capture_default_str();
+  s->add_option("--block", a->block,
+                "Length of the held-out time blocks, s; default: 60 s when the log holds 8 "
+                "such blocks, else the log's length / 8 (at least 0.5 s)");
+  s->add_option("-o,--out", a->out, "Write the ladder as JSON (for zerog report)");
+  s->add_option("--truth", a->truth,
+                "Truth model (from zerog sim): add the true-model reference and the sensor "
+                "floor (held-out blocks)")
+      ->check(CLI::ExistingFile);
+  s->add_option("--plot", a->plot, "Plot the error at each step into this PNG (matplotlib)");
+  s->callback([a] { run_ladder(*a); });
+}
+
 }  // namespace
 
 void add_ident_commands(CLI::App& app) {
-  // fit
-  {
-    auto c = std::make_shared<Common>();
-    auto effects = std::make_shared<std::string>(io::effect_list_string(model::kDefaultModel));
-    auto out = std::make_shared<std::string>();
-    auto loss = std::make_shared<std::string>("none");
-    auto loss_scale = std::make_shared<double>(3.0);
-    auto max_iter = std::make_shared<int>(50);
-    auto truth = std::make_shared<std::string>();
-    auto block_samples = std::make_shared<int>(8);
-    auto tool_change = std::make_shared<bool>(false);
-    auto std_kind = std::make_shared<std::string>("robust");
-    auto cluster_s = std::make_shared<double>(10.0);
-    auto no_consistency = std::make_shared<bool>(false);
-    auto base = std::make_shared<std::string>();
-    CLI::App* s = app.add_subcommand("fit", "Fit a model (a list of effects) to a log with Ceres");
-    add_common(s, *c);
-    add_exclude(s, *c);
-    add_engine(s, *c);
-    add_errors_in_variables(s, *c);
-    auto* effects_opt =
-        s->add_option("-e,--effects", *effects,
-                      "Comma-separated effects (proto/effects.md); @FILE adds a user-defined "
-                      "effect (proto/user_effects.md)")
-            ->capture_default_str();
-    s->add_flag("--tool-change", *tool_change,
-                "After an end-effector change: fit only the payload (gravity: mass, centre of "
-                "mass) on the static samples of LOG, every other effect of --base held at its "
-                "values (paper 001 section 3.2)")
-        ->excludes(effects_opt);
-    s->add_option("--base", *base, "With --tool-change: the previous fit (model file) to keep")
-        ->check(CLI::ExistingFile);
-    s->add_option("-o,--out", *out, "Model file to write (JSON, written atomically)");
-    s->add_option("--loss", *loss, "Robust loss: none, huber, cauchy")
-        ->check(CLI::IsMember({"none", "huber", "cauchy"}))
-        ->capture_default_str();
-    s->add_option("--loss-scale", *loss_scale, "Robust loss scale, in per-axis noise units")
-        ->capture_default_str();
-    s->add_option("--max-iterations", *max_iter, "Solver iterations per pass")
-        ->capture_default_str();
-    s->add_option("--block-samples", *block_samples,
-                  "Compare model and measurement on means of this many consecutive samples (1 = "
-                  "each sample)")
-        ->check(CLI::Range(1, 1000))
-        ->capture_default_str();
-    s->add_option("--truth", *truth, "Truth model (from zerog sim) to print beside the estimates");
-    s->add_option("--std", *std_kind,
-                  "What +- is: robust (the larger of the model-based and a cluster-robust "
-                  "sandwich standard deviation: coloured noise, a model that misses something) or "
-                  "white (model-based only: white, correctly modelled noise)")
-        ->check(CLI::IsMember({"robust", "white"}))
-        ->capture_default_str();
-    s->add_option("--cluster", *cluster_s,
-                  "Cluster length of the robust standard deviation, s of log time (a table's rows "
-                  "are each a cluster)")
-        ->check(CLI::PositiveNumber)
-        ->capture_default_str();
-    s->add_flag("--no-consistency", *no_consistency,
-                "Skip the check that fits each half of the rows and plain weights again");
-    s->callback([=] {
-      if (*tool_change) {
-        run_tool_change(*c, *base, *out, *loss, *loss_scale, *max_iter, *block_samples, *truth);
-        return;
-      }
-      if (!base->empty()) throw std::invalid_argument("--base is for --tool-change");
-      run_fit(*c, *effects, *out, *loss, *loss_scale, *max_iter, *block_samples, *truth, *std_kind,
-              *cluster_s, !*no_consistency);
-    });
-  }
-  // compare
-  {
-    auto c = std::make_shared<Common>();
-    auto model_path = std::make_shared<std::string>();
-    auto truth = std::make_shared<std::string>();
-    auto bins = std::make_shared<int>(6);
-    CLI::App* s = app.add_subcommand(
-        "compare",
-        "Measured against predicted per axis: RMS and max error, static/moving, by joint angle");
-    add_common(s, *c);
-    add_exclude(s, *c);
-    s->add_option("-m,--model", *model_path, "Model file (from zerog fit)")
-        ->required()
-        ->check(CLI::ExistingFile);
-    s->add_option("--truth", *truth,
-                  "Truth model (from zerog sim): also print the true-model reference and the "
-                  "sensor floor")
-        ->check(CLI::ExistingFile);
-    s->add_option("--bins", *bins, "Joint-angle bins per joint")
-        ->check(CLI::Range(1, 100))
-        ->capture_default_str();
-    s->callback([=] { run_compare(*c, *model_path, *truth, *bins); });
-  }
-  // diagnose
-  {
-    auto c = std::make_shared<Common>();
-    auto model_path = std::make_shared<std::string>();
-    auto effects = std::make_shared<std::string>();
-    auto block = std::make_shared<double>(0.0);  // 0: chosen from the log
-    auto no_discover = std::make_shared<bool>(false);
-    auto candidates = std::make_shared<std::string>();
-    auto discovered_out = std::make_shared<std::string>();  // empty: beside the log
-    auto exact_candidates = std::make_shared<bool>(false);
-    CLI::App* s = app.add_subcommand(
-        "diagnose",
-        "Rank the effects a model lacks by how much they reduce the error on held-out data");
-    add_common(s, *c);
-    add_exclude(s, *c);
-    add_engine(s, *c);
-    add_errors_in_variables(s, *c);
-    s->add_option("-m,--model", *model_path,
-                  "Fitted model to diagnose (its effects and start values)")
-        ->check(CLI::ExistingFile);
-    s->add_option("-e,--effects", *effects,
-                  "Or: the effects of the model to diagnose (@FILE: a user-defined effect); "
-                  "default bias,gravity,linear_inertia,rotational_inertia (a static table: "
-                  "bias,gravity)");
-    s->add_option("--candidates", *candidates,
-                  "User-defined effects to try beside the library's: @FILE,@FILE "
-                  "(proto/user_effects.md)");
-    s->add_flag("--no-discover", *no_discover,
-                "When no library effect explains the residual, do not search the signal "
-                "dictionary for a law");
-    s->add_flag(
-        "--exact-candidates", *exact_candidates,
-        "Refit every candidate effect (a warm-started fit each) instead of screening them from "
-        "one pass of the model with all of them and refitting only those that could be the "
-        "best (slower; the screened figures are linearised)");
-    s->add_option("--discovered-out", *discovered_out,
-                  "Where to write a discovered law as an effect file (proto/user_effects.md); "
-                  "default: beside the log, LOG's name with .discovered.toml");
-    s->add_option("--block", *block,
-                  "Length of the held-out time blocks, s (every 4th block is held out); default: "
-                  "60 s when the log holds 8 such blocks, else the log's length / 8 (at least "
-                  "0.5 s)");
-    s->callback([=] {
-      const ident::Dataset data = ident::read_dataset(c->log);
-      ident::DiagnoseOptions o;
-      o.block_s = *block;
-      o.log_path = c->log;
-      o.progress = progress(*c);
-      o.fit.threads = c->threads;
-      o.fit.engine = c->engine;
-      o.fit.errors_in_variables = c->errors_in_variables;
-      o.discover = !*no_discover;
-      o.exact_candidates = *exact_candidates;
-      o.fit_out = suggested_fit_out(c->log);
-      // By default a new file: a law of an earlier turn of the loop keeps its file.
-      o.discovery_path = discovered_out->empty() ? new_file_beside(c->log, ".discovered", ".toml")
-                                                 : *discovered_out;
-      o.user_candidates = user_candidates(*candidates);
-      std::optional<io::ModelFile> m;
-      if (!model_path->empty()) {
-        m = io::read_model(*model_path);
-        o.fit.effects = m->params.effects;
-        o.fit.user = m->params.user;
-        o.fit.initial = &m->params;
-        // The suggested command names the model file for its user effects (@fit.json).
-        o.model_text = io::model_spec_string(m->params.effects, m->params.user,
-                                             m->params.user.empty()
-                                                 ? std::vector<std::filesystem::path>{}
-                                                 : std::vector<std::filesystem::path>{*model_path});
-      } else {
-        // A static table feeds no inertia: its default model is bias and gravity.
-        const std::string fallback = data.columns.static_rows
-                                         ? std::string("bias,gravity")
-                                         : io::effect_list_string(model::kDefaultModel);
-        const io::ModelSpec spec = io::parse_model_spec(effects->empty() ? fallback : *effects);
-        o.fit.effects = spec.effects;
-        o.fit.user = spec.user;
-        o.model_text = io::model_spec_string(spec.effects, spec.user, spec.files);
-      }
-      // What this diagnosis is of (zerog report checks it): the model, its file, the log.
-      nlohmann::json made_for = {
-          {"model", model_identity(o.fit.effects, o.fit.user, m ? *model_path : std::string())},
-          {"log", log_identity(c->log)}};
-      // What to leave out: --exclude, else what the model's own fit on this log left out.
-      std::string exclude = c->exclude;
-      if (exclude.empty() && m && m->extra.contains("fit") && m->extra["fit"].contains("exclude") &&
-          m->extra["fit"].contains("log") && m->extra["fit"]["log"].is_string()) {
-        std::error_code ec;
-        const std::string fitted_log = m->extra["fit"]["log"].get<std::string>();
-        if (std::filesystem::equivalent(fitted_log, c->log, ec) && !ec) {
-          exclude = m->extra["fit"]["exclude"].value("spans", std::string());
-          if (!exclude.empty() && !c->quiet)
-            std::fprintf(stderr, "diagnose: leaving out what %s's fit left out: %s\n",
-                         model_path->c_str(), exclude.c_str());
-        }
-      }
-      std::vector<std::uint8_t> out_rows;
-      if (!exclude.empty())
-        out_rows = ident::exclude_mask(data, ident::parse_exclude(exclude), c->log);
-      if (!out_rows.empty()) {
-        o.exclude = &out_rows;
-        o.exclude_text = exclude;
-      }
-      const ident::Diagnosis d = ident::diagnose(data, o);
-      if (c->json) {
-        nlohmann::json j = ident::to_json(d);
-        j["version"] = 3;  // "made_for", events (proto/json_output.md)
-        j["made_for"] = std::move(made_for);
-        std::cout << j.dump(2) << "\n";
-      } else {
-        std::printf("%s", ident::format_diagnosis(d).c_str());
-      }
-    });
-  }
-  // ladder
-  {
-    auto c = std::make_shared<Common>();
-    auto start = std::make_shared<std::string>(io::effect_list_string(model::kMinimalModel));
-    auto min_gain = std::make_shared<double>(0.02);
-    auto block = std::make_shared<double>(0.0);  // 0: chosen from the log
-    auto out = std::make_shared<std::string>();
-    auto truth = std::make_shared<std::string>();
-    auto plot = std::make_shared<std::string>();
-    auto candidates = std::make_shared<std::string>();
-    auto exact_candidates = std::make_shared<bool>(false);
-    CLI::App* s = app.add_subcommand("ladder",
-                                     "From a minimal model, add the best effect step by step while "
-                                     "it pays; print the error at each step");
-    add_common(s, *c);
-    add_exclude(s, *c);
-    add_engine(s, *c);
-    add_errors_in_variables(s, *c);
-    s->add_option("--start", *start, "Effects to start from (@FILE: a user-defined effect)")
-        ->capture_default_str();
-    s->add_option("--candidates", *candidates,
-                  "User-defined effects the ladder may add beside the library's: @FILE,@FILE");
-    s->add_flag(
-        "--exact-candidates", *exact_candidates,
-        "Refit every candidate effect (a warm-started fit each) instead of screening them from "
-        "one pass of the model with all of them and refitting only those that could be the "
-        "best (slower; the screened figures are linearised)");
-    s->add_option("--min-gain", *min_gain,
-                  "Smallest share of held-out error an effect must remove to be added")
-        ->capture_default_str();
-    s->add_option("--block", *block,
-                  "Length of the held-out time blocks, s; default: 60 s when the log holds 8 "
-                  "such blocks, else the log's length / 8 (at least 0.5 s)");
-    s->add_option("-o,--out", *out, "Write the ladder as JSON (for zerog report)");
-    s->add_option("--truth", *truth,
-                  "Truth model (from zerog sim): add the true-model reference and the sensor "
-                  "floor (held-out blocks)")
-        ->check(CLI::ExistingFile);
-    s->add_option("--plot", *plot, "Plot the error at each step into this PNG (matplotlib)");
-    s->callback([=] {
-      const ident::Dataset data = ident::read_dataset(c->log);
-      ident::LadderOptions o;
-      o.min_gain = *min_gain;
-      o.diagnose.block_s = *block;
-      o.diagnose.log_path = c->log;
-      o.diagnose.progress = progress(*c);
-      o.diagnose.fit.threads = c->threads;
-      o.diagnose.fit.engine = c->engine;
-      o.diagnose.fit.errors_in_variables = c->errors_in_variables;
-      o.diagnose.exact_candidates = *exact_candidates;
-      const io::ModelSpec spec = io::parse_model_spec(*start);
-      o.diagnose.fit.effects = spec.effects;
-      o.diagnose.fit.user = spec.user;
-      o.diagnose.user_candidates = user_candidates(*candidates);
-      const std::vector<std::uint8_t> out_rows = excluded_rows(*c, data);
-      if (!out_rows.empty()) {
-        o.diagnose.exclude = &out_rows;
-        o.diagnose.exclude_text = c->exclude;
-      }
-      const ident::BlockChoice split = ident::choose_blocks(data, *block);
-      if (o.diagnose.progress) o.diagnose.progress("ladder: held-out split: " + split.text);
-      const auto steps = ident::ladder(data, o);
-      nlohmann::json j = ident::to_json(steps);
-      j["split"] = ident::to_json(split);
-      // Which source fed which effect of the ladder's last (largest) model.
-      const auto feeds = ident::kinematics_feeds(
-          steps.empty() ? o.diagnose.fit.effects : steps.back().effects, data);
-      j["kinematics_sources"] = ident::kinematics_json(feeds, data);
-      std::optional<ident::Floors> floors;
-      if (!truth->empty()) {
-        const auto mask = ident::heldout_mask(data, split.block_s);
-        floors = ident::floors(*truth, data, &mask);
-      }
-      j["version"] = 3;  // the floors' keys below, "made_for" (proto/json_output.md)
-      floors_into(j, floors ? &*floors : nullptr);
-      // The F/T-only floor against the last step's held-out error (ft_floor.hpp).
-      const ident::FtFloor ft = ident::ft_floor(data);
-      j["ft_floor"] = ident::to_json(ft, nullptr);
-      std::string ft_text = ident::format_ft_floor(ft, nullptr);
-      if (ft.known && !steps.empty() && ft.force_rms > 0.0 && ft.torque_rms > 0.0) {
-        const ident::ErrorStats& last = steps.back().heldout.stats;
-        j["ft_floor"]["heldout_ratio"] = {{"force", last.force_rms / ft.force_rms},
-                                          {"torque", last.torque_rms / ft.torque_rms}};
-        char line[200];
-        std::snprintf(line, sizeof line,
-                      "  the last step's held-out error against it: %.2fx (force) / %.2fx "
-                      "(torque)\n",
-                      last.force_rms / ft.force_rms, last.torque_rms / ft.torque_rms);
-        ft_text += line;
-      }
-      // A ladder is made for its log; it climbs from its own start, not from one model.
-      j["made_for"] = {{"model", nullptr},
-                       {"start", model_identity(spec.effects, spec.user)["effects"]},
-                       {"log", log_identity(c->log)}};
-      const std::vector<std::filesystem::path> inputs = {c->log, io::rig_path_for(c->log)};
-      if (!out->empty()) io::write_file_atomic(*out, j.dump(2) + "\n", inputs);
-      if (!plot->empty()) {
-        for (const auto& in : inputs)
-          if (std::filesystem::weakly_canonical(in) == std::filesystem::weakly_canonical(*plot))
-            throw std::runtime_error(*plot + " is an input of this run; refusing to overwrite it");
-        const std::string tmp = *plot + ".ladder.json.tmp";
-        io::write_file_atomic(tmp, j.dump() + "\n", inputs);
-        try {
-          run_report_script({"--ladder-plot", tmp, *plot});
-        } catch (...) {
-          std::filesystem::remove(tmp);
-          throw;
-        }
-        std::filesystem::remove(tmp);
-      }
-      if (c->json) {
-        std::cout << j.dump(2) << "\n";
-        return;
-      }
-      std::printf("held-out split: %s\n", split.text.c_str());
-      std::printf("%s", ident::format_ladder(steps).c_str());
-      std::printf("%s", ident::format_kinematics(feeds, data).c_str());
-      if (floors) std::printf("%s", ident::format_floors(*floors, "held-out").c_str());
-      std::printf("%s", ft_text.c_str());
-      if (!out->empty()) std::printf("wrote %s\n", out->c_str());
-      if (!plot->empty()) std::printf("plotted %s\n", plot->c_str());
-    });
-  }
+  add_fit_command(app);
+  add_compare_command(app);
+  add_diagnose_command(app);
+  add_ladder_command(app);
 }
 
 }  // namespace zerog::cli
