@@ -526,114 +526,142 @@ std::uint32_t crc32(std::string_view bytes, std::uint32_t crc) {
   return c ^ 0xFFFFFFFFu;
 }
 
-zerog::Status validate_model(const DeployedModel& m, LoadError* kind) {
-  using E = LoadError;
-  if (kind != nullptr) *kind = E::none;
-  // A refusal: the loader's category into *kind, the field and why into the Status.
-  const auto refuse = [kind](E e, std::string setting, std::string why) {
+namespace {
+
+// A refusal: the loader's category into *kind, the field and why into the Status.
+struct Refuse {
+  LoadError* kind;
+  zerog::Status operator()(LoadError e, std::string setting, std::string why) const {
     if (kind != nullptr) *kind = e;
     return zerog::Status::invalid(std::move(setting), std::move(why));
-  };
-  const auto sizes = [&refuse](std::string setting, std::string why) {
-    return refuse(E::inconsistent_sizes, std::move(setting), std::move(why));
-  };
-  const RigDescription& r = m.rig;
-  if (r.name.empty()) return refuse(E::invalid_value, "rig.name", "is empty");
+  }
+  zerog::Status sizes(std::string setting, std::string why) const {
+    return (*this)(LoadError::inconsistent_sizes, std::move(setting), std::move(why));
+  }
+};
+
+zerog::Status validate_rig(const RigDescription& r, const Refuse& refuse) {
+  if (r.name.empty()) return refuse(LoadError::invalid_value, "rig.name", "is empty");
   if (std::abs(r.q_flange_sensor.norm() - 1.0) > 1e-6)
-    return refuse(E::invalid_value, "rig.flange_sensor.q_wxyz", "is not a quaternion of unit norm");
+    return refuse(LoadError::invalid_value, "rig.flange_sensor.q_wxyz",
+                  "is not a quaternion of unit norm");
   if (std::abs(r.q_sensor_imu.norm() - 1.0) > 1e-6)
-    return refuse(E::invalid_value, "rig.sensor_imu.q_wxyz", "is not a quaternion of unit norm");
+    return refuse(LoadError::invalid_value, "rig.sensor_imu.q_wxyz",
+                  "is not a quaternion of unit norm");
   if (!r.p_flange_sensor_m.allFinite())
-    return refuse(E::invalid_value, "rig.flange_sensor.p_m", "is not finite");
+    return refuse(LoadError::invalid_value, "rig.flange_sensor.p_m", "is not finite");
   if (!r.p_sensor_imu_m.allFinite())
-    return refuse(E::invalid_value, "rig.sensor_imu.p_m", "is not finite");
+    return refuse(LoadError::invalid_value, "rig.sensor_imu.p_m", "is not finite");
   if (!positive_finite(r.sample_period_s))
-    return refuse(E::invalid_value, "rig.sample_period_s", "must be positive");
-  if ((m.physics.effects.bits() >> model::kEffectCount) != 0)
-    return refuse(E::unknown_effect, "physics.effects", "an effect outside the library");
+    return refuse(LoadError::invalid_value, "rig.sample_period_s", "must be positive");
+  return {};
+}
+
+zerog::Status validate_physics(const model::ModelParams& physics, const Refuse& refuse) {
+  if ((physics.effects.bits() >> model::kEffectCount) != 0)
+    return refuse(LoadError::unknown_effect, "physics.effects", "an effect outside the library");
   for (model::Effect e : model::kAllEffects) {
-    if (!m.physics.effects.has(e)) continue;
+    if (!physics.effects.has(e)) continue;
     const model::EffectInfo& info = model::info(e);
     for (const auto& req : info.requires_effects)
-      if (req && !m.physics.effects.has(*req))
-        return refuse(E::invalid_value, "physics.effects",
+      if (req && !physics.effects.has(*req))
+        return refuse(LoadError::invalid_value, "physics.effects",
                       std::string("effect '") + info.name + "' builds on '" +
                           model::info(*req).name + "', which the model lacks");
     for (int k = 0; k < info.num_params; ++k)
-      if (!std::isfinite(m.physics.block(e)[k]))
-        return refuse(E::invalid_value,
+      if (!std::isfinite(physics.block(e)[k]))
+        return refuse(LoadError::invalid_value,
                       std::string("physics.parameters.") + info.name + "." + info.params[k].name,
                       "is not finite");
   }
-  for (int t = 0; t < m.physics.user.num_terms; ++t)
-    if (!std::isfinite(m.physics.user.coeff[static_cast<std::size_t>(t)]))
-      return refuse(E::invalid_value, "physics.user_terms[" + std::to_string(t) + "].value",
+  for (int t = 0; t < physics.user.num_terms; ++t)
+    if (!std::isfinite(physics.user.coeff[static_cast<std::size_t>(t)]))
+      return refuse(LoadError::invalid_value, "physics.user_terms[" + std::to_string(t) + "].value",
                     "is not finite");
-  if (!m.network) return {};
-  const DeployedNetwork& n = *m.network;
+  return {};
+}
+
+// Layers, widths, activations, features and output axes.
+zerog::Status validate_shape(const DeployedNetwork& n, const Refuse& refuse) {
   const model::NetworkShape& s = n.shape;
   const int L = s.num_layers();
   if (L < 1 || L > model::kMaxNetworkLayers)
-    return sizes("network", std::to_string(L) + " layers, the firmware takes 1.." +
-                                std::to_string(model::kMaxNetworkLayers));
+    return refuse.sizes("network", std::to_string(L) + " layers, the firmware takes 1.." +
+                                       std::to_string(model::kMaxNetworkLayers));
   if (static_cast<int>(s.width.size()) != L + 1)
-    return sizes("network", "width list does not match the layers");
+    return refuse.sizes("network", "width list does not match the layers");
   for (int l = 0; l <= L; ++l)
     if (s.width[l] < 1 || s.width[l] > model::kMaxNetworkWidth)
-      return sizes("network", "width " + std::to_string(s.width[l]) + " outside 1.." +
-                                  std::to_string(model::kMaxNetworkWidth));
+      return refuse.sizes("network", "width " + std::to_string(s.width[l]) + " outside 1.." +
+                                         std::to_string(model::kMaxNetworkWidth));
   for (model::Activation a : s.activation)
     if (static_cast<int>(a) > static_cast<int>(model::Activation::tanh))
-      return refuse(E::unknown_activation, "network", "unknown activation");
+      return refuse(LoadError::unknown_activation, "network", "unknown activation");
   for (model::Feature f : n.features)
     if (static_cast<int>(f) >= model::kFeatureCount)
-      return refuse(E::unknown_feature, "network", "unknown feature");
+      return refuse(LoadError::unknown_feature, "network", "unknown feature");
   const auto in = static_cast<std::size_t>(s.width.front());
   if (n.features.size() != in)
-    return sizes("network", std::to_string(n.features.size()) + " features for " +
-                                std::to_string(in) + " inputs");
+    return refuse.sizes("network", std::to_string(n.features.size()) + " features for " +
+                                       std::to_string(in) + " inputs");
   const auto n_out = static_cast<std::size_t>(s.width.back());
   if (n.output_axes.size() != n_out)
-    return sizes("network", std::to_string(n.output_axes.size()) + " output axes for " +
-                                std::to_string(n_out) + " outputs");
+    return refuse.sizes("network", std::to_string(n.output_axes.size()) + " output axes for " +
+                                       std::to_string(n_out) + " outputs");
   for (std::size_t k = 0; k < n_out; ++k) {
     if (n.output_axes[k] < 0 || n.output_axes[k] > 5)
-      return refuse(E::invalid_value, "network.outputs", "axis index outside 0..5");
+      return refuse(LoadError::invalid_value, "network.outputs", "axis index outside 0..5");
     for (std::size_t o = 0; o < k; ++o)
       if (n.output_axes[o] == n.output_axes[k])
-        return refuse(E::invalid_value, "network.outputs",
+        return refuse(LoadError::invalid_value, "network.outputs",
                       std::string("axis ") + kAxisNames[n.output_axes[k]] + " is listed twice");
   }
+  return {};
+}
+
+// Normalisation and the float parameters (validate_shape first: sizes from the shape).
+zerog::Status validate_float_network(const DeployedNetwork& n, const Refuse& refuse) {
+  const model::NetworkShape& s = n.shape;
+  const auto in = static_cast<std::size_t>(s.width.front());
+  const auto n_out = static_cast<std::size_t>(s.width.back());
   const model::NetworkNormalisation& nm = n.normalisation;
   if (nm.input_mean.size() != in || nm.input_scale.size() != in || nm.output_mean.size() != n_out ||
       nm.output_scale.size() != n_out)
-    return sizes("network.normalisation", "need " + std::to_string(in) + " input and " +
-                                              std::to_string(n_out) + " output means and scales");
+    return refuse.sizes("network.normalisation", "need " + std::to_string(in) + " input and " +
+                                                     std::to_string(n_out) +
+                                                     " output means and scales");
   for (double v : nm.input_scale)
     if (!positive_finite(v))
-      return refuse(E::invalid_value, "network.normalisation.input_scale",
+      return refuse(LoadError::invalid_value, "network.normalisation.input_scale",
                     "has a value that is not positive");
   for (double v : nm.output_scale)
     if (!positive_finite(v))
-      return refuse(E::invalid_value, "network.normalisation.output_scale",
+      return refuse(LoadError::invalid_value, "network.normalisation.output_scale",
                     "has a value that is not positive");
   for (const auto* vec : {&nm.input_mean, &nm.output_mean, &n.params})
     for (double v : *vec)
       if (!std::isfinite(v))
-        return refuse(E::invalid_value, "network", "a mean or weight is not finite");
+        return refuse(LoadError::invalid_value, "network", "a mean or weight is not finite");
   if (static_cast<int>(n.params.size()) != s.num_params())
-    return sizes("network", std::to_string(n.params.size()) +
-                                " float parameters, the shape needs " +
-                                std::to_string(s.num_params()));
+    return refuse.sizes("network", std::to_string(n.params.size()) +
+                                       " float parameters, the shape needs " +
+                                       std::to_string(s.num_params()));
+  return {};
+}
+
+// The quantised layers (validate_shape first).
+zerog::Status validate_quantised(const DeployedNetwork& n, const Refuse& refuse) {
+  const model::NetworkShape& s = n.shape;
+  const int L = s.num_layers();
   const QuantisedNetwork& q = n.quantised;
   if (q.weight_bits != 8 && q.weight_bits != 16)
-    return refuse(E::invalid_value, "network.quantisation.weight_bits",
+    return refuse(LoadError::invalid_value, "network.quantisation.weight_bits",
                   "must be 8 or 16, is " + std::to_string(q.weight_bits));
   if (!positive_finite(q.input_clip))
-    return refuse(E::invalid_value, "network.quantisation.input_clip", "must be positive");
+    return refuse(LoadError::invalid_value, "network.quantisation.input_clip", "must be positive");
   if (static_cast<int>(q.layers.size()) != L)
-    return sizes("network", std::to_string(q.layers.size()) + " quantised layers for " +
-                                std::to_string(L) + " layers");
+    return refuse.sizes("network", std::to_string(q.layers.size()) + " quantised layers for " +
+                                       std::to_string(L) + " layers");
   const std::int64_t qmax = q.weight_bits == 8 ? 127 : 32767;
   for (int l = 0; l < L; ++l) {
     const QuantisedLayer& ql = q.layers[static_cast<std::size_t>(l)];
@@ -641,31 +669,45 @@ zerog::Status validate_model(const DeployedModel& m, LoadError* kind) {
     const auto rows = static_cast<std::size_t>(s.width[l + 1]);
     if (ql.weights.size() != rows * static_cast<std::size_t>(s.width[l]) ||
         ql.weight_scale.size() != rows || ql.bias.size() != rows)
-      return sizes(where, std::to_string(ql.weights.size()) + " quantised weights, " +
-                              std::to_string(ql.weight_scale.size()) + " scales and " +
-                              std::to_string(ql.bias.size()) + " biases for " +
-                              std::to_string(s.width[l]) + " inputs × " + std::to_string(rows) +
-                              " outputs");
+      return refuse.sizes(where, std::to_string(ql.weights.size()) + " quantised weights, " +
+                                     std::to_string(ql.weight_scale.size()) + " scales and " +
+                                     std::to_string(ql.bias.size()) + " biases for " +
+                                     std::to_string(s.width[l]) + " inputs × " +
+                                     std::to_string(rows) + " outputs");
     for (std::int16_t w : ql.weights)
       if (std::abs(static_cast<std::int64_t>(w)) > qmax)
-        return refuse(E::invalid_value, where + ".q_weights",
+        return refuse(LoadError::invalid_value, where + ".q_weights",
                       std::to_string(w) + " exceeds " + std::to_string(q.weight_bits) + " bits");
     for (double v : ql.weight_scale)
       if (!positive_finite(v))
-        return refuse(E::invalid_value, where + ".q_weight_scale",
+        return refuse(LoadError::invalid_value, where + ".q_weight_scale",
                       "has a value that is not positive");
     for (std::int64_t b : ql.bias)
       if (b > bias_limit(q.weight_bits) || b < -bias_limit(q.weight_bits))
-        return refuse(E::invalid_value, where + ".q_bias", "exceeds the accumulator range");
+        return refuse(LoadError::invalid_value, where + ".q_bias", "exceeds the accumulator range");
     if (!positive_finite(ql.input_scale) || !positive_finite(ql.output_scale))
-      return refuse(E::invalid_value, where, "q_input_scale and q_output_scale must be positive");
+      return refuse(LoadError::invalid_value, where,
+                    "q_input_scale and q_output_scale must be positive");
     const double expected_in =
         l == 0 ? q.input_clip / kActMax : q.layers[static_cast<std::size_t>(l - 1)].output_scale;
     if (std::abs(ql.input_scale - expected_in) > 1e-12 * expected_in)
-      return sizes(
+      return refuse.sizes(
           where + ".q_input_scale",
           fmt(ql.input_scale) + " does not match the scale of its input " + fmt(expected_in));
   }
+  return {};
+}
+
+}  // namespace
+
+zerog::Status validate_model(const DeployedModel& m, LoadError* kind) {
+  if (kind != nullptr) *kind = LoadError::none;
+  const Refuse refuse{kind};
+  if (zerog::Status st = validate_rig(m.rig, refuse); !st.ok()) return st;
+  if (zerog::Status st = validate_physics(m.physics, refuse); !st.ok()) return st;
+  if (!m.network) return {};
+  for (auto* check : {&validate_shape, &validate_float_network, &validate_quantised})
+    if (zerog::Status st = check(*m.network, refuse); !st.ok()) return st;
   return {};
 }
 
