@@ -92,9 +92,8 @@ OmegaDotCheck omega_dot_check(const io::ModelFile& fit) {
   return c;
 }
 
-void run_export(const ExportArgs& a) {
-  const io::ModelFile fit = io::read_model(a.model);
-  const io::Rig rig = io::read_rig(a.rig);
+// What makes a fit unfit to deploy on this rig, said before anything is built.
+void check_exportable(const ExportArgs& a, const io::ModelFile& fit, const io::Rig& rig) {
   if (!fit.rig_name.empty() && fit.rig_name != rig.name)
     throw std::runtime_error(a.model + ": fitted on rig '" + fit.rig_name + "', but " + a.rig +
                              " describes rig '" + rig.name + "'");
@@ -106,6 +105,100 @@ void run_export(const ExportArgs& a) {
                              ": its bias_drift was fitted over a static table's rows (per row, not "
                              "per second); fit the drift on a log with time, or export the model "
                              "without bias_drift");
+}
+
+// The calibration log of --calibration (the quantisation's ranges and the checks below).
+struct Calibration {
+  std::optional<io::Log> log;
+  std::optional<ident::Dataset> data;
+};
+
+// --network: the residual network, checked against the fit and quantised into m.
+void add_network(const ExportArgs& a, const io::ModelFile& fit, learn::NetworkFile& net,
+                 Calibration& calib, infer::DeployedModel& m, nlohmann::json& provenance,
+                 std::vector<fs::path>& inputs) {
+  net = learn::read_network(a.network);
+  inputs.emplace_back(a.network);
+  if (net.kind != learn::NetworkKind::residual)
+    throw std::runtime_error(a.network + ": a '" + learn::kind_name(net.kind) +
+                             "' network predicts the whole wrench; zerog export deploys "
+                             "'residual' networks on top of the physics model");
+  if (net.physics) check_same_physics(fit.params, net.physics->params, a.network);
+  infer::QuantiseOptions q;
+  q.weight_bits = a.weight_bits;
+  q.input_clip = a.input_clip;
+  if (!a.calibration.empty()) {
+    calib.log = io::read_log(a.calibration);
+    calib.data = ident::make_dataset(*calib.log);
+    inputs.emplace_back(a.calibration);
+    provenance["calibration"] = fs::path(a.calibration).filename().string();
+  }
+  m.network = learn::deploy_network(net, q, calib.data ? &*calib.data : nullptr,
+                                    calib.log ? &*calib.log : nullptr);
+  provenance["network"] = fs::path(a.network).filename().string();
+}
+
+// The warning that the deployed model runs on another ω̇ than it was fitted on.
+void warn_omega_dot(const ExportArgs& a, const OmegaDotCheck& omega_dot) {
+  std::string effects;
+  for (const std::string& e : omega_dot.effects) effects += (effects.empty() ? "" : ", ") + e;
+  std::fprintf(stderr,
+               "zerog export: warning: %s was fitted on the angular acceleration from '%s' "
+               "(%s), but zerog-rt's cycle computes it as '%s' (the 5-point central "
+               "difference of the gyro, model::angular_accel_central): %s will run on "
+               "another omega_dot than they were fitted on. To deploy what the cycle "
+               "computes, import with kinematics = \"imu\" (no imu_dw* columns) and refit; "
+               "%s records both (provenance.omega_dot)\n",
+               a.model.c_str(), omega_dot.fit_source.c_str(), omega_dot.fit_method.c_str(),
+               std::string(ident::kCycleOmegaDotSource).c_str(), effects.c_str(), a.out.c_str());
+}
+
+// On the calibration samples: quantised against float, and the firmware's float path against
+// the host's prediction (same physics, features and forward pass; a difference means the
+// deployed model would not be the trained one: an error).
+void check_on_calibration(const ExportArgs& a, const infer::DeployedModel& model,
+                          const learn::NetworkFile& net, const Calibration& calib) {
+  infer::Inference inf;
+  if (const Status st = inf.configure(model); !st.ok())
+    throw std::runtime_error("internal: " + st.text());
+  double max_f = 0.0, max_m = 0.0;
+  std::size_t saturated = 0;
+  for (std::size_t i = 0; i < calib.data->size(); ++i) {
+    const model::FeatureSignals s = learn::feature_signals(*calib.data, *calib.log, i);
+    infer::Wrench q, f;
+    if (inf.residual_quantised(s, q).code != infer::StatusCode::ok) ++saturated;
+    inf.residual_reference(s, f);
+    const infer::Wrench d = (q - f).cwiseAbs();
+    max_f = std::max(max_f, d.head<3>().maxCoeff());
+    max_m = std::max(max_m, d.tail<3>().maxCoeff());
+  }
+  std::fprintf(stderr,
+               "  quantised vs float on %zu calibration samples: max %.2g N, %.2g N*m "
+               "(%zu samples saturated)\n",
+               calib.data->size(), max_f, max_m, saturated);
+  // The firmware's float path must reproduce the host's prediction (same physics, features
+  // and forward pass); a difference means the deployed model would not be the trained one.
+  std::vector<model::FeatureSignals> signals(calib.data->size());
+  for (std::size_t i = 0; i < signals.size(); ++i)
+    signals[i] = learn::feature_signals(*calib.data, *calib.log, i);
+  std::vector<infer::Wrench> firmware(signals.size());
+  infer::evaluate_sequence(inf, infer::Path::float_reference, signals, firmware);
+  const std::vector<ident::Wrench> host = learn::predictions(net, *calib.data, *calib.log);
+  double worst = 0.0;
+  for (std::size_t i = 0; i < host.size(); ++i)
+    worst = std::max(worst, (firmware[i] - host[i]).cwiseAbs().maxCoeff());
+  std::fprintf(stderr, "  firmware float path vs zerog train's prediction: max %.2g\n", worst);
+  if (!(worst < 1e-6))
+    throw std::runtime_error(
+        "the deployed float path differs from the trained model's "
+        "prediction by " +
+        std::to_string(worst) + " on " + a.calibration);
+}
+
+void run_export(const ExportArgs& a) {
+  const io::ModelFile fit = io::read_model(a.model);
+  const io::Rig rig = io::read_rig(a.rig);
+  check_exportable(a, fit, rig);
   infer::DeployedModel m;
   m.rig = learn::rig_description(rig);
   m.physics = fit.params;
@@ -114,29 +207,8 @@ void run_export(const ExportArgs& a) {
                                {"zerog", "0.1.0"}};
   std::vector<fs::path> inputs = {a.model, a.rig};
   learn::NetworkFile net;
-  std::optional<io::Log> calib_log;
-  std::optional<ident::Dataset> calib_data;
-  if (!a.network.empty()) {
-    net = learn::read_network(a.network);
-    inputs.emplace_back(a.network);
-    if (net.kind != learn::NetworkKind::residual)
-      throw std::runtime_error(a.network + ": a '" + learn::kind_name(net.kind) +
-                               "' network predicts the whole wrench; zerog export deploys "
-                               "'residual' networks on top of the physics model");
-    if (net.physics) check_same_physics(fit.params, net.physics->params, a.network);
-    infer::QuantiseOptions q;
-    q.weight_bits = a.weight_bits;
-    q.input_clip = a.input_clip;
-    if (!a.calibration.empty()) {
-      calib_log = io::read_log(a.calibration);
-      calib_data = ident::make_dataset(*calib_log);
-      inputs.emplace_back(a.calibration);
-      provenance["calibration"] = fs::path(a.calibration).filename().string();
-    }
-    m.network = learn::deploy_network(net, q, calib_data ? &*calib_data : nullptr,
-                                      calib_log ? &*calib_log : nullptr);
-    provenance["network"] = fs::path(a.network).filename().string();
-  }
+  Calibration calib;
+  if (!a.network.empty()) add_network(a, fit, net, calib, m, provenance, inputs);
   const OmegaDotCheck omega_dot = omega_dot_check(fit);
   provenance["omega_dot"] = {{"fit", omega_dot.fit_source},
                              {"cycle", ident::kCycleOmegaDotSource},
@@ -152,19 +224,8 @@ void run_export(const ExportArgs& a) {
     throw std::runtime_error("internal: the exported file does not load: " + check.message);
   io::write_file_atomic(a.out, bytes, inputs);
   // Said even with --quiet: the deployed model may not run on the signal it was fitted on.
-  if (!omega_dot.effects.empty() && omega_dot.recorded() && !omega_dot.matches()) {
-    std::string effects;
-    for (const std::string& e : omega_dot.effects) effects += (effects.empty() ? "" : ", ") + e;
-    std::fprintf(stderr,
-                 "zerog export: warning: %s was fitted on the angular acceleration from '%s' "
-                 "(%s), but zerog-rt's cycle computes it as '%s' (the 5-point central "
-                 "difference of the gyro, model::angular_accel_central): %s will run on "
-                 "another omega_dot than they were fitted on. To deploy what the cycle "
-                 "computes, import with kinematics = \"imu\" (no imu_dw* columns) and refit; "
-                 "%s records both (provenance.omega_dot)\n",
-                 a.model.c_str(), omega_dot.fit_source.c_str(), omega_dot.fit_method.c_str(),
-                 std::string(ident::kCycleOmegaDotSource).c_str(), effects.c_str(), a.out.c_str());
-  }
+  if (!omega_dot.effects.empty() && omega_dot.recorded() && !omega_dot.matches())
+    warn_omega_dot(a, omega_dot);
   if (a.quiet) return;
   std::fprintf(stderr, "zerog export: %s (%zu bytes, CRC-32 %s) for rig '%s'\n", a.out.c_str(),
                bytes.size(), bytes.substr(bytes.find("crc32=") + 6, 8).c_str(), rig.name.c_str());
@@ -184,43 +245,7 @@ void run_export(const ExportArgs& a) {
   std::fprintf(stderr,
                "  network: %s, %d-bit weights (per-output-channel scales), int16 activations\n",
                shape.c_str(), a.weight_bits);
-  if (calib_data) {
-    infer::Inference inf;
-    if (const Status st = inf.configure(*check.model); !st.ok())
-      throw std::runtime_error("internal: " + st.text());
-    double max_f = 0.0, max_m = 0.0;
-    std::size_t saturated = 0;
-    for (std::size_t i = 0; i < calib_data->size(); ++i) {
-      const model::FeatureSignals s = learn::feature_signals(*calib_data, *calib_log, i);
-      infer::Wrench q, f;
-      if (inf.residual_quantised(s, q).code != infer::StatusCode::ok) ++saturated;
-      inf.residual_reference(s, f);
-      const infer::Wrench d = (q - f).cwiseAbs();
-      max_f = std::max(max_f, d.head<3>().maxCoeff());
-      max_m = std::max(max_m, d.tail<3>().maxCoeff());
-    }
-    std::fprintf(stderr,
-                 "  quantised vs float on %zu calibration samples: max %.2g N, %.2g N*m "
-                 "(%zu samples saturated)\n",
-                 calib_data->size(), max_f, max_m, saturated);
-    // The firmware's float path must reproduce the host's prediction (same physics, features
-    // and forward pass); a difference means the deployed model would not be the trained one.
-    std::vector<model::FeatureSignals> signals(calib_data->size());
-    for (std::size_t i = 0; i < signals.size(); ++i)
-      signals[i] = learn::feature_signals(*calib_data, *calib_log, i);
-    std::vector<infer::Wrench> firmware(signals.size());
-    infer::evaluate_sequence(inf, infer::Path::float_reference, signals, firmware);
-    const std::vector<ident::Wrench> host = learn::predictions(net, *calib_data, *calib_log);
-    double worst = 0.0;
-    for (std::size_t i = 0; i < host.size(); ++i)
-      worst = std::max(worst, (firmware[i] - host[i]).cwiseAbs().maxCoeff());
-    std::fprintf(stderr, "  firmware float path vs zerog train's prediction: max %.2g\n", worst);
-    if (!(worst < 1e-6))
-      throw std::runtime_error(
-          "the deployed float path differs from the trained model's "
-          "prediction by " +
-          std::to_string(worst) + " on " + a.calibration);
-  }
+  if (calib.data) check_on_calibration(a, *check.model, net, calib);
 }
 
 }  // namespace
