@@ -84,6 +84,98 @@ Document read_checked(const std::string& path, const char* kind, const char* wha
   return d;
 }
 
+// The bundle's data.csv (proto/report_bundle.md): per row the measured and predicted wrench, the
+// floors' predictions, the signals to plot the residual against, the held-out flag.
+void write_data_csv(const fs::path& bundle, const ident::Dataset& data,
+                    const std::vector<ident::Wrench>& res,
+                    const std::optional<ident::Floors>& floors, bool with_sensor,
+                    const std::vector<std::uint8_t>& heldout) {
+  std::ofstream csv(bundle / "data.csv");
+  csv << "t_s,moving";
+  const char* ax[] = {"Fx", "Fy", "Fz", "Mx", "My", "Mz"};
+  for (auto a : ax) csv << "," << a << "_meas";
+  for (auto a : ax) csv << "," << a << "_pred";
+  if (floors)
+    for (auto a : ax) csv << "," << a << "_true";
+  if (with_sensor)
+    for (auto a : ax) csv << "," << a << "_true_clean";
+  if (data.columns.joints) {
+    for (int j = 1; j <= 6; ++j) csv << ",q" << j << "_rad";
+    for (int j = 1; j <= 6; ++j) csv << ",qd" << j << "_radps";
+  }
+  if (data.columns.angular_rate) csv << ",omega_norm_radps,omega_dot_norm_radps2";
+  if (data.columns.specific_force) csv << ",accel_norm_mps2";
+  if (data.columns.temperature) csv << ",temp_C";
+  csv << ",heldout\n";
+  char buf[64];
+  auto put = [&](double v) {
+    std::snprintf(buf, sizeof buf, ",%.7g", v);
+    csv << buf;
+  };
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    std::snprintf(buf, sizeof buf, "%.6f,%d", data.t_s[i], data.moving[i]);
+    csv << buf;
+    for (int k = 0; k < 6; ++k) put(data.measured[i][k]);
+    for (int k = 0; k < 6; ++k) put(data.measured[i][k] - res[i][k]);
+    if (floors)
+      for (int k = 0; k < 6; ++k) put(data.measured[i][k] - floors->reference_residuals[i][k]);
+    if (with_sensor)
+      for (int k = 0; k < 6; ++k) put(data.measured[i][k] - floors->sensor_residuals[i][k]);
+    if (data.columns.joints) {
+      for (int j = 0; j < 6; ++j) put(data.joints_rad[i][j]);
+      for (int j = 0; j < 6; ++j) put(data.joint_vel_radps(i)[j]);
+    }
+    const double* r = &data.imu[i * 9];
+    if (data.columns.angular_rate) {
+      put(Eigen::Map<const Eigen::Vector3d>(r + 3).norm());
+      put(Eigen::Map<const Eigen::Vector3d>(r + 6).norm());
+    }
+    if (data.columns.specific_force)
+      put(Eigen::Map<const Eigen::Vector3d>(r).norm() - model::kStandardGravity);
+    if (data.columns.temperature) put(data.pose(i).temperature_C);
+    csv << "," << int(heldout[i]) << "\n";
+  }
+  if (!csv) throw std::runtime_error((bundle / "data.csv").string() + ": write failed");
+}
+
+// The bundle's summary.json: what the report is of, and the documents it shows.
+nlohmann::json bundle_summary(const ReportOptions& o, const io::ModelFile& m,
+                              const ident::Comparison& cmp, const Document& ladder,
+                              const Document& diagnosis, const std::optional<ident::Floors>& floors,
+                              bool with_sensor) {
+  nlohmann::json summary;
+  summary["kind"] = "zerog-report-bundle";
+  summary["version"] = 3;
+  summary["title"] =
+      o.title.empty() ? "zerog report: " + fs::path(o.log).filename().string() : o.title;
+  summary["log"] = o.log;
+  summary["model"] = o.model;
+  summary["effects"] = nlohmann::json::array();
+  for (auto e : model::kAllEffects)
+    if (m.params.effects.has(e)) summary["effects"].push_back(model::info(e).name);
+  // User-defined effects (proto/user_effects.md), one chip each with their terms.
+  for (int k = 0; k < m.params.user.num_effects; ++k) {
+    std::string terms;
+    for (int j = 0; j < m.params.user.num_terms; ++j) {
+      const model::UserTerm& t = m.params.user.terms[static_cast<std::size_t>(j)];
+      if (t.effect != k) continue;
+      terms += (terms.empty() ? "" : ", ") + io::term_axis_name(t) + "*" + io::basis_text(t.basis);
+    }
+    summary["effects"].push_back("@" + io::user_effect_name(m.params.user, k) + " (" + terms + ")");
+  }
+  summary["compare"] = ident::to_json(cmp);
+  summary["ladder"] = ladder.doc;
+  summary["ladder_for"] = ladder.made_for;
+  summary["diagnosis"] = diagnosis.doc;
+  summary["diagnosis_for"] = diagnosis.made_for;
+  summary["true_model_reference"] =
+      floors ? ident::to_json(floors->reference) : nlohmann::json(nullptr);
+  summary["sensor_floor"] = with_sensor ? ident::to_json(*floors->sensor) : nlohmann::json(nullptr);
+  summary["sensor_floor_note"] =
+      floors && !with_sensor ? nlohmann::json(floors->sensor_note) : nlohmann::json(nullptr);
+  return summary;
+}
+
 void run_report(const ReportOptions& o) {
   const io::Log log = io::read_log(o.log);
   const ident::Dataset data = ident::make_dataset(log);
@@ -121,84 +213,8 @@ void run_report(const ReportOptions& o) {
     }
   } cleanup{bundle};
 
-  {
-    std::ofstream csv(bundle / "data.csv");
-    csv << "t_s,moving";
-    const char* ax[] = {"Fx", "Fy", "Fz", "Mx", "My", "Mz"};
-    for (auto a : ax) csv << "," << a << "_meas";
-    for (auto a : ax) csv << "," << a << "_pred";
-    if (floors)
-      for (auto a : ax) csv << "," << a << "_true";
-    if (with_sensor)
-      for (auto a : ax) csv << "," << a << "_true_clean";
-    if (data.columns.joints) {
-      for (int j = 1; j <= 6; ++j) csv << ",q" << j << "_rad";
-      for (int j = 1; j <= 6; ++j) csv << ",qd" << j << "_radps";
-    }
-    if (data.columns.angular_rate) csv << ",omega_norm_radps,omega_dot_norm_radps2";
-    if (data.columns.specific_force) csv << ",accel_norm_mps2";
-    if (data.columns.temperature) csv << ",temp_C";
-    csv << ",heldout\n";
-    char buf[64];
-    auto put = [&](double v) {
-      std::snprintf(buf, sizeof buf, ",%.7g", v);
-      csv << buf;
-    };
-    for (std::size_t i = 0; i < data.size(); ++i) {
-      std::snprintf(buf, sizeof buf, "%.6f,%d", data.t_s[i], data.moving[i]);
-      csv << buf;
-      for (int k = 0; k < 6; ++k) put(data.measured[i][k]);
-      for (int k = 0; k < 6; ++k) put(data.measured[i][k] - res[i][k]);
-      if (floors)
-        for (int k = 0; k < 6; ++k) put(data.measured[i][k] - floors->reference_residuals[i][k]);
-      if (with_sensor)
-        for (int k = 0; k < 6; ++k) put(data.measured[i][k] - floors->sensor_residuals[i][k]);
-      if (data.columns.joints) {
-        for (int j = 0; j < 6; ++j) put(data.joints_rad[i][j]);
-        for (int j = 0; j < 6; ++j) put(data.joint_vel_radps(i)[j]);
-      }
-      const double* r = &data.imu[i * 9];
-      if (data.columns.angular_rate) {
-        put(Eigen::Map<const Eigen::Vector3d>(r + 3).norm());
-        put(Eigen::Map<const Eigen::Vector3d>(r + 6).norm());
-      }
-      if (data.columns.specific_force)
-        put(Eigen::Map<const Eigen::Vector3d>(r).norm() - model::kStandardGravity);
-      if (data.columns.temperature) put(data.pose(i).temperature_C);
-      csv << "," << int(heldout[i]) << "\n";
-    }
-    if (!csv) throw std::runtime_error((bundle / "data.csv").string() + ": write failed");
-  }
-  nlohmann::json summary;
-  summary["kind"] = "zerog-report-bundle";
-  summary["version"] = 3;
-  summary["title"] =
-      o.title.empty() ? "zerog report: " + fs::path(o.log).filename().string() : o.title;
-  summary["log"] = o.log;
-  summary["model"] = o.model;
-  summary["effects"] = nlohmann::json::array();
-  for (auto e : model::kAllEffects)
-    if (m.params.effects.has(e)) summary["effects"].push_back(model::info(e).name);
-  // User-defined effects (proto/user_effects.md), one chip each with their terms.
-  for (int k = 0; k < m.params.user.num_effects; ++k) {
-    std::string terms;
-    for (int j = 0; j < m.params.user.num_terms; ++j) {
-      const model::UserTerm& t = m.params.user.terms[static_cast<std::size_t>(j)];
-      if (t.effect != k) continue;
-      terms += (terms.empty() ? "" : ", ") + io::term_axis_name(t) + "*" + io::basis_text(t.basis);
-    }
-    summary["effects"].push_back("@" + io::user_effect_name(m.params.user, k) + " (" + terms + ")");
-  }
-  summary["compare"] = ident::to_json(cmp);
-  summary["ladder"] = ladder.doc;
-  summary["ladder_for"] = ladder.made_for;
-  summary["diagnosis"] = diagnosis.doc;
-  summary["diagnosis_for"] = diagnosis.made_for;
-  summary["true_model_reference"] =
-      floors ? ident::to_json(floors->reference) : nlohmann::json(nullptr);
-  summary["sensor_floor"] = with_sensor ? ident::to_json(*floors->sensor) : nlohmann::json(nullptr);
-  summary["sensor_floor_note"] =
-      floors && !with_sensor ? nlohmann::json(floors->sensor_note) : nlohmann::json(nullptr);
+  write_data_csv(bundle, data, res, floors, with_sensor, heldout);
+  const nlohmann::json summary = bundle_summary(o, m, cmp, ladder, diagnosis, floors, with_sensor);
   {
     std::ofstream js(bundle / "summary.json");
     js << summary.dump(1) << "\n";
