@@ -77,21 +77,12 @@ const std::array<Quote, 2> kQuotes = {{
      "worst-axis mean abs. error 0.011 N·m (My), max 0.042 N·m (My)"},
 }};
 
-}  // namespace
-
-const MethodResult& Results::method(const std::string& key) const {
-  for (const auto& m : methods)
-    if (m.key == key) return m;
-  throw std::out_of_range("results: no method '" + key + "'");
+void say(const ResultsOptions& o, const std::string& s) {
+  if (o.progress) o.progress(s);
 }
 
-Results run_results(const ResultsOptions& o) {
-  auto say = [&](const std::string& s) {
-    if (o.progress) o.progress(s);
-  };
-  Results r;
-  r.seed = o.seed;
-  // 1. The simulated run: OA design, default truth + what the options add.
+// 1. The simulated run: OA design, default truth + what the options add.
+sim::SimOutput simulate_run(const ResultsOptions& o, Results& r) {
   sim::SimConfig cfg = sim::default_sim_config(o.seed);
   cfg.effects = sim::parse_sim_effects(o.truth_effects);
   r.truth_effects = sim::sim_effect_list_string(cfg.effects);
@@ -100,58 +91,84 @@ Results run_results(const ResultsOptions& o) {
   dopt.workspace.floor_z_m = cfg.floor_z_m;
   const sim::Design design = sim::make_design(dopt);
   const sim::RigSimulator simulator(cfg, design.points_rad);
-  const sim::SimOutput out = simulator.run();
-  const io::Log& log = out.log;
-  const ident::Dataset data = ident::make_dataset(log);
-  r.samples = data.size();
-  r.duration_s = data.pose(data.size() - 1).t_rel_s;
-  say("results: simulated " + std::to_string(data.size()) + " samples, truth " + r.truth_effects);
-  if (!o.keep_dir.empty()) {
-    std::filesystem::create_directories(o.keep_dir);
-    io::write_log(log, o.keep_dir / "run.csv");
-    io::write_log(out.clean_log, o.keep_dir / "run.clean.csv");
-    io::ModelFile truth = out.truth;
-    truth.extra["clean_signals_log"] = "run.clean.csv";  // as zerog sim names it
-    io::write_model(truth, o.keep_dir / "run.truth.json");
-  }
-  const std::vector<std::uint8_t> test = ident::heldout_mask(data);
-  std::vector<std::uint8_t> usable(test.size());
-  for (std::size_t i = 0; i < test.size(); ++i) {
-    usable[i] = test[i] ? 0 : 1;
-    if (test[i]) ++(data.moving[i] ? r.heldout_moving : r.heldout_static);
-  }
+  return simulator.run();
+}
 
-  // 2. Physics: the model the ladder reaches, refitted on the training blocks.
+// The run's files, as zerog sim writes them, into --keep.
+void keep_run(const std::filesystem::path& dir, const sim::SimOutput& out) {
+  std::filesystem::create_directories(dir);
+  io::write_log(out.log, dir / "run.csv");
+  io::write_log(out.clean_log, dir / "run.clean.csv");
+  io::ModelFile truth = out.truth;
+  truth.extra["clean_signals_log"] = "run.clean.csv";  // as zerog sim names it
+  io::write_model(truth, dir / "run.truth.json");
+}
+
+// The held-out blocks (test) and the rest (usable for training and fitting).
+struct Split {
+  std::vector<std::uint8_t> test, usable;
+};
+
+Split split_heldout(const ident::Dataset& data, Results& r) {
+  Split s;
+  s.test = ident::heldout_mask(data);
+  s.usable.resize(s.test.size());
+  for (std::size_t i = 0; i < s.test.size(); ++i) {
+    s.usable[i] = s.test[i] ? 0 : 1;
+    if (s.test[i]) ++(data.moving[i] ? r.heldout_moving : r.heldout_static);
+  }
+  return s;
+}
+
+// 2. Physics: the model the ladder reaches, refitted on the training blocks.
+struct Physics {
+  std::vector<ident::LadderStep> steps;
+  io::ModelFile model;
+  double ladder_s = 0.0, fit_s = 0.0;
+};
+
+Physics fit_physics(const ResultsOptions& o, const ident::Dataset& data, const io::Log& log,
+                    const Split& split, Results& r) {
+  Physics ph;
   auto t0 = Clock::now();
   // The ladder never sees the test blocks: it validates on another block of each four.
   ident::LadderOptions lo;
   lo.diagnose.fit.threads = o.threads;
   lo.diagnose.fit.covariance = false;
-  lo.diagnose.exclude = &test;
+  lo.diagnose.exclude = &split.test;
   lo.diagnose.heldout_offset = 1;
-  const std::vector<ident::LadderStep> steps = ident::ladder(data, lo);
-  const double ladder_s = since(t0);
-  const model::EffectSet effects = steps.back().effects;
+  ph.steps = ident::ladder(data, lo);
+  ph.ladder_s = since(t0);
+  const model::EffectSet effects = ph.steps.back().effects;
   r.physics_effects = io::effect_list_string(effects);
-  say("results: the ladder reaches " + r.physics_effects + fmt(" (%.1f s)", ladder_s));
+  say(o, "results: the ladder reaches " + r.physics_effects + fmt(" (%.1f s)", ph.ladder_s));
   t0 = Clock::now();
   ident::FitOptions fo;
   fo.effects = effects;
-  fo.mask = &usable;
+  fo.mask = &split.usable;
   fo.covariance = false;
   fo.threads = o.threads;
   const ident::FitResult fit = ident::fit(data, fo);
   if (!fit.usable)
     throw std::runtime_error("results: the physics fit is not usable: " + fit.termination);
-  io::ModelFile physics;
-  physics.params = fit.params;
-  physics.rig_name = log.rig.name;
-  const double fit_s = since(t0);
-  if (!o.keep_dir.empty()) io::write_model(physics, o.keep_dir / "physics.json");
+  ph.model.params = fit.params;
+  ph.model.rig_name = log.rig.name;
+  ph.fit_s = since(t0);
+  if (!o.keep_dir.empty()) io::write_model(ph.model, o.keep_dir / "physics.json");
+  return ph;
+}
 
+// 3. The three networks, trained on the training blocks.
+struct Networks {
+  NetworkFile bp, zp, res;
+  double s_bp = 0, s_zp = 0, s_res = 0;
+};
+
+Networks train_networks(const ResultsOptions& o, const ident::Dataset& data, const io::Log& log,
+                        const io::ModelFile& physics, const Split& split) {
   TrainOptions to;
   to.seed = o.train_seed;
-  to.usable = &usable;
+  to.usable = &split.usable;
   to.threads = o.threads;
   to.max_train_samples = o.max_train_samples;
   to.max_iterations = o.max_iterations;
@@ -164,17 +181,22 @@ Results run_results(const ResultsOptions& o) {
     const auto t = Clock::now();
     NetworkFile n = train(data, log, k);
     seconds = since(t);
-    say(std::string("results: trained ") + kind_name(kind) + fmt(" in %.1f s", seconds));
+    say(o, std::string("results: trained ") + kind_name(kind) + fmt(" in %.1f s", seconds));
     if (!o.keep_dir.empty())
       write_network(n, o.keep_dir / (std::string(kind_name(kind)) + ".network.json"));
     return n;
   };
-  double s_bp = 0, s_zp = 0, s_res = 0;
-  const NetworkFile bp = train_kind(NetworkKind::paper_bp, s_bp);
-  const NetworkFile zp = train_kind(NetworkKind::paper_zp, s_zp);
-  const NetworkFile res = train_kind(NetworkKind::residual, s_res);
-  r.residual_inputs = feature_list_string(res.inputs);
+  Networks n;
+  n.bp = train_kind(NetworkKind::paper_bp, n.s_bp);
+  n.zp = train_kind(NetworkKind::paper_zp, n.s_zp);
+  n.res = train_kind(NetworkKind::residual, n.s_res);
+  return n;
+}
 
+// 4. Every method's held-out error, the floors last.
+void evaluate_methods(const ResultsOptions& o, const ident::Dataset& data, const io::Log& log,
+                      const sim::SimOutput& out, const Physics& ph, const Networks& n,
+                      const std::vector<std::uint8_t>& test, Results& r) {
   auto add = [&](std::string key, std::string label, const std::vector<ident::Wrench>* pred,
                  double seconds, std::string note) {
     MethodResult m;
@@ -188,11 +210,12 @@ Results run_results(const ResultsOptions& o) {
       m.available = false;
     r.methods.push_back(std::move(m));
   };
-  const auto p_bp = predictions(bp, data, log);
-  const auto p_zp = predictions(zp, data, log);
+  const auto p_bp = predictions(n.bp, data, log);
+  const auto p_zp = predictions(n.zp, data, log);
   std::vector<ident::Wrench> p_phys(data.size());
-  for (std::size_t i = 0; i < data.size(); ++i) p_phys[i] = ident::predict(physics.params, data, i);
-  const auto p_res = predictions(res, data, log);
+  for (std::size_t i = 0; i < data.size(); ++i)
+    p_phys[i] = ident::predict(ph.model.params, data, i);
+  const auto p_res = predictions(n.res, data, log);
   // The truth holds the effects outside the library as user terms (joint A6 friction, …), so
   // it is the complete true model; the clean log has the run's rows with noise-free signals.
   const ident::Dataset clean = ident::make_dataset(out.clean_log);
@@ -202,18 +225,18 @@ Results run_results(const ResultsOptions& o) {
     p_reference[i] = data.measured[i] - floors.reference_residuals[i];
     p_sensor[i] = data.measured[i] - floors.sensor_residuals[i];
   }
-  add("paper-bp", "paper-bp: BP network 21-8-6, sigmoid (000_… §3–4)", &p_bp, s_bp,
+  add("paper-bp", "paper-bp: BP network 21-8-6, sigmoid (000_… §3–4)", &p_bp, n.s_bp,
       "random 60/20/20 split of the training blocks, Levenberg-Marquardt");
   add("paper-zp", "paper-zp: zero-point network 9-45-90-5 + least-squares tool (001_… §3)", &p_zp,
-      s_zp,
+      n.s_zp,
       "static dwells only (medians); Adam, Table 2 schedule scaled to " +
           std::to_string(o.adam_iterations) + " iterations");
-  add("physics", "physics: " + r.physics_effects + " (the ladder's model)", &p_phys, fit_s,
-      fmt("ladder %.0f s, not counted", ladder_s));
+  add("physics", "physics: " + r.physics_effects + " (the ladder's model)", &p_phys, ph.fit_s,
+      fmt("ladder %.0f s, not counted", ph.ladder_s));
   add("residual", "physics + residual network, float (" + r.residual_inputs + " → 12 tanh → 6)",
-      &p_res, s_res, "inputs from the diagnosis");
+      &p_res, n.s_res, "inputs from the diagnosis");
   try {
-    const auto p_q = quantised_prediction(res, data, log);
+    const auto p_q = quantised_prediction(n.res, data, log);
     r.quantised_vs_float_max_N = r.quantised_vs_float_max_Nm = 0.0;
     for (std::size_t i = 0; i < data.size(); ++i) {
       if (!test[i]) continue;
@@ -236,10 +259,37 @@ Results run_results(const ResultsOptions& o) {
       "sensor floor (true model on noise-free signals against the noisy wrench: F/T noise and "
       "quantisation)",
       &p_sensor, 0.0, "no model of the signals beats it on average");
+}
 
-  r.details["ladder"] = ident::to_json(steps);
-  r.details["ladder_seconds"] = ladder_s;
-  r.details["physics_fit_seconds"] = fit_s;
+}  // namespace
+
+const MethodResult& Results::method(const std::string& key) const {
+  for (const auto& m : methods)
+    if (m.key == key) return m;
+  throw std::out_of_range("results: no method '" + key + "'");
+}
+
+Results run_results(const ResultsOptions& o) {
+  Results r;
+  r.seed = o.seed;
+  const sim::SimOutput out = simulate_run(o, r);
+  const io::Log& log = out.log;
+  const ident::Dataset data = ident::make_dataset(log);
+  r.samples = data.size();
+  r.duration_s = data.pose(data.size() - 1).t_rel_s;
+  say(o,
+      "results: simulated " + std::to_string(data.size()) + " samples, truth " + r.truth_effects);
+  if (!o.keep_dir.empty()) keep_run(o.keep_dir, out);
+  const Split split = split_heldout(data, r);
+  const Physics ph = fit_physics(o, data, log, split, r);
+  const Networks n = train_networks(o, data, log, ph.model, split);
+  r.residual_inputs = feature_list_string(n.res.inputs);
+  evaluate_methods(o, data, log, out, ph, n, split.test, r);
+
+  r.details["ladder"] = ident::to_json(ph.steps);
+  r.details["ladder_seconds"] = ph.ladder_s;
+  r.details["physics_fit_seconds"] = ph.fit_s;
+  const NetworkFile& zp = n.zp;
   r.details["tool_load"] = {{"mass_kg", zp.tool_load->mass_kg()},
                             {"gravity_base_N",
                              {zp.tool_load->gravity_base_N.x(), zp.tool_load->gravity_base_N.y(),
@@ -248,7 +298,7 @@ Results run_results(const ResultsOptions& o) {
                              {zp.tool_load->cog_sensor_m.x(), zp.tool_load->cog_sensor_m.y(),
                               zp.tool_load->cog_sensor_m.z()}}};
   r.details["training"] = {
-      {"paper-bp", bp.training}, {"paper-zp", zp.training}, {"residual", res.training}};
+      {"paper-bp", n.bp.training}, {"paper-zp", n.zp.training}, {"residual", n.res.training}};
   return r;
 }
 
