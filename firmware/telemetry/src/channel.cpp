@@ -54,10 +54,8 @@ struct TelemetryChannel::Dds {
 
 TelemetryChannel::TelemetryChannel(TelemetryConfig config, ModelIdentityInfo model,
                                    control::BodyParams body)
-    : config_(std::move(config)),
-      model_(std::move(model)),
-      ring_(std::make_unique<Ring>()),
-      body_(body) {
+    : config_(std::move(config)), model_(std::move(model)), ring_(std::make_unique<Ring>()) {
+  pub_.body = body;
   body_params_.publish(body_value(body));
 }
 
@@ -158,8 +156,8 @@ Status TelemetryChannel::start() {
     ros_writer(&diagnostic_msgs_msg_dds__DiagnosticArray__desc, t::kDiagnostics, state_qos,
                dds->ros_diagnostics);
     dds_delete_qos(sensor_qos);
-    ros_frames_ = std::make_unique<Ros2Frames>(config_);
-    ros_messages_ = std::make_unique<Ros2CycleMessages>();
+    pub_.ros_frames = std::make_unique<Ros2Frames>(config_);
+    pub_.ros_messages = std::make_unique<Ros2CycleMessages>();
   }
   dds_delete_qos(stream_qos);
   dds_delete_qos(state_qos);
@@ -206,9 +204,9 @@ ChannelCounters TelemetryChannel::counters() const {
   ChannelCounters c;
   c.telemetry_drops = ring_->dropped();
   c.records_offered = ring_->pushed() + c.telemetry_drops;
-  c.records_published = published_.load(std::memory_order_acquire);
-  c.write_errors = write_errors_.load(std::memory_order_relaxed);
-  c.health_published = health_published_.load(std::memory_order_relaxed);
+  c.records_published = published_.records.load(std::memory_order_acquire);
+  c.write_errors = published_.write_errors.load(std::memory_order_relaxed);
+  c.health_published = published_.health.load(std::memory_order_relaxed);
   return c;
 }
 
@@ -239,23 +237,23 @@ void TelemetryChannel::publisher_loop() {
 }
 
 bool TelemetryChannel::drain_one() {
-  if (!ring_->try_pop(slot_)) return false;
+  if (!ring_->try_pop(pub_.slot)) return false;
   BodyParamsValue body;
-  if (body_params_.read(body) == rtio::LatestRead::fresh) body_ = body_params(body);
-  const loop::CycleRecord& r = slot_.record;
+  if (body_params_.read(body) == rtio::LatestRead::fresh) pub_.body = body_params(body);
+  const loop::CycleRecord& r = pub_.slot.record;
   RuntimeHealth runtime;
-  if (runtime_health_.read(runtime) != rtio::LatestRead::empty) health_in_ = runtime;
+  if (runtime_health_.read(runtime) != rtio::LatestRead::empty) pub_.health_in = runtime;
 
   double period_s = 0.0;
-  if (have_newest_ && r.cycle == previous_cycle_ + 1) {
-    if (slot_.received_ns != 0 && previous_received_ns_ != 0)
-      period_s = static_cast<double>(slot_.received_ns - previous_received_ns_) * 1e-9;
-    else if (slot_.received_ns == 0)
-      period_s = r.t_s - previous_t_s_;
+  if (pub_.have_newest && r.cycle == pub_.previous_cycle + 1) {
+    if (pub_.slot.received_ns != 0 && pub_.previous_received_ns != 0)
+      period_s = static_cast<double>(pub_.slot.received_ns - pub_.previous_received_ns) * 1e-9;
+    else if (pub_.slot.received_ns == 0)
+      period_s = r.t_s - pub_.previous_t_s;
   }
-  previous_cycle_ = r.cycle;
-  previous_received_ns_ = slot_.received_ns;
-  previous_t_s_ = r.t_s;
+  pub_.previous_cycle = r.cycle;
+  pub_.previous_received_ns = pub_.slot.received_ns;
+  pub_.previous_t_s = r.t_s;
 
   std::uint64_t errors = 0;
   const auto write = [&errors](dds_entity_t w, const void* sample) {
@@ -267,16 +265,16 @@ bool TelemetryChannel::drain_one() {
   write(dds_->imu, &imu);
   const RobotSample robot = to_robot(r);
   write(dds_->robot, &robot);
-  const CommandSample command = to_command(r, body_);
+  const CommandSample command = to_command(r, pub_.body);
   write(dds_->command, &command);
-  const BodySample body_sample = to_body(r, body_);
+  const BodySample body_sample = to_body(r, pub_.body);
   write(dds_->body, &body_sample);
   const TimingSample timing =
-      to_timing(r, period_s, config_.nominal_period_s, health_in_.datagrams_lost);
+      to_timing(r, period_s, config_.nominal_period_s, pub_.health_in.datagrams_lost);
   write(dds_->timing, &timing);
-  if (ros_messages_ != nullptr) {
-    Ros2CycleMessages& m = *ros_messages_;
-    to_ros2(r, body_, *ros_frames_, m);
+  if (pub_.ros_messages != nullptr) {
+    Ros2CycleMessages& m = *pub_.ros_messages;
+    to_ros2(r, pub_.body, *pub_.ros_frames, m);
     write(dds_->ros_wrench, &m.wrench);
     write(dds_->ros_wrench_at_eval, &m.wrench_at_eval);
     write(dds_->ros_wrench_predicted, &m.wrench_predicted);
@@ -287,44 +285,46 @@ bool TelemetryChannel::drain_one() {
     write(dds_->ros_body_pose, &m.body_pose);
     write(dds_->ros_body_twist, &m.body_twist);
   }
-  if (errors != 0) write_errors_.fetch_add(errors, std::memory_order_relaxed);
+  if (errors != 0) published_.write_errors.fetch_add(errors, std::memory_order_relaxed);
 
-  newest_ = r;
-  have_newest_ = true;
-  published_.fetch_add(1, std::memory_order_release);
+  pub_.newest = r;
+  pub_.have_newest = true;
+  published_.records.fetch_add(1, std::memory_order_release);
   return true;
 }
 
 void TelemetryChannel::publish_health(bool force) {
   RuntimeHealth runtime;
-  if (runtime_health_.read(runtime) != rtio::LatestRead::empty) health_in_ = runtime;
+  if (runtime_health_.read(runtime) != rtio::LatestRead::empty) pub_.health_in = runtime;
   const ChannelCounters c = counters();
   const std::int64_t now = monotonic_ns();
-  const std::uint8_t state = have_newest_ ? static_cast<std::uint8_t>(newest_.state) : 0xFF;
-  const std::uint8_t fault = have_newest_ ? static_cast<std::uint8_t>(newest_.fault) : 0xFF;
-  const bool changed = state != last_state_ || fault != last_fault_ ||
-                       !(health_in_ == last_runtime_) || c.telemetry_drops != last_drops_ ||
-                       c.write_errors != last_write_errors_;
-  const bool due = static_cast<double>(now - last_health_ns_) * 1e-9 >= config_.health_period_s;
+  const std::uint8_t state = pub_.have_newest ? static_cast<std::uint8_t>(pub_.newest.state) : 0xFF;
+  const std::uint8_t fault = pub_.have_newest ? static_cast<std::uint8_t>(pub_.newest.fault) : 0xFF;
+  const bool changed = state != last_health_.state || fault != last_health_.fault ||
+                       !(pub_.health_in == last_health_.runtime) ||
+                       c.telemetry_drops != last_health_.drops ||
+                       c.write_errors != last_health_.write_errors;
+  const bool due = static_cast<double>(now - last_health_.ns) * 1e-9 >= config_.health_period_s;
   if (!force && !changed && !due) return;
-  const HealthSample h = to_health(++health_seq_, have_newest_ ? &newest_ : nullptr, c, health_in_);
+  const HealthSample h =
+      to_health(++last_health_.seq, pub_.have_newest ? &pub_.newest : nullptr, c, pub_.health_in);
   if (dds_write(dds_->health, &h) < 0) {
-    write_errors_.fetch_add(1, std::memory_order_relaxed);
+    published_.write_errors.fetch_add(1, std::memory_order_relaxed);
   } else {
-    health_published_.fetch_add(1, std::memory_order_relaxed);
+    published_.health.fetch_add(1, std::memory_order_relaxed);
   }
   if (dds_->ros_diagnostics > 0) {
     const Ros2Diagnostics d = ros2_diagnostics(h, model_);
-    const RosDiagnosticArray a = diagnostics_message(d, ros_diagnostics_storage_);
+    const RosDiagnosticArray a = diagnostics_message(d, pub_.ros_diagnostics_storage);
     if (dds_write(dds_->ros_diagnostics, &a) < 0)
-      write_errors_.fetch_add(1, std::memory_order_relaxed);
+      published_.write_errors.fetch_add(1, std::memory_order_relaxed);
   }
-  last_health_ns_ = now;
-  last_state_ = state;
-  last_fault_ = fault;
-  last_runtime_ = health_in_;
-  last_drops_ = c.telemetry_drops;
-  last_write_errors_ = c.write_errors;
+  last_health_.ns = now;
+  last_health_.state = state;
+  last_health_.fault = fault;
+  last_health_.runtime = pub_.health_in;
+  last_health_.drops = c.telemetry_drops;
+  last_health_.write_errors = c.write_errors;
 }
 
 }  // namespace zerog::telemetry

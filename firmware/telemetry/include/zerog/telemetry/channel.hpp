@@ -117,27 +117,36 @@ class TelemetryChannel {
 
   RecordSlot offer_slot_;  // cycle thread
 
-  // Publisher thread (and stop(), after the thread has ended).
-  RecordSlot slot_;
-  loop::CycleRecord newest_;
-  bool have_newest_ = false;
-  std::int64_t previous_received_ns_ = 0;
-  double previous_t_s_ = 0.0;
-  std::uint64_t previous_cycle_ = 0;
-  control::BodyParams body_;
-  RuntimeHealth health_in_;
-  std::uint64_t health_seq_ = 0;
-  std::int64_t last_health_ns_ = 0;
-  std::uint8_t last_state_ = 0xFF, last_fault_ = 0xFF;
-  RuntimeHealth last_runtime_;
-  std::uint64_t last_drops_ = 0, last_write_errors_ = 0;
-  std::atomic<std::uint64_t> published_{0};
-  std::atomic<std::uint64_t> write_errors_{0};
-  std::atomic<std::uint64_t> health_published_{0};
-  // ROS 2 topics (config_.ros2): made in start(), used by the publisher thread.
-  std::unique_ptr<Ros2Frames> ros_frames_;
-  std::unique_ptr<Ros2CycleMessages> ros_messages_;
-  Ros2DiagnosticsStorage ros_diagnostics_storage_;
+  // Publisher thread (and stop(), after the thread has ended): the record in hand and the one
+  // before it (for the received-time and t_s checks), the body's parameters, the health inputs,
+  // and the ROS 2 messages (config_.ros2; made in start()).
+  struct Publisher {
+    RecordSlot slot;
+    loop::CycleRecord newest;
+    bool have_newest = false;
+    std::int64_t previous_received_ns = 0;
+    double previous_t_s = 0.0;
+    std::uint64_t previous_cycle = 0;
+    control::BodyParams body;
+    RuntimeHealth health_in;
+    std::unique_ptr<Ros2Frames> ros_frames;
+    std::unique_ptr<Ros2CycleMessages> ros_messages;
+    Ros2DiagnosticsStorage ros_diagnostics_storage;
+  } pub_;
+  // Publisher thread: what the last health message said, to publish on a change.
+  struct LastHealth {
+    std::uint64_t seq = 0;
+    std::int64_t ns = 0;
+    std::uint8_t state = 0xFF, fault = 0xFF;
+    RuntimeHealth runtime;
+    std::uint64_t drops = 0, write_errors = 0;
+  } last_health_;
+  // Written by the publisher thread, read by any (counters()).
+  struct Published {
+    std::atomic<std::uint64_t> records{0};
+    std::atomic<std::uint64_t> write_errors{0};
+    std::atomic<std::uint64_t> health{0};
+  } published_;
 };
 
 }  // namespace zerog::telemetry
