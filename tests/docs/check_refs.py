@@ -3,8 +3,8 @@
 
 Two kinds of citation, each checked against the tree it names:
 
-- The style guide: every `STYLE.md` named in any file must be a path to the repository's
-  docs/STYLE.md (from the root, or from the citing file's folder), and a habit it names
+- The style guide: every citation of it, in any file, must name the repository's docs/STYLE.md
+  by a path (from the root, or from the citing file's folder), and a habit it names
   ("docs/STYLE.md habit 7", "habits 3 and 4") must be one of the guide's numbered habits, a section
   it names (docs/STYLE.md, "The architecture should be visible from the tree") one of its `##`
   headings.
