@@ -13,7 +13,9 @@ Two kinds of citation, each checked against the tree it names:
   module docstring), in backticks and as relative link targets in Markdown. A path exists if it
   names a file or folder, or a source file once `.cpp`, `.hpp`, `.py` or `.sh` is added (a test
   named after its source). `...` or `…` stands for any folders, an all-capitals word (CASE, NAME)
-  for any name, and {a,b} for each of a and b (each must exist).
+  for any name, and {a,b} for each of a and b (each must exist). In README.md, proto/*.md and
+  docs/*.md, a source or doc named in backticks without its folder (`eiv.hpp`, `hil.sh`,
+  `loop.md`) must be the name of a file somewhere in the repository.
 
 Without FILE, every file git tracks under --root (default: the repository holding this script) is
 read, but the fixtures of the checks' own mutants (tests/docs/fixtures, tests/sizes/fixtures).
@@ -39,6 +41,7 @@ HABITS_RE = re.compile(r"\s*,?\s*habits?\s+(\d+(?:\s*(?:,|and|&)\s*\d+)*)")
 SECTION_RE = re.compile(r"\s*,\s*(?:section\s+)?[\"“]([^\"”]+)[\"”]")
 BACKTICK_RE = re.compile(r"`([^`\n]+)`")
 LINK_RE = re.compile(r"\]\(([^)\s]+)\)")
+NAME_RE = re.compile(r"[\w./-]+\.(?:md|hpp|cpp|py|sh)")
 
 
 def style_guide(path):
@@ -131,7 +134,7 @@ def clean_path(token):
     return token.rstrip(".,;:)'\"…") if not token.endswith(("...", "…")) else token
 
 
-def check_file(root, rel, guide, problems):
+def check_file(root, rel, guide, names, problems):
     try:
         with open(os.path.join(root, rel), encoding="utf-8") as f:
             text = f.read()
@@ -165,9 +168,17 @@ def check_file(root, rel, guide, problems):
                                     f"{STYLE} does not have")
 
     if rel.endswith(".md"):
+        # Bare names only in the specs and the docs: other READMEs cite other projects' files.
+        bare_names = rel == "README.md" or os.path.dirname(rel) in ("proto", "docs", "")
         spans = []
         for i, line in enumerate(text.split("\n"), 1):
-            spans.extend((i, b) for b in BACKTICK_RE.findall(line))
+            for b in BACKTICK_RE.findall(line):
+                spans.append((i, b))
+                # A file named without its folder (`eiv.hpp`, `hil.sh`) must exist somewhere.
+                if bare_names and NAME_RE.fullmatch(b) and not PATH_RE.match(b) \
+                        and not b.startswith("..") \
+                        and not any(n == b or n.endswith("/" + b) for n in names):
+                    problems.append(f"{rel}:{i}: names `{b}`, which no file in the repository is")
             for target in LINK_RE.findall(line):
                 target = target.split("#")[0]
                 if not target or re.match(r"[a-z]+:", target):
@@ -207,10 +218,13 @@ def main():
         print(f"check_refs: {STYLE} is missing under {root}")
         return 1
     guide = style_guide(os.path.join(root, STYLE))
-    files = args.files or tracked_files(root)
+    names = tracked_files(root)
+    files = args.files or names
     problems = []
     for rel in files:
-        check_file(root, rel, guide, problems)
+        found = []
+        check_file(root, rel, guide, names, found)
+        problems.extend(sorted(found, key=lambda p: int(p.split(":")[1])))  # by line
     for p in problems:
         print(p)
     print(f"check_refs: {len(files)} files, {len(guide[0])} habits and {len(guide[1])} sections "
