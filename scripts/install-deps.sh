@@ -29,6 +29,8 @@ packages=(
 if [ "$demo_only" = 0 ]; then
   packages+=(
     git googletest clang-format
+    # the size check (scripts/check_sizes.py, ctest sizes): Universal Ctags measures functions
+    universal-ctags
     # the fuzz targets (tests/fuzz, scripts/fuzz.sh): clang with libFuzzer and the sanitizers
     clang libclang-rt-14-dev
     # mbpoll: the Modbus test client

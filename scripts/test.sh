@@ -59,6 +59,9 @@ cmake --build --preset ci -j "$jobs" --target $ci_targets
 stage_done "build ci"
 # One test more than the cores: a few tests wait on sockets, ptys and the wall clock.
 ctest --preset ci -j $((jobs + 1)) -LE "$ci_skip"
+# The size check's list (every function over 120 lines, every class over 30 data members, the
+# known offenders) in the log; ctest `sizes` above has checked it (docs/layout.md).
+python3 scripts/check_sizes.py
 stage_done "tests ci (HIL, VM included)"
 
 asan_targets=$(python3 cmake/stage_targets.py --preset asan --build-dir build/asan)

@@ -1,4 +1,4 @@
-// The feature catalogue (firmware/model/features.hpp) against hand computations, its names, and
+// The feature catalogue (zerog/model/features.hpp) against hand computations, its names, and
 // the host helpers that evaluate it on a log.
 #include <gtest/gtest.h>
 

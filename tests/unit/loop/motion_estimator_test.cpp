@@ -1,4 +1,4 @@
-// The cycle's motion estimator (firmware/loop/motion_estimator.hpp; issue 28, item 2): the robot's
+// The cycle's motion estimator (zerog/loop/motion_estimator.hpp; issue 28, item 2): the robot's
 // poses give the motion of the row's sensor means exactly for a motion the fit represents, the
 // IMU's share finds a constant offset (a tilted base) and nothing faster, and the cycle with it
 // does not allocate. The HIL checks (tests/hil, *_fused cases) measure the noise.

@@ -1,4 +1,4 @@
-// The per-sample paths do not allocate (STYLE.md habit 4): NetcanoemSensor::read_sample on a
+// The per-sample paths do not allocate (docs/STYLE.md habit 4): NetcanoemSensor::read_sample on a
 // FakeCanBus with an emulated board, Stim300Imu::read_sample on a pty, RsiEndpoint receive +
 // reply on loopback UDP, and the handover primitives. Start-up (which may allocate) happens
 // before the count is taken.

@@ -1,7 +1,7 @@
 #pragma once
 // zerog::Status — how a start-up call went (configure(), start(), check_*() across firmware/):
 // a code the caller can branch on, a sentence a person can read, and the setting or field it
-// concerns (STYLE.md habit 15, as Drake's EventStatus and ros2_control's return_type). Success
+// concerns (docs/STYLE.md habit 15, as Drake's EventStatus and ros2_control's return_type). Success
 // is the default-constructed value and holds nothing: returning it allocates nothing. A failure
 // allocates its text once. Header only, no dependencies: every firmware library may use it.
 //

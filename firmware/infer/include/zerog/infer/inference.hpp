@@ -5,7 +5,7 @@
 // tables with linear interpolation). The float reference (model::network_forward<double>) runs
 // on the same object for comparison. Format and arithmetic: proto/deploy_format.md.
 //
-// Life cycle (STYLE.md habit 3): configure() at start-up (allocates, may fail with a message);
+// Life cycle (docs/STYLE.md habit 3): configure() at start-up (allocates, may fail with a message);
 // evaluate() every cycle (real-time safe: no allocation, no exceptions, no locks, bounded time —
 // at most kMaxNetworkLayers × kMaxNetworkWidth² multiply-adds).
 #include <Eigen/Core>
@@ -34,7 +34,7 @@ enum class StatusCode : std::uint8_t {
 };
 const char* status_name(StatusCode c);
 
-/// Result of one evaluation (STYLE.md habit 5: the cycle returns status, recovers outside).
+/// Result of one evaluation (docs/STYLE.md habit 5: the cycle returns status, recovers outside).
 struct Status {
   StatusCode code = StatusCode::ok;
   std::uint16_t clipped_values = 0;  ///< network inputs and activations that saturated

@@ -11,19 +11,19 @@
 // the row `delay_rows()` cycles back (2 for the 5-point stencil, 1 for the 3-point one): the
 // contact wrench is that many cycles late and less noisy (proto/loop.md, "Noise and delay").
 //
-// Units: the cycle sees SI only (STYLE.md habit 13). The robot's message comes in as a
+// Units: the cycle sees SI only (docs/STYLE.md habit 13). The robot's message comes in as a
 // samples::RobotSample (m, rad, rotation matrices) and the answer goes out as a
 // samples::RobotCorrection; zerog::rtio converts from and to the wire's KUKA units
 // (zerog/proto/rsi_si.hpp), once per message each way. The record keeps the reply in SI too
 // (CycleRecord::reply); cycles.csv's writer (zerog/formats/cycles_csv.hpp) and telemetry convert
 // it to their units outside the cycle.
 //
-// Structure (STYLE.md habit 14): the configuration (CycleConfig, const between configure() and
+// Structure (docs/STYLE.md habit 14): the configuration (CycleConfig, const between configure() and
 // an accepted proposal) and per-cycle data (CycleData: one part per stage), and stage functions
 // (namespace stages) that take both and name their outputs. step() calls them in order: timing
 // → row → watchdogs → model → model watchdog → motion → record.
 //
-// Life cycle (STYLE.md habit 3): construct and configure() at start-up (may allocate, may fail
+// Life cycle (docs/STYLE.md habit 3): construct and configure() at start-up (may allocate, may fail
 // with a zerog::Status); add_*/robot_* and step() every cycle: no allocation, no exceptions, no
 // locks.
 #include <Eigen/Core>

@@ -1,7 +1,8 @@
 #pragma once
-// What the Modbus server sees of zerog-rt: a small interface (STYLE.md habit 1) that zerog-rt's
-// Runtime implements over its lock-free paths (Cycle::request, Cycle::propose, a LatestValue of
-// the snapshot), and tests implement over a real loop::Cycle stepped by a test thread.
+// What the Modbus server sees of zerog-rt: a small interface (docs/STYLE.md habit 1) that
+// zerog-rt's Runtime implements over its lock-free paths (Cycle::request, Cycle::propose, a
+// LatestValue of the snapshot), and tests implement over a real loop::Cycle stepped by a test
+// thread.
 #include <array>
 #include <cstdint>
 

@@ -1,7 +1,7 @@
 #pragma once
-// Real-time set-up, explicit and loud (STYLE.md habit 7, as ros2_control_node does it): lock the
-// memory, run the cycle and sensor threads under SCHED_FIFO, pin the cycle thread, pre-fault the
-// stacks. When the system does not permit it (EPERM in a container, no rtprio or memlock limit)
+// Real-time set-up, explicit and loud (docs/STYLE.md habit 7, as ros2_control_node does it): lock
+// the memory, run the cycle and sensor threads under SCHED_FIFO, pin the cycle thread, pre-fault
+// the stacks. When the system does not permit it (EPERM in a container, no rtprio or memlock limit)
 // the caller gets a one-line warning saying what failed and how to grant it, and carries on.
 // Start-up only: not real-time safe.
 #include <pthread.h>
