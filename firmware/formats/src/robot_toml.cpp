@@ -156,6 +156,10 @@ RobotDescription read_robot_file(const std::filesystem::path& toml,
   return read_robot(toml, &flange_sensor);
 }
 
+robot::RobotModel read_robot_text(std::string_view text, const std::filesystem::path& file) {
+  return robot_of_file(parse_toml(text, file), file, nullptr).model;
+}
+
 std::string robot_toml_text(const std::string& table, const std::string& name,
                             const robot::RobotModel& model) {
   std::string out = "\n[" + table + "]  # the arm (proto/robot_kinematics.md)\n";

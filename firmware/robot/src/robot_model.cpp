@@ -2,7 +2,6 @@
 
 #include <Eigen/LU>
 #include <cmath>
-#include <numbers>
 #include <string>
 #include <utility>
 
@@ -49,21 +48,6 @@ zerog::Status validate(const RobotModel& model) {
                              "is not a rotation (orthonormal, determinant +1)");
   }
   return {};
-}
-
-RobotModel kr210_r2700(const FrameTransform& flange_sensor) {
-  constexpr double kHalfPi = std::numbers::pi / 2.0;
-  RobotModel m;
-  m.convention = DhConvention::dh;
-  m.joint_count = 6;
-  m.joints[0] = {0.350, -kHalfPi, 0.675, 0.0, -1.0};
-  m.joints[1] = {1.150, 0.0, 0.0, 0.0, 1.0};
-  m.joints[2] = {-0.041, -kHalfPi, 0.0, -kHalfPi, 1.0};
-  m.joints[3] = {0.0, kHalfPi, 1.200, 0.0, -1.0};
-  m.joints[4] = {0.0, -kHalfPi, 0.0, 0.0, 1.0};
-  m.joints[5] = {0.0, 0.0, 0.215, std::numbers::pi, -1.0};
-  m.flange_sensor = flange_sensor;
-  return m;
 }
 
 }  // namespace zerog::robot

@@ -140,14 +140,12 @@ io::Rig emulator_rig(const Scenario& scenario, const sim::RigSimulator& simulato
   rig.ft_rate_hz = 0.0;  // as fast as zerog-rt asks: the board answers each request
   rig.imu_rate_hz = kImuRateHz;
   // The arm that is not rigid (proto/sim_robot.md): the rig names its robot file's kinematics
-  // and elasticity (calib/robots/kr210_r2700.robot.toml, sim::kr210_elasticity() keeps them
-  // equal), as a cell's rig would; the emulated arm may be set otherwise by the scenario
+  // and elasticity (calib/robots/kr210_r2700.robot.toml, the simulator's arm), as a cell's rig
+  // would; the emulated arm may be set otherwise by the scenario
   // (elastic.k1…, the real robot is not its file). zerog-rt's motion estimator steps it.
   if (simulator.config().elastic.enabled) {
-    robot::RobotModel arm =
-        robot::kr210_r2700({rig.flange_sensor.q.toRotationMatrix(), rig.flange_sensor.p_m});
-    const sim::ElasticityConfig file = sim::kr210_elasticity();
-    for (std::size_t i = 0; i < file.joints.size(); ++i) arm.elasticity[i] = file.joints[i];
+    robot::RobotModel arm = sim::kr210();
+    arm.flange_sensor = {rig.flange_sensor.q.toRotationMatrix(), rig.flange_sensor.p_m};
     rig.robot_model = arm;
   }
   return rig;

@@ -67,13 +67,13 @@ RobotEmulator::RobotEmulator(const RobotConfig& config)
 }
 
 TcpPose RobotEmulator::tcp_pose(const sim::JointVector& q_rad) const {
-  const sim::FlangePose fp = sim::forward_kinematics(q_rad);
-  return {fp.R_base_flange, fp.p_base_flange_m + fp.R_base_flange * config_.p_flange_tcp_m};
+  const robot::Pose fp = robot::flange_pose(sim::kr210(), q_rad);
+  return {fp.R, fp.p_m + fp.R * config_.p_flange_tcp_m};
 }
 
 TcpMotion RobotEmulator::actual_tcp() const {
-  const sim::FlangeMotion fm =
-      sim::flange_motion(actual_.q_rad, actual_.qd_radps, actual_.qdd_radps2);
+  const robot::FlangeMotion fm =
+      robot::flange_motion(sim::kr210(), actual_.q_rad, actual_.qd_radps, actual_.qdd_radps2);
   TcpMotion m;
   const Eigen::Vector3d lever_base_m = fm.R_base_flange * config_.p_flange_tcp_m;
   m.pose = {fm.R_base_flange, fm.p_base_flange_m + lever_base_m};
@@ -89,7 +89,7 @@ Eigen::Matrix<double, 6, 6> RobotEmulator::jacobian(const sim::JointVector& q_ra
   for (int i = 0; i < 6; ++i) {
     sim::JointVector qd{};
     qd[i] = 1.0;
-    const sim::FlangeMotion fm = sim::flange_motion(q_rad, qd, zero);
+    const robot::FlangeMotion fm = robot::flange_motion(sim::kr210(), q_rad, qd, zero);
     J.block<3, 1>(0, i) = fm.velocity_of(fm.R_base_flange * config_.p_flange_tcp_m);
     J.block<3, 1>(3, i) = fm.omega_base_radps;
   }

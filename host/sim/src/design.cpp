@@ -97,12 +97,12 @@ std::optional<DesignKind> design_kind_from_name(std::string_view name) {
 }
 
 double lowest_point_z(const JointVector& q_rad, const Workspace& ws) {
-  const FlangePose f = forward_kinematics(q_rad);
-  const Eigen::Vector3d z_flange = f.R_base_flange.col(2);
-  const Eigen::Vector3d wrist = f.p_base_flange_m - kKr210Dh[5].d_m * z_flange;
-  const Eigen::Vector3d sensor = f.p_base_flange_m + f.R_base_flange * ws.p_flange_sensor_m;
-  const Eigen::Vector3d com = sensor + f.R_base_flange * ws.R_flange_sensor * ws.com_sensor_m;
-  return std::min({wrist.z(), f.p_base_flange_m.z(), sensor.z(), com.z() - ws.payload_radius_m});
+  const robot::Pose f = robot::flange_pose(kr210(), q_rad);
+  const Eigen::Vector3d z_flange = f.R.col(2);
+  const Eigen::Vector3d wrist = f.p_m - kr210().joints[5].d_m * z_flange;
+  const Eigen::Vector3d sensor = f.p_m + f.R * ws.p_flange_sensor_m;
+  const Eigen::Vector3d com = sensor + f.R * ws.R_flange_sensor * ws.com_sensor_m;
+  return std::min({wrist.z(), f.p_m.z(), sensor.z(), com.z() - ws.payload_radius_m});
 }
 
 bool within_limits(const JointVector& q_rad, const JointLimits& limits) {
@@ -265,8 +265,8 @@ DesignMetrics design_metrics(const std::vector<JointVector>& points, const Works
   Eigen::MatrixXd A = Eigen::MatrixXd::Zero(6 * static_cast<Eigen::Index>(points.size()), 10);
   const Eigen::Vector3d g_base(0.0, 0.0, -model::kStandardGravity);
   for (std::size_t k = 0; k < points.size(); ++k) {
-    const FlangePose f = forward_kinematics(points[k]);
-    const Eigen::Vector3d g_s = (f.R_base_flange * ws.R_flange_sensor).transpose() * g_base;
+    const robot::Pose f = robot::flange_pose(kr210(), points[k]);
+    const Eigen::Vector3d g_s = (f.R * ws.R_flange_sensor).transpose() * g_base;
     const auto r = static_cast<Eigen::Index>(6 * k);
     A.block<3, 3>(r, 0).setIdentity();
     A.block<3, 3>(r + 3, 3).setIdentity();
@@ -352,7 +352,7 @@ AttitudeDesign design_from_attitudes(const std::vector<Eigen::Vector3d>& rotvecs
     ++out.design.candidates;
     const Eigen::Matrix3d R_base_flange =
         model::rotation_from_vector(rotvecs[a]) * ws.R_flange_sensor.transpose();
-    const auto solutions = wrist_inverse_kinematics(previous, R_base_flange);
+    const auto solutions = robot::wrist_inverse_kinematics(kr210(), previous, R_base_flange);
     std::optional<JointVector> best;
     double best_move = std::numeric_limits<double>::infinity();
     bool any_in_range = false;

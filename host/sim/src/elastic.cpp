@@ -1,5 +1,6 @@
 #include "zerog/sim/elastic.hpp"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 
@@ -9,27 +10,18 @@
 namespace zerog::sim {
 
 ElasticityConfig kr210_elasticity() {
+  // The robot file's elasticity (calib/robots/kr210_r2700.robot.toml; proto/sim_robot.md gives
+  // the sources: stiffness of the KUKA KR240-2 from Dumas et al., modes and damping assumed).
   ElasticityConfig c;
   c.enabled = true;
-  // Stiffness: Dumas, Caro, Cherif, Garnier, Furet, "Joint stiffness identification of
-  // industrial serial robots" (KUKA KR240-2, Table 2; HAL hal-00633095). Modes: the main axes in
-  // the 5-15 Hz of a KR 210 class arm with a heavy payload (an assumption, not a measurement:
-  // proto/sim_robot.md); the wrist axes from the stiffness and the 100 kg payload's inertia about
-  // each wrist axis at home. Damping ratio 0.05: an assumption (lightly damped gearboxes).
-  c.joints = {{{3.8e6, 6.0, 0.05},
-               {6.6e6, 8.0, 0.05},
-               {3.9e6, 10.0, 0.05},
-               {5.6e5, 55.0, 0.05},
-               {6.6e5, 23.0, 0.05},
-               {4.7e5, 50.0, 0.05}}};
+  for (std::size_t i = 0; i < c.joints.size(); ++i) c.joints[i] = kr210().elasticity[i];
   return c;
 }
 
 JointVector joint_torques(const JointVector& q_rad, const Eigen::Vector3d& force_base_N,
                           const Eigen::Vector3d& moment_flange_base_Nm) {
-  static const robot::RobotModel kr210 = robot::kr210_r2700();
   JointVector tau{};
-  robot::joint_torques(kr210, q_rad, force_base_N, moment_flange_base_Nm, tau);
+  robot::joint_torques(kr210(), q_rad, force_base_N, moment_flange_base_Nm, tau);
   return tau;
 }
 
@@ -94,8 +86,8 @@ JointState ElasticArm::step(const JointState& motor, double dt, const JointVecto
 JointVector weight_load(const JointVector& link_q_rad, const Eigen::Matrix3d& R_base_sensor,
                         const Eigen::Vector3d& p_flange_sensor_m,
                         const Eigen::Vector3d& com_sensor_m, double mass_kg) {
-  const FlangePose f = forward_kinematics(link_q_rad);
-  const Eigen::Vector3d lever = f.R_base_flange * p_flange_sensor_m + R_base_sensor * com_sensor_m;
+  const robot::Pose f = robot::flange_pose(kr210(), link_q_rad);
+  const Eigen::Vector3d lever = f.R * p_flange_sensor_m + R_base_sensor * com_sensor_m;
   const Eigen::Vector3d force(0.0, 0.0, -model::kStandardGravity * mass_kg);
   return joint_torques(link_q_rad, force, lever.cross(force));
 }

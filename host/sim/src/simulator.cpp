@@ -505,7 +505,7 @@ double RigSimulator::imu_delay_s() const {
              : 0.0;
 }
 
-ImuTruth RigSimulator::imu_of(const FlangeMotion& fm) const {
+ImuTruth RigSimulator::imu_of(const robot::FlangeMotion& fm) const {
   // The IMU is fixed to the flange side: nominal sensor frame, rig pose of the IMU in it.
   const Eigen::Matrix3d R_base_imu = fm.R_base_flange * R_sensor_imu_;
   const Eigen::Vector3d lever_base_m =
@@ -520,7 +520,7 @@ ImuTruth RigSimulator::imu_of(const FlangeMotion& fm) const {
   return out;
 }
 
-Vec6 RigSimulator::wrench_of(const JointState& js, const FlangeMotion& fm, double t_s,
+Vec6 RigSimulator::wrench_of(const JointState& js, const robot::FlangeMotion& fm, double t_s,
                              std::span<const ExternalWrench> pushes,
                              Measurement* kinematics) const {
   const SimConfig& c = config_;
@@ -581,7 +581,7 @@ Vec6 RigSimulator::wrench_of(const JointState& js, const FlangeMotion& fm, doubl
   return w;
 }
 
-Vec6 RigSimulator::outside_wrench_of(const JointState& js, const FlangeMotion& fm,
+Vec6 RigSimulator::outside_wrench_of(const JointState& js, const robot::FlangeMotion& fm,
                                      const Eigen::Matrix3d& R_base_sensor) const {
   const SimConfig& c = config_;
   Vec6 w = Vec6::Zero();
@@ -610,7 +610,8 @@ Vec6 RigSimulator::outside_wrench_of(const JointState& js, const FlangeMotion& f
 
 Vec6 RigSimulator::outside_wrench_at(double t_s) const {
   const JointState js = trajectory_.at(t_s);
-  const FlangeMotion fm = flange_motion(js.q_rad, js.qd_radps, js.qdd_radps2);
+  const robot::FlangeMotion fm =
+      robot::flange_motion(kr210(), js.q_rad, js.qd_radps, js.qdd_radps2);
   Vec6 w = outside_wrench_of(js, fm, fm.R_base_flange * R_nominal_true_);
   if (config_.effects.has(SimEffect::crosstalk)) {
     const Eigen::Map<const Eigen::Matrix<double, 6, 6, Eigen::RowMajor>> E(
@@ -623,10 +624,12 @@ Vec6 RigSimulator::outside_wrench_at(double t_s) const {
 Measurement RigSimulator::measure(const JointState& js, const JointState& js_imu, double t_s,
                                   std::span<const ExternalWrench> pushes) const {
   Measurement m;
-  m.flange = flange_motion(js.q_rad, js.qd_radps, js.qdd_radps2);
+  m.flange = robot::flange_motion(kr210(), js.q_rad, js.qd_radps, js.qdd_radps2);
   m.wrench_sensor = wrench_of(js, m.flange, t_s, pushes, &m);
-  m.imu = &js_imu == &js ? imu_of(m.flange)
-                         : imu_of(flange_motion(js_imu.q_rad, js_imu.qd_radps, js_imu.qdd_radps2));
+  m.imu =
+      &js_imu == &js
+          ? imu_of(m.flange)
+          : imu_of(robot::flange_motion(kr210(), js_imu.q_rad, js_imu.qd_radps, js_imu.qdd_radps2));
   return m;
 }
 
@@ -637,12 +640,13 @@ Measurement RigSimulator::measure(const JointState& js, double t_s,
 
 ImuTruth RigSimulator::imu_at(double t_s) const {
   const JointState js = trajectory_.at(t_s - imu_delay_s());
-  return imu_of(flange_motion(js.q_rad, js.qd_radps, js.qdd_radps2));
+  return imu_of(robot::flange_motion(kr210(), js.q_rad, js.qd_radps, js.qdd_radps2));
 }
 
 Vec6 RigSimulator::wrench_at(double t_s) const {
   const JointState js = trajectory_.at(t_s);
-  return wrench_of(js, flange_motion(js.q_rad, js.qd_radps, js.qdd_radps2), t_s, {}, nullptr);
+  return wrench_of(js, robot::flange_motion(kr210(), js.q_rad, js.qd_radps, js.qdd_radps2), t_s, {},
+                   nullptr);
 }
 
 double Contact::factor_at(double t_s) const {
@@ -707,9 +711,9 @@ namespace {
 
 // The pose the controller reports for joint angles q: nominal kinematics, nominal mounting.
 void set_nominal_pose(io::Sample& s, const JointVector& q, const SimConfig& c) {
-  const FlangePose fp = forward_kinematics(q);
-  s.p_base_sensor_m = fp.p_base_flange_m + fp.R_base_flange * c.p_flange_sensor_m;
-  s.q_base_sensor = Eigen::Quaterniond(fp.R_base_flange).normalized();
+  const robot::Pose fp = robot::flange_pose(kr210(), q);
+  s.p_base_sensor_m = fp.p_m + fp.R * c.p_flange_sensor_m;
+  s.q_base_sensor = Eigen::Quaterniond(fp.R).normalized();
   if (s.q_base_sensor.w() < 0.0) s.q_base_sensor.coeffs() *= -1.0;
 }
 

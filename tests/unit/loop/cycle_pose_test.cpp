@@ -14,11 +14,12 @@
 
 #include "alloc_count.hpp"
 #include "loop_fixtures.hpp"
+#include "zerog/formats/robot_toml.hpp"
 #include "zerog/loop/cycle.hpp"
 #include "zerog/model/rotation.hpp"
 #include "zerog/proto/rsi.hpp"
 #include "zerog/robot/robot_model.hpp"
-#include "zerog/sim/kinematics.hpp"
+#include "zerog/sim/robot.hpp"
 
 namespace zerog::loop {
 namespace {
@@ -40,15 +41,15 @@ std::array<double, 6> joints_deg(int k) {
           40.0 + 25.0 * std::sin(0.5 * t), -20.0 + 60.0 * std::sin(1.7 * t)};
 }
 
-// The controller's message for cycle k: RIst from host/sim's kinematics, through the codec's text.
+// The controller's message for cycle k: RIst from the simulated arm, through the codec's text.
 rsi::RobotMessage wire_message(int k, bool with_rist) {
   rsi::RobotMessage m;
   m.joints_deg = joints_deg(k);
   sim::JointVector q{};
   for (int i = 0; i < 6; ++i) q[i] = m.joints_deg[i] * kDeg;
-  const sim::FlangePose f = sim::forward_kinematics(q);
-  const Eigen::Vector3d p = f.p_base_flange_m + f.R_base_flange * kFlangeSensor;
-  const Eigen::Vector3d abc = model::kuka_abc_from_rotation(f.R_base_flange);
+  const robot::Pose f = robot::flange_pose(sim::kr210(), q);
+  const Eigen::Vector3d p = f.p_m + f.R * kFlangeSensor;
+  const Eigen::Vector3d abc = model::kuka_abc_from_rotation(f.R);
   const rsi::Correction c =
       rsi::correction_from_si({p.x(), p.y(), p.z()}, {abc.x(), abc.y(), abc.z()});
   m.actual_pose = {c.x_mm, c.y_mm, c.z_mm, c.a_deg, c.b_deg, c.c_deg};
@@ -91,7 +92,8 @@ std::vector<CycleRecord> run(Cycle& c, bool with_rist) {
 
 CycleConfig with_robot(const robot::FrameTransform& flange_sensor) {
   CycleConfig config = test_cycle_config();
-  config.robot = robot::kr210_r2700(flange_sensor);
+  config.robot = io::kr210_r2700(flange_sensor);
+  config.robot->elasticity = {};  // the rigid arm: the pose path alone
   return config;
 }
 

@@ -11,6 +11,7 @@
 
 #include "alloc_count.hpp"
 #include "loop_fixtures.hpp"
+#include "zerog/formats/robot_toml.hpp"
 #include "zerog/loop/cycle.hpp"
 #include "zerog/loop/motion_estimator.hpp"
 #include "zerog/model/rotation.hpp"
@@ -237,7 +238,7 @@ TEST(MotionEstimator, RefusesSettingsThatCannotWork) {
 TEST(MotionEstimator, TheCycleWithItDoesNotAllocate) {
   CycleConfig config = test::test_cycle_config();
   config.motion.source = MotionSource::fused;
-  robot::RobotModel arm = robot::kr210_r2700();
+  robot::RobotModel arm = io::kr210_r2700();
   for (int i = 0; i < 6; ++i) arm.elasticity[i] = {1e6, 8.0, 0.05};
   config.robot = arm;
   Cycle c;

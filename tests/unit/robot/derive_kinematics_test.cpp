@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "alloc_count.hpp"
+#include "zerog/formats/robot_toml.hpp"
 #include "zerog/robot/derive_kinematics.hpp"
 #include "zerog/sim/design.hpp"
 #include "zerog/sim/trajectory.hpp"
@@ -84,7 +85,7 @@ struct Truth {
   Eigen::Vector3d omega_S, omega_dot_S, accel_B;
 };
 Truth truth_of(const sim::JointState& js, const RobotModel& model) {
-  const sim::FlangeMotion fm = sim::flange_motion(js.q_rad, js.qd_radps, js.qdd_radps2);
+  const FlangeMotion fm = flange_motion(model, js.q_rad, js.qd_radps, js.qdd_radps2);
   const Eigen::Matrix3d R_BS = fm.R_base_flange * model.flange_sensor.R;
   return {R_BS.transpose() * fm.omega_base_radps, R_BS.transpose() * fm.omega_dot_base_radps2,
           fm.acceleration_of(fm.R_base_flange * model.flange_sensor.p_m)};
@@ -93,7 +94,7 @@ Truth truth_of(const sim::JointState& js, const RobotModel& model) {
 TEST(DeriveKinematics, FromNoiseFreeJointsMatchesTheSimulatorsAnalyticMotion) {
   FrameTransform flange_sensor;
   flange_sensor.p_m = {0.0, 0.0, 0.06};
-  const RobotModel model = kr210_r2700(flange_sensor);
+  const RobotModel model = io::kr210_r2700(flange_sensor);
   const double h = 0.004;
   const PtpRun run = ptp_run(h, 30.0);
   DifferentiatorSettings settings;
@@ -127,7 +128,7 @@ TEST(DeriveKinematics, FromNoiseFreeJointsMatchesTheSimulatorsAnalyticMotion) {
 }
 
 TEST(DeriveKinematics, RefusesWithATypedStatus) {
-  const RobotModel model = kr210_r2700();
+  const RobotModel model = io::kr210_r2700();
   DifferentiatorSettings settings;
   settings.sg = {3, 3};
   std::vector<double> t = {0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7};
@@ -154,7 +155,7 @@ TEST(DeriveKinematics, RefusesWithATypedStatus) {
 }
 
 TEST(DeriveKinematics, DoesNotAllocate) {
-  const RobotModel model = kr210_r2700();
+  const RobotModel model = io::kr210_r2700();
   const PtpRun run = ptp_run(0.012, 3.0);
   DifferentiatorSettings settings;
   settings.sg = {8, 3};

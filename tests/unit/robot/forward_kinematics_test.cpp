@@ -1,6 +1,7 @@
-// zerog::robot forward kinematics: the shipped KR 210 R2700 file against the simulator's own
-// kinematics (host/sim, the truth), the 7-axis LBR iiwa file against hand-computed poses, the
-// model checks and the file reader's refusals, and no allocation.
+// zerog::robot kinematics: the 7-axis LBR iiwa file against hand-computed poses, both DH
+// conventions, the joint order, the flange's motion against finite differences of its pose, the
+// Jacobian, the wrist's inverse kinematics, the model checks and the file reader's refusals, and
+// no allocation. The KR 210 R2700 file's own checks are in kr210_file_test.cpp.
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -13,7 +14,8 @@
 #include "alloc_count.hpp"
 #include "zerog/formats/robot_toml.hpp"
 #include "zerog/robot/forward_kinematics.hpp"
-#include "zerog/sim/kinematics.hpp"
+#include "zerog/sim/robot.hpp"
+#include "zerog/sim/trajectory.hpp"
 
 namespace zerog::robot {
 namespace {
@@ -25,45 +27,6 @@ fs::path calib(const char* name) { return fs::path(ZEROG_SOURCE_DIR) / "calib/ro
 
 double rotation_error_rad(const Eigen::Matrix3d& A, const Eigen::Matrix3d& B) {
   return Eigen::AngleAxisd(A.transpose() * B).angle();
-}
-
-TEST(RobotForwardKinematics, Kr210FileAgreesWithSimulatorAtRandomJoints) {
-  const RobotModel model = io::read_robot_file(calib("kr210_r2700.robot.toml"));
-  ASSERT_EQ(model.joint_count, 6);
-  const Eigen::Vector3d p_flange_sensor(0.0, 0.0, 0.06);  // the file's [flange_sensor]
-  std::mt19937_64 rng(7);
-  std::uniform_real_distribution<double> angle(-kPi, kPi);
-  double worst_p = 0.0, worst_R = 0.0;
-  for (int trial = 0; trial < 2000; ++trial) {
-    sim::JointVector q;
-    for (double& v : q) v = angle(rng);
-    const sim::FlangePose truth = sim::forward_kinematics(q);
-    const Pose flange = flange_pose(model, q);
-    const Pose sensor = sensor_pose(model, q);
-    worst_p = std::max(worst_p, (flange.p_m - truth.p_base_flange_m).norm());
-    worst_R = std::max(worst_R, rotation_error_rad(flange.R, truth.R_base_flange));
-    const Eigen::Vector3d p_sensor_truth =
-        truth.p_base_flange_m + truth.R_base_flange * p_flange_sensor;
-    worst_p = std::max(worst_p, (sensor.p_m - p_sensor_truth).norm());
-    worst_R = std::max(worst_R, rotation_error_rad(sensor.R, truth.R_base_flange));
-  }
-  EXPECT_LT(worst_p, 1e-9);
-  EXPECT_LT(worst_R, 1e-9);
-  // The built-in copy is the same robot.
-  EXPECT_LT((flange_pose(kr210_r2700(), sim::kr210_home()).p_m -
-             sim::forward_kinematics(sim::kr210_home()).p_base_flange_m)
-                .norm(),
-            1e-12);
-}
-
-TEST(RobotForwardKinematics, Kr210HomeIsTheDocumentedPose) {
-  const Pose home = flange_pose(kr210_r2700(), sim::kr210_home());
-  EXPECT_NEAR(home.p_m.x(), 1.765, 1e-12);
-  EXPECT_NEAR(home.p_m.y(), 0.0, 1e-12);
-  EXPECT_NEAR(home.p_m.z(), 1.784, 1e-12);
-  EXPECT_LT(rotation_error_rad(
-                home.R, Eigen::AngleAxisd(kPi / 2, Eigen::Vector3d::UnitY()).toRotationMatrix()),
-            1e-12);
 }
 
 // LBR iiwa 14 R820 (modified DH), poses computed by hand from the link lengths 0.36, 0.42, 0.40,
@@ -104,7 +67,7 @@ TEST(RobotForwardKinematics, SevenAxisIiwaAtHandComputedPoses) {
 // The standard and the modified convention describe the same arm: the KR 210 rewritten in
 // Craig's form (row i carries a_{i−1}, α_{i−1}; the last row's a, α become the flange frame).
 TEST(RobotForwardKinematics, ModifiedDhOfTheKr210MatchesStandard) {
-  const RobotModel dh = kr210_r2700();
+  const RobotModel dh = io::kr210_r2700();
   RobotModel mdh = dh;
   mdh.convention = DhConvention::mdh;
   for (int i = 0; i < 6; ++i) {
@@ -126,37 +89,37 @@ TEST(RobotForwardKinematics, ModifiedDhOfTheKr210MatchesStandard) {
 }
 
 TEST(RobotForwardKinematics, JointOrderPicksTheRecordedColumns) {
-  RobotModel swapped = kr210_r2700();
+  RobotModel swapped = io::kr210_r2700();
   // The recording lists A6 first, then A1..A5.
   for (int i = 0; i < 6; ++i) swapped.input_index[i] = (i + 1) % 6;
   ASSERT_TRUE(validate(swapped).ok());
   const std::array<double, 6> q = {0.1, -1.2, 1.4, 0.3, -0.5, 0.7};
   const std::array<double, 6> recorded = {q[5], q[0], q[1], q[2], q[3], q[4]};
-  const Pose a = flange_pose(kr210_r2700(), q), b = flange_pose(swapped, recorded);
+  const Pose a = flange_pose(io::kr210_r2700(), q), b = flange_pose(swapped, recorded);
   EXPECT_LT((a.p_m - b.p_m).norm(), 1e-15);
 }
 
 TEST(RobotModelValidate, NamesTheFaultyField) {
-  RobotModel m = kr210_r2700();
+  RobotModel m = io::kr210_r2700();
   EXPECT_TRUE(validate(m).ok());
   m.joint_count = 9;
   EXPECT_EQ(validate(m).setting(), "joint_count");
-  m = kr210_r2700();
+  m = io::kr210_r2700();
   m.joints[2].sign = 0.5;
   zerog::Status s = validate(m);
   EXPECT_EQ(s.code(), zerog::StatusCode::invalid_setting);
   EXPECT_EQ(s.setting(), "joints[2].sign");
   EXPECT_EQ(s.message(), "must be +1 or -1");
   EXPECT_EQ(s.text(), "joints[2].sign: must be +1 or -1");
-  m = kr210_r2700();
+  m = io::kr210_r2700();
   m.input_index[1] = 0;
   EXPECT_EQ(validate(m).setting(), "input_index[1]");
-  m = kr210_r2700();
+  m = io::kr210_r2700();
   m.joints[4].d_m = std::nan("");
   s = validate(m);
   EXPECT_EQ(s.setting(), "joints[4]");
   EXPECT_EQ(s.message(), "has a value that is not a finite number");
-  m = kr210_r2700();
+  m = io::kr210_r2700();
   m.flange_sensor.R(0, 0) = 2.0;
   s = validate(m);
   EXPECT_EQ(s.code(), zerog::StatusCode::invalid_setting);
@@ -201,7 +164,7 @@ TEST(RobotToml, RefusesBadTablesNamingTheKey) {
 }
 
 TEST(RobotForwardKinematics, DoesNotAllocate) {
-  const RobotModel model = kr210_r2700();
+  const RobotModel model = io::kr210_r2700();
   const std::array<double, 6> q = {0.1, -1.2, 1.4, 0.3, -0.5, 0.7};
   const std::size_t before = test::allocation_count();
   double sum = 0.0;
@@ -225,11 +188,11 @@ TEST(RobotForwardKinematics, SensorJacobianIsTheDerivativeOfThePose) {
   FrameTransform mount;
   mount.p_m = Eigen::Vector3d(0.01, -0.02, 0.06);
   mount.R = Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
-  RobotModel permuted = kr210_r2700(mount);
+  RobotModel permuted = io::kr210_r2700(mount);
   permuted.input_index = {5, 4, 3, 2, 1, 0, 6, 7};
   RobotModel iiwa = io::read_robot_file(calib("lbr_iiwa14_r820.robot.toml"));
   iiwa.flange_sensor = mount;
-  for (const RobotModel& model : {kr210_r2700(mount), permuted, iiwa}) {
+  for (const RobotModel& model : {io::kr210_r2700(mount), permuted, iiwa}) {
     for (int trial = 0; trial < 5; ++trial) {
       std::array<double, kMaxJoints> q{};
       for (int k = 0; k < model.joint_count; ++k) q[k] = angle(rng);
@@ -252,6 +215,126 @@ TEST(RobotForwardKinematics, SensorJacobianIsTheDerivativeOfThePose) {
       }
       for (int k = model.joint_count; k < kMaxJoints; ++k) EXPECT_EQ(J.col(k).norm(), 0.0);
     }
+  }
+}
+
+Eigen::Vector3d rotation_log(const Eigen::Matrix3d& R) {
+  const Eigen::AngleAxisd aa(R);
+  return aa.angle() * aa.axis();
+}
+
+// flange_motion against finite differences of flange_pose along q(t) = q + q̇ t + q̈ t²/2, on the
+// KR 210 (standard DH), the same with the recorded joints in reverse order, and the iiwa
+// (modified DH, 7 joints) with a flange frame off its last DH frame; its pose is flange_pose's to
+// the last bit.
+TEST(RobotFlangeMotion, MatchesFiniteDifferencesOfThePose) {
+  RobotModel permuted = io::kr210_r2700();
+  permuted.input_index = {5, 4, 3, 2, 1, 0, 6, 7};
+  RobotModel iiwa = io::read_robot_file(calib("lbr_iiwa14_r820.robot.toml"));
+  iiwa.last_flange.p_m = {0.02, -0.01, 0.05};
+  iiwa.last_flange.R =
+      Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, -2, 1).normalized()).toRotationMatrix();
+  std::mt19937 gen(7);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (const RobotModel& model : {io::kr210_r2700(), permuted, iiwa}) {
+    const auto n = static_cast<std::size_t>(model.joint_count);
+    for (int trial = 0; trial < 30; ++trial) {
+      std::array<double, kMaxJoints> q{}, qd{}, qdd{};
+      for (std::size_t j = 0; j < n; ++j) {
+        q[j] = 2.0 * u(gen);
+        qd[j] = u(gen);
+        qdd[j] = 2.0 * u(gen);
+      }
+      // q(t) = q + qd t + qdd t²/2, so q̇(0) = qd and q̈(0) = qdd.
+      auto at = [&](double t, std::array<double, kMaxJoints>& qt,
+                    std::array<double, kMaxJoints>& qdt) {
+        for (std::size_t j = 0; j < n; ++j) {
+          qt[j] = q[j] + qd[j] * t + 0.5 * qdd[j] * t * t;
+          qdt[j] = qd[j] + qdd[j] * t;
+        }
+      };
+      const auto span = [n](const std::array<double, kMaxJoints>& v) {
+        return std::span<const double>(v.data(), n);
+      };
+      const double h = 1e-5;
+      std::array<double, kMaxJoints> qp{}, qm{}, qdp{}, qdm{};
+      at(h, qp, qdp);
+      at(-h, qm, qdm);
+      const FlangeMotion m = flange_motion(model, span(q), span(qd), span(qdd));
+      const Pose p0 = flange_pose(model, span(q)), pp = flange_pose(model, span(qp)),
+                 pm = flange_pose(model, span(qm));
+      EXPECT_EQ(m.p_base_flange_m, p0.p_m);
+      EXPECT_EQ(m.R_base_flange, p0.R);
+      const Eigen::Vector3d v_fd = (pp.p_m - pm.p_m) / (2 * h);
+      const Eigen::Vector3d a_fd = (pp.p_m - 2 * p0.p_m + pm.p_m) / (h * h);
+      const Eigen::Vector3d w_fd = rotation_log(pp.R * pm.R.transpose()) / (2 * h);
+      EXPECT_LT((m.v_flange_base_mps - v_fd).norm(), 1e-8);
+      EXPECT_LT((m.a_flange_base_mps2 - a_fd).norm(), 2e-3);  // second difference: ~ε/h²
+      EXPECT_LT((m.omega_base_radps - w_fd).norm(), 1e-8);
+      // ω̇ and a against the central differences of the (just verified) analytic ω and v.
+      const FlangeMotion mp = flange_motion(model, span(qp), span(qdp), span(qdd));
+      const FlangeMotion mm = flange_motion(model, span(qm), span(qdm), span(qdd));
+      const Eigen::Vector3d wd_fd = (mp.omega_base_radps - mm.omega_base_radps) / (2 * h);
+      EXPECT_LT((m.omega_dot_base_radps2 - wd_fd).norm(), 1e-7);
+      const Eigen::Vector3d a_fd2 = (mp.v_flange_base_mps - mm.v_flange_base_mps) / (2 * h);
+      EXPECT_LT((m.a_flange_base_mps2 - a_fd2).norm(), 1e-7);
+      // A body point: acceleration_of matches the second difference of its position.
+      const Eigen::Vector3d lever_flange(0.03, -0.02, 0.31);
+      auto point = [&](const Pose& f) { return Eigen::Vector3d(f.p_m + f.R * lever_flange); };
+      const Eigen::Vector3d ap_fd = (point(pp) - 2 * point(p0) + point(pm)) / (h * h);
+      EXPECT_LT((m.acceleration_of(m.R_base_flange * lever_flange) - ap_fd).norm(), 2e-3);
+    }
+  }
+}
+
+TEST(RobotWristInverseKinematics, ReproducesTheOrientation) {
+  const RobotModel model = io::kr210_r2700();
+  std::mt19937 gen(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const sim::JointLimits lim = sim::kr210_table4_limits();
+  for (int trial = 0; trial < 200; ++trial) {
+    sim::JointVector q{};
+    for (int j = 0; j < 6; ++j)
+      q[j] = 0.5 * (lim.lower_rad[j] + lim.upper_rad[j]) +
+             0.5 * u(gen) * (lim.upper_rad[j] - lim.lower_rad[j]);
+    const Eigen::Matrix3d R = flange_pose(model, q).R;
+    const auto solutions = wrist_inverse_kinematics(model, q, R);
+    EXPECT_GE(solutions[0][4], 0.0);
+    EXPECT_LE(solutions[1][4], 0.0);
+    bool found_q = false;
+    for (const sim::JointVector& s : solutions) {
+      for (int j = 0; j < 3; ++j) EXPECT_EQ(s[j], q[j]);  // the arm stays
+      EXPECT_LT((flange_pose(model, s).R - R).cwiseAbs().maxCoeff(), 1e-9);
+      bool same = true;
+      for (int j = 3; j < 6; ++j)
+        same = same && std::abs(std::remainder(s[j] - q[j], 2 * kPi)) < 1e-9;
+      found_q = found_q || same;
+    }
+    EXPECT_TRUE(found_q) << "trial " << trial;  // one of the two is the pose we started from
+  }
+}
+
+TEST(RobotWristInverseKinematics, AtTheSingularity) {
+  const RobotModel model = io::kr210_r2700();
+  constexpr double kDeg = kPi / 180.0;
+  sim::JointVector q = sim::kr210_home();
+  q[3] = 30 * kDeg;
+  q[4] = 0.0;  // A4 and A6 turn about the same axis: only their sum is determined
+  q[5] = -70 * kDeg;
+  const Eigen::Matrix3d R = flange_pose(model, q).R;
+  sim::JointVector reference = q;
+  reference[3] = 10 * kDeg;  // A4 is kept from the reference
+  for (const sim::JointVector& s : wrist_inverse_kinematics(model, reference, R)) {
+    EXPECT_NEAR(s[3], 10 * kDeg, 1e-12);
+    EXPECT_NEAR(s[4], 0.0, 1e-12);
+    EXPECT_NEAR(s[5], -50 * kDeg, 1e-9);  // A4 + A6 unchanged
+    EXPECT_LT((flange_pose(model, s).R - R).cwiseAbs().maxCoeff(), 1e-9);
+  }
+  for (double a5 : {1e-11, 1e-8, 1e-5}) {  // close to it: still exact
+    q[4] = a5;
+    const Eigen::Matrix3d Rn = flange_pose(model, q).R;
+    for (const sim::JointVector& s : wrist_inverse_kinematics(model, q, Rn))
+      EXPECT_LT((flange_pose(model, s).R - Rn).cwiseAbs().maxCoeff(), 1e-9) << a5;
   }
 }
 

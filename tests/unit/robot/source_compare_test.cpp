@@ -66,7 +66,7 @@ Figures measure(double period_s, std::uint64_t seed, double bandwidth_hz) {
   const io::Rig rig = sim.rig();
   EXPECT_EQ(rig.sensor_imu.p_m, Eigen::Vector3d::Zero());  // no lever arm: f_S = R_SI f_I
   const Eigen::Matrix3d R_SI = rig.sensor_imu.q.toRotationMatrix();
-  const RobotModel model = kr210_r2700(io::to_frame_transform(rig.flange_sensor));
+  const RobotModel model = io::kr210_r2700(io::to_frame_transform(rig.flange_sensor));
 
   const std::size_t n = run.log.samples.size();
   std::vector<double> t(n), joints(n * 6);

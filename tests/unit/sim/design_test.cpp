@@ -170,7 +170,7 @@ TEST(Design, AppendixCAttitudesByWristInverseKinematics) {
     for (int j = 0; j < 3; ++j) EXPECT_EQ(q[j], o.arm_rad[j]);
     // Forward kinematics of the solution reproduces the attitude R_base_sensor = Exp(r).
     const Eigen::Matrix3d R_base_sensor =
-        forward_kinematics(q).R_base_flange * o.workspace.R_flange_sensor;
+        robot::flange_pose(kr210(), q).R * o.workspace.R_flange_sensor;
     const Eigen::Matrix3d R_wanted =
         model::rotation_from_vector(attitudes[static_cast<std::size_t>(d.attitude_index[k])]);
     EXPECT_LT((R_base_sensor - R_wanted).cwiseAbs().maxCoeff(), 1e-9) << "attitude " << k + 1;

@@ -33,10 +33,9 @@ TEST(ElasticJointTorques, AreTheVirtualWorkOfTheFlangeWrench) {
       JointVector lo = q, hi = q;
       lo[i] -= h;
       hi[i] += h;
-      const FlangePose a = forward_kinematics(lo), b = forward_kinematics(hi);
-      const Eigen::AngleAxisd turn(b.R_base_flange * a.R_base_flange.transpose());
-      const double work =
-          F.dot(b.p_base_flange_m - a.p_base_flange_m) + M.dot(turn.angle() * turn.axis());
+      const robot::Pose a = robot::flange_pose(kr210(), lo), b = robot::flange_pose(kr210(), hi);
+      const Eigen::AngleAxisd turn(b.R * a.R.transpose());
+      const double work = F.dot(b.p_m - a.p_m) + M.dot(turn.angle() * turn.axis());
       EXPECT_NEAR(tau[i] * 2.0 * h, work, 1e-8 * std::abs(work) + 1e-10)
           << "joint " << i + 1 << ", trial " << trial;
     }
@@ -59,16 +58,14 @@ TEST(ElasticJointTorques, AWeightAtHomeLoadsTheHorizontalAxesOnly) {
 TEST(ElasticDefaults, WristModesAreTheStiffnessOverThePayloadsInertia) {
   const SimConfig c = default_sim_config(1);
   const ElasticityConfig e = kr210_elasticity();
-  const FlangePose f = forward_kinematics(kr210_home());
-  const Eigen::Vector3d z = f.R_base_flange.col(2);
-  const Eigen::Vector3d wrist = f.p_base_flange_m - 0.215 * z;  // A4/A5 axes meet here
-  const Eigen::Vector3d com =
-      f.p_base_flange_m + f.R_base_flange * (c.p_flange_sensor_m + c.payload.com_sensor_m);
-  const Eigen::Matrix3d I =
-      f.R_base_flange * c.payload.inertia_com_sensor_kgm2 * f.R_base_flange.transpose();
+  const robot::Pose f = robot::flange_pose(kr210(), kr210_home());
+  const Eigen::Vector3d z = f.R.col(2);
+  const Eigen::Vector3d wrist = f.p_m - 0.215 * z;  // A4/A5 axes meet here
+  const Eigen::Vector3d com = f.p_m + f.R * (c.p_flange_sensor_m + c.payload.com_sensor_m);
+  const Eigen::Matrix3d I = f.R * c.payload.inertia_com_sensor_kgm2 * f.R.transpose();
   // At home A4 and A6 lie along the flange's z (through the wrist centre), A5 along base y.
   const std::array<std::pair<Eigen::Vector3d, Eigen::Vector3d>, 3> axes = {
-      {{wrist, z}, {wrist, Eigen::Vector3d::UnitY()}, {f.p_base_flange_m, z}}};
+      {{wrist, z}, {wrist, Eigen::Vector3d::UnitY()}, {f.p_m, z}}};
   for (std::size_t k = 0; k < 3; ++k) {
     const auto& [p, u] = axes[k];
     const double J = u.dot(I * u) + c.payload.mass_kg * ((com - p).cross(u)).squaredNorm();

@@ -99,10 +99,10 @@ TEST(FusedKinematics, BeatsTheImuAndNeedsTheElasticity) {
     sim::DesignOptions o;
     o.kind = sim::DesignKind::oa;
     const sim::SimOutput out = sim::RigSimulator(config, sim::make_design(o).points_rad).run();
-    robot::RobotModel elastic = robot::kr210_r2700(to_frame_transform(out.log.rig.flange_sensor));
+    robot::RobotModel elastic = io::kr210_r2700(to_frame_transform(out.log.rig.flange_sensor));
     for (std::size_t j = 0; j < 6; ++j) elastic.elasticity[j] = config.elastic.joints[j];
-    const robot::RobotModel rigid =
-        robot::kr210_r2700(to_frame_transform(out.log.rig.flange_sensor));
+    robot::RobotModel rigid = io::kr210_r2700(to_frame_transform(out.log.rig.flange_sensor));
+    rigid.elasticity = {};
 
     // The IMU as logged (ω̇ its 5-point difference, as host/ident forms it).
     FusionResult imu;

@@ -4,6 +4,7 @@
 // every zerog TOML file (toml_table.hpp): unknown keys, wrong types and bad values are errors
 // naming file, line, column and the dotted key. Host and start-up code: allocates and throws.
 #include <filesystem>
+#include <string_view>
 #include <vector>
 
 #include "zerog/formats/log.hpp"
@@ -35,6 +36,16 @@ struct RobotDescription {
   robot::RobotModel model;
 };
 RobotDescription read_robot_file(const std::filesystem::path& toml, const Transform& flange_sensor);
+
+/// Reads a robot file's text (`file` names it in messages). As read_robot_file.
+robot::RobotModel read_robot_text(std::string_view text, const std::filesystem::path& file);
+
+/// The KUKA KR 210 R2700: calib/robots/kr210_r2700.robot.toml, whose text is built into this
+/// library (firmware/formats/CMakeLists.txt) and read as any robot file, with `flange_sensor` in
+/// place of the file's own. The arm of the simulator, the emulator and the tests, so that the
+/// file is the one description of it; a rig names its robot file instead. Reads the text on each
+/// call (host and start-up code: allocates and throws).
+robot::RobotModel kr210_r2700(const robot::FrameTransform& flange_sensor = {});
 
 /// The `[<table>]` TOML text of `model` (name, convention, [[<table>.joint]], [<table>.flange];
 /// angles in degrees), which robot_from_toml reads back to the same model (1e-15). The

@@ -4,8 +4,9 @@
 // in F (the rig's `flange_sensor`, proto/frames.md). Any number of joints up to kMaxJoints
 // (a 6-axis KR 210 R2700 and a 7-axis LBR iiwa are both described in calib/robots/).
 //
-// A pure value type: no parsing here (the host reads it from TOML with
-// zerog/formats/robot_toml.hpp), no allocation; validate() once at configuration.
+// A pure value type: no parsing here (the host reads it from a robot file with
+// zerog/formats/robot_toml.hpp, the shipped KR 210 R2700 with io::kr210_r2700()), no allocation;
+// validate() once at configuration.
 #include <Eigen/Core>
 #include <algorithm>
 #include <array>
@@ -121,10 +122,5 @@ struct RobotModel {
 /// "last_flange.R") with why, without the field's name ("must be +1 or -1"). Configuration time:
 /// a failure allocates its message (the check itself does not).
 zerog::Status validate(const RobotModel& model);
-
-/// The KUKA KR 210 R2700 as calib/robots/kr210_r2700.robot.toml describes it (standard DH,
-/// KUKA's joint directions, joint order A1..A6), with `flange_sensor` as given. For tests and
-/// tools; the file is the source a rig should use.
-RobotModel kr210_r2700(const FrameTransform& flange_sensor = {});
 
 }  // namespace zerog::robot

@@ -4,15 +4,16 @@
 // (proto/emulator.md, proto/rsi.md "How the emulator applies corrections").
 //
 // Frames (proto/frames.md): B robot base; the TCP is the F/T sensor frame S, at
-// RobotConfig::p_flange_tcp_m on the flange with the flange's axes. Kinematics are host/sim's
-// (forward_kinematics, flange_motion). Emulator code: not real-time, but the per-step and
+// RobotConfig::p_flange_tcp_m on the flange with the flange's axes. The arm is the simulator's
+// (sim::kr210(), the robot file), moved by zerog::robot's kinematics (flange_pose,
+// flange_motion). Emulator code: not real-time, but the per-step and
 // per-cycle calls do not allocate.
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
 
 #include "zerog/proto/rsi.hpp"
-#include "zerog/sim/kinematics.hpp"
+#include "zerog/sim/robot.hpp"
 #include "zerog/sim/trajectory.hpp"
 
 namespace zerog::emu {
@@ -102,7 +103,7 @@ class RobotEmulator {
   /// Pose and twist of the actual TCP.
   TcpMotion actual_tcp() const;
   /// 6 × 6 geometric Jacobian of the TCP at `q`: rows vx, vy, vz (m/s) and ωx, ωy, ωz (rad/s)
-  /// in B per unit joint rate (columns A1..A6), from sim::flange_motion.
+  /// in B per unit joint rate (columns A1..A6), from robot::flange_motion.
   Eigen::Matrix<double, 6, 6> jacobian(const sim::JointVector& q_rad) const;
 
   /// The controller's message of the actual state: RIst = TCP pose (mm; A, B, C in degrees),

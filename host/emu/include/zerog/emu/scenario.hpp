@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "zerog/emu/physics.hpp"
-#include "zerog/sim/kinematics.hpp"
+#include "zerog/sim/robot.hpp"
 #include "zerog/sim/simulator.hpp"
 
 namespace zerog::emu {

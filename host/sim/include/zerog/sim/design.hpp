@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "zerog/formats/design_csv.hpp"
-#include "zerog/sim/kinematics.hpp"
+#include "zerog/sim/robot.hpp"
 
 namespace zerog::sim {
 

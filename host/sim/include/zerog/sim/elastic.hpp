@@ -24,7 +24,7 @@
 #include <array>
 
 #include "zerog/robot/robot_model.hpp"
-#include "zerog/sim/kinematics.hpp"
+#include "zerog/sim/robot.hpp"
 #include "zerog/sim/trajectory.hpp"
 
 namespace zerog::sim {
@@ -38,11 +38,12 @@ struct ElasticityConfig {
   double substep_s = 0.001;  ///< integration step (semi-implicit Euler); ω·dt ≤ 0.1 at 15 Hz
 };
 
-/// The KR 210 R2700 class defaults (proto/sim_robot.md has their sources).
+/// The KR 210 R2700's elasticity as its robot file gives it (kr210(); proto/sim_robot.md has the
+/// sources), enabled.
 ElasticityConfig kr210_elasticity();
 
 /// Joint torques (N·m, controller joint coordinates) of a wrench on the flange: τ = Jᵀ w, with
-/// robot::joint_torques on the KR 210 R2700 (robot::kr210_r2700()).
+/// robot::joint_torques on the simulated arm (kr210()).
 JointVector joint_torques(const JointVector& q_rad, const Eigen::Vector3d& force_base_N,
                           const Eigen::Vector3d& moment_flange_base_Nm);
 

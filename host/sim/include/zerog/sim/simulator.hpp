@@ -1,8 +1,9 @@
 #pragma once
 // The rig simulator: a KR 210 R2700 moving a payload on an ATI Omega191 F/T sensor with a
 // STIM300-like IMU, through a PTP trajectory. The physics is computed here, independently of
-// zerog::model: joint trajectory → analytic flange twist and its derivative (kinematics.hpp) →
-// Newton–Euler for the payload → switchable sensor effects → noise and quantisation.
+// zerog::model: joint trajectory → analytic flange twist and its derivative (robot::flange_motion
+// on the robot file's arm, robot.hpp) → Newton–Euler for the payload → switchable sensor effects →
+// noise and quantisation.
 //
 // Conventions are those of proto/frames.md, so that zerog::model::predict_wrench with the truth
 // parameters reproduces the noise-free simulated wrench (checked in tests/unit/sim).
@@ -273,8 +274,8 @@ struct Measurement {
   /// reads it (bias, drift, temperature, cable, the outside-library effects and crosstalk
   /// included).
   Eigen::Matrix<double, 6, 1> wrench_sensor = Eigen::Matrix<double, 6, 1>::Zero();
-  ImuTruth imu;         ///< IMU frame I, of the joint state given for the IMU
-  FlangeMotion flange;  ///< of the joint state given for the wrench, base axes
+  ImuTruth imu;                ///< IMU frame I, of the joint state given for the IMU
+  robot::FlangeMotion flange;  ///< of the joint state given for the wrench, base axes
   Eigen::Matrix3d R_base_sensor = Eigen::Matrix3d::Identity();  ///< true S in B
   Eigen::Vector3d p_base_sensor_m = Eigen::Vector3d::Zero();    ///< S origin in B
   Eigen::Vector3d v_com_base_mps = Eigen::Vector3d::Zero();     ///< payload centre of mass, B
@@ -348,12 +349,12 @@ class RigSimulator {
   SimOutput run(const std::function<void(double)>& progress = {}) const;
 
  private:
-  Eigen::Matrix<double, 6, 1> wrench_of(const JointState& js, const FlangeMotion& fm, double t_s,
-                                        std::span<const ExternalWrench> pushes,
+  Eigen::Matrix<double, 6, 1> wrench_of(const JointState& js, const robot::FlangeMotion& fm,
+                                        double t_s, std::span<const ExternalWrench> pushes,
                                         Measurement* kinematics) const;
-  ImuTruth imu_of(const FlangeMotion& fm) const;
+  ImuTruth imu_of(const robot::FlangeMotion& fm) const;
   /// The outside-library effects' wrench on the payload (before crosstalk), S.
-  Eigen::Matrix<double, 6, 1> outside_wrench_of(const JointState& js, const FlangeMotion& fm,
+  Eigen::Matrix<double, 6, 1> outside_wrench_of(const JointState& js, const robot::FlangeMotion& fm,
                                                 const Eigen::Matrix3d& R_base_sensor) const;
 
   SimConfig config_;

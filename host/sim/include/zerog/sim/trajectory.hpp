@@ -5,7 +5,7 @@
 #include <type_traits>
 
 #include "zerog/robot/ptp_trajectory.hpp"
-#include "zerog/sim/kinematics.hpp"
+#include "zerog/sim/robot.hpp"
 
 namespace zerog::sim {
 
