@@ -345,6 +345,91 @@ FileSpec read_file_spec(const std::string& name, const toml::node& node, const f
   return file;
 }
 
+// The mapping as a whole: every quantity from exactly one file, the required ones present,
+// the files' time bases compatible (read_mapping's last phase).
+void check_sources(const Mapping& m, const fs::path& mapping, const toml::table& files) {
+  // Every quantity from exactly one file; the required ones present; the IMU pair together.
+  std::array<const FileSpec*, kQuantityCount> source{};
+  std::array<toml::source_region, kQuantityCount> where{};
+  for (const FileSpec& f : m.files) {
+    for (const QuantitySpec& q : f.quantities) {
+      const int i = static_cast<int>(q.what);
+      if (source[i] != nullptr) {
+        throw_at(mapping, q.where,
+                 "'" + std::string(info(q.what).key) + "' is mapped twice: here and in files." +
+                     source[i]->name + " (line " + std::to_string(where[i].begin.line) + ")");
+      }
+      source[i] = &f;
+      where[i] = q.where;
+    }
+  }
+  // A torque about another point needs the force to move it to the sensor origin.
+  for (const FileSpec& f : m.files) {
+    for (const QuantitySpec& q : f.quantities) {
+      if (q.what != Quantity::torque || !q.p_own_fixed_m ||
+          source[static_cast<int>(Quantity::force)] != nullptr)
+        continue;
+      throw_at(mapping, q.lever_where,
+               "'files." + f.name +
+                   ".torque.frame.p_m' moves the torque from the recording frame's origin to "
+                   "the sensor origin, M_S = R M + p × F_S, which needs the force: map 'force' "
+                   "(in this file or another), or remove p_m if the torque is already about the "
+                   "sensor origin");
+    }
+  }
+  const bool joints_mapped = source[static_cast<int>(Quantity::joints)] != nullptr;
+  for (Quantity q : {Quantity::force, Quantity::torque, Quantity::orientation}) {
+    // Without an orientation the pose comes from the joints through the rig's robot (checked
+    // once the rig is known).
+    if (q == Quantity::orientation && joints_mapped) continue;
+    if (source[static_cast<int>(q)] == nullptr) {
+      throw_at(mapping, files.source(),
+               "no file maps '" + std::string(info(q).key) + "' (" + std::string(info(q).meaning) +
+                   "); a log needs force, torque and orientation, or 'joints' with a rig that "
+                   "describes the robot (position, the IMU and temperature are optional)");
+    }
+  }
+  // Without an orientation the whole pose comes from the joints: a position alone is no pose.
+  if (source[static_cast<int>(Quantity::orientation)] == nullptr &&
+      source[static_cast<int>(Quantity::position)] != nullptr) {
+    throw_at(mapping, where[static_cast<int>(Quantity::position)],
+             "'position' is mapped without 'orientation': map the orientation too, or remove "
+             "'position' to take the whole pose from the joints through the rig's robot");
+  }
+  // A logged ω̇ (imu_dw*_radps2) is used as logged; "robot" takes every signal from the robot.
+  if (source[static_cast<int>(Quantity::angular_accel)] != nullptr &&
+      m.kinematics == robot::KinematicsMode::robot) {
+    throw_at(mapping, where[static_cast<int>(Quantity::angular_accel)],
+             "'files." + source[static_cast<int>(Quantity::angular_accel)]->name +
+                 ".angular_accel' is a logged angular acceleration, but kinematics = \"robot\" "
+                 "takes ω̇ from the robot: use kinematics = \"auto\" to keep the logged ω̇ "
+                 "(and take what the IMU lacks from the robot), or remove 'angular_accel'");
+  }
+  // Rows without time are static samples: they cannot be put on another file's time base. A
+  // static table split over files (poses in one, wrenches in another) joins row by row: every
+  // file without time, the same number of rows (checked when they are read).
+  const FileSpec* timed = nullptr;
+  for (const FileSpec& file : m.files)
+    if (file.has_time) timed = &file;
+  for (const FileSpec& file : m.files) {
+    if (file.has_index == m.files.front().has_index || file.has_time) continue;
+    const FileSpec& with = file.has_index ? file : m.files.front();
+    const FileSpec& without = file.has_index ? m.files.front() : file;
+    throw_at(mapping, without.where,
+             "files." + with.name + " has a pose_index and files." + without.name +
+                 " has none: static tables are joined by pose index (every file names its "
+                 "pose column) or row by row (none does)");
+  }
+  for (const FileSpec& file : m.files) {
+    if (file.has_time || timed == nullptr) continue;
+    throw_at(mapping, file.where,
+             "files." + file.name + " has no 'time' but files." + timed->name +
+                 " has: a file without time holds static samples (one row per pose) and cannot "
+                 "be put on another file's time base; give every file time = { column = …, "
+                 "unit = … }, or none (a static table split over files is joined row by row)");
+  }
+}
+
 Mapping read_mapping(const fs::path& mapping, bool rig_given) {
   const toml::table root = detail::parse_toml_file(mapping);
   const TomlTable top(
@@ -435,86 +520,7 @@ Mapping read_mapping(const fs::path& mapping, bool rig_given) {
              "no rig: give a [rig] table or rig_file = \"NAME.rig.toml\" in the mapping, or --rig");
   }
 
-  // Every quantity from exactly one file; the required ones present; the IMU pair together.
-  std::array<const FileSpec*, kQuantityCount> source{};
-  std::array<toml::source_region, kQuantityCount> where{};
-  for (const FileSpec& f : m.files) {
-    for (const QuantitySpec& q : f.quantities) {
-      const int i = static_cast<int>(q.what);
-      if (source[i] != nullptr) {
-        throw_at(mapping, q.where,
-                 "'" + std::string(info(q.what).key) + "' is mapped twice: here and in files." +
-                     source[i]->name + " (line " + std::to_string(where[i].begin.line) + ")");
-      }
-      source[i] = &f;
-      where[i] = q.where;
-    }
-  }
-  // A torque about another point needs the force to move it to the sensor origin.
-  for (const FileSpec& f : m.files) {
-    for (const QuantitySpec& q : f.quantities) {
-      if (q.what != Quantity::torque || !q.p_own_fixed_m ||
-          source[static_cast<int>(Quantity::force)] != nullptr)
-        continue;
-      throw_at(mapping, q.lever_where,
-               "'files." + f.name +
-                   ".torque.frame.p_m' moves the torque from the recording frame's origin to "
-                   "the sensor origin, M_S = R M + p × F_S, which needs the force: map 'force' "
-                   "(in this file or another), or remove p_m if the torque is already about the "
-                   "sensor origin");
-    }
-  }
-  const bool joints_mapped = source[static_cast<int>(Quantity::joints)] != nullptr;
-  for (Quantity q : {Quantity::force, Quantity::torque, Quantity::orientation}) {
-    // Without an orientation the pose comes from the joints through the rig's robot (checked
-    // once the rig is known).
-    if (q == Quantity::orientation && joints_mapped) continue;
-    if (source[static_cast<int>(q)] == nullptr) {
-      throw_at(mapping, files.source(),
-               "no file maps '" + std::string(info(q).key) + "' (" + std::string(info(q).meaning) +
-                   "); a log needs force, torque and orientation, or 'joints' with a rig that "
-                   "describes the robot (position, the IMU and temperature are optional)");
-    }
-  }
-  // Without an orientation the whole pose comes from the joints: a position alone is no pose.
-  if (source[static_cast<int>(Quantity::orientation)] == nullptr &&
-      source[static_cast<int>(Quantity::position)] != nullptr) {
-    throw_at(mapping, where[static_cast<int>(Quantity::position)],
-             "'position' is mapped without 'orientation': map the orientation too, or remove "
-             "'position' to take the whole pose from the joints through the rig's robot");
-  }
-  // A logged ω̇ (imu_dw*_radps2) is used as logged; "robot" takes every signal from the robot.
-  if (source[static_cast<int>(Quantity::angular_accel)] != nullptr &&
-      m.kinematics == robot::KinematicsMode::robot) {
-    throw_at(mapping, where[static_cast<int>(Quantity::angular_accel)],
-             "'files." + source[static_cast<int>(Quantity::angular_accel)]->name +
-                 ".angular_accel' is a logged angular acceleration, but kinematics = \"robot\" "
-                 "takes ω̇ from the robot: use kinematics = \"auto\" to keep the logged ω̇ "
-                 "(and take what the IMU lacks from the robot), or remove 'angular_accel'");
-  }
-  // Rows without time are static samples: they cannot be put on another file's time base. A
-  // static table split over files (poses in one, wrenches in another) joins row by row: every
-  // file without time, the same number of rows (checked when they are read).
-  const FileSpec* timed = nullptr;
-  for (const FileSpec& file : m.files)
-    if (file.has_time) timed = &file;
-  for (const FileSpec& file : m.files) {
-    if (file.has_index == m.files.front().has_index || file.has_time) continue;
-    const FileSpec& with = file.has_index ? file : m.files.front();
-    const FileSpec& without = file.has_index ? m.files.front() : file;
-    throw_at(mapping, without.where,
-             "files." + with.name + " has a pose_index and files." + without.name +
-                 " has none: static tables are joined by pose index (every file names its "
-                 "pose column) or row by row (none does)");
-  }
-  for (const FileSpec& file : m.files) {
-    if (file.has_time || timed == nullptr) continue;
-    throw_at(mapping, file.where,
-             "files." + file.name + " has no 'time' but files." + timed->name +
-                 " has: a file without time holds static samples (one row per pose) and cannot "
-                 "be put on another file's time base; give every file time = { column = …, "
-                 "unit = … }, or none (a static table split over files is joined row by row)");
-  }
+  check_sources(m, mapping, files);
   return m;
 }
 }  // namespace zerog::io::importer
