@@ -97,6 +97,40 @@ Eigen::Quaterniond orientation_of_row(const QuantitySpec& q, const double* raw,
   return Eigen::Quaterniond::Identity();
 }
 
+// One row's mapped values in SI appended to the series: a fixed frame's vectors rotated into the
+// own frame, orientations checked and kept in one hemisphere (`line`, `cells` and `n` place an
+// error in the data file).
+void store_row(const FileSpec& spec, const double* raw, std::string_view line,
+               const std::vector<detail::Cell>& cells, int n, Series& series) {
+  for (const QuantitySpec& q : spec.quantities) {
+    auto& out = series.values[static_cast<int>(q.what)];
+    const double* r = raw + q.first_ref;
+    if (q.frame == VectorFrame::fixed) {  // v_own = R_own,D v_D (constant: before merging)
+      const Eigen::Vector3d v = q.R_own_fixed * (Eigen::Vector3d(r[0], r[1], r[2]) * q.scale);
+      out.insert(out.end(), {v.x(), v.y(), v.z()});
+      continue;
+    }
+    if (q.what != Quantity::orientation) {
+      // Without an offset, no addition: −0 + 0 would read a logged −0 as +0.
+      for (int k = 0; k < q.num_refs; ++k)
+        out.push_back(q.offset == 0.0 ? r[k] * q.scale : r[k] * q.scale + q.offset);
+      continue;
+    }
+    std::size_t leftmost = line.size();
+    for (int k = 0; k < q.num_refs; ++k) {
+      leftmost = std::min(leftmost, cells[spec.refs[q.first_ref + k].cell].offset);
+    }
+    Eigen::Quaterniond quat =
+        orientation_of_row(q, r, spec.path, n, detail::char_column(line, leftmost));
+    const std::size_t size = out.size();
+    if (size >= 4) {  // keep neighbours in the same hemisphere
+      const Eigen::Quaterniond previous(out[size - 4], out[size - 3], out[size - 2], out[size - 1]);
+      if (previous.dot(quat) < 0.0) quat.coeffs() = -quat.coeffs();
+    }
+    out.insert(out.end(), {quat.w(), quat.x(), quat.y(), quat.z()});
+  }
+}
+
 Series read_series(FileSpec& spec, const fs::path& mapping) {
   std::error_code ec;
   if (!fs::is_regular_file(spec.path, ec)) {
@@ -188,34 +222,7 @@ Series read_series(FileSpec& spec, const fs::path& mapping) {
     previous_line = n;
     previous_raw_t = raw[0];
 
-    for (const QuantitySpec& q : spec.quantities) {
-      auto& out = series.values[static_cast<int>(q.what)];
-      const double* r = raw.data() + q.first_ref;
-      if (q.frame == VectorFrame::fixed) {  // v_own = R_own,D v_D (constant: before merging)
-        const Eigen::Vector3d v = q.R_own_fixed * (Eigen::Vector3d(r[0], r[1], r[2]) * q.scale);
-        out.insert(out.end(), {v.x(), v.y(), v.z()});
-        continue;
-      }
-      if (q.what != Quantity::orientation) {
-        // Without an offset, no addition: −0 + 0 would read a logged −0 as +0.
-        for (int k = 0; k < q.num_refs; ++k)
-          out.push_back(q.offset == 0.0 ? r[k] * q.scale : r[k] * q.scale + q.offset);
-        continue;
-      }
-      std::size_t leftmost = line.size();
-      for (int k = 0; k < q.num_refs; ++k) {
-        leftmost = std::min(leftmost, cells[spec.refs[q.first_ref + k].cell].offset);
-      }
-      Eigen::Quaterniond quat =
-          orientation_of_row(q, r, spec.path, n, detail::char_column(line, leftmost));
-      const std::size_t size = out.size();
-      if (size >= 4) {  // keep neighbours in the same hemisphere
-        const Eigen::Quaterniond previous(out[size - 4], out[size - 3], out[size - 2],
-                                          out[size - 1]);
-        if (previous.dot(quat) < 0.0) quat.coeffs() = -quat.coeffs();
-      }
-      out.insert(out.end(), {quat.w(), quat.x(), quat.y(), quat.z()});
-    }
+    store_row(spec, raw.data(), line, cells, n, series);
   }
   if (series.t.empty()) {
     throw InputError(spec.path, header_line + 1, 1,
