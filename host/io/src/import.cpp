@@ -29,12 +29,12 @@ namespace zerog::io {
 
 using namespace importer;
 
-ImportResult import_recordings(const fs::path& mapping_path,
-                               const std::optional<fs::path>& rig_file) {
-  Mapping mapping = read_mapping(mapping_path, rig_file.has_value());
-  ImportResult result;
-  result.inputs.push_back(mapping_path);
+namespace {
 
+// The reading phase: every file of the mapping read into its series (their rows counted in the
+// report), a static table split over files joined row by row or by pose index.
+std::vector<Series> read_recordings(Mapping& mapping, const fs::path& mapping_path,
+                                    ImportResult& result) {
   std::vector<Series> series;
   for (FileSpec& f : mapping.files) {
     series.push_back(read_series(f, mapping_path));
@@ -69,7 +69,13 @@ ImportResult import_recordings(const fs::path& mapping_path,
   }
   if (!mapping.files.front().has_time && mapping.files.front().has_index)
     result.report.pose_index = mapping.files.front().refs[0].name;
+  return series;
+}
 
+// The rig: --rig, else the mapping's rig_file or [rig] table (its period, if it gives none, the
+// master's median).
+void choose_rig(const Mapping& mapping, const std::optional<fs::path>& rig_file,
+                const std::vector<Series>& series, ImportResult& result) {
   // The rig.
   Log& log = result.log;
   if (rig_file) {
@@ -93,10 +99,117 @@ ImportResult import_recordings(const fs::path& mapping_path,
           ", sample_period_s = " + num(log.rig.sample_period_s) + " s (median of the master)";
     }
   }
+}
 
-  // Which file provides each quantity, and how.
-  std::array<int, kQuantityCount> source;
-  std::array<const QuantitySpec*, kQuantityCount> spec_of{};
+// Where master row i falls in every other file (brackets[f], found from cursor[f] on); false if
+// it lies before, after or in a gap of one of them (counted in that file's report).
+bool bracket_row(const Mapping& mapping, const std::vector<Series>& series, std::size_t i,
+                 std::vector<Bracket>& brackets, std::vector<std::size_t>& cursor,
+                 ImportReport& report) {
+  const double t = series.front().t[i];
+  bool keep = true;
+  brackets[0] = {i, i, 0.0};
+  for (std::size_t f = 1; f < mapping.files.size(); ++f) {
+    const std::vector<double>& tf = series[f].t;
+    ImportFileReport& r = report.files[f];
+    if (t < tf.front()) {
+      ++r.master_rows_before;
+      keep = false;
+      continue;
+    }
+    if (t > tf.back()) {
+      ++r.master_rows_after;
+      keep = false;
+      continue;
+    }
+    std::size_t& k = cursor[f];
+    // A master row at one of this file's samples takes that sample as it is: a + 1 · (c − a)
+    // is c only to an ulp of the larger of the two (a 1e-21 rate came back as 7e-21, a −0
+    // as 0), so the bracket starts at the sample, never ends on it.
+    while (k + 1 < tf.size() && tf[k + 1] <= t) ++k;
+    Bracket& b = brackets[f];
+    if (k + 1 == tf.size() || tf[k] == t) {
+      b = {k, k, 0.0};
+    } else {
+      b = {k, k + 1, (t - tf[k]) / (tf[k + 1] - tf[k])};
+      if (b.alpha < 1.0 && tf[k + 1] - tf[k] > mapping.files[f].max_gap_s) {
+        ++r.master_rows_in_gap;
+        keep = false;
+      }
+    }
+  }
+  return keep;
+}
+
+// The kinematics phase: where the IMU columns come from (kinematics = "imu", "robot", "auto" or
+// "fused"), the rig's [kinematics] record and the report's account of it.
+void kinematics_phase(const Mapping& mapping, const fs::path& mapping_path,
+                      const std::vector<Series>& series,
+                      const std::array<int, kQuantityCount>& source,
+                      const std::array<const QuantitySpec*, kQuantityCount>& spec_of,
+                      ImportResult& result) {
+  Log& log = result.log;
+  log.rig.kinematics = {};  // whatever a rig file says: this import's columns decide
+  // A logged ω̇ goes to imu_dw*_radps2, which log format 2 holds only beside imu_w*_radps: the
+  // gyro's, or under "auto" the robot's ω.
+  const auto refuse_accel_without_rate = [&] {
+    if (!log.columns.angular_accel || log.columns.angular_rate) return;
+    const std::string key = quantity_file(mapping, source, Quantity::angular_accel);
+    throw_at(mapping_path, spec_of[static_cast<int>(Quantity::angular_accel)]->where,
+             "'" + key +
+                 "' needs the angular rate beside it (the log holds ω̇, imu_dw*_radps2, only "
+                 "with imu_w*_radps; proto/log_format.md): map the gyro as 'angular_rate' (in "
+                 "this file or another)" +
+                 (mapping.kinematics == robot::KinematicsMode::imu
+                      ? std::string(", or set kinematics = \"auto\" to derive ω from the joints "
+                                    "(with the rig's robot) or the orientation")
+                      : std::string(log.columns.static_rows
+                                        ? ", or record time (rows without time give no ω)"
+                                        : "")) +
+                 ", or remove '" + std::string(info(Quantity::angular_accel).key) + "'");
+  };
+  if (log.columns.angular_accel) {
+    log.rig.kinematics.angular_accel = KinematicsOrigin::logged;
+    log.rig.kinematics.angular_accel_reason =
+        "logged in " + quantity_file(mapping, source, Quantity::angular_accel) +
+        " (used as logged)";
+  }
+  if (mapping.fused) {
+    fuse_joints_and_imu(mapping, mapping_path, series, source, result);
+    return;
+  }
+  if (mapping.kinematics == robot::KinematicsMode::imu) {  // the columns as logged
+    refuse_accel_without_rate();
+    if (log.columns.angular_accel)
+      result.report.kinematics =
+          "angular acceleration: " + log.rig.kinematics.angular_accel_reason + "\n";
+    return;
+  }
+  derive_from_robot(mapping, mapping_path, series, source, result);
+  refuse_accel_without_rate();
+  const KinematicsRecord& k = log.rig.kinematics;
+  result.report.kinematics =
+      "kinematics = \"" + k.mode + "\": angular rate " +
+      (log.columns.angular_rate ? std::string("from ") + to_string(k.angular_rate) : "none") +
+      (k.angular_rate_reason.empty() ? "" : " (" + k.angular_rate_reason + ")") +
+      "; specific force " +
+      (log.columns.specific_force ? std::string("from ") + to_string(k.specific_force) : "none") +
+      (k.specific_force_reason.empty() ? "" : " (" + k.specific_force_reason + ")") +
+      "; angular acceleration " +
+      (log.columns.angular_accel && k.angular_accel == KinematicsOrigin::logged
+           ? k.angular_accel_reason
+       : log.columns.angular_accel
+           ? std::string("from ") + to_string(k.angular_accel) +
+                 (k.angular_accel == KinematicsOrigin::imu ? " (Savitzky-Golay)" : "")
+       : log.columns.angular_rate && !log.columns.static_rows
+           ? std::string("by host/ident's 5-point difference of the angular rate")
+           : std::string("none")) +
+      "\n" + result.report.kinematics;
+}
+
+// Which file provides each quantity (source[q], -1 if none), and how (spec_of[q]).
+void find_sources(const Mapping& mapping, std::array<int, kQuantityCount>& source,
+                  std::array<const QuantitySpec*, kQuantityCount>& spec_of) {
   source.fill(-1);
   for (std::size_t f = 0; f < mapping.files.size(); ++f) {
     for (const QuantitySpec& q : mapping.files[f].quantities) {
@@ -104,10 +217,97 @@ ImportResult import_recordings(const fs::path& mapping_path,
       spec_of[static_cast<int>(q.what)] = &q;
     }
   }
-  auto has = [&](Quantity q) { return source[static_cast<int>(q)] >= 0; };
-  auto in_base = [&](Quantity q) {
-    return has(q) && spec_of[static_cast<int>(q)]->frame == VectorFrame::base;
+}
+
+// The report's line on the joints: how many, where from, what they are used for.
+std::string joints_report(const Mapping& mapping, const std::array<int, kQuantityCount>& source,
+                          const Log& log, int joint_columns, bool pose_from_joints) {
+  return "joints: " + std::to_string(joint_columns) + " columns (" +
+         quantity_file(mapping, source, Quantity::joints) + ")" +
+         (pose_from_joints ? "; the sensor's pose from them through " + log.rig.robot +
+                                 "'s forward kinematics (no orientation mapped)"
+                           : std::string()) +
+         (joint_columns == 6 ? "; written to the log as q1_rad..q6_rad"
+                             : "; not written to the log (it holds q1_rad..q6_rad, 6 joints): "
+                               "they feed the robot's kinematics only, and effects that read "
+                               "joints (cable) cannot be fitted") +
+         "\n";
+}
+
+// The row's vectors in their frames: force and torque logged with base-frame axes rotated into S
+// (and the torque moved to S's origin), the joints kept, the IMU columns and the temperature
+// interpolated at the row's brackets (merge_rows' last step for each row).
+void vectors_of_row(Sample& s, const Log& log, const std::vector<Series>& series,
+                    const std::array<int, kQuantityCount>& source,
+                    const std::array<const QuantitySpec*, kQuantityCount>& spec_of,
+                    const std::vector<Bracket>& brackets,
+                    const std::optional<Eigen::Vector3d>& torque_lever_arm_m,
+                    const std::array<double, robot::kMaxJoints>& joints_row,
+                    const Eigen::Matrix3d& R_sensor_imu) {
+  auto values = [&](Quantity q) -> const std::vector<double>& {
+    return series[source[static_cast<int>(q)]].values[static_cast<int>(q)];
   };
+  auto bracket = [&](Quantity q) -> const Bracket& {
+    return brackets[source[static_cast<int>(q)]];
+  };
+  auto in_base = [&](Quantity q) {
+    return source[static_cast<int>(q)] >= 0 &&
+           spec_of[static_cast<int>(q)]->frame == VectorFrame::base;
+  };
+  // Vectors logged with base-frame axes: v_S = R_BSᵀ v_B (torque stays about the S origin);
+  // IMU quantities v_I = R_SIᵀ R_BSᵀ v_B (frames.md).
+  const Eigen::Matrix3d R_sensor_base = s.q_base_sensor.toRotationMatrix().transpose();
+  if (in_base(Quantity::force)) s.force_sensor_N = R_sensor_base * s.force_sensor_N;
+  if (in_base(Quantity::torque)) s.torque_sensor_Nm = R_sensor_base * s.torque_sensor_Nm;
+  // A torque about the origin of a fixed frame D at p_SD (its rotation already applied):
+  // M_S = R_SD M_D + p_SD × F_S, with the row's force in S (moment transfer).
+  if (torque_lever_arm_m) s.torque_sensor_Nm += torque_lever_arm_m->cross(s.force_sensor_N);
+  if (log.columns.joints) std::copy_n(joints_row.begin(), 6, s.joints_rad.begin());
+  if (log.columns.specific_force) {
+    s.specific_force_imu_mps2 =
+        at<3>(values(Quantity::specific_force), bracket(Quantity::specific_force));
+    if (in_base(Quantity::specific_force))
+      s.specific_force_imu_mps2 =
+          R_sensor_imu.transpose() * R_sensor_base * s.specific_force_imu_mps2;
+  }
+  if (log.columns.angular_rate) {
+    s.angular_rate_imu_radps =
+        at<3>(values(Quantity::angular_rate), bracket(Quantity::angular_rate));
+    if (in_base(Quantity::angular_rate))
+      s.angular_rate_imu_radps =
+          R_sensor_imu.transpose() * R_sensor_base * s.angular_rate_imu_radps;
+  }
+  // ω̇ in B: ω̇_S = R_BSᵀ ω̇_B, as d/dt(R_BSᵀ) ω_B = −ω_S × ω_S = 0 (see differentiate_gyro).
+  if (log.columns.angular_accel) {
+    s.angular_accel_imu_radps2 =
+        at<3>(values(Quantity::angular_accel), bracket(Quantity::angular_accel));
+    if (in_base(Quantity::angular_accel))
+      s.angular_accel_imu_radps2 =
+          R_sensor_imu.transpose() * R_sensor_base * s.angular_accel_imu_radps2;
+  }
+  if (log.columns.temperature) {
+    s.temperature_C = at<1>(values(Quantity::temperature), bracket(Quantity::temperature))[0];
+  }
+}
+
+}  // namespace
+
+ImportResult import_recordings(const fs::path& mapping_path,
+                               const std::optional<fs::path>& rig_file) {
+  Mapping mapping = read_mapping(mapping_path, rig_file.has_value());
+  ImportResult result;
+  result.inputs.push_back(mapping_path);
+
+  std::vector<Series> series = read_recordings(mapping, mapping_path, result);
+
+  Log& log = result.log;
+  choose_rig(mapping, rig_file, series, result);
+
+  // Which file provides each quantity, and how.
+  std::array<int, kQuantityCount> source;
+  std::array<const QuantitySpec*, kQuantityCount> spec_of{};
+  find_sources(mapping, source, spec_of);
+  auto has = [&](Quantity q) { return source[static_cast<int>(q)] >= 0; };
   // Joints: any number drive the robot's forward kinematics; the log holds q1_rad..q6_rad
   // (proto/log_format.md), so they are written to it only when there are 6.
   const int joint_columns =
@@ -129,19 +329,8 @@ ImportResult import_recordings(const fs::path& mapping_path,
     pose_model = robot_for_joints(mapping, mapping_path, log, source,
                                   "compute the sensor's pose (no 'orientation' is mapped)");
   }
-  if (has(Quantity::joints)) {
-    result.report.joints =
-        "joints: " + std::to_string(joint_columns) + " columns (" +
-        quantity_file(mapping, source, Quantity::joints) + ")" +
-        (pose_from_joints ? "; the sensor's pose from them through " + log.rig.robot +
-                                "'s forward kinematics (no orientation mapped)"
-                          : std::string()) +
-        (joint_columns == 6 ? "; written to the log as q1_rad..q6_rad"
-                            : "; not written to the log (it holds q1_rad..q6_rad, 6 joints): "
-                              "they feed the robot's kinematics only, and effects that read "
-                              "joints (cable) cannot be fitted") +
-        "\n";
-  }
+  if (has(Quantity::joints))
+    result.report.joints = joints_report(mapping, source, log, joint_columns, pose_from_joints);
   log.columns.specific_force = has(Quantity::specific_force);
   log.columns.angular_rate = has(Quantity::angular_rate);
   log.columns.angular_accel = has(Quantity::angular_accel);
@@ -162,38 +351,7 @@ ImportResult import_recordings(const fs::path& mapping_path,
   std::array<double, robot::kMaxJoints> joints_row{};  // the row's joints, interpolated
   for (std::size_t i = 0; i < t_master.size(); ++i) {
     const double t = t_master[i];
-    bool keep = true;
-    brackets[0] = {i, i, 0.0};
-    for (std::size_t f = 1; f < mapping.files.size(); ++f) {
-      const std::vector<double>& tf = series[f].t;
-      ImportFileReport& r = result.report.files[f];
-      if (t < tf.front()) {
-        ++r.master_rows_before;
-        keep = false;
-        continue;
-      }
-      if (t > tf.back()) {
-        ++r.master_rows_after;
-        keep = false;
-        continue;
-      }
-      std::size_t& k = cursor[f];
-      // A master row at one of this file's samples takes that sample as it is: a + 1 · (c − a)
-      // is c only to an ulp of the larger of the two (a 1e-21 rate came back as 7e-21, a −0
-      // as 0), so the bracket starts at the sample, never ends on it.
-      while (k + 1 < tf.size() && tf[k + 1] <= t) ++k;
-      Bracket& b = brackets[f];
-      if (k + 1 == tf.size() || tf[k] == t) {
-        b = {k, k, 0.0};
-      } else {
-        b = {k, k + 1, (t - tf[k]) / (tf[k + 1] - tf[k])};
-        if (b.alpha < 1.0 && tf[k + 1] - tf[k] > mapping.files[f].max_gap_s) {
-          ++r.master_rows_in_gap;
-          keep = false;
-        }
-      }
-    }
-    if (!keep) continue;
+    if (!bracket_row(mapping, series, i, brackets, cursor, result.report)) continue;
 
     Sample& s = log.samples.emplace_back();
     s.t_s = t;
@@ -235,40 +393,8 @@ ImportResult import_recordings(const fs::path& mapping_path,
       if (log.columns.position) s.p_base_sensor_m += s.q_base_sensor * log.rig.flange_sensor.p_m;
       s.q_base_sensor = (s.q_base_sensor * log.rig.flange_sensor.q).normalized();
     }
-    // Vectors logged with base-frame axes: v_S = R_BSᵀ v_B (torque stays about the S origin);
-    // IMU quantities v_I = R_SIᵀ R_BSᵀ v_B (frames.md).
-    const Eigen::Matrix3d R_sensor_base = s.q_base_sensor.toRotationMatrix().transpose();
-    if (in_base(Quantity::force)) s.force_sensor_N = R_sensor_base * s.force_sensor_N;
-    if (in_base(Quantity::torque)) s.torque_sensor_Nm = R_sensor_base * s.torque_sensor_Nm;
-    // A torque about the origin of a fixed frame D at p_SD (its rotation already applied):
-    // M_S = R_SD M_D + p_SD × F_S, with the row's force in S (moment transfer).
-    if (torque_lever_arm_m) s.torque_sensor_Nm += torque_lever_arm_m->cross(s.force_sensor_N);
-    if (log.columns.joints) std::copy_n(joints_row.begin(), 6, s.joints_rad.begin());
-    if (log.columns.specific_force) {
-      s.specific_force_imu_mps2 =
-          at<3>(values(Quantity::specific_force), bracket(Quantity::specific_force));
-      if (in_base(Quantity::specific_force))
-        s.specific_force_imu_mps2 =
-            R_sensor_imu.transpose() * R_sensor_base * s.specific_force_imu_mps2;
-    }
-    if (log.columns.angular_rate) {
-      s.angular_rate_imu_radps =
-          at<3>(values(Quantity::angular_rate), bracket(Quantity::angular_rate));
-      if (in_base(Quantity::angular_rate))
-        s.angular_rate_imu_radps =
-            R_sensor_imu.transpose() * R_sensor_base * s.angular_rate_imu_radps;
-    }
-    // ω̇ in B: ω̇_S = R_BSᵀ ω̇_B, as d/dt(R_BSᵀ) ω_B = −ω_S × ω_S = 0 (see differentiate_gyro).
-    if (log.columns.angular_accel) {
-      s.angular_accel_imu_radps2 =
-          at<3>(values(Quantity::angular_accel), bracket(Quantity::angular_accel));
-      if (in_base(Quantity::angular_accel))
-        s.angular_accel_imu_radps2 =
-            R_sensor_imu.transpose() * R_sensor_base * s.angular_accel_imu_radps2;
-    }
-    if (log.columns.temperature) {
-      s.temperature_C = at<1>(values(Quantity::temperature), bracket(Quantity::temperature))[0];
-    }
+    vectors_of_row(s, log, series, source, spec_of, brackets, torque_lever_arm_m, joints_row,
+                   R_sensor_imu);
   }
   result.report.rows_out = log.samples.size();
   if (log.samples.empty()) {
@@ -277,62 +403,7 @@ ImportResult import_recordings(const fs::path& mapping_path,
                              "time units and time_offset_s)\n" +
                              result.report.summary());
   }
-  log.rig.kinematics = {};  // whatever a rig file says: this import's columns decide
-  // A logged ω̇ goes to imu_dw*_radps2, which log format 2 holds only beside imu_w*_radps: the
-  // gyro's, or under "auto" the robot's ω.
-  const auto refuse_accel_without_rate = [&] {
-    if (!log.columns.angular_accel || log.columns.angular_rate) return;
-    const std::string key = quantity_file(mapping, source, Quantity::angular_accel);
-    throw_at(mapping_path, spec_of[static_cast<int>(Quantity::angular_accel)]->where,
-             "'" + key +
-                 "' needs the angular rate beside it (the log holds ω̇, imu_dw*_radps2, only "
-                 "with imu_w*_radps; proto/log_format.md): map the gyro as 'angular_rate' (in "
-                 "this file or another)" +
-                 (mapping.kinematics == robot::KinematicsMode::imu
-                      ? std::string(", or set kinematics = \"auto\" to derive ω from the joints "
-                                    "(with the rig's robot) or the orientation")
-                      : std::string(log.columns.static_rows
-                                        ? ", or record time (rows without time give no ω)"
-                                        : "")) +
-                 ", or remove '" + std::string(info(Quantity::angular_accel).key) + "'");
-  };
-  if (log.columns.angular_accel) {
-    log.rig.kinematics.angular_accel = KinematicsOrigin::logged;
-    log.rig.kinematics.angular_accel_reason =
-        "logged in " + quantity_file(mapping, source, Quantity::angular_accel) +
-        " (used as logged)";
-  }
-  if (mapping.fused) {
-    fuse_joints_and_imu(mapping, mapping_path, series, source, result);
-    return result;
-  }
-  if (mapping.kinematics == robot::KinematicsMode::imu) {  // the columns as logged
-    refuse_accel_without_rate();
-    if (log.columns.angular_accel)
-      result.report.kinematics =
-          "angular acceleration: " + log.rig.kinematics.angular_accel_reason + "\n";
-    return result;
-  }
-  derive_from_robot(mapping, mapping_path, series, source, result);
-  refuse_accel_without_rate();
-  const KinematicsRecord& k = log.rig.kinematics;
-  result.report.kinematics =
-      "kinematics = \"" + k.mode + "\": angular rate " +
-      (log.columns.angular_rate ? std::string("from ") + to_string(k.angular_rate) : "none") +
-      (k.angular_rate_reason.empty() ? "" : " (" + k.angular_rate_reason + ")") +
-      "; specific force " +
-      (log.columns.specific_force ? std::string("from ") + to_string(k.specific_force) : "none") +
-      (k.specific_force_reason.empty() ? "" : " (" + k.specific_force_reason + ")") +
-      "; angular acceleration " +
-      (log.columns.angular_accel && k.angular_accel == KinematicsOrigin::logged
-           ? k.angular_accel_reason
-       : log.columns.angular_accel
-           ? std::string("from ") + to_string(k.angular_accel) +
-                 (k.angular_accel == KinematicsOrigin::imu ? " (Savitzky-Golay)" : "")
-       : log.columns.angular_rate && !log.columns.static_rows
-           ? std::string("by host/ident's 5-point difference of the angular rate")
-           : std::string("none")) +
-      "\n" + result.report.kinematics;
+  kinematics_phase(mapping, mapping_path, series, source, spec_of, result);
   return result;
 }
 
