@@ -136,9 +136,21 @@ void record_accel_differentiator(KinematicsRecord& r, const robot::SgSettings& s
   r.accel_cutoff_hz = robot::sg_cutoff_hz(sg, 2, period_s);
 }
 
-void derive_from_robot(const Mapping& m, const fs::path& mapping_path,
-                       const std::vector<Series>& series,
-                       const std::array<int, kQuantityCount>& source, ImportResult& result) {
+/// What derive_from_robot derives, and from which stream (choose_derivation's answer).
+struct Derivation {
+  bool joints_mapped = false;
+  bool joints_ok = false;      ///< from the joints through the rig's robot, else from the pose
+  bool pose_position = false;  ///< the pose stream has the position beside the orientation
+  bool derive_rate = false;
+  bool derive_force = false;
+  bool derive_accel = false;
+};
+
+// derive_from_robot's first phase: which IMU signals come from the robot (robot::choose_sources),
+// the mode's refusals, and ω̇ from the gyro under "auto"; the reasons go to the rig's record.
+Derivation choose_derivation(const Mapping& m, const fs::path& mapping_path,
+                             const std::vector<Series>& series,
+                             const std::array<int, kQuantityCount>& source, ImportResult& result) {
   Log& log = result.log;
   const auto has = [&](Quantity q) { return source[static_cast<int>(q)] >= 0; };
   const auto file_of = [&](Quantity q) {
@@ -207,7 +219,115 @@ void derive_from_robot(const Mapping& m, const fs::path& mapping_path,
     differentiate_gyro(m, series, source, result);
   if (!timed && log.columns.angular_rate && !accel_logged)
     record.angular_accel_reason = "rows without time (static samples): no angular acceleration";
-  if (!derive_rate && !derive_force && !derive_accel) return;
+  return {joints_mapped, joints_ok, pose_position, derive_rate, derive_force, derive_accel};
+}
+
+// derive_from_robot's last step on the samples: the derived motion (at the stream's times t) onto
+// the log's rows.
+void motion_onto_rows(Log& log, const std::vector<double>& t,
+                      const std::vector<robot::SensorKinematics>& motion,
+                      const std::vector<robot::SensorKinematics>& accel_motion, bool derive_rate,
+                      bool derive_force, bool derive_accel) {
+  // Onto the log's rows (linear interpolation; every row lies within the stream's span), at
+  // the IMU: ω_I = R_SIᵀ ω_S, f_I = R_SIᵀ (f_S + ω̇ × r + ω × (ω × r)), r = p_SI.
+  const Eigen::Matrix3d R_sensor_imu = log.rig.sensor_imu.q.normalized().toRotationMatrix();
+  const Eigen::Vector3d p_sensor_imu = log.rig.sensor_imu.p_m;
+  std::size_t k = 0;
+  for (Sample& s : log.samples) {
+    while (k + 1 < t.size() && t[k + 1] <= s.t_s) ++k;
+    const std::size_t k1 = std::min(k + 1, t.size() - 1);
+    const double alpha = k1 == k ? 0.0 : std::clamp((s.t_s - t[k]) / (t[k1] - t[k]), 0.0, 1.0);
+    robot::SensorKinematics at;
+    const robot::SensorKinematics& a = motion[k];
+    const robot::SensorKinematics& b = motion[k1];
+    at.omega_sensor_radps =
+        a.omega_sensor_radps + alpha * (b.omega_sensor_radps - a.omega_sensor_radps);
+    at.omega_dot_sensor_radps2 =
+        a.omega_dot_sensor_radps2 + alpha * (b.omega_dot_sensor_radps2 - a.omega_dot_sensor_radps2);
+    at.specific_force_sensor_mps2 =
+        a.specific_force_sensor_mps2 +
+        alpha * (b.specific_force_sensor_mps2 - a.specific_force_sensor_mps2);
+    if (derive_rate) s.angular_rate_imu_radps = R_sensor_imu.transpose() * at.omega_sensor_radps;
+    // ω̇ of a rigid body is the same vector at every point: ω̇_I = R_SIᵀ ω̇_S.
+    if (derive_accel)
+      s.angular_accel_imu_radps2 =
+          R_sensor_imu.transpose() * (accel_motion[k].omega_dot_sensor_radps2 +
+                                      alpha * (accel_motion[k1].omega_dot_sensor_radps2 -
+                                               accel_motion[k].omega_dot_sensor_radps2));
+    if (derive_force)
+      s.specific_force_imu_mps2 =
+          R_sensor_imu.transpose() * robot::specific_force_at_point(at, p_sensor_imu);
+  }
+}
+
+// The derived columns marked in the log, the differentiators in the rig's record and the report.
+void record_derivation(Log& log, const Mapping& m, KinematicsOrigin origin, const Derivation& d,
+                       const robot::SgSettings& sg, const robot::SgSettings& accel_sg,
+                       double period_s, std::size_t f, std::size_t rows, ImportReport& report) {
+  KinematicsRecord& record = log.rig.kinematics;
+  const bool derive_rate = d.derive_rate;
+  const bool derive_force = d.derive_force;
+  const bool derive_accel = d.derive_accel;
+  const bool joints_ok = d.joints_ok;
+  const bool joints_mapped = d.joints_mapped;
+  if (derive_rate) {
+    log.columns.angular_rate = true;
+    record.angular_rate = origin;
+  }
+  if (derive_force) {
+    log.columns.specific_force = true;
+    record.specific_force = origin;
+  }
+  if (derive_accel) {
+    log.columns.angular_accel = true;
+    record.angular_accel = origin;
+    record_accel_differentiator(record, accel_sg, period_s, m.kinematics_accel_bandwidth_hz);
+    char line[200];
+    std::snprintf(line, sizeof line,
+                  "angular acceleration: its own Savitzky-Golay second derivative M = %d, order "
+                  "%d (kinematics_accel_bandwidth_hz %.3g Hz), -3 dB %.3g Hz, noise gain %.3g "
+                  "1/s^2\n",
+                  record.accel_sg_half_width, record.accel_sg_order, record.accel_bandwidth_hz,
+                  record.accel_cutoff_hz, record.accel_noise_gain);
+    report.kinematics += line;
+  }
+  record_differentiator(record, sg, period_s, m.kinematics_bandwidth_hz);
+
+  char buffer[400];
+  std::snprintf(buffer, sizeof buffer,
+                "%s from the %s of files.%s (%zu rows, median period %.4g s%s): Savitzky-Golay "
+                "M = %d, order %d, lag 0, -3 dB %.3g Hz (rate) / %.3g Hz (acceleration), noise "
+                "gain %.3g 1/s (rate) / %.3g 1/s^2 (acceleration)\n",
+                derive_rate && derive_force ? "angular rate and specific force"
+                : derive_rate               ? "angular rate"
+                                            : "specific force",
+                joints_ok ? "joints" : "pose", m.files[f].name.c_str(), rows, period_s,
+                joints_ok ? (", through " + log.rig.robot + "'s forward kinematics").c_str() : "",
+                sg.half_width, sg.order, record.cutoff_rate_hz, record.cutoff_accel_hz,
+                record.noise_gain_rate_per_s, record.noise_gain_accel_per_s2);
+  report.kinematics += buffer;
+  if (!joints_ok && joints_mapped)
+    report.kinematics +=
+        "  (the joints are mapped but the rig describes no robot: give it robot_file or a "
+        "[robot] table to derive from them)\n";
+}
+
+void derive_from_robot(const Mapping& m, const fs::path& mapping_path,
+                       const std::vector<Series>& series,
+                       const std::array<int, kQuantityCount>& source, ImportResult& result) {
+  const Derivation d = choose_derivation(m, mapping_path, series, source, result);
+  if (!d.derive_rate && !d.derive_force && !d.derive_accel) return;
+  Log& log = result.log;
+  const auto file_of = [&](Quantity q) {
+    return static_cast<std::size_t>(source[static_cast<int>(q)]);
+  };
+  const auto refuse = [&](const std::string& why) {
+    throw_at(mapping_path, m.kinematics_where,
+             "'kinematics = \"" + m.kinematics_text + "\"': " + why);
+  };
+  const bool joints_ok = d.joints_ok;
+  const bool pose_position = d.pose_position;
+  const bool derive_accel = d.derive_accel;
 
   // The stream: the joints through the robot if possible, else the pose.
   const KinematicsOrigin origin = joints_ok ? KinematicsOrigin::joints : KinematicsOrigin::pose;
@@ -270,77 +390,8 @@ void derive_from_robot(const Mapping& m, const fs::path& mapping_path,
     derive(accel_settings, accel_motion);
   }
 
-  // Onto the log's rows (linear interpolation; every row lies within the stream's span), at
-  // the IMU: ω_I = R_SIᵀ ω_S, f_I = R_SIᵀ (f_S + ω̇ × r + ω × (ω × r)), r = p_SI.
-  const Eigen::Matrix3d R_sensor_imu = log.rig.sensor_imu.q.normalized().toRotationMatrix();
-  const Eigen::Vector3d p_sensor_imu = log.rig.sensor_imu.p_m;
-  std::size_t k = 0;
-  for (Sample& s : log.samples) {
-    while (k + 1 < t.size() && t[k + 1] <= s.t_s) ++k;
-    const std::size_t k1 = std::min(k + 1, t.size() - 1);
-    const double alpha = k1 == k ? 0.0 : std::clamp((s.t_s - t[k]) / (t[k1] - t[k]), 0.0, 1.0);
-    robot::SensorKinematics at;
-    const robot::SensorKinematics& a = motion[k];
-    const robot::SensorKinematics& b = motion[k1];
-    at.omega_sensor_radps =
-        a.omega_sensor_radps + alpha * (b.omega_sensor_radps - a.omega_sensor_radps);
-    at.omega_dot_sensor_radps2 =
-        a.omega_dot_sensor_radps2 + alpha * (b.omega_dot_sensor_radps2 - a.omega_dot_sensor_radps2);
-    at.specific_force_sensor_mps2 =
-        a.specific_force_sensor_mps2 +
-        alpha * (b.specific_force_sensor_mps2 - a.specific_force_sensor_mps2);
-    if (derive_rate) s.angular_rate_imu_radps = R_sensor_imu.transpose() * at.omega_sensor_radps;
-    // ω̇ of a rigid body is the same vector at every point: ω̇_I = R_SIᵀ ω̇_S.
-    if (derive_accel)
-      s.angular_accel_imu_radps2 =
-          R_sensor_imu.transpose() * (accel_motion[k].omega_dot_sensor_radps2 +
-                                      alpha * (accel_motion[k1].omega_dot_sensor_radps2 -
-                                               accel_motion[k].omega_dot_sensor_radps2));
-    if (derive_force)
-      s.specific_force_imu_mps2 =
-          R_sensor_imu.transpose() * robot::specific_force_at_point(at, p_sensor_imu);
-  }
-  if (derive_rate) {
-    log.columns.angular_rate = true;
-    record.angular_rate = origin;
-  }
-  if (derive_force) {
-    log.columns.specific_force = true;
-    record.specific_force = origin;
-  }
-  if (derive_accel) {
-    log.columns.angular_accel = true;
-    record.angular_accel = origin;
-    record_accel_differentiator(record, accel_settings.sg, period_s,
-                                m.kinematics_accel_bandwidth_hz);
-    char line[200];
-    std::snprintf(line, sizeof line,
-                  "angular acceleration: its own Savitzky-Golay second derivative M = %d, order "
-                  "%d (kinematics_accel_bandwidth_hz %.3g Hz), -3 dB %.3g Hz, noise gain %.3g "
-                  "1/s^2\n",
-                  record.accel_sg_half_width, record.accel_sg_order, record.accel_bandwidth_hz,
-                  record.accel_cutoff_hz, record.accel_noise_gain);
-    result.report.kinematics += line;
-  }
-  record_differentiator(record, sg, period_s, m.kinematics_bandwidth_hz);
-
-  char buffer[400];
-  std::snprintf(buffer, sizeof buffer,
-                "%s from the %s of files.%s (%zu rows, median period %.4g s%s): Savitzky-Golay "
-                "M = %d, order %d, lag 0, -3 dB %.3g Hz (rate) / %.3g Hz (acceleration), noise "
-                "gain %.3g 1/s (rate) / %.3g 1/s^2 (acceleration)\n",
-                derive_rate && derive_force ? "angular rate and specific force"
-                : derive_rate               ? "angular rate"
-                                            : "specific force",
-                joints_ok ? "joints" : "pose", m.files[f].name.c_str(), t.size(), period_s,
-                joints_ok ? (", through " + log.rig.robot + "'s forward kinematics").c_str() : "",
-                sg.half_width, sg.order, record.cutoff_rate_hz, record.cutoff_accel_hz,
-                record.noise_gain_rate_per_s, record.noise_gain_accel_per_s2);
-  result.report.kinematics += buffer;
-  if (!joints_ok && joints_mapped)
-    result.report.kinematics +=
-        "  (the joints are mapped but the rig describes no robot: give it robot_file or a "
-        "[robot] table to derive from them)\n";
+  motion_onto_rows(log, t, motion, accel_motion, d.derive_rate, d.derive_force, derive_accel);
+  record_derivation(log, m, origin, d, sg, accel_settings.sg, period_s, f, t.size(), result.report);
 }
 
 // -------------------------------------------------------------------------------------------------
