@@ -1,5 +1,9 @@
 #include "zerog/io/import.hpp"
 
+#include "import_kinematics.hpp"
+#include "import_mapping.hpp"
+#include "import_series.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -23,1367 +27,14 @@
 
 namespace zerog::io {
 
-namespace fs = std::filesystem;
+using namespace importer;
 
 namespace {
 
-using detail::throw_at;
-using detail::TomlTable;
-
-// ---------------------------------------------------------------------------------------------
-// What a mapping can name, and in which units (proto/import_mapping.md).
-
-enum class Quantity : int {
-  force,
-  torque,
-  position,
-  orientation,
-  joints,
-  specific_force,
-  angular_rate,
-  angular_accel,
-  temperature
-};
-constexpr int kQuantityCount = 9;
-
-enum class Orientation { quaternion, matrix, kuka_abc };
-
-/// The axes a vector quantity's columns are written in: its own frame (S for force and torque,
-/// I for the IMU), the robot base B (rotated into S or I per row with the row's orientation), or
-/// a fixed frame D given by its rotation in the own frame and, for the wrench, its origin in S
-/// (a torque about D's origin is moved to S's with the force: M_S = R_SD M_D + p_SD × F_S).
-enum class VectorFrame { own, base, fixed };
-
-struct Unit {
-  std::string_view name;
-  double scale;
-  double offset = 0.0;  ///< SI value = file value × scale + offset
-};
-
-constexpr double kDegree = std::numbers::pi / 180.0;
-
-struct QuantityInfo {
-  std::string_view key;      ///< key in a [files.NAME] table
-  int width;                 ///< columns in the file (orientation: by type; joints: 1..8)
-  int stored;                ///< values kept per row (joints: as many as columns)
-  std::vector<Unit> units;   ///< accepted units; empty = unitless
-  std::string_view meaning;  ///< for messages
-};
-
-const std::array<QuantityInfo, kQuantityCount>& quantity_infos() {
-  static const std::array<QuantityInfo, kQuantityCount> infos = {{
-      {"force", 3, 3, {{"N", 1.0}, {"kN", 1e3}}, "force on the sensor, sensor frame"},
-      {"torque",
-       3,
-       3,
-       {{"N*m", 1.0}, {"Nm", 1.0}, {"N*mm", 1e-3}, {"Nmm", 1e-3}},
-       "torque about the sensor origin, sensor frame"},
-      {"position", 3, 3, {{"m", 1.0}, {"mm", 1e-3}}, "sensor (or flange) origin in the base frame"},
-      {"orientation",
-       0,
-       4,
-       {{"rad", 1.0}, {"deg", kDegree}},
-       "sensor (or flange) axes in the base"},
-      {"joints", 0, 0, {{"rad", 1.0}, {"deg", kDegree}}, "joint angles A1, A2, …"},
-      {"specific_force",
-       3,
-       3,
-       {{"m/s^2", 1.0}, {"m/s2", 1.0}, {"g", model::kStandardGravity}},
-       "IMU specific force (accelerometer), IMU frame"},
-      {"angular_rate",
-       3,
-       3,
-       {{"rad/s", 1.0}, {"deg/s", kDegree}},
-       "IMU angular rate (gyroscope), IMU frame"},
-      {"angular_accel",
-       3,
-       3,
-       {{"rad/s^2", 1.0}, {"rad/s2", 1.0}, {"deg/s^2", kDegree}, {"deg/s2", kDegree}},
-       "angular acceleration, IMU frame"},
-      {"temperature", 1, 1, {{"C", 1.0}, {"degC", 1.0}, {"K", 1.0, -273.15}}, "temperature"},
-  }};
-  return infos;
-}
-
-const QuantityInfo& info(Quantity q) { return quantity_infos()[static_cast<int>(q)]; }
-
-const std::vector<Unit> kTimeUnits = {
-    {"s", 1.0}, {"ms", 1e-3}, {"us", 1e-6}, {"µs", 1e-6}, {"ns", 1e-9}};
-
-std::string unit_list(const std::vector<Unit>& units) {
-  std::string out;
-  for (const Unit& u : units) out += (out.empty() ? "\"" : ", \"") + std::string(u.name) + "\"";
-  return out;
-}
-
-std::string num(double v) { return detail::number_text(v); }
-
-std::string where_text(const fs::path& file, const toml::source_region& where) {
-  return file.filename().string() + ":" + std::to_string(where.begin.line) + ":" +
-         std::to_string(where.begin.column);
-}
-
-// ---------------------------------------------------------------------------------------------
-// The mapping, read.
-
-struct ColumnRef {
-  std::string name;           ///< header name in the data file ("column N" if by number)
-  int number = 0;             ///< 1-based column number if the mapping gives a number
-  toml::source_region where;  ///< where the mapping names it
-  std::string key;            ///< mapping key naming it, e.g. "files.ft.force"
-  int cell = -1;              ///< resolved cell index in the data file
-};
-
-struct QuantitySpec {
-  Quantity what;
-  int first_ref = 0;  ///< index of its first column in FileSpec::refs
-  int num_refs = 0;
-  double scale = 1.0;
-  double offset = 0.0;
-  Orientation orientation = Orientation::quaternion;
-  VectorFrame frame = VectorFrame::own;
-  Eigen::Matrix3d R_own_fixed = Eigen::Matrix3d::Identity();  ///< VectorFrame::fixed: D in own
-  /// VectorFrame::fixed with p_m: D's origin in S, m (force and torque only; for the force it
-  /// changes nothing, for the torque it adds p × F_S).
-  std::optional<Eigen::Vector3d> p_own_fixed_m;
-  toml::source_region where;
-  toml::source_region frame_where;
-  toml::source_region lever_where;  ///< where p_m is given
-};
-
-struct FileSpec {
-  std::string name;
-  fs::path path;
-  toml::source_region path_where;
-  char delimiter = ',';
-  char decimal = '.';
-  std::string comment = "#";
-  int skip_lines = 0;
-  bool header = true;    ///< the first data line names the columns
-  bool has_time = true;  ///< a time column is mapped (else rows are static samples)
-  /// A static file's pose index column is mapped (refs[0]): files are joined by its value.
-  bool has_index = false;
-  std::string index_name;  ///< the index column's name (header, or "column N")
-  toml::source_region where;
-  std::string time_unit;
-  double time_scale = 1.0;
-  double time_offset_s = 0.0;
-  double max_gap_s = std::numeric_limits<double>::infinity();
-  std::vector<ColumnRef> refs;  ///< refs[0] is the time column if has_time, else the pose index
-  std::vector<QuantitySpec> quantities;
-};
-
-// ω̇ feeds the rotational inertia as a regressor: a differentiator that cuts into the motion's
-// band shrinks it and the fit answers with a larger inertia (errors in variables), while the
-// fit's block means average white noise away. So ω̇ gets a wider band than ω
-// (robot_kinematics.md, "ω̇ for the fit").
-constexpr double kDefaultAccelBandwidthHz = 15.0;
-
-struct Mapping {
-  std::vector<FileSpec> files;  ///< master first
-  bool pose_of_flange = false;
-  std::optional<Rig> rig;      ///< from the [rig] table
-  bool rig_has_period = true;  ///< the [rig] table gave sample_period_s
-  std::optional<fs::path> rig_file;
-  /// `kinematics`: where ω, ω̇ and the specific force come from (proto/import_mapping.md).
-  robot::KinematicsMode kinematics = robot::KinematicsMode::imu;
-  std::string kinematics_text = "imu";
-  toml::source_region kinematics_where;
-  double kinematics_bandwidth_hz = 5.0;  ///< the differentiator's bandwidth (choose_sg_window)
-  /// The bandwidth of ω̇'s differentiator (the gyro's first or the robot's second derivative).
-  double kinematics_accel_bandwidth_hz = kDefaultAccelBandwidthHz;
-  /// kinematics = "fused" (fused_kinematics.hpp): the joints and the IMU together; `kinematics`
-  /// then stays `imu` for the checks of the logged columns.
-  bool fused = false;
-  double kinematics_crossover_hz = kFusedCrossoverHz;
-};
-
-const Unit& find_unit(const TomlTable& t, const std::vector<Unit>& units) {
-  const std::string unit = t.string("unit");
-  for (const Unit& u : units) {
-    if (u.name == unit) return u;
-  }
-  throw_at(t.file(), t.require("unit").source(),
-           "unknown unit \"" + unit + "\" for '" + t.name("unit") + "' (use one of " +
-               unit_list(units) + ")");
-}
-
-// One column of the data file named by `node` (an element of `key` or its value): a header name
-// (string) or a 1-based column number (integer); only numbers when the file has no header.
-void add_ref(FileSpec& file, const TomlTable& t, std::string_view key, const toml::node& node) {
-  ColumnRef ref;
-  ref.where = node.source();
-  ref.key = t.name(key);
-  if (node.is_integer()) {
-    const std::int64_t n = *node.value<std::int64_t>();
-    if (n < 1 || n > 100000) {
-      throw_at(t.file(), node.source(),
-               "'" + t.name(key) + "': column number " + std::to_string(n) +
-                   " is out of range (columns are counted from 1)");
-    }
-    ref.number = static_cast<int>(n);
-    ref.name = "column " + std::to_string(n);
-  } else if (node.is_string()) {
-    if (!file.header) {
-      throw_at(t.file(), node.source(),
-               "'" + t.name(key) + "' names column '" +
-                   std::string(*node.value<std::string_view>()) + "', but files." + file.name +
-                   " has header = false: give the 1-based column number instead, e.g. 2");
-    }
-    ref.name = *node.value<std::string_view>();
-  } else {
-    throw_at(t.file(), node.source(),
-             "'" + t.name(key) +
-                 "' must name a column: its header name (a string) or its 1-based number");
-  }
-  file.refs.push_back(std::move(ref));
-}
-
-// `count` columns listed under `key`, by header name or 1-based number.
-void add_refs(FileSpec& file, const TomlTable& t, std::string_view key, std::size_t count) {
-  const toml::node& node = t.require(key);
-  const toml::array* array = node.as_array();
-  if (array == nullptr || array->size() != count) {
-    throw_at(t.file(), node.source(),
-             "'" + t.name(key) + "' must be a list of " + std::to_string(count) +
-                 " columns (header names, or 1-based column numbers)");
-  }
-  for (const toml::node& element : *array) add_ref(file, t, key, element);
-}
-
-bool is_imu(Quantity q) {
-  return q == Quantity::specific_force || q == Quantity::angular_rate ||
-         q == Quantity::angular_accel;
-}
-
-bool is_vector(Quantity q) { return q == Quantity::force || q == Quantity::torque || is_imu(q); }
-
-// The optional `frame` of a vector quantity: "sensor"/"imu" (its own frame), "base", or
-// { q_wxyz = [w, x, y, z] } (a fixed frame D: its axes in the own frame), for force and torque
-// optionally with p_m = [x, y, z] (D's origin in S, m; detail::transform_of's convention).
-void read_frame(QuantitySpec& q, const TomlTable& t) {
-  const toml::node* node = t.find("frame");
-  if (node == nullptr) return;
-  q.frame_where = node->source();
-  const bool imu = is_imu(q.what);
-  const std::string own = imu ? "imu" : "sensor";
-  if (node->is_string()) {
-    const std::string f = t.string("frame");
-    if (f == own) return;
-    if (f == "base") {
-      q.frame = VectorFrame::base;
-      return;
-    }
-    throw_at(t.file(), node->source(),
-             "'" + t.name("frame") + "' must be \"" + own + "\" (the default), \"base\" or " +
-                 "{ q_wxyz = [w, x, y, z] } (a fixed frame's axes in the " +
-                 (imu ? "IMU" : "sensor") + " frame), is \"" + f + "\"");
-  }
-  const TomlTable ft(t.table("frame"), t.file(), t.name("frame") + ".", {"q_wxyz", "p_m"});
-  q.frame = VectorFrame::fixed;
-  if (ft.find("p_m") == nullptr) {
-    const auto v = ft.numbers("q_wxyz", 4);
-    const Eigen::Quaterniond quat(v[0], v[1], v[2], v[3]);
-    if (std::abs(quat.norm() - 1.0) > 1e-3)
-      ft.fail("q_wxyz", "has norm " + num(quat.norm()) + ", off from 1 by more than 1e-3");
-    q.R_own_fixed = quat.normalized().toRotationMatrix();
-    return;
-  }
-  const Transform transform = detail::transform_of(ft);
-  q.R_own_fixed = transform.q.toRotationMatrix();
-  if (imu && !transform.p_m.isZero())
-    ft.fail("p_m",
-            "an IMU reads at its own position, so its frame takes a rotation only: give the "
-            "IMU's offset from the sensor origin as the rig's [sensor_imu] p_m (the model's "
-            "lever-arm terms use it) and remove p_m here");
-  if (!imu) {
-    q.p_own_fixed_m = transform.p_m;
-    q.lever_where = ft.where("p_m");
-  }
-}
-
-void read_quantity(FileSpec& file, Quantity what, const TomlTable& parent) {
-  const QuantityInfo& qi = info(what);
-  const toml::node& node = parent.require(qi.key);
-  if (!node.is_table()) {
-    throw_at(parent.file(), node.source(),
-             "'" + parent.name(qi.key) + "' must be a table, e.g. { columns = [...], unit = ... }");
-  }
-  const std::string prefix = parent.name(qi.key) + ".";
-  QuantitySpec q;
-  q.what = what;
-  q.where = node.source();
-  q.first_ref = static_cast<int>(file.refs.size());
-  if (what == Quantity::temperature) {
-    const TomlTable t(*node.as_table(), parent.file(), prefix, {"column", "unit"});
-    add_ref(file, t, "column", t.require("column"));
-    const Unit& u = find_unit(t, qi.units);
-    q.scale = u.scale;
-    q.offset = u.offset;
-  } else if (what == Quantity::orientation) {
-    const TomlTable t(*node.as_table(), parent.file(), prefix,
-                      {"type", "columns", "order", "unit"});
-    const std::string type = t.string("type");
-    const auto& type_where = t.require("type").source();
-    if (type == "quaternion") {
-      q.orientation = Orientation::quaternion;
-      const std::string order = t.optional_string("order", "wxyz");
-      if (order != "wxyz" && order != "xyzw") {
-        throw_at(t.file(), t.require("order").source(),
-                 "'" + t.name("order") + "' must be \"wxyz\" or \"xyzw\"");
-      }
-      add_refs(file, t, "columns", 4);
-      if (order == "xyzw") {
-        const auto first = file.refs.begin() + q.first_ref;
-        std::rotate(first, first + 3, first + 4);
-      }
-    } else if (type == "matrix") {
-      q.orientation = Orientation::matrix;
-      add_refs(file, t, "columns", 9);
-    } else if (type == "kuka_abc") {
-      q.orientation = Orientation::kuka_abc;
-      add_refs(file, t, "columns", 3);
-      q.scale = find_unit(t, qi.units).scale;
-    } else {
-      throw_at(t.file(), type_where,
-               "'" + t.name("type") + "' must be \"quaternion\", \"matrix\" or \"kuka_abc\"");
-    }
-    if (q.orientation != Orientation::kuka_abc && t.find("unit") != nullptr) {
-      throw_at(t.file(), t.require("unit").source(),
-               "'" + t.name("unit") + "': a " + type + " has no unit");
-    }
-    if (q.orientation != Orientation::quaternion && t.find("order") != nullptr) {
-      throw_at(t.file(), t.require("order").source(),
-               "'" + t.name("order") + "' applies to type = \"quaternion\" only");
-    }
-  } else if (what == Quantity::joints) {
-    // Any number of joints, A1 first: the rig's robot says how many it has (7 for an iiwa).
-    const TomlTable t(*node.as_table(), parent.file(), prefix, {"columns", "unit"});
-    const toml::node& columns = t.require("columns");
-    const toml::array* array = columns.as_array();
-    if (array == nullptr || array->empty() || array->size() > robot::kMaxJoints) {
-      throw_at(t.file(), columns.source(),
-               "'" + t.name("columns") + "' must be a list of 1 to " +
-                   std::to_string(robot::kMaxJoints) +
-                   " joint columns, A1 first (header names, or 1-based column numbers)");
-    }
-    add_refs(file, t, "columns", array->size());
-    q.scale = find_unit(t, qi.units).scale;
-  } else {
-    std::vector<std::string_view> keys = {"columns", "unit"};
-    if (is_vector(what)) keys.push_back("frame");
-    const TomlTable t(*node.as_table(), parent.file(), prefix, keys);
-    add_refs(file, t, "columns", static_cast<std::size_t>(qi.width));
-    read_frame(q, t);
-    const Unit& u = find_unit(t, qi.units);
-    q.scale = u.scale;
-    q.offset = u.offset;
-  }
-  q.num_refs = static_cast<int>(file.refs.size()) - q.first_ref;
-  file.quantities.push_back(q);
-}
-
-char read_delimiter(const TomlTable& t) {
-  const std::string given = t.optional_string("delimiter", "comma");
-  // Blanks around a separator (", ", " ; ") are the same separator: cells are trimmed anyway.
-  const std::string_view core = detail::trim(given);
-  const std::string d = core.empty() && !given.empty() ? std::string(" ") : std::string(core);
-  if (d == "comma" || d == ",") return ',';
-  if (d == "semicolon" || d == ";") return ';';
-  if (d == "tab" || d == "\t") return '\t';
-  if (d == "whitespace" || d == " ") return ' ';
-  throw_at(t.file(), t.require("delimiter").source(),
-           "'" + t.name("delimiter") +
-               "' must be \"comma\", \"semicolon\", \"tab\" or \"whitespace\" (or \",\", \";\", " +
-               "blanks around them allowed), is \"" + given + "\"");
-}
-
-FileSpec read_file_spec(const std::string& name, const toml::node& node, const fs::path& mapping) {
-  const std::string prefix = "files." + name + ".";
-  if (!node.is_table()) throw_at(mapping, node.source(), "'files." + name + "' must be a table");
-  std::vector<std::string_view> known = {"path",       "delimiter", "decimal", "comment",
-                                         "skip_lines", "header",    "time",    "time_offset_s",
-                                         "max_gap_s",  "pose_index"};
-  for (const auto& qi : quantity_infos()) known.push_back(qi.key);
-  const TomlTable t(*node.as_table(), mapping, prefix, known);
-
-  FileSpec file;
-  file.name = name;
-  file.where = node.source();
-  file.header = t.optional_boolean("header", true);
-  fs::path path = t.string("path");
-  file.path = path.is_absolute() ? path : mapping.parent_path() / path;
-  file.path_where = t.require("path").source();
-  file.delimiter = read_delimiter(t);
-  const std::string decimal = t.optional_string("decimal", ".");
-  if (decimal != "." && decimal != ",") {
-    throw_at(mapping, t.require("decimal").source(),
-             "'" + t.name("decimal") + "' must be \".\" or \",\"");
-  }
-  file.decimal = decimal[0];
-  if (file.decimal == ',' && file.delimiter == ',') {
-    throw_at(mapping, t.require("decimal").source(),
-             "a decimal comma needs another delimiter (semicolon, tab or whitespace)");
-  }
-  file.comment = t.optional_string("comment", "#");
-  if (const toml::node* skip = t.find("skip_lines")) {
-    const std::int64_t n = t.integer("skip_lines");
-    if (n < 0 || n > 1000000)
-      throw_at(mapping, skip->source(), "'" + t.name("skip_lines") + "' must be >= 0");
-    file.skip_lines = static_cast<int>(n);
-  }
-
-  const toml::node* time_node = t.find("time");
-  file.has_time = time_node != nullptr;
-  if (time_node != nullptr) {
-    if (!time_node->is_table()) {
-      throw_at(mapping, time_node->source(),
-               "'" + t.name("time") + "' must be a table, e.g. { column = \"t\", unit = \"s\" }");
-    }
-    const TomlTable time(*time_node->as_table(), mapping, prefix + "time.", {"column", "unit"});
-    add_ref(file, time, "column", time.require("column"));
-    const Unit& time_unit = find_unit(time, kTimeUnits);
-    file.time_unit = time_unit.name;
-    file.time_scale = time_unit.scale;
-  } else {
-    for (std::string_view key : {"time_offset_s", "max_gap_s"}) {
-      if (t.find(key) != nullptr) {
-        throw_at(mapping, t.require(key).source(),
-                 "'" + t.name(key) + "' needs a time column: add time = { column = …, unit = … }");
-      }
-    }
-  }
-  if (const toml::node* index = t.find("pose_index")) {
-    if (file.has_time)
-      throw_at(mapping, index->source(),
-               "'" + t.name("pose_index") +
-                   "' joins the rows of static tables (files without time); this file has "
-                   "time, and is merged by it");
-    if (!index->is_table())
-      throw_at(mapping, index->source(),
-               "'" + t.name("pose_index") + "' must be a table, e.g. { column = \"pose\" }");
-    const TomlTable idx(*index->as_table(), mapping, prefix + "pose_index.", {"column"});
-    add_ref(file, idx, "column", idx.require("column"));
-    file.has_index = true;
-  }
-  if (t.find("time_offset_s") != nullptr) {
-    file.time_offset_s = t.number(t.require("time_offset_s"), "time_offset_s");
-  }
-  if (t.find("max_gap_s") != nullptr) file.max_gap_s = t.number("max_gap_s", 0.0, true);
-
-  for (int q = 0; q < kQuantityCount; ++q) {
-    if (t.find(quantity_infos()[q].key) != nullptr) read_quantity(file, Quantity(q), t);
-  }
-  return file;
-}
-
-Mapping read_mapping(const fs::path& mapping, bool rig_given) {
-  const toml::table root = detail::parse_toml_file(mapping);
-  const TomlTable top(
-      root, mapping, "",
-      {"format", "version", "master", "pose_of", "rig_file", "rig", "files", "kinematics",
-       "kinematics_bandwidth_hz", "kinematics_accel_bandwidth_hz", "kinematics_crossover_hz"});
-  if (top.string("format") != "zerog-import") {
-    throw_at(mapping, top.require("format").source(),
-             "'format' must be \"zerog-import\" (this is not an import mapping)");
-  }
-  if (top.integer("version") != kImportMappingVersion) {
-    throw_at(mapping, top.require("version").source(),
-             "mapping version " + std::to_string(top.integer("version")) +
-                 " is not supported (this zerog reads version " +
-                 std::to_string(kImportMappingVersion) + ")");
-  }
-
-  Mapping m;
-  const toml::table& files = top.table("files");
-  for (const auto& [key, node] : files) {
-    m.files.push_back(read_file_spec(std::string(key.str()), node, mapping));
-  }
-  if (m.files.empty()) {
-    throw_at(mapping, files.source(), "'files' is empty: name at least one [files.NAME] table");
-  }
-
-  std::string names;
-  for (const FileSpec& f : m.files) names += (names.empty() ? "'" : "', '") + f.name;
-  names += "'";
-  std::size_t master = 0;
-  if (top.find("master") != nullptr) {
-    const std::string wanted = top.string("master");
-    while (master < m.files.size() && m.files[master].name != wanted) ++master;
-    if (master == m.files.size()) {
-      throw_at(mapping, top.require("master").source(),
-               "master '" + wanted + "' is not one of the files (" + names + ")");
-    }
-  } else if (m.files.size() > 1) {
-    throw_at(mapping, root.source(),
-             "missing key 'master': which file's time stamps become the log rows? (one of " +
-                 names + ")");
-  }
-  std::rotate(m.files.begin(), m.files.begin() + static_cast<std::ptrdiff_t>(master),
-              m.files.begin() + static_cast<std::ptrdiff_t>(master) + 1);
-
-  const std::string pose_of = top.optional_string("pose_of", "sensor");
-  if (pose_of != "sensor" && pose_of != "flange") {
-    throw_at(mapping, top.require("pose_of").source(),
-             "'pose_of' must be \"sensor\" or \"flange\"");
-  }
-  m.pose_of_flange = pose_of == "flange";
-
-  m.kinematics_text = top.optional_string("kinematics", "imu");
-  m.kinematics_where = top.where("kinematics");
-  if (m.kinematics_text == "robot")
-    m.kinematics = robot::KinematicsMode::robot;
-  else if (m.kinematics_text == "auto")
-    m.kinematics = robot::KinematicsMode::automatic;
-  else if (m.kinematics_text == "fused")
-    m.fused = true;
-  else if (m.kinematics_text != "imu")
-    top.fail("kinematics",
-             "must be \"imu\" (the default: the IMU columns as logged), \"robot\" (ω, ω̇ and "
-             "the specific force derived from the joints with the rig's robot, or from the "
-             "pose), \"auto\" (each from the IMU where it has it, else from the robot) or "
-             "\"fused\" (the joints and the IMU together), is \"" +
-                 m.kinematics_text + "\"");
-  m.kinematics_bandwidth_hz = top.optional_number(
-      "kinematics_bandwidth_hz", m.fused ? kFusedBandwidthHz : 5.0, NumberRange{0.0, true});
-  if (!m.fused && top.find("kinematics_crossover_hz") != nullptr)
-    top.fail("kinematics_crossover_hz", "is for kinematics = \"fused\" only");
-  m.kinematics_crossover_hz =
-      top.optional_number("kinematics_crossover_hz", kFusedCrossoverHz, NumberRange{0.0, true});
-  m.kinematics_accel_bandwidth_hz = top.optional_number(
-      "kinematics_accel_bandwidth_hz", kDefaultAccelBandwidthHz, NumberRange{0.0, true});
-
-  if (top.find("rig") != nullptr && top.find("rig_file") != nullptr) {
-    throw_at(mapping, top.require("rig_file").source(),
-             "give either 'rig_file' or a [rig] table, not both");
-  }
-  if (top.find("rig") != nullptr) {
-    m.rig = detail::rig_from_toml(top.table("rig"), mapping, true, "rig.", &m.rig_has_period);
-  } else if (top.find("rig_file") != nullptr) {
-    const fs::path p = top.string("rig_file");
-    m.rig_file = p.is_absolute() ? p : mapping.parent_path() / p;
-  } else if (!rig_given) {
-    throw_at(mapping, root.source(),
-             "no rig: give a [rig] table or rig_file = \"NAME.rig.toml\" in the mapping, or --rig");
-  }
-
-  // Every quantity from exactly one file; the required ones present; the IMU pair together.
-  std::array<const FileSpec*, kQuantityCount> source{};
-  std::array<toml::source_region, kQuantityCount> where{};
-  for (const FileSpec& f : m.files) {
-    for (const QuantitySpec& q : f.quantities) {
-      const int i = static_cast<int>(q.what);
-      if (source[i] != nullptr) {
-        throw_at(mapping, q.where,
-                 "'" + std::string(info(q.what).key) + "' is mapped twice: here and in files." +
-                     source[i]->name + " (line " + std::to_string(where[i].begin.line) + ")");
-      }
-      source[i] = &f;
-      where[i] = q.where;
-    }
-  }
-  // A torque about another point needs the force to move it to the sensor origin.
-  for (const FileSpec& f : m.files) {
-    for (const QuantitySpec& q : f.quantities) {
-      if (q.what != Quantity::torque || !q.p_own_fixed_m ||
-          source[static_cast<int>(Quantity::force)] != nullptr)
-        continue;
-      throw_at(mapping, q.lever_where,
-               "'files." + f.name +
-                   ".torque.frame.p_m' moves the torque from the recording frame's origin to "
-                   "the sensor origin, M_S = R M + p × F_S, which needs the force: map 'force' "
-                   "(in this file or another), or remove p_m if the torque is already about the "
-                   "sensor origin");
-    }
-  }
-  const bool joints_mapped = source[static_cast<int>(Quantity::joints)] != nullptr;
-  for (Quantity q : {Quantity::force, Quantity::torque, Quantity::orientation}) {
-    // Without an orientation the pose comes from the joints through the rig's robot (checked
-    // once the rig is known).
-    if (q == Quantity::orientation && joints_mapped) continue;
-    if (source[static_cast<int>(q)] == nullptr) {
-      throw_at(mapping, files.source(),
-               "no file maps '" + std::string(info(q).key) + "' (" + std::string(info(q).meaning) +
-                   "); a log needs force, torque and orientation, or 'joints' with a rig that "
-                   "describes the robot (position, the IMU and temperature are optional)");
-    }
-  }
-  // Without an orientation the whole pose comes from the joints: a position alone is no pose.
-  if (source[static_cast<int>(Quantity::orientation)] == nullptr &&
-      source[static_cast<int>(Quantity::position)] != nullptr) {
-    throw_at(mapping, where[static_cast<int>(Quantity::position)],
-             "'position' is mapped without 'orientation': map the orientation too, or remove "
-             "'position' to take the whole pose from the joints through the rig's robot");
-  }
-  // A logged ω̇ (imu_dw*_radps2) is used as logged; "robot" takes every signal from the robot.
-  if (source[static_cast<int>(Quantity::angular_accel)] != nullptr &&
-      m.kinematics == robot::KinematicsMode::robot) {
-    throw_at(mapping, where[static_cast<int>(Quantity::angular_accel)],
-             "'files." + source[static_cast<int>(Quantity::angular_accel)]->name +
-                 ".angular_accel' is a logged angular acceleration, but kinematics = \"robot\" "
-                 "takes ω̇ from the robot: use kinematics = \"auto\" to keep the logged ω̇ "
-                 "(and take what the IMU lacks from the robot), or remove 'angular_accel'");
-  }
-  // Rows without time are static samples: they cannot be put on another file's time base. A
-  // static table split over files (poses in one, wrenches in another) joins row by row: every
-  // file without time, the same number of rows (checked when they are read).
-  const FileSpec* timed = nullptr;
-  for (const FileSpec& file : m.files)
-    if (file.has_time) timed = &file;
-  for (const FileSpec& file : m.files) {
-    if (file.has_index == m.files.front().has_index || file.has_time) continue;
-    const FileSpec& with = file.has_index ? file : m.files.front();
-    const FileSpec& without = file.has_index ? m.files.front() : file;
-    throw_at(mapping, without.where,
-             "files." + with.name + " has a pose_index and files." + without.name +
-                 " has none: static tables are joined by pose index (every file names its "
-                 "pose column) or row by row (none does)");
-  }
-  for (const FileSpec& file : m.files) {
-    if (file.has_time || timed == nullptr) continue;
-    throw_at(mapping, file.where,
-             "files." + file.name + " has no 'time' but files." + timed->name +
-                 " has: a file without time holds static samples (one row per pose) and cannot "
-                 "be put on another file's time base; give every file time = { column = …, "
-                 "unit = … }, or none (a static table split over files is joined row by row)");
-  }
-  return m;
-}
-
-// ---------------------------------------------------------------------------------------------
-// Data files, read into SI series.
-
-struct Series {
-  std::vector<double> t;
-  std::array<std::vector<double>, kQuantityCount> values;  ///< `stored` values per row
-};
-
-bool skippable(std::string_view line, const std::string& comment) {
-  const std::string_view s = detail::trim(line);
-  return s.empty() || (!comment.empty() && s.substr(0, comment.size()) == comment);
-}
-
-std::string_view unquote(std::string_view s) {
-  s = detail::trim(s);
-  if (s.size() >= 2 && s.front() == '"' && s.back() == '"') s = s.substr(1, s.size() - 2);
-  return s;
-}
-
-// `line` is the header (or, with header = false, the first data row, which sets the width).
-void resolve_columns(FileSpec& spec, const fs::path& mapping, std::string_view line,
-                     int header_line) {
-  std::vector<detail::Cell> cells;
-  detail::split_cells(line, spec.delimiter, cells);
-  std::vector<std::string_view> names;
-  for (const auto& c : cells) names.push_back(unquote(c.text));
-  for (ColumnRef& ref : spec.refs) {
-    if (ref.number > 0) {
-      if (ref.number > static_cast<int>(cells.size())) {
-        throw InputError(spec.path, header_line, detail::char_column(line, line.size()),
-                         "column " + std::to_string(ref.number) + " (named by " + ref.key + " at " +
-                             where_text(mapping, ref.where) + ") is beyond the " +
-                             std::to_string(cells.size()) + " cells of this " +
-                             (spec.header ? "header" : "first row") +
-                             "; columns are counted from 1 (check the delimiter)");
-      }
-      ref.cell = ref.number - 1;
-      continue;
-    }
-    for (std::size_t i = 0; i < names.size(); ++i) {
-      if (names[i] != ref.name) continue;
-      if (ref.cell >= 0) {
-        throw InputError(spec.path, header_line, detail::char_column(line, cells[i].offset),
-                         "column '" + ref.name + "' appears twice in the header (first at column " +
-                             std::to_string(detail::char_column(line, cells[ref.cell].offset)) +
-                             "); cannot tell which one " + ref.key + " means");
-      }
-      ref.cell = static_cast<int>(i);
-    }
-    if (ref.cell >= 0) continue;
-    std::string why = "column '" + ref.name + "' not found in the header (named by " + ref.key +
-                      " at " + where_text(mapping, ref.where) + ")";
-    const std::string_view near = detail::closest_name(ref.name, names);
-    if (!near.empty()) why += "; did you mean '" + std::string(near) + "'?";
-    std::string list;
-    for (std::string_view n : names) list += (list.empty() ? "" : ", ") + std::string(n);
-    why += "; the header has: " + detail::shorten(list, 200);
-    throw InputError(spec.path, header_line, 1, why);
-  }
-}
-
-Eigen::Quaterniond orientation_of_row(const QuantitySpec& q, const double* raw,
-                                      const fs::path& path, int line_number, int column) {
-  switch (q.orientation) {
-    case Orientation::quaternion: {
-      const Eigen::Quaterniond quat(raw[0], raw[1], raw[2], raw[3]);
-      if (std::abs(quat.norm() - 1.0) > 1e-3) {
-        throw InputError(path, line_number, column,
-                         "quaternion has norm " + num(quat.norm()) +
-                             ", off from 1 by more than 1e-3 (check the column order)");
-      }
-      return quat.normalized();
-    }
-    case Orientation::matrix: {
-      Eigen::Matrix3d R;
-      R << raw[0], raw[1], raw[2], raw[3], raw[4], raw[5], raw[6], raw[7], raw[8];
-      const double error = (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
-      if (error > 1e-3 || R.determinant() < 0.0) {
-        throw InputError(path, line_number, column,
-                         "rotation matrix r11…r33 is not a rotation (max |RᵀR − I| = " +
-                             num(error) + ", det = " + num(R.determinant()) + ")");
-      }
-      return Eigen::Quaterniond(R).normalized();
-    }
-    case Orientation::kuka_abc:
-      return Eigen::Quaterniond(model::rotation_from_kuka_abc(raw[0] * q.scale, raw[1] * q.scale,
-                                                              raw[2] * q.scale))
-          .normalized();
-  }
-  return Eigen::Quaterniond::Identity();
-}
-
-Series read_series(FileSpec& spec, const fs::path& mapping) {
-  std::error_code ec;
-  if (!fs::is_regular_file(spec.path, ec)) {
-    throw_at(mapping, spec.path_where, "data file not found: " + spec.path.string());
-  }
-  const std::string text = detail::read_whole_file(spec.path);
-  detail::LineCursor lines(text);
-  std::string_view line;
-  for (int i = 0; i < spec.skip_lines; ++i) {
-    if (!lines.next(line)) {
-      throw InputError(
-          spec.path, lines.number() + 1, 1,
-          "file ends within the first skip_lines = " + std::to_string(spec.skip_lines) + " lines");
-    }
-  }
-  bool have_header = false;
-  while (lines.next(line)) {
-    if (lines.number() == 1 && line.substr(0, 3) == "\xEF\xBB\xBF") line.remove_prefix(3);
-    if (skippable(line, spec.comment)) continue;
-    have_header = true;
-    break;
-  }
-  if (!have_header) {
-    throw InputError(spec.path, lines.number() + 1, 1,
-                     spec.header ? "no header row (column names)" : "no data rows");
-  }
-  const int header_line = lines.number();
-  resolve_columns(spec, mapping, line, header_line);
-  std::vector<detail::Cell> cells;
-  detail::split_cells(line, spec.delimiter, cells);
-  const std::size_t num_cells = cells.size();
-  // Without a header the line just read is the first data row.
-  bool pending_row = !spec.header;
-  std::unordered_map<double, int> index_lines;  // pose index -> its line (has_index)
-
-  Series series;
-  std::vector<double> raw(spec.refs.size());
-  int previous_line = 0;
-  double previous_raw_t = 0.0;
-  while (pending_row || lines.next(line)) {
-    pending_row = false;
-    if (skippable(line, spec.comment)) continue;
-    const int n = lines.number();
-    detail::split_cells(line, spec.delimiter, cells);
-    if (cells.size() != num_cells) {
-      const bool extra = cells.size() > num_cells;
-      throw InputError(spec.path, n,
-                       detail::char_column(line, extra ? cells[num_cells].offset : line.size()),
-                       "row has " + std::to_string(cells.size()) + " cells but the " +
-                           (spec.header ? "header has " : "first row has ") +
-                           std::to_string(num_cells) + " (delimiter: " +
-                           (spec.delimiter == ' '    ? std::string("whitespace")
-                            : spec.delimiter == '\t' ? std::string("tab")
-                                                     : "'" + std::string(1, spec.delimiter) + "'") +
-                           ")");
-    }
-    for (std::size_t j = 0; j < spec.refs.size(); ++j) {
-      const detail::Cell& cell = cells[spec.refs[j].cell];
-      const auto status = detail::parse_number(unquote(cell.text), raw[j], spec.decimal);
-      if (status == detail::NumberStatus::ok) continue;
-      const std::string why = detail::number_error(status, unquote(cell.text), spec.refs[j].name);
-      throw InputError(spec.path, n, detail::char_column(line, cell.offset), why);
-    }
-    const double t = spec.has_time    ? raw[0] * spec.time_scale + spec.time_offset_s
-                     : spec.has_index ? raw[0]
-                                      : static_cast<double>(series.t.size());
-    if (spec.has_index) {
-      const int column = detail::char_column(line, cells[spec.refs[0].cell].offset);
-      if (t != std::floor(t))
-        throw InputError(
-            spec.path, n, column,
-            "pose index " + num(t) + " (column '" + spec.refs[0].name + "') is not a whole number");
-      const auto [seen, fresh] = index_lines.emplace(t, n);
-      if (!fresh)
-        throw InputError(spec.path, n, column,
-                         "pose index " + num(t) + " (column '" + spec.refs[0].name +
-                             "') is at line " + std::to_string(seen->second) +
-                             " already: each pose once per file");
-    }
-    if (spec.has_time && !series.t.empty() && !(t > series.t.back())) {
-      throw InputError(spec.path, n, detail::char_column(line, cells[spec.refs[0].cell].offset),
-                       std::string("time ") +
-                           (raw[0] < previous_raw_t ? "goes backwards" : "stands still") +
-                           " at line " + std::to_string(n) + ": t=" + num(raw[0]) + " after " +
-                           num(previous_raw_t) + " (line " + std::to_string(previous_line) +
-                           ", column '" + spec.refs[0].name + "', " + spec.time_unit + ")");
-    }
-    series.t.push_back(t);
-    previous_line = n;
-    previous_raw_t = raw[0];
-
-    for (const QuantitySpec& q : spec.quantities) {
-      auto& out = series.values[static_cast<int>(q.what)];
-      const double* r = raw.data() + q.first_ref;
-      if (q.frame == VectorFrame::fixed) {  // v_own = R_own,D v_D (constant: before merging)
-        const Eigen::Vector3d v = q.R_own_fixed * (Eigen::Vector3d(r[0], r[1], r[2]) * q.scale);
-        out.insert(out.end(), {v.x(), v.y(), v.z()});
-        continue;
-      }
-      if (q.what != Quantity::orientation) {
-        // Without an offset, no addition: −0 + 0 would read a logged −0 as +0.
-        for (int k = 0; k < q.num_refs; ++k)
-          out.push_back(q.offset == 0.0 ? r[k] * q.scale : r[k] * q.scale + q.offset);
-        continue;
-      }
-      std::size_t leftmost = line.size();
-      for (int k = 0; k < q.num_refs; ++k) {
-        leftmost = std::min(leftmost, cells[spec.refs[q.first_ref + k].cell].offset);
-      }
-      Eigen::Quaterniond quat =
-          orientation_of_row(q, r, spec.path, n, detail::char_column(line, leftmost));
-      const std::size_t size = out.size();
-      if (size >= 4) {  // keep neighbours in the same hemisphere
-        const Eigen::Quaterniond previous(out[size - 4], out[size - 3], out[size - 2],
-                                          out[size - 1]);
-        if (previous.dot(quat) < 0.0) quat.coeffs() = -quat.coeffs();
-      }
-      out.insert(out.end(), {quat.w(), quat.x(), quat.y(), quat.z()});
-    }
-  }
-  if (series.t.empty()) {
-    throw InputError(spec.path, header_line + 1, 1,
-                     spec.header ? "no data rows after the header" : "no data rows");
-  }
-  return series;
-}
-
-// Keeps `rows` of a series (in that order), renumbering them 0, 1, … (a static table's time).
-void select_rows(Series& s, const std::vector<std::size_t>& rows) {
-  const std::size_t old_rows = s.t.size();
-  for (auto& v : s.values) {
-    if (v.empty()) continue;
-    const std::size_t width = v.size() / old_rows;
-    std::vector<double> kept;
-    kept.reserve(rows.size() * width);
-    for (std::size_t r : rows)
-      kept.insert(kept.end(), v.begin() + r * width, v.begin() + (r + 1) * width);
-    v = std::move(kept);
-  }
-  s.t.resize(rows.size());
-  for (std::size_t i = 0; i < rows.size(); ++i) s.t[i] = static_cast<double>(i);
-}
-
-// Static tables joined by pose index: the master's rows in its order, each other file's row with
-// the same index beside it. A master row whose index another file lacks is dropped (counted for
-// that file), as are other files' rows whose index the master lacks (counted, not used).
-void join_by_pose_index(std::vector<Series>& series, ImportReport& report) {
-  std::vector<std::unordered_map<double, std::size_t>> row_of(series.size());
-  for (std::size_t f = 1; f < series.size(); ++f)
-    for (std::size_t j = 0; j < series[f].t.size(); ++j) row_of[f].emplace(series[f].t[j], j);
-  std::vector<std::vector<std::size_t>> keep(series.size());
-  for (std::size_t i = 0; i < series.front().t.size(); ++i) {
-    bool all = true;
-    for (std::size_t f = 1; f < series.size(); ++f) {
-      if (row_of[f].count(series.front().t[i]) != 0) continue;
-      ++report.files[f].master_rows_unmatched;
-      all = false;
-    }
-    if (!all) continue;
-    keep.front().push_back(i);
-    for (std::size_t f = 1; f < series.size(); ++f)
-      keep[f].push_back(row_of[f].at(series.front().t[i]));
-  }
-  for (std::size_t f = 0; f < series.size(); ++f) {
-    if (f > 0) report.files[f].rows_unused = series[f].t.size() - keep[f].size();
-    select_rows(series[f], keep[f]);
-  }
-}
-
-// ---------------------------------------------------------------------------------------------
-// Merging onto the master's time base.
-
-/// Where a master time falls in another file: between rows k0 and k1, fraction alpha.
-struct Bracket {
-  std::size_t k0 = 0;
-  std::size_t k1 = 0;
-  double alpha = 0.0;
-};
-
-template <int N>
-Eigen::Matrix<double, N, 1> at(const std::vector<double>& v, const Bracket& b) {
-  const Eigen::Map<const Eigen::Matrix<double, N, 1>> a(v.data() + b.k0 * N);
-  const Eigen::Map<const Eigen::Matrix<double, N, 1>> c(v.data() + b.k1 * N);
-  if (b.alpha == 0.0) return a;  // the sample as it is (−0 + 0 · (c − a) would be +0)
-  return a + b.alpha * (c - a);
-}
-
-Eigen::Quaterniond quaternion_at(const std::vector<double>& v, const Bracket& b) {
-  const Eigen::Quaterniond a(v[b.k0 * 4], v[b.k0 * 4 + 1], v[b.k0 * 4 + 2], v[b.k0 * 4 + 3]);
-  const Eigen::Quaterniond c(v[b.k1 * 4], v[b.k1 * 4 + 1], v[b.k1 * 4 + 2], v[b.k1 * 4 + 3]);
-  return b.alpha == 0.0 ? a : a.slerp(b.alpha, c).normalized();
-}
-
-double median_period(const std::vector<double>& t) {
-  if (t.size() < 2) return 0.0;
-  std::vector<double> dt(t.size() - 1);
-  for (std::size_t i = 1; i < t.size(); ++i) dt[i - 1] = t[i] - t[i - 1];
-  std::nth_element(dt.begin(), dt.begin() + static_cast<std::ptrdiff_t>(dt.size() / 2), dt.end());
-  return dt[dt.size() / 2];
-}
-
-// ---------------------------------------------------------------------------------------------
-// Kinematics from the robot (proto/import_mapping.md "kinematics", proto/robot_kinematics.md):
-// ω, ω̇ and the specific force of S derived from the joint stream (forward kinematics through
-// the rig's robot) or the pose stream, at that stream's own samples, then interpolated onto the
-// log's rows and expressed at the IMU (the rig's sensor_imu), so that fit and diagnose read them
-// as IMU columns. The rig's [kinematics] records which column came from where.
-
-std::string quantity_file(const Mapping& m, const std::array<int, kQuantityCount>& source,
-                          Quantity q) {
-  return "files." + m.files[static_cast<std::size_t>(source[static_cast<int>(q)])].name + "." +
-         std::string(info(q).key);
-}
-
-const QuantitySpec& spec_in(const Mapping& m, const std::array<int, kQuantityCount>& source,
-                            Quantity q) {
-  const FileSpec& file = m.files[static_cast<std::size_t>(source[static_cast<int>(q)])];
-  return *std::find_if(file.quantities.begin(), file.quantities.end(),
-                       [&](const QuantitySpec& s) { return s.what == q; });
-}
-
-// The rig's robot with the rig's flange_sensor, for the mapped joints: one column per joint of
-// the robot, in the recording's order (RobotModel::input_index maps them to DH rows). `use` says
-// what the joints are needed for.
-robot::RobotModel robot_for_joints(const Mapping& m, const fs::path& mapping_path, const Log& log,
-                                   const std::array<int, kQuantityCount>& source,
-                                   const std::string& use) {
-  const QuantitySpec& joints = spec_in(m, source, Quantity::joints);
-  robot::RobotModel model = *log.rig.robot_model;
-  model.flange_sensor = to_frame_transform(log.rig.flange_sensor);
-  if (model.joint_count != joints.num_refs)
-    throw_at(mapping_path, joints.where,
-             "'" + quantity_file(m, source, Quantity::joints) + "' maps " +
-                 std::to_string(joints.num_refs) + " columns, but the rig's robot (" +
-                 log.rig.robot + ") has " + std::to_string(model.joint_count) +
-                 " joints: map one column per joint, A1 first, to " + use);
-  return model;
-}
-
-// ω̇ from the gyro: the Savitzky–Golay first derivative of the angular-rate stream at its own
-// samples (order 3, the widest window that passes kinematics_bandwidth_hz), interpolated onto
-// the log's rows and written as imu_dw*_radps2. A gyro given in the base frame is differenced
-// there and rotated per row like ω: for an angular velocity d/dt(R_BSᵀ ω_B) = R_BSᵀ ω̇_B, as
-// Ṙ_BSᵀ ω_B = −ω_S × ω_S = 0. Too short a stream leaves ω̇ to host/ident (said in the report).
-void differentiate_gyro(const Mapping& m, const std::vector<Series>& series,
-                        const std::array<int, kQuantityCount>& source, ImportResult& result) {
-  Log& log = result.log;
-  KinematicsRecord& record = log.rig.kinematics;
-  const std::size_t f = static_cast<std::size_t>(source[static_cast<int>(Quantity::angular_rate)]);
-  const QuantitySpec& spec = spec_in(m, source, Quantity::angular_rate);
-  const std::vector<double>& t = series[f].t;
-  const std::vector<double>& w = series[f].values[static_cast<int>(Quantity::angular_rate)];
-  const double period_s = median_period(t);
-  const robot::SgSettings sg =
-      robot::choose_sg_window(period_s, m.kinematics_accel_bandwidth_hz, robot::kMaxSgOrder, 1);
-  const std::size_t window = static_cast<std::size_t>(2 * sg.half_width + 1);
-  if (t.size() < window) {
-    record.angular_accel_reason +=
-        "; but " + quantity_file(m, source, Quantity::angular_rate) + " has " +
-        std::to_string(t.size()) + " rows, fewer than the differentiator's " +
-        std::to_string(window) + ": host/ident's 5-point difference of the angular rate instead";
-    result.report.kinematics += "angular acceleration: " + record.angular_accel_reason + "\n";
-    return;
-  }
-  std::vector<Eigen::Vector3d> rate(t.size()), accel(t.size());
-  for (std::size_t i = 0; i < t.size(); ++i) rate[i] = {w[3 * i], w[3 * i + 1], w[3 * i + 2]};
-  if (!robot::sg_differentiate(t, rate, sg, 1, accel)) return;  // checked above: cannot happen
-  const Eigen::Matrix3d R_sensor_imu = log.rig.sensor_imu.q.normalized().toRotationMatrix();
-  std::size_t k = 0;
-  for (Sample& s : log.samples) {
-    while (k + 1 < t.size() && t[k + 1] <= s.t_s) ++k;
-    const std::size_t k1 = std::min(k + 1, t.size() - 1);
-    const double alpha = k1 == k ? 0.0 : std::clamp((s.t_s - t[k]) / (t[k1] - t[k]), 0.0, 1.0);
-    Eigen::Vector3d v = accel[k] + alpha * (accel[k1] - accel[k]);
-    if (spec.frame == VectorFrame::base)
-      v = R_sensor_imu.transpose() * s.q_base_sensor.toRotationMatrix().transpose() * v;
-    s.angular_accel_imu_radps2 = v;
-  }
-  log.columns.angular_accel = true;
-  record.angular_accel = KinematicsOrigin::imu;
-  record.accel_sg_half_width = sg.half_width;
-  record.accel_sg_order = sg.order;
-  record.accel_period_s = period_s;
-  record.accel_bandwidth_hz = m.kinematics_accel_bandwidth_hz;
-  record.accel_noise_gain = robot::sg_noise_gain(sg, 1, period_s);
-  record.accel_cutoff_hz = robot::sg_cutoff_hz(sg, 1, period_s);
-  char buffer[300];
-  std::snprintf(buffer, sizeof buffer,
-                "angular acceleration from the gyro of files.%s (%zu rows, median period %.4g s): "
-                "Savitzky-Golay derivative M = %d, order %d, lag 0, -3 dB %.3g Hz, noise gain "
-                "%.3g 1/s\n",
-                m.files[f].name.c_str(), t.size(), period_s, sg.half_width, sg.order,
-                record.accel_cutoff_hz, record.accel_noise_gain);
-  result.report.kinematics += buffer;
-}
-
-// The record of the pose's differentiator (ω and the specific force) and of ω̇'s, as the rig's
-// [kinematics] keeps them (log_format.md).
-void record_differentiator(KinematicsRecord& r, const robot::SgSettings& sg, double period_s,
-                           double bandwidth_hz) {
-  r.sg_half_width = sg.half_width;
-  r.sg_order = sg.order;
-  r.period_s = period_s;
-  r.bandwidth_hz = bandwidth_hz;
-  r.lag_s = 0.0;  // centred window
-  r.noise_gain_rate_per_s = robot::sg_noise_gain(sg, 1, period_s);
-  r.noise_gain_accel_per_s2 = robot::sg_noise_gain(sg, 2, period_s);
-  r.cutoff_rate_hz = robot::sg_cutoff_hz(sg, 1, period_s);
-  r.cutoff_accel_hz = robot::sg_cutoff_hz(sg, 2, period_s);
-}
-
-void record_accel_differentiator(KinematicsRecord& r, const robot::SgSettings& sg, double period_s,
-                                 double bandwidth_hz) {
-  r.accel_sg_half_width = sg.half_width;
-  r.accel_sg_order = sg.order;
-  r.accel_period_s = period_s;
-  r.accel_bandwidth_hz = bandwidth_hz;
-  r.accel_noise_gain = robot::sg_noise_gain(sg, 2, period_s);
-  r.accel_cutoff_hz = robot::sg_cutoff_hz(sg, 2, period_s);
-}
-
-void derive_from_robot(const Mapping& m, const fs::path& mapping_path,
-                       const std::vector<Series>& series,
-                       const std::array<int, kQuantityCount>& source, ImportResult& result) {
-  Log& log = result.log;
-  const auto has = [&](Quantity q) { return source[static_cast<int>(q)] >= 0; };
-  const auto file_of = [&](Quantity q) {
-    return static_cast<std::size_t>(source[static_cast<int>(q)]);
-  };
-  const auto refuse = [&](const std::string& why) {
-    throw_at(mapping_path, m.kinematics_where,
-             "'kinematics = \"" + m.kinematics_text + "\"': " + why);
-  };
-  KinematicsRecord& record = log.rig.kinematics;
-  record.mode = m.kinematics_text;
-  const bool timed = !log.columns.static_rows;
-  const bool joints_mapped = has(Quantity::joints);
-  const bool joints_ok = timed && joints_mapped && log.rig.robot_model.has_value();
-  const bool pose_position = has(Quantity::position) && has(Quantity::orientation) &&
-                             file_of(Quantity::position) == file_of(Quantity::orientation);
-  // Without an orientation the import took the pose from the joints (the rig has the robot).
-  const bool robot_motion = joints_ok || (timed && has(Quantity::orientation));
-  const bool robot_linear = joints_ok || (timed && pose_position);
-  const bool robot_mode = m.kinematics == robot::KinematicsMode::robot;
-
-  if (robot_mode && !timed)
-    refuse(
-        "rows without time (a static table) have no motion to differentiate; use kinematics "
-        "= \"imu\" (the default) or record time");
-  if (robot_mode && joints_mapped && !log.rig.robot_model)
-    refuse(quantity_file(m, source, Quantity::joints) + " is mapped, but the rig (" +
-           result.report.rig_source +
-           ") does not describe the robot: give it robot_file = \"…/calib/robots/"
-           "kr210_r2700.robot.toml\" or a [robot] table with the DH chain (proto/log_format.md), "
-           "or remove 'joints' to derive from the pose");
-  if (robot_mode && !robot_linear)
-    refuse(
-        "the sensor's linear acceleration needs the joints (with the rig's robot) or the "
-        "position beside the orientation (" +
-        quantity_file(m, source, Quantity::orientation) +
-        "); the orientation alone gives ω and ω̇ only: map 'joints' or 'position', or use "
-        "kinematics = \"auto\" to take ω and ω̇ from the orientation and the specific force "
-        "from the accelerometer");
-
-  robot::SourceChoices choice =
-      robot::choose_sources(m.kinematics, {.gyro = log.columns.angular_rate,
-                                           .accelerometer = log.columns.specific_force,
-                                           .robot = robot_motion});
-  if (choice.specific_force.source == robot::KinematicSource::robot && !robot_linear)
-    choice.specific_force = {robot::KinematicSource::none,
-                             "the orientation alone gives ω and ω̇, not the linear acceleration "
-                             "(map 'position' beside it, or 'joints' with the rig's robot)"};
-  record.angular_rate_reason = choice.omega.reason;
-  record.specific_force_reason = choice.specific_force.reason;
-  // A logged ω̇ is the IMU's own signal: "auto" keeps it, as it keeps a logged gyro.
-  const bool accel_logged = log.columns.angular_accel;
-  if (accel_logged) {
-    choice.omega_dot = {robot::KinematicSource::imu, record.angular_accel_reason};
-  } else {
-    record.angular_accel_reason = choice.omega_dot.reason;
-  }
-  const bool derive_rate = choice.omega.source == robot::KinematicSource::robot;
-  const bool derive_force = choice.specific_force.source == robot::KinematicSource::robot;
-  const bool derive_accel = choice.omega_dot.source == robot::KinematicSource::robot;
-  // ω̇ from the gyro under "auto": its Savitzky–Golay derivative, as measured best
-  // (robot_kinematics.md "Choosing the source"); "imu" leaves it to host/ident's 5-point
-  // difference, as before.
-  if (choice.omega_dot.source == robot::KinematicSource::imu && !accel_logged &&
-      m.kinematics == robot::KinematicsMode::automatic && timed && log.columns.angular_rate)
-    differentiate_gyro(m, series, source, result);
-  if (!timed && log.columns.angular_rate && !accel_logged)
-    record.angular_accel_reason = "rows without time (static samples): no angular acceleration";
-  if (!derive_rate && !derive_force && !derive_accel) return;
-
-  // The stream: the joints through the robot if possible, else the pose.
-  const KinematicsOrigin origin = joints_ok ? KinematicsOrigin::joints : KinematicsOrigin::pose;
-  const Quantity stream_quantity = joints_ok ? Quantity::joints : Quantity::orientation;
-  const std::size_t f = file_of(stream_quantity);
-  const std::vector<double>& t = series[f].t;
-  const double period_s = median_period(t);
-  const robot::SgSettings sg =
-      robot::choose_sg_window(period_s, m.kinematics_bandwidth_hz, robot::kMaxSgOrder, 2);
-  const std::size_t window = static_cast<std::size_t>(2 * sg.half_width + 1);
-  if (t.size() < window)
-    refuse(quantity_file(m, source, stream_quantity) + " has " + std::to_string(t.size()) +
-           " rows; the differentiator needs at least " + std::to_string(window) + " (2M+1 at " +
-           num(period_s) + " s, " + num(m.kinematics_bandwidth_hz) +
-           " Hz): record longer or raise kinematics_bandwidth_hz");
-  robot::DifferentiatorSettings settings;
-  settings.sg = sg;
-  std::vector<robot::SensorKinematics> motion(t.size());
-  auto derive = [&](const robot::DifferentiatorSettings& with,
-                    std::vector<robot::SensorKinematics>& into) {
-    robot::DeriveStatus status;
-    if (joints_ok) {
-      const robot::RobotModel model = robot_for_joints(
-          m, mapping_path, log, source,
-          "derive the sensor's motion (kinematics = \"" + m.kinematics_text + "\")");
-      status =
-          robot::derive_kinematics(model, t, series[f].values[static_cast<int>(Quantity::joints)],
-                                   static_cast<std::size_t>(model.joint_count), with, into);
-    } else {
-      const std::vector<double>& q = series[f].values[static_cast<int>(Quantity::orientation)];
-      const std::vector<double>* p =
-          pose_position ? &series[f].values[static_cast<int>(Quantity::position)] : nullptr;
-      std::vector<robot::Pose> poses(t.size());
-      for (std::size_t i = 0; i < t.size(); ++i) {
-        Eigen::Quaterniond R(q[4 * i], q[4 * i + 1], q[4 * i + 2], q[4 * i + 3]);
-        Eigen::Vector3d position =
-            p ? Eigen::Vector3d((*p)[3 * i], (*p)[3 * i + 1], (*p)[3 * i + 2]) : Eigen::Vector3d();
-        if (p == nullptr) position.setZero();
-        if (m.pose_of_flange) {  // p_BS = p_BF + R_BF p_FS, R_BS = R_BF R_FS (frames.md)
-          position += R * log.rig.flange_sensor.p_m;
-          R = R * log.rig.flange_sensor.q;
-        }
-        poses[i].R = R.normalized().toRotationMatrix();
-        poses[i].p_m = position;
-      }
-      status = robot::derive_kinematics(t, poses, with, into);
-    }
-    if (!status.ok())  // the reader checked times and sizes: only a broken model remains
-      refuse("deriving the motion failed (code " + std::to_string(static_cast<int>(status.code)) +
-             ", sample " + std::to_string(status.sample) + ")");
-  };
-  derive(settings, motion);
-  // ω̇ with its own, wider window (kinematics_accel_bandwidth_hz), if the stream allows it.
-  robot::DifferentiatorSettings accel_settings;
-  accel_settings.sg =
-      robot::choose_sg_window(period_s, m.kinematics_accel_bandwidth_hz, robot::kMaxSgOrder, 2);
-  std::vector<robot::SensorKinematics> accel_motion;
-  if (derive_accel) {
-    accel_motion.resize(t.size());
-    derive(accel_settings, accel_motion);
-  }
-
-  // Onto the log's rows (linear interpolation; every row lies within the stream's span), at
-  // the IMU: ω_I = R_SIᵀ ω_S, f_I = R_SIᵀ (f_S + ω̇ × r + ω × (ω × r)), r = p_SI.
-  const Eigen::Matrix3d R_sensor_imu = log.rig.sensor_imu.q.normalized().toRotationMatrix();
-  const Eigen::Vector3d p_sensor_imu = log.rig.sensor_imu.p_m;
-  std::size_t k = 0;
-  for (Sample& s : log.samples) {
-    while (k + 1 < t.size() && t[k + 1] <= s.t_s) ++k;
-    const std::size_t k1 = std::min(k + 1, t.size() - 1);
-    const double alpha = k1 == k ? 0.0 : std::clamp((s.t_s - t[k]) / (t[k1] - t[k]), 0.0, 1.0);
-    robot::SensorKinematics at;
-    const robot::SensorKinematics& a = motion[k];
-    const robot::SensorKinematics& b = motion[k1];
-    at.omega_sensor_radps =
-        a.omega_sensor_radps + alpha * (b.omega_sensor_radps - a.omega_sensor_radps);
-    at.omega_dot_sensor_radps2 =
-        a.omega_dot_sensor_radps2 + alpha * (b.omega_dot_sensor_radps2 - a.omega_dot_sensor_radps2);
-    at.specific_force_sensor_mps2 =
-        a.specific_force_sensor_mps2 +
-        alpha * (b.specific_force_sensor_mps2 - a.specific_force_sensor_mps2);
-    if (derive_rate) s.angular_rate_imu_radps = R_sensor_imu.transpose() * at.omega_sensor_radps;
-    // ω̇ of a rigid body is the same vector at every point: ω̇_I = R_SIᵀ ω̇_S.
-    if (derive_accel)
-      s.angular_accel_imu_radps2 =
-          R_sensor_imu.transpose() * (accel_motion[k].omega_dot_sensor_radps2 +
-                                      alpha * (accel_motion[k1].omega_dot_sensor_radps2 -
-                                               accel_motion[k].omega_dot_sensor_radps2));
-    if (derive_force)
-      s.specific_force_imu_mps2 =
-          R_sensor_imu.transpose() * robot::specific_force_at_point(at, p_sensor_imu);
-  }
-  if (derive_rate) {
-    log.columns.angular_rate = true;
-    record.angular_rate = origin;
-  }
-  if (derive_force) {
-    log.columns.specific_force = true;
-    record.specific_force = origin;
-  }
-  if (derive_accel) {
-    log.columns.angular_accel = true;
-    record.angular_accel = origin;
-    record_accel_differentiator(record, accel_settings.sg, period_s,
-                                m.kinematics_accel_bandwidth_hz);
-    char line[200];
-    std::snprintf(line, sizeof line,
-                  "angular acceleration: its own Savitzky-Golay second derivative M = %d, order "
-                  "%d (kinematics_accel_bandwidth_hz %.3g Hz), -3 dB %.3g Hz, noise gain %.3g "
-                  "1/s^2\n",
-                  record.accel_sg_half_width, record.accel_sg_order, record.accel_bandwidth_hz,
-                  record.accel_cutoff_hz, record.accel_noise_gain);
-    result.report.kinematics += line;
-  }
-  record_differentiator(record, sg, period_s, m.kinematics_bandwidth_hz);
-
-  char buffer[400];
-  std::snprintf(buffer, sizeof buffer,
-                "%s from the %s of files.%s (%zu rows, median period %.4g s%s): Savitzky-Golay "
-                "M = %d, order %d, lag 0, -3 dB %.3g Hz (rate) / %.3g Hz (acceleration), noise "
-                "gain %.3g 1/s (rate) / %.3g 1/s^2 (acceleration)\n",
-                derive_rate && derive_force ? "angular rate and specific force"
-                : derive_rate               ? "angular rate"
-                                            : "specific force",
-                joints_ok ? "joints" : "pose", m.files[f].name.c_str(), t.size(), period_s,
-                joints_ok ? (", through " + log.rig.robot + "'s forward kinematics").c_str() : "",
-                sg.half_width, sg.order, record.cutoff_rate_hz, record.cutoff_accel_hz,
-                record.noise_gain_rate_per_s, record.noise_gain_accel_per_s2);
-  result.report.kinematics += buffer;
-  if (!joints_ok && joints_mapped)
-    result.report.kinematics +=
-        "  (the joints are mapped but the rig describes no robot: give it robot_file or a "
-        "[robot] table to derive from them)\n";
-}
-
-}  // namespace
-
-// -------------------------------------------------------------------------------------------------
-
-// kinematics = "fused" (fused_kinematics.hpp): every IMU column from the joints and the IMU
-// together. Needs time, the joints with the rig's robot, the accelerometer and the gyro.
-void fuse_joints_and_imu(const Mapping& m, const fs::path& mapping_path,
-                         const std::vector<Series>& series,
-                         const std::array<int, kQuantityCount>& source, ImportResult& result) {
-  Log& log = result.log;
-  const auto refuse = [&](const std::string& why) {
-    throw_at(mapping_path, m.kinematics_where, "'kinematics = \"fused\"': " + why);
-  };
-  const int joints_file = source[static_cast<int>(Quantity::joints)];
-  if (log.columns.static_rows)
-    refuse("rows without time (a static table) have no motion to fuse; use kinematics = \"imu\"");
-  if (joints_file < 0)
-    refuse(
-        "the joints are not mapped: map 'joints' (and give the rig its robot) to fuse them "
-        "with the IMU, or use kinematics = \"imu\"");
-  if (!log.rig.robot_model)
-    refuse(quantity_file(m, source, Quantity::joints) + " is mapped, but the rig (" +
-           result.report.rig_source +
-           ") does not describe the robot: give it robot_file = \"…/calib/robots/"
-           "kr210_r2700.robot.toml\" or a [robot] table (proto/log_format.md)");
-  if (!log.columns.specific_force || !log.columns.angular_rate)
-    refuse(std::string("the IMU's ") +
-           (log.columns.specific_force ? "angular_rate" : "specific_force") +
-           " is not mapped; the fusion needs the accelerometer and the gyro: map both, or use "
-           "kinematics = \"auto\" (each signal from the IMU where it is logged, else the robot)");
-  if (log.columns.angular_accel)
-    refuse(quantity_file(m, source, Quantity::angular_accel) +
-           " is a logged angular acceleration, which the fusion would replace: use "
-           "kinematics = \"auto\" to keep it, or remove 'angular_accel'");
-  const robot::RobotModel model =
-      robot_for_joints(m, mapping_path, log, source, "fuse them with the IMU");
-  const std::vector<double>& t = series[static_cast<std::size_t>(joints_file)].t;
-  const double period_s = median_period(t);
-  const FusionSettings settings =
-      fusion_settings(period_s, m.kinematics_bandwidth_hz, m.kinematics_accel_bandwidth_hz,
-                      m.kinematics_crossover_hz);
-  // The widest of the fusion's three Savitzky–Golay windows.
-  const std::size_t window =
-      static_cast<std::size_t>(2 * std::max({settings.sg.half_width, settings.accel_sg.half_width,
-                                             settings.excitation_sg.half_width}) +
-                               1);
-  if (t.size() < window)
-    refuse(quantity_file(m, source, Quantity::joints) + " has " + std::to_string(t.size()) +
-           " rows; the fusion's widest Savitzky-Golay window needs at least " +
-           std::to_string(window) +
-           " (the motor's acceleration at 5 Hz, or kinematics_bandwidth_hz and "
-           "kinematics_accel_bandwidth_hz): record longer, or use kinematics = \"imu\"");
-  const std::size_t rows = log.samples.size();
-  const RowSignals signals = row_signals(log);
-  FusionInput in = fusion_input(signals);
-  in.robot = &model;
-  in.joint_t_s = t;
-  in.joints_rad =
-      series[static_cast<std::size_t>(joints_file)].values[static_cast<int>(Quantity::joints)];
-  in.R_sensor_imu = log.rig.sensor_imu.q.normalized().toRotationMatrix();
-  in.p_sensor_imu_m = log.rig.sensor_imu.p_m;
-  const FusionResult fused = fuse_kinematics(in, settings);
-  for (std::size_t r = 0; r < rows; ++r) {
-    Sample& s = log.samples[r];
-    s.specific_force_imu_mps2 = fused.specific_force_mps2[r];
-    s.angular_rate_imu_radps = fused.angular_rate_radps[r];
-    s.angular_accel_imu_radps2 = fused.angular_accel_radps2[r];
-  }
-  log.columns.angular_accel = true;
-  KinematicsRecord& k = log.rig.kinematics;
-  k.mode = "fused";
-  k.crossover_hz = settings.crossover_hz;
-  k.angular_rate = k.specific_force = k.angular_accel = KinematicsOrigin::fused;
-  const std::string why = "the joints (" + log.rig.robot + (fused.elastic ? ", elastic" : "") +
-                          ") above " + num(settings.crossover_hz) + " Hz, the IMU below";
-  k.angular_rate_reason = k.specific_force_reason = k.angular_accel_reason = why;
-  record_differentiator(k, settings.sg, period_s, m.kinematics_bandwidth_hz);
-  record_accel_differentiator(k, settings.accel_sg, period_s, m.kinematics_accel_bandwidth_hz);
-  std::string text =
-      "kinematics = \"fused\": angular rate, specific force and angular "
-      "acceleration from " +
-      why + " (zero phase)\n";
-  char line[400];
-  std::snprintf(line, sizeof line,
-                "  joints of files.%s (%zu rows, median period %.4g s): Savitzky-Golay M = %d "
-                "(-3 dB %.3g Hz rate / %.3g Hz acceleration), omega_dot M = %d (-3 dB %.3g Hz); "
-                "the IMU corrected %.3g m/s^2 and %.3g rad/s RMS\n",
-                m.files[static_cast<std::size_t>(joints_file)].name.c_str(), t.size(), period_s,
-                settings.sg.half_width, k.cutoff_rate_hz, k.cutoff_accel_hz,
-                settings.accel_sg.half_width, k.accel_cutoff_hz,
-                fused.correction_specific_force_mps2, fused.correction_angular_rate_radps);
-  text += line;
-  if (fused.elastic) {
-    text += "  the link's deflection from the robot file's elasticity (mean / RMS about it, mrad):";
-    for (std::size_t j = 0; j < fused.deflection_rms_rad.size(); ++j) {
-      std::snprintf(line, sizeof line, " A%zu %.3g/%.3g", j + 1, 1e3 * fused.deflection_mean_rad[j],
-                    1e3 * fused.deflection_rms_rad[j]);
-      text += line;
-    }
-    text += "\n";
-  } else {
-    text +=
-        "  the robot file gives no elasticity: the joints are taken as the link's (a rigid "
-        "arm); the IMU corrects only below the crossover\n";
-  }
-  result.report.kinematics = text;
-}
-
-ImportResult import_recordings(const fs::path& mapping_path,
-                               const std::optional<fs::path>& rig_file) {
-  Mapping mapping = read_mapping(mapping_path, rig_file.has_value());
-  ImportResult result;
-  result.inputs.push_back(mapping_path);
-
+// The reading phase: every file of the mapping read into its series (their rows counted in the
+// report), a static table split over files joined row by row or by pose index.
+std::vector<Series> read_recordings(Mapping& mapping, const fs::path& mapping_path,
+                                    ImportResult& result) {
   std::vector<Series> series;
   for (FileSpec& f : mapping.files) {
     series.push_back(read_series(f, mapping_path));
@@ -1418,7 +69,13 @@ ImportResult import_recordings(const fs::path& mapping_path,
   }
   if (!mapping.files.front().has_time && mapping.files.front().has_index)
     result.report.pose_index = mapping.files.front().refs[0].name;
+  return series;
+}
 
+// The rig: --rig, else the mapping's rig_file or [rig] table (its period, if it gives none, the
+// master's median).
+void choose_rig(const Mapping& mapping, const std::optional<fs::path>& rig_file,
+                const std::vector<Series>& series, ImportResult& result) {
   // The rig.
   Log& log = result.log;
   if (rig_file) {
@@ -1442,10 +99,117 @@ ImportResult import_recordings(const fs::path& mapping_path,
           ", sample_period_s = " + num(log.rig.sample_period_s) + " s (median of the master)";
     }
   }
+}
 
-  // Which file provides each quantity, and how.
-  std::array<int, kQuantityCount> source;
-  std::array<const QuantitySpec*, kQuantityCount> spec_of{};
+// Where master row i falls in every other file (brackets[f], found from cursor[f] on); false if
+// it lies before, after or in a gap of one of them (counted in that file's report).
+bool bracket_row(const Mapping& mapping, const std::vector<Series>& series, std::size_t i,
+                 std::vector<Bracket>& brackets, std::vector<std::size_t>& cursor,
+                 ImportReport& report) {
+  const double t = series.front().t[i];
+  bool keep = true;
+  brackets[0] = {i, i, 0.0};
+  for (std::size_t f = 1; f < mapping.files.size(); ++f) {
+    const std::vector<double>& tf = series[f].t;
+    ImportFileReport& r = report.files[f];
+    if (t < tf.front()) {
+      ++r.master_rows_before;
+      keep = false;
+      continue;
+    }
+    if (t > tf.back()) {
+      ++r.master_rows_after;
+      keep = false;
+      continue;
+    }
+    std::size_t& k = cursor[f];
+    // A master row at one of this file's samples takes that sample as it is: a + 1 · (c − a)
+    // is c only to an ulp of the larger of the two (a 1e-21 rate came back as 7e-21, a −0
+    // as 0), so the bracket starts at the sample, never ends on it.
+    while (k + 1 < tf.size() && tf[k + 1] <= t) ++k;
+    Bracket& b = brackets[f];
+    if (k + 1 == tf.size() || tf[k] == t) {
+      b = {k, k, 0.0};
+    } else {
+      b = {k, k + 1, (t - tf[k]) / (tf[k + 1] - tf[k])};
+      if (b.alpha < 1.0 && tf[k + 1] - tf[k] > mapping.files[f].max_gap_s) {
+        ++r.master_rows_in_gap;
+        keep = false;
+      }
+    }
+  }
+  return keep;
+}
+
+// The kinematics phase: where the IMU columns come from (kinematics = "imu", "robot", "auto" or
+// "fused"), the rig's [kinematics] record and the report's account of it.
+void kinematics_phase(const Mapping& mapping, const fs::path& mapping_path,
+                      const std::vector<Series>& series,
+                      const std::array<int, kQuantityCount>& source,
+                      const std::array<const QuantitySpec*, kQuantityCount>& spec_of,
+                      ImportResult& result) {
+  Log& log = result.log;
+  log.rig.kinematics = {};  // whatever a rig file says: this import's columns decide
+  // A logged ω̇ goes to imu_dw*_radps2, which log format 2 holds only beside imu_w*_radps: the
+  // gyro's, or under "auto" the robot's ω.
+  const auto refuse_accel_without_rate = [&] {
+    if (!log.columns.angular_accel || log.columns.angular_rate) return;
+    const std::string key = quantity_file(mapping, source, Quantity::angular_accel);
+    throw_at(mapping_path, spec_of[static_cast<int>(Quantity::angular_accel)]->where,
+             "'" + key +
+                 "' needs the angular rate beside it (the log holds ω̇, imu_dw*_radps2, only "
+                 "with imu_w*_radps; proto/log_format.md): map the gyro as 'angular_rate' (in "
+                 "this file or another)" +
+                 (mapping.kinematics == robot::KinematicsMode::imu
+                      ? std::string(", or set kinematics = \"auto\" to derive ω from the joints "
+                                    "(with the rig's robot) or the orientation")
+                      : std::string(log.columns.static_rows
+                                        ? ", or record time (rows without time give no ω)"
+                                        : "")) +
+                 ", or remove '" + std::string(info(Quantity::angular_accel).key) + "'");
+  };
+  if (log.columns.angular_accel) {
+    log.rig.kinematics.angular_accel = KinematicsOrigin::logged;
+    log.rig.kinematics.angular_accel_reason =
+        "logged in " + quantity_file(mapping, source, Quantity::angular_accel) +
+        " (used as logged)";
+  }
+  if (mapping.fused) {
+    fuse_joints_and_imu(mapping, mapping_path, series, source, result);
+    return;
+  }
+  if (mapping.kinematics == robot::KinematicsMode::imu) {  // the columns as logged
+    refuse_accel_without_rate();
+    if (log.columns.angular_accel)
+      result.report.kinematics =
+          "angular acceleration: " + log.rig.kinematics.angular_accel_reason + "\n";
+    return;
+  }
+  derive_from_robot(mapping, mapping_path, series, source, result);
+  refuse_accel_without_rate();
+  const KinematicsRecord& k = log.rig.kinematics;
+  result.report.kinematics =
+      "kinematics = \"" + k.mode + "\": angular rate " +
+      (log.columns.angular_rate ? std::string("from ") + to_string(k.angular_rate) : "none") +
+      (k.angular_rate_reason.empty() ? "" : " (" + k.angular_rate_reason + ")") +
+      "; specific force " +
+      (log.columns.specific_force ? std::string("from ") + to_string(k.specific_force) : "none") +
+      (k.specific_force_reason.empty() ? "" : " (" + k.specific_force_reason + ")") +
+      "; angular acceleration " +
+      (log.columns.angular_accel && k.angular_accel == KinematicsOrigin::logged
+           ? k.angular_accel_reason
+       : log.columns.angular_accel
+           ? std::string("from ") + to_string(k.angular_accel) +
+                 (k.angular_accel == KinematicsOrigin::imu ? " (Savitzky-Golay)" : "")
+       : log.columns.angular_rate && !log.columns.static_rows
+           ? std::string("by host/ident's 5-point difference of the angular rate")
+           : std::string("none")) +
+      "\n" + result.report.kinematics;
+}
+
+// Which file provides each quantity (source[q], -1 if none), and how (spec_of[q]).
+void find_sources(const Mapping& mapping, std::array<int, kQuantityCount>& source,
+                  std::array<const QuantitySpec*, kQuantityCount>& spec_of) {
   source.fill(-1);
   for (std::size_t f = 0; f < mapping.files.size(); ++f) {
     for (const QuantitySpec& q : mapping.files[f].quantities) {
@@ -1453,10 +217,97 @@ ImportResult import_recordings(const fs::path& mapping_path,
       spec_of[static_cast<int>(q.what)] = &q;
     }
   }
-  auto has = [&](Quantity q) { return source[static_cast<int>(q)] >= 0; };
-  auto in_base = [&](Quantity q) {
-    return has(q) && spec_of[static_cast<int>(q)]->frame == VectorFrame::base;
+}
+
+// The report's line on the joints: how many, where from, what they are used for.
+std::string joints_report(const Mapping& mapping, const std::array<int, kQuantityCount>& source,
+                          const Log& log, int joint_columns, bool pose_from_joints) {
+  return "joints: " + std::to_string(joint_columns) + " columns (" +
+         quantity_file(mapping, source, Quantity::joints) + ")" +
+         (pose_from_joints ? "; the sensor's pose from them through " + log.rig.robot +
+                                 "'s forward kinematics (no orientation mapped)"
+                           : std::string()) +
+         (joint_columns == 6 ? "; written to the log as q1_rad..q6_rad"
+                             : "; not written to the log (it holds q1_rad..q6_rad, 6 joints): "
+                               "they feed the robot's kinematics only, and effects that read "
+                               "joints (cable) cannot be fitted") +
+         "\n";
+}
+
+// The row's vectors in their frames: force and torque logged with base-frame axes rotated into S
+// (and the torque moved to S's origin), the joints kept, the IMU columns and the temperature
+// interpolated at the row's brackets (merge_rows' last step for each row).
+void vectors_of_row(Sample& s, const Log& log, const std::vector<Series>& series,
+                    const std::array<int, kQuantityCount>& source,
+                    const std::array<const QuantitySpec*, kQuantityCount>& spec_of,
+                    const std::vector<Bracket>& brackets,
+                    const std::optional<Eigen::Vector3d>& torque_lever_arm_m,
+                    const std::array<double, robot::kMaxJoints>& joints_row,
+                    const Eigen::Matrix3d& R_sensor_imu) {
+  auto values = [&](Quantity q) -> const std::vector<double>& {
+    return series[source[static_cast<int>(q)]].values[static_cast<int>(q)];
   };
+  auto bracket = [&](Quantity q) -> const Bracket& {
+    return brackets[source[static_cast<int>(q)]];
+  };
+  auto in_base = [&](Quantity q) {
+    return source[static_cast<int>(q)] >= 0 &&
+           spec_of[static_cast<int>(q)]->frame == VectorFrame::base;
+  };
+  // Vectors logged with base-frame axes: v_S = R_BSᵀ v_B (torque stays about the S origin);
+  // IMU quantities v_I = R_SIᵀ R_BSᵀ v_B (frames.md).
+  const Eigen::Matrix3d R_sensor_base = s.q_base_sensor.toRotationMatrix().transpose();
+  if (in_base(Quantity::force)) s.force_sensor_N = R_sensor_base * s.force_sensor_N;
+  if (in_base(Quantity::torque)) s.torque_sensor_Nm = R_sensor_base * s.torque_sensor_Nm;
+  // A torque about the origin of a fixed frame D at p_SD (its rotation already applied):
+  // M_S = R_SD M_D + p_SD × F_S, with the row's force in S (moment transfer).
+  if (torque_lever_arm_m) s.torque_sensor_Nm += torque_lever_arm_m->cross(s.force_sensor_N);
+  if (log.columns.joints) std::copy_n(joints_row.begin(), 6, s.joints_rad.begin());
+  if (log.columns.specific_force) {
+    s.specific_force_imu_mps2 =
+        at<3>(values(Quantity::specific_force), bracket(Quantity::specific_force));
+    if (in_base(Quantity::specific_force))
+      s.specific_force_imu_mps2 =
+          R_sensor_imu.transpose() * R_sensor_base * s.specific_force_imu_mps2;
+  }
+  if (log.columns.angular_rate) {
+    s.angular_rate_imu_radps =
+        at<3>(values(Quantity::angular_rate), bracket(Quantity::angular_rate));
+    if (in_base(Quantity::angular_rate))
+      s.angular_rate_imu_radps =
+          R_sensor_imu.transpose() * R_sensor_base * s.angular_rate_imu_radps;
+  }
+  // ω̇ in B: ω̇_S = R_BSᵀ ω̇_B, as d/dt(R_BSᵀ) ω_B = −ω_S × ω_S = 0 (see differentiate_gyro).
+  if (log.columns.angular_accel) {
+    s.angular_accel_imu_radps2 =
+        at<3>(values(Quantity::angular_accel), bracket(Quantity::angular_accel));
+    if (in_base(Quantity::angular_accel))
+      s.angular_accel_imu_radps2 =
+          R_sensor_imu.transpose() * R_sensor_base * s.angular_accel_imu_radps2;
+  }
+  if (log.columns.temperature) {
+    s.temperature_C = at<1>(values(Quantity::temperature), bracket(Quantity::temperature))[0];
+  }
+}
+
+}  // namespace
+
+ImportResult import_recordings(const fs::path& mapping_path,
+                               const std::optional<fs::path>& rig_file) {
+  Mapping mapping = read_mapping(mapping_path, rig_file.has_value());
+  ImportResult result;
+  result.inputs.push_back(mapping_path);
+
+  std::vector<Series> series = read_recordings(mapping, mapping_path, result);
+
+  Log& log = result.log;
+  choose_rig(mapping, rig_file, series, result);
+
+  // Which file provides each quantity, and how.
+  std::array<int, kQuantityCount> source;
+  std::array<const QuantitySpec*, kQuantityCount> spec_of{};
+  find_sources(mapping, source, spec_of);
+  auto has = [&](Quantity q) { return source[static_cast<int>(q)] >= 0; };
   // Joints: any number drive the robot's forward kinematics; the log holds q1_rad..q6_rad
   // (proto/log_format.md), so they are written to it only when there are 6.
   const int joint_columns =
@@ -1478,19 +329,8 @@ ImportResult import_recordings(const fs::path& mapping_path,
     pose_model = robot_for_joints(mapping, mapping_path, log, source,
                                   "compute the sensor's pose (no 'orientation' is mapped)");
   }
-  if (has(Quantity::joints)) {
-    result.report.joints =
-        "joints: " + std::to_string(joint_columns) + " columns (" +
-        quantity_file(mapping, source, Quantity::joints) + ")" +
-        (pose_from_joints ? "; the sensor's pose from them through " + log.rig.robot +
-                                "'s forward kinematics (no orientation mapped)"
-                          : std::string()) +
-        (joint_columns == 6 ? "; written to the log as q1_rad..q6_rad"
-                            : "; not written to the log (it holds q1_rad..q6_rad, 6 joints): "
-                              "they feed the robot's kinematics only, and effects that read "
-                              "joints (cable) cannot be fitted") +
-        "\n";
-  }
+  if (has(Quantity::joints))
+    result.report.joints = joints_report(mapping, source, log, joint_columns, pose_from_joints);
   log.columns.specific_force = has(Quantity::specific_force);
   log.columns.angular_rate = has(Quantity::angular_rate);
   log.columns.angular_accel = has(Quantity::angular_accel);
@@ -1511,38 +351,7 @@ ImportResult import_recordings(const fs::path& mapping_path,
   std::array<double, robot::kMaxJoints> joints_row{};  // the row's joints, interpolated
   for (std::size_t i = 0; i < t_master.size(); ++i) {
     const double t = t_master[i];
-    bool keep = true;
-    brackets[0] = {i, i, 0.0};
-    for (std::size_t f = 1; f < mapping.files.size(); ++f) {
-      const std::vector<double>& tf = series[f].t;
-      ImportFileReport& r = result.report.files[f];
-      if (t < tf.front()) {
-        ++r.master_rows_before;
-        keep = false;
-        continue;
-      }
-      if (t > tf.back()) {
-        ++r.master_rows_after;
-        keep = false;
-        continue;
-      }
-      std::size_t& k = cursor[f];
-      // A master row at one of this file's samples takes that sample as it is: a + 1 · (c − a)
-      // is c only to an ulp of the larger of the two (a 1e-21 rate came back as 7e-21, a −0
-      // as 0), so the bracket starts at the sample, never ends on it.
-      while (k + 1 < tf.size() && tf[k + 1] <= t) ++k;
-      Bracket& b = brackets[f];
-      if (k + 1 == tf.size() || tf[k] == t) {
-        b = {k, k, 0.0};
-      } else {
-        b = {k, k + 1, (t - tf[k]) / (tf[k + 1] - tf[k])};
-        if (b.alpha < 1.0 && tf[k + 1] - tf[k] > mapping.files[f].max_gap_s) {
-          ++r.master_rows_in_gap;
-          keep = false;
-        }
-      }
-    }
-    if (!keep) continue;
+    if (!bracket_row(mapping, series, i, brackets, cursor, result.report)) continue;
 
     Sample& s = log.samples.emplace_back();
     s.t_s = t;
@@ -1584,40 +393,8 @@ ImportResult import_recordings(const fs::path& mapping_path,
       if (log.columns.position) s.p_base_sensor_m += s.q_base_sensor * log.rig.flange_sensor.p_m;
       s.q_base_sensor = (s.q_base_sensor * log.rig.flange_sensor.q).normalized();
     }
-    // Vectors logged with base-frame axes: v_S = R_BSᵀ v_B (torque stays about the S origin);
-    // IMU quantities v_I = R_SIᵀ R_BSᵀ v_B (frames.md).
-    const Eigen::Matrix3d R_sensor_base = s.q_base_sensor.toRotationMatrix().transpose();
-    if (in_base(Quantity::force)) s.force_sensor_N = R_sensor_base * s.force_sensor_N;
-    if (in_base(Quantity::torque)) s.torque_sensor_Nm = R_sensor_base * s.torque_sensor_Nm;
-    // A torque about the origin of a fixed frame D at p_SD (its rotation already applied):
-    // M_S = R_SD M_D + p_SD × F_S, with the row's force in S (moment transfer).
-    if (torque_lever_arm_m) s.torque_sensor_Nm += torque_lever_arm_m->cross(s.force_sensor_N);
-    if (log.columns.joints) std::copy_n(joints_row.begin(), 6, s.joints_rad.begin());
-    if (log.columns.specific_force) {
-      s.specific_force_imu_mps2 =
-          at<3>(values(Quantity::specific_force), bracket(Quantity::specific_force));
-      if (in_base(Quantity::specific_force))
-        s.specific_force_imu_mps2 =
-            R_sensor_imu.transpose() * R_sensor_base * s.specific_force_imu_mps2;
-    }
-    if (log.columns.angular_rate) {
-      s.angular_rate_imu_radps =
-          at<3>(values(Quantity::angular_rate), bracket(Quantity::angular_rate));
-      if (in_base(Quantity::angular_rate))
-        s.angular_rate_imu_radps =
-            R_sensor_imu.transpose() * R_sensor_base * s.angular_rate_imu_radps;
-    }
-    // ω̇ in B: ω̇_S = R_BSᵀ ω̇_B, as d/dt(R_BSᵀ) ω_B = −ω_S × ω_S = 0 (see differentiate_gyro).
-    if (log.columns.angular_accel) {
-      s.angular_accel_imu_radps2 =
-          at<3>(values(Quantity::angular_accel), bracket(Quantity::angular_accel));
-      if (in_base(Quantity::angular_accel))
-        s.angular_accel_imu_radps2 =
-            R_sensor_imu.transpose() * R_sensor_base * s.angular_accel_imu_radps2;
-    }
-    if (log.columns.temperature) {
-      s.temperature_C = at<1>(values(Quantity::temperature), bracket(Quantity::temperature))[0];
-    }
+    vectors_of_row(s, log, series, source, spec_of, brackets, torque_lever_arm_m, joints_row,
+                   R_sensor_imu);
   }
   result.report.rows_out = log.samples.size();
   if (log.samples.empty()) {
@@ -1626,62 +403,7 @@ ImportResult import_recordings(const fs::path& mapping_path,
                              "time units and time_offset_s)\n" +
                              result.report.summary());
   }
-  log.rig.kinematics = {};  // whatever a rig file says: this import's columns decide
-  // A logged ω̇ goes to imu_dw*_radps2, which log format 2 holds only beside imu_w*_radps: the
-  // gyro's, or under "auto" the robot's ω.
-  const auto refuse_accel_without_rate = [&] {
-    if (!log.columns.angular_accel || log.columns.angular_rate) return;
-    const std::string key = quantity_file(mapping, source, Quantity::angular_accel);
-    throw_at(mapping_path, spec_of[static_cast<int>(Quantity::angular_accel)]->where,
-             "'" + key +
-                 "' needs the angular rate beside it (the log holds ω̇, imu_dw*_radps2, only "
-                 "with imu_w*_radps; proto/log_format.md): map the gyro as 'angular_rate' (in "
-                 "this file or another)" +
-                 (mapping.kinematics == robot::KinematicsMode::imu
-                      ? std::string(", or set kinematics = \"auto\" to derive ω from the joints "
-                                    "(with the rig's robot) or the orientation")
-                      : std::string(log.columns.static_rows
-                                        ? ", or record time (rows without time give no ω)"
-                                        : "")) +
-                 ", or remove '" + std::string(info(Quantity::angular_accel).key) + "'");
-  };
-  if (log.columns.angular_accel) {
-    log.rig.kinematics.angular_accel = KinematicsOrigin::logged;
-    log.rig.kinematics.angular_accel_reason =
-        "logged in " + quantity_file(mapping, source, Quantity::angular_accel) +
-        " (used as logged)";
-  }
-  if (mapping.fused) {
-    fuse_joints_and_imu(mapping, mapping_path, series, source, result);
-    return result;
-  }
-  if (mapping.kinematics == robot::KinematicsMode::imu) {  // the columns as logged
-    refuse_accel_without_rate();
-    if (log.columns.angular_accel)
-      result.report.kinematics =
-          "angular acceleration: " + log.rig.kinematics.angular_accel_reason + "\n";
-    return result;
-  }
-  derive_from_robot(mapping, mapping_path, series, source, result);
-  refuse_accel_without_rate();
-  const KinematicsRecord& k = log.rig.kinematics;
-  result.report.kinematics =
-      "kinematics = \"" + k.mode + "\": angular rate " +
-      (log.columns.angular_rate ? std::string("from ") + to_string(k.angular_rate) : "none") +
-      (k.angular_rate_reason.empty() ? "" : " (" + k.angular_rate_reason + ")") +
-      "; specific force " +
-      (log.columns.specific_force ? std::string("from ") + to_string(k.specific_force) : "none") +
-      (k.specific_force_reason.empty() ? "" : " (" + k.specific_force_reason + ")") +
-      "; angular acceleration " +
-      (log.columns.angular_accel && k.angular_accel == KinematicsOrigin::logged
-           ? k.angular_accel_reason
-       : log.columns.angular_accel
-           ? std::string("from ") + to_string(k.angular_accel) +
-                 (k.angular_accel == KinematicsOrigin::imu ? " (Savitzky-Golay)" : "")
-       : log.columns.angular_rate && !log.columns.static_rows
-           ? std::string("by host/ident's 5-point difference of the angular rate")
-           : std::string("none")) +
-      "\n" + result.report.kinematics;
+  kinematics_phase(mapping, mapping_path, series, source, spec_of, result);
   return result;
 }
 
