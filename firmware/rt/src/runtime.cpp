@@ -8,13 +8,13 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
-#include "zerog/rtio/clock.hpp"
+#include "zerog/handover/clock.hpp"
 
 namespace zerog::rt {
 
 namespace {
 
-using rtio::monotonic_ns;
+using handover::monotonic_ns;
 
 void sleep_ns(std::int64_t ns) noexcept {
   timespec ts{};
@@ -676,7 +676,7 @@ void Runtime::recorder_loop() {
 
 SupervisorEvents Runtime::supervise() {
   CycleStatus s;
-  if (handover_.cycle_status.read(s) == rtio::LatestRead::empty) return {};
+  if (handover_.cycle_status.read(s) == handover::LatestRead::empty) return {};
   supervision_.last_status = s;
   SupervisorEvents ev = supervision_.announcer.update(s);
   // Still waiting (neither there nor given up): ask again (in lockstep the cycle thread asks).

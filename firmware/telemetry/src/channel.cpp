@@ -6,13 +6,13 @@
 #include <vector>
 
 #include "dds/dds.h"
-#include "zerog/rtio/clock.hpp"
+#include "zerog/handover/clock.hpp"
 
 namespace zerog::telemetry {
 
 namespace {
 
-using rtio::monotonic_ns;
+using handover::monotonic_ns;
 
 BodyParamsValue body_value(const control::BodyParams& body) noexcept {
   BodyParamsValue v;
@@ -241,10 +241,10 @@ void TelemetryChannel::publisher_loop() {
 bool TelemetryChannel::drain_one() {
   if (!ring_->try_pop(slot_)) return false;
   BodyParamsValue body;
-  if (body_params_.read(body) == rtio::LatestRead::fresh) body_ = body_params(body);
+  if (body_params_.read(body) == handover::LatestRead::fresh) body_ = body_params(body);
   const loop::CycleRecord& r = slot_.record;
   RuntimeHealth runtime;
-  if (runtime_health_.read(runtime) != rtio::LatestRead::empty) health_in_ = runtime;
+  if (runtime_health_.read(runtime) != handover::LatestRead::empty) health_in_ = runtime;
 
   double period_s = 0.0;
   if (have_newest_ && r.cycle == previous_cycle_ + 1) {
@@ -297,7 +297,7 @@ bool TelemetryChannel::drain_one() {
 
 void TelemetryChannel::publish_health(bool force) {
   RuntimeHealth runtime;
-  if (runtime_health_.read(runtime) != rtio::LatestRead::empty) health_in_ = runtime;
+  if (runtime_health_.read(runtime) != handover::LatestRead::empty) health_in_ = runtime;
   const ChannelCounters c = counters();
   const std::int64_t now = monotonic_ns();
   const std::uint8_t state = have_newest_ ? static_cast<std::uint8_t>(newest_.state) : 0xFF;
