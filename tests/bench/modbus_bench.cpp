@@ -18,8 +18,8 @@
 #include <vector>
 
 #include "loop_fixtures.hpp"
+#include "zerog/handover/latest_value.hpp"
 #include "zerog/modbus/server.hpp"
-#include "zerog/rtio/latest_value.hpp"
 
 namespace {
 
@@ -52,7 +52,7 @@ class LatestValueTarget : public modbus::SupervisorTarget {
   loop::Cycle& cycle_;
   loop::Tunables initial_;
   modbus::SupervisorSnapshot scratch_;
-  mutable rtio::LatestValue<modbus::SupervisorSnapshot> box_;
+  mutable handover::LatestValue<modbus::SupervisorSnapshot> box_;
   mutable modbus::SupervisorSnapshot last_;
 };
 

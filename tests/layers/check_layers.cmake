@@ -4,7 +4,8 @@
 # fails, naming each path, if
 #   - a target defined under firmware/ links a target defined under host/, directly or through
 #     other targets (among them zerog::io, zerog::sim, zerog::ident, zerog::learn, zerog::emu);
-#   - zerog::loop links zerog::rtio, directly or through other targets.
+#   - zerog::loop links zerog::rtio, directly or through other targets;
+#   - a firmware target links a target its entry in the allowed link graph (below) does not name.
 # INJECT adds links (from>to, real target names) before the check: the mutants use it to show
 # that a bad link is caught. Prints "layers: ok" when nothing is wrong.
 cmake_minimum_required(VERSION 3.25)
@@ -94,9 +95,52 @@ if(zerog_rtio IN_LIST reached_zerog_loop)
   math(EXPR violations "${violations} + 1")
 endif()
 
+# The allowed link graph of the firmware (issue 29, "one job per library"): each target defined
+# under firmware/ and the targets it may link directly. A link not listed here, or a firmware
+# target not listed at all, fails, naming it: a new arrow between the libraries is a decision
+# written here, not a side effect of a target_link_libraries line. Among what is left out on
+# purpose: zerog::telemetry links zerog::handover, not the device code of zerog::rtio.
+set(allowed_zerog_status "")
+set(allowed_zerog_model "")
+set(allowed_zerog_samples "")
+set(allowed_zerog_control "")
+set(allowed_zerog_handover "")
+set(allowed_zerog_proto zerog_samples zerog_model)
+set(allowed_zerog_robot zerog_status)
+set(allowed_zerog_infer zerog_model zerog_status)
+set(allowed_zerog_loop zerog_status zerog_infer zerog_control zerog_samples zerog_proto zerog_robot)
+set(allowed_zerog_rtio zerog_proto zerog_samples zerog_status zerog_handover)
+set(allowed_zerog_formats zerog_robot zerog_loop)
+set(allowed_zerog_modbus zerog_loop zerog_status)
+set(allowed_zerog_telemetry_idl "")
+set(allowed_zerog_ros2_idl "")
+set(allowed_zerog_telemetry_types zerog_telemetry_idl zerog_ros2_idl)
+set(allowed_zerog_telemetry zerog_status zerog_loop zerog_control zerog_infer zerog_handover)
+set(allowed_zerog_rt zerog_status zerog_loop zerog_handover zerog_rtio zerog_infer zerog_formats
+                     zerog_robot zerog_modbus zerog_telemetry)
+set(allowed_zerog-rt zerog_rt)
+foreach(t IN LISTS ZEROG_TARGETS)
+  if(NOT ZEROG_DIR_${t} MATCHES "^firmware(/|$)")
+    continue()
+  endif()
+  if(NOT DEFINED allowed_${t})
+    message("layers: ${t} (${ZEROG_DIR_${t}}) is not in the allowed link graph "
+            "(tests/layers/check_layers.cmake)")
+    math(EXPR violations "${violations} + 1")
+    continue()
+  endif()
+  foreach(next IN LISTS ZEROG_LINKS_${t})
+    if(NOT next IN_LIST allowed_${t})
+      message("layers: ${t} links ${next}, not an allowed edge of the firmware's link graph")
+      math(EXPR violations "${violations} + 1")
+    endif()
+  endforeach()
+endforeach()
+
 if(violations GREATER 0)
   message(FATAL_ERROR "layers: ${violations} forbidden link(s): firmware/ must not link host/, "
-                      "and zerog::loop must not link zerog::rtio (tests/layers)")
+                      "zerog::loop must not link zerog::rtio, and every firmware link must be "
+                      "in the allowed graph (tests/layers)")
 endif()
 message("layers: ok (${firmware_targets} firmware targets, none links host/; zerog::loop does "
-        "not link zerog::rtio)")
+        "not link zerog::rtio; every firmware link is allowed)")

@@ -7,13 +7,13 @@
 #include <cstdlib>
 #include <iostream>
 
-#include "zerog/rtio/clock.hpp"
+#include "zerog/handover/clock.hpp"
 
 namespace zerog::rt {
 
 namespace {
 
-using rtio::monotonic_ns;
+using handover::monotonic_ns;
 
 void sleep_ns(std::int64_t ns) noexcept {
   timespec ts{};
@@ -641,7 +641,7 @@ void Runtime::recorder_loop() {
 
 SupervisorEvents Runtime::supervise() {
   CycleStatus s;
-  if (handover_.cycle_status.read(s) == rtio::LatestRead::empty) return {};
+  if (handover_.cycle_status.read(s) == handover::LatestRead::empty) return {};
   supervision_.last_status = s;
   SupervisorEvents ev = supervision_.announcer.update(s);
   // Still waiting (neither there nor given up): ask again (in lockstep the cycle thread asks).

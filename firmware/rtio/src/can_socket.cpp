@@ -14,8 +14,8 @@
 #include <cstring>
 #include <ctime>
 
+#include "can_read.hpp"
 #include "linux_can_frame.hpp"
-#include "wait.hpp"
 
 namespace zerog::rtio {
 
@@ -155,55 +155,28 @@ CanOpenResult CanSocket::open(std::string_view interface, const CanSocketConfig&
 
 CanReadStatus CanSocket::read(CanRxFrame& out, std::chrono::nanoseconds timeout) {
   if (fd_ < 0) return CanReadStatus::not_open;
-  const std::int64_t deadline = detail::monotonic_ns() + timeout.count();
-  can_frame frame{};
-  // Room for SO_TIMESTAMPNS (or SO_TIMESTAMP) and SO_RXQ_OVFL, as in candump.
-  alignas(cmsghdr) char control[CMSG_SPACE(sizeof(timespec)) + CMSG_SPACE(sizeof(std::uint32_t))];
-  iovec iov{&frame, sizeof frame};
-  msghdr message{};
-  while (true) {
-    message.msg_iov = &iov;
-    message.msg_iovlen = 1;
-    message.msg_control = control;
-    message.msg_controllen = sizeof control;
-    message.msg_flags = 0;
-    const ssize_t n = ::recvmsg(fd_, &message, MSG_DONTWAIT);
-    if (n >= 0) {
-      out.timestamp_ns = 0;
-      if ((message.msg_flags & MSG_CTRUNC) != 0) ++counters_.control_truncated;
-      for (cmsghdr* c = CMSG_FIRSTHDR(&message); c != nullptr; c = CMSG_NXTHDR(&message, c)) {
-        if (c->cmsg_level != SOL_SOCKET) continue;
-        if (c->cmsg_type == SO_TIMESTAMPNS) {
-          timespec ts{};
-          std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
-          out.timestamp_ns = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-        } else if (c->cmsg_type == SO_RXQ_OVFL) {
-          std::uint32_t total = 0;
-          std::memcpy(&total, CMSG_DATA(c), sizeof total);
-          counters_.kernel_drops += static_cast<std::uint32_t>(total - last_overflow_count_);
-          last_overflow_count_ = total;
-        }
-      }
-      // Exactly one classic frame (candump's check); CAN FD is not enabled on this socket.
-      if (!detail::from_can_frame(frame, static_cast<std::size_t>(n), out.frame)) {
-        ++counters_.bad_length;
-        return CanReadStatus::bad_length;
-      }
-      if ((frame.can_id & CAN_ERR_FLAG) != 0) {
-        count_error_frame(out.frame, counters_);
-        return CanReadStatus::error_frame;
-      }
-      ++counters_.frames_received;
-      return CanReadStatus::frame;
+  // Room for SO_TIMESTAMPNS (or SO_TIMESTAMP) and SO_RXQ_OVFL, as in candump; no filter in user
+  // space (the kernel's).
+  struct Read {
+    static constexpr std::size_t control_bytes() {
+      return CMSG_SPACE(sizeof(timespec)) + CMSG_SPACE(sizeof(std::uint32_t));
     }
-    const detail::AfterEmptyRead next = detail::wait_after_empty_read(fd_, errno, deadline);
-    if (next == detail::AfterEmptyRead::timeout) return CanReadStatus::timeout;
-    if (next == detail::AfterEmptyRead::error) {
-      last_errno_ = errno;
-      ++counters_.io_errors;
-      return CanReadStatus::io_error;
+    static constexpr int recv_flags() { return 0; }
+    CanBusCounters& counters;
+    std::uint32_t& last_overflow_count;
+    void name(msghdr& /*message*/) const {}
+    void received(const msghdr& /*message*/) const {}
+    void ancillary(cmsghdr* c) const {
+      if (c->cmsg_type != SO_RXQ_OVFL) return;
+      std::uint32_t total = 0;
+      std::memcpy(&total, CMSG_DATA(c), sizeof total);
+      counters.kernel_drops += static_cast<std::uint32_t>(total - last_overflow_count);
+      last_overflow_count = total;
     }
-  }
+    bool accepts(const proto::CanFrame& /*frame*/) const { return true; }
+  };
+  Read bus{counters_, last_overflow_count_};
+  return detail::read_can_frame(fd_, bus, out, timeout, counters_, last_errno_);
 }
 
 CanWriteStatus CanSocket::write(const proto::CanFrame& frame) {

@@ -12,8 +12,8 @@
 #include <cstring>
 #include <ctime>
 
+#include "can_read.hpp"
 #include "linux_can_frame.hpp"
-#include "wait.hpp"
 
 namespace zerog::rtio {
 
@@ -136,60 +136,30 @@ bool LocalCanBus::accepts(const proto::CanFrame& frame) const {
 
 CanReadStatus LocalCanBus::read(CanRxFrame& out, std::chrono::nanoseconds timeout) {
   if (fd_ < 0) return CanReadStatus::not_open;
-  const std::int64_t deadline = detail::monotonic_ns() + timeout.count();
-  can_frame frame{};
-  alignas(cmsghdr) char control[CMSG_SPACE(sizeof(timespec))];
-  sockaddr_un from{};
-  iovec iov{&frame, sizeof frame};
-  msghdr message{};
-  while (true) {
-    message.msg_name = &from;
-    message.msg_namelen = sizeof from;
-    message.msg_iov = &iov;
-    message.msg_iovlen = 1;
-    message.msg_control = control;
-    message.msg_controllen = sizeof control;
-    message.msg_flags = 0;
+  // The sender's address (a server answers the last one that sent), SO_TIMESTAMPNS only, and the
+  // acceptance filters in user space.
+  struct Read {
+    static constexpr std::size_t control_bytes() { return CMSG_SPACE(sizeof(timespec)); }
     // MSG_TRUNC: the datagram's real length, so a longer one is told from a frame.
-    const ssize_t n = ::recvmsg(fd_, &message, MSG_DONTWAIT | MSG_TRUNC);
-    if (n >= 0) {
-      if (role_ == Role::server && message.msg_namelen > kUnnamedLength &&
+    static constexpr int recv_flags() { return MSG_TRUNC; }
+    LocalCanBus& self;
+    sockaddr_un from{};
+    void name(msghdr& message) {
+      message.msg_name = &from;
+      message.msg_namelen = sizeof from;
+    }
+    void received(const msghdr& message) {
+      if (self.role_ == Role::server && message.msg_namelen > kUnnamedLength &&
           message.msg_namelen <= sizeof from) {
-        peer_ = from;
-        peer_length_ = message.msg_namelen;
+        self.peer_ = from;
+        self.peer_length_ = message.msg_namelen;
       }
-      out.timestamp_ns = 0;
-      if ((message.msg_flags & MSG_CTRUNC) != 0) ++counters_.control_truncated;
-      for (cmsghdr* c = CMSG_FIRSTHDR(&message); c != nullptr; c = CMSG_NXTHDR(&message, c)) {
-        if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SO_TIMESTAMPNS) {
-          timespec ts{};
-          std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
-          out.timestamp_ns = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-        }
-      }
-      if (!detail::from_can_frame(frame, static_cast<std::size_t>(n), out.frame)) {
-        ++counters_.bad_length;
-        return CanReadStatus::bad_length;
-      }
-      if (!accepts(out.frame)) {
-        ++counters_.filtered;  // dropped, as the kernel's filters would: read on
-        continue;
-      }
-      if (out.frame.error()) {
-        count_error_frame(out.frame, counters_);
-        return CanReadStatus::error_frame;
-      }
-      ++counters_.frames_received;
-      return CanReadStatus::frame;
     }
-    const detail::AfterEmptyRead next = detail::wait_after_empty_read(fd_, errno, deadline);
-    if (next == detail::AfterEmptyRead::timeout) return CanReadStatus::timeout;
-    if (next == detail::AfterEmptyRead::error) {
-      last_errno_ = errno;
-      ++counters_.io_errors;
-      return CanReadStatus::io_error;
-    }
-  }
+    void ancillary(cmsghdr* /*c*/) const {}
+    bool accepts(const proto::CanFrame& frame) const { return self.accepts(frame); }
+  };
+  Read bus{*this};
+  return detail::read_can_frame(fd_, bus, out, timeout, counters_, last_errno_);
 }
 
 CanWriteStatus LocalCanBus::write(const proto::CanFrame& frame) {

@@ -6,13 +6,13 @@
 #include <vector>
 
 #include "dds/dds.h"
-#include "zerog/rtio/clock.hpp"
+#include "zerog/handover/clock.hpp"
 
 namespace zerog::telemetry {
 
 namespace {
 
-using rtio::monotonic_ns;
+using handover::monotonic_ns;
 
 BodyParamsValue body_value(const control::BodyParams& body) noexcept {
   BodyParamsValue v;
@@ -239,10 +239,10 @@ void TelemetryChannel::publisher_loop() {
 bool TelemetryChannel::drain_one() {
   if (!ring_->try_pop(pub_.slot)) return false;
   BodyParamsValue body;
-  if (body_params_.read(body) == rtio::LatestRead::fresh) pub_.body = body_params(body);
+  if (body_params_.read(body) == handover::LatestRead::fresh) pub_.body = body_params(body);
   const loop::CycleRecord& r = pub_.slot.record;
   RuntimeHealth runtime;
-  if (runtime_health_.read(runtime) != rtio::LatestRead::empty) pub_.health_in = runtime;
+  if (runtime_health_.read(runtime) != handover::LatestRead::empty) pub_.health_in = runtime;
 
   double period_s = 0.0;
   if (pub_.have_newest && r.cycle == pub_.previous_cycle + 1) {
@@ -295,7 +295,7 @@ bool TelemetryChannel::drain_one() {
 
 void TelemetryChannel::publish_health(bool force) {
   RuntimeHealth runtime;
-  if (runtime_health_.read(runtime) != rtio::LatestRead::empty) pub_.health_in = runtime;
+  if (runtime_health_.read(runtime) != handover::LatestRead::empty) pub_.health_in = runtime;
   const ChannelCounters c = counters();
   const std::int64_t now = monotonic_ns();
   const std::uint8_t state = pub_.have_newest ? static_cast<std::uint8_t>(pub_.newest.state) : 0xFF;

@@ -12,12 +12,12 @@
 #include "netcanoem_board.hpp"
 #include "pty.hpp"
 #include "udp.hpp"
+#include "zerog/handover/latest_value.hpp"
+#include "zerog/handover/spsc_ring.hpp"
 #include "zerog/proto/stim300.hpp"
 #include "zerog/rtio/fake_can_bus.hpp"
-#include "zerog/rtio/latest_value.hpp"
 #include "zerog/rtio/netcanoem_sensor.hpp"
 #include "zerog/rtio/rsi_endpoint.hpp"
-#include "zerog/rtio/spsc_ring.hpp"
 #include "zerog/rtio/stim300_imu.hpp"
 
 namespace zerog::rtio {
@@ -153,8 +153,8 @@ TEST(NoAllocation, HandoverPrimitives) {
     std::array<double, 6> wrench{};
     std::uint64_t seq = 0;
   };
-  static SpscRing<Sample, 256> ring;
-  static LatestValue<Sample> box;
+  static handover::SpscRing<Sample, 256> ring;
+  static handover::LatestValue<Sample> box;
   Sample s;
   const std::size_t before = zerog::test::allocation_count();
   for (std::uint64_t i = 0; i < 1000; ++i) {

@@ -12,7 +12,7 @@
 namespace zerog::modbus {
 
 /// What the input registers and discrete inputs show (proto/modbus.md), published by the cycle
-/// thread after every cycle. Fixed size and trivially copyable, so it fits rtio::LatestValue.
+/// thread after every cycle. Fixed size and trivially copyable, so it fits handover::LatestValue.
 /// SI units; counters count from the start of the run.
 struct SupervisorSnapshot {
   std::uint64_t cycle = 0;  ///< robot messages handled

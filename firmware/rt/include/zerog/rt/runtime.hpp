@@ -24,6 +24,8 @@
 #include <string_view>
 #include <vector>
 
+#include "zerog/handover/latest_value.hpp"
+#include "zerog/handover/spsc_ring.hpp"
 #include "zerog/loop/cycle.hpp"
 #include "zerog/modbus/server.hpp"
 #include "zerog/modbus/target.hpp"
@@ -33,10 +35,8 @@
 #include "zerog/rt/recorder.hpp"
 #include "zerog/rtio/ft_sensor.hpp"
 #include "zerog/rtio/imu.hpp"
-#include "zerog/rtio/latest_value.hpp"
 #include "zerog/rtio/lockstep.hpp"
 #include "zerog/rtio/robot_link.hpp"
-#include "zerog/rtio/spsc_ring.hpp"
 #include "zerog/telemetry/channel.hpp"
 
 namespace zerog::rt {
@@ -184,9 +184,9 @@ struct RecordSlot {
 /// thread after every cycle (LatestValue; the Modbus thread is its only reader).
 class Runtime final : public modbus::SupervisorTarget {
  public:
-  using FtRing = rtio::SpscRing<rtio::FtSample, 256>;     // 0.5 s at 500 Hz
-  using ImuRing = rtio::SpscRing<rtio::ImuSample, 1024>;  // 0.5 s at 2 kHz
-  using RecordRing = rtio::SpscRing<RecordSlot, 4096>;    // 16 s at 4 ms
+  using FtRing = handover::SpscRing<rtio::FtSample, 256>;     // 0.5 s at 500 Hz
+  using ImuRing = handover::SpscRing<rtio::ImuSample, 1024>;  // 0.5 s at 2 kHz
+  using RecordRing = handover::SpscRing<RecordSlot, 4096>;    // 16 s at 4 ms
 
   Runtime(RuntimeOptions options, RuntimeDevices devices);
   ~Runtime();  ///< stop()
@@ -304,10 +304,10 @@ class Runtime final : public modbus::SupervisorTarget {
     std::unique_ptr<FtRing> ft = std::make_unique<FtRing>();               ///< F/T thread → cycle
     std::unique_ptr<ImuRing> imu = std::make_unique<ImuRing>();            ///< IMU thread → cycle
     std::unique_ptr<RecordRing> records = std::make_unique<RecordRing>();  ///< cycle → recorder
-    rtio::LatestValue<CycleStatus> cycle_status;                           ///< cycle → main
-    rtio::LatestValue<RecorderStatus> recorder_status;                     ///< recorder → main
+    handover::LatestValue<CycleStatus> cycle_status;                       ///< cycle → main
+    handover::LatestValue<RecorderStatus> recorder_status;                 ///< recorder → main
     /// Cycle → Modbus thread (its read in snapshot() const changes the reader's side).
-    mutable rtio::LatestValue<modbus::SupervisorSnapshot> supervisor;
+    mutable handover::LatestValue<modbus::SupervisorSnapshot> supervisor;
     /// Black box: 0 recording, 1 frozen (cycle → recorder), 2 dumped (recorder → cycle).
     std::atomic<std::uint8_t> box_state{0};
   };

@@ -20,9 +20,9 @@
 #include <thread>
 
 #include "zerog/control/virtual_body.hpp"
+#include "zerog/handover/latest_value.hpp"
+#include "zerog/handover/spsc_ring.hpp"
 #include "zerog/loop/cycle.hpp"
-#include "zerog/rtio/latest_value.hpp"
-#include "zerog/rtio/spsc_ring.hpp"
 #include "zerog/telemetry/config.hpp"
 #include "zerog/telemetry/convert.hpp"
 #include "zerog/telemetry/ros2.hpp"
@@ -43,7 +43,7 @@ struct RecordSlot {
   }
 };
 
-/// The virtual body's mass properties as plain values (rtio::LatestValue needs trivially
+/// The virtual body's mass properties as plain values (handover::LatestValue needs trivially
 /// copyable types).
 struct BodyParamsValue {
   double mass_kg = 0.0;
@@ -53,7 +53,7 @@ struct BodyParamsValue {
 class TelemetryChannel {
  public:
   /// 1024 records: 4 s at 4 ms, 12 s at 12 ms.
-  using Ring = rtio::SpscRing<RecordSlot, 1024>;
+  using Ring = handover::SpscRing<RecordSlot, 1024>;
 
   /// `body`: the virtual body's mass properties (for ω and the kinetic energy); change them
   /// with set_body_params(). Nothing starts yet.
@@ -107,8 +107,8 @@ class TelemetryChannel {
   TelemetryConfig config_;
   ModelIdentityInfo model_;
   std::unique_ptr<Ring> ring_;
-  rtio::LatestValue<RuntimeHealth> runtime_health_;
-  rtio::LatestValue<BodyParamsValue> body_params_;
+  handover::LatestValue<RuntimeHealth> runtime_health_;
+  handover::LatestValue<BodyParamsValue> body_params_;
   std::unique_ptr<Dds> dds_;
   std::thread thread_;
   std::atomic<bool> stop_{false};

@@ -37,7 +37,7 @@ TimingSample to_timing(const loop::CycleRecord& r, double period_s, double nomin
                        std::uint64_t datagrams_lost) noexcept;
 
 /// Counters the runtime owns, handed to the channel with TelemetryChannel::set_health().
-/// Plain values (trivially copyable for rtio::LatestValue).
+/// Plain values (trivially copyable for handover::LatestValue).
 struct RuntimeHealth {
   std::uint64_t robot_lost = 0;
   std::uint64_t datagrams_lost = 0;

@@ -7,10 +7,10 @@
 #include <cstdint>
 #include <thread>
 
-#include "zerog/rtio/latest_value.hpp"
-#include "zerog/rtio/spsc_ring.hpp"
+#include "zerog/handover/latest_value.hpp"
+#include "zerog/handover/spsc_ring.hpp"
 
-namespace zerog::rtio {
+namespace zerog::handover {
 namespace {
 
 // A record whose fields are all derived from `seq`: a torn copy shows as a mismatch.
@@ -144,4 +144,4 @@ TEST(LatestValue, TwoThreadStressNoTornValuesAndCountsAddUp) {
 }
 
 }  // namespace
-}  // namespace zerog::rtio
+}  // namespace zerog::handover

@@ -12,7 +12,7 @@
 #include <cstdint>
 #include <type_traits>
 
-namespace zerog::rtio {
+namespace zerog::handover {
 
 /// Size of a cache line, to keep the producer's and the consumer's indices apart.
 inline constexpr std::size_t kCacheLineBytes = 64;
@@ -76,4 +76,4 @@ class SpscRing {
   alignas(kCacheLineBytes) std::array<T, Capacity> slots_{};
 };
 
-}  // namespace zerog::rtio
+}  // namespace zerog::handover

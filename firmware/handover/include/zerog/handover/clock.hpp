@@ -4,7 +4,7 @@
 
 #include <cstdint>
 
-namespace zerog::rtio {
+namespace zerog::handover {
 
 /// CLOCK_MONOTONIC in ns. Real-time safe (vDSO, no allocation).
 inline std::int64_t monotonic_ns() noexcept {
@@ -13,4 +13,4 @@ inline std::int64_t monotonic_ns() noexcept {
   return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
 }
 
-}  // namespace zerog::rtio
+}  // namespace zerog::handover

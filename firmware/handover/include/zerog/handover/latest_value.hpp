@@ -12,9 +12,9 @@
 #include <cstdint>
 #include <type_traits>
 
-#include "zerog/rtio/spsc_ring.hpp"  // kCacheLineBytes
+#include "zerog/handover/spsc_ring.hpp"  // kCacheLineBytes
 
-namespace zerog::rtio {
+namespace zerog::handover {
 
 enum class LatestRead : std::uint8_t {
   fresh,  ///< a value published since the last read
@@ -80,4 +80,4 @@ class LatestValue {
   std::atomic<std::uint64_t> taken_{0};
 };
 
-}  // namespace zerog::rtio
+}  // namespace zerog::handover
