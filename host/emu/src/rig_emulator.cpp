@@ -967,15 +967,7 @@ std::string RigEmulator::truth_csv() const {
 }
 
 nlohmann::json RigEmulator::summary() const {
-  using nlohmann::json;
-  std::uint64_t missing = 0, cycles_ok = 0, cycles_late = 0, not_sent = 0;
-  for (const CycleRecord& r : loop_.records) {
-    if (!r.sent) ++not_sent;
-    if (r.reply == ReplyStatus::ok) ++cycles_ok;
-    if (r.reply == ReplyStatus::late) ++cycles_late;
-    if (r.sent && r.reply != ReplyStatus::ok && r.reply != ReplyStatus::late) ++missing;
-  }
-  json s;
+  nlohmann::json s;
   s["format"] = "zerog-emu-summary";
   s["version"] = 1;
   s["scenario"] = scenario_.source.string();
@@ -983,45 +975,66 @@ nlohmann::json RigEmulator::summary() const {
   s["cycles"] = loop_.records.size();
   s["duration_s"] = static_cast<double>(loop_.records.size()) * scenario_.cycle_s();
   s["first_ipoc"] = options_.first_ipoc;
-  s["datagrams"] = {
-      {"sent", loop_.counts.datagrams_sent},      {"good", loop_.counts.good_sent},
-      {"malformed", loop_.counts.malformed_sent}, {"duplicated", loop_.counts.duplicates_sent},
-      {"foreign", loop_.counts.foreign_sent},     {"cycles_without_good_datagram", not_sent},
-      {"send_errors", loop_.counts.send_errors}};
-  if (setup_.lockstep) {
-    const AtiBoard::Counters b =
-        setup_.ft != nullptr ? setup_.ft->counters() : AtiBoard::Counters{};
-    s["lockstep"] = {
-        {"events", lockstep_.counts.events},
-        {"datagram_events", lockstep_.counts.datagram_events},
-        {"timeout_events", lockstep_.counts.timeout_events},
-        {"rt_receive_timeout_s", 1e-9 * static_cast<double>(lockstep_.rt_receive_timeout.count())},
-        {"ft_rate_hz", lockstep_.ft_rate_hz},
-        {"ft_samples_produced", lockstep_.ft_produced},
-        {"ft_queue_underruns", b.queue_underruns},
-        {"ft_requests_ignored", b.sample_requests_ignored},  // thermistor reads apart
-        {"ft_samples_left", setup_.ft != nullptr ? setup_.ft->samples_queued() : 0},
-        {"slowest_answer_s", lockstep_.counts.slowest_ack_s}};
+  robot_loop_summary(s);
+  if (setup_.lockstep) s["lockstep"] = lockstep_summary();
+  s["pushes"] = pushes_summary();
+  s["faults"] = faults_summary();
+  s["physics"] = physics_summary();
+  s["devices"] = devices_summary();
+  return s;
+}
+
+void RigEmulator::robot_loop_summary(nlohmann::json& s) const {
+  std::uint64_t missing = 0, cycles_ok = 0, cycles_late = 0, not_sent = 0;
+  for (const CycleRecord& r : loop_.records) {
+    if (!r.sent) ++not_sent;
+    if (r.reply == ReplyStatus::ok) ++cycles_ok;
+    if (r.reply == ReplyStatus::late) ++cycles_late;
+    if (r.sent && r.reply != ReplyStatus::ok && r.reply != ReplyStatus::late) ++missing;
   }
-  s["replies"] = {{"datagrams", loop_.counts.reply_datagrams},
-                  {"ok", loop_.counts.ok},
-                  {"late", loop_.counts.late},
+  const Counts& c = loop_.counts;
+  s["datagrams"] = {{"sent", c.datagrams_sent},      {"good", c.good_sent},
+                    {"malformed", c.malformed_sent}, {"duplicated", c.duplicates_sent},
+                    {"foreign", c.foreign_sent},     {"cycles_without_good_datagram", not_sent},
+                    {"send_errors", c.send_errors}};
+  s["replies"] = {{"datagrams", c.reply_datagrams},
+                  {"ok", c.ok},
+                  {"late", c.late},
                   {"missing", missing},
-                  {"wrong_ipoc", loop_.counts.wrong_ipoc},
-                  {"malformed", loop_.counts.malformed},
-                  {"duplicate", loop_.counts.duplicate},
-                  {"from_elsewhere", loop_.counts.from_elsewhere},
-                  {"to_foreign_socket", loop_.counts.foreign_replies},
+                  {"wrong_ipoc", c.wrong_ipoc},
+                  {"malformed", c.malformed},
+                  {"duplicate", c.duplicate},
+                  {"from_elsewhere", c.from_elsewhere},
+                  {"to_foreign_socket", c.foreign_replies},
                   {"cycles_ok", cycles_ok},
                   {"cycles_late", cycles_late},
-                  {"before_first_ok", loop_.counts.before_first_ok},
-                  {"first_ok_cycle", loop_.counts.first_ok_cycle}};
+                  {"before_first_ok", c.before_first_ok},
+                  {"first_ok_cycle", c.first_ok_cycle}};
   s["robot"] = {{"delay", loop_.delay_count},
                 {"rkorr_applied", handover_.robot.counters().rkorr_applied},
                 {"akorr_applied", handover_.robot.counters().akorr_applied},
                 {"clamped_cycles", physics_thread_.clamped_cycles},
                 {"near_singular_cycles", physics_thread_.near_singular_cycles},
                 {"servo_bandwidth_hz", scenario_.robot.servo_bandwidth_hz}};
+}
+
+nlohmann::json RigEmulator::lockstep_summary() const {
+  const AtiBoard::Counters b = setup_.ft != nullptr ? setup_.ft->counters() : AtiBoard::Counters{};
+  return {
+      {"events", lockstep_.counts.events},
+      {"datagram_events", lockstep_.counts.datagram_events},
+      {"timeout_events", lockstep_.counts.timeout_events},
+      {"rt_receive_timeout_s", 1e-9 * static_cast<double>(lockstep_.rt_receive_timeout.count())},
+      {"ft_rate_hz", lockstep_.ft_rate_hz},
+      {"ft_samples_produced", lockstep_.ft_produced},
+      {"ft_queue_underruns", b.queue_underruns},
+      {"ft_requests_ignored", b.sample_requests_ignored},  // thermistor reads apart
+      {"ft_samples_left", setup_.ft != nullptr ? setup_.ft->samples_queued() : 0},
+      {"slowest_answer_s", lockstep_.counts.slowest_ack_s}};
+}
+
+nlohmann::json RigEmulator::pushes_summary() const {
+  using nlohmann::json;
   json pushes = json::array();
   for (std::size_t k = 0; k < scenario_.pushes.size(); ++k) {
     const Push& p = scenario_.pushes[k];
@@ -1038,7 +1051,11 @@ nlohmann::json RigEmulator::summary() const {
     j["point_sensor_m"] = p.point_sensor_m ? vec(*p.point_sensor_m) : json("centre_of_mass");
     pushes.push_back(j);
   }
-  s["pushes"] = pushes;
+  return pushes;
+}
+
+nlohmann::json RigEmulator::faults_summary() const {
+  using nlohmann::json;
   json faults = json::array();
   for (std::size_t i = 0; i < faults_.size(); ++i) {
     const Fault& f = scenario_.faults[i];
@@ -1064,17 +1081,23 @@ nlohmann::json RigEmulator::summary() const {
     if (!st.note.empty()) j["note"] = st.note;
     faults.push_back(j);
   }
-  s["faults"] = faults;
-  s["physics"] = {{"rate_hz", physics_.physics_rate_hz()},
-                  {"steps", physics_.steps()},
-                  {"worst_lag_s", physics_thread_.worst_lag_s},
-                  {"late_batches", physics_thread_.late_batches},
-                  {"largest_batch", physics_thread_.largest_batch},
-                  {"imu_samples", physics_thread_.imu_samples},
-                  {"handover_waits", physics_thread_.handover_waits},
-                  {"stale_datagrams", loop_.stale_datagrams},
-                  {"worst_datagram_lag_s", loop_.worst_datagram_lag_s}};
-  json devices = json::object();
+  return faults;
+}
+
+nlohmann::json RigEmulator::physics_summary() const {
+  return {{"rate_hz", physics_.physics_rate_hz()},
+          {"steps", physics_.steps()},
+          {"worst_lag_s", physics_thread_.worst_lag_s},
+          {"late_batches", physics_thread_.late_batches},
+          {"largest_batch", physics_thread_.largest_batch},
+          {"imu_samples", physics_thread_.imu_samples},
+          {"handover_waits", physics_thread_.handover_waits},
+          {"stale_datagrams", loop_.stale_datagrams},
+          {"worst_datagram_lag_s", loop_.worst_datagram_lag_s}};
+}
+
+nlohmann::json RigEmulator::devices_summary() const {
+  nlohmann::json devices = nlohmann::json::object();
   if (setup_.ft != nullptr) {
     const AtiBoard::Counters c = setup_.ft->counters();
     devices["ft"] = {{"requests", c.requests},
@@ -1097,8 +1120,7 @@ nlohmann::json RigEmulator::summary() const {
                       {"skipped", c.skipped},
                       {"write_failures", physics_thread_.imu_dropped}};
   }
-  s["devices"] = devices;
-  return s;
+  return devices;
 }
 
 }  // namespace zerog::emu

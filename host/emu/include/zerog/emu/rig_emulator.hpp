@@ -165,6 +165,14 @@ class RigEmulator {
   void receive_pending(std::uint64_t n);
   void send_due(std::chrono::steady_clock::time_point now);
   std::chrono::steady_clock::time_point cycle_start(std::uint64_t n) const;
+  // summary()'s parts, one per owner of what they report.
+  /// "datagrams", "replies" and "robot": the robot loop's counts, the robot's, its clamps.
+  void robot_loop_summary(nlohmann::json& s) const;
+  nlohmann::json lockstep_summary() const;
+  nlohmann::json pushes_summary() const;
+  nlohmann::json faults_summary() const;
+  nlohmann::json physics_summary() const;
+  nlohmann::json devices_summary() const;
 
   /// Hands loop_.pending over to the physics thread as tick n's correction (none if empty).
   void hand_over(std::uint64_t n);
