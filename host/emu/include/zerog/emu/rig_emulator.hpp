@@ -267,7 +267,8 @@ class RigEmulator {
                                     // physics thread (read after it is joined)
 
   // The physics thread's (in lockstep: the one thread); read after it is joined, but
-  // physics_steps_done, which the robot loop reads while it runs.
+  // physics_steps_done, which the robot loop reads while it runs. After the join run() adds the
+  // clamps of the corrections the physics did not reach.
   struct PhysicsThreadState {
     std::uint64_t next_apply_tick = 1;
     std::uint64_t handover_waits = 0;  // steps that waited for the robot loop's hand-over
