@@ -173,20 +173,21 @@ RigEmulator::RigEmulator(const Scenario& scenario, const RigEmulatorOptions& opt
                          Stim300Emulator* imu)
     : scenario_(scenario),
       options_(options),
-      ft_(ft),
-      imu_(imu),
-      robot_(robot_config(scenario)),
+      handover_(robot_config(scenario)),
       physics_(scenario.sim, scenario.pushes, scenario.robot.physics_rate_hz) {
-  lockstep_ = !options_.lockstep_path.empty();
-  bind_addr_ = parse_endpoint(options_.robot_bind, "--robot-bind");
-  rt_addr_ = parse_endpoint(options_.rt_address, "--rt-address");
-  if (rt_addr_.sin_port == 0) throw std::invalid_argument("--rt-address: port 0 is not a port");
+  setup_.ft = ft;
+  setup_.imu = imu;
+  setup_.lockstep = !options_.lockstep_path.empty();
+  sockets_.bind_addr = parse_endpoint(options_.robot_bind, "--robot-bind");
+  sockets_.rt_addr = parse_endpoint(options_.rt_address, "--rt-address");
+  if (sockets_.rt_addr.sin_port == 0)
+    throw std::invalid_argument("--rt-address: port 0 is not a port");
   if (!(std::isfinite(options_.duration_s) && options_.duration_s >= 0.0))
     throw std::invalid_argument("duration must be >= 0 s");
-  cycle_ms_ = static_cast<std::uint64_t>(scenario_.robot.cycle_ms);
-  cycles_total_ =
+  setup_.cycle_ms = static_cast<std::uint64_t>(scenario_.robot.cycle_ms);
+  setup_.cycles_total =
       static_cast<std::uint64_t>(std::llround(options_.duration_s / scenario_.cycle_s()));
-  if (options_.duration_s > 0.0 && cycles_total_ == 0) cycles_total_ = 1;
+  if (options_.duration_s > 0.0 && setup_.cycles_total == 0) setup_.cycles_total = 1;
   faults_.resize(scenario_.faults.size());
   for (std::size_t i = 0; i < faults_.size(); ++i) {
     const Fault& f = scenario_.faults[i];
@@ -194,24 +195,24 @@ RigEmulator::RigEmulator(const Scenario& scenario, const RigEmulatorOptions& opt
       const bool ft_fault = f.kind == FaultKind::ft_silent || f.kind == FaultKind::ft_slow ||
                             f.kind == FaultKind::ft_critical || f.kind == FaultKind::ft_saturated ||
                             f.kind == FaultKind::ft_thermistor_silent;
-      if ((ft_fault && ft_ == nullptr) || (!ft_fault && imu_ == nullptr))
+      if ((ft_fault && setup_.ft == nullptr) || (!ft_fault && setup_.imu == nullptr))
         faults_[i].note = "not injected: no device";
       continue;
     }
     std::tie(faults_[i].first_cycle, faults_[i].last_cycle) =
         robot_fault_cycles(f, scenario_.cycle_s());
   }
-  if (cycles_total_ > 0) {
-    records_.reserve(cycles_total_);
-    tick_truth_.reserve(cycles_total_ + 1);
+  if (setup_.cycles_total > 0) {
+    loop_.records.reserve(setup_.cycles_total);
+    truth_.ticks.reserve(setup_.cycles_total + 1);
   }
 }
 
 RigEmulator::~RigEmulator() {
-  if (fd_ >= 0) ::close(fd_);
-  if (foreign_fd_ >= 0) ::close(foreign_fd_);
-  if (lockstep_fd_ >= 0) ::close(lockstep_fd_);
-  if (!lockstep_bound_.empty()) ::unlink(lockstep_bound_.c_str());
+  if (sockets_.fd >= 0) ::close(sockets_.fd);
+  if (sockets_.foreign_fd >= 0) ::close(sockets_.foreign_fd);
+  if (sockets_.lockstep_fd >= 0) ::close(sockets_.lockstep_fd);
+  if (!sockets_.lockstep_bound.empty()) ::unlink(sockets_.lockstep_bound.c_str());
 }
 
 void RigEmulator::bind() {
@@ -226,15 +227,15 @@ void RigEmulator::bind() {
     }
     return fd;
   };
-  fd_ = open_bound(bind_addr_, "--robot-bind");
+  sockets_.fd = open_bound(sockets_.bind_addr, "--robot-bind");
   sockaddr_in local{};
   socklen_t length = sizeof local;
-  ::getsockname(fd_, reinterpret_cast<sockaddr*>(&local), &length);
-  robot_port_ = ntohs(local.sin_port);
-  sockaddr_in other = bind_addr_;
+  ::getsockname(sockets_.fd, reinterpret_cast<sockaddr*>(&local), &length);
+  sockets_.robot_port = ntohs(local.sin_port);
+  sockaddr_in other = sockets_.bind_addr;
   other.sin_port = 0;
-  foreign_fd_ = open_bound(other, "robot_foreign socket");
-  if (lockstep_) {
+  sockets_.foreign_fd = open_bound(other, "robot_foreign socket");
+  if (setup_.lockstep) {
     const std::string& path = options_.lockstep_path;
     sockaddr_un a{};
     a.sun_family = AF_UNIX;
@@ -247,56 +248,57 @@ void RigEmulator::bind() {
         throw std::runtime_error("--lockstep " + path + ": exists and is not a socket; remove it");
       ::unlink(path.c_str());  // a stale socket of an earlier run
     }
-    lockstep_fd_ = ::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-    if (lockstep_fd_ < 0 ||
-        ::bind(lockstep_fd_, reinterpret_cast<const sockaddr*>(&a), sizeof a) != 0)
+    sockets_.lockstep_fd = ::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+    if (sockets_.lockstep_fd < 0 ||
+        ::bind(sockets_.lockstep_fd, reinterpret_cast<const sockaddr*>(&a), sizeof a) != 0)
       throw std::runtime_error("--lockstep " + path + ": cannot bind: " + errno_text(errno));
-    lockstep_bound_ = path;
+    sockets_.lockstep_bound = path;
   }
 }
 
 std::chrono::steady_clock::time_point RigEmulator::now() const {
-  return lockstep_ ? lockstep_now_ : Clock::now();
+  return setup_.lockstep ? lockstep_.now : Clock::now();
 }
 
-std::uint16_t RigEmulator::robot_port() const { return robot_port_; }
+std::uint16_t RigEmulator::robot_port() const { return sockets_.robot_port; }
 
 Clock::time_point RigEmulator::cycle_start(std::uint64_t n) const {
-  return t0_ + std::chrono::milliseconds(cycle_ms_ * n);
+  return setup_.t0 + std::chrono::milliseconds(setup_.cycle_ms * n);
 }
 
 // --- Physics thread ------------------------------------------------------------------------
 
 std::uint64_t RigEmulator::tick_step(std::uint64_t n) const {
-  const double t_s = static_cast<double>(n * cycle_ms_) * 1e-3;
+  const double t_s = static_cast<double>(n * setup_.cycle_ms) * 1e-3;
   return static_cast<std::uint64_t>(std::ceil(t_s * physics_.physics_rate_hz() - 1e-6));
 }
 
 void RigEmulator::apply_correction(const rsi::Reply& reply) {
   bool clamped = false, singular = false;
   if (reply.has_rkorr) {
-    const CorrectionOutcome o = robot_.apply_rkorr(reply.rkorr);
+    const CorrectionOutcome o = handover_.robot.apply_rkorr(reply.rkorr);
     clamped = o.clamped;
     singular = o.near_singular;
   }
-  if (reply.has_akorr) clamped = robot_.apply_akorr(reply.akorr_deg).clamped || clamped;
-  clamped_cycles_ += clamped;
-  near_singular_cycles_ += singular;
+  if (reply.has_akorr) clamped = handover_.robot.apply_akorr(reply.akorr_deg).clamped || clamped;
+  physics_thread_.clamped_cycles += clamped;
+  physics_thread_.near_singular_cycles += singular;
 }
 
 bool RigEmulator::apply_due_corrections(std::uint64_t k, std::unique_lock<std::mutex>& lock,
                                         const std::atomic<bool>& stop) {
-  while (tick_step(next_apply_tick_) <= k) {
-    if (ticks_handed_ < next_apply_tick_) {
-      ++handover_waits_;  // the robot loop has not reached the tick yet (a slow host)
-      while (ticks_handed_ < next_apply_tick_) {
-        if (stop.load() || robot_done_.load()) return false;
-        handed_cv_.wait_for(lock, std::chrono::milliseconds(1));
+  while (tick_step(physics_thread_.next_apply_tick) <= k) {
+    if (handover_.ticks_handed < physics_thread_.next_apply_tick) {
+      // The robot loop has not reached the tick yet (a slow host).
+      ++physics_thread_.handover_waits;
+      while (handover_.ticks_handed < physics_thread_.next_apply_tick) {
+        if (stop.load() || handover_.robot_done.load()) return false;
+        handover_.handed_cv.wait_for(lock, std::chrono::milliseconds(1));
       }
     }
-    const std::optional<rsi::Reply> reply = handed_.front();
-    handed_.pop_front();
-    ++next_apply_tick_;
+    const std::optional<rsi::Reply> reply = handover_.handed.front();
+    handover_.handed.pop_front();
+    ++physics_thread_.next_apply_tick;
     if (reply) apply_correction(*reply);
   }
   return true;
@@ -306,44 +308,45 @@ bool RigEmulator::physics_step(std::uint64_t k, const std::atomic<bool>& stop) {
   sim::JointState js;
   TcpMotion tcp;
   {
-    std::unique_lock<std::mutex> lock(robot_mutex_);
+    std::unique_lock<std::mutex> lock(handover_.mutex);
     if (k > 0) {
       // The corrections of the ticks up to the start of this step take effect now.
       if (!apply_due_corrections(k - 1, lock, stop)) return false;
-      robot_.step();
+      handover_.robot.step();
     }
-    js = robot_.actual();
-    tcp = robot_.actual_tcp();
+    js = handover_.robot.actual();
+    tcp = handover_.robot.actual_tcp();
   }
   const PhysicsSample s = physics_.step(js);
-  if (k == tick_step(tick_truth_.size())) {  // only this thread adds to tick_truth_
-    const std::lock_guard<std::mutex> lock(truth_mutex_);
-    tick_truth_.push_back(
+  if (k == tick_step(truth_.ticks.size())) {  // only this thread adds to truth_.ticks
+    const std::lock_guard<std::mutex> lock(truth_.mutex);
+    truth_.ticks.push_back(
         {js.q_rad, tcp, s.truth.v_com_base_mps, s.push_force_base_N, s.push_torque_com_base_Nm});
   }
   const double rate = physics_.physics_rate_hz();
-  if (ft_ != nullptr) {
-    ft_->set_wrench(s.wrench_sensor_noisy);
+  if (setup_.ft != nullptr) {
+    setup_.ft->set_wrench(s.wrench_sensor_noisy);
     // The scenario's sensor temperature (the sim's profile, the one temperature_bias follows),
     // for the thermistor channel.
-    ft_->set_temperature(scenario_.sim.temperature.at(static_cast<double>(k) / rate));
+    setup_.ft->set_temperature(scenario_.sim.temperature.at(static_cast<double>(k) / rate));
   }
-  if (lockstep_ && ft_ != nullptr) {  // the samples zerog-rt will request, at its rate
-    const auto ft_due =
-        static_cast<std::uint64_t>(std::floor(static_cast<double>(k) * ft_rate_hz_ / rate + 1e-9));
-    for (; ft_produced_ < ft_due; ++ft_produced_) ft_->queue_sample(s.wrench_sensor_noisy);
+  if (setup_.lockstep && setup_.ft != nullptr) {  // the samples zerog-rt will request, at its rate
+    const auto ft_due = static_cast<std::uint64_t>(
+        std::floor(static_cast<double>(k) * lockstep_.ft_rate_hz / rate + 1e-9));
+    for (; lockstep_.ft_produced < ft_due; ++lockstep_.ft_produced)
+      setup_.ft->queue_sample(s.wrench_sensor_noisy);
   }
   const auto imu_due =
       static_cast<std::uint64_t>(std::floor(static_cast<double>(k + 1) * kImuRateHz / rate + 1e-9));
-  while (imu_samples_ < imu_due) {
-    ++imu_samples_;
-    if (imu_ == nullptr) continue;
+  while (physics_thread_.imu_samples < imu_due) {
+    ++physics_thread_.imu_samples;
+    if (setup_.imu == nullptr) continue;
     ImuTruthSample truth;
     truth.rate_imu_radps = s.truth.imu.angular_rate_imu_radps;
     truth.specific_force_imu_mps2 = s.truth.imu.specific_force_imu_mps2;
-    if (!imu_->write_sample(truth)) ++imu_dropped_;
+    if (!setup_.imu->write_sample(truth)) ++physics_thread_.imu_dropped;
   }
-  physics_steps_done_.store(k, std::memory_order_release);
+  physics_thread_.physics_steps_done.store(k, std::memory_order_release);
   return true;
 }
 
@@ -358,38 +361,38 @@ void RigEmulator::device_faults(double t_s) {
       st.applied_start_s = t_s;
       switch (f.kind) {
         case FaultKind::ft_silent:
-          ft_->set_fault(FtFault::silent);
+          setup_.ft->set_fault(FtFault::silent);
           break;
         case FaultKind::ft_slow:
-          ft_->set_response_delay(
+          setup_.ft->set_response_delay(
               std::chrono::microseconds(std::llround(f.response_delay_ms * 1e3)));
           break;
         case FaultKind::ft_critical:
-          ft_->set_fault(FtFault::critical);
+          setup_.ft->set_fault(FtFault::critical);
           break;
         case FaultKind::ft_saturated:
-          ft_->set_fault(FtFault::saturated);
+          setup_.ft->set_fault(FtFault::saturated);
           break;
         case FaultKind::ft_thermistor_silent: {
-          AtiBoardQuirks quirks = ft_->quirks();
+          AtiBoardQuirks quirks = setup_.ft->quirks();
           quirks.no_diagnostic_response = true;
-          ft_->set_quirks(quirks);
+          setup_.ft->set_quirks(quirks);
           break;
         }
         case FaultKind::imu_garbage:
-          imu_->set_fault(ImuFault::garbage);
+          setup_.imu->set_fault(ImuFault::garbage);
           break;
         case FaultKind::imu_crc:
-          imu_->set_fault(ImuFault::crc_errors);
+          setup_.imu->set_fault(ImuFault::crc_errors);
           break;
         case FaultKind::imu_gaps:
-          imu_->set_fault(ImuFault::counter_gaps);
+          setup_.imu->set_fault(ImuFault::counter_gaps);
           break;
         case FaultKind::imu_silent:
-          imu_->set_fault(ImuFault::silent);
+          setup_.imu->set_fault(ImuFault::silent);
           break;
         case FaultKind::imu_unplug:
-          imu_->unplug();
+          setup_.imu->unplug();
           break;
         default:
           break;
@@ -403,24 +406,24 @@ void RigEmulator::device_faults(double t_s) {
         case FaultKind::ft_silent:
         case FaultKind::ft_critical:
         case FaultKind::ft_saturated:
-          ft_->set_fault(FtFault::none);
+          setup_.ft->set_fault(FtFault::none);
           break;
         case FaultKind::ft_slow:
-          ft_->set_response_delay(std::chrono::microseconds(0));
+          setup_.ft->set_response_delay(std::chrono::microseconds(0));
           break;
         case FaultKind::ft_thermistor_silent: {
-          AtiBoardQuirks quirks = ft_->quirks();
+          AtiBoardQuirks quirks = setup_.ft->quirks();
           quirks.no_diagnostic_response = false;
-          ft_->set_quirks(quirks);
+          setup_.ft->set_quirks(quirks);
           break;
         }
         case FaultKind::imu_unplug: {
-          if (const Status plugged = imu_->open(options_.imu_link); !plugged.ok())
+          if (const Status plugged = setup_.imu->open(options_.imu_link); !plugged.ok())
             st.note = "re-plug failed: " + plugged.message();
           break;
         }
         default:
-          imu_->set_fault(ImuFault::none);
+          setup_.imu->set_fault(ImuFault::none);
           break;
       }
     }
@@ -430,15 +433,15 @@ void RigEmulator::device_faults(double t_s) {
 void RigEmulator::physics_loop(const std::atomic<bool>& stop) {
   const double h = 1.0 / physics_.physics_rate_hz();
   auto step_time = [&](std::uint64_t k) {
-    return t0_ + std::chrono::duration_cast<Clock::duration>(
-                     std::chrono::duration<double>(static_cast<double>(k) * h));
+    return setup_.t0 + std::chrono::duration_cast<Clock::duration>(
+                           std::chrono::duration<double>(static_cast<double>(k) * h));
   };
   // The thread wakes at kPhysicsWakeHz and steps what is due: waking once per step at 2 kHz, it
   // took about half of one of the VM's emulated CPUs (proto/emulator.md).
   const auto wake_steps = static_cast<std::uint64_t>(
       std::max(1.0, std::floor(physics_.physics_rate_hz() / kPhysicsWakeHz + 1e-9)));
   std::uint64_t k = 1;
-  while (!stop.load() && !robot_done_.load()) {
+  while (!stop.load() && !handover_.robot_done.load()) {
     const Clock::time_point now = Clock::now();
     const Clock::time_point wake = step_time(k + wake_steps - 1);
     if (now < wake) {
@@ -446,12 +449,12 @@ void RigEmulator::physics_loop(const std::atomic<bool>& stop) {
       continue;
     }
     const double lag = std::chrono::duration<double>(now - wake).count();
-    worst_lag_s_ = std::max(worst_lag_s_, lag);
+    physics_thread_.worst_lag_s = std::max(physics_thread_.worst_lag_s, lag);
     const auto due = static_cast<std::uint64_t>(
-        std::floor(std::chrono::duration<double>(now - t0_).count() / h));
+        std::floor(std::chrono::duration<double>(now - setup_.t0).count() / h));
     const std::uint64_t batch = due - k + 1;
-    if (batch > wake_steps) ++late_batches_;
-    largest_batch_ = std::max(largest_batch_, batch);
+    if (batch > wake_steps) ++physics_thread_.late_batches;
+    physics_thread_.largest_batch = std::max(physics_thread_.largest_batch, batch);
     for (; k <= due; ++k)
       if (!physics_step(k, stop)) return;
     device_faults(static_cast<double>(due) * h);
@@ -461,48 +464,49 @@ void RigEmulator::physics_loop(const std::atomic<bool>& stop) {
 // --- Robot loop ------------------------------------------------------------------------------
 
 void RigEmulator::send_due(Clock::time_point now) {
-  for (std::size_t i = 0; i < sends_.size();) {
-    if (sends_[i].at > now) {
+  for (std::size_t i = 0; i < loop_.sends.size();) {
+    if (loop_.sends[i].at > now) {
       ++i;
       continue;
     }
-    const ScheduledSend& s = sends_[i];
-    const int fd = s.foreign ? foreign_fd_ : fd_;
-    const ssize_t n = ::sendto(fd, s.bytes.data(), s.bytes.size(), 0,
-                               reinterpret_cast<const sockaddr*>(&rt_addr_), sizeof rt_addr_);
-    if (n != static_cast<ssize_t>(s.bytes.size())) ++counts_.send_errors;
-    ++counts_.datagrams_sent;
-    sends_.erase(sends_.begin() + static_cast<std::ptrdiff_t>(i));
+    const ScheduledSend& s = loop_.sends[i];
+    const int fd = s.foreign ? sockets_.foreign_fd : sockets_.fd;
+    const ssize_t n =
+        ::sendto(fd, s.bytes.data(), s.bytes.size(), 0,
+                 reinterpret_cast<const sockaddr*>(&sockets_.rt_addr), sizeof sockets_.rt_addr);
+    if (n != static_cast<ssize_t>(s.bytes.size())) ++loop_.counts.send_errors;
+    ++loop_.counts.datagrams_sent;
+    loop_.sends.erase(loop_.sends.begin() + static_cast<std::ptrdiff_t>(i));
   }
 }
 
 void RigEmulator::handle_datagram(std::uint64_t n, const char* data, std::size_t size) {
-  ++counts_.reply_datagrams;
+  ++loop_.counts.reply_datagrams;
   rsi::Reply reply;
   const bool parsed = rsi::parse_reply(std::string_view(data, size), reply).ok();
   std::int64_t idx = -1;
   if (parsed && reply.ipoc >= options_.first_ipoc &&
-      (reply.ipoc - options_.first_ipoc) % cycle_ms_ == 0) {
-    const std::uint64_t k = (reply.ipoc - options_.first_ipoc) / cycle_ms_;
-    if (k < records_.size() && records_[k].sent) idx = static_cast<std::int64_t>(k);
+      (reply.ipoc - options_.first_ipoc) % setup_.cycle_ms == 0) {
+    const std::uint64_t k = (reply.ipoc - options_.first_ipoc) / setup_.cycle_ms;
+    if (k < loop_.records.size() && loop_.records[k].sent) idx = static_cast<std::int64_t>(k);
   }
   const bool good =
-      parsed && idx == static_cast<std::int64_t>(n) && records_[n].reply != ReplyStatus::ok;
-  if (!any_ok_ && !good) ++counts_.before_first_ok;
+      parsed && idx == static_cast<std::int64_t>(n) && loop_.records[n].reply != ReplyStatus::ok;
+  if (!loop_.any_ok && !good) ++loop_.counts.before_first_ok;
   if (!parsed) {
-    ++counts_.malformed;
+    ++loop_.counts.malformed;
     return;
   }
   if (good) {
-    CycleRecord& r = records_[n];
+    CycleRecord& r = loop_.records[n];
     r.reply = ReplyStatus::ok;
-    ++counts_.ok;
-    if (!any_ok_) counts_.first_ok_cycle = static_cast<std::int64_t>(n);
-    any_ok_ = true;
+    ++loop_.counts.ok;
+    if (!loop_.any_ok) loop_.counts.first_ok_cycle = static_cast<std::int64_t>(n);
+    loop_.any_ok = true;
     // Like the controller's interpolator, the correction takes effect at the next cycle's
     // tick, whenever in this cycle it arrived (hand_over, then the physics thread applies it
     // at the tick's physics step): the arrival jitter of the replies must not shake the robot.
-    pending_ = reply;
+    loop_.pending = reply;
     if (reply.has_rkorr) {
       const rsi::Correction& c = reply.rkorr;
       r.correction = {c.x_mm, c.y_mm, c.z_mm, c.a_deg, c.b_deg, c.c_deg};
@@ -514,26 +518,26 @@ void RigEmulator::handle_datagram(std::uint64_t n, const char* data, std::size_t
     return;
   }
   if (idx == static_cast<std::int64_t>(n)) {
-    ++counts_.duplicate;  // a second reply to this cycle
+    ++loop_.counts.duplicate;  // a second reply to this cycle
   } else if (idx >= 0 && idx < static_cast<std::int64_t>(n)) {
-    ++counts_.late;
-    CycleRecord& r = records_[static_cast<std::size_t>(idx)];
+    ++loop_.counts.late;
+    CycleRecord& r = loop_.records[static_cast<std::size_t>(idx)];
     if (r.reply != ReplyStatus::ok) r.reply = ReplyStatus::late;
   } else {
-    ++counts_.wrong_ipoc;
-    if (n < records_.size() && records_[n].reply == ReplyStatus::none)
-      records_[n].reply = ReplyStatus::wrong_ipoc;
+    ++loop_.counts.wrong_ipoc;
+    if (n < loop_.records.size() && loop_.records[n].reply == ReplyStatus::none)
+      loop_.records[n].reply = ReplyStatus::wrong_ipoc;
   }
 }
 
 void RigEmulator::hand_over(std::uint64_t n) {
   {
-    const std::lock_guard<std::mutex> lock(robot_mutex_);
-    handed_.push_back(pending_);
-    ticks_handed_ = n;
+    const std::lock_guard<std::mutex> lock(handover_.mutex);
+    handover_.handed.push_back(loop_.pending);
+    handover_.ticks_handed = n;
   }
-  pending_.reset();
-  handed_cv_.notify_all();
+  loop_.pending.reset();
+  handover_.handed_cv.notify_all();
 }
 
 void RigEmulator::receive_pending(std::uint64_t n) {
@@ -541,40 +545,42 @@ void RigEmulator::receive_pending(std::uint64_t n) {
   while (true) {
     sockaddr_in from{};
     socklen_t length = sizeof from;
-    const ssize_t got =
-        ::recvfrom(fd_, buf.data(), buf.size(), 0, reinterpret_cast<sockaddr*>(&from), &length);
+    const ssize_t got = ::recvfrom(sockets_.fd, buf.data(), buf.size(), 0,
+                                   reinterpret_cast<sockaddr*>(&from), &length);
     if (got < 0) break;
-    if (from.sin_addr.s_addr != rt_addr_.sin_addr.s_addr || from.sin_port != rt_addr_.sin_port) {
-      ++counts_.from_elsewhere;
+    if (from.sin_addr.s_addr != sockets_.rt_addr.sin_addr.s_addr ||
+        from.sin_port != sockets_.rt_addr.sin_port) {
+      ++loop_.counts.from_elsewhere;
       continue;
     }
     handle_datagram(n, buf.data(), static_cast<std::size_t>(got));
   }
-  while (::recv(foreign_fd_, buf.data(), buf.size(), 0) >= 0) ++counts_.foreign_replies;
+  while (::recv(sockets_.foreign_fd, buf.data(), buf.size(), 0) >= 0)
+    ++loop_.counts.foreign_replies;
 }
 
 void RigEmulator::start_cycle(std::uint64_t n) {
   const double t_s = static_cast<double>(n) * scenario_.cycle_s();
   CycleRecord r;
   r.t_s = t_s;
-  r.ipoc = options_.first_ipoc + n * cycle_ms_;
-  r.delay = delay_count_;
+  r.ipoc = options_.first_ipoc + n * setup_.cycle_ms;
+  r.delay = loop_.delay_count;
   rsi::RobotMessage msg;
   sim::JointState js;
   {
-    const std::lock_guard<std::mutex> lock(robot_mutex_);
-    msg = robot_.message(r.ipoc, delay_count_);
-    js = robot_.actual();
-    r.tcp = robot_.actual_tcp();
+    const std::lock_guard<std::mutex> lock(handover_.mutex);
+    msg = handover_.robot.message(r.ipoc, loop_.delay_count);
+    js = handover_.robot.actual();
+    r.tcp = handover_.robot.actual_tcp();
   }
   // The datagram carries the latest state. Normally the physics is at the tick or one step
   // short of it; a slow host may hold it back further (counted). The truth row gets the state at
   // the tick's physics step after the run.
-  const std::uint64_t done = physics_steps_done_.load(std::memory_order_acquire);
+  const std::uint64_t done = physics_thread_.physics_steps_done.load(std::memory_order_acquire);
   if (done + 1 < tick_step(n)) {
-    ++stale_datagrams_;
-    worst_datagram_lag_s_ =
-        std::max(worst_datagram_lag_s_,
+    ++loop_.stale_datagrams;
+    loop_.worst_datagram_lag_s =
+        std::max(loop_.worst_datagram_lag_s,
                  static_cast<double>(tick_step(n) - done) / physics_.physics_rate_hz());
   }
   r.q_rad = js.q_rad;
@@ -600,7 +606,7 @@ void RigEmulator::start_cycle(std::uint64_t n) {
   }
   const Clock::time_point at = cycle_start(n);
   auto send = [&](std::string b, Clock::time_point when, bool foreign) {
-    sends_.push_back({when, std::move(b), foreign});
+    loop_.sends.push_back({when, std::move(b), foreign});
   };
   bool hit = fault != nullptr;
   r.sent = !bytes.empty();
@@ -613,7 +619,7 @@ void RigEmulator::start_cycle(std::uint64_t n) {
         break;
       case FaultKind::robot_malformed:
         send(malformed(bytes, n), at, false);
-        ++counts_.malformed_sent;
+        ++loop_.counts.malformed_sent;
         r.sent = false;
         break;
       case FaultKind::robot_late:
@@ -622,12 +628,12 @@ void RigEmulator::start_cycle(std::uint64_t n) {
       case FaultKind::robot_duplicate:
         send(bytes, at, false);
         send(bytes, at, false);
-        ++counts_.duplicates_sent;
+        ++loop_.counts.duplicates_sent;
         break;
       case FaultKind::robot_reorder:
         if ((static_cast<std::int64_t>(n) - faults_[fault_index].first_cycle) % 2 == 0) {
-          held_bytes_ = bytes;  // sent after the next cycle's datagram
-          reorder_held_ = static_cast<std::int64_t>(n);
+          loop_.held_bytes = bytes;  // sent after the next cycle's datagram
+          loop_.reorder_held = static_cast<std::int64_t>(n);
         } else {
           send(bytes, at, false);
           hit = false;
@@ -639,7 +645,7 @@ void RigEmulator::start_cycle(std::uint64_t n) {
         other.ipoc += kForeignIpocOffset;
         const rsi::FormatResult g = rsi::format_robot_message(other, buf);
         send(std::string(buf.data(), g.size), at, true);
-        ++counts_.foreign_sent;
+        ++loop_.counts.foreign_sent;
         break;
       }
       default:
@@ -653,23 +659,23 @@ void RigEmulator::start_cycle(std::uint64_t n) {
     if (st.applied_start_s < 0.0) st.applied_start_s = t_s;
     st.applied_end_s = t_s + scenario_.cycle_s();
   }
-  records_.push_back(r);
-  counts_.good_sent += r.sent;
-  if (!lockstep_) send_due(Clock::now());  // lockstep: lockstep_events_before sends them
-  if (reorder_held_ >= 0 && reorder_held_ < static_cast<std::int64_t>(n)) {
-    sends_.push_back({now(), held_bytes_, false});
-    reorder_held_ = -1;
-    if (!lockstep_) send_due(Clock::now());
+  loop_.records.push_back(r);
+  loop_.counts.good_sent += r.sent;
+  if (!setup_.lockstep) send_due(Clock::now());  // lockstep: lockstep_events_before sends them
+  if (loop_.reorder_held >= 0 && loop_.reorder_held < static_cast<std::int64_t>(n)) {
+    loop_.sends.push_back({now(), loop_.held_bytes, false});
+    loop_.reorder_held = -1;
+    if (!setup_.lockstep) send_due(Clock::now());
   }
 }
 
 void RigEmulator::run(const std::atomic<bool>& stop) {
-  if (fd_ < 0) throw std::logic_error("RigEmulator::run before bind()");
-  if (lockstep_) {
+  if (sockets_.fd < 0) throw std::logic_error("RigEmulator::run before bind()");
+  if (setup_.lockstep) {
     run_lockstep(stop);
     return;
   }
-  t0_ = Clock::now();
+  setup_.t0 = Clock::now();
   physics_step(0, stop);
   device_faults(0.0);
   std::exception_ptr physics_error;
@@ -688,29 +694,31 @@ void RigEmulator::run(const std::atomic<bool>& stop) {
       send_due(now);
       if (now >= deadline) return;
       Clock::time_point next = deadline;
-      for (const ScheduledSend& s : sends_) next = std::min(next, s.at);
+      for (const ScheduledSend& s : loop_.sends) next = std::min(next, s.at);
       const auto wait = std::chrono::duration_cast<std::chrono::nanoseconds>(next - now);
       timespec ts{static_cast<time_t>(wait.count() / 1'000'000'000),
                   static_cast<long>(wait.count() % 1'000'000'000)};
-      std::array<pollfd, 2> fds{{{fd_, POLLIN, 0}, {foreign_fd_, POLLIN, 0}}};
+      std::array<pollfd, 2> fds{{{sockets_.fd, POLLIN, 0}, {sockets_.foreign_fd, POLLIN, 0}}};
       if (::ppoll(fds.data(), fds.size(), &ts, nullptr) > 0) {
         if (window >= 0) {
           receive_pending(static_cast<std::uint64_t>(window));
         } else {
           std::array<char, 64> sink;
-          while (::recv(fd_, sink.data(), sink.size(), 0) >= 0) ++counts_.wrong_ipoc;
-          while (::recv(foreign_fd_, sink.data(), sink.size(), 0) >= 0) ++counts_.foreign_replies;
+          while (::recv(sockets_.fd, sink.data(), sink.size(), 0) >= 0) ++loop_.counts.wrong_ipoc;
+          while (::recv(sockets_.foreign_fd, sink.data(), sink.size(), 0) >= 0)
+            ++loop_.counts.foreign_replies;
         }
       }
     }
   };
   auto finish_cycle = [&](std::uint64_t n) {
-    if (records_[n].reply != ReplyStatus::ok) ++delay_count_;
+    if (loop_.records[n].reply != ReplyStatus::ok) ++loop_.delay_count;
     hand_over(n + 1);
   };
 
   std::uint64_t n = 0;
-  for (; !stop.load() && (cycles_total_ == 0 || n < cycles_total_) && !physics_error; ++n) {
+  for (; !stop.load() && (setup_.cycles_total == 0 || n < setup_.cycles_total) && !physics_error;
+       ++n) {
     serve_until(cycle_start(n), static_cast<std::int64_t>(n) - 1);
     if (n > 0) finish_cycle(n - 1);
     start_cycle(n);
@@ -719,31 +727,31 @@ void RigEmulator::run(const std::atomic<bool>& stop) {
     serve_until(stop.load() ? Clock::now() : cycle_start(n), static_cast<std::int64_t>(n) - 1);
     finish_cycle(n - 1);
   }
-  sends_.clear();  // a held or late datagram due after the run: never sent
+  loop_.sends.clear();  // a held or late datagram due after the run: never sent
   // Let the physics reach the last tick, so that every truth row is taken at its tick.
   const Clock::time_point give_up = Clock::now() + std::chrono::seconds(2);
   while (!stop.load() && Clock::now() < give_up) {
     {
-      const std::lock_guard<std::mutex> lock(truth_mutex_);
-      if (tick_truth_.size() >= records_.size()) break;
+      const std::lock_guard<std::mutex> lock(truth_.mutex);
+      if (truth_.ticks.size() >= loop_.records.size()) break;
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
-  robot_done_ = true;
+  handover_.robot_done = true;
   physics.join();
   // Corrections handed over for ticks the physics did not reach: the command takes them still.
-  for (const std::optional<rsi::Reply>& reply : handed_)
+  for (const std::optional<rsi::Reply>& reply : handover_.handed)
     if (reply) apply_correction(*reply);
-  handed_.clear();
+  handover_.handed.clear();
   merge_tick_truth();
   if (physics_error) std::rethrow_exception(physics_error);
 }
 
 void RigEmulator::merge_tick_truth() {
   // Each truth row as the physics took it at its tick (the datagram carried the latest state).
-  for (std::size_t i = 0; i < records_.size() && i < tick_truth_.size(); ++i) {
-    const TickTruth& t = tick_truth_[i];
-    CycleRecord& r = records_[i];
+  for (std::size_t i = 0; i < loop_.records.size() && i < truth_.ticks.size(); ++i) {
+    const TickTruth& t = truth_.ticks[i];
+    CycleRecord& r = loop_.records[i];
     r.q_rad = t.q_rad;
     r.tcp = t.tcp;
     r.v_com_base_mps = t.v_com_base_mps;
@@ -799,45 +807,47 @@ void RigEmulator::lockstep_exchange(rtio::LockstepKind kind, Clock::time_point a
                                     std::uint64_t window) {
   // Every byte of the IMU's datagrams so far in the pty (a partly written one completed).
   const Clock::time_point give_up = Clock::now() + kEventGuard;
-  while (imu_ != nullptr && !imu_->flush_pending()) {
+  while (setup_.imu != nullptr && !setup_.imu->flush_pending()) {
     if (Clock::now() > give_up)
       throw std::runtime_error("lockstep: the IMU's pty stayed full for 60 s (nobody reads it)");
     std::this_thread::sleep_for(std::chrono::microseconds(100));
   }
   rtio::LockstepEvent ev;
   ev.kind = kind;
-  ev.seq = ++lockstep_counts_.events;
-  ev.time_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(at - t0_).count();
-  ev.ft_samples = ft_produced_;
-  ev.ft_answers = ft_ != nullptr && ft_->answers_within(rt_ft_sample_timeout_) ? 1 : 0;
-  if (imu_ != nullptr) {
-    ev.imu_bytes = imu_->bytes_since_plug();
-    ev.imu_epoch = imu_->unplugs();
-    ev.imu_plugged = imu_->plugged() ? 1 : 0;
+  ev.seq = ++lockstep_.counts.events;
+  ev.time_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(at - setup_.t0).count();
+  ev.ft_samples = lockstep_.ft_produced;
+  ev.ft_answers =
+      setup_.ft != nullptr && setup_.ft->answers_within(lockstep_.rt_ft_sample_timeout) ? 1 : 0;
+  if (setup_.imu != nullptr) {
+    ev.imu_bytes = setup_.imu->bytes_since_plug();
+    ev.imu_epoch = setup_.imu->unplugs();
+    ev.imu_plugged = setup_.imu->plugged() ? 1 : 0;
   }
-  if (kind == rtio::LockstepKind::timeout) ++lockstep_counts_.timeout_events;
-  if (kind == rtio::LockstepKind::datagram) ++lockstep_counts_.datagram_events;
+  if (kind == rtio::LockstepKind::timeout) ++lockstep_.counts.timeout_events;
+  if (kind == rtio::LockstepKind::datagram) ++lockstep_.counts.datagram_events;
   const Clock::time_point sent = Clock::now();
-  if (::sendto(lockstep_fd_, &ev, sizeof ev, 0,
-               reinterpret_cast<const sockaddr*>(lockstep_peer_.data()),
-               static_cast<socklen_t>(lockstep_peer_.size())) != static_cast<ssize_t>(sizeof ev))
+  if (::sendto(sockets_.lockstep_fd, &ev, sizeof ev, 0,
+               reinterpret_cast<const sockaddr*>(sockets_.lockstep_peer.data()),
+               static_cast<socklen_t>(sockets_.lockstep_peer.size())) !=
+      static_cast<ssize_t>(sizeof ev))
     throw std::runtime_error("lockstep: cannot send to zerog-rt: " + errno_text(errno));
   if (kind == rtio::LockstepKind::end) return;
   const rtio::LockstepReply r = lockstep_receive(
-      lockstep_fd_, kEventGuard, "zerog-rt's answer to event " + std::to_string(ev.seq), nullptr,
-      lockstep_stop_);
+      sockets_.lockstep_fd, kEventGuard, "zerog-rt's answer to event " + std::to_string(ev.seq),
+      nullptr, lockstep_.stop);
   if (r.kind != rtio::LockstepKind::done || r.seq != ev.seq)
     throw std::runtime_error("lockstep: zerog-rt answered event " + std::to_string(r.seq) +
                              " while " + std::to_string(ev.seq) + " was due");
-  lockstep_counts_.slowest_ack_s = std::max(
-      lockstep_counts_.slowest_ack_s, std::chrono::duration<double>(Clock::now() - sent).count());
+  lockstep_.counts.slowest_ack_s = std::max(
+      lockstep_.counts.slowest_ack_s, std::chrono::duration<double>(Clock::now() - sent).count());
   // The RSI replies were sent before the answer; wait until loopback has delivered them.
-  while (counts_.reply_datagrams < r.replies_sent) {
+  while (loop_.counts.reply_datagrams < r.replies_sent) {
     if (Clock::now() > give_up)
       throw std::runtime_error("lockstep: zerog-rt sent " + std::to_string(r.replies_sent) +
-                               " replies, " + std::to_string(counts_.reply_datagrams) +
+                               " replies, " + std::to_string(loop_.counts.reply_datagrams) +
                                " arrived within 60 s");
-    pollfd p{fd_, POLLIN, 0};
+    pollfd p{sockets_.fd, POLLIN, 0};
     ::poll(&p, 1, 10);
     receive_pending(window);
   }
@@ -846,25 +856,26 @@ void RigEmulator::lockstep_exchange(rtio::LockstepKind kind, Clock::time_point a
 
 void RigEmulator::lockstep_events_before(Clock::time_point limit, std::uint64_t window) {
   while (true) {
-    auto next = sends_.end();
-    for (auto it = sends_.begin(); it != sends_.end(); ++it)
-      if (next == sends_.end() || it->at < next->at) next = it;
-    const Clock::time_point deadline = last_rt_event_ + rt_receive_timeout_;
-    if (next != sends_.end() && next->at < limit && next->at <= deadline) {
+    auto next = loop_.sends.end();
+    for (auto it = loop_.sends.begin(); it != loop_.sends.end(); ++it)
+      if (next == loop_.sends.end() || it->at < next->at) next = it;
+    const Clock::time_point deadline = lockstep_.last_rt_event + lockstep_.rt_receive_timeout;
+    if (next != loop_.sends.end() && next->at < limit && next->at <= deadline) {
       const ScheduledSend s = *next;
-      sends_.erase(next);
-      const int fd = s.foreign ? foreign_fd_ : fd_;
-      const ssize_t n = ::sendto(fd, s.bytes.data(), s.bytes.size(), 0,
-                                 reinterpret_cast<const sockaddr*>(&rt_addr_), sizeof rt_addr_);
-      if (n != static_cast<ssize_t>(s.bytes.size())) ++counts_.send_errors;
-      ++counts_.datagrams_sent;
+      loop_.sends.erase(next);
+      const int fd = s.foreign ? sockets_.foreign_fd : sockets_.fd;
+      const ssize_t n =
+          ::sendto(fd, s.bytes.data(), s.bytes.size(), 0,
+                   reinterpret_cast<const sockaddr*>(&sockets_.rt_addr), sizeof sockets_.rt_addr);
+      if (n != static_cast<ssize_t>(s.bytes.size())) ++loop_.counts.send_errors;
+      ++loop_.counts.datagrams_sent;
       if (!s.foreign) {  // zerog-rt skips foreign datagrams inside receive(): no event
         lockstep_exchange(rtio::LockstepKind::datagram, s.at, window);
-        last_rt_event_ = s.at;
+        lockstep_.last_rt_event = s.at;
       }
     } else if (deadline < limit) {
       lockstep_exchange(rtio::LockstepKind::timeout, deadline, window);
-      last_rt_event_ = deadline;
+      lockstep_.last_rt_event = deadline;
     } else {
       return;
     }
@@ -872,56 +883,58 @@ void RigEmulator::lockstep_events_before(Clock::time_point limit, std::uint64_t 
 }
 
 void RigEmulator::run_lockstep(const std::atomic<bool>& stop) {
-  if (cycles_total_ == 0) throw std::invalid_argument("lockstep needs a duration (--duration > 0)");
-  lockstep_stop_ = &stop;
-  const rtio::LockstepReply hello =
-      lockstep_receive(lockstep_fd_, kHelloGuard, "zerog-rt's hello", &lockstep_peer_, &stop);
+  if (setup_.cycles_total == 0)
+    throw std::invalid_argument("lockstep needs a duration (--duration > 0)");
+  lockstep_.stop = &stop;
+  const rtio::LockstepReply hello = lockstep_receive(
+      sockets_.lockstep_fd, kHelloGuard, "zerog-rt's hello", &sockets_.lockstep_peer, &stop);
   if (hello.kind != rtio::LockstepKind::hello || hello.receive_timeout_ns <= 0 ||
       !(hello.ft_rate_hz > 0.0) || hello.ft_rate_hz > physics_.physics_rate_hz())
     throw std::runtime_error(
         "lockstep: zerog-rt's hello is not one (kind, receive timeout or an "
         "F/T rate above the physics rate)");
-  rt_receive_timeout_ = std::chrono::nanoseconds(hello.receive_timeout_ns);
-  rt_ft_sample_timeout_ = std::chrono::nanoseconds(hello.ft_sample_timeout_ns);
-  ft_rate_hz_ = hello.ft_rate_hz;
+  lockstep_.rt_receive_timeout = std::chrono::nanoseconds(hello.receive_timeout_ns);
+  lockstep_.rt_ft_sample_timeout = std::chrono::nanoseconds(hello.ft_sample_timeout_ns);
+  lockstep_.ft_rate_hz = hello.ft_rate_hz;
   std::fprintf(stderr,
                "zerog-emu: lockstep with zerog-rt (receive timeout %.1f ms, F/T %.0f Hz): "
                "emulated time\n",
-               static_cast<double>(hello.receive_timeout_ns) * 1e-6, ft_rate_hz_);
+               static_cast<double>(hello.receive_timeout_ns) * 1e-6, lockstep_.ft_rate_hz);
 
-  t0_ = Clock::time_point{} + std::chrono::hours(1);
+  setup_.t0 = Clock::time_point{} + std::chrono::hours(1);
   const double h = 1.0 / physics_.physics_rate_hz();
   auto step_time = [&](std::uint64_t k) {
-    return t0_ + std::chrono::duration_cast<Clock::duration>(
-                     std::chrono::duration<double>(static_cast<double>(k) * h));
+    return setup_.t0 + std::chrono::duration_cast<Clock::duration>(
+                           std::chrono::duration<double>(static_cast<double>(k) * h));
   };
-  lockstep_now_ = t0_;
-  last_rt_event_ = t0_;
+  lockstep_.now = setup_.t0;
+  lockstep_.last_rt_event = setup_.t0;
   physics_step(0, stop);
   device_faults(0.0);
   start_cycle(0);
   lockstep_events_before(step_time(1), 0);
   std::uint64_t k = 0;
   const Clock::time_point wall0 = Clock::now();
-  for (std::uint64_t n = 1; n <= cycles_total_ && !stop.load(); ++n) {
-    if (options_.lockstep_paced) std::this_thread::sleep_until(wall0 + (cycle_start(n) - t0_));
+  for (std::uint64_t n = 1; n <= setup_.cycles_total && !stop.load(); ++n) {
+    if (options_.lockstep_paced)
+      std::this_thread::sleep_until(wall0 + (cycle_start(n) - setup_.t0));
     // Cycle n−1's window: physics steps up to tick n, and the events between them.
     const std::uint64_t tick = tick_step(n);
     while (k < tick) {
       ++k;
-      lockstep_now_ = step_time(k);
+      lockstep_.now = step_time(k);
       physics_step(k, stop);
       device_faults(static_cast<double>(k) * h);
       if (k < tick) lockstep_events_before(step_time(k + 1), n - 1);
     }
-    if (records_[n - 1].reply != ReplyStatus::ok) ++delay_count_;
+    if (loop_.records[n - 1].reply != ReplyStatus::ok) ++loop_.delay_count;
     hand_over(n);  // tick n's correction, applied from physics step tick + 1
-    if (n == cycles_total_) break;
+    if (n == setup_.cycles_total) break;
     start_cycle(n);
     lockstep_events_before(step_time(k + 1), n);
   }
-  sends_.clear();  // a held or late datagram due after the run: never sent
-  lockstep_exchange(rtio::LockstepKind::end, lockstep_now_, 0);
+  loop_.sends.clear();  // a held or late datagram due after the run: never sent
+  lockstep_exchange(rtio::LockstepKind::end, lockstep_.now, 0);
   merge_tick_truth();
 }
 
@@ -929,8 +942,8 @@ void RigEmulator::run_lockstep(const std::atomic<bool>& stop) {
 
 std::string RigEmulator::truth_csv() const {
   std::string out = truth_csv_header() + "\n";
-  out.reserve(records_.size() * 420 + out.size());
-  for (const CycleRecord& r : records_) {
+  out.reserve(loop_.records.size() * 420 + out.size());
+  for (const CycleRecord& r : loop_.records) {
     append(out, r.t_s);
     out += ',' + std::to_string(r.ipoc) + ',' + reply_status_name(r.reply);
     for (double q : r.q_rad) out += ',', append(out, q);
@@ -952,60 +965,74 @@ std::string RigEmulator::truth_csv() const {
 }
 
 nlohmann::json RigEmulator::summary() const {
-  using nlohmann::json;
+  nlohmann::json s;
+  s["format"] = "zerog-emu-summary";
+  s["version"] = 1;
+  s["scenario"] = scenario_.source.string();
+  s["cycle_s"] = scenario_.cycle_s();
+  s["cycles"] = loop_.records.size();
+  s["duration_s"] = static_cast<double>(loop_.records.size()) * scenario_.cycle_s();
+  s["first_ipoc"] = options_.first_ipoc;
+  robot_loop_summary(s);
+  if (setup_.lockstep) s["lockstep"] = lockstep_summary();
+  s["pushes"] = pushes_summary();
+  s["faults"] = faults_summary();
+  s["physics"] = physics_summary();
+  s["devices"] = devices_summary();
+  return s;
+}
+
+void RigEmulator::robot_loop_summary(nlohmann::json& s) const {
   std::uint64_t missing = 0, cycles_ok = 0, cycles_late = 0, not_sent = 0;
-  for (const CycleRecord& r : records_) {
+  for (const CycleRecord& r : loop_.records) {
     if (!r.sent) ++not_sent;
     if (r.reply == ReplyStatus::ok) ++cycles_ok;
     if (r.reply == ReplyStatus::late) ++cycles_late;
     if (r.sent && r.reply != ReplyStatus::ok && r.reply != ReplyStatus::late) ++missing;
   }
-  json s;
-  s["format"] = "zerog-emu-summary";
-  s["version"] = 1;
-  s["scenario"] = scenario_.source.string();
-  s["cycle_s"] = scenario_.cycle_s();
-  s["cycles"] = records_.size();
-  s["duration_s"] = static_cast<double>(records_.size()) * scenario_.cycle_s();
-  s["first_ipoc"] = options_.first_ipoc;
-  s["datagrams"] = {
-      {"sent", counts_.datagrams_sent},      {"good", counts_.good_sent},
-      {"malformed", counts_.malformed_sent}, {"duplicated", counts_.duplicates_sent},
-      {"foreign", counts_.foreign_sent},     {"cycles_without_good_datagram", not_sent},
-      {"send_errors", counts_.send_errors}};
-  if (lockstep_) {
-    const AtiBoard::Counters b = ft_ != nullptr ? ft_->counters() : AtiBoard::Counters{};
-    s["lockstep"] = {
-        {"events", lockstep_counts_.events},
-        {"datagram_events", lockstep_counts_.datagram_events},
-        {"timeout_events", lockstep_counts_.timeout_events},
-        {"rt_receive_timeout_s", 1e-9 * static_cast<double>(rt_receive_timeout_.count())},
-        {"ft_rate_hz", ft_rate_hz_},
-        {"ft_samples_produced", ft_produced_},
-        {"ft_queue_underruns", b.queue_underruns},
-        {"ft_requests_ignored", b.sample_requests_ignored},  // thermistor reads apart
-        {"ft_samples_left", ft_ != nullptr ? ft_->samples_queued() : 0},
-        {"slowest_answer_s", lockstep_counts_.slowest_ack_s}};
-  }
-  s["replies"] = {{"datagrams", counts_.reply_datagrams},
-                  {"ok", counts_.ok},
-                  {"late", counts_.late},
+  const Counts& c = loop_.counts;
+  s["datagrams"] = {{"sent", c.datagrams_sent},      {"good", c.good_sent},
+                    {"malformed", c.malformed_sent}, {"duplicated", c.duplicates_sent},
+                    {"foreign", c.foreign_sent},     {"cycles_without_good_datagram", not_sent},
+                    {"send_errors", c.send_errors}};
+  s["replies"] = {{"datagrams", c.reply_datagrams},
+                  {"ok", c.ok},
+                  {"late", c.late},
                   {"missing", missing},
-                  {"wrong_ipoc", counts_.wrong_ipoc},
-                  {"malformed", counts_.malformed},
-                  {"duplicate", counts_.duplicate},
-                  {"from_elsewhere", counts_.from_elsewhere},
-                  {"to_foreign_socket", counts_.foreign_replies},
+                  {"wrong_ipoc", c.wrong_ipoc},
+                  {"malformed", c.malformed},
+                  {"duplicate", c.duplicate},
+                  {"from_elsewhere", c.from_elsewhere},
+                  {"to_foreign_socket", c.foreign_replies},
                   {"cycles_ok", cycles_ok},
                   {"cycles_late", cycles_late},
-                  {"before_first_ok", counts_.before_first_ok},
-                  {"first_ok_cycle", counts_.first_ok_cycle}};
-  s["robot"] = {{"delay", delay_count_},
-                {"rkorr_applied", robot_.counters().rkorr_applied},
-                {"akorr_applied", robot_.counters().akorr_applied},
-                {"clamped_cycles", clamped_cycles_},
-                {"near_singular_cycles", near_singular_cycles_},
+                  {"before_first_ok", c.before_first_ok},
+                  {"first_ok_cycle", c.first_ok_cycle}};
+  s["robot"] = {{"delay", loop_.delay_count},
+                {"rkorr_applied", handover_.robot.counters().rkorr_applied},
+                {"akorr_applied", handover_.robot.counters().akorr_applied},
+                {"clamped_cycles", physics_thread_.clamped_cycles},
+                {"near_singular_cycles", physics_thread_.near_singular_cycles},
                 {"servo_bandwidth_hz", scenario_.robot.servo_bandwidth_hz}};
+}
+
+nlohmann::json RigEmulator::lockstep_summary() const {
+  const AtiBoard::Counters b = setup_.ft != nullptr ? setup_.ft->counters() : AtiBoard::Counters{};
+  return {
+      {"events", lockstep_.counts.events},
+      {"datagram_events", lockstep_.counts.datagram_events},
+      {"timeout_events", lockstep_.counts.timeout_events},
+      {"rt_receive_timeout_s", 1e-9 * static_cast<double>(lockstep_.rt_receive_timeout.count())},
+      {"ft_rate_hz", lockstep_.ft_rate_hz},
+      {"ft_samples_produced", lockstep_.ft_produced},
+      {"ft_queue_underruns", b.queue_underruns},
+      {"ft_requests_ignored", b.sample_requests_ignored},  // thermistor reads apart
+      {"ft_samples_left", setup_.ft != nullptr ? setup_.ft->samples_queued() : 0},
+      {"slowest_answer_s", lockstep_.counts.slowest_ack_s}};
+}
+
+nlohmann::json RigEmulator::pushes_summary() const {
+  using nlohmann::json;
   json pushes = json::array();
   for (std::size_t k = 0; k < scenario_.pushes.size(); ++k) {
     const Push& p = scenario_.pushes[k];
@@ -1022,7 +1049,11 @@ nlohmann::json RigEmulator::summary() const {
     j["point_sensor_m"] = p.point_sensor_m ? vec(*p.point_sensor_m) : json("centre_of_mass");
     pushes.push_back(j);
   }
-  s["pushes"] = pushes;
+  return pushes;
+}
+
+nlohmann::json RigEmulator::faults_summary() const {
+  using nlohmann::json;
   json faults = json::array();
   for (std::size_t i = 0; i < faults_.size(); ++i) {
     const Fault& f = scenario_.faults[i];
@@ -1048,19 +1079,25 @@ nlohmann::json RigEmulator::summary() const {
     if (!st.note.empty()) j["note"] = st.note;
     faults.push_back(j);
   }
-  s["faults"] = faults;
-  s["physics"] = {{"rate_hz", physics_.physics_rate_hz()},
-                  {"steps", physics_.steps()},
-                  {"worst_lag_s", worst_lag_s_},
-                  {"late_batches", late_batches_},
-                  {"largest_batch", largest_batch_},
-                  {"imu_samples", imu_samples_},
-                  {"handover_waits", handover_waits_},
-                  {"stale_datagrams", stale_datagrams_},
-                  {"worst_datagram_lag_s", worst_datagram_lag_s_}};
-  json devices = json::object();
-  if (ft_ != nullptr) {
-    const AtiBoard::Counters c = ft_->counters();
+  return faults;
+}
+
+nlohmann::json RigEmulator::physics_summary() const {
+  return {{"rate_hz", physics_.physics_rate_hz()},
+          {"steps", physics_.steps()},
+          {"worst_lag_s", physics_thread_.worst_lag_s},
+          {"late_batches", physics_thread_.late_batches},
+          {"largest_batch", physics_thread_.largest_batch},
+          {"imu_samples", physics_thread_.imu_samples},
+          {"handover_waits", physics_thread_.handover_waits},
+          {"stale_datagrams", loop_.stale_datagrams},
+          {"worst_datagram_lag_s", loop_.worst_datagram_lag_s}};
+}
+
+nlohmann::json RigEmulator::devices_summary() const {
+  nlohmann::json devices = nlohmann::json::object();
+  if (setup_.ft != nullptr) {
+    const AtiBoard::Counters c = setup_.ft->counters();
     devices["ft"] = {{"requests", c.requests},
                      {"sample_requests", c.sample_requests},
                      {"samples_sent", c.samples_sent},
@@ -1072,14 +1109,16 @@ nlohmann::json RigEmulator::summary() const {
                      {"diagnostic_reads", c.diagnostic_reads},
                      {"thermistor_reads", c.thermistor_reads}};
   }
-  if (imu_ != nullptr) {
-    const Stim300Emulator::Counters c = imu_->counters();
-    devices["imu"] = {
-        {"written", c.written}, {"dropped", c.dropped}, {"garbage_bytes", c.garbage_bytes},
-        {"bad_crc", c.bad_crc}, {"skipped", c.skipped}, {"write_failures", imu_dropped_}};
+  if (setup_.imu != nullptr) {
+    const Stim300Emulator::Counters c = setup_.imu->counters();
+    devices["imu"] = {{"written", c.written},
+                      {"dropped", c.dropped},
+                      {"garbage_bytes", c.garbage_bytes},
+                      {"bad_crc", c.bad_crc},
+                      {"skipped", c.skipped},
+                      {"write_failures", physics_thread_.imu_dropped}};
   }
-  s["devices"] = devices;
-  return s;
+  return devices;
 }
 
 }  // namespace zerog::emu

@@ -116,10 +116,10 @@ class RigEmulator {
   /// Runs until the duration has passed or `stop` is set. Call once, after bind().
   void run(const std::atomic<bool>& stop);
 
-  const std::vector<CycleRecord>& cycles() const { return records_; }
+  const std::vector<CycleRecord>& cycles() const { return loop_.records; }
   std::string truth_csv() const;
   nlohmann::json summary() const;
-  const RobotEmulator& robot() const { return robot_; }
+  const RobotEmulator& robot() const { return handover_.robot; }
   const PayloadPhysics& physics() const { return physics_; }
 
  private:
@@ -145,7 +145,7 @@ class RigEmulator {
   /// replies are in.
   void lockstep_exchange(rtio::LockstepKind kind, std::chrono::steady_clock::time_point at,
                          std::uint64_t window);
-  /// The truth of each tick (tick_truth_) into its record, after the run.
+  /// The truth of each tick (truth_.ticks) into its record, after the run.
   void merge_tick_truth();
   /// Emulated time in lockstep, else the steady clock.
   std::chrono::steady_clock::time_point now() const;
@@ -156,7 +156,7 @@ class RigEmulator {
   /// The physics step at which tick n's correction takes effect and its truth is taken: the
   /// first at or after t = n · cycle.
   std::uint64_t tick_step(std::uint64_t n) const;
-  /// Physics thread, robot_mutex_ held: applies the corrections of the ticks at or before step
+  /// Physics thread, handover_.mutex held: applies the corrections of the ticks at or before step
   /// k, waiting for the robot loop to hand them over. False if it stopped before.
   bool apply_due_corrections(std::uint64_t k, std::unique_lock<std::mutex>& lock,
                              const std::atomic<bool>& stop);
@@ -165,38 +165,17 @@ class RigEmulator {
   void receive_pending(std::uint64_t n);
   void send_due(std::chrono::steady_clock::time_point now);
   std::chrono::steady_clock::time_point cycle_start(std::uint64_t n) const;
+  // summary()'s parts, one per owner of what they report.
+  /// "datagrams", "replies" and "robot": the robot loop's counts, the robot's, its clamps.
+  void robot_loop_summary(nlohmann::json& s) const;
+  nlohmann::json lockstep_summary() const;
+  nlohmann::json pushes_summary() const;
+  nlohmann::json faults_summary() const;
+  nlohmann::json physics_summary() const;
+  nlohmann::json devices_summary() const;
 
-  Scenario scenario_;
-  RigEmulatorOptions options_;
-  AtiBoard* ft_;
-  Stim300Emulator* imu_;
-  sockaddr_in bind_addr_{};
-  sockaddr_in rt_addr_{};
-  int fd_ = -1;
-  int foreign_fd_ = -1;
-  std::uint16_t robot_port_ = 0;
-
-  mutable std::mutex robot_mutex_;  // the robot is shared by the physics and the robot loop
-  RobotEmulator robot_;
-  PayloadPhysics physics_;  // stepped by the physics thread only (evaluate() is const)
-  std::chrono::steady_clock::time_point t0_{};
-  std::uint64_t cycle_ms_ = 12;
-  std::uint64_t cycles_total_ = 0;  // 0: until stopped
-  std::atomic<bool> robot_done_{false};
-
-  // Robot loop state.
-  std::vector<CycleRecord> records_;
-  std::vector<ScheduledSend> sends_;
-  std::uint64_t delay_count_ = 0;
-  /// The timely reply of the cycle, applied at the next cycle's tick.
-  std::optional<proto::rsi::Reply> pending_;
-  /// Hands pending_ over to the physics thread as tick n's correction (none if empty).
+  /// Hands loop_.pending over to the physics thread as tick n's correction (none if empty).
   void hand_over(std::uint64_t n);
-  bool any_ok_ = false;
-  std::vector<FaultState> faults_;  // per scenario fault; robot faults: robot loop, devices:
-                                    // physics thread (read after it is joined)
-  std::int64_t reorder_held_ = -1;  // cycle whose datagram is held for after the next one
-  std::string held_bytes_;
 
   struct Counts {
     std::uint64_t datagrams_sent = 0;  ///< every datagram that went out (malformed included)
@@ -211,16 +190,8 @@ class RigEmulator {
     std::uint64_t foreign_replies = 0;  ///< replies to the foreign socket
     std::uint64_t before_first_ok = 0;
     std::int64_t first_ok_cycle = -1;
-  } counts_;
-  std::uint64_t clamped_cycles_ = 0, near_singular_cycles_ = 0;  // physics thread
-
-  // Robot loop → physics thread, under robot_mutex_: each tick's correction (or none), in tick
-  // order from tick 1 (tick 0 starts the run, nothing to apply).
-  std::deque<std::optional<proto::rsi::Reply>> handed_;
-  std::uint64_t ticks_handed_ = 0;  // ticks 1..ticks_handed_ are in handed_ or applied
-  std::condition_variable handed_cv_;
-  /// The truth of each tick, taken by the physics thread at tick_step(n) (under truth_mutex_);
-  /// merged into records_ after the run.
+  };
+  /// The truth of one tick, as the physics thread took it at tick_step(n).
   struct TickTruth {
     sim::JointVector q_rad{};
     TcpMotion tcp;
@@ -228,37 +199,107 @@ class RigEmulator {
     Eigen::Vector3d push_force_base_N = Eigen::Vector3d::Zero();
     Eigen::Vector3d push_torque_com_base_Nm = Eigen::Vector3d::Zero();
   };
-  std::mutex truth_mutex_;
-  std::vector<TickTruth> tick_truth_;
-  std::atomic<std::uint64_t> physics_steps_done_{0};  // the last physics step evaluated
-  std::uint64_t stale_datagrams_ = 0;  // datagrams made while the physics was behind the tick
-  double worst_datagram_lag_s_ = 0.0;
-
-  // Physics thread state (read after join).
-  std::uint64_t next_apply_tick_ = 1;
-  std::uint64_t handover_waits_ = 0;  // steps that waited for the robot loop's hand-over
-  double worst_lag_s_ = 0.0;
-  std::uint64_t late_batches_ = 0;
-  std::uint64_t largest_batch_ = 0;
-  std::uint64_t imu_samples_ = 0;
-  std::uint64_t imu_dropped_ = 0;
-
-  // Lockstep.
-  bool lockstep_ = false;
-  int lockstep_fd_ = -1;
-  std::string lockstep_bound_;       // the socket file this emulator made (removed at destruction)
-  std::vector<char> lockstep_peer_;  // zerog-rt's address (sockaddr_un bytes)
-  std::chrono::steady_clock::time_point lockstep_now_{};
-  std::chrono::steady_clock::time_point last_rt_event_{};  // zerog-rt's last receive returned
-  std::chrono::nanoseconds rt_receive_timeout_{0};
-  std::chrono::nanoseconds rt_ft_sample_timeout_{0};
-  double ft_rate_hz_ = 0.0;
-  std::uint64_t ft_produced_ = 0;
-  const std::atomic<bool>* lockstep_stop_ = nullptr;  // run()'s stop flag
   struct LockstepCounts {
     std::uint64_t events = 0, datagram_events = 0, timeout_events = 0;
     double slowest_ack_s = 0.0;  ///< real time zerog-rt took for one event (information)
-  } lockstep_counts_;
+  };
+
+  Scenario scenario_;
+  RigEmulatorOptions options_;
+
+  // Set by the constructor, t0 by run() before the physics thread starts; read by every thread
+  // after that, never written.
+  struct Setup {
+    AtiBoard* ft = nullptr;
+    Stim300Emulator* imu = nullptr;
+    bool lockstep = false;  // options_.lockstep_path given: one thread, emulated time
+    std::uint64_t cycle_ms = 12;
+    std::uint64_t cycles_total = 0;  // 0: until stopped
+    std::chrono::steady_clock::time_point t0{};
+  } setup_;
+
+  // Opened by bind(), closed by the destructor. The robot loop (in lockstep: the one thread) is
+  // the only one to send or receive; the physics thread never touches a socket.
+  struct Sockets {
+    sockaddr_in bind_addr{};
+    sockaddr_in rt_addr{};
+    int fd = -1;
+    int foreign_fd = -1;
+    std::uint16_t robot_port = 0;
+    int lockstep_fd = -1;
+    std::string lockstep_bound;       // the socket file this emulator made (removed at destruction)
+    std::vector<char> lockstep_peer;  // zerog-rt's address (sockaddr_un bytes), from its hello
+  } sockets_;
+
+  // Shared by the robot loop and the physics thread, everything but robot_done under `mutex`:
+  // the robot, and each tick's correction (or none) handed over from the robot loop to the
+  // physics thread, in tick order from tick 1 (tick 0 starts the run, nothing to apply).
+  // summary() and robot() read the robot after the run.
+  struct Handover {
+    explicit Handover(const RobotConfig& config) : robot(config) {}
+    mutable std::mutex mutex;
+    RobotEmulator robot;
+    std::deque<std::optional<proto::rsi::Reply>> handed;
+    std::uint64_t ticks_handed = 0;  // ticks 1..ticks_handed are in handed or applied
+    std::condition_variable handed_cv;
+    std::atomic<bool> robot_done{false};  // set by run() to end the physics thread
+  } handover_;
+
+  PayloadPhysics physics_;  // stepped by the physics thread only (evaluate() is const)
+
+  // The robot loop's (run()'s thread; in lockstep: the one thread); read by summary(), cycles()
+  // and truth_csv() after the run.
+  struct RobotLoopState {
+    std::vector<CycleRecord> records;
+    std::vector<ScheduledSend> sends;
+    std::uint64_t delay_count = 0;
+    /// The timely reply of the cycle, applied at the next cycle's tick.
+    std::optional<proto::rsi::Reply> pending;
+    bool any_ok = false;
+    std::int64_t reorder_held = -1;  // cycle whose datagram is held for after the next one
+    std::string held_bytes;
+    Counts counts;
+    std::uint64_t stale_datagrams = 0;  // datagrams made while the physics was behind the tick
+    double worst_datagram_lag_s = 0.0;
+  } loop_;
+
+  std::vector<FaultState> faults_;  // per scenario fault; robot faults: robot loop, devices:
+                                    // physics thread (read after it is joined)
+
+  // The physics thread's (in lockstep: the one thread); read after it is joined, but
+  // physics_steps_done, which the robot loop reads while it runs. After the join run() adds the
+  // clamps of the corrections the physics did not reach.
+  struct PhysicsThreadState {
+    std::uint64_t next_apply_tick = 1;
+    std::uint64_t handover_waits = 0;  // steps that waited for the robot loop's hand-over
+    std::uint64_t clamped_cycles = 0, near_singular_cycles = 0;
+    double worst_lag_s = 0.0;
+    std::uint64_t late_batches = 0;
+    std::uint64_t largest_batch = 0;
+    std::uint64_t imu_samples = 0;
+    std::uint64_t imu_dropped = 0;
+    std::atomic<std::uint64_t> physics_steps_done{0};  // the last physics step evaluated
+  } physics_thread_;
+
+  // The truth of each tick, taken by the physics thread at tick_step(n), under `mutex` (run()
+  // reads how many there are while it waits for the last); merged into loop_.records after the
+  // run.
+  struct TruthTicks {
+    std::mutex mutex;
+    std::vector<TickTruth> ticks;
+  } truth_;
+
+  // Lockstep only: run_lockstep's, the one thread; summary() reads it after the run.
+  struct LockstepState {
+    std::chrono::steady_clock::time_point now{};
+    std::chrono::steady_clock::time_point last_rt_event{};  // zerog-rt's last receive returned
+    std::chrono::nanoseconds rt_receive_timeout{0};
+    std::chrono::nanoseconds rt_ft_sample_timeout{0};
+    double ft_rate_hz = 0.0;
+    std::uint64_t ft_produced = 0;
+    const std::atomic<bool>* stop = nullptr;  // run()'s stop flag
+    LockstepCounts counts;
+  } lockstep_;
 };
 
 }  // namespace zerog::emu
