@@ -751,6 +751,36 @@ struct ImuBias {
   detail::Rng& rng_;
 };
 
+// The contacts of a run as the truth file lists them (outside the payload model).
+nlohmann::json contacts_json(const std::vector<Contact>& contacts) {
+  nlohmann::json list = nlohmann::json::array();
+  for (const Contact& k : contacts)
+    list.push_back({{"start_s", k.start_s},
+                    {"duration_s", k.duration_s},
+                    {"wrench", std::vector<double>(k.wrench.data(), k.wrench.data() + 6)},
+                    {"frame", k.base_frame ? "base" : "sensor"},
+                    {"shape", k.shape == Contact::Shape::spike ? "spike" : "plateau"},
+                    {"ramp_s", k.ramp_s}});
+  return list;
+}
+
+// Contacts active at t into `pushes`, each at its shape's share (at most a few: no allocation);
+// returns how many.
+std::size_t active_pushes(const std::vector<Contact>& contacts, double t,
+                          std::array<ExternalWrench, 8>& pushes) {
+  std::size_t active = 0;
+  for (const Contact& contact : contacts) {
+    const double f = contact.factor_at(t);
+    if (f == 0.0 || active == pushes.size()) continue;
+    ExternalWrench& p = pushes[active++];
+    const Eigen::Vector3d force = f * contact.wrench.head<3>();
+    const Eigen::Vector3d torque = f * contact.wrench.tail<3>();
+    (contact.base_frame ? p.force_base_N : p.force_sensor_N) = force;
+    (contact.base_frame ? p.torque_base_Nm : p.torque_sensor_Nm) = torque;
+  }
+  return active;
+}
+
 }  // namespace
 
 SimOutput RigSimulator::run(const std::function<void(double)>& progress) const {
@@ -773,17 +803,7 @@ SimOutput RigSimulator::run(const std::function<void(double)>& progress) const {
     throw std::invalid_argument("at most 8 contacts in one run, got " +
                                 std::to_string(c.contacts.size()));
   // Outside the payload model: listed for the user and the tests, never predicted by the truth.
-  if (!c.contacts.empty()) {
-    nlohmann::json list = nlohmann::json::array();
-    for (const Contact& k : c.contacts)
-      list.push_back({{"start_s", k.start_s},
-                      {"duration_s", k.duration_s},
-                      {"wrench", std::vector<double>(k.wrench.data(), k.wrench.data() + 6)},
-                      {"frame", k.base_frame ? "base" : "sensor"},
-                      {"shape", k.shape == Contact::Shape::spike ? "spike" : "plateau"},
-                      {"ramp_s", k.ramp_s}});
-    out.truth.extra["contacts"] = list;
-  }
+  if (!c.contacts.empty()) out.truth.extra["contacts"] = contacts_json(c.contacts);
   out.stats.samples = n;
   out.stats.trajectory_duration_s = trajectory_.duration_s();
   out.stats.lowest_point_z_m = std::numeric_limits<double>::infinity();
@@ -828,18 +848,8 @@ SimOutput RigSimulator::run(const std::function<void(double)>& progress) const {
     // error, no elasticity).
     set_nominal_pose(s, s.joints_rad, c);
 
-    // Contacts active at t, each at its shape's share (at most a few: no allocation).
     std::array<ExternalWrench, 8> pushes;
-    std::size_t active = 0;
-    for (const Contact& contact : c.contacts) {
-      const double f = contact.factor_at(t);
-      if (f == 0.0 || active == pushes.size()) continue;
-      ExternalWrench& p = pushes[active++];
-      const Eigen::Vector3d force = f * contact.wrench.head<3>();
-      const Eigen::Vector3d torque = f * contact.wrench.tail<3>();
-      (contact.base_frame ? p.force_base_N : p.force_sensor_N) = force;
-      (contact.base_frame ? p.torque_base_Nm : p.torque_sensor_Nm) = torque;
-    }
+    const std::size_t active = active_pushes(c.contacts, t, pushes);
     // With elasticity the IMU delay shifts the motor path and keeps the link's deflection at t.
     JointState js_imu = trajectory_.at(t - imu_delay_s());
     if (c.elastic.enabled)
