@@ -1392,6 +1392,66 @@ std::optional<Discovery> discover_beyond(const Dataset& data, const Baseline& ba
   return x;
 }
 
+// The verdict "effect": the best candidate pays and explains at least half the structure. Its
+// sentence goes to `os` (after nothing), and the command that fits it to d.command.
+void effect_verdict(Diagnosis& d, const DiagnoseOptions& o, const ErrorStats& h,
+                    std::ostringstream& os) {
+  const Candidate& c = d.candidates[0];
+  d.verdict = Diagnosis::Verdict::effect;
+  const auto& ch = c.heldout.stats;
+  const std::string summary =
+      c.user >= 0 ? "your effect file " + o.user_candidates[static_cast<std::size_t>(c.user)].source
+                  : std::string(model::info(c.effect).summary);
+  const int num_params = c.user >= 0
+                             ? o.user_candidates[static_cast<std::size_t>(c.user)].effect.num_terms
+                             : model::info(c.effect).num_params;
+  auto params_of = [&](const Candidate& x) {
+    return x.user >= 0 ? o.user_candidates[static_cast<std::size_t>(x.user)].effect.num_terms
+                       : model::info(x.effect).num_params;
+  };
+  os << "Missing effect: " << c.name << " (" << summary << "). Adding it removes "
+     << fmt("%.0f", 100 * c.gain) << "% of the held-out error (force RMS "
+     << fmt("%.3f", h.force_rms) << " -> " << fmt("%.3f", ch.force_rms) << " N, torque RMS "
+     << fmt("%.3f", h.torque_rms) << " -> " << fmt("%.3f", ch.torque_rms) << " N*m)";
+  if (d.candidates.size() > 1 && gains_tie(c.gain, d.candidates[1].gain)) {
+    const Candidate& alt = d.candidates[1];
+    os << "; " << alt.name << " removes as much (" << fmt("%.0f", 100 * alt.gain)
+       << "%) because it can mimic it, but with " << params_of(alt) << " parameters against "
+       << num_params << ": the information criterion prefers " << c.name;
+  } else if (d.candidates.size() > 1) {
+    os << "; the next best, " << d.candidates[1].name << ", removes "
+       << fmt("%.0f", 100 * d.candidates[1].gain) << "%";
+  }
+  os << ". Estimated: " << param_summary(c) << ".";
+  {
+    // The model as given plus the candidate: a library name goes before the files.
+    std::string library = model_with(c.effects, d, o);
+    if (c.user >= 0) library += ",@" + o.user_candidates[static_cast<std::size_t>(c.user)].source;
+    d.command = "zerog fit " + o.log_path + " --effects " + library + " --out " + o.fit_out;
+  }
+}
+
+// The verdict "discovered": the sentence on the dictionary law, after the "none" sentence in `os`.
+void discovered_verdict(Diagnosis& d, const ErrorStats& h, std::ostringstream& os) {
+  Discovery& x = *d.discovery;
+  d.verdict = Diagnosis::Verdict::discovered;
+  os << " Discovered in the signal dictionary";
+  if (!x.with_effect.empty())
+    os << " on top of " << x.with_effect << " (which pays on its own but leaves structure)";
+  os << " (" << x.dictionary_size << " basis-axis columns searched, each term |z| > "
+     << fmt("%.1f", x.z_threshold) << " and validated on held-out blocks): ";
+  for (std::size_t j = 0; j < x.laws.size(); ++j) os << (j ? "; " : "") << x.laws[j];
+  if (!x.with_effect.empty())
+    os << ". Adding " << x.with_effect << " and the law (each is needed; the law removes "
+       << fmt("%.0f", 100 * x.law_gain) << "% of what " << x.with_effect << " leaves) removes "
+       << fmt("%.0f", 100 * x.gain);
+  else
+    os << ". Adding it removes " << fmt("%.0f", 100 * x.gain);
+  os << "% of the held-out error (force RMS " << fmt("%.3f", h.force_rms) << " -> "
+     << fmt("%.3f", x.heldout.stats.force_rms) << " N, torque RMS " << fmt("%.3f", h.torque_rms)
+     << " -> " << fmt("%.3f", x.heldout.stats.torque_rms) << " N*m).";
+}
+
 // The diagnosis of the physics: the model's held-out error, the candidates, a law (diagnose()
 // looks for events first).
 Diagnosis diagnose_physics(const Dataset& data, const DiagnoseOptions& o) {
@@ -1436,40 +1496,7 @@ Diagnosis diagnose_physics(const Dataset& data, const DiagnoseOptions& o) {
        << fmt("%.0f", 100 * d.structured_fraction)
        << "% of it is structured): nothing is missing that the library could add.";
   } else if (!d.candidates.empty() && d.candidates[0].gain > 0.02 && explained >= 0.5) {
-    const Candidate& c = d.candidates[0];
-    d.verdict = Diagnosis::Verdict::effect;
-    const auto& ch = c.heldout.stats;
-    const std::string summary =
-        c.user >= 0
-            ? "your effect file " + o.user_candidates[static_cast<std::size_t>(c.user)].source
-            : std::string(model::info(c.effect).summary);
-    const int num_params =
-        c.user >= 0 ? o.user_candidates[static_cast<std::size_t>(c.user)].effect.num_terms
-                    : model::info(c.effect).num_params;
-    auto params_of = [&](const Candidate& x) {
-      return x.user >= 0 ? o.user_candidates[static_cast<std::size_t>(x.user)].effect.num_terms
-                         : model::info(x.effect).num_params;
-    };
-    os << "Missing effect: " << c.name << " (" << summary << "). Adding it removes "
-       << fmt("%.0f", 100 * c.gain) << "% of the held-out error (force RMS "
-       << fmt("%.3f", h.force_rms) << " -> " << fmt("%.3f", ch.force_rms) << " N, torque RMS "
-       << fmt("%.3f", h.torque_rms) << " -> " << fmt("%.3f", ch.torque_rms) << " N*m)";
-    if (d.candidates.size() > 1 && gains_tie(c.gain, d.candidates[1].gain)) {
-      const Candidate& alt = d.candidates[1];
-      os << "; " << alt.name << " removes as much (" << fmt("%.0f", 100 * alt.gain)
-         << "%) because it can mimic it, but with " << params_of(alt) << " parameters against "
-         << num_params << ": the information criterion prefers " << c.name;
-    } else if (d.candidates.size() > 1) {
-      os << "; the next best, " << d.candidates[1].name << ", removes "
-         << fmt("%.0f", 100 * d.candidates[1].gain) << "%";
-    }
-    os << ". Estimated: " << param_summary(c) << ".";
-    {
-      // The model as given plus the candidate: a library name goes before the files.
-      std::string library = model_with(c.effects, d, o);
-      if (c.user >= 0) library += ",@" + o.user_candidates[static_cast<std::size_t>(c.user)].source;
-      d.command = "zerog fit " + o.log_path + " --effects " + library + " --out " + o.fit_out;
-    }
+    effect_verdict(d, o, h, os);
   } else {
     d.verdict = Diagnosis::Verdict::none;
     if (o.discover) {
@@ -1495,23 +1522,7 @@ Diagnosis diagnose_physics(const Dataset& data, const DiagnoseOptions& o) {
       os << ". Look for a physical cause tied to " << d.correlated[0].signal << ".";
     }
     if (d.discovery) {
-      Discovery& x = *d.discovery;
-      d.verdict = Diagnosis::Verdict::discovered;
-      os << " Discovered in the signal dictionary";
-      if (!x.with_effect.empty())
-        os << " on top of " << x.with_effect << " (which pays on its own but leaves structure)";
-      os << " (" << x.dictionary_size << " basis-axis columns searched, each term |z| > "
-         << fmt("%.1f", x.z_threshold) << " and validated on held-out blocks): ";
-      for (std::size_t j = 0; j < x.laws.size(); ++j) os << (j ? "; " : "") << x.laws[j];
-      if (!x.with_effect.empty())
-        os << ". Adding " << x.with_effect << " and the law (each is needed; the law removes "
-           << fmt("%.0f", 100 * x.law_gain) << "% of what " << x.with_effect << " leaves) removes "
-           << fmt("%.0f", 100 * x.gain);
-      else
-        os << ". Adding it removes " << fmt("%.0f", 100 * x.gain);
-      os << "% of the held-out error (force RMS " << fmt("%.3f", h.force_rms) << " -> "
-         << fmt("%.3f", x.heldout.stats.force_rms) << " N, torque RMS " << fmt("%.3f", h.torque_rms)
-         << " -> " << fmt("%.3f", x.heldout.stats.torque_rms) << " N*m).";
+      discovered_verdict(d, h, os);
       write_discovery(d, o);
     }
   }
@@ -1569,6 +1580,166 @@ Diagnosis start_diagnosis(const model::EffectSet& model, const Dataset& data) {
   return d;
 }
 
+namespace {
+
+// The event scan's outcome: the last scan, and the model it scanned.
+struct EventScan {
+  SpanScan scan;
+  model::ModelParams params;
+  bool fitted = false;  // false: the model could not be fitted on the rows kept
+};
+
+// The model on every row kept, its residual scanned for spans that stand out (events.hpp),
+// refitted without the spans found and scanned again until the spans stay, at most three times.
+EventScan scan_events(const Dataset& data, const DiagnoseOptions& o,
+                      const std::vector<std::uint8_t>& user) {
+  const std::size_t n = data.size();
+  FitOptions fo = o.fit;
+  fo.progress = nullptr;
+  fo.covariance = false;  // only the residual is scanned
+  std::vector<std::uint8_t> use(n), in_spans(n, 0);
+  EventScan out;
+  SpanScan& scan = out.scan;
+  for (int turn = 0; turn < 3; ++turn) {
+    for (std::size_t i = 0; i < n; ++i) use[i] = (user[i] || in_spans[i]) ? 0 : 1;
+    fo.mask = &use;
+    const FitResult f = fit(data, fo);
+    if (!f.usable) break;
+    out.fitted = true;
+    out.params = f.params;
+    SpanScan next = find_spans(residuals(f.params, data), data, &user, o.event_options);
+    bool same = turn > 0 && next.spans.size() == scan.spans.size();
+    for (std::size_t q = 0; same && q < next.spans.size(); ++q)
+      same = next.spans[q].first + next.window_rows >= scan.spans[q].first &&
+             scan.spans[q].first + next.window_rows >= next.spans[q].first &&
+             next.spans[q].last + next.window_rows >= scan.spans[q].last &&
+             scan.spans[q].last + next.window_rows >= next.spans[q].last;
+    scan = std::move(next);
+    in_spans = span_mask(data, scan.spans);
+    if (same || scan.spans.empty() || scan.recurring) break;
+  }
+  return out;
+}
+
+// The spans taken for events, and why the others are not.
+struct SpanSort {
+  std::vector<Span> events;
+  std::string note;
+};
+
+SpanSort sort_spans(const SpanScan& scan, const DiagnoseOptions& o) {
+  SpanSort out;
+  if (o.events_mutant_every_span) {
+    out.events = scan.spans;
+  } else if (scan.recurring) {
+    out.note = std::to_string(scan.spans.size()) + " spans stand out, covering " +
+               fmt("%.0f", 100 * scan.coverage) +
+               "% of the log: a pattern that recurs is the model's, not events";
+  } else {
+    std::size_t tied = 0;
+    for (const Span& s : scan.spans) {
+      if (s.tied_to_motion())
+        ++tied;
+      else
+        out.events.push_back(s);
+    }
+    if (tied)
+      out.note =
+          std::to_string(tied) +
+          " span(s) start and end with the robot's motion: physics of the motion, not events";
+  }
+  return out;
+}
+
+// The whole log's answer (`physics()` gives its diagnosis), with its best library candidate too
+// when that pays something (a law can take the verdict while a library effect explains part of
+// the rest); none if it proposes nothing or cannot be diagnosed.
+template <class Physics>
+std::optional<model::ModelParams> whole_log_answer(Physics& physics) {
+  try {
+    const Diagnosis& whole = physics();
+    model::ModelParams p = answer_params(whole);
+    bool any = whole.verdict == Diagnosis::Verdict::effect ||
+               whole.verdict == Diagnosis::Verdict::discovered;
+    if (!whole.candidates.empty() && whole.candidates[0].user < 0 &&
+        whole.candidates[0].gain > 0.02 && !p.effects.has(whole.candidates[0].effect)) {
+      const model::Effect e = whole.candidates[0].effect;
+      p.effects.add(e);
+      p.values[model::index(e)] = whole.candidates[0].fit.params.values[model::index(e)];
+      any = true;
+    }
+    if (any) return p;
+  } catch (const std::exception&) {
+    // Nothing the whole log asks for: the rest's diagnosis alone decides.
+  }
+  return std::nullopt;
+}
+
+// The residual of `answer` refitted on the rows not `without`; empty if it cannot be fitted.
+std::vector<Wrench> residuals_without(const Dataset& data, const DiagnoseOptions& o,
+                                      const model::ModelParams& answer,
+                                      const std::vector<std::uint8_t>& without) {
+  const std::size_t n = data.size();
+  std::vector<Wrench> res_whole;
+  std::vector<std::uint8_t> keep(n);
+  for (std::size_t i = 0; i < n; ++i) keep[i] = without[i] ? 0 : 1;
+  FitOptions wo = o.fit;
+  wo.effects = answer.effects;
+  wo.user = answer.user;
+  wo.initial = &answer;
+  wo.mask = &keep;
+  wo.covariance = false;
+  wo.progress = nullptr;
+  try {
+    const FitResult r = fit(data, wo);
+    if (r.usable) res_whole = residuals(r.params, data);
+  } catch (const std::exception&) {
+    // The whole log's effect cannot be fitted without the spans: the rest decides.
+  }
+  return res_whole;
+}
+
+// The verdict "event": the spans, and the rest's diagnosis (`rest`, or why there is none).
+Diagnosis event_diagnosis(const Dataset& data, const DiagnoseOptions& o,
+                          std::optional<Diagnosis> rest, const std::string& rest_error,
+                          const model::ModelParams& scanned_params, SpanScan scan,
+                          std::vector<Span> events, std::string note) {
+  Diagnosis d;
+  if (rest) {
+    d = std::move(*rest);
+  } else {
+    d = start_diagnosis(o.fit.effects, data);
+    d.baseline.params = scanned_params;
+  }
+  d.scan = std::move(scan);
+  d.events = events;
+  d.spans_note = std::move(note);
+  d.exclude = join_exclude(o.exclude_text, exclude_text(events));
+  const std::string outside_verdict = d.text;
+  d.verdict = Diagnosis::Verdict::event;
+  std::ostringstream os;
+  os << "Events, not physics: " << events.size()
+     << (events.size() == 1 ? " span where" : " spans where")
+     << " the residual leaves its level and comes back (a contact, a collision or a snag: a "
+        "wrench from outside the payload). No effect or law is proposed for "
+     << (events.size() == 1 ? "it" : "them") << ":\n"
+     << format_spans(events, "  ");
+  if (rest)
+    os << "Without " << (events.size() == 1 ? "it" : "them") << ": " << outside_verdict;
+  else
+    os << "The rest of the log cannot be diagnosed on its own (" << rest_error
+       << "); refit without the spans, and record a longer log to diagnose the physics.";
+  d.text = os.str();
+  const std::string model =
+      o.model_text.empty() ? io::model_spec_string(d.model, o.fit.user) : o.model_text;
+  d.command = !d.command.empty() ? d.command + " --exclude " + d.exclude
+                                 : "zerog fit " + o.log_path + " --effects " + model +
+                                       " --exclude " + d.exclude + " --out " + o.fit_out;
+  return d;
+}
+
+}  // namespace
+
 Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
   const std::size_t n = data.size();
   // Every command printed keeps the rows the user left out.
@@ -1588,58 +1759,20 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
   // refitted without the spans found and scanned again (a long contact pulls the first fit
   // towards itself) until the spans stay, at most three times.
   if (o.progress) o.progress("diagnose: looking for events (spans that stand out in time)");
-  FitOptions fo = o.fit;
-  fo.progress = nullptr;
-  fo.covariance = false;  // only the residual is scanned
-  std::vector<std::uint8_t> use(n), in_spans(n, 0);
-  SpanScan scan;
-  model::ModelParams scanned_params;
-  bool fitted = false;
+  EventScan first;
   try {
-    for (int turn = 0; turn < 3; ++turn) {
-      for (std::size_t i = 0; i < n; ++i) use[i] = (user[i] || in_spans[i]) ? 0 : 1;
-      fo.mask = &use;
-      const FitResult f = fit(data, fo);
-      if (!f.usable) break;
-      fitted = true;
-      scanned_params = f.params;
-      SpanScan next = find_spans(residuals(f.params, data), data, &user, o.event_options);
-      bool same = turn > 0 && next.spans.size() == scan.spans.size();
-      for (std::size_t q = 0; same && q < next.spans.size(); ++q)
-        same = next.spans[q].first + next.window_rows >= scan.spans[q].first &&
-               scan.spans[q].first + next.window_rows >= next.spans[q].first &&
-               next.spans[q].last + next.window_rows >= scan.spans[q].last &&
-               scan.spans[q].last + next.window_rows >= next.spans[q].last;
-      scan = std::move(next);
-      in_spans = span_mask(data, scan.spans);
-      if (same || scan.spans.empty() || scan.recurring) break;
-    }
+    first = scan_events(data, o, user);
   } catch (const std::exception&) {
     // A model that cannot be fitted on all kept rows: the physics diagnosis says why.
     return finish(diagnose_physics(data, o));
   }
-  if (!fitted) return finish(diagnose_physics(data, o));
+  if (!first.fitted) return finish(diagnose_physics(data, o));
+  SpanScan scan = std::move(first.scan);
+  const model::ModelParams& scanned_params = first.params;
 
-  std::vector<Span> events;
-  std::string note;
-  if (o.events_mutant_every_span) {
-    events = scan.spans;
-  } else if (scan.recurring) {
-    note = std::to_string(scan.spans.size()) + " spans stand out, covering " +
-           fmt("%.0f", 100 * scan.coverage) +
-           "% of the log: a pattern that recurs is the model's, not events";
-  } else {
-    std::size_t tied = 0;
-    for (const Span& s : scan.spans) {
-      if (s.tied_to_motion())
-        ++tied;
-      else
-        events.push_back(s);
-    }
-    if (tied)
-      note = std::to_string(tied) +
-             " span(s) start and end with the robot's motion: physics of the motion, not events";
-  }
+  SpanSort sorted = sort_spans(scan, o);
+  std::vector<Span>& events = sorted.events;
+  std::string& note = sorted.note;
   // The whole log's physics diagnosis, once, and without writing a law's file: that is written
   // only when it is the verdict (plain()).
   std::optional<Diagnosis> whole_log;
@@ -1676,27 +1809,8 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
   // The physics the whole log asks for: the effect or law of its diagnosis with the spans in
   // (a long pose-dependent residual, a missing cable in a short run, can look like an
   // excursion, and leaving it out can leave the rest without what identifies the effect).
-  std::optional<model::ModelParams> whole_answer;
-  if (!o.events_mutant_every_span) {
-    try {
-      const Diagnosis& whole = physics();
-      // Its answer, with its best library candidate too when that pays something (a law can
-      // take the verdict while a library effect explains part of the rest).
-      model::ModelParams p = answer_params(whole);
-      bool any = whole.verdict == Diagnosis::Verdict::effect ||
-                 whole.verdict == Diagnosis::Verdict::discovered;
-      if (!whole.candidates.empty() && whole.candidates[0].user < 0 &&
-          whole.candidates[0].gain > 0.02 && !p.effects.has(whole.candidates[0].effect)) {
-        const model::Effect e = whole.candidates[0].effect;
-        p.effects.add(e);
-        p.values[model::index(e)] = whole.candidates[0].fit.params.values[model::index(e)];
-        any = true;
-      }
-      if (any) whole_answer = p;
-    } catch (const std::exception&) {
-      // Nothing the whole log asks for: the rest's diagnosis alone decides.
-    }
-  }
+  const std::optional<model::ModelParams> whole_answer =
+      o.events_mutant_every_span ? std::nullopt : whole_log_answer(physics);
   // The rest of the log diagnosed without them; a span that the answer (the model with what it
   // proposes: the rest's, or the whole log's), fitted elsewhere, predicts is physics after all.
   std::optional<Diagnosis> rest;
@@ -1716,24 +1830,8 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
     }
     if (o.events_mutant_every_span) break;
     const std::vector<Wrench> res = residuals(rest ? answer_params(*rest) : scanned_params, data);
-    std::vector<Wrench> res_whole;
-    if (whole_answer) {
-      std::vector<std::uint8_t> keep(n);
-      for (std::size_t i = 0; i < n; ++i) keep[i] = without[i] ? 0 : 1;
-      FitOptions wo = o.fit;
-      wo.effects = whole_answer->effects;
-      wo.user = whole_answer->user;
-      wo.initial = &*whole_answer;
-      wo.mask = &keep;
-      wo.covariance = false;
-      wo.progress = nullptr;
-      try {
-        const FitResult r = fit(data, wo);
-        if (r.usable) res_whole = residuals(r.params, data);
-      } catch (const std::exception&) {
-        // The whole log's effect cannot be fitted without the spans: the rest decides.
-      }
-    }
+    const std::vector<Wrench> res_whole =
+        whole_answer ? residuals_without(data, o, *whole_answer, without) : std::vector<Wrench>{};
     std::vector<Span> kept;
     for (const Span& s : events)
       if (span_deviation(res, s, scan.window_rows, without, scan.scale) >= scan.z_step &&
@@ -1747,38 +1845,8 @@ Diagnosis diagnose(const Dataset& data, const DiagnoseOptions& o) {
   }
   if (events.empty()) return plain(note);
 
-  Diagnosis d;
-  if (rest) {
-    d = std::move(*rest);
-  } else {
-    d = start_diagnosis(o.fit.effects, data);
-    d.baseline.params = scanned_params;
-  }
-  d.scan = scan;
-  d.events = events;
-  d.spans_note = note;
-  d.exclude = join_exclude(o.exclude_text, exclude_text(events));
-  const std::string outside_verdict = d.text;
-  d.verdict = Diagnosis::Verdict::event;
-  std::ostringstream os;
-  os << "Events, not physics: " << events.size()
-     << (events.size() == 1 ? " span where" : " spans where")
-     << " the residual leaves its level and comes back (a contact, a collision or a snag: a "
-        "wrench from outside the payload). No effect or law is proposed for "
-     << (events.size() == 1 ? "it" : "them") << ":\n"
-     << format_spans(events, "  ");
-  if (rest)
-    os << "Without " << (events.size() == 1 ? "it" : "them") << ": " << outside_verdict;
-  else
-    os << "The rest of the log cannot be diagnosed on its own (" << rest_error
-       << "); refit without the spans, and record a longer log to diagnose the physics.";
-  d.text = os.str();
-  const std::string model =
-      o.model_text.empty() ? io::model_spec_string(d.model, o.fit.user) : o.model_text;
-  d.command = !d.command.empty() ? d.command + " --exclude " + d.exclude
-                                 : "zerog fit " + o.log_path + " --effects " + model +
-                                       " --exclude " + d.exclude + " --out " + o.fit_out;
-  return d;
+  return event_diagnosis(data, o, std::move(rest), rest_error, scanned_params, std::move(scan),
+                         std::move(events), std::move(note));
 }
 
 std::vector<LadderStep> ladder(const Dataset& data, const LadderOptions& o) {

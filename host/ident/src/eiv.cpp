@@ -199,11 +199,11 @@ bool errors_in_variables_applies(const FitOptions& o, const Dataset& data, std::
   return on;
 }
 
-void correct_errors_in_variables(const Dataset& data, const FitOptions& o,
-                                 const SampleBlocks& blocks, FitResult& r) {
-  EivSummary& s = r.errors_in_variables;
-  s.mode = o.errors_in_variables;
-  // The row noise: options, else the rig, else estimated (per group).
+namespace {
+
+// Phase 1: the row noise: options, else the rig, else estimated (per group), and what the
+// correction will not cover. Returns whether the angular acceleration is differenced from the rate.
+bool choose_row_noise(const Dataset& data, const FitOptions& o, EivSummary& s) {
   const ImuRowNoise estimated = estimate_imu_row_noise(data);
   std::string gyro_source = "estimated", accel_source = "estimated";
   s.noise = estimated;
@@ -230,6 +230,181 @@ void correct_errors_in_variables(const Dataset& data, const FitOptions& o,
   for (int k = 0; k < 3; ++k)
     any_noise = any_noise || s.noise.gyro_radps[k] > 0.0 || s.noise.accel_mps2[k] > 0.0;
   if (!any_noise) s.reason += " (no IMU row noise given or estimable: nothing to correct)";
+  return difference;
+}
+
+// S = E[δJᵀδJ] and c = E[δJᵀδp] at θ̂.
+struct NoiseMoments {
+  Eigen::MatrixXd S;
+  Eigen::VectorXd c;
+};
+
+// Phase 2: the moments at θ̂ = r.params, over deterministic draws of the row noise.
+NoiseMoments expected_noise_moments(const Dataset& data, const SampleBlocks& blocks,
+                                    const FitResult& r, const FreeParams& f,
+                                    const std::vector<double>& step, const BlockPredictor& logged,
+                                    const ImuRowNoise& noise, bool difference) {
+  const auto p = static_cast<Eigen::Index>(f.value.size());
+  model::ModelParams theta_hat = r.params;
+  NoiseMoments m{Eigen::MatrixXd::Zero(p, p), Eigen::VectorXd::Zero(p)};
+  Eigen::VectorXd p0, p1;
+  Eigen::MatrixXd J0, J1;
+  model::ModelParams work = theta_hat;
+  jacobian(logged, work, f, step, p0, J0);
+  Dataset noisy = data;
+  noisy.release_rows(0, noisy.size());  // the copy walked every row (spill.hpp)
+  data.release_rows(0, data.size());
+  std::mt19937_64 rng(0x5eed'e1f5ULL);
+  std::normal_distribution<double> normal;
+  for (int d = 0; d < kEivDraws; ++d) {
+    ResidentWindow window(data), noisy_window(noisy);
+    for (std::size_t i = 0; i < data.size(); ++i) {
+      window.advance(i);
+      noisy_window.advance(i);
+      for (int k = 0; k < 3; ++k) {
+        noisy.imu[i * 9 + static_cast<std::size_t>(k)] =
+            data.imu[i * 9 + static_cast<std::size_t>(k)] + noise.accel_mps2[k] * normal(rng);
+        noisy.imu[i * 9 + 3 + static_cast<std::size_t>(k)] =
+            data.imu[i * 9 + 3 + static_cast<std::size_t>(k)] + noise.gyro_radps[k] * normal(rng);
+      }
+    }
+    if (difference) angular_accel_from_rate(noisy);
+    const BlockPredictor perturbed(noisy, blocks, r.params, r.sigma);
+    jacobian(perturbed, work, f, step, p1, J1);
+    const Eigen::MatrixXd dJ = J1 - J0;
+    m.S += dJ.transpose() * dJ;
+    m.c += dJ.transpose() * (p1 - p0);
+  }
+  m.S /= kEivDraws;
+  m.c /= kEivDraws;
+  return m;
+}
+
+// The corrected θ and the identified subspace at its last Jacobian, which the covariance uses.
+struct CorrectedSolve {
+  Eigen::VectorXd theta0, theta;  // the fit's and the corrected free parameters
+  Eigen::MatrixXd J, V, M;        // M = Vᵀ D (JᵀJ − S) D V
+  Eigen::VectorXd d, lambda;      // D's diagonal, and Vᵀ D JᵀJ D V = diag(lambda)
+};
+
+// As the fit's covariance: columns scaled to unit diagonal of JᵀJ, and only the directions it
+// identifies (eigenvalues above 1e-9 of the largest); rank-deficient combinations keep the
+// fit's values. A parameter the prediction does not depend on at all (a zero column, e.g.
+// base_tilt beside linear_inertia, which takes gravity from the IMU) keeps its value: scaled by
+// 1/√1e-300 instead, the rounding in the eigenvectors' other columns threw it to 1e140.
+void identified_subspace(const Eigen::MatrixXd& S, CorrectedSolve& g) {
+  const Eigen::Index p = g.J.cols();
+  const Eigen::MatrixXd JtJ = g.J.transpose() * g.J;
+  g.d = JtJ.diagonal().unaryExpr([](double v) { return v > 0.0 ? 1.0 / std::sqrt(v) : 0.0; });
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(g.d.asDiagonal() * JtJ *
+                                                           g.d.asDiagonal());
+  const double lmax = eig.eigenvalues().maxCoeff();
+  std::vector<Eigen::Index> keep;
+  for (Eigen::Index k = 0; k < p; ++k)
+    if (eig.eigenvalues()[k] > 1e-9 * lmax) keep.push_back(k);
+  g.V.resize(p, static_cast<Eigen::Index>(keep.size()));
+  g.lambda.resize(g.V.cols());
+  for (Eigen::Index k = 0; k < g.V.cols(); ++k) {
+    g.V.col(k) = eig.eigenvectors().col(keep[static_cast<std::size_t>(k)]);
+    g.lambda[k] = eig.eigenvalues()[keep[static_cast<std::size_t>(k)]];
+  }
+  g.M = g.V.transpose() * (g.d.asDiagonal() * (JtJ - S) * g.d.asDiagonal()) * g.V;
+}
+
+// Phase 3: Gauss–Newton on Q(θ) = ‖r̃‖² − E‖δp‖², δp linearised about θ̂. Moves the free
+// parameters in r.params (through f) and counts s.iterations.
+CorrectedSolve corrected_gauss_newton(const BlockPredictor& logged, const Eigen::VectorXd& y,
+                                      FitResult& r, const FreeParams& f,
+                                      const std::vector<double>& step, const NoiseMoments& m,
+                                      EivSummary& s) {
+  const auto p = static_cast<Eigen::Index>(f.value.size());
+  CorrectedSolve g;
+  Eigen::VectorXd pred;
+  g.theta0.resize(p);
+  for (Eigen::Index q = 0; q < p; ++q) g.theta0[q] = *f.value[static_cast<std::size_t>(q)];
+  g.theta = g.theta0;
+  for (int it = 0; it < 10; ++it) {
+    jacobian(logged, r.params, f, step, pred, g.J);
+    const Eigen::VectorXd res = y - pred;
+    identified_subspace(m.S, g);
+    const Eigen::VectorXd grad = g.J.transpose() * res + m.c + m.S * (g.theta - g.theta0);
+    const Eigen::LDLT<Eigen::MatrixXd> ldlt(g.M);
+    if (ldlt.info() != Eigen::Success || !ldlt.isPositive() || (ldlt.vectorD().array() <= 0).any())
+      throw std::runtime_error(
+          "errors in variables: JᵀJ − S is not positive definite (the IMU noise swamps the "
+          "regressors); fit without the correction");
+    const Eigen::VectorXd delta =
+        g.d.asDiagonal() * (g.V * ldlt.solve(g.V.transpose() * (g.d.asDiagonal() * grad)));
+    g.theta += delta;
+    for (Eigen::Index q = 0; q < p; ++q) *f.value[static_cast<std::size_t>(q)] = g.theta[q];
+    ++s.iterations;
+    // Converged when no parameter moves by more than 1e-6 of its step scale.
+    bool small = true;
+    for (Eigen::Index q = 0; q < p; ++q)
+      small = small && std::abs(delta[q]) <= 1e-6 * std::max(std::abs(g.theta[q]), 1e-3);
+    if (small) break;
+  }
+  return g;
+}
+
+// Phase 4: residual RMS per axis over the blocks' rows at the corrected θ.
+void corrected_residual_rms(const Dataset& data, const SampleBlocks& blocks, FitResult& r) {
+  std::array<double, 6> ss{};
+  std::size_t n = 0;
+  ResidentWindow window(data);
+  for (const auto& [first, count] : blocks) {
+    window.advance(first + count);
+    for (std::size_t i = first; i < first + count; ++i, ++n) {
+      const Wrench e = data.measured[i] - predict(r.params, data, i);
+      for (int k = 0; k < 6; ++k) ss[k] += e[k] * e[k];
+    }
+  }
+  for (int k = 0; k < 6; ++k) r.residual_rms[k] = std::sqrt(ss[k] / static_cast<double>(n));
+}
+
+// Phase 5: the sandwich covariance at the corrected θ, s² D V M⁻¹ (Vᵀ D JᵀJ D V = Λ) M⁻¹ Vᵀ D,
+// into r's deviations, and the largest shift in the fit's deviations into s.
+void corrected_covariance(const CorrectedSolve& g, const FreeParams& f, double ssr, double n_res,
+                          FitResult& r, EivSummary& s) {
+  const auto p = static_cast<Eigen::Index>(f.value.size());
+  const double s2 = ssr / std::max(1.0, n_res - r.num_params);
+  const Eigen::MatrixXd Minv = g.M.ldlt().solve(Eigen::MatrixXd::Identity(g.M.rows(), g.M.cols()));
+  const Eigen::MatrixXd B = g.d.asDiagonal() * g.V * Minv;
+  const Eigen::MatrixXd cov = s2 * B * g.lambda.asDiagonal() * B.transpose();
+  for (Eigen::Index q = 0; q < p; ++q) {
+    const auto qi = static_cast<std::size_t>(q);
+    if (std::isnan(f.fit_std[qi])) continue;  // not identified: no std, as in the fit
+    const double shift = std::abs(g.theta[q] - g.theta0[q]) / f.fit_std[qi];
+    if (shift > s.max_shift_std) s.max_shift_std = shift, s.max_shift_param = f.label[qi];
+    const double sd = std::sqrt(std::max(cov(q, q), 0.0));
+    const auto [e, i] = f.where[qi];
+    const auto ei = static_cast<std::size_t>(e), ii = static_cast<std::size_t>(i);
+    // The robust deviation's share above the model-based one (fit.hpp, std_kind) carries
+    // over to the corrected fit's model-based deviation.
+    double white = f.fit_std[qi];
+    if (e >= 0 && r.std_white)
+      white = (*r.std_white)[ei][ii];
+    else if (e < 0 && ii < r.user_std_white.size())
+      white = r.user_std_white[ii];
+    const double inflation =
+        std::isfinite(white) && white > 0.0 ? std::max(1.0, f.fit_std[qi] / white) : 1.0;
+    if (e >= 0) {
+      (*r.std)[ei][ii] = sd * inflation;
+      if (r.std_white) (*r.std_white)[ei][ii] = sd;
+    } else {
+      r.user_std[ii] = sd * inflation;
+      if (ii < r.user_std_white.size()) r.user_std_white[ii] = sd;
+    }
+  }
+}
+
+}  // namespace
+
+void correct_errors_in_variables(const Dataset& data, const FitOptions& o,
+                                 const SampleBlocks& blocks, FitResult& r) {
+  EivSummary& s = r.errors_in_variables;
+  s.mode = o.errors_in_variables;
+  const bool difference = choose_row_noise(data, o, s);
 
   FreeParams f = free_params(o, r);
   const auto p = static_cast<Eigen::Index>(f.value.size());
@@ -238,148 +413,23 @@ void correct_errors_in_variables(const Dataset& data, const FitOptions& o,
   for (std::size_t q = 0; q < step.size(); ++q)
     step[q] = 1e-5 * std::max(std::abs(*f.value[q]), 1e-3);
 
-  model::ModelParams theta_hat = r.params;
   const BlockPredictor logged(data, blocks, r.params, r.sigma);
   const Eigen::VectorXd y = logged.measured();
-
-  // S = E[δJᵀδJ] and c = E[δJᵀδp] at θ̂, over deterministic draws of the row noise.
-  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(p, p);
-  Eigen::VectorXd c = Eigen::VectorXd::Zero(p);
-  {
-    Eigen::VectorXd p0, p1;
-    Eigen::MatrixXd J0, J1;
-    model::ModelParams work = theta_hat;
-    jacobian(logged, work, f, step, p0, J0);
-    Dataset noisy = data;
-    noisy.release_rows(0, noisy.size());  // the copy walked every row (spill.hpp)
-    data.release_rows(0, data.size());
-    std::mt19937_64 rng(0x5eed'e1f5ULL);
-    std::normal_distribution<double> normal;
-    for (int d = 0; d < kEivDraws; ++d) {
-      ResidentWindow window(data), noisy_window(noisy);
-      for (std::size_t i = 0; i < data.size(); ++i) {
-        window.advance(i);
-        noisy_window.advance(i);
-        for (int k = 0; k < 3; ++k) {
-          noisy.imu[i * 9 + static_cast<std::size_t>(k)] =
-              data.imu[i * 9 + static_cast<std::size_t>(k)] + s.noise.accel_mps2[k] * normal(rng);
-          noisy.imu[i * 9 + 3 + static_cast<std::size_t>(k)] =
-              data.imu[i * 9 + 3 + static_cast<std::size_t>(k)] +
-              s.noise.gyro_radps[k] * normal(rng);
-        }
-      }
-      if (difference) angular_accel_from_rate(noisy);
-      const BlockPredictor perturbed(noisy, blocks, r.params, r.sigma);
-      jacobian(perturbed, work, f, step, p1, J1);
-      const Eigen::MatrixXd dJ = J1 - J0;
-      S += dJ.transpose() * dJ;
-      c += dJ.transpose() * (p1 - p0);
-    }
-    S /= kEivDraws;
-    c /= kEivDraws;
-  }
+  const NoiseMoments m =
+      expected_noise_moments(data, blocks, r, f, step, logged, s.noise, difference);
   s.draws = kEivDraws;
-
-  // Gauss–Newton on Q(θ) = ‖r̃‖² − E‖δp‖², δp linearised about θ̂.
-  Eigen::VectorXd theta0(p), pred;
-  for (Eigen::Index q = 0; q < p; ++q) theta0[q] = *f.value[static_cast<std::size_t>(q)];
-  // As the fit's covariance: columns scaled to unit diagonal of JᵀJ, and only the directions it
-  // identifies (eigenvalues above 1e-9 of the largest); rank-deficient combinations keep the
-  // fit's values. A parameter the prediction does not depend on at all (a zero column, e.g.
-  // base_tilt beside linear_inertia, which takes gravity from the IMU) keeps its value: scaled by
-  // 1/√1e-300 instead, the rounding in the eigenvectors' other columns threw it to 1e140.
-  Eigen::MatrixXd J, V, M;
-  Eigen::VectorXd theta = theta0, d, lambda;
-  const auto subspace = [&] {
-    const Eigen::MatrixXd JtJ = J.transpose() * J;
-    d = JtJ.diagonal().unaryExpr([](double v) { return v > 0.0 ? 1.0 / std::sqrt(v) : 0.0; });
-    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(d.asDiagonal() * JtJ * d.asDiagonal());
-    const double lmax = eig.eigenvalues().maxCoeff();
-    std::vector<Eigen::Index> keep;
-    for (Eigen::Index k = 0; k < p; ++k)
-      if (eig.eigenvalues()[k] > 1e-9 * lmax) keep.push_back(k);
-    V.resize(p, static_cast<Eigen::Index>(keep.size()));
-    lambda.resize(V.cols());
-    for (Eigen::Index k = 0; k < V.cols(); ++k) {
-      V.col(k) = eig.eigenvectors().col(keep[static_cast<std::size_t>(k)]);
-      lambda[k] = eig.eigenvalues()[keep[static_cast<std::size_t>(k)]];
-    }
-    M = V.transpose() * (d.asDiagonal() * (JtJ - S) * d.asDiagonal()) * V;
-  };
-  for (int it = 0; it < 10; ++it) {
-    jacobian(logged, r.params, f, step, pred, J);
-    const Eigen::VectorXd res = y - pred;
-    subspace();
-    const Eigen::VectorXd g = J.transpose() * res + c + S * (theta - theta0);
-    const Eigen::LDLT<Eigen::MatrixXd> ldlt(M);
-    if (ldlt.info() != Eigen::Success || !ldlt.isPositive() || (ldlt.vectorD().array() <= 0).any())
-      throw std::runtime_error(
-          "errors in variables: JᵀJ − S is not positive definite (the IMU noise swamps the "
-          "regressors); fit without the correction");
-    const Eigen::VectorXd delta =
-        d.asDiagonal() * (V * ldlt.solve(V.transpose() * (d.asDiagonal() * g)));
-    theta += delta;
-    for (Eigen::Index q = 0; q < p; ++q) *f.value[static_cast<std::size_t>(q)] = theta[q];
-    ++s.iterations;
-    // Converged when no parameter moves by more than 1e-6 of its step scale.
-    bool small = true;
-    for (Eigen::Index q = 0; q < p; ++q)
-      small = small && std::abs(delta[q]) <= 1e-6 * std::max(std::abs(theta[q]), 1e-3);
-    if (small) break;
-  }
+  const CorrectedSolve g = corrected_gauss_newton(logged, y, r, f, step, m, s);
 
   // Residuals, BIC and the sandwich covariance at the corrected θ.
+  Eigen::VectorXd pred;
   logged.predict(r.params, pred);
   const Eigen::VectorXd res = y - pred;
   const double n_res = static_cast<double>(res.size());
   const double ssr = res.squaredNorm();
   r.bic = n_res * std::log(ssr / n_res) + r.num_params * std::log(n_res);
-  {
-    std::array<double, 6> ss{};
-    std::size_t n = 0;
-    ResidentWindow window(data);
-    for (const auto& [first, count] : blocks) {
-      window.advance(first + count);
-      for (std::size_t i = first; i < first + count; ++i, ++n) {
-        const Wrench e = data.measured[i] - predict(r.params, data, i);
-        for (int k = 0; k < 6; ++k) ss[k] += e[k] * e[k];
-      }
-    }
-    for (int k = 0; k < 6; ++k) r.residual_rms[k] = std::sqrt(ss[k] / static_cast<double>(n));
-  }
+  corrected_residual_rms(data, blocks, r);
   s.corrected_params = static_cast<int>(p);
-  if (r.std) {
-    const double s2 = ssr / std::max(1.0, n_res - r.num_params);
-    // s² D V M⁻¹ (Vᵀ D JᵀJ D V = Λ) M⁻¹ Vᵀ D.
-    const Eigen::MatrixXd Minv = M.ldlt().solve(Eigen::MatrixXd::Identity(M.rows(), M.cols()));
-    const Eigen::MatrixXd B = d.asDiagonal() * V * Minv;
-    const Eigen::MatrixXd cov = s2 * B * lambda.asDiagonal() * B.transpose();
-    for (Eigen::Index q = 0; q < p; ++q) {
-      const auto qi = static_cast<std::size_t>(q);
-      if (std::isnan(f.fit_std[qi])) continue;  // not identified: no std, as in the fit
-      const double shift = std::abs(theta[q] - theta0[q]) / f.fit_std[qi];
-      if (shift > s.max_shift_std) s.max_shift_std = shift, s.max_shift_param = f.label[qi];
-      const double sd = std::sqrt(std::max(cov(q, q), 0.0));
-      const auto [e, i] = f.where[qi];
-      const auto ei = static_cast<std::size_t>(e), ii = static_cast<std::size_t>(i);
-      // The robust deviation's share above the model-based one (fit.hpp, std_kind) carries
-      // over to the corrected fit's model-based deviation.
-      double white = f.fit_std[qi];
-      if (e >= 0 && r.std_white)
-        white = (*r.std_white)[ei][ii];
-      else if (e < 0 && ii < r.user_std_white.size())
-        white = r.user_std_white[ii];
-      const double inflation =
-          std::isfinite(white) && white > 0.0 ? std::max(1.0, f.fit_std[qi] / white) : 1.0;
-      if (e >= 0) {
-        (*r.std)[ei][ii] = sd * inflation;
-        if (r.std_white) (*r.std_white)[ei][ii] = sd;
-      } else {
-        r.user_std[ii] = sd * inflation;
-        if (ii < r.user_std_white.size()) r.user_std_white[ii] = sd;
-      }
-    }
-  }
+  if (r.std) corrected_covariance(g, f, ssr, n_res, r, s);
   s.applied = true;
 }
 
