@@ -797,6 +797,15 @@ void add_compare_command(CLI::App& app) {
   s->callback([=] { run_compare(*c, *model_path, *truth, *bins); });
 }
 
+// --exact-candidates, for diagnose and ladder.
+void add_exact_candidates(CLI::App* s, bool& exact) {
+  s->add_flag(
+      "--exact-candidates", exact,
+      "Refit every candidate effect (a warm-started fit each) instead of screening them from "
+      "one pass of the model with all of them and refitting only those that could be the "
+      "best (slower; the screened figures are linearised)");
+}
+
 void add_diagnose_command(CLI::App& app) {
   auto a = std::make_shared<DiagnoseArgs>();
   CLI::App* s = app.add_subcommand(
@@ -819,11 +828,7 @@ void add_diagnose_command(CLI::App& app) {
   s->add_flag("--no-discover", a->no_discover,
               "When no library effect explains the residual, do not search the signal "
               "dictionary for a law");
-  s->add_flag(
-      "--exact-candidates", a->exact_candidates,
-      "Refit every candidate effect (a warm-started fit each) instead of screening them from "
-      "one pass of the model with all of them and refitting only those that could be the "
-      "best (slower; the screened figures are linearised)");
+  add_exact_candidates(s, a->exact_candidates);
   s->add_option("--discovered-out", a->discovered_out,
                 "Where to write a discovered law as an effect file (proto/user_effects.md); "
                 "default: beside the log, LOG's name with .discovered.toml");
@@ -847,11 +852,7 @@ void add_ladder_command(CLI::App& app) {
       ->capture_default_str();
   s->add_option("--candidates", a->candidates,
                 "User-defined effects the ladder may add beside the library's: @FILE,@FILE");
-  s->add_flag(
-      "--exact-candidates", a->exact_candidates,
-      "Refit every candidate effect (a warm-started fit each) instead of screening them from "
-      "one pass of the model with all of them and refitting only those that could be the "
-      "best (slower; the screened figures are linearised)");
+  add_exact_candidates(s, a->exact_candidates);
   s->add_option("--min-gain", a->min_gain,
                 "Smallest share of held-out error an effect must remove to be added")
       ->capture_default_str();
