@@ -1,8 +1,8 @@
 #pragma once
 // The read loop the socket buses share (CanSocket: SocketCAN; LocalCanBus: the same frames over
 // AF_UNIX datagrams): a non-blocking recvmsg of one struct can_frame with its receive time,
-// retried (EINTR, or readable again) until the deadline. Private to zerog::rtio. Real-time safe:
-// no allocation, buffers on the stack.
+// retried (EINTR, or readable again) until the deadline; the arrival time on CLOCK_MONOTONIC.
+// Private to zerog::rtio. Real-time safe: no allocation, buffers on the stack.
 #include <sys/socket.h>
 #include <sys/uio.h>
 
@@ -15,6 +15,7 @@
 
 #include "linux_can_frame.hpp"
 #include "wait.hpp"
+#include "zerog/handover/clock.hpp"
 #include "zerog/rtio/can_bus.hpp"
 
 namespace zerog::rtio::detail {
@@ -45,18 +46,21 @@ CanReadStatus read_can_frame(int fd, Bus& bus, CanRxFrame& out, std::chrono::nan
     const ssize_t n = ::recvmsg(fd, &message, MSG_DONTWAIT | Bus::recv_flags());
     if (n >= 0) {
       bus.received(message);
-      out.timestamp_ns = 0;
+      std::int64_t stamp_realtime_ns = 0;
       if ((message.msg_flags & MSG_CTRUNC) != 0) ++counters.control_truncated;
       for (cmsghdr* c = CMSG_FIRSTHDR(&message); c != nullptr; c = CMSG_NXTHDR(&message, c)) {
         if (c->cmsg_level != SOL_SOCKET) continue;
         if (c->cmsg_type == SO_TIMESTAMPNS) {
           timespec ts{};
           std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
-          out.timestamp_ns = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+          stamp_realtime_ns = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
         } else {
           bus.ancillary(c);
         }
       }
+      out.arrived_ns = stamp_realtime_ns != 0
+                           ? handover::realtime_to_monotonic_ns(stamp_realtime_ns)
+                           : monotonic_ns();
       // Exactly one classic frame (candump's check); CAN FD is not enabled on these sockets.
       if (!from_can_frame(frame, static_cast<std::size_t>(n), out.frame)) {
         ++counters.bad_length;

@@ -87,7 +87,7 @@ void NetcanoemSensor::take_diagnostic(const CanRxFrame& rx) {
   thermistor_open_ = false;
   have_thermistor_ = true;
   thermistor_counts_ = counts;
-  thermistor_rx_ns_ = rx.timestamp_ns;
+  thermistor_rx_ns_ = rx.arrived_ns;
   thermistor_poll_ = poll_;
   thermistor_stale_ = false;  // fresh again
   ++own_.thermistor_readings;
@@ -134,10 +134,10 @@ void NetcanoemSensor::fill_temperature(FtSample& out) const {
   out.temperature_C = out.temperature_valid
                           ? netcanoem::thermistor_celsius(*config_.thermistor, thermistor_counts_)
                           : 0.0;
-  const bool times_known = out.timestamp_ns != 0 && thermistor_rx_ns_ != 0;
+  const bool times_known = out.arrived_ns != 0 && thermistor_rx_ns_ != 0;
   out.temperature_age_s =
       have_thermistor_ && times_known
-          ? std::max(0.0, static_cast<double>(out.timestamp_ns - thermistor_rx_ns_) * 1e-9)
+          ? std::max(0.0, static_cast<double>(out.arrived_ns - thermistor_rx_ns_) * 1e-9)
           : 0.0;
 }
 
@@ -276,7 +276,7 @@ FtReadStatus NetcanoemSensor::read_sample_waiting(FtSample& out,
       out.status = FtSampleStatus::ok;
     }
     out.valid = gauges.usable() && wrench.has_value();
-    out.timestamp_ns = rx.timestamp_ns;
+    out.arrived_ns = rx.arrived_ns;
     out.sequence = ++sequence_;
     fill_temperature(out);
     ++own_.samples;

@@ -44,7 +44,7 @@ bool Stim300Imu::pop_buffered(ImuSample& out) {
       out.counter = sample.raw.counter;
       out.missed_before = sample.missed_before;
       out.latency_s = sample.latency_s;
-      out.receive_time_ns = chunk_time_ns_;
+      out.arrived_ns = chunk_time_ns_;
       out.sequence = ++sequence_;
       return true;
     }

@@ -419,7 +419,7 @@ void AtiBoardResponder::on_write(const proto::CanFrame& frame, rtio::FakeCanBus&
   AtiBoard::Response out{};
   const std::size_t n = board_.respond(frame, out);
   for (std::size_t i = 0; i < n; ++i) {
-    bus.inject(rtio::CanRxFrame{out[i], timestamp_ns_ + static_cast<std::int64_t>(i)});
+    bus.inject(rtio::CanRxFrame{out[i], arrived_ns_ + static_cast<std::int64_t>(i)});
   }
 }
 

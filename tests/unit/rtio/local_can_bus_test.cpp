@@ -37,9 +37,9 @@ namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 using Clock = std::chrono::steady_clock;
 
-std::int64_t realtime_ns() {
+std::int64_t monotonic_ns() {
   timespec ts{};
-  ::clock_gettime(CLOCK_REALTIME, &ts);
+  ::clock_gettime(CLOCK_MONOTONIC, &ts);
   return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
 }
 
@@ -150,27 +150,42 @@ TEST_F(LocalCanBusTest, FramesGoBothWaysWithReceiveTimestamps) {
   EXPECT_TRUE(fs::is_socket(path_));
 
   const proto::CanFrame request = make_frame(0x200, 0);
-  const std::int64_t before = realtime_ns();
+  const std::int64_t before = monotonic_ns();
   ASSERT_EQ(client_.write(request), CanWriteStatus::ok);
   CanRxFrame rx;
   ASSERT_EQ(server_.read(rx, 1s), CanReadStatus::frame);
-  const std::int64_t after = realtime_ns();
+  const std::int64_t after = monotonic_ns();
   EXPECT_EQ(rx.frame, request);
-  EXPECT_GE(rx.timestamp_ns, before);  // SO_TIMESTAMPNS, CLOCK_REALTIME
-  EXPECT_LE(rx.timestamp_ns, after);
+  EXPECT_GE(rx.arrived_ns, before);  // SO_TIMESTAMPNS, moved onto CLOCK_MONOTONIC
+  EXPECT_LE(rx.arrived_ns, after);
   EXPECT_TRUE(server_.has_peer());
 
   const proto::CanFrame answer = make_frame(0x201, 8, 0xA0);
   ASSERT_EQ(server_.write(answer), CanWriteStatus::ok);
   ASSERT_EQ(client_.read(rx, 1s), CanReadStatus::frame);
   EXPECT_EQ(rx.frame, answer);
-  EXPECT_GT(rx.timestamp_ns, 0);
+  EXPECT_GT(rx.arrived_ns, 0);
 
   EXPECT_EQ(client_.counters().frames_sent, 1u);
   EXPECT_EQ(client_.counters().frames_received, 1u);
   EXPECT_EQ(server_.counters().frames_sent, 1u);
   EXPECT_EQ(server_.counters().frames_received, 1u);
   EXPECT_EQ(server_.counters().kernel_drops, 0u);
+}
+
+// A frame's arrival is when the kernel queued it (SO_TIMESTAMPNS, moved onto CLOCK_MONOTONIC), not
+// when read() got round to it: a frame read 50 ms late still arrived before the wait began.
+TEST_F(LocalCanBusTest, ArrivalIsWhenTheKernelQueuedTheFrameNotWhenItWasRead) {
+  open_pair();
+  ASSERT_EQ(client_.write(make_frame(0x200, 0)), CanWriteStatus::ok);
+  const std::int64_t written = monotonic_ns();
+  std::this_thread::sleep_for(50ms);
+  CanRxFrame rx;
+  ASSERT_EQ(server_.read(rx, 1s), CanReadStatus::frame);
+  const std::int64_t read = monotonic_ns();
+  EXPECT_LE(rx.arrived_ns, written);
+  EXPECT_GE(read - rx.arrived_ns, 50'000'000);
+  EXPECT_LT(read - rx.arrived_ns, 1'000'000'000);  // and on the monotonic clock, not the wall's
 }
 
 TEST_F(LocalCanBusTest, StandardExtendedAndRemoteFramesKeepIdsFlagsAndData) {
@@ -539,7 +554,7 @@ TEST_F(LocalCanBusTest, NetcanoemSensorReadsTheCalibrationAndTheWrenchFromAnAtiB
     ASSERT_EQ(sensor.read_sample(s), FtReadStatus::sample);
     EXPECT_TRUE(s.valid);
     EXPECT_EQ(s.status, FtSampleStatus::ok);
-    EXPECT_GT(s.timestamp_ns, 0);  // the kernel's receive time of the completing frame
+    EXPECT_GT(s.arrived_ns, 0);  // the kernel's receive time of the completing frame
     for (int i = 0; i < 6; ++i) EXPECT_NEAR(s.wrench_si[i], wrench[i], count[i]) << i;
   }
   stop.store(true);

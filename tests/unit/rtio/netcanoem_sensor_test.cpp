@@ -125,7 +125,7 @@ TEST_F(NetcanoemSensorTest, SampleBecomesAnSiWrench) {
   EXPECT_EQ(s.status, FtSampleStatus::ok);
   EXPECT_EQ(s.gauges, kGauges);
   EXPECT_EQ(s.sequence, 1u);
-  EXPECT_EQ(s.timestamp_ns, 1001);  // of the second (completing) frame
+  EXPECT_EQ(s.arrived_ns, 1001);  // of the second (completing) frame
   expect_wrench(s.wrench_si, test::expected_wrench_si(board_config_, kGauges, c.bias_gauges,
                                                       kNewtonPerLbf, kNewtonMetrePerLbfIn));
 

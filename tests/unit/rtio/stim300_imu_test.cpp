@@ -111,7 +111,7 @@ TEST_F(Stim300ImuTest, DecodesDatagramsPastGarbageBadCrcAndCounterGaps) {
     EXPECT_TRUE(s.rate_valid);
     EXPECT_TRUE(s.incl_valid);
     EXPECT_EQ(s.accel_valid, i != 4) << i;  // the last one has an accelerometer status bit
-    EXPECT_GT(s.receive_time_ns, 0);
+    EXPECT_GT(s.arrived_ns, 0);
   }
   ImuSample s;
   const auto before = std::chrono::steady_clock::now();

@@ -15,9 +15,11 @@ namespace zerog::rtio {
 /// A received frame and when it arrived.
 struct CanRxFrame {
   proto::CanFrame frame;
-  /// Kernel receive time (SO_TIMESTAMPNS, CLOCK_REALTIME) in ns since the epoch; 0 when the
-  /// kernel gave none (timestamps off, ancillary data truncated) or for fake buses.
-  std::int64_t timestamp_ns = 0;
+  /// When the frame arrived, CLOCK_MONOTONIC ns (proto/rtio.md, "When a sample arrived"): the
+  /// kernel's receive stamp (SO_TIMESTAMPNS) moved onto the monotonic clock, or the time the read
+  /// returned when the kernel gave none (timestamps off, ancillary data truncated). Fake buses:
+  /// what the test injects (0: unknown).
+  std::int64_t arrived_ns = 0;
 };
 
 enum class CanReadStatus : std::uint8_t {

@@ -25,8 +25,9 @@ struct FtSample {
   FtSampleStatus status = FtSampleStatus::ok;
   std::uint8_t saturated_mask = 0;  ///< bit i: gauge i saturated
   bool valid = false;               ///< status is ok or warning
-  /// Receive time of the frame that completed the sample, CLOCK_REALTIME ns (0: unknown).
-  std::int64_t timestamp_ns = 0;
+  /// When the frame that completed the sample arrived, CLOCK_MONOTONIC ns (0: unknown; proto/
+  /// rtio.md, "When a sample arrived").
+  std::int64_t arrived_ns = 0;
   std::uint64_t sequence = 0;  ///< +1 per sample returned by this device, from 1
   /// The sensor's own temperature, read between samples (NETCANOEM: the thermistor, opcode 0x9,
   /// about once a second; proto/netcanoem.md). thermistor_valid: a reading came since start-up
@@ -36,7 +37,7 @@ struct FtSample {
   std::uint16_t thermistor_counts = 0;  ///< latest raw reading of the thermistor channel
   bool temperature_valid = false;
   double temperature_C = 0.0;  ///< sensor temperature of that reading, °C
-  /// timestamp_ns − receive time of that reading, s (0 when either time is unknown).
+  /// arrived_ns − arrival time of that reading, s (0 when either time is unknown).
   double temperature_age_s = 0.0;
   /// A temperature is expected (a conversion configured, reads on) but the latest reading is
   /// older than the device's maximum age (NETCANOEM: thermistor_max_age_polls sample requests;
@@ -59,8 +60,9 @@ struct ImuSample {
   std::uint8_t counter = 0;        ///< the device's datagram counter
   std::uint8_t missed_before = 0;  ///< datagrams lost right before this one (counter gap)
   double latency_s = 0.0;          ///< sampling → start of transmission, as the device reports
-  /// CLOCK_MONOTONIC ns when the bytes completing this sample were read (0: unknown).
-  std::int64_t receive_time_ns = 0;
+  /// When the bytes completing this sample were read, CLOCK_MONOTONIC ns (0: unknown; proto/
+  /// rtio.md, "When a sample arrived").
+  std::int64_t arrived_ns = 0;
   std::uint64_t sequence = 0;  ///< +1 per sample returned by this device, from 1
 };
 

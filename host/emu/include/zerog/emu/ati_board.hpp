@@ -207,18 +207,18 @@ class AtiBoard {
 
 /// Connects an AtiBoard to a single-threaded rtio::FakeCanBus: every frame written to the bus is
 /// handed to AtiBoard::respond and the answers are queued for read(). FakeCanBus has no clock,
-/// so the i-th frame of an answer gets the receive time `timestamp_ns + i`; the response delay
+/// so the i-th frame of an answer arrives at `arrived_ns + i`; the response delay
 /// does not apply. For unit tests.
 class AtiBoardResponder final : public rtio::CanResponder {
  public:
-  explicit AtiBoardResponder(AtiBoard& board, std::int64_t timestamp_ns = 0)
-      : board_(board), timestamp_ns_(timestamp_ns) {}
+  explicit AtiBoardResponder(AtiBoard& board, std::int64_t arrived_ns = 0)
+      : board_(board), arrived_ns_(arrived_ns) {}
   void on_write(const proto::CanFrame& frame, rtio::FakeCanBus& bus) override;
   AtiBoard& board() { return board_; }
 
  private:
   AtiBoard& board_;
-  std::int64_t timestamp_ns_;
+  std::int64_t arrived_ns_;
 };
 
 }  // namespace zerog::emu
