@@ -201,9 +201,9 @@ bool open_ft_bus(const rt::FtSection& ft, FtBus& out) {
               errno_text(opened.error_number) + ")");
     return false;
   }
-  if (out.socket.receive_buffer_capped()) {
+  if (out.socket.receive_buffer().capped) {
     print_err("zerog-rt: WARNING: the CAN receive buffer was capped by net.core.rmem_max (" +
-              std::to_string(out.socket.receive_buffer_bytes()) + " bytes)");
+              std::to_string(out.socket.receive_buffer().bytes) + " bytes)");
   }
   out.bus = &out.socket;
   return true;

@@ -14,6 +14,7 @@
 #include <cstring>
 #include <ctime>
 
+#include "can_options.hpp"
 #include "can_read.hpp"
 #include "linux_can_frame.hpp"
 
@@ -125,23 +126,9 @@ CanOpenResult CanSocket::open(std::string_view interface, const CanSocketConfig&
   if (::setsockopt(fd_, SOL_SOCKET, SO_RXQ_OVFL, &on, sizeof on) != 0) {
     return fail(CanOpenStatus::option_failed, "SO_RXQ_OVFL");
   }
-  if (config.timestamps && ::setsockopt(fd_, SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on) != 0) {
-    return fail(CanOpenStatus::option_failed, "SO_TIMESTAMPNS");
+  if (const char* failed = detail::set_receive_options(fd_, config, receive_buffer_)) {
+    return fail(CanOpenStatus::option_failed, failed);
   }
-  receive_buffer_capped_ = false;
-  if (config.receive_buffer_bytes > 0) {
-    // As candump -r: SO_RCVBUFFORCE first (needs CAP_NET_ADMIN, ignores rmem_max), else
-    // SO_RCVBUF, which rmem_max caps. The kernel doubles the value for its bookkeeping.
-    const int wanted = config.receive_buffer_bytes;
-    if (::setsockopt(fd_, SOL_SOCKET, SO_RCVBUFFORCE, &wanted, sizeof wanted) != 0 &&
-        ::setsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &wanted, sizeof wanted) != 0) {
-      return fail(CanOpenStatus::option_failed, "SO_RCVBUF");
-    }
-  }
-  socklen_t length = sizeof receive_buffer_bytes_;
-  ::getsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &receive_buffer_bytes_, &length);
-  receive_buffer_capped_ =
-      config.receive_buffer_bytes > 0 && receive_buffer_bytes_ / 2 < config.receive_buffer_bytes;
 
   sockaddr_can address{};
   address.can_family = AF_CAN;

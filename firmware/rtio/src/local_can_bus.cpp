@@ -12,6 +12,7 @@
 #include <cstring>
 #include <ctime>
 
+#include "can_options.hpp"
 #include "can_read.hpp"
 #include "linux_can_frame.hpp"
 
@@ -83,22 +84,9 @@ CanOpenResult LocalCanBus::open(Role role, std::string_view path, const CanSocke
   filter_count_ = config.filter_count;
   error_mask_ = config.error_mask & CAN_ERR_MASK;
 
-  const int on = 1;
-  if (config.timestamps && ::setsockopt(fd_, SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on) != 0) {
-    return fail(CanOpenStatus::option_failed, "SO_TIMESTAMPNS");
+  if (const char* failed = detail::set_receive_options(fd_, config, receive_buffer_)) {
+    return fail(CanOpenStatus::option_failed, failed);
   }
-  receive_buffer_capped_ = false;
-  if (config.receive_buffer_bytes > 0) {
-    const int wanted = config.receive_buffer_bytes;
-    if (::setsockopt(fd_, SOL_SOCKET, SO_RCVBUFFORCE, &wanted, sizeof wanted) != 0 &&
-        ::setsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &wanted, sizeof wanted) != 0) {
-      return fail(CanOpenStatus::option_failed, "SO_RCVBUF");
-    }
-  }
-  socklen_t length = sizeof receive_buffer_bytes_;
-  ::getsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &receive_buffer_bytes_, &length);
-  receive_buffer_capped_ =
-      config.receive_buffer_bytes > 0 && receive_buffer_bytes_ / 2 < config.receive_buffer_bytes;
 
   if (role == Role::server) {
     if (::bind(fd_, reinterpret_cast<const sockaddr*>(&path_), path_length_) != 0) {

@@ -29,9 +29,15 @@ struct CanSocketConfig {
   /// Error classes to receive as error frames (CAN_RAW_ERR_FILTER); 0 receives none.
   std::uint32_t error_mask = kCanAllErrors;
   /// Requested receive buffer in bytes: SO_RCVBUFFORCE when we may (CAP_NET_ADMIN), else
-  /// SO_RCVBUF, capped by rmem_max (see receive_buffer_capped()); 0 keeps the default.
+  /// SO_RCVBUF, capped by rmem_max (see CanReceiveBuffer::capped); 0 keeps the default.
   int receive_buffer_bytes = 0;
   bool timestamps = true;  ///< SO_TIMESTAMPNS
+};
+
+/// What the kernel granted of a CanSocket's or LocalCanBus's receive buffer.
+struct CanReceiveBuffer {
+  int bytes = 0;        ///< SO_RCVBUF as granted (bytes, including the kernel's bookkeeping)
+  bool capped = false;  ///< granted less than asked (rmem_max without CAP_NET_ADMIN): say so
 };
 
 /// How opening a CanSocket or a LocalCanBus (local_can_bus.hpp) went.
@@ -67,10 +73,7 @@ class CanSocket final : public CanBus {
   void close();
   bool is_open() const { return fd_ >= 0; }
   int fd() const { return fd_; }
-  /// SO_RCVBUF as granted by the kernel (bytes, including its bookkeeping overhead).
-  int receive_buffer_bytes() const { return receive_buffer_bytes_; }
-  /// True when the kernel granted less than asked (rmem_max without CAP_NET_ADMIN): say so.
-  bool receive_buffer_capped() const { return receive_buffer_capped_; }
+  const CanReceiveBuffer& receive_buffer() const { return receive_buffer_; }
   /// errno of the last failed read or write.
   int last_errno() const { return last_errno_; }
 
@@ -82,8 +85,7 @@ class CanSocket final : public CanBus {
 
  private:
   int fd_ = -1;
-  int receive_buffer_bytes_ = 0;
-  bool receive_buffer_capped_ = false;
+  CanReceiveBuffer receive_buffer_;
   int last_errno_ = 0;
   std::uint32_t last_overflow_count_ = 0;  // SO_RXQ_OVFL reports a running total
   CanBusCounters counters_;

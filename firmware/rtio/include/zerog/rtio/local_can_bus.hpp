@@ -25,7 +25,8 @@
 // error_mask; what does not pass is dropped silently, as the kernel would, and counted in
 // `filtered`. A datagram that is not exactly 16 bytes or has len > 8 is bad_length (counted).
 // Error frames are counted by class (count_error_frame). Receive timestamps: SO_TIMESTAMPNS works
-// on AF_UNIX: the kernel stamps a datagram (CLOCK_REALTIME) when it is queued to the receiver.
+// on AF_UNIX: the kernel stamps a datagram (CLOCK_REALTIME, moved onto CLOCK_MONOTONIC by the
+// read loop) when it is queued to the receiver.
 //
 // Unlike a CAN bus, nothing is dropped on the way: a sender whose peer's queue is full gets
 // would_block (counted in tx_would_block), so kernel_drops stays 0. The queue is bounded by the
@@ -76,10 +77,7 @@ class LocalCanBus final : public CanBus {
   /// Server: whether a peer to answer is known (a named sender was read and not found gone).
   /// Client: true while open.
   bool has_peer() const { return role_ == Role::client || peer_length_ > 0; }
-  /// SO_RCVBUF as granted by the kernel (bytes, including its bookkeeping overhead).
-  int receive_buffer_bytes() const { return receive_buffer_bytes_; }
-  /// True when the kernel granted less than asked (rmem_max without CAP_NET_ADMIN).
-  bool receive_buffer_capped() const { return receive_buffer_capped_; }
+  const CanReceiveBuffer& receive_buffer() const { return receive_buffer_; }
   /// errno of the last failed read or write.
   int last_errno() const { return last_errno_; }
 
@@ -108,8 +106,7 @@ class LocalCanBus final : public CanBus {
   std::array<proto::CanFilter, kMaxCanFilters> filters_{};
   std::size_t filter_count_ = 0;
   std::uint32_t error_mask_ = 0;
-  int receive_buffer_bytes_ = 0;
-  bool receive_buffer_capped_ = false;
+  CanReceiveBuffer receive_buffer_;
   int last_errno_ = 0;
   CanBusCounters counters_;
 };
