@@ -105,6 +105,31 @@ Mat3<T> inertia_tensor(const T* I) {
   return inertia;
 }
 
+/// The part of stage 1 that payload_wrench and payload_wrench_mean share: the payload's force on
+/// the sensor and its moment about the sensor origin, c × F (gravity's parameters: mass m, centre
+/// of mass c in sensor axes). Without linear_inertia F is the weight; with it F = m (g − a_c) =
+/// −m × (specific force at the centre of mass), which `specific_force_com(r)` gives from the lever
+/// r = c − p_sensor_imu. The rotational terms are the caller's. Real-time safe.
+template <typename T, typename SpecificForceAtCom>
+Wrench<T> weight_and_linear_inertia(const EffectSet& effects, const ParamPointers<T>& p,
+                                    const ImuMount<T>& mount, const Eigen::Matrix3d& R_base_sensor,
+                                    SpecificForceAtCom&& specific_force_com) {
+  const T* grav = p[index(Effect::gravity)];
+  const T mass = grav[0];
+  const Vec3<T> com(grav[1], grav[2], grav[3]);
+  Vec3<T> force;
+  if (effects.has(Effect::linear_inertia)) {
+    const Vec3<T> f_com = specific_force_com(Vec3<T>(com - mount.p_sensor_imu));
+    force = -mass * f_com;
+  } else {
+    force = mass * gravity_sensor(effects, p, R_base_sensor, mount.R_nominal_true);
+  }
+  Wrench<T> w;
+  w.template head<3>() = force;
+  w.template tail<3>() = com.cross(force);
+  return w;
+}
+
 /// Stage 1 of the model: the wrench the payload's gravity and inertia exert on the sensor
 /// (sensor frame, torque about the sensor origin). Nonlinear in its parameters (gravity,
 /// base_tilt, rotational_inertia, sensor_rotation; imu_time_offset through `imu`).
@@ -116,34 +141,20 @@ Wrench<T> payload_wrench(const EffectSet& effects, const ParamPointers<T>& p,
   Wrench<T> w = Wrench<T>::Zero();
   if (!effects.has(Effect::gravity)) return w;
   const ImuMount<T> mount = imu_mount(effects, p, rig);
-  const Mat3<T>& R_nominal_true = mount.R_nominal_true;
   const Mat3<T>& R_sensor_imu = mount.R_sensor_imu;
-  const Vec3<T>& p_sensor_imu = mount.p_sensor_imu;
   const Vec3<T> omega = R_sensor_imu * imu.angular_rate_imu;
   const Vec3<T> omega_dot = R_sensor_imu * imu.angular_accel_imu;
-
-  const T* grav = p[index(Effect::gravity)];
-  const T mass = grav[0];
-  const Vec3<T> com(grav[1], grav[2], grav[3]);
-  Vec3<T> force;
-  if (effects.has(Effect::linear_inertia)) {
-    // m (g − a_c) = −m × (specific force at the centre of mass). The accelerometer measures
-    // specific force at the IMU; rigid-body transfer to the centre of mass (lever r).
-    const Vec3<T> r = com - p_sensor_imu;
-    const Vec3<T> f_com =
-        R_sensor_imu * imu.specific_force_imu + omega_dot.cross(r) + omega.cross(omega.cross(r));
-    force = -mass * f_com;
-  } else {
-    force = mass * gravity_sensor(effects, p, pose.R_base_sensor, R_nominal_true);
-  }
-  Vec3<T> torque = com.cross(force);
+  w = weight_and_linear_inertia(effects, p, mount, pose.R_base_sensor, [&](const Vec3<T>& r) {
+    // The accelerometer measures specific force at the IMU; rigid-body transfer to the centre of
+    // mass (lever r).
+    return Vec3<T>(R_sensor_imu * imu.specific_force_imu + omega_dot.cross(r) +
+                   omega.cross(omega.cross(r)));
+  });
   if (effects.has(Effect::rotational_inertia)) {
     const Mat3<T> inertia = inertia_tensor(p[index(Effect::rotational_inertia)]);
     // Newton–Euler (000_… eq. 5): the payload needs I ω̇ + ω × I ω from the sensor.
-    torque -= inertia * omega_dot + omega.cross(inertia * omega);
+    w.template tail<3>() -= inertia * omega_dot + omega.cross(inertia * omega);
   }
-  w.template head<3>() = force;
-  w.template tail<3>() = torque;
   return w;
 }
 
@@ -179,33 +190,19 @@ Wrench<T> payload_wrench_mean(const EffectSet& effects, const ParamPointers<T>& 
                               const ImuMount<T>& mount, const PayloadMeans<S>& means) {
   Wrench<T> w = Wrench<T>::Zero();
   if (!effects.has(Effect::gravity)) return w;
-  const Mat3<T>& R_nominal_true = mount.R_nominal_true;
   const Mat3<T>& R_sensor_imu = mount.R_sensor_imu;
-  const Vec3<T>& p_sensor_imu = mount.p_sensor_imu;
   const Vec3<T> omega_dot = R_sensor_imu * means.angular_accel_imu;
   const Mat3<T> rate_outer = R_sensor_imu * means.rate_outer_imu * R_sensor_imu.transpose();
-
-  const T* grav = p[index(Effect::gravity)];
-  const T mass = grav[0];
-  const Vec3<T> com(grav[1], grav[2], grav[3]);
-  Vec3<T> force;
-  if (effects.has(Effect::linear_inertia)) {
-    const Vec3<T> r = com - p_sensor_imu;
-    const Vec3<T> f_com = R_sensor_imu * means.specific_force_imu + omega_dot.cross(r) +
-                          (rate_outer - rate_outer.trace() * Mat3<T>::Identity()) * r;
-    force = -mass * f_com;
-  } else {
-    force = mass * gravity_sensor(effects, p, means.R_base_sensor, R_nominal_true);
-  }
-  Vec3<T> torque = com.cross(force);
+  w = weight_and_linear_inertia(effects, p, mount, means.R_base_sensor, [&](const Vec3<T>& r) {
+    return Vec3<T>(R_sensor_imu * means.specific_force_imu + omega_dot.cross(r) +
+                   (rate_outer - rate_outer.trace() * Mat3<T>::Identity()) * r);
+  });
   if (effects.has(Effect::rotational_inertia)) {
     const Mat3<T> inertia = inertia_tensor(p[index(Effect::rotational_inertia)]);
     const Mat3<T> N = inertia * rate_outer;
     const Vec3<T> gyroscopic(N(2, 1) - N(1, 2), N(0, 2) - N(2, 0), N(1, 0) - N(0, 1));
-    torque -= inertia * omega_dot + gyroscopic;
+    w.template tail<3>() -= inertia * omega_dot + gyroscopic;
   }
-  w.template head<3>() = force;
-  w.template tail<3>() = torque;
   return w;
 }
 
