@@ -276,6 +276,21 @@ bool write_fitted_model(const Common& c, const io::ModelFile& m, const std::stri
   return true;
 }
 
+// The solver settings `zerog fit` and `zerog fit --tool-change` take alike from the command line
+// (ident::FitOptions, ident::ToolChangeOptions).
+template <typename Options>
+void set_solver_options(Options& o, const Common& c, const std::string& loss, double loss_scale,
+                        int max_iter, int block_samples) {
+  o.loss = loss;
+  o.loss_scale = loss_scale;
+  o.max_iterations = max_iter;
+  o.block_samples = block_samples;
+  o.threads = c.threads;
+  o.engine = c.engine;
+  o.errors_in_variables = c.errors_in_variables;
+  o.progress = progress(c);
+}
+
 void run_fit(const Common& c, const std::string& effects, const std::string& out,
              const std::string& loss, double loss_scale, int max_iter, int block_samples,
              const std::string& truth_path, const std::string& std_kind, double cluster_s,
@@ -287,16 +302,9 @@ void run_fit(const Common& c, const std::string& effects, const std::string& out
   const io::ModelSpec spec = io::parse_model_spec(effects);
   o.effects = spec.effects;
   o.user = spec.user;
-  o.loss = loss;
-  o.loss_scale = loss_scale;
-  o.max_iterations = max_iter;
-  o.block_samples = block_samples;
-  o.threads = c.threads;
-  o.engine = c.engine;
-  o.errors_in_variables = c.errors_in_variables;
+  set_solver_options(o, c, loss, loss_scale, max_iter, block_samples);
   o.std_kind = std_kind;
   o.cluster_s = cluster_s;
-  o.progress = progress(c);
   const std::vector<std::uint8_t> out_rows = excluded_rows(c, data);
   std::vector<std::uint8_t> keep;
   if (!out_rows.empty()) {
@@ -364,14 +372,7 @@ void run_tool_change(const Common& c, const std::string& base_path, const std::s
   const ident::Dataset data = ident::read_dataset(c.log, &rig);
   const io::ModelFile base = io::read_model(base_path);
   ident::ToolChangeOptions o;
-  o.loss = loss;
-  o.loss_scale = loss_scale;
-  o.max_iterations = max_iter;
-  o.block_samples = block_samples;
-  o.threads = c.threads;
-  o.engine = c.engine;
-  o.errors_in_variables = c.errors_in_variables;
-  o.progress = progress(c);
+  set_solver_options(o, c, loss, loss_scale, max_iter, block_samples);
   const ident::ToolChangeResult tc = ident::fit_tool_change(data, base.params, o);
   const ident::FitResult& r = tc.fit;
   io::ModelFile m = fitted_model_file(r, rig, c.log, data);

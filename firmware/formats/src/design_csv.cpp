@@ -20,8 +20,17 @@ std::string format_double(double x) {
 
 }  // namespace
 
-void split_design_line(const std::string& line, std::vector<std::string>& cells,
-                       std::vector<int>& columns) {
+bool read_design_line(std::istream& in, int& line_no, std::vector<std::string>& cells,
+                      std::vector<int>& columns) {
+  std::string line;
+  while (true) {
+    if (!std::getline(in, line)) return false;
+    ++line_no;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (!line.empty() && line[0] != '#') break;
+  }
+  cells.clear();
+  columns.clear();
   std::size_t start = 0;
   while (true) {
     const std::size_t comma = line.find(',', start);
@@ -30,6 +39,7 @@ void split_design_line(const std::string& line, std::vector<std::string>& cells,
     if (comma == std::string::npos) break;
     start = comma + 1;
   }
+  return true;
 }
 
 std::string design_csv_text(const std::string& comment,
@@ -55,13 +65,9 @@ std::vector<DesignPoint> read_design(const std::filesystem::path& path) {
     throw InputError(path, 1, 1, "first line must be '" + std::string(kDesignMagic) + "'");
   bool header_seen = false;
   std::vector<DesignPoint> points;
-  while (std::getline(in, line)) {
-    ++line_no;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    if (line.empty() || line[0] == '#') continue;
-    std::vector<std::string> cells;
-    std::vector<int> columns;
-    split_design_line(line, cells, columns);
+  std::vector<std::string> cells;
+  std::vector<int> columns;
+  while (read_design_line(in, line_no, cells, columns)) {
     if (cells.size() != 6)
       throw InputError(path, line_no, 1,
                        "expected 6 columns, found " + std::to_string(cells.size()));

@@ -10,6 +10,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <charconv>
 #include <cmath>
@@ -19,6 +20,7 @@
 #include <stdexcept>
 #include <thread>
 #include <tuple>
+#include <utility>
 
 #include "zerog/emu/ati_board.hpp"
 #include "zerog/emu/stim300_emulator.hpp"
@@ -350,6 +352,23 @@ bool RigEmulator::physics_step(std::uint64_t k, const std::atomic<bool>& stop) {
   return true;
 }
 
+namespace {
+
+// What an imu_* fault kind (but imu_unplug) does to the emulated IMU's stream.
+ImuFault imu_stream_fault(FaultKind kind) {
+  constexpr std::array<std::pair<FaultKind, ImuFault>, 4> kStreamFaults{{
+      {FaultKind::imu_garbage, ImuFault::garbage},
+      {FaultKind::imu_crc, ImuFault::crc_errors},
+      {FaultKind::imu_gaps, ImuFault::counter_gaps},
+      {FaultKind::imu_silent, ImuFault::silent},
+  }};
+  for (const auto& [k, fault] : kStreamFaults)
+    if (k == kind) return fault;
+  return ImuFault::none;
+}
+
+}  // namespace
+
 void RigEmulator::device_faults(double t_s) {
   for (std::size_t i = 0; i < faults_.size(); ++i) {
     const Fault& f = scenario_.faults[i];
@@ -380,16 +399,10 @@ void RigEmulator::device_faults(double t_s) {
           break;
         }
         case FaultKind::imu_garbage:
-          setup_.imu->set_fault(ImuFault::garbage);
-          break;
         case FaultKind::imu_crc:
-          setup_.imu->set_fault(ImuFault::crc_errors);
-          break;
         case FaultKind::imu_gaps:
-          setup_.imu->set_fault(ImuFault::counter_gaps);
-          break;
         case FaultKind::imu_silent:
-          setup_.imu->set_fault(ImuFault::silent);
+          setup_.imu->set_fault(imu_stream_fault(f.kind));
           break;
         case FaultKind::imu_unplug:
           setup_.imu->unplug();

@@ -288,18 +288,13 @@ DesignMetrics design_metrics(const std::vector<JointVector>& points, const Works
 std::vector<Eigen::Vector3d> read_attitudes(const std::filesystem::path& path) {
   std::ifstream in(path);
   if (!in) throw io::InputError(path, 0, 0, "cannot open attitude file");
-  std::string line;
   int line_no = 0;
   std::array<int, 3> col{-1, -1, -1};  // cell index of rx_rad, ry_rad, rz_rad
   std::size_t num_cells = 0;
   std::vector<Eigen::Vector3d> out;
-  while (std::getline(in, line)) {
-    ++line_no;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    if (line.empty() || line[0] == '#') continue;
-    std::vector<std::string> cells;
-    std::vector<int> columns;
-    io::split_design_line(line, cells, columns);
+  std::vector<std::string> cells;
+  std::vector<int> columns;
+  while (io::read_design_line(in, line_no, cells, columns)) {
     if (num_cells == 0) {
       constexpr const char* kNames[3] = {"rx_rad", "ry_rad", "rz_rad"};
       for (int k = 0; k < 3; ++k) {

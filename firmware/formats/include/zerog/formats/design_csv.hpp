@@ -5,6 +5,7 @@
 // and throws; not real-time safe.
 #include <array>
 #include <filesystem>
+#include <iosfwd>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -21,10 +22,11 @@ using DesignPoint = std::array<double, 6>;
 /// made; none if empty), the header and one row per point (C locale, `%.12g`).
 std::string design_csv_text(const std::string& comment, const std::vector<DesignPoint>& points_rad);
 
-/// Splits one line of a design or attitude CSV at commas: the cells, and the 1-based column
-/// where each starts (for InputError).
-void split_design_line(const std::string& line, std::vector<std::string>& cells,
-                       std::vector<int>& columns);
+/// Reads the next line of a design or attitude CSV that is neither blank nor a `#` comment (a
+/// trailing CR dropped) and splits it at commas: the cells, and the 1-based column where each
+/// starts (for InputError). `line_no` counts every line read. False at the end of `in`.
+bool read_design_line(std::istream& in, int& line_no, std::vector<std::string>& cells,
+                      std::vector<int>& columns);
 
 /// Reads a design CSV; throws io::InputError naming file, line and column (proto/design_format.md).
 std::vector<DesignPoint> read_design(const std::filesystem::path& path);
