@@ -55,7 +55,7 @@ void add_decode_can_command(CLI::App& app) {
   s->callback([a] {
     io::CanDecodeOptions o;
     o.base_id = static_cast<std::uint8_t>(a->base_id);
-    proto::parse_candump_clock(a->timestamps, o.clock);
+    io::parse_candump_clock(a->timestamps, o.clock);
     o.assume_rate_hz = a->assume_rate_hz;
     if (!a->thermistor.empty())
       o.thermistor = proto::netcanoem::ThermistorConversion{a->thermistor[0], a->thermistor[1]};
@@ -66,8 +66,8 @@ void add_decode_can_command(CLI::App& app) {
                 a->out.c_str());
     std::printf(
         "format: %s; time: %s (%s)%s\n",
-        r.log.form == proto::CandumpForm::log ? "candump -L log file" : "candump default output",
-        proto::to_string(r.log.clock), r.log.clock_reason.c_str(),
+        r.log.form == io::CandumpForm::log ? "candump -L log file" : "candump default output",
+        io::to_string(r.log.clock), r.log.clock_reason.c_str(),
         r.time_assumed ? ", times assumed from --assume-rate (t = k / rate)" : "");
     if (r.log.fd_frames > 0)
       std::printf("%zu CAN FD frames skipped (the sensor speaks classical CAN)\n", r.log.fd_frames);

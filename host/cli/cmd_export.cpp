@@ -124,7 +124,7 @@ void add_network(const ExportArgs& a, const io::ModelFile& fit, learn::NetworkFi
                              "' network predicts the whole wrench; zerog export deploys "
                              "'residual' networks on top of the physics model");
   if (net.physics) check_same_physics(fit.params, net.physics->params, a.network);
-  infer::QuantiseOptions q;
+  deploy::QuantiseOptions q;
   q.weight_bits = a.weight_bits;
   q.input_clip = a.input_clip;
   if (!a.calibration.empty()) {

@@ -15,9 +15,9 @@
 #include "fuzz_util.hpp"
 #include "zerog/io/candump.hpp"
 
-using zerog::proto::CandumpError;
-using zerog::proto::CandumpLineKind;
-using zerog::proto::CandumpRecord;
+using zerog::io::CandumpError;
+using zerog::io::CandumpLineKind;
+using zerog::io::CandumpRecord;
 
 namespace {
 
@@ -34,13 +34,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
 
   std::vector<CandumpRecord> records;
   CandumpError error;
-  const bool ok = zerog::proto::parse_candump(text, pass_all, records, error);
+  const bool ok = zerog::io::parse_candump(text, pass_all, records, error);
 
   std::istringstream stream{std::string(text)};
   std::vector<CandumpRecord> records_from_stream;
   CandumpError stream_error;
   const bool stream_ok =
-      zerog::proto::parse_candump(stream, pass_all, records_from_stream, stream_error);
+      zerog::io::parse_candump(stream, pass_all, records_from_stream, stream_error);
   ZEROG_FUZZ_CHECK(ok == stream_ok);
   ZEROG_FUZZ_CHECK(records.size() == records_from_stream.size());
   for (std::size_t i = 0; i < records.size(); ++i)
@@ -54,10 +54,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
 
   for (const CandumpRecord& record : records) {
     ZEROG_FUZZ_CHECK(record.frame.len <= zerog::proto::kCanMaxDataLength);
-    const std::string line = zerog::proto::format_candump_line(record);
+    const std::string line = zerog::io::format_candump_line(record);
     CandumpRecord back;
     CandumpError line_error;
-    const CandumpLineKind kind = zerog::proto::parse_candump_line(line, 1, back, line_error);
+    const CandumpLineKind kind = zerog::io::parse_candump_line(line, 1, back, line_error);
     if (kind != CandumpLineKind::record) {
       std::fprintf(stderr, "formatted line does not parse: '%s': %s\n", line.c_str(),
                    line_error.message().c_str());

@@ -174,13 +174,13 @@ void candump_seeds() {
       " (000.000000)  can0  201   [2]  AB CD\n (000.000700)  can0  201   [0] \n");
   put("candump", "default_tA",
       " (2023-11-14 22:13:20.123456)  can0  201   [4]  41 42 43 44   'ABCD'\n");
-  proto::CandumpRecord r;
+  io::CandumpRecord r;
   r.timestamp_ns = 1700000000123456000;
   r.interface = "can0";
   r.frame.id = 0x7FF;
   r.frame.len = 8;
   r.frame.data = {1, 2, 3, 4, 5, 6, 7, 8};
-  put("candump", "formatted", proto::format_candump_line(r) + "\n");
+  put("candump", "formatted", io::format_candump_line(r) + "\n");
 }
 
 void modbus_seeds() {

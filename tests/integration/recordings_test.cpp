@@ -135,7 +135,7 @@ const char* kForceTorqueKeys =
 // time (on candump's µs clock, `start_ns` + t), the request 300 µs and the first answer 100 µs
 // before. The board's counts are the finest whose range holds the run's wrench with 30 % margin.
 struct CanSession {
-  std::vector<zerog::proto::CandumpRecord> records;
+  std::vector<zerog::io::CandumpRecord> records;
   std::array<double, 6> resolution{};  ///< wrench of one count on every gauge (AtiBoard)
 };
 CanSession can_session(const zerog::io::Log& log, std::int64_t start_ns) {
@@ -162,9 +162,9 @@ CanSession can_session(const zerog::io::Log& log, std::int64_t start_ns) {
 
   CanSession session;
   session.resolution = board.count_resolution_si();
-  std::vector<zerog::proto::CandumpRecord>& records = session.records;
+  std::vector<zerog::io::CandumpRecord>& records = session.records;
   auto add = [&](const zerog::proto::CanFrame& frame, std::int64_t t_ns) {
-    zerog::proto::CandumpRecord r;
+    zerog::io::CandumpRecord r;
     r.timestamp_ns = t_ns / 1000 * 1000;  // candump's stamps are whole microseconds
     r.interface = "can0";
     r.frame = frame;
@@ -224,13 +224,13 @@ TEST_F(Recordings, CandumpDefaultAndTaThroughDecodeImportFitDiagnoseFindTheCable
     const double quantum_N =
         0.5 *
         Eigen::Vector3d(session.resolution[0], session.resolution[1], session.resolution[2]).norm();
-    for (const zerog::proto::CandumpClock clock :
-         {zerog::proto::CandumpClock::none, zerog::proto::CandumpClock::absolute}) {
-      const bool stamped = clock == zerog::proto::CandumpClock::absolute;
+    for (const zerog::io::CandumpClock clock :
+         {zerog::io::CandumpClock::none, zerog::io::CandumpClock::absolute}) {
+      const bool stamped = clock == zerog::io::CandumpClock::absolute;
       SCOPED_TRACE("seed " + std::to_string(seed) + (stamped ? ", candump -ta" : ", candump"));
       std::string text;
       for (const auto& r : session.records)
-        text += zerog::proto::format_candump_columns(r, clock) + "\n";
+        text += zerog::io::format_candump_columns(r, clock) + "\n";
       write_text(dir() / "bus.log", text);
       // Default output: no time at all; decode-can needs the rate, sample k gets k / rate.
       const Result decoded =

@@ -9,8 +9,14 @@
 
 #include "zerog/infer/quant_math.hpp"
 
-namespace zerog::infer {
+namespace zerog::deploy {
 namespace {
+
+using infer::DeployedNetwork;
+using infer::bias_limit;
+using infer::kActMax;
+using infer::QuantisedLayer;
+using infer::QuantisedNetwork;
 
 using model::Activation;
 
@@ -185,4 +191,4 @@ DeployedNetwork make_deployed_network(std::vector<model::Feature> features,
   return n;
 }
 
-}  // namespace zerog::infer
+}  // namespace zerog::deploy

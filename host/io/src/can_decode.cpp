@@ -102,23 +102,23 @@ CanDecodeResult decode_netcanoem_log(const std::filesystem::path& candump,
                                      const CanDecodeOptions& o) {
   std::ifstream in(candump);
   if (!in) throw InputError(candump, 0, 0, "cannot open");
-  std::vector<proto::CandumpRecord> records;
-  proto::CandumpError error;
+  std::vector<io::CandumpRecord> records;
+  io::CandumpError error;
   CanDecodeResult r;
-  if (!proto::parse_candump(in, proto::CanFilter{}, records, error, &r.log, o.clock))
+  if (!io::parse_candump(in, proto::CanFilter{}, records, error, &r.log, o.clock))
     throw InputError(candump, error.line, error.column, error.reason);
   if (o.assume_rate_hz && !(*o.assume_rate_hz > 0.0 && std::isfinite(*o.assume_rate_hz)))
     throw std::runtime_error("--assume-rate must be a positive rate in Hz");
-  if (r.log.clock == proto::CandumpClock::none && !records.empty() && !o.assume_rate_hz)
+  if (r.log.clock == io::CandumpClock::none && !records.empty() && !o.assume_rate_hz)
     throw std::runtime_error(
         candump.string() + ": the log has no timestamps (" + r.log.clock_reason +
         "), so the wrenches would have no time. Give the sensor's sample rate with --assume-rate "
         "HZ (each complete sample k gets t = k / HZ; gaps in the recording then shift the "
         "times), or record again with timestamps: candump -L, or candump -ta");
-  if (r.log.clock != proto::CandumpClock::none && o.assume_rate_hz)
+  if (r.log.clock != io::CandumpClock::none && o.assume_rate_hz)
     throw std::runtime_error(candump.string() + ": the log has timestamps (" + r.log.clock_reason +
                              "): drop --assume-rate");
-  r.time_assumed = r.log.clock == proto::CandumpClock::none;
+  r.time_assumed = r.log.clock == io::CandumpClock::none;
 
   r.records = records.size();
   CalibrationTracker tracker{o.base_id, {}, -1, {}, false};

@@ -5,9 +5,18 @@
 #include <limits>
 #include <string>
 
-namespace zerog::proto {
+namespace zerog::io {
 
 namespace {
+
+using proto::CanFilter;
+using proto::CanFrame;
+using proto::kCanErrorFlag;
+using proto::kCanExtendedFlag;
+using proto::kCanExtendedIdMask;
+using proto::kCanMaxDataLength;
+using proto::kCanRemoteFlag;
+using proto::kCanStandardIdMask;
 
 int hex_value(char c) {
   if (c >= '0' && c <= '9') return c - '0';
@@ -682,4 +691,4 @@ std::string format_candump_columns(const CandumpRecord& record, CandumpClock clo
   return line;
 }
 
-}  // namespace zerog::proto
+}  // namespace zerog::io

@@ -19,7 +19,7 @@ infer::RigDescription rig_description(const io::Rig& r) {
   return d;
 }
 
-infer::DeployedNetwork deploy_network(const NetworkFile& net, infer::QuantiseOptions q,
+infer::DeployedNetwork deploy_network(const NetworkFile& net, deploy::QuantiseOptions q,
                                       const ident::Dataset* data, const io::Log* log) {
   // QuantiseOptions::calibration_inputs is a view: the rows must outlive the quantisation.
   // (They were a temporary once: ASan found the read after free.)
@@ -32,7 +32,7 @@ infer::DeployedNetwork deploy_network(const NetworkFile& net, infer::QuantiseOpt
     rows = feature_rows(*data, *log, net.inputs, idx);
     q.calibration_inputs = rows;
   }
-  return infer::make_deployed_network(net.inputs, net.output_axes, net.shape, net.normalisation,
+  return deploy::make_deployed_network(net.inputs, net.output_axes, net.shape, net.normalisation,
                                       net.params, q);
 }
 

@@ -259,7 +259,7 @@ TEST(DeployFile, NetworksWithFewerOutputsAddToTheirAxesOnly) {
   DeployedModel m;
   m.rig = test::demo_rig();
   m.physics = test::demo_physics();
-  m.network = make_deployed_network(full.features, {0, 1, 2, 3, 4}, shape, norm, params);
+  m.network = deploy::make_deployed_network(full.features, {0, 1, 2, 3, 4}, shape, norm, params);
   const LoadResult r = load_deployed_model(serialise_deployed_model(m), test::demo_rig());
   ASSERT_TRUE(r.ok()) << r.message;
   EXPECT_EQ(r.model->network->output_axes, (std::vector<int>{0, 1, 2, 3, 4}));

@@ -153,9 +153,9 @@ inline DeployedNetwork make_network(const std::vector<Feature>& features,
       last[6 * n + k] /= sd;
     }
   }
-  QuantiseOptions o;
+  deploy::QuantiseOptions o;
   o.weight_bits = weight_bits;
-  net.quantised = quantise_network(net.shape, net.normalisation, net.params, o);
+  net.quantised = deploy::quantise_network(net.shape, net.normalisation, net.params, o);
   return net;
 }
 

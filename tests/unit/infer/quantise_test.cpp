@@ -215,7 +215,7 @@ DeployedNetwork fitted_network(const std::vector<model::FeatureSignals>& data, d
   for (int r = 0; r < 6; ++r)
     for (int c = 0; c < H; ++c) net.params.push_back(W2(r, c));
   for (int r = 0; r < 6; ++r) net.params.push_back(B2(r, 0));
-  net.quantised = quantise_network(net.shape, net.normalisation, net.params);
+  net.quantised = deploy::quantise_network(net.shape, net.normalisation, net.params);
   return net;
 }
 
@@ -250,14 +250,14 @@ TEST(Quantise, RejectsMalformedNetworks) {
   model::NetworkShape shape{{3, 200, 6}, {Activation::tanh, Activation::identity}};
   model::NetworkNormalisation norm{{0, 0, 0}, {1, 1, 1}, {0, 0, 0, 0, 0, 0}, {1, 1, 1, 1, 1, 1}};
   std::vector<double> p(static_cast<std::size_t>(shape.num_params()), 0.1);
-  EXPECT_THROW(quantise_network(shape, norm, p), std::invalid_argument);  // too wide
+  EXPECT_THROW(deploy::quantise_network(shape, norm, p), std::invalid_argument);  // too wide
   shape.width = {3, 4, 6};
-  EXPECT_THROW(quantise_network(shape, norm, p), std::invalid_argument);  // param count
+  EXPECT_THROW(deploy::quantise_network(shape, norm, p), std::invalid_argument);  // param count
   p.resize(static_cast<std::size_t>(shape.num_params()));
-  QuantiseOptions o;
+  deploy::QuantiseOptions o;
   o.weight_bits = 12;
-  EXPECT_THROW(quantise_network(shape, norm, p, o), std::invalid_argument);
-  EXPECT_NO_THROW(quantise_network(shape, norm, p));
+  EXPECT_THROW(deploy::quantise_network(shape, norm, p, o), std::invalid_argument);
+  EXPECT_NO_THROW(deploy::quantise_network(shape, norm, p));
 }
 
 }  // namespace

@@ -26,27 +26,27 @@ constexpr std::uint8_t kBase = 0x20;
 
 struct Recording {
   std::string text;
-  std::vector<proto::CandumpRecord> records;
+  std::vector<io::CandumpRecord> records;
   double t = 1700000000.0;
   void add(const proto::CanFrame& f, const char* iface = "can0") {
-    proto::CandumpRecord r;
+    io::CandumpRecord r;
     r.timestamp_ns = std::llround(t * 1e6) * 1000;  // candump's stamps are whole microseconds
     r.interface = iface;
     r.frame = f;
-    text += proto::format_candump_line(r) + "\n";
+    text += io::format_candump_line(r) + "\n";
     records.push_back(r);
     t += 0.0005;
   }
   // The same frames as candump prints them in its default output with timestamps `clock`.
-  std::string columns(proto::CandumpClock clock) const {
+  std::string columns(io::CandumpClock clock) const {
     std::string out;
     std::int64_t previous = records.front().timestamp_ns;
-    for (proto::CandumpRecord r : records) {
+    for (io::CandumpRecord r : records) {
       const std::int64_t absolute = r.timestamp_ns;
-      if (clock == proto::CandumpClock::zero) r.timestamp_ns = absolute - records[0].timestamp_ns;
-      if (clock == proto::CandumpClock::delta) r.timestamp_ns = absolute - previous;
+      if (clock == io::CandumpClock::zero) r.timestamp_ns = absolute - records[0].timestamp_ns;
+      if (clock == io::CandumpClock::delta) r.timestamp_ns = absolute - previous;
       previous = absolute;
-      out += proto::format_candump_columns(r, clock) + "\n";
+      out += io::format_candump_columns(r, clock) + "\n";
     }
     return out;
   }
@@ -382,23 +382,23 @@ TEST(DecodeCan, EveryCandumpFormDecodesToTheSameSamples) {
   const fs::path reference_log = write_temp("ref.log", fx.rec.text);
   const CanDecodeResult reference = decode_netcanoem_log(reference_log, {});
   ASSERT_EQ(reference.samples.size(), fx.gauges.size());
-  EXPECT_EQ(reference.log.form, proto::CandumpForm::log);
-  EXPECT_EQ(reference.log.clock, proto::CandumpClock::absolute);
+  EXPECT_EQ(reference.log.form, io::CandumpForm::log);
+  EXPECT_EQ(reference.log.clock, io::CandumpClock::absolute);
   const double t_first_frame = static_cast<double>(fx.rec.records.front().timestamp_ns) * 1e-9;
   struct Form {
     const char* name;
-    proto::CandumpClock clock;
+    io::CandumpClock clock;
     double t_offset_s;  // what the form's clock subtracts from the time since 1970
   };
   for (const Form& f :
-       {Form{"ta", proto::CandumpClock::absolute, 0.0}, Form{"tA", proto::CandumpClock::date, 0.0},
-        Form{"tz", proto::CandumpClock::zero, t_first_frame},
-        Form{"td", proto::CandumpClock::delta, t_first_frame},
-        Form{"none", proto::CandumpClock::none, 0.0}}) {
+       {Form{"ta", io::CandumpClock::absolute, 0.0}, Form{"tA", io::CandumpClock::date, 0.0},
+        Form{"tz", io::CandumpClock::zero, t_first_frame},
+        Form{"td", io::CandumpClock::delta, t_first_frame},
+        Form{"none", io::CandumpClock::none, 0.0}}) {
     SCOPED_TRACE(f.name);
     const fs::path log = write_temp(std::string(f.name) + ".log", fx.rec.columns(f.clock));
     CanDecodeOptions o;
-    if (f.clock == proto::CandumpClock::none) {
+    if (f.clock == io::CandumpClock::none) {
       // Without timestamps the wrenches would have no time: refused unless a rate is given.
       try {
         decode_netcanoem_log(log, o);
@@ -410,16 +410,16 @@ TEST(DecodeCan, EveryCandumpFormDecodesToTheSameSamples) {
       o.assume_rate_hz = 500.0;
     }
     const CanDecodeResult r = decode_netcanoem_log(log, o);
-    EXPECT_EQ(r.log.form, proto::CandumpForm::columns);
+    EXPECT_EQ(r.log.form, io::CandumpForm::columns);
     EXPECT_EQ(r.log.clock, f.clock) << r.log.clock_reason;  // detected, not given
-    EXPECT_EQ(r.time_assumed, f.clock == proto::CandumpClock::none);
+    EXPECT_EQ(r.time_assumed, f.clock == io::CandumpClock::none);
     ASSERT_EQ(r.samples.size(), reference.samples.size());
     EXPECT_EQ(r.other_traffic, reference.other_traffic);
     EXPECT_EQ(r.unusable, reference.unusable);
     for (std::size_t k = 0; k < r.samples.size(); ++k) {
       EXPECT_EQ(r.samples[k].wrench, reference.samples[k].wrench) << k;
       EXPECT_EQ(r.samples[k].status, reference.samples[k].status) << k;
-      const double t = f.clock == proto::CandumpClock::none
+      const double t = f.clock == io::CandumpClock::none
                            ? static_cast<double>(k) / 500.0
                            : reference.samples[k].t_s - f.t_offset_s;
       EXPECT_NEAR(r.samples[k].t_s, t, 2e-6) << k;

@@ -8,8 +8,12 @@
 
 #include "zerog/proto/netcanoem.hpp"
 
-namespace zerog::proto {
+namespace zerog::io {
 namespace {
+
+using proto::CanFilter;
+using proto::CanFrame;
+namespace netcanoem = proto::netcanoem;
 
 CandumpRecord parse_ok(std::string_view line) {
   CandumpRecord r;
@@ -349,4 +353,4 @@ TEST(Candump, WholeLogStopsAtTheFirstError) {
 }
 
 }  // namespace
-}  // namespace zerog::proto
+}  // namespace zerog::io

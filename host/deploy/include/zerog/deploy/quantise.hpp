@@ -7,7 +7,7 @@
 
 #include "zerog/infer/deploy_model.hpp"
 
-namespace zerog::infer {
+namespace zerog::deploy {
 
 struct QuantiseOptions {
   int weight_bits = 16;     ///< 8 or 16, per-output-channel scales either way
@@ -26,7 +26,7 @@ struct QuantiseOptions {
 /// scale per output channel (max |w| of the row maps to 2^(bits−1) − 1). Activations: int16, one
 /// scale per layer (inputs: input_clip; sigmoid/tanh outputs: 1/32767; identity/leaky_relu
 /// hidden outputs: calibrated). Throws std::invalid_argument if the network is malformed.
-QuantisedNetwork quantise_network(const model::NetworkShape& shape,
+infer::QuantisedNetwork quantise_network(const model::NetworkShape& shape,
                                   const model::NetworkNormalisation& norm,
                                   std::span<const double> params,
                                   const QuantiseOptions& options = {});
@@ -34,9 +34,9 @@ QuantisedNetwork quantise_network(const model::NetworkShape& shape,
 /// Packages a trained float network for deployment: the float reference as given plus its
 /// quantised form. `output_axes` as in DeployedNetwork. Throws std::invalid_argument if the
 /// parts do not fit together. Host side.
-DeployedNetwork make_deployed_network(std::vector<model::Feature> features,
+infer::DeployedNetwork make_deployed_network(std::vector<model::Feature> features,
                                       std::vector<int> output_axes, model::NetworkShape shape,
                                       model::NetworkNormalisation norm, std::vector<double> params,
                                       const QuantiseOptions& options = {});
 
-}  // namespace zerog::infer
+}  // namespace zerog::deploy

@@ -22,7 +22,7 @@ struct CanDecodeOptions {
   std::optional<proto::netcanoem::Calibration> calibration;
   std::array<double, proto::netcanoem::kGaugeCount> bias_gauges{};  ///< SG_bias, raw counts
   /// How to read the log's timestamps (default: decided from the log).
-  proto::CandumpClock clock = proto::CandumpClock::automatic;
+  io::CandumpClock clock = io::CandumpClock::automatic;
   /// The sensor's sample rate, Hz, for a log without timestamps (candump's default output):
   /// the k-th complete sample (usable or not) gets t = k / rate. Refused for a log with times.
   std::optional<double> assume_rate_hz;
@@ -72,7 +72,7 @@ struct CanDecodeResult {
   /// Samples dropped because the run of pairings they belong to never emptied the queue of
   /// waiting 0x0 halves (a 0x1 lost somewhere, or the log ended): they may mix two polls.
   std::size_t unconfirmed = 0;
-  proto::CandumpLogInfo log;  ///< the log's form and clock (and why), frames, CAN FD frames
+  io::CandumpLogInfo log;  ///< the log's form and clock (and why), frames, CAN FD frames
   bool time_assumed = false;  ///< t_s from assume_rate_hz (the log has no time)
   std::vector<ThermistorReading> thermistor;  ///< every thermistor reading, in log order
   DiagnosticCounters diagnostic;

@@ -45,7 +45,7 @@
 
 #include "zerog/proto/can_frame.hpp"
 
-namespace zerog::proto {
+namespace zerog::io {
 
 /// The line form: candump's log-file form (`-L`) or its default columns.
 enum class CandumpForm : std::uint8_t { log, columns };
@@ -73,7 +73,7 @@ struct CandumpRecord {
   /// UTC); after parse_candump(), on the log's clock (-td summed). 0 without timestamps.
   std::int64_t timestamp_ns = 0;
   std::string interface;       ///< e.g. "can0"
-  CanFrame frame;              ///< flags set as SocketCAN would (extended, remote, error)
+  proto::CanFrame frame;              ///< flags set as SocketCAN would (extended, remote, error)
   char direction = '\0';       ///< 'R' or 'T' when the log says so (candump -x), else '\0'
   bool fd = false;             ///< a CAN FD frame: `frame` holds id and flags, no payload
   std::uint8_t fd_length = 0;  ///< its data length (0–64)
@@ -109,11 +109,11 @@ struct CandumpLogInfo {
 /// Parses a whole log, keeping only the frames `filter` passes, with timestamps on the log's
 /// clock (`clock`, or decided from the log). Stops at the first error: returns false with
 /// `error` filled. `records` holds the frames before the error (timestamps then as printed).
-bool parse_candump(std::string_view text, const CanFilter& filter,
+bool parse_candump(std::string_view text, const proto::CanFilter& filter,
                    std::vector<CandumpRecord>& records, CandumpError& error,
                    CandumpLogInfo* info = nullptr, CandumpClock clock = CandumpClock::automatic);
 /// The same, reading from a stream.
-bool parse_candump(std::istream& in, const CanFilter& filter, std::vector<CandumpRecord>& records,
+bool parse_candump(std::istream& in, const proto::CanFilter& filter, std::vector<CandumpRecord>& records,
                    CandumpError& error, CandumpLogInfo* info = nullptr,
                    CandumpClock clock = CandumpClock::automatic);
 
@@ -127,4 +127,4 @@ std::string format_candump_line(const CandumpRecord& record);
 /// For tests and fixtures.
 std::string format_candump_columns(const CandumpRecord& record, CandumpClock clock);
 
-}  // namespace zerog::proto
+}  // namespace zerog::io

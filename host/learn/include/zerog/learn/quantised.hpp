@@ -16,7 +16,7 @@ infer::RigDescription rig_description(const io::Rig& rig);
 
 /// Quantises a residual network for the firmware. With `calibration` (a log and its dataset),
 /// the input ranges come from up to 20,000 of its samples.
-infer::DeployedNetwork deploy_network(const NetworkFile& residual, infer::QuantiseOptions options,
+infer::DeployedNetwork deploy_network(const NetworkFile& residual, deploy::QuantiseOptions options,
                                       const ident::Dataset* calibration_data = nullptr,
                                       const io::Log* calibration_log = nullptr);
 
