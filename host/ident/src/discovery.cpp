@@ -806,8 +806,8 @@ std::optional<Discovery> discover_beyond(const Dataset& data, const Baseline& ba
     }
   }
   std::optional<Discovery> x = discover_law(data, base, split, o, d.noise_rms);
-  if (x && x->gain < o.min_law_gain) x.reset();
-  if (x) x->law_gain = x->gain;
+  if (!x || x->gain < o.min_law_gain) return std::nullopt;
+  x->law_gain = x->gain;
   return x;
 }
 
