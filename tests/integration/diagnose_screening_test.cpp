@@ -286,7 +286,7 @@ TEST(ScreeningFallback, RobustLossAndErrorsInVariablesRefitEveryCandidate) {
   EXPECT_NE(ident::format_diagnosis(s).find("screened"), std::string::npos);
 }
 
-// Discovery (diagnose.cpp) takes the baseline's tangent space from TrainingProblem::evaluate
+// Discovery (discovery.cpp) takes the baseline's tangent space from TrainingProblem::evaluate
 // instead of central differences of the block-mean prediction (issue 16): the block residual
 // must be the whitened block mean of measured − predicted, and its Jacobian the negated central
 // difference, column for column in discovery's packing (the effects in library order, then the

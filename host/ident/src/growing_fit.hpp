@@ -1,5 +1,5 @@
 #pragma once
-// The least-squares fit inside discovery's orthogonal matching pursuit (diagnose.cpp), grown one
+// The least-squares fit inside discovery's orthogonal matching pursuit (discovery.cpp), grown one
 // accepted column at a time instead of refactored per step (issue 16). Host only.
 #include <Eigen/Dense>
 #include <algorithm>

@@ -1,5 +1,5 @@
 #pragma once
-// Screening of candidate effects for diagnose (diagnose.cpp, issue 16): the training problem of
+// Screening of candidate effects for diagnose (candidates.cpp, issue 16): the training problem of
 // one model holding the baseline and every candidate, as the fit's normal engine sees it
 // (normal_equations.hpp: the same blocks, whitening and block evaluation as fit(), one copy of
 // the model), and the Gauss–Newton step of the baseline plus one candidate from its normal
