@@ -74,20 +74,18 @@ std::string num(const char* f, double x) {
   return b;
 }
 
-}  // namespace
+// ---- find_spans' phases, in the order it runs them ----
 
-SpanScan find_spans(const std::vector<Wrench>& r, const Dataset& data,
-                    const std::vector<std::uint8_t>* exclude, const EventOptions& o) {
-  SpanScan scan;
-  scan.window_s = o.window_s;
+// The step detector's window in rows, or why it cannot run on this log (scan.possible false, a
+// note).
+std::size_t step_window(const Dataset& data, const EventOptions& o, SpanScan& scan) {
   const std::size_t n = data.size();
-  if (r.size() != n) throw std::invalid_argument("find_spans: one residual per row wanted");
   if (data.columns.static_rows) {
     scan.possible = false;
     scan.note =
         "a table without time: its rows are poses, not moments, so no span of time can stand "
         "out";
-    return scan;
+    return 0;
   }
   const std::size_t w =
       std::max<std::size_t>(5, static_cast<std::size_t>(std::lround(o.window_s / data.dt_s)));
@@ -96,29 +94,33 @@ SpanScan find_spans(const std::vector<Wrench>& r, const Dataset& data,
     scan.possible = false;
     scan.note = "the log holds " + std::to_string(n) + " rows; the step detector needs at least " +
                 std::to_string(4 * w) + " (four windows of " + num("%.2f", o.window_s) + " s)";
-    return scan;
   }
-  std::vector<std::uint8_t> scanned(n, 1);
-  if (exclude)
-    for (std::size_t i = 0; i < n; ++i) scanned[i] = (*exclude)[i] ? 0 : 1;
-  const Prefix P(r, scanned);
-  const double half = 0.5 * static_cast<double>(w);
+  return w;
+}
 
-  // The step statistic D(i) = mean(r[i, i+w)) − mean(r[i−w, i)) and its robust spread per axis.
-  std::vector<Vec6> D(n + 1);
-  std::vector<std::uint8_t> valid(n + 1, 0);
+// The step statistic D(i) = mean(r[i, i+w)) − mean(r[i−w, i)) where both windows hold at least
+// half their rows, and its robust spread per axis (scan.scale) and threshold (scan.z_step).
+struct Steps {
+  std::vector<Vec6> D;              // rows 0..n
+  std::vector<std::uint8_t> valid;  // D[i] computed
+};
+
+Steps step_statistic(const Prefix& P, std::size_t n, std::size_t w, const EventOptions& o,
+                     SpanScan& scan) {
+  const double half = 0.5 * static_cast<double>(w);
+  Steps s{std::vector<Vec6>(n + 1), std::vector<std::uint8_t>(n + 1, 0)};
   for (std::size_t i = w; i + w <= n; ++i) {
     Vec6 left, right;
     if (!P.mean(i - w, i, half, left) || !P.mean(i, i + w, half, right)) continue;
-    D[i] = minus(right, left);
-    valid[i] = 1;
+    s.D[i] = minus(right, left);
+    s.valid[i] = 1;
   }
   std::size_t n_valid = 0;
   for (std::size_t k = 0; k < 6; ++k) {
     std::vector<double> v;
     v.reserve(n);
     for (std::size_t i = 0; i <= n; ++i)
-      if (valid[i]) v.push_back(D[i][k]);
+      if (s.valid[i]) v.push_back(s.D[i][k]);
     n_valid = v.size();
     const double med = median_of(v);
     for (double& x : v) x = std::abs(x - med);
@@ -128,55 +130,80 @@ SpanScan find_spans(const std::vector<Wrench>& r, const Dataset& data,
   if (n_valid == 0) {
     scan.possible = false;
     scan.note = "too few rows are left outside the excluded spans for the step detector";
-    return scan;
+    return s;
   }
   scan.z_step =
       o.z_step > 0.0
           ? o.z_step
           : std::sqrt(2.0 * std::log(6.0 * static_cast<double>(n_valid) / static_cast<double>(w))) +
                 3.0;
+  return s;
+}
 
-  // Change points: local maxima of the largest scaled step, at least a window apart.
+// Change points: local maxima of the largest scaled step, at least a window apart.
+std::vector<std::size_t> change_points(const Steps& steps, std::size_t n, std::size_t w,
+                                       const SpanScan& scan) {
   std::vector<double> S(n + 1, 0.0);
   for (std::size_t i = 0; i <= n; ++i)
-    if (valid[i]) S[i] = scaled_max(D[i], scan.scale);
+    if (steps.valid[i]) S[i] = scaled_max(steps.D[i], scan.scale);
   std::vector<std::size_t> cps;
   for (std::size_t i = 0; i <= n; ++i) {
-    if (!valid[i] || S[i] < scan.z_step) continue;
+    if (!steps.valid[i] || S[i] < scan.z_step) continue;
     bool peak = true;
     for (std::size_t j = i > w ? i - w : 0; j <= std::min(n, i + w) && peak; ++j)
       if (S[j] > S[i] || (S[j] == S[i] && j < i)) peak = false;
     if (peak) cps.push_back(i);
   }
-  scan.change_points = cps.size();
+  return cps;
+}
 
-  // Levels between change points (a half window trimmed at each end, where the step is).
-  std::vector<std::size_t> bounds = {0};
-  bounds.insert(bounds.end(), cps.begin(), cps.end());
-  bounds.push_back(n);
-  const std::size_t m = bounds.size() - 1;  // segments
-  std::vector<Vec6> level(m);
-  std::vector<double> weight(m);
+// The segments between change points and their levels (a half window trimmed at each end, where
+// the step is).
+struct Segments {
+  std::vector<std::size_t> bounds;  // segment s is rows [bounds[s], bounds[s + 1])
+  std::vector<Vec6> level;
+  std::vector<double> weight;  // scanned rows, at least 1
+  std::size_t size() const { return level.size(); }
+};
+
+Segments segments_between(const std::vector<std::size_t>& cps, const Prefix& P, std::size_t n,
+                          std::size_t w) {
+  Segments seg;
+  seg.bounds = {0};
+  seg.bounds.insert(seg.bounds.end(), cps.begin(), cps.end());
+  seg.bounds.push_back(n);
+  const std::size_t m = seg.bounds.size() - 1;
+  seg.level.resize(m);
+  seg.weight.resize(m);
   for (std::size_t s = 0; s < m; ++s) {
-    const std::size_t a = bounds[s], b = bounds[s + 1];
+    const std::size_t a = seg.bounds[s], b = seg.bounds[s + 1];
     const std::size_t trim = std::min(w / 2, (b - a) / 4);
-    if (!P.mean(a + trim, b - trim, 1.0, level[s])) P.mean(a, b, 1.0, level[s]);
-    weight[s] = std::max(P.n(a, b), 1.0);
+    if (!P.mean(a + trim, b - trim, 1.0, seg.level[s])) P.mean(a, b, 1.0, seg.level[s]);
+    seg.weight[s] = std::max(P.n(a, b), 1.0);
   }
+  return seg;
+}
 
-  // Excursions: segments j..l whose neighbours j−1 and l+1 agree, every one of them away from
-  // that level.
-  struct Found {
-    std::size_t first_seg, last_seg;
-    Vec6 out;
-  };
-  std::vector<Found> found;
+// An excursion: segments first_seg..last_seg away from the level `out` around them.
+struct Excursion {
+  std::size_t first_seg, last_seg;
+  Vec6 out;
+};
+
+// Excursions: segments j..l whose neighbours j−1 and l+1 agree, every one of them away from that
+// level; with a single change point, its shorter side (a touch at the start or the end of a
+// recording).
+std::vector<Excursion> excursions(const Segments& seg, const EventOptions& o,
+                                  const SpanScan& scan) {
+  const std::size_t m = seg.size();
+  const auto& level = seg.level;
+  std::vector<Excursion> found;
   for (std::size_t j = 1; j + 1 < m;) {
     bool took = false;
     for (std::size_t l = j; l + 1 < m; ++l) {
       if (scaled_max(minus(level[j - 1], level[l + 1]), scan.scale) >= o.z_agree) continue;
       Vec6 out;
-      const double wa = weight[j - 1], wb = weight[l + 1];
+      const double wa = seg.weight[j - 1], wb = seg.weight[l + 1];
       for (std::size_t k = 0; k < 6; ++k)
         out[k] = (wa * level[j - 1][k] + wb * level[l + 1][k]) / (wa + wb);
       bool away = true;
@@ -191,75 +218,116 @@ SpanScan find_spans(const std::vector<Wrench>& r, const Dataset& data,
     }
     if (!took) ++j;
   }
-  // A single change point: its shorter side (a touch at the start or the end of a recording).
   if (m == 2) {
-    const bool first_shorter = weight[0] < weight[1];
+    const bool first_shorter = seg.weight[0] < seg.weight[1];
     const std::size_t s = first_shorter ? 0 : 1;
     if (scaled_max(minus(level[0], level[1]), scan.scale) >= scan.z_step)
       found.push_back({s, s, level[1 - s]});
   }
+  return found;
+}
 
-  // Each excursion's rows, widened over its ramps: outward while a short-window mean on the
-  // axis that carries the span most (in scale units) still holds a twentieth of its peak there,
-  // and stands out from that mean's spread.
-  const std::size_t h = std::max<std::size_t>(2, w / 4);
-  auto short_dev = [&](std::size_t i, const Vec6& out, Vec6& dev) {
+// Short-window means (h rows each side) of the residual, as deviations from a level.
+struct ShortWindow {
+  const Prefix& P;
+  std::size_t n, h;
+  bool dev(std::size_t i, const Vec6& out, Vec6& d) const {
     const std::size_t a = i >= h ? i - h : 0, b = std::min(n, i + h + 1);
     Vec6 mean;
     if (!P.mean(a, b, 1.0, mean)) return false;
-    dev = minus(mean, out);
+    d = minus(mean, out);
     return true;
-  };
-  for (const Found& f : found) {
-    std::size_t first = bounds[f.first_seg], last = bounds[f.last_seg + 1] - 1;
-    std::size_t axis = 0;
-    double sign = 1.0;
-    {
-      Vec6 mean;
-      P.mean(first, last + 1, 1.0, mean);
-      const Vec6 d = minus(mean, f.out);
-      for (std::size_t k = 1; k < 6; ++k)
-        if (std::abs(d[k]) / scan.scale[k] > std::abs(d[axis]) / scan.scale[axis]) axis = k;
-      sign = d[axis] < 0.0 ? -1.0 : 1.0;
-    }
-    auto proj = [&](std::size_t i) {
-      Vec6 dev;
-      if (!short_dev(i, f.out, dev)) return 0.0;
-      return sign * dev[axis] / scan.scale[axis];
-    };
-    double peak = 0.0;
-    for (std::size_t i = first; i <= last; ++i) peak = std::max(peak, proj(i));
-    // A short-window mean's spread, in scale units, is about sqrt(w / (2 (2h + 1))).
-    const double floor =
-        3.0 * std::sqrt(static_cast<double>(w) / (2.0 * static_cast<double>(2 * h + 1)));
-    const double thr = std::max(0.05 * peak, floor);
-    const std::size_t lo = f.first_seg > 0 ? bounds[f.first_seg - 1] : 0;
-    const std::size_t hi = f.last_seg + 1 < m ? bounds[f.last_seg + 2] - 1 : n - 1;
-    while (first > lo && proj(first - 1) > thr) --first;
-    while (last < hi && proj(last + 1) > thr) ++last;
-    while (first < last && proj(first) <= thr && f.first_seg > 0) ++first;
-    while (last > first && proj(last) <= thr && f.last_seg + 1 < m) --last;
+  }
+};
 
-    Span s;
-    s.first = first;
-    s.last = last;
-    s.t0_s = data.t_s[first];
-    s.t1_s = data.t_s[last];
-    Vec6 mean{};
+// An excursion's rows, widened over its ramps: outward while a short-window mean on the axis that
+// carries the span most (in scale units) still holds a twentieth of its peak there, and stands
+// out from that mean's spread.
+std::pair<std::size_t, std::size_t> widened_rows(const Excursion& f, const Segments& seg,
+                                                 const ShortWindow& sw, std::size_t w,
+                                                 const SpanScan& scan) {
+  const Prefix& P = sw.P;
+  const std::size_t m = seg.size();
+  std::size_t first = seg.bounds[f.first_seg], last = seg.bounds[f.last_seg + 1] - 1;
+  std::size_t axis = 0;
+  double sign = 1.0;
+  {
+    Vec6 mean;
     P.mean(first, last + 1, 1.0, mean);
-    s.mean = minus(mean, f.out);
-    s.z = 0.0;
-    for (std::size_t i = first; i <= last; ++i) {
-      Vec6 dev;
-      if (!short_dev(i, f.out, dev)) continue;
-      for (std::size_t k = 0; k < 6; ++k)
-        if (std::abs(dev[k]) > std::abs(s.peak[k])) s.peak[k] = dev[k];
-    }
-    s.z = scaled_max(s.mean, scan.scale);
-    for (std::size_t k = 0; k < 6; ++k) s.mean_z[k] = s.mean[k] / scan.scale[k];
-    s.starts_with_motion = motion_edge_near(data, first, o.motion_tolerance_s);
-    s.ends_with_motion = motion_edge_near(data, last, o.motion_tolerance_s);
-    scan.spans.push_back(s);
+    const Vec6 d = minus(mean, f.out);
+    for (std::size_t k = 1; k < 6; ++k)
+      if (std::abs(d[k]) / scan.scale[k] > std::abs(d[axis]) / scan.scale[axis]) axis = k;
+    sign = d[axis] < 0.0 ? -1.0 : 1.0;
+  }
+  auto proj = [&](std::size_t i) {
+    Vec6 dev;
+    if (!sw.dev(i, f.out, dev)) return 0.0;
+    return sign * dev[axis] / scan.scale[axis];
+  };
+  double peak = 0.0;
+  for (std::size_t i = first; i <= last; ++i) peak = std::max(peak, proj(i));
+  // A short-window mean's spread, in scale units, is about sqrt(w / (2 (2h + 1))).
+  const double floor =
+      3.0 * std::sqrt(static_cast<double>(w) / (2.0 * static_cast<double>(2 * sw.h + 1)));
+  const double thr = std::max(0.05 * peak, floor);
+  const std::size_t lo = f.first_seg > 0 ? seg.bounds[f.first_seg - 1] : 0;
+  const std::size_t hi = f.last_seg + 1 < m ? seg.bounds[f.last_seg + 2] - 1 : sw.n - 1;
+  while (first > lo && proj(first - 1) > thr) --first;
+  while (last < hi && proj(last + 1) > thr) ++last;
+  while (first < last && proj(first) <= thr && f.first_seg > 0) ++first;
+  while (last > first && proj(last) <= thr && f.last_seg + 1 < m) --last;
+  return {first, last};
+}
+
+// The span of rows [first, last] around an excursion: what it carried, and whether motion starts
+// or stops at its ends.
+Span span_of(std::size_t first, std::size_t last, const Excursion& f, const ShortWindow& sw,
+             const Dataset& data, const EventOptions& o, const SpanScan& scan) {
+  Span s;
+  s.first = first;
+  s.last = last;
+  s.t0_s = data.t_s[first];
+  s.t1_s = data.t_s[last];
+  Vec6 mean{};
+  sw.P.mean(first, last + 1, 1.0, mean);
+  s.mean = minus(mean, f.out);
+  s.z = 0.0;
+  for (std::size_t i = first; i <= last; ++i) {
+    Vec6 dev;
+    if (!sw.dev(i, f.out, dev)) continue;
+    for (std::size_t k = 0; k < 6; ++k)
+      if (std::abs(dev[k]) > std::abs(s.peak[k])) s.peak[k] = dev[k];
+  }
+  s.z = scaled_max(s.mean, scan.scale);
+  for (std::size_t k = 0; k < 6; ++k) s.mean_z[k] = s.mean[k] / scan.scale[k];
+  s.starts_with_motion = motion_edge_near(data, first, o.motion_tolerance_s);
+  s.ends_with_motion = motion_edge_near(data, last, o.motion_tolerance_s);
+  return s;
+}
+
+}  // namespace
+
+SpanScan find_spans(const std::vector<Wrench>& r, const Dataset& data,
+                    const std::vector<std::uint8_t>* exclude, const EventOptions& o) {
+  SpanScan scan;
+  scan.window_s = o.window_s;
+  const std::size_t n = data.size();
+  if (r.size() != n) throw std::invalid_argument("find_spans: one residual per row wanted");
+  const std::size_t w = step_window(data, o, scan);
+  if (!scan.possible) return scan;
+  std::vector<std::uint8_t> scanned(n, 1);
+  if (exclude)
+    for (std::size_t i = 0; i < n; ++i) scanned[i] = (*exclude)[i] ? 0 : 1;
+  const Prefix P(r, scanned);
+  const Steps steps = step_statistic(P, n, w, o, scan);
+  if (!scan.possible) return scan;
+  const std::vector<std::size_t> cps = change_points(steps, n, w, scan);
+  scan.change_points = cps.size();
+  const Segments seg = segments_between(cps, P, n, w);
+  const ShortWindow sw{P, n, std::max<std::size_t>(2, w / 4)};
+  for (const Excursion& f : excursions(seg, o, scan)) {
+    const auto [first, last] = widened_rows(f, seg, sw, w, scan);
+    scan.spans.push_back(span_of(first, last, f, sw, data, o, scan));
   }
   std::sort(scan.spans.begin(), scan.spans.end(),
             [](const Span& a, const Span& b) { return a.first < b.first; });

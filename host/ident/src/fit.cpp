@@ -8,10 +8,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <iomanip>
 #include <limits>
 #include <memory>
-#include <numbers>
 #include <optional>
 #include <sstream>
 #include <utility>
@@ -514,7 +512,9 @@ void linear_init(const Dataset& data, const FitOptions& o, model::ModelParams& p
   for (int k = 0; k < 3; ++k) grav[1 + k] = std::abs(x[3]) > 1e-9 ? x[7 + k] / x[3] : 0.0;
 }
 
+// What the passes leave for the summary and the covariance.
 struct Solved {
+  std::array<double, 6> sigma{};  // the last pass's whitening
   bool usable = false;
   bool no_convergence = false;  // stopped at max_iterations
   std::string message;
@@ -678,40 +678,6 @@ std::vector<double> mean_user_design(const Dataset& data, const model::UserEffec
   return design;
 }
 
-// One pass of the normal engine: Levenberg–Marquardt on the streamed normal equations
-// (normal_equations.hpp) from r.params, which it updates.
-template <typename IsFrozen>
-void solve_normal_pass(const Dataset& data, const BlockStats& stats,
-                       const std::vector<Effect>& order, const IsFrozen& is_frozen,
-                       std::array<double, 6> inv_sigma, const std::vector<double>& user_design,
-                       const FitOptions& o, int pass, int passes, int block_samples, FitResult& r,
-                       Solved& solved) {
-  std::vector<bool> frozen;
-  for (Effect e : order) frozen.push_back(is_frozen(e));
-  NormalBlocks blocks(data, stats, r.params, order, frozen, inv_sigma, user_design);
-  if (blocks.num_blocks() == 0) throw std::runtime_error("no samples to fit");
-  normal::SolveOptions so;
-  so.max_iterations = o.max_iterations;
-  so.threads = o.threads;
-  so.function_tolerance = 1e-10;  // as the Ceres path
-  so.parameter_tolerance = 1e-10;
-  so.progress = o.progress;
-  if (o.progress) {
-    o.progress("fit pass " + std::to_string(pass + 1) + "/" + std::to_string(passes) + ": " +
-               std::to_string(blocks.num_blocks()) + " blocks of " + std::to_string(block_samples) +
-               " samples, " + std::to_string(r.num_params) + " parameters (normal equations)");
-  }
-  Eigen::VectorXd x = blocks.point();
-  normal::SolveSummary summary = normal::solve(blocks, x, so);
-  blocks.set_point(x);
-  blocks.store(r.params);
-  r.iterations += summary.iterations;
-  solved.usable = summary.usable;
-  solved.no_convergence = summary.usable && !summary.converged;
-  solved.message = summary.message;
-  solved.normal_JtJ = std::move(summary.at_solution.JtJ);
-}
-
 // Σ_c g_c g_cᵀ · C / (C − 1): the scores Jᵀr of the blocks summed over clusters of `cluster_s`
 // of log time (by each block's first row; a table's rows, without time, are each a cluster) at
 // the evaluator's point. `clusters` gets C.
@@ -748,221 +714,334 @@ Eigen::MatrixXd cluster_meat(const NormalBlocks& nb, const Dataset& data,
   return meat;
 }
 
-}  // namespace
+// ---- fit's phases, in the order fit() runs them ----
 
-std::string param_label(Effect e, int i) {
-  const auto& ei = model::info(e);
-  return std::string(ei.name) + "." + ei.params[i].name + " [" + ei.params[i].unit + "]";
-}
+bool is_frozen(const FitOptions& o, Effect e) { return o.frozen.has(e) && o.effects.has(e); }
 
-FitResult fit(const Dataset& data, const FitOptions& o) {
-  const auto start = std::chrono::steady_clock::now();
+// The model checked against the log before anything is computed.
+void check_model(const Dataset& data, const FitOptions& o) {
   check_signals(o.effects, data);
   check_signals(o.user, data);
   if (o.effects.size() == 0 && o.user.empty())
     throw std::runtime_error("empty model: give at least one effect");
+}
 
-  FitResult r;
-  r.engine = o.engine;
-  r.params.effects = o.effects;
+// The point the solve starts from: the initial model's values (neutral for the effects it did
+// not have, its coefficients when it has the same user terms), bias and gravity by linear least
+// squares unless it has both.
+model::ModelParams start_params(const Dataset& data, const FitOptions& o) {
+  model::ModelParams params;
+  params.effects = o.effects;
   if (o.initial) {
-    r.params.values = o.initial->values;
+    params.values = o.initial->values;
     // Effects the initial model did not have start from neutral values.
     for (Effect e : model::kAllEffects) {
-      if (!o.initial->effects.has(e)) r.params.values[model::index(e)].fill(0.0);
+      if (!o.initial->effects.has(e)) params.values[model::index(e)].fill(0.0);
     }
   }
-  r.params.user = o.user;
+  params.user = o.user;
   if (o.initial && o.initial->user.num_terms == o.user.num_terms) {
     bool same = true;
     for (int j = 0; j < o.user.num_terms; ++j)
       same = same && o.initial->user.terms[static_cast<std::size_t>(j)] ==
                          o.user.terms[static_cast<std::size_t>(j)];
-    if (same) r.params.user.coeff = o.initial->user.coeff;
+    if (same) params.user.coeff = o.initial->user.coeff;
   }
-  const int num_user = r.params.user.num_terms;
-  auto is_frozen = [&](Effect e) { return o.frozen.has(e) && o.effects.has(e); };
   for (Effect e : model::kAllEffects) {
-    if (is_frozen(e) && (o.initial == nullptr || !o.initial->effects.has(e)))
+    if (is_frozen(o, e) && (o.initial == nullptr || !o.initial->effects.has(e)))
       throw std::runtime_error(std::string("frozen effect '") + model::info(e).name +
                                "' needs its values from the initial model");
   }
   const bool init_linear = o.initial == nullptr || !o.initial->effects.has(Effect::bias) ||
                            !o.initial->effects.has(Effect::gravity);
   if (init_linear) {
-    linear_init(data, o, r.params);
+    linear_init(data, o, params);
     for (Effect e : {Effect::bias, Effect::gravity})  // frozen values stay as given
-      if (is_frozen(e)) r.params.values[model::index(e)] = o.initial->values[model::index(e)];
+      if (is_frozen(o, e)) params.values[model::index(e)] = o.initial->values[model::index(e)];
   }
+  return params;
+}
 
+// The unknowns: the model's effects with parameters in the order of model::kAllEffects (the
+// parameter blocks of both engines), which of them stay frozen, and how many parameters are free.
+struct Unknowns {
   std::vector<Effect> order;
+  std::vector<bool> frozen;  // per effect of `order`
+  int num_user = 0;          // user terms, free, after the effects
+  int num_free = 0;
+};
+
+Unknowns unknowns_of(const FitOptions& o, int num_user) {
+  Unknowns u;
+  u.num_user = num_user;
   for (Effect e : model::kAllEffects) {
     if (o.effects.has(e) && model::info(e).num_params > 0) {
-      order.push_back(e);
-      if (!is_frozen(e)) r.num_params += model::info(e).num_params;
+      u.order.push_back(e);
+      u.frozen.push_back(is_frozen(o, e));
+      if (!u.frozen.back()) u.num_free += model::info(e).num_params;
     }
   }
-  r.num_params += num_user;
-  if (r.num_params == 0 && (!order.empty() || num_user > 0))
+  u.num_free += num_user;
+  if (u.num_free == 0 && (!u.order.empty() || num_user > 0))
     throw std::runtime_error("every effect of the model is frozen: nothing to fit");
+  return u;
+}
 
-  // Errors in variables (eiv.hpp): decided (and a bad mode refused) before the solve.
-  r.errors_in_variables.mode = o.errors_in_variables;
-  const bool eiv = errors_in_variables_applies(o, data, &r.errors_in_variables.reason);
-  std::array<double, 6> sigma = o.sigma.value_or(std::array<double, 6>{1, 1, 1, 0.1, 0.1, 0.1});
+// What every pass evaluates: the blocks of samples, the engine, and what the engine computes once
+// from the log (the block statistics, the user terms' mean design).
+struct FitBlocks {
+  int block_samples = 1;
+  SampleBlocks blocks;
+  bool normal_engine = false;       // else a Ceres problem
+  std::optional<BlockStats> stats;  // engines normal and block_stats
+  std::vector<double> user_design;  // mean_user_design
+  const BlockStats* stats_or_null() const { return stats ? &*stats : nullptr; }
+};
+
+FitBlocks fit_blocks(const Dataset& data, const FitOptions& o, const model::UserEffects& user,
+                     std::string& engine) {
+  FitBlocks fb;
   if (o.block_samples < 1) throw std::runtime_error("block_samples must be at least 1");
-  // Whitening: per-axis noise of the block residuals. Estimated before solving from the
-  // scatter of consecutive block means inside dwells (there the residual of any model is a
-  // constant plus noise), so one solve suffices; without dwells, a second pass reweights.
   // Static rows (no time) are independent poses: each row is a block of its own.
-  const int block_samples = data.columns.static_rows ? 1 : std::max(1, o.block_samples);
-  const auto blocks_of_samples = make_blocks(data, o, block_samples);
+  fb.block_samples = data.columns.static_rows ? 1 : std::max(1, o.block_samples);
+  fb.blocks = make_blocks(data, o, fb.block_samples);
   if (o.engine != "normal" && o.engine != "block_stats" && o.engine != "samples")
     throw std::runtime_error("unknown fit engine '" + o.engine +
                              "' (normal, block_stats, samples)");
   // The normal engine solves least squares only: a robust loss goes to block_stats' Ceres path.
-  const bool normal_engine = o.engine == "normal" && o.loss == "none";
-  if (o.engine == "normal" && !normal_engine) r.engine = "block_stats";
-  std::optional<BlockStats> stats;
-  if (o.engine != "samples") stats.emplace(data, blocks_of_samples, o.effects, o.threads);
-  const std::vector<double> user_design = mean_user_design(data, r.params.user, blocks_of_samples);
+  fb.normal_engine = o.engine == "normal" && o.loss == "none";
+  if (o.engine == "normal" && !fb.normal_engine) engine = "block_stats";
+  if (o.engine != "samples") fb.stats.emplace(data, fb.blocks, o.effects, o.threads);
+  fb.user_design = mean_user_design(data, user, fb.blocks);
+  return fb;
+}
+
+// Whitening: per-axis noise of the block residuals. Estimated before solving from the scatter of
+// consecutive block means inside dwells (there the residual of any model is a constant plus
+// noise), so one solve suffices; without dwells, a second pass reweights.
+struct Whitening {
+  std::array<double, 6> sigma{};
   int passes = 1;
-  if (!o.sigma) {
-    // Consecutive static rows are different poses, not one dwell: no noise estimate from them.
-    const auto est = data.columns.static_rows
-                         ? std::nullopt
-                         : static_noise_of_block_means(
-                               data, blocks_of_samples,
-                               block_mean_residuals(data, stats ? &*stats : nullptr,
-                                                    blocks_of_samples, r.params, user_design));
-    if (est) {
-      sigma = *est;
-    } else {
-      passes = 2;
-    }
+};
+
+Whitening initial_whitening(const Dataset& data, const FitOptions& o, const FitBlocks& fb,
+                            const model::ModelParams& start) {
+  Whitening w;
+  w.sigma = o.sigma.value_or(std::array<double, 6>{1, 1, 1, 0.1, 0.1, 0.1});
+  if (o.sigma) return w;
+  // Consecutive static rows are different poses, not one dwell: no noise estimate from them.
+  const auto est =
+      data.columns.static_rows
+          ? std::nullopt
+          : static_noise_of_block_means(
+                data, fb.blocks,
+                block_mean_residuals(data, fb.stats_or_null(), fb.blocks, start, fb.user_design));
+  if (est) {
+    w.sigma = *est;
+  } else {
+    w.passes = 2;
   }
+  return w;
+}
+
+// One pass of the solve: which of how many, and its whitening.
+struct Pass {
+  int index = 0;
+  int count = 1;
+  std::array<double, 6> inv_sigma{};
+};
+
+std::string pass_progress(const Pass& pass, std::size_t blocks, int block_samples, int num_params) {
+  return "fit pass " + std::to_string(pass.index + 1) + "/" + std::to_string(pass.count) + ": " +
+         std::to_string(blocks) + " blocks of " + std::to_string(block_samples) + " samples, " +
+         std::to_string(num_params) + " parameters";
+}
+
+// One pass of the normal engine: Levenberg–Marquardt on the streamed normal equations
+// (normal_equations.hpp) from r.params, which it updates.
+void solve_normal_pass(const Dataset& data, const FitOptions& o, const FitBlocks& fb,
+                       const Unknowns& u, const Pass& pass, FitResult& r, Solved& solved) {
+  NormalBlocks blocks(data, *fb.stats, r.params, u.order, u.frozen, pass.inv_sigma, fb.user_design);
+  if (blocks.num_blocks() == 0) throw std::runtime_error("no samples to fit");
+  normal::SolveOptions so;
+  so.max_iterations = o.max_iterations;
+  so.threads = o.threads;
+  so.function_tolerance = 1e-10;  // as the Ceres path
+  so.parameter_tolerance = 1e-10;
+  so.progress = o.progress;
+  if (o.progress) {
+    o.progress(pass_progress(pass, blocks.num_blocks(), fb.block_samples, r.num_params) +
+               " (normal equations)");
+  }
+  Eigen::VectorXd x = blocks.point();
+  normal::SolveSummary summary = normal::solve(blocks, x, so);
+  blocks.set_point(x);
+  blocks.store(r.params);
+  r.iterations += summary.iterations;
+  solved.usable = summary.usable;
+  solved.no_convergence = summary.usable && !summary.converged;
+  solved.message = summary.message;
+  solved.normal_JtJ = std::move(summary.at_solution.JtJ);
+}
+
+// The Ceres path's objects: the robust loss (null: least squares), which the problem does not
+// own and so outlives it, and the last pass's problem, which the covariance evaluates again.
+struct CeresPath {
+  std::unique_ptr<ceres::LossFunction> loss;
+  std::unique_ptr<ceres::Problem> problem;
+};
+
+std::unique_ptr<ceres::LossFunction> make_loss(const FitOptions& o) {
+  if (o.loss == "huber") return std::make_unique<ceres::HuberLoss>(o.loss_scale);
+  if (o.loss == "cauchy") return std::make_unique<ceres::CauchyLoss>(o.loss_scale);
+  if (o.loss != "none")
+    throw std::runtime_error("unknown loss '" + o.loss + "' (none, huber, cauchy)");
+  return nullptr;
+}
+
+// One pass of the Ceres path (engines block_stats and samples): a new problem from r.params,
+// which it updates.
+void solve_ceres_pass(const Dataset& data, const FitOptions& o, const FitBlocks& fb,
+                      const Unknowns& u, const Pass& pass, CeresPath& ceres_path, FitResult& r,
+                      Solved& solved) {
   ceres::Problem::Options problem_options;
   problem_options.cost_function_ownership = ceres::TAKE_OWNERSHIP;
   problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  std::unique_ptr<ceres::LossFunction> loss;
-  if (o.loss == "huber") {
-    loss = std::make_unique<ceres::HuberLoss>(o.loss_scale);
-  } else if (o.loss == "cauchy") {
-    loss = std::make_unique<ceres::CauchyLoss>(o.loss_scale);
-  } else if (o.loss != "none") {
-    throw std::runtime_error("unknown loss '" + o.loss + "' (none, huber, cauchy)");
+  ceres_path.problem = std::make_unique<ceres::Problem>(problem_options);
+  ceres::Problem& problem = *ceres_path.problem;
+  std::vector<double*> blocks;
+  for (Effect e : u.order) blocks.push_back(r.params.block(e));
+  if (u.num_user > 0) blocks.push_back(r.params.user.coeff.data());
+  for (std::size_t b = 0; b < fb.blocks.size(); ++b) {
+    const auto [first, count] = fb.blocks[b];
+    problem.AddResidualBlock(
+        make_block_cost(&data, fb.stats_or_null(), b, first, count, o.effects, u.order,
+                        pass.inv_sigma,
+                        &fb.user_design[b * 6 * static_cast<std::size_t>(u.num_user)], u.num_user),
+        ceres_path.loss.get(), blocks);
   }
+  if (problem.NumResidualBlocks() == 0) throw std::runtime_error("no samples to fit");
+  for (std::size_t k = 0; k < u.order.size(); ++k)
+    if (u.frozen[k]) problem.SetParameterBlockConstant(r.params.block(u.order[k]));
+  ceres::Solver::Options so;
+  so.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
+  so.num_threads = o.threads;
+  so.max_num_iterations = o.max_iterations;
+  so.function_tolerance = 1e-10;
+  so.parameter_tolerance = 1e-10;
+  so.logging_type = ceres::SILENT;
+  std::unique_ptr<ProgressCallback> cb;
+  if (o.progress) {
+    o.progress(pass_progress(pass, static_cast<std::size_t>(problem.NumResidualBlocks()),
+                             fb.block_samples, r.num_params));
+    cb = std::make_unique<ProgressCallback>(o.progress);
+    so.callbacks.push_back(cb.get());
+  }
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+  if (std::getenv("ZEROG_CERES_REPORT")) std::fprintf(stderr, "%s\n", summary.FullReport().c_str());
+  r.iterations += static_cast<int>(summary.iterations.size());
+  solved.usable = summary.IsSolutionUsable();
+  solved.no_convergence = summary.termination_type == ceres::NO_CONVERGENCE;
+  solved.message = summary.message;
+}
 
-  Solved solved;
-  std::unique_ptr<ceres::Problem> problem;
-  for (int pass = 0; pass < passes; ++pass) {
-    std::array<double, 6> inv_sigma;
-    for (int k = 0; k < 6; ++k) inv_sigma[k] = 1.0 / sigma[k];
-    if (normal_engine) {
-      solve_normal_pass(data, *stats, order, is_frozen, inv_sigma, user_design, o, pass, passes,
-                        block_samples, r, solved);
-    } else {
-      problem = std::make_unique<ceres::Problem>(problem_options);
-      std::vector<double*> blocks;
-      for (Effect e : order) blocks.push_back(r.params.block(e));
-      if (num_user > 0) blocks.push_back(r.params.user.coeff.data());
-      for (std::size_t b = 0; b < blocks_of_samples.size(); ++b) {
-        const auto [first, count] = blocks_of_samples[b];
-        problem->AddResidualBlock(
-            make_block_cost(&data, stats ? &*stats : nullptr, b, first, count, o.effects, order,
-                            inv_sigma, &user_design[b * 6 * static_cast<std::size_t>(num_user)],
-                            num_user),
-            loss.get(), blocks);
+// The whitening of the next pass: the RMS of the block-mean residuals the fit sees (from the
+// block statistics when the engine has them), floored.
+std::array<double, 6> reweighted_sigma(const Dataset& data, const FitBlocks& fb,
+                                       const model::ModelParams& params) {
+  std::array<double, 6> ss_block{};
+  const double nb = static_cast<double>(fb.blocks.size());
+  for (const Wrench& mean :
+       block_mean_residuals(data, fb.stats_or_null(), fb.blocks, params, fb.user_design))
+    for (int k = 0; k < 6; ++k) ss_block[k] += mean[k] * mean[k];
+  std::array<double, 6> sigma{};
+  for (int k = 0; k < 6; ++k) sigma[k] = std::max(std::sqrt(ss_block[k] / nb), k < 3 ? 1e-4 : 1e-5);
+  return sigma;
+}
+
+// After the last pass: sums of squares of the per-sample residuals (their RMS is what compare
+// reports) and of the block means (their whitened sum gives the BIC), in one pass over the samples.
+struct ResidualSums {
+  std::array<double, 6> ss{};        // per sample
+  std::array<double, 6> ss_block{};  // per block mean
+  std::size_t n = 0;                 // samples
+};
+
+// The residuals of a round of blocks are formed on the fit's threads (each sample's on its own),
+// then summed in sample order: the sums of one thread, for any thread count. Alone on one thread
+// this pass took as long as the model evaluation of the whole log (issue 16).
+ResidualSums residual_sums(const Dataset& data, const FitOptions& o, const SampleBlocks& blocks,
+                           const model::ModelParams& params) {
+  ResidualSums s;
+  ResidentWindow window(data);
+  constexpr std::size_t kRoundBlocks = 2048, kTaskBlocks = 256;
+  std::vector<std::size_t> at(kRoundBlocks + 1);  // a block's first residual in `e`
+  std::vector<Wrench> e;
+  for (std::size_t b0 = 0; b0 < blocks.size(); b0 += kRoundBlocks) {
+    const std::size_t b1 = std::min(blocks.size(), b0 + kRoundBlocks);
+    for (std::size_t b = b0; b < b1; ++b) at[b - b0 + 1] = at[b - b0] + blocks[b].second;
+    e.resize(at[b1 - b0]);
+    parallel::for_each(
+        (b1 - b0 + kTaskBlocks - 1) / kTaskBlocks, o.threads, [&](std::size_t task, int) {
+          const std::size_t t0 = b0 + task * kTaskBlocks;
+          for (std::size_t b = t0; b < std::min(b1, t0 + kTaskBlocks); ++b) {
+            const auto [first, count] = blocks[b];
+            for (std::size_t i = 0; i < count; ++i)
+              e[at[b - b0] + i] = data.measured[first + i] - predict(params, data, first + i);
+          }
+        });
+    for (std::size_t b = b0; b < b1; ++b) {
+      const auto [first, count] = blocks[b];
+      Wrench mean = Wrench::Zero();
+      for (std::size_t i = 0; i < count; ++i) {
+        const Wrench& ei = e[at[b - b0] + i];
+        for (int k = 0; k < 6; ++k) s.ss[k] += ei[k] * ei[k];
+        mean += ei;
+        ++s.n;
       }
-      if (problem->NumResidualBlocks() == 0) throw std::runtime_error("no samples to fit");
-      for (Effect e : order)
-        if (is_frozen(e)) problem->SetParameterBlockConstant(r.params.block(e));
-      ceres::Solver::Options so;
-      so.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
-      so.num_threads = o.threads;
-      so.max_num_iterations = o.max_iterations;
-      so.function_tolerance = 1e-10;
-      so.parameter_tolerance = 1e-10;
-      so.logging_type = ceres::SILENT;
-      std::unique_ptr<ProgressCallback> cb;
-      if (o.progress) {
-        o.progress("fit pass " + std::to_string(pass + 1) + "/" + std::to_string(passes) + ": " +
-                   std::to_string(problem->NumResidualBlocks()) + " blocks of " +
-                   std::to_string(block_samples) + " samples, " + std::to_string(r.num_params) +
-                   " parameters");
-        cb = std::make_unique<ProgressCallback>(o.progress);
-        so.callbacks.push_back(cb.get());
-      }
-      ceres::Solver::Summary summary;
-      ceres::Solve(so, problem.get(), &summary);
-      if (std::getenv("ZEROG_CERES_REPORT"))
-        std::fprintf(stderr, "%s\n", summary.FullReport().c_str());
-      r.iterations += static_cast<int>(summary.iterations.size());
-      solved.usable = summary.IsSolutionUsable();
-      solved.no_convergence = summary.termination_type == ceres::NO_CONVERGENCE;
-      solved.message = summary.message;
+      mean /= static_cast<double>(count);
+      for (int k = 0; k < 6; ++k) s.ss_block[k] += mean[k] * mean[k];
     }
+    window.advance(blocks[b1 - 1].first + blocks[b1 - 1].second);
+  }
+  return s;
+}
 
-    // The block-mean residuals the fit sees: their RMS whitens the next pass, their whitened sum
-    // of squares gives the BIC. After the last pass also the per-sample RMS of the residuals
-    // (what compare reports), in the same pass over the samples; before it, the block means
-    // alone (from the block statistics when the engine has them).
-    std::array<double, 6> ss_block{};
-    const double nb = static_cast<double>(blocks_of_samples.size());
-    solved.nb = blocks_of_samples.size();
-    if (pass + 1 < passes) {
-      for (const Wrench& mean : block_mean_residuals(data, stats ? &*stats : nullptr,
-                                                     blocks_of_samples, r.params, user_design))
-        for (int k = 0; k < 6; ++k) ss_block[k] += mean[k] * mean[k];
-      for (int k = 0; k < 6; ++k)
-        sigma[k] = std::max(std::sqrt(ss_block[k] / nb), k < 3 ? 1e-4 : 1e-5);
+// The passes: each solves from where the last one ended, with the whitening the last one's
+// residuals give; the last one's residuals are the fit's.
+Solved solve_passes(const Dataset& data, const FitOptions& o, const FitBlocks& fb,
+                    const Unknowns& u, const Whitening& whitening, CeresPath& ceres_path,
+                    FitResult& r) {
+  Solved solved;
+  solved.sigma = whitening.sigma;
+  for (int index = 0; index < whitening.passes; ++index) {
+    Pass pass{index, whitening.passes, {}};
+    for (int k = 0; k < 6; ++k) pass.inv_sigma[k] = 1.0 / solved.sigma[k];
+    if (fb.normal_engine) {
+      solve_normal_pass(data, o, fb, u, pass, r, solved);
+    } else {
+      solve_ceres_pass(data, o, fb, u, pass, ceres_path, r, solved);
+    }
+    solved.nb = fb.blocks.size();
+    if (index + 1 < whitening.passes) {
+      solved.sigma = reweighted_sigma(data, fb, r.params);
       continue;
     }
-    // The residuals of a round of blocks are formed on the fit's threads (each sample's on its
-    // own), then summed in sample order: the sums of one thread, for any thread count. Alone on
-    // one thread this pass took as long as the model evaluation of the whole log (issue 16).
-    std::array<double, 6> ss{};
-    std::size_t n = 0;
-    ResidentWindow window(data);
-    constexpr std::size_t kRoundBlocks = 2048, kTaskBlocks = 256;
-    std::vector<std::size_t> at(kRoundBlocks + 1);  // a block's first residual in `e`
-    std::vector<Wrench> e;
-    for (std::size_t b0 = 0; b0 < blocks_of_samples.size(); b0 += kRoundBlocks) {
-      const std::size_t b1 = std::min(blocks_of_samples.size(), b0 + kRoundBlocks);
-      for (std::size_t b = b0; b < b1; ++b)
-        at[b - b0 + 1] = at[b - b0] + blocks_of_samples[b].second;
-      e.resize(at[b1 - b0]);
-      parallel::for_each(
-          (b1 - b0 + kTaskBlocks - 1) / kTaskBlocks, o.threads, [&](std::size_t task, int) {
-            const std::size_t t0 = b0 + task * kTaskBlocks;
-            for (std::size_t b = t0; b < std::min(b1, t0 + kTaskBlocks); ++b) {
-              const auto [first, count] = blocks_of_samples[b];
-              for (std::size_t i = 0; i < count; ++i)
-                e[at[b - b0] + i] = data.measured[first + i] - predict(r.params, data, first + i);
-            }
-          });
-      for (std::size_t b = b0; b < b1; ++b) {
-        const auto [first, count] = blocks_of_samples[b];
-        Wrench mean = Wrench::Zero();
-        for (std::size_t i = 0; i < count; ++i) {
-          const Wrench& ei = e[at[b - b0] + i];
-          for (int k = 0; k < 6; ++k) ss[k] += ei[k] * ei[k];
-          mean += ei;
-          ++n;
-        }
-        mean /= static_cast<double>(count);
-        for (int k = 0; k < 6; ++k) ss_block[k] += mean[k] * mean[k];
-      }
-      window.advance(blocks_of_samples[b1 - 1].first + blocks_of_samples[b1 - 1].second);
-    }
-    solved.n = n;
+    const ResidualSums s = residual_sums(data, o, fb.blocks, r.params);
+    solved.n = s.n;
     solved.ssr = 0.0;
     for (int k = 0; k < 6; ++k) {
-      solved.rms[k] = std::sqrt(ss[k] / static_cast<double>(n));
-      solved.ssr += ss_block[k] / (sigma[k] * sigma[k]);
+      solved.rms[k] = std::sqrt(s.ss[k] / static_cast<double>(s.n));
+      solved.ssr += s.ss_block[k] / (solved.sigma[k] * solved.sigma[k]);
     }
   }
-  r.sigma = sigma;
+  return solved;
+}
+
+// The fit's figures from the solve: whitening, residuals, BIC, a warning when it did not converge.
+void summarize(const Solved& solved, FitResult& r) {
+  r.sigma = solved.sigma;
   r.residual_rms = solved.rms;
   r.samples = solved.n;
   r.usable = solved.usable;
@@ -974,343 +1053,220 @@ FitResult fit(const Dataset& data, const FitOptions& o) {
                                                std::to_string(r.iterations) +
                                                " iterations without converging"});
   }
+}
 
-  if (o.covariance && r.usable && r.num_params > 0) {
-    // Column-scaled J^T J from Ceres' Jacobian: identifiability (rank, correlations).
-    // Free blocks only: frozen ones are not estimated and have no covariance.
-    std::vector<Effect> free_order;
-    for (Effect e : order)
-      if (!is_frozen(e)) free_order.push_back(e);
-    // Free parameter blocks: the library effects', then the user terms' (one block).
-    std::vector<double*> free_blocks;
-    for (Effect e : free_order) free_blocks.push_back(r.params.block(e));
-    if (num_user > 0) free_blocks.push_back(r.params.user.coeff.data());
-    Eigen::MatrixXd JtJ;
-    if (normal_engine) {
-      JtJ = solved.normal_JtJ;  // the normal equations at the solution
+// The free parameters in the order of the normal matrix's columns. Frozen blocks are not
+// estimated and have no covariance.
+struct FreeParams {
+  std::vector<double*> blocks;  // the library effects', then the user terms' (one block)
+  // Column q: (effect, index), or (no effect, term) for a user term.
+  std::vector<std::pair<std::optional<Effect>, int>> names;
+};
+
+FreeParams free_params(const Unknowns& u, model::ModelParams& params) {
+  FreeParams fp;
+  for (std::size_t k = 0; k < u.order.size(); ++k) {
+    if (u.frozen[k]) continue;
+    const Effect e = u.order[k];
+    fp.blocks.push_back(params.block(e));
+    for (int i = 0; i < model::info(e).num_params; ++i) fp.names.emplace_back(e, i);
+  }
+  if (u.num_user > 0) fp.blocks.push_back(params.user.coeff.data());
+  for (int j = 0; j < u.num_user; ++j) fp.names.emplace_back(std::nullopt, j);
+  return fp;
+}
+
+std::string column_label(const FreeParams& fp, const model::UserEffects& user, int q) {
+  const auto& [effect, i] = fp.names[static_cast<std::size_t>(q)];
+  return effect ? param_label(*effect, i) : io::term_label(user, i);
+}
+
+// JᵀJ of the free parameters at the solution: the normal engine's own, or from Ceres' Jacobian.
+Eigen::MatrixXd free_normal_matrix(const FitBlocks& fb, const Solved& solved, const FreeParams& fp,
+                                   ceres::Problem* problem) {
+  if (fb.normal_engine) return solved.normal_JtJ;  // the normal equations at the solution
+  ceres::Problem::EvaluateOptions eval_options;
+  eval_options.parameter_blocks = fp.blocks;
+  ceres::CRSMatrix J;
+  double cost = 0.0;
+  problem->Evaluate(eval_options, &cost, nullptr, nullptr, &J);
+  const int p = J.num_cols;
+  Eigen::MatrixXd JtJ = Eigen::MatrixXd::Zero(p, p);
+  Eigen::VectorXd row(p);
+  for (int i = 0; i < J.num_rows; ++i) {
+    row.setZero();
+    for (int k = J.rows[i]; k < J.rows[i + 1]; ++k) row[J.cols[k]] = J.values[k];
+    JtJ.selfadjointView<Eigen::Lower>().rankUpdate(row);
+  }
+  JtJ = JtJ.selfadjointView<Eigen::Lower>();
+  return JtJ;
+}
+
+// A warning per direction the data cannot identify; the parameters they name are deficient.
+std::vector<bool> warn_rank_deficient(const RankCheck& rank, int p, const FreeParams& fp,
+                                      const model::UserEffects& user, FitResult& r) {
+  std::vector<bool> deficient(p, false);
+  for (const std::vector<int>& group : rank.null_directions) {
+    std::string who;
+    for (int q : group) {
+      deficient[static_cast<std::size_t>(q)] = true;
+      who += (who.empty() ? "" : ", ") + column_label(fp, user, q);
+    }
+    const std::size_t count = group.size();
+    r.warnings.push_back(
+        {"rank_deficient",
+         count == 1 ? "the data cannot identify " + who +
+                          ": it does not change the prediction on this log (rank deficiency)"
+                    : "the data cannot identify " + who +
+                          " separately: only a combination of them changes the prediction "
+                          "(rank deficiency)"});
+  }
+  return deficient;
+}
+
+// Ceres' own covariance (SPARSE_QR) in place of `cov`, where Ceres computes one; it cross-checks
+// ours.
+void ceres_covariance(const FitOptions& o, const FreeParams& fp, ceres::Problem* problem,
+                      Eigen::MatrixXd& cov) {
+  ceres::Covariance::Options co;
+  co.num_threads = o.threads;
+  ceres::Covariance covariance(co);
+  std::vector<std::pair<const double*, const double*>> pairs;
+  for (const double* a : fp.blocks)
+    for (const double* b : fp.blocks) pairs.emplace_back(a, b);
+  std::vector<const double*> ptrs(fp.blocks.begin(), fp.blocks.end());
+  if (covariance.Compute(pairs, problem)) {
+    Eigen::MatrixXd ceres_cov(cov.rows(), cov.cols());
+    covariance.GetCovarianceMatrix(ptrs, ceres_cov.data());
+    cov = ceres_cov.transpose();  // column-major view of the row-major result
+  }
+}
+
+// The cluster-robust covariance (a sandwich): (JᵀJ)⁻¹ (Σ_c g_c g_cᵀ) (JᵀJ)⁻¹ with g_c the score Jᵀr
+// of cluster c's blocks, `cov` the model-based one before it is scaled by s². Sets r.std_kind and
+// r.clusters; empty when the figures stay model-based.
+std::optional<Eigen::MatrixXd> robust_covariance(const Dataset& data, const FitOptions& o,
+                                                 const FitBlocks& fb, const Unknowns& u,
+                                                 const Eigen::MatrixXd& cov, FitResult& r) {
+  if (o.std_kind != "white" && o.std_kind != "robust")
+    throw std::runtime_error("unknown std kind '" + o.std_kind + "' (robust, white)");
+  r.std_kind = o.loss == "none" ? o.std_kind : "white";
+  // A robust loss has its own score (ψ(r) Jᵀ, not Jᵀr): the model-based figures stand.
+  if (o.std_kind != "robust" || o.loss != "none") return std::nullopt;
+  std::optional<BlockStats> own;
+  const BlockStats& st = fb.stats ? *fb.stats : own.emplace(data, fb.blocks, o.effects, o.threads);
+  std::array<double, 6> inv_sigma;
+  for (int k = 0; k < 6; ++k) inv_sigma[k] = 1.0 / r.sigma[k];
+  NormalBlocks nb(data, st, r.params, u.order, u.frozen, inv_sigma, fb.user_design);
+  if (nb.num_params() != cov.rows()) return std::nullopt;
+  const Eigen::MatrixXd meat = cluster_meat(nb, data, fb.blocks, o.cluster_s, &r.clusters);
+  if (r.clusters > 1) return cov * meat * cov;
+  return std::nullopt;
+}
+
+// The standard deviations, model-based (`white`) and the larger of it and the robust one; NaN
+// where the parameter is not identified or frozen.
+void store_stds(const Eigen::MatrixXd& cov, const std::optional<Eigen::MatrixXd>& robust,
+                const std::vector<bool>& deficient, const FreeParams& fp, int num_user,
+                FitResult& r) {
+  ParamArray stds{}, white{};
+  for (auto& a : stds) a.fill(std::numeric_limits<double>::quiet_NaN());
+  for (auto& a : white) a.fill(std::numeric_limits<double>::quiet_NaN());
+  r.user_std.assign(static_cast<std::size_t>(num_user), std::numeric_limits<double>::quiet_NaN());
+  r.user_std_white = r.user_std;
+  for (int q = 0; q < static_cast<int>(cov.rows()); ++q) {
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    const double w = deficient[q] ? nan : std::sqrt(std::max(cov(q, q), 0.0));
+    const double sd =
+        deficient[q] || !robust ? w : std::sqrt(std::max({cov(q, q), (*robust)(q, q), 0.0}));
+    const auto& [effect, i] = fp.names[static_cast<std::size_t>(q)];
+    if (effect) {
+      stds[model::index(*effect)][i] = sd;
+      white[model::index(*effect)][i] = w;
     } else {
-      ceres::Problem::EvaluateOptions eval_options;
-      eval_options.parameter_blocks = free_blocks;
-      ceres::CRSMatrix J;
-      double cost = 0.0;
-      problem->Evaluate(eval_options, &cost, nullptr, nullptr, &J);
-      const int p = J.num_cols;
-      JtJ = Eigen::MatrixXd::Zero(p, p);
-      Eigen::VectorXd row(p);
-      for (int i = 0; i < J.num_rows; ++i) {
-        row.setZero();
-        for (int k = J.rows[i]; k < J.rows[i + 1]; ++k) row[J.cols[k]] = J.values[k];
-        JtJ.selfadjointView<Eigen::Lower>().rankUpdate(row);
-      }
-      JtJ = JtJ.selfadjointView<Eigen::Lower>();
+      r.user_std[static_cast<std::size_t>(i)] = sd;
+      r.user_std_white[static_cast<std::size_t>(i)] = w;
     }
-    const int p = static_cast<int>(JtJ.rows());
-    // Parameter q: (effect, index), or (no effect, term) for a user term.
-    std::vector<std::pair<std::optional<Effect>, int>> names;
-    for (Effect e : free_order)
-      for (int k = 0; k < model::info(e).num_params; ++k) names.emplace_back(e, k);
-    for (int j = 0; j < num_user; ++j) names.emplace_back(std::nullopt, j);
-    auto label = [&](int q) {
-      return names[q].first ? param_label(*names[q].first, names[q].second)
-                            : io::term_label(r.params.user, names[q].second);
-    };
-    Eigen::VectorXd d = JtJ.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
-    const Eigen::MatrixXd C = d.asDiagonal() * JtJ * d.asDiagonal();
-    const RankCheck rank = rank_check(C);
-    std::vector<bool> deficient(p, false);
-    for (const std::vector<int>& group : rank.null_directions) {
-      std::string who;
-      for (int q : group) {
-        deficient[q] = true;
-        who += (who.empty() ? "" : ", ") + label(q);
-      }
-      const std::size_t count = group.size();
-      r.warnings.push_back(
-          {"rank_deficient",
-           count == 1 ? "the data cannot identify " + who +
-                            ": it does not change the prediction on this log (rank deficiency)"
-                      : "the data cannot identify " + who +
-                            " separately: only a combination of them changes the prediction "
-                            "(rank deficiency)"});
-    }
-    Eigen::MatrixXd cov = d.asDiagonal() * rank.cov_scaled * d.asDiagonal();
-    // Ceres' own covariance when the problem has full rank (SPARSE_QR); it cross-checks ours.
-    // The normal engine has no Ceres problem: the inverse of its normal matrix above.
-    bool any_deficient = false;
-    for (bool b : deficient) any_deficient = any_deficient || b;
-    if (!any_deficient && !normal_engine) {
-      ceres::Covariance::Options co;
-      co.num_threads = o.threads;
-      ceres::Covariance covariance(co);
-      std::vector<std::pair<const double*, const double*>> pairs;
-      for (const double* a : free_blocks)
-        for (const double* b : free_blocks) pairs.emplace_back(a, b);
-      std::vector<const double*> ptrs(free_blocks.begin(), free_blocks.end());
-      if (covariance.Compute(pairs, problem.get())) {
-        Eigen::MatrixXd ceres_cov(p, p);
-        covariance.GetCovarianceMatrix(ptrs, ceres_cov.data());
-        cov = ceres_cov.transpose();  // column-major view of the row-major result
-      }
-    }
-    // The cluster-robust covariance (a sandwich): (JᵀJ)⁻¹ (Σ_c g_c g_cᵀ) (JᵀJ)⁻¹ with g_c the
-    // score Jᵀr of cluster c's blocks, before cov is scaled by s².
-    std::optional<Eigen::MatrixXd> robust;
-    if (o.std_kind != "white" && o.std_kind != "robust")
-      throw std::runtime_error("unknown std kind '" + o.std_kind + "' (robust, white)");
-    r.std_kind = o.loss == "none" ? o.std_kind : "white";
-    // A robust loss has its own score (ψ(r) Jᵀ, not Jᵀr): the model-based figures stand.
-    if (o.std_kind == "robust" && o.loss == "none") {
-      std::optional<BlockStats> own;
-      const BlockStats& st =
-          stats ? *stats : own.emplace(data, blocks_of_samples, o.effects, o.threads);
-      std::vector<bool> frozen_flags;
-      for (Effect e : order) frozen_flags.push_back(is_frozen(e));
-      std::array<double, 6> inv_sigma;
-      for (int k = 0; k < 6; ++k) inv_sigma[k] = 1.0 / sigma[k];
-      NormalBlocks nb(data, st, r.params, order, frozen_flags, inv_sigma, user_design);
-      if (nb.num_params() == p) {
-        const Eigen::MatrixXd meat =
-            cluster_meat(nb, data, blocks_of_samples, o.cluster_s, &r.clusters);
-        if (r.clusters > 1) robust = cov * meat * cov;
-      }
-    }
-    const double s2 = solved.ssr / std::max(1.0, n_res - r.num_params);
-    cov *= s2;
-    ParamArray stds{}, white{};
-    for (auto& a : stds) a.fill(std::numeric_limits<double>::quiet_NaN());
-    for (auto& a : white) a.fill(std::numeric_limits<double>::quiet_NaN());
-    r.user_std.assign(static_cast<std::size_t>(num_user), std::numeric_limits<double>::quiet_NaN());
-    r.user_std_white = r.user_std;
-    for (int q = 0; q < p; ++q) {
-      const double nan = std::numeric_limits<double>::quiet_NaN();
-      const double w = deficient[q] ? nan : std::sqrt(std::max(cov(q, q), 0.0));
-      const double sd =
-          deficient[q] || !robust ? w : std::sqrt(std::max({cov(q, q), (*robust)(q, q), 0.0}));
-      if (names[q].first) {
-        stds[model::index(*names[q].first)][names[q].second] = sd;
-        white[model::index(*names[q].first)][names[q].second] = w;
-      } else {
-        r.user_std[static_cast<std::size_t>(names[q].second)] = sd;
-        r.user_std_white[static_cast<std::size_t>(names[q].second)] = w;
-      }
-    }
-    r.std = stds;
-    r.std_white = white;
-    for (int a = 0; a < p; ++a) {
-      for (int b = a + 1; b < p; ++b) {
-        if (deficient[a] || deficient[b]) continue;
-        const double rho = cov(a, b) / std::sqrt(cov(a, a) * cov(b, b));
-        if (std::abs(rho) > 0.99) {
-          std::ostringstream os;
-          os.precision(4);
-          os << label(a) << " and " << label(b) << " are strongly correlated (rho = " << rho
-             << "): the data barely tells them apart; their standard deviations are large";
-          r.warnings.push_back({"correlated", os.str()});
-        }
+  }
+  r.std = stds;
+  r.std_white = white;
+}
+
+void warn_correlated(const Eigen::MatrixXd& cov, const std::vector<bool>& deficient,
+                     const FreeParams& fp, FitResult& r) {
+  const int p = static_cast<int>(cov.rows());
+  for (int a = 0; a < p; ++a) {
+    for (int b = a + 1; b < p; ++b) {
+      if (deficient[a] || deficient[b]) continue;
+      const double rho = cov(a, b) / std::sqrt(cov(a, a) * cov(b, b));
+      if (std::abs(rho) > 0.99) {
+        std::ostringstream os;
+        os.precision(4);
+        os << column_label(fp, r.params.user, a) << " and " << column_label(fp, r.params.user, b)
+           << " are strongly correlated (rho = " << rho
+           << "): the data barely tells them apart; their standard deviations are large";
+        r.warnings.push_back({"correlated", os.str()});
       }
     }
   }
-  if (eiv && r.usable) correct_errors_in_variables(data, o, blocks_of_samples, r);
+}
+
+// Identifiability and uncertainty from the column-scaled JᵀJ of the free parameters (rank,
+// correlations): warnings, standard deviations.
+void estimate_covariance(const Dataset& data, const FitOptions& o, const FitBlocks& fb,
+                         const Unknowns& u, const Solved& solved, ceres::Problem* problem,
+                         FitResult& r) {
+  const FreeParams fp = free_params(u, r.params);
+  const Eigen::MatrixXd JtJ = free_normal_matrix(fb, solved, fp, problem);
+  const Eigen::VectorXd d = JtJ.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
+  const Eigen::MatrixXd C = d.asDiagonal() * JtJ * d.asDiagonal();
+  const RankCheck rank = rank_check(C);
+  const std::vector<bool> deficient =
+      warn_rank_deficient(rank, static_cast<int>(JtJ.rows()), fp, r.params.user, r);
+  Eigen::MatrixXd cov = d.asDiagonal() * rank.cov_scaled * d.asDiagonal();
+  // Ceres' covariance needs full rank; the normal engine has no Ceres problem and keeps the
+  // inverse of its normal matrix above.
+  bool any_deficient = false;
+  for (bool b : deficient) any_deficient = any_deficient || b;
+  if (!any_deficient && !fb.normal_engine) ceres_covariance(o, fp, problem, cov);
+  const std::optional<Eigen::MatrixXd> robust = robust_covariance(data, o, fb, u, cov, r);
+  const double n_res = 6.0 * static_cast<double>(solved.nb);
+  const double s2 = solved.ssr / std::max(1.0, n_res - r.num_params);
+  cov *= s2;
+  store_stds(cov, robust, deficient, fp, u.num_user, r);
+  warn_correlated(cov, deficient, fp, r);
+}
+
+}  // namespace
+
+std::string param_label(Effect e, int i) {
+  const auto& ei = model::info(e);
+  return std::string(ei.name) + "." + ei.params[i].name + " [" + ei.params[i].unit + "]";
+}
+
+// Problem, solve, summary, as Ceres has them: the phases above in order.
+FitResult fit(const Dataset& data, const FitOptions& o) {
+  const auto start = std::chrono::steady_clock::now();
+  check_model(data, o);
+  FitResult r;
+  r.engine = o.engine;
+  r.params = start_params(data, o);
+  const Unknowns u = unknowns_of(o, r.params.user.num_terms);
+  r.num_params = u.num_free;
+  // Errors in variables (eiv.hpp): decided (and a bad mode refused) before the solve.
+  r.errors_in_variables.mode = o.errors_in_variables;
+  const bool eiv = errors_in_variables_applies(o, data, &r.errors_in_variables.reason);
+  const FitBlocks fb = fit_blocks(data, o, r.params.user, r.engine);
+  const Whitening whitening = initial_whitening(data, o, fb, r.params);
+  CeresPath ceres_path;
+  ceres_path.loss = make_loss(o);
+  const Solved solved = solve_passes(data, o, fb, u, whitening, ceres_path, r);
+  summarize(solved, r);
+  if (o.covariance && r.usable && r.num_params > 0)
+    estimate_covariance(data, o, fb, u, solved, ceres_path.problem.get(), r);
+  if (eiv && r.usable) correct_errors_in_variables(data, o, fb.blocks, r);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return r;
-}
-
-Consistency check_consistency(const Dataset& data, const FitOptions& o, const FitResult& full) {
-  Consistency c;
-  const std::size_t n = data.size();
-  std::vector<std::size_t> used;
-  for (std::size_t i = 0; i < n; ++i)
-    if (use(o, i)) used.push_back(i);
-  // Free parameters of the full fit, by name.
-  struct Param {
-    Effect e;
-    int k;
-  };
-  std::vector<Param> params;
-  for (Effect e : model::kAllEffects)
-    if (full.params.effects.has(e) && !(o.frozen.has(e)))
-      for (int k = 0; k < model::info(e).num_params; ++k) params.push_back({e, k});
-  auto half = [&](std::size_t a, std::size_t b, Consistency::Half& h) {
-    h.first_row = used[a];
-    h.last_row = used[b - 1];
-    std::vector<std::uint8_t> mask(n, 0);
-    for (std::size_t q = a; q < b; ++q) mask[used[q]] = 1;
-    FitOptions ho = o;
-    ho.mask = &mask;
-    ho.initial = &full.params;
-    ho.progress = nullptr;
-    try {
-      const FitResult r = fit(data, ho);
-      h.usable = r.usable;
-      h.params = r.params;
-      h.std = r.std;
-      if (!r.usable) h.note = "the fit of this half is not usable (" + r.termination + ")";
-      for (const Warning& w : r.warnings)
-        if (w.kind == "rank_deficient") h.note += (h.note.empty() ? "" : "; ") + w.message;
-    } catch (const std::exception& e) {
-      h.note = e.what();
-    }
-  };
-  if (used.size() >= 4) {
-    half(0, used.size() / 2, c.first);
-    half(used.size() / 2, used.size(), c.second);
-  } else {
-    c.first.note = c.second.note = "too few rows to split";
-  }
-  c.max_half_z = std::numeric_limits<double>::quiet_NaN();
-  if (c.first.usable && c.second.usable && c.first.std && c.second.std) {
-    for (const Param& q : params) {
-      const double s1 = (*c.first.std)[model::index(q.e)][q.k];
-      const double s2 = (*c.second.std)[model::index(q.e)][q.k];
-      if (!std::isfinite(s1) || !std::isfinite(s2) || s1 + s2 <= 0.0) continue;
-      const double z = std::abs(c.first.params.block(q.e)[q.k] - c.second.params.block(q.e)[q.k]) /
-                       std::hypot(s1, s2);
-      if (!(z <= c.max_half_z)) {  // NaN at the start
-        c.max_half_z = z;
-        c.max_half_param = param_label(q.e, q.k);
-      }
-    }
-  }
-  if (std::isfinite(c.max_half_z) && c.max_half_z > 3.0) {
-    std::ostringstream os;
-    os.precision(4);
-    os << "the answer depends on which half of the data is used: " << c.max_half_param
-       << " differs by " << c.max_half_z
-       << " standard deviations between the halves; something changed between them (the "
-          "sensor's bias drifted, a missing effect, an event) that the printed +- do not cover";
-    c.warnings.push_back({"split_half", os.str()});
-  }
-  // Plain weights instead of the per-axis noise estimate.
-  FitOptions wo = o;
-  wo.sigma = std::array<double, 6>{1, 1, 1, 0.1, 0.1, 0.1};
-  wo.initial = &full.params;
-  wo.progress = nullptr;
-  wo.covariance = false;
-  try {
-    const FitResult r = fit(data, wo);
-    c.weighting_usable = r.usable;
-    c.unweighted = r.params;
-  } catch (const std::exception&) {
-    c.weighting_usable = false;
-  }
-  if (c.weighting_usable && full.std) {
-    for (const Param& q : params) {
-      const double sd = (*full.std)[model::index(q.e)][q.k];
-      if (!std::isfinite(sd) || sd <= 0.0) continue;
-      const double z = std::abs(c.unweighted.block(q.e)[q.k] - full.params.block(q.e)[q.k]) / sd;
-      if (z > c.max_weight_shift) {
-        c.max_weight_shift = z;
-        c.max_weight_param = param_label(q.e, q.k);
-      }
-    }
-    if (c.max_weight_shift > 3.0) {
-      std::ostringstream os;
-      os.precision(4);
-      os << "the answer depends on the weighting: with plain weights (1 N, 0.1 N*m) "
-         << c.max_weight_param << " moves by " << c.max_weight_shift
-         << " standard deviations; the model misses something that the weights trade off";
-      c.warnings.push_back({"weighting", os.str()});
-    }
-  }
-  return c;
-}
-
-std::vector<std::uint8_t> static_mask(const Dataset& data) {
-  std::vector<std::uint8_t> mask(data.size(), 0);
-  ResidentWindow window(data);
-  for (std::size_t i = 0; i < data.size(); ++i) {
-    window.advance(i);
-    mask[i] = data.moving[i] ? 0 : 1;
-  }
-  return mask;
-}
-
-ToolChangeResult fit_tool_change(const Dataset& data, const model::ModelParams& base,
-                                 const ToolChangeOptions& opt) {
-  if (!base.effects.has(Effect::gravity))
-    throw std::runtime_error("the base model has no 'gravity' effect to re-identify");
-  ToolChangeResult out;
-  out.frozen = base.effects;
-  out.frozen.remove(Effect::gravity);
-  const std::vector<std::uint8_t> mask = static_mask(data);
-  // Static samples, dwells (runs long enough for one block) and the spread of gravity in S.
-  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
-  std::size_t run = 0;
-  ResidentWindow window(data);
-  for (std::size_t i = 0; i <= data.size(); ++i) {
-    window.advance(i);
-    if (i < data.size() && mask[i]) {
-      ++run;
-      ++out.static_samples;
-      const Eigen::Vector3d u = data.pose(i).R_base_sensor.transpose() * Eigen::Vector3d(0, 0, -1);
-      scatter += u * u.transpose();
-      continue;
-    }
-    // Every static row (no time) is a pose of its own.
-    if (data.columns.static_rows)
-      out.dwells += run;
-    else if (run >= static_cast<std::size_t>(std::max(1, opt.block_samples)))
-      ++out.dwells;
-    run = 0;
-  }
-  if (out.static_samples == 0)
-    throw std::runtime_error(
-        "the log has no static samples (dwells): a tool change is fitted on "
-        "static poses only");
-  scatter /= static_cast<double>(out.static_samples);
-  const double lmax = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter).eigenvalues()[2];
-  out.spread_deg =
-      std::asin(std::sqrt(std::clamp(1.0 - lmax, 0.0, 1.0))) * 180.0 / std::numbers::pi;
-
-  FitOptions fo;
-  fo.effects = base.effects;
-  fo.frozen = out.frozen;
-  fo.initial = &base;
-  fo.mask = &mask;
-  fo.block_samples = opt.block_samples;
-  fo.max_iterations = opt.max_iterations;
-  fo.threads = opt.threads;
-  fo.loss = opt.loss;
-  fo.loss_scale = opt.loss_scale;
-  fo.engine = opt.engine;
-  fo.errors_in_variables = opt.errors_in_variables;
-  fo.progress = opt.progress;
-  out.fit = fit(data, fo);
-
-  auto& warnings = out.fit.warnings;
-  std::ostringstream os;
-  os.precision(3);
-  if (out.spread_deg < opt.min_spread_deg) {
-    os << "the " << out.dwells << " static poses hold gravity within " << std::fixed
-       << std::setprecision(1) << out.spread_deg
-       << " deg of one direction in the sensor frame: the centre of mass along that direction "
-          "cannot be told (use attitudes that tilt the sensor differently, e.g. "
-          "calib/poses/001_appendix_c_attitudes.csv)";
-    warnings.push_back({"poses_alike", os.str()});
-  }
-  if (out.fit.usable && out.fit.std) {
-    const double* g = out.fit.params.block(Effect::gravity);
-    const auto& sd = (*out.fit.std)[model::index(Effect::gravity)];
-    std::string who;
-    if (!(sd[0] <= opt.max_rel_std_mass * std::abs(g[0]))) who = param_label(Effect::gravity, 0);
-    for (int k = 1; k < 4; ++k)
-      if (!(sd[k] <= opt.max_std_com_m))
-        who += (who.empty() ? "" : ", ") + param_label(Effect::gravity, k);
-    if (!who.empty()) {
-      os.str("");
-      os << std::defaultfloat << std::setprecision(3);
-      os << "the static poses identify " << who << " poorly (std above "
-         << 100.0 * opt.max_rel_std_mass << " % of the mass or " << 1000.0 * opt.max_std_com_m
-         << " mm, or not at all): add attitudes that tilt the sensor differently";
-      warnings.push_back({"poorly_identified", os.str()});
-    }
-  }
-  if (base.effects.has(Effect::rotational_inertia)) {
-    warnings.push_back({"kept_inertia",
-                        "rotational_inertia keeps the base model's values (the old tool's): "
-                        "static poses cannot identify it; fit a moving run to update it"});
-  }
-  return out;
 }
 
 // ---- screening.hpp: the training problem of a model at a point, for diagnose's screening ----
