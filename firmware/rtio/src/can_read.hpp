@@ -1,8 +1,8 @@
 #pragma once
-// The read loop the socket buses share (CanSocket: SocketCAN; LocalCanBus: the same frames over
-// AF_UNIX datagrams): a non-blocking recvmsg of one struct can_frame with its receive time,
-// retried (EINTR, or readable again) until the deadline; the arrival time on CLOCK_MONOTONIC.
-// Private to zerog::rtio. Real-time safe: no allocation, buffers on the stack.
+// The read loop and the write outcome the socket buses share (CanSocket: SocketCAN; LocalCanBus:
+// the same frames over AF_UNIX datagrams): a non-blocking recvmsg of one struct can_frame with its
+// receive time, retried (EINTR, or readable again) until the deadline; the arrival time on
+// CLOCK_MONOTONIC. Private to zerog::rtio. Real-time safe: no allocation, buffers on the stack.
 #include <sys/socket.h>
 #include <sys/uio.h>
 
@@ -85,6 +85,26 @@ CanReadStatus read_can_frame(int fd, Bus& bus, CanRxFrame& out, std::chrono::nan
       return CanReadStatus::io_error;
     }
   }
+}
+
+/// What one write of a frame (write(2), send(2) or sendto(2)) that returned `n` came to, with
+/// errno as the call left it, counted in `counters` as CanBus documents: sent, retry (EINTR),
+/// would_block (the queue is full) or failed, with errno (EIO for a short write) in `last_errno`.
+/// A failure is not counted yet: the caller may still recover (LocalCanBus reconnects) before it
+/// counts tx_errors.
+enum class WriteOutcome : std::uint8_t { sent, retry, would_block, failed };
+inline WriteOutcome classify_write(ssize_t n, CanBusCounters& counters, int& last_errno) {
+  if (n == static_cast<ssize_t>(sizeof(can_frame))) {
+    ++counters.frames_sent;
+    return WriteOutcome::sent;
+  }
+  if (n < 0 && errno == EINTR) return WriteOutcome::retry;
+  last_errno = n < 0 ? errno : EIO;
+  if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == ENOBUFS)) {
+    ++counters.tx_would_block;
+    return WriteOutcome::would_block;
+  }
+  return WriteOutcome::failed;
 }
 
 }  // namespace zerog::rtio::detail

@@ -171,16 +171,15 @@ CanWriteStatus CanSocket::write(const proto::CanFrame& frame) {
   if (frame.len > proto::kCanMaxDataLength) return CanWriteStatus::bad_frame;
   const can_frame raw = detail::to_can_frame(frame);
   while (true) {
-    const ssize_t n = ::write(fd_, &raw, sizeof raw);
-    if (n == static_cast<ssize_t>(sizeof raw)) {
-      ++counters_.frames_sent;
-      return CanWriteStatus::ok;
-    }
-    if (n < 0 && errno == EINTR) continue;
-    last_errno_ = n < 0 ? errno : EIO;
-    if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == ENOBUFS)) {
-      ++counters_.tx_would_block;
-      return CanWriteStatus::would_block;
+    switch (detail::classify_write(::write(fd_, &raw, sizeof raw), counters_, last_errno_)) {
+      case detail::WriteOutcome::sent:
+        return CanWriteStatus::ok;
+      case detail::WriteOutcome::retry:
+        continue;
+      case detail::WriteOutcome::would_block:
+        return CanWriteStatus::would_block;
+      case detail::WriteOutcome::failed:
+        break;
     }
     ++counters_.tx_errors;
     return CanWriteStatus::io_error;

@@ -165,16 +165,10 @@ CanWriteStatus LocalCanBus::write(const proto::CanFrame& frame) {
                           ? ::sendto(fd_, &raw, sizeof raw, MSG_NOSIGNAL,
                                      reinterpret_cast<const sockaddr*>(&peer_), peer_length_)
                           : ::send(fd_, &raw, sizeof raw, MSG_NOSIGNAL);
-    if (n == static_cast<ssize_t>(sizeof raw)) {
-      ++counters_.frames_sent;
-      return CanWriteStatus::ok;
-    }
-    if (n < 0 && errno == EINTR) continue;
-    last_errno_ = n < 0 ? errno : EIO;
-    if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == ENOBUFS)) {
-      ++counters_.tx_would_block;
-      return CanWriteStatus::would_block;
-    }
+    const detail::WriteOutcome outcome = detail::classify_write(n, counters_, last_errno_);
+    if (outcome == detail::WriteOutcome::sent) return CanWriteStatus::ok;
+    if (outcome == detail::WriteOutcome::retry) continue;
+    if (outcome == detail::WriteOutcome::would_block) return CanWriteStatus::would_block;
     const bool peer_gone = n < 0 && (errno == ECONNREFUSED || errno == ENOTCONN);
     if (peer_gone && role_ == Role::server) {
       peer_length_ = 0;  // that client is gone; the next one announces itself with a request

@@ -60,7 +60,25 @@ struct CanOpenResult {
 };
 const char* can_open_status_name(CanOpenStatus status);
 
-class CanSocket final : public CanBus {
+/// What the two socket buses (CanSocket, LocalCanBus) hold alike: the non-blocking socket, what
+/// the kernel granted of its receive buffer, the errno of the last failed read or write, and the
+/// counters.
+class SocketCanBus : public CanBus {
+ public:
+  bool is_open() const { return fd_ >= 0; }
+  int fd() const { return fd_; }
+  const CanReceiveBuffer& receive_buffer() const { return receive_buffer_; }
+  int last_errno() const { return last_errno_; }  ///< errno of the last failed read or write
+  const CanBusCounters& counters() const override { return counters_; }
+
+ protected:
+  int fd_ = -1;
+  CanReceiveBuffer receive_buffer_;
+  int last_errno_ = 0;
+  CanBusCounters counters_;
+};
+
+class CanSocket final : public SocketCanBus {
  public:
   CanSocket() = default;
   ~CanSocket() override;
@@ -71,24 +89,14 @@ class CanSocket final : public CanBus {
   /// real-time safe. Closes a previously opened socket first.
   CanOpenResult open(std::string_view interface, const CanSocketConfig& config = {});
   void close();
-  bool is_open() const { return fd_ >= 0; }
-  int fd() const { return fd_; }
-  const CanReceiveBuffer& receive_buffer() const { return receive_buffer_; }
-  /// errno of the last failed read or write.
-  int last_errno() const { return last_errno_; }
 
   /// See CanBus::read. Checks that exactly sizeof(struct can_frame) bytes came with len ≤ 8;
   /// takes the timestamp and the SO_RXQ_OVFL drop count from the ancillary data.
   CanReadStatus read(CanRxFrame& out, std::chrono::nanoseconds timeout) override;
   CanWriteStatus write(const proto::CanFrame& frame) override;
-  const CanBusCounters& counters() const override { return counters_; }
 
  private:
-  int fd_ = -1;
-  CanReceiveBuffer receive_buffer_;
-  int last_errno_ = 0;
   std::uint32_t last_overflow_count_ = 0;  // SO_RXQ_OVFL reports a running total
-  CanBusCounters counters_;
 };
 
 }  // namespace zerog::rtio

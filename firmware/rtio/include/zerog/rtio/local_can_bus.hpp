@@ -51,7 +51,7 @@
 
 namespace zerog::rtio {
 
-class LocalCanBus final : public CanBus {
+class LocalCanBus final : public SocketCanBus {
  public:
   enum class Role : std::uint8_t { closed, server, client };
   /// The longest path a socket can bind: sun_path less its terminating NUL (107 bytes).
@@ -71,29 +71,22 @@ class LocalCanBus final : public CanBus {
   /// Closes the socket; a server also unlinks its path if that is still the socket it bound.
   void close();
 
-  bool is_open() const { return fd_ >= 0; }
   Role role() const { return role_; }
-  int fd() const { return fd_; }
   /// Server: whether a peer to answer is known (a named sender was read and not found gone).
   /// Client: true while open.
   bool has_peer() const { return role_ == Role::client || peer_length_ > 0; }
-  const CanReceiveBuffer& receive_buffer() const { return receive_buffer_; }
-  /// errno of the last failed read or write.
-  int last_errno() const { return last_errno_; }
 
   /// See CanBus::read. Filters as described above; filtered frames are skipped within the same
   /// timeout. A server remembers the sender of every datagram from a named socket as its peer.
   CanReadStatus read(CanRxFrame& out, std::chrono::nanoseconds timeout) override;
   /// See CanBus::write: one datagram to the peer.
   CanWriteStatus write(const proto::CanFrame& frame) override;
-  const CanBusCounters& counters() const override { return counters_; }
 
  private:
   CanOpenResult open(Role role, std::string_view path, const CanSocketConfig& config);
   /// Whether a received frame passes the filters (data frames) or the error mask (error frames).
   bool accepts(const proto::CanFrame& frame) const;
 
-  int fd_ = -1;
   Role role_ = Role::closed;
   sockaddr_un path_{};  // the server's address (both roles)
   socklen_t path_length_ = 0;
@@ -106,9 +99,6 @@ class LocalCanBus final : public CanBus {
   std::array<proto::CanFilter, kMaxCanFilters> filters_{};
   std::size_t filter_count_ = 0;
   std::uint32_t error_mask_ = 0;
-  CanReceiveBuffer receive_buffer_;
-  int last_errno_ = 0;
-  CanBusCounters counters_;
 };
 
 }  // namespace zerog::rtio
