@@ -32,6 +32,7 @@
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
+#include <numbers>
 #include <optional>
 #include <string>
 
@@ -42,7 +43,6 @@
 #include "zerog/loop/motion_estimator.hpp"
 #include "zerog/loop/state_machine.hpp"
 #include "zerog/model/dictionary.hpp"
-#include "zerog/proto/rsi.hpp"
 #include "zerog/robot/robot_model.hpp"
 #include "zerog/samples/robot_sample.hpp"
 #include "zerog/samples/sensor_samples.hpp"
@@ -102,8 +102,8 @@ struct CycleConfig {
   /// rotations differ by more than pose_check_angle_rad (kPoseDisagrees, counted; RIst is
   /// used). Without it, a message without RIst carries no pose (kPoseMissing). 6 joints, A1..A6.
   std::optional<robot::RobotModel> robot;
-  double pose_check_position_m = 1e-3;                         ///< 1 mm
-  double pose_check_angle_rad = 0.1 * proto::rsi::kRadPerDeg;  ///< 0.1°
+  double pose_check_position_m = 1e-3;                             ///< 1 mm
+  double pose_check_angle_rad = 0.1 * (std::numbers::pi / 180.0);  ///< 0.1°
 };
 
 /// What a supervisor (the cell PLC over Modbus) may change, only while the cycle is idle: the
@@ -154,15 +154,6 @@ zerog::Status check_config(const CycleConfig& config);
 
 /// Why a robot cycle was lost (robot_lost()).
 enum class RobotLoss : std::uint8_t { timeout, malformed };
-
-/// What to send back, in the wire's KUKA units (Cycle::step for RSI messages). Always the IPOC
-/// of the message just handled.
-struct CycleReply {
-  bool axis = false;             ///< true: AKorr (collection mode); false: RKorr
-  proto::rsi::Correction rkorr;  ///< mm, degrees (zero unless zero-g)
-  std::array<double, 6> akorr_deg{};
-  std::uint64_t ipoc = 0;
-};
 
 struct CycleCounters {
   std::uint64_t messages = 0;
@@ -475,11 +466,10 @@ class Cycle {
   void robot_lost(RobotLoss why) noexcept;
   /// One robot message (SI, as zerog::rtio hands it): runs the cycle and fills `correction`
   /// (always, with message.ipoc; Kind::none unless zero-g or collection is running).
+  /// The cycle takes no protocol type: the RSI endpoint (zerog::rtio) converts the wire's
+  /// KUKA units at the border, and so do the tests that hold RSI messages
+  /// (tests/common/rsi_step.hpp).
   void step(const samples::RobotSample& message, samples::RobotCorrection& correction) noexcept;
-  /// The same for a message in the wire's KUKA units, answered in them: converts at the border
-  /// with proto::rsi::robot_sample_from_message and reply_from_correction (for host tools and
-  /// tests that hold RSI messages; zerog-rt's endpoint converts itself).
-  void step(const proto::rsi::RobotMessage& message, CycleReply& reply) noexcept;
 
   /// The record of the last step() (or robot_lost()).
   const CycleRecord& last() const { return *record_; }
@@ -523,7 +513,7 @@ class Cycle {
   /// The zero correction answered with `ipoc` (idle, fault, a cycle that ends early): AKorr
   /// zeros when a collection path is set, else RKorr zeros.
   samples::RobotCorrection zero_reply(std::uint64_t ipoc) const noexcept;
-  /// One cycle for message `m`; its answer (SI) is last().reply, which both step()s hand on.
+  /// One cycle for message `m`; its answer (SI) is last().reply, which step() hands on.
   void run(const samples::RobotSample& m) noexcept;
   /// The pending command (request()), taken for this cycle.
   stages::PendingCommand take_command() noexcept;
