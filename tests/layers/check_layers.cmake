@@ -102,7 +102,8 @@ endif()
 # purpose: zerog::telemetry links zerog::handover, not the device code of zerog::rtio; zerog::formats
 # links the cycle's record (zerog::cycle_record), not the cycle (zerog::loop), so the host tools
 # that read and write files do not link the real-time cycle; zerog::loop links no protocol
-# (zerog::proto): the cycle sees SI samples, the RSI border converts.
+# (zerog::proto): the cycle sees SI samples, the RSI border converts; no firmware target links
+# the devices' fakes (zerog::rtio_fakes: tests and emulators only).
 set(allowed_zerog_status "")
 set(allowed_zerog_model "")
 set(allowed_zerog_samples "")
@@ -115,6 +116,7 @@ set(allowed_zerog_cycle_record zerog_infer zerog_control zerog_samples)
 set(allowed_zerog_loop zerog_cycle_record zerog_status zerog_infer zerog_control zerog_samples
                        zerog_robot)
 set(allowed_zerog_rtio zerog_proto zerog_samples zerog_status zerog_handover)
+set(allowed_zerog_rtio_fakes zerog_rtio zerog_proto)
 set(allowed_zerog_formats zerog_robot zerog_cycle_record zerog_proto)
 set(allowed_zerog_modbus zerog_loop zerog_status)
 set(allowed_zerog_telemetry_idl "")
