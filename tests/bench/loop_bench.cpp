@@ -3,19 +3,20 @@
 // against the model evaluation alone for the same deployed model, in the same run. Reported:
 // ns per cycle and the ratio cycle / model. Speed is measured, never asserted.
 //
-// BM_CycleStep/0,1 step with the RSI message in KUKA units (Cycle::step(RobotMessage,
-// CycleReply&): the border's conversions both ways included); BM_CycleStepSi/0,1 step with the SI
-// sample as zerog-rt's RSI endpoint hands it (Cycle::step(RobotSample, RobotCorrection&): the
-// cycle alone, conversions excluded, as in zerog-rt where rtio converts). BM_CycleStepFused/0,1:
-// as BM_CycleStepSi with the motion estimator ([filter] motion = "fused") on the elastic KR 210
-// (its deflection stepped every cycle, proto/loop.md "Motion estimator"): its cost is the ratio
-// to BM_CycleStepSi of the same run.
+// BM_CycleStep/0,1 step with the RSI message in KUKA units (test::step_rsi(Cycle&, RobotMessage,
+// RsiReply&), tests/common/rsi_step.hpp: the border's conversions both ways included);
+// BM_CycleStepSi/0,1 step with the SI sample as zerog-rt's RSI endpoint hands it
+// (Cycle::step(RobotSample, RobotCorrection&): the cycle alone, conversions excluded, as in
+// zerog-rt where rtio converts). BM_CycleStepFused/0,1: as BM_CycleStepSi with the motion estimator
+// ([filter] motion = "fused") on the elastic KR 210 (its deflection stepped every cycle,
+// proto/loop.md "Motion estimator"): its cost is the ratio to BM_CycleStepSi of the same run.
 #include <benchmark/benchmark.h>
 
 #include <random>
 #include <vector>
 
 #include "infer_fixtures.hpp"
+#include "rsi_step.hpp"
 #include "zerog/formats/robot_toml.hpp"
 #include "zerog/loop/cycle.hpp"
 #include "zerog/proto/rsi_si.hpp"
@@ -98,7 +99,7 @@ void cycle_step(benchmark::State& state, bool si, bool fused = false) {
     imu.accel_m_s2[2] += 9.81;
   }
   std::size_t next_ft = 0, next_imu = 0;
-  loop::CycleReply reply;
+  test::RsiReply reply;
   samples::RobotCorrection correction;
   samples::RobotSample sample = proto::rsi::robot_sample_from_message(m);
   auto one_cycle = [&](double push_N) {
@@ -112,7 +113,7 @@ void cycle_step(benchmark::State& state, bool si, bool fused = false) {
       cycle.step(sample, correction);
       sample.ipoc += 12;
     } else {
-      cycle.step(m, reply);
+      test::step_rsi(cycle, m, reply);
     }
     m.ipoc += 12;
   };

@@ -99,7 +99,11 @@ endif()
 # under firmware/ and the targets it may link directly. A link not listed here, or a firmware
 # target not listed at all, fails, naming it: a new arrow between the libraries is a decision
 # written here, not a side effect of a target_link_libraries line. Among what is left out on
-# purpose: zerog::telemetry links zerog::handover, not the device code of zerog::rtio.
+# purpose: zerog::telemetry links zerog::handover, not the device code of zerog::rtio; zerog::formats
+# links the cycle's record (zerog::cycle_record), not the cycle (zerog::loop), so the host tools
+# that read and write files do not link the real-time cycle; zerog::loop links no protocol
+# (zerog::proto): the cycle sees SI samples, the RSI border converts; no firmware target links
+# the devices' fakes (zerog::rtio_fakes: tests and emulators only).
 set(allowed_zerog_status "")
 set(allowed_zerog_model "")
 set(allowed_zerog_samples "")
@@ -108,14 +112,18 @@ set(allowed_zerog_handover "")
 set(allowed_zerog_proto zerog_samples zerog_model)
 set(allowed_zerog_robot zerog_status)
 set(allowed_zerog_infer zerog_model zerog_status)
-set(allowed_zerog_loop zerog_status zerog_infer zerog_control zerog_samples zerog_proto zerog_robot)
+set(allowed_zerog_cycle_record zerog_infer zerog_control zerog_samples)
+set(allowed_zerog_loop zerog_cycle_record zerog_status zerog_infer zerog_control zerog_samples
+                       zerog_robot)
 set(allowed_zerog_rtio zerog_proto zerog_samples zerog_status zerog_handover)
-set(allowed_zerog_formats zerog_robot zerog_loop)
+set(allowed_zerog_rtio_fakes zerog_rtio zerog_proto)
+set(allowed_zerog_formats zerog_robot zerog_cycle_record zerog_proto)
 set(allowed_zerog_modbus zerog_loop zerog_status)
 set(allowed_zerog_telemetry_idl "")
 set(allowed_zerog_ros2_idl "")
 set(allowed_zerog_telemetry_types zerog_telemetry_idl zerog_ros2_idl)
-set(allowed_zerog_telemetry zerog_status zerog_loop zerog_control zerog_infer zerog_handover)
+set(allowed_zerog_telemetry zerog_status zerog_loop zerog_control zerog_infer zerog_handover
+                            zerog_proto)
 set(allowed_zerog_rt zerog_status zerog_loop zerog_handover zerog_rtio zerog_infer zerog_formats
                      zerog_robot zerog_modbus zerog_telemetry)
 set(allowed_zerog-rt zerog_rt)

@@ -6,8 +6,6 @@
 #include <string>
 #include <utility>
 
-#include "zerog/proto/rsi_si.hpp"
-
 namespace zerog::loop {
 namespace {
 
@@ -313,15 +311,6 @@ void Cycle::keep_record() noexcept {
     box_.freeze();
     freeze_pending_ = false;
   }
-}
-
-void Cycle::step(const proto::rsi::RobotMessage& m, CycleReply& reply) noexcept {
-  run(proto::rsi::robot_sample_from_message(m));
-  // The border's one conversion of the reply, from the record's (SI).
-  const samples::RobotCorrection& correction = record_->reply;
-  reply.axis = correction.axis();
-  reply.ipoc = correction.ipoc;
-  proto::rsi::kuka_units_from_correction(correction, reply.rkorr, reply.akorr_deg);
 }
 
 samples::RobotCorrection Cycle::zero_reply(std::uint64_t ipoc) const noexcept {

@@ -3,7 +3,7 @@
 # emulated rig against zerog-rt's cycle (spin_contact_test: contact stays zero while it turns).
 zerog_add_test(emu_test SOURCES emu/robot_test.cpp emu/physics_test.cpp emu/scenario_test.cpp
                emu/spin_contact_test.cpp
-               LIBS zerog::emu zerog::model zerog::loop)
+               LIBS zerog::emu zerog::model zerog::loop zerog_test_rsi_step)
 
 # The zerog-emu program with its F/T board on a local CAN bus socket (--can-local).
 zerog_add_test(emu_can_local_test SOURCES emu/can_local_test.cpp LIBS zerog::rtio)

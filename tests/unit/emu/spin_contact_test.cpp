@@ -11,6 +11,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "rsi_step.hpp"
 #include "zerog/emu/physics.hpp"
 #include "zerog/emu/robot.hpp"
 #include "zerog/loop/cycle.hpp"
@@ -62,8 +63,8 @@ ContactStats run(Akorr akorr, double seconds, double settle_s) {
     const double t = n * kCycle;
     // The controller's tick: the datagram of the actual state, then the new correction.
     proto::rsi::RobotMessage m = robot.message(1'000'000 + 12 * static_cast<std::uint64_t>(n), 0);
-    loop::CycleReply reply;
-    cycle.step(m, reply);
+    test::RsiReply reply;
+    test::step_rsi(cycle, m, reply);
     const loop::CycleRecord& r = cycle.last();
     if (t >= settle_s) {
       if (r.model_status != infer::StatusCode::ok) {

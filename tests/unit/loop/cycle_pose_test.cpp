@@ -14,6 +14,7 @@
 
 #include "alloc_count.hpp"
 #include "loop_fixtures.hpp"
+#include "rsi_step.hpp"
 #include "zerog/formats/robot_toml.hpp"
 #include "zerog/loop/cycle.hpp"
 #include "zerog/model/rotation.hpp"
@@ -81,9 +82,9 @@ std::vector<CycleRecord> run(Cycle& c, bool with_rist) {
   for (int k = 0; k < kCycles; ++k) {
     for (int i = 0; i < 4; ++i) c.add_ft(sensors.ft(Eigen::Matrix<double, 6, 1>::Zero()));
     for (int i = 0; i < 24; ++i) c.add_imu(sensors.imu_sample);
-    CycleReply reply;
+    zerog::test::RsiReply reply;
     const rsi::RobotMessage m = wire_message(k, with_rist);
-    c.step(m, reply);
+    zerog::test::step_rsi(c, m, reply);
     EXPECT_EQ(reply.ipoc, m.ipoc);
     records.push_back(c.last());
   }
@@ -221,8 +222,8 @@ TEST(CyclePose, KinematicsInTheCycleDoNotAllocate) {
   for (const rsi::RobotMessage& m : messages) {
     for (int i = 0; i < 4; ++i) c.add_ft(ft);
     for (int i = 0; i < 24; ++i) c.add_imu(sensors.imu_sample);
-    CycleReply reply;
-    c.step(m, reply);
+    zerog::test::RsiReply reply;
+    zerog::test::step_rsi(c, m, reply);
   }
   guard.stop();
   EXPECT_EQ(guard.allocations(), 0u) << guard.first_call();

@@ -26,6 +26,7 @@ using test::push;
 using test::StaticRobot;
 using test::test_cycle_config;
 using zerog::test::AllocGuard;
+using zerog::test::RsiReply;
 
 void start_zero_g(Cycle& c, StaticRobot& rig) {
   for (int i = 0; i < 6; ++i) rig.quiet(c);
@@ -114,7 +115,7 @@ TEST(Cycle, IdleAnswersEveryMessageWithItsIpocAndNoCorrectionAndSeesNoContact) {
   StaticRobot rig;
   for (int i = 0; i < 20; ++i) {
     const std::uint64_t ipoc = rig.message.ipoc;
-    const CycleReply r = rig.quiet(c);
+    const RsiReply r = rig.quiet(c);
     EXPECT_EQ(r.ipoc, ipoc);
     EXPECT_FALSE(r.axis);
     EXPECT_EQ(r.rkorr.x_mm, 0.0);
@@ -288,11 +289,11 @@ TEST(Cycle, PushOfImpulseJGivesVelocityJOverMAndTheCorrectionsAddUpToTheMotion) 
   const int n_push = 40;
   Eigen::Vector3d sum_mm = Eigen::Vector3d::Zero();
   for (int i = 0; i < n_push; ++i) {
-    const CycleReply r = rig.cycle(c, push(50.0, 0.0, 0.0));
+    const RsiReply r = rig.cycle(c, push(50.0, 0.0, 0.0));
     sum_mm += Eigen::Vector3d(r.rkorr.x_mm, r.rkorr.y_mm, r.rkorr.z_mm);
   }
   for (int i = 0; i < 30; ++i) {
-    const CycleReply r = rig.quiet(c);
+    const RsiReply r = rig.quiet(c);
     sum_mm += Eigen::Vector3d(r.rkorr.x_mm, r.rkorr.y_mm, r.rkorr.z_mm);
   }
   ASSERT_EQ(c.state_machine().state(), State::zero_g);
@@ -316,7 +317,7 @@ TEST(Cycle, AnOffCentrePushTurnsTheBodyAndTheCorrectionCarriesTheRotation) {
   torque[5] = 5.0;
   double c_sum = 0.0, a_sum = 0.0, b_sum = 0.0;
   for (int i = 0; i < 20; ++i) {
-    const CycleReply r = rig.cycle(c, torque);
+    const RsiReply r = rig.cycle(c, torque);
     a_sum += r.rkorr.a_deg;
     b_sum += r.rkorr.b_deg;
     c_sum += r.rkorr.c_deg;
@@ -534,15 +535,15 @@ TEST(Cycle, RowsWithAHeldSensorValueDoNotDriveTheBody) {
 // Watchdogs: consecutive bad cycles below the threshold hold; the threshold raises the fault and
 // from that very cycle on the reply is a zero correction.
 void expect_hold_then_fault(Cycle& c, StaticRobot& rig, int threshold, Fault fault,
-                            const std::function<CycleReply()>& bad_cycle, std::uint32_t held_flag) {
+                            const std::function<RsiReply()>& bad_cycle, std::uint32_t held_flag) {
   for (int i = 1; i < threshold; ++i) {
-    const CycleReply r = bad_cycle();
+    const RsiReply r = bad_cycle();
     EXPECT_EQ(c.state_machine().state(), State::zero_g) << "cycle " << i;
     EXPECT_NE(c.last().flags & held_flag, 0u) << "cycle " << i;
     (void)r;
   }
   const std::uint64_t ipoc = rig.message.ipoc;
-  const CycleReply r = bad_cycle();
+  const RsiReply r = bad_cycle();
   EXPECT_EQ(c.state_machine().state(), State::fault);
   EXPECT_EQ(c.state_machine().fault(), fault);
   EXPECT_EQ(r.ipoc, ipoc);
@@ -553,7 +554,7 @@ void expect_hold_then_fault(Cycle& c, StaticRobot& rig, int threshold, Fault fau
   ASSERT_TRUE(c.black_box().frozen());
   EXPECT_EQ(c.black_box().at(c.black_box().size() - 1).fault, fault);
   for (int i = 0; i < 5; ++i) {
-    const CycleReply later = rig.cycle(c, push(40.0, 0.0, 0.0));
+    const RsiReply later = rig.cycle(c, push(40.0, 0.0, 0.0));
     EXPECT_EQ(later.rkorr.x_mm, 0.0);
   }
   EXPECT_EQ(c.black_box().at(c.black_box().size() - 1).fault, fault);
@@ -643,7 +644,7 @@ TEST_F(Watchdog, LostRobotCyclesFaultAtTheThresholdAndTheNextMessageGetsZero) {
   EXPECT_NE(last.flags & kRobotLost, 0u);
   rig.message.ipoc += 12 * n;
   const std::uint64_t ipoc = rig.message.ipoc;
-  const CycleReply r = rig.quiet(c);
+  const RsiReply r = rig.quiet(c);
   EXPECT_EQ(r.ipoc, ipoc);
   EXPECT_EQ(r.rkorr.x_mm, 0.0);
   EXPECT_EQ(c.counters().robot_timeouts + c.counters().robot_malformed,
@@ -723,7 +724,7 @@ TEST_F(Watchdog, GrowingRobotDelayMeansOurRepliesAreLateAndFaults) {
 TEST_F(Watchdog, DuplicateAndReorderedDatagramsAreAnsweredWithZeroAndChangeNothing) {
   rig.message.ipoc -= 12;  // the previous datagram again
   const Eigen::Vector3d v = c.motion().body().state().v_world_mps;
-  const CycleReply r = rig.quiet(c);
+  const RsiReply r = rig.quiet(c);
   EXPECT_EQ(r.ipoc, rig.message.ipoc - 12);
   EXPECT_EQ(r.rkorr.x_mm, 0.0);
   EXPECT_NE(c.last().flags & kIpocStale, 0u);
@@ -734,11 +735,11 @@ TEST_F(Watchdog, DuplicateAndReorderedDatagramsAreAnsweredWithZeroAndChangeNothi
 }
 
 TEST_F(Watchdog, ContactAboveTheLimitFaultsAtOnce) {
-  const CycleReply r = rig.cycle(c, push(0.0, 500.0, 0.0));
+  const RsiReply r = rig.cycle(c, push(0.0, 500.0, 0.0));
   (void)r;
   // The contact is evaluated two rows back: the fault comes when the push reaches that row.
   rig.cycle(c, push(0.0, 500.0, 0.0));
-  const CycleReply r3 = rig.cycle(c, push(0.0, 500.0, 0.0));
+  const RsiReply r3 = rig.cycle(c, push(0.0, 500.0, 0.0));
   EXPECT_EQ(c.state_machine().fault(), Fault::contact_over_limit);
   EXPECT_EQ(r3.rkorr.x_mm, 0.0);
 }
@@ -809,7 +810,7 @@ TEST(Cycle, CollectionApproachesThePathThenFollowsItWithAxisCorrectionsAndStops)
   int cycles = 0;
   bool done = false;
   for (; cycles < 2000 && !done; ++cycles) {
-    const CycleReply r = rig.quiet(c);
+    const RsiReply r = rig.quiet(c);
     if (c.state_machine().state() == State::collecting || (c.last().flags & kCollectionDone)) {
       EXPECT_TRUE(r.axis);
       for (int k = 0; k < 6; ++k) {
@@ -841,7 +842,7 @@ TEST(Cycle, ASessionWithACollectionPathAnswersAxisCorrectionsOnly) {
   for (int i = 0; i < 6; ++i) EXPECT_FALSE(rig.quiet(c).axis);  // no path: RKorr zeros
   c.set_collection_path(&path);
   for (int i = 0; i < 3; ++i) {
-    const CycleReply r = rig.quiet(c);
+    const RsiReply r = rig.quiet(c);
     EXPECT_TRUE(r.axis);
     for (double a : r.akorr_deg) EXPECT_EQ(a, 0.0);
   }
@@ -856,13 +857,13 @@ TEST(Cycle, ASessionWithACollectionPathAnswersAxisCorrectionsOnly) {
     done = (c.last().flags & kCollectionDone) != 0;
   }
   ASSERT_TRUE(done);
-  const CycleReply after = rig.quiet(c);
+  const RsiReply after = rig.quiet(c);
   EXPECT_TRUE(after.axis);
   for (double a : after.akorr_deg) EXPECT_EQ(a, 0.0);
   // A fault's zero correction is AKorr too.
   for (int i = 0; i < c.config().watchdog.imu_fault_cycles + 1; ++i) rig.quiet(c, 4, 0);
   ASSERT_EQ(c.state_machine().state(), State::fault);
-  const CycleReply faulted = rig.quiet(c, 4, 0);
+  const RsiReply faulted = rig.quiet(c, 4, 0);
   EXPECT_TRUE(faulted.axis);
   for (double a : faulted.akorr_deg) EXPECT_EQ(a, 0.0);
 }

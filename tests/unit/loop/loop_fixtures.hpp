@@ -1,8 +1,8 @@
 #pragma once
 // Shared by the zerog::loop and zerog::rt tests (and rtio_bench): a payload model, the cycle
 // configuration of the same virtual body, and a robot standing still whose F/T samples are the
-// model's payload wrench plus a contact the test chooses. Needs zerog::loop only (zerog::rt's
-// additions are in tests/unit/rt/rt_fixtures.hpp). Test code; header-only.
+// model's payload wrench plus a contact the test chooses. Needs zerog::loop and zerog::proto
+// (zerog::rt's additions are in tests/unit/rt/rt_fixtures.hpp). Test code; header-only.
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
@@ -13,6 +13,10 @@
 #include "zerog/model/rotation.hpp"
 #include "zerog/proto/rsi.hpp"
 #include "zerog/samples/sensor_samples.hpp"
+
+// By path: some tests that include the fixtures get zerog::proto from zerog::rt and do not link
+// zerog_test_rsi_step (rt, rtio_bench, the soak).
+#include "../../common/rsi_step.hpp"
 
 namespace zerog::loop::test {
 
@@ -95,18 +99,18 @@ class StaticRobot {
 
   /// Feeds `n_ft` F/T samples (payload + contact) and `n_imu` IMU samples to `c`, then one
   /// robot message (the next IPOC after it); returns the reply.
-  CycleReply cycle(Cycle& c, const Eigen::Matrix<double, 6, 1>& contact, int n_ft = 4,
-                   int n_imu = 24) {
+  zerog::test::RsiReply cycle(Cycle& c, const Eigen::Matrix<double, 6, 1>& contact, int n_ft = 4,
+                              int n_imu = 24) {
     const samples::FtSample sample = ft(contact);
     for (int i = 0; i < n_ft; ++i) c.add_ft(sample);
     for (int i = 0; i < n_imu; ++i) c.add_imu(imu_sample);
-    CycleReply reply;
-    c.step(message, reply);
+    zerog::test::RsiReply reply;
+    zerog::test::step_rsi(c, message, reply);
     message.ipoc += 12;
     return reply;
   }
   /// The same with no contact.
-  CycleReply quiet(Cycle& c, int n_ft = 4, int n_imu = 24) {
+  zerog::test::RsiReply quiet(Cycle& c, int n_ft = 4, int n_imu = 24) {
     return cycle(c, Eigen::Matrix<double, 6, 1>::Zero(), n_ft, n_imu);
   }
 

@@ -10,6 +10,9 @@
 #include "alloc_count.hpp"
 #include "rt_fixtures.hpp"
 #include "zerog/rt/runtime.hpp"
+#include "zerog/rtio/fake_ft_sensor.hpp"
+#include "zerog/rtio/fake_imu.hpp"
+#include "zerog/rtio/fake_robot_link.hpp"
 
 namespace zerog::rt {
 namespace {

@@ -15,6 +15,7 @@
 #include "zerog/emu/ati_board.hpp"
 #include "zerog/rtio/can_socket.hpp"
 #include "zerog/rtio/fake_can_bus.hpp"
+#include "zerog/rtio/fake_ft_sensor.hpp"
 #include "zerog/rtio/netcanoem_sensor.hpp"
 
 namespace zerog::rtio {

@@ -16,6 +16,7 @@
 
 #include "alloc_count.hpp"
 #include "udp.hpp"
+#include "zerog/rtio/fake_robot_link.hpp"
 #include "zerog/rtio/rsi_endpoint.hpp"
 
 namespace zerog::rtio {

@@ -13,6 +13,7 @@
 
 #include "pty.hpp"
 #include "zerog/proto/stim300.hpp"
+#include "zerog/rtio/fake_imu.hpp"
 #include "zerog/rtio/serial_port.hpp"
 #include "zerog/rtio/stim300_imu.hpp"
 

@@ -1,7 +1,7 @@
 # zerog::telemetry: conversion and configuration (pure), and TelemetryChannel with a real
 # in-process Cyclone DDS participant on loopback (readers through Cyclone's C API).
 zerog_add_test(telemetry_test SOURCES telemetry/convert_test.cpp telemetry/channel_test.cpp
-               LIBS zerog::telemetry zerog_test_alloc)
+               LIBS zerog::telemetry zerog::proto zerog_test_alloc)
 
 # The independent subscriber (PyPI's cyclonedds in the project's .venv, hand-declared types)
 # against zerog-telemetry-replay on loopback; values checked against the cycles.csv the replay

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "zerog/loop/cycle.hpp"
+#include "zerog/loop/cycle_record.hpp"
 
 namespace zerog::io {
 

@@ -32,16 +32,17 @@
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
+#include <numbers>
 #include <optional>
 #include <string>
 
 #include "zerog/control/motion.hpp"
 #include "zerog/infer/inference.hpp"
 #include "zerog/loop/black_box.hpp"
+#include "zerog/loop/cycle_record.hpp"
 #include "zerog/loop/motion_estimator.hpp"
 #include "zerog/loop/state_machine.hpp"
 #include "zerog/model/dictionary.hpp"
-#include "zerog/proto/rsi.hpp"
 #include "zerog/robot/robot_model.hpp"
 #include "zerog/samples/robot_sample.hpp"
 #include "zerog/samples/sensor_samples.hpp"
@@ -101,8 +102,8 @@ struct CycleConfig {
   /// rotations differ by more than pose_check_angle_rad (kPoseDisagrees, counted; RIst is
   /// used). Without it, a message without RIst carries no pose (kPoseMissing). 6 joints, A1..A6.
   std::optional<robot::RobotModel> robot;
-  double pose_check_position_m = 1e-3;                         ///< 1 mm
-  double pose_check_angle_rad = 0.1 * proto::rsi::kRadPerDeg;  ///< 0.1°
+  double pose_check_position_m = 1e-3;                             ///< 1 mm
+  double pose_check_angle_rad = 0.1 * (std::numbers::pi / 180.0);  ///< 0.1°
 };
 
 /// What a supervisor (the cell PLC over Modbus) may change, only while the cycle is idle: the
@@ -153,88 +154,6 @@ zerog::Status check_config(const CycleConfig& config);
 
 /// Why a robot cycle was lost (robot_lost()).
 enum class RobotLoss : std::uint8_t { timeout, malformed };
-
-/// Bits of CycleRecord::flags.
-enum CycleFlags : std::uint32_t {
-  kFtHeld = 1u << 0,          ///< no valid F/T sample this cycle: the last one was reused
-  kImuHeld = 1u << 1,         ///< likewise for the IMU
-  kNotReady = 1u << 2,        ///< fewer rows than the model needs: no contact wrench yet
-  kModelSaturated = 1u << 3,  ///< the network clipped inputs or activations
-  kIpocGap = 1u << 4,         ///< IPOC jumped by more than one period (datagrams lost)
-  kIpocStale = 1u << 5,       ///< IPOC not newer than the last one (duplicate or reordered)
-  kRobotDelayGrew = 1u << 6,  ///< the robot's Delay counter grew
-  kCommandRefused = 1u << 7,  ///< a command this cycle was not allowed in the state
-  kCollectionDone = 1u << 8,  ///< collection reached the end of its path (back to idle)
-  kFtWarning = 1u << 9,       ///< F/T samples with non-critical status bits were used
-  kRobotLost = 1u << 10,      ///< a lost robot cycle (robot_lost()): no message, no reply
-  /// The model's row (t_eval_s) had a held sensor value (kFtHeld or kImuHeld when it was this
-  /// cycle's row): its contact is not trusted, so `contact` is zero and the body coasts.
-  kContactHeld = 1u << 11,
-  kPoseFromJoints = 1u << 12,  ///< no RIst: the sensor pose is the kinematics' of AIPos
-  kPoseDisagrees = 1u << 13,   ///< RIst and the kinematics disagree (CycleConfig::pose_check_*)
-  /// No RIst and no robot configured: the message has no pose. It is answered (zero, its IPOC)
-  /// but counts as a lost robot cycle (robot watchdog), and nothing else changes.
-  kPoseMissing = 1u << 14,
-  /// The F/T sensor's temperature reading is older than its maximum age (samples::FtSample::
-  /// temperature_stale: the board stopped answering the thermistor reads): the model gets
-  /// CycleConfig::temperature_C again (temperature_measured false) until a fresh reading comes.
-  kTemperatureStale = 1u << 15,
-};
-
-/// Everything one cycle did: the black box, the recorder and telemetry take it. Fixed size.
-struct CycleRecord {
-  std::uint64_t cycle = 0;  ///< robot messages handled, from 1
-  std::uint64_t ipoc = 0;
-  double t_s = 0.0;   ///< robot time since the first message (IPOC based)
-  double dt_s = 0.0;  ///< time step used for the virtual body
-  State state = State::idle;
-  Fault fault = Fault::none;
-  std::uint32_t flags = 0;        ///< CycleFlags
-  std::uint32_t limit_flags = 0;  ///< control::LimitFlags
-  infer::StatusCode model_status = infer::StatusCode::not_configured;
-  // This cycle's row (what is recorded in the log format).
-  std::array<double, 6> joints_rad{};
-  /// S in B: from RIst (TCP = sensor frame), or from AIPos by forward kinematics
-  /// (kPoseFromJoints).
-  Eigen::Vector3d p_base_sensor_m = Eigen::Vector3d::Zero();
-  Eigen::Quaterniond q_base_sensor = Eigen::Quaterniond::Identity();
-  /// RIst against the kinematics of AIPos when both are there (else 0): distance of the
-  /// origins (m) and angle of the relative rotation (rad).
-  double pose_check_m = 0.0;
-  double pose_check_rad = 0.0;
-  std::array<double, 6> wrench_measured{};     ///< mean F/T of the cycle, sensor frame, N / N·m
-  std::array<double, 3> specific_force_imu{};  ///< mean IMU, IMU frame, m/s²
-  std::array<double, 3> rate_imu{};            ///< mean gyro, IMU frame, rad/s
-  std::uint16_t ft_samples = 0;                ///< valid F/T samples averaged
-  std::uint16_t imu_samples = 0;               ///< valid IMU samples averaged
-  /// The temperature fed to the model this cycle, °C: the F/T sensor's latest reading when
-  /// temperature_measured, else CycleConfig::temperature_C (before the first reading, or while
-  /// the reading is stale: kTemperatureStale).
-  double temperature_C = 25.0;
-  bool temperature_measured = false;
-  double temperature_age_s = 0.0;  ///< age of that reading when it came with a sample, s
-  // The model, evaluated on the row delay_rows() back (t_eval_s).
-  double t_eval_s = 0.0;
-  std::array<double, 6> wrench_at_eval{};  ///< measured, that row
-  std::array<double, 6> predicted{};       ///< model prediction, that row
-  std::array<double, 6> contact{};         ///< measured − predicted (sensor frame, about S)
-  /// The reply sent, in SI (as the cycle handed it to zerog::rtio): Kind::none (a zero RKorr),
-  /// cartesian (translation in B, m; rotation in B) or axes (AKorr, rad), with the message's
-  /// IPOC. cycles.csv writes it in the wire's units (mm, degrees).
-  samples::RobotCorrection reply;
-  // The virtual body after the step (world = robot base frame).
-  control::BodyState body;
-  std::int64_t compute_ns = 0;  ///< filled in by the program (time of step())
-};
-
-/// What to send back, in the wire's KUKA units (Cycle::step for RSI messages). Always the IPOC
-/// of the message just handled.
-struct CycleReply {
-  bool axis = false;             ///< true: AKorr (collection mode); false: RKorr
-  proto::rsi::Correction rkorr;  ///< mm, degrees (zero unless zero-g)
-  std::array<double, 6> akorr_deg{};
-  std::uint64_t ipoc = 0;
-};
 
 struct CycleCounters {
   std::uint64_t messages = 0;
@@ -547,11 +466,10 @@ class Cycle {
   void robot_lost(RobotLoss why) noexcept;
   /// One robot message (SI, as zerog::rtio hands it): runs the cycle and fills `correction`
   /// (always, with message.ipoc; Kind::none unless zero-g or collection is running).
+  /// The cycle takes no protocol type: the RSI endpoint (zerog::rtio) converts the wire's
+  /// KUKA units at the border, and so do the tests that hold RSI messages
+  /// (tests/common/rsi_step.hpp).
   void step(const samples::RobotSample& message, samples::RobotCorrection& correction) noexcept;
-  /// The same for a message in the wire's KUKA units, answered in them: converts at the border
-  /// with proto::rsi::robot_sample_from_message and reply_from_correction (for host tools and
-  /// tests that hold RSI messages; zerog-rt's endpoint converts itself).
-  void step(const proto::rsi::RobotMessage& message, CycleReply& reply) noexcept;
 
   /// The record of the last step() (or robot_lost()).
   const CycleRecord& last() const { return *record_; }
@@ -595,7 +513,7 @@ class Cycle {
   /// The zero correction answered with `ipoc` (idle, fault, a cycle that ends early): AKorr
   /// zeros when a collection path is set, else RKorr zeros.
   samples::RobotCorrection zero_reply(std::uint64_t ipoc) const noexcept;
-  /// One cycle for message `m`; its answer (SI) is last().reply, which both step()s hand on.
+  /// One cycle for message `m`; its answer (SI) is last().reply, which step() hands on.
   void run(const samples::RobotSample& m) noexcept;
   /// The pending command (request()), taken for this cycle.
   stages::PendingCommand take_command() noexcept;

@@ -1,30 +1,15 @@
 #pragma once
-// The operating states of zerog-rt and their transitions (proto/states.md). Transitions are
-// requested by commands (Modbus coils, the CLI) or by faults from the cycle; each one is
-// recorded in a fixed-size log with the cycle number and the reason.
+// The transitions between the operating states of zerog-rt (zerog/loop/state.hpp,
+// proto/states.md). Transitions are requested by commands (Modbus coils, the CLI) or by faults
+// from the cycle; each one is recorded in a fixed-size log with the cycle number and the reason.
 // Real-time safe: no allocation, no exceptions, no locks.
 #include <array>
 #include <cstddef>
 #include <cstdint>
 
+#include "zerog/loop/state.hpp"
+
 namespace zerog::loop {
-
-enum class State : std::uint8_t { idle, collecting, zero_g, fault };
-const char* state_name(State s);
-
-/// Why the loop faulted. The loop answers every robot datagram with a zero correction while in
-/// fault, until a reset in idle conditions.
-enum class Fault : std::uint8_t {
-  none,
-  ft_stale,            ///< no valid F/T sample for too many cycles
-  ft_critical,         ///< the F/T sensor reported a critical status bit
-  ft_saturated,        ///< the F/T sensor's gauges stayed saturated
-  imu_stale,           ///< no valid IMU sample for too many cycles
-  robot_late,          ///< robot datagrams late or missing for too many cycles
-  contact_over_limit,  ///< contact force or torque above its limit
-  model_invalid,       ///< the model could not be evaluated (bad input, saturation)
-};
-const char* fault_name(Fault f);
 
 enum class Command : std::uint8_t { enable_zero_g, start_collection, stop, reset_fault };
 const char* command_name(Command c);

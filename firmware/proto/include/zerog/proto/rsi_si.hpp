@@ -36,8 +36,8 @@ RobotMessage robot_message_from_sample(const samples::RobotSample& sample);
 Reply reply_from_correction(const samples::RobotCorrection& correction);
 
 /// reply_from_correction's RKorr and AKorr, written straight into the caller's fields (the
-/// absent one zero): for an answer kept in another struct (loop::CycleReply), with no Reply
-/// in between.
+/// absent one zero): for an answer kept in another struct (the tests' test::RsiReply,
+/// tests/common/rsi_step.hpp), with no Reply in between.
 void kuka_units_from_correction(const samples::RobotCorrection& correction, Correction& rkorr,
                                 std::array<double, 6>& akorr_deg);
 

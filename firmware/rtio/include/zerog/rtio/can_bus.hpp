@@ -2,7 +2,8 @@
 // A CAN bus as the devices see it: read one frame with a timeout, write one frame, counters.
 // Implementations: CanSocket (SocketCAN raw socket, can_socket.hpp: the real bus); LocalCanBus
 // (classic frames over an AF_UNIX datagram socket between two processes, local_can_bus.hpp: for
-// zerog-rt against zerog-emu on a kernel without CAN); fake: FakeCanBus (fake_can_bus.hpp).
+// zerog-rt against zerog-emu on a kernel without CAN); fake: FakeCanBus (fake_can_bus.hpp,
+// zerog::rtio_fakes).
 #include <array>
 #include <chrono>
 #include <cstddef>

@@ -1,6 +1,7 @@
 #pragma once
 // A force/torque sensor as the loop sees it. Real: NetcanoemSensor (ATI NETCANOEM over CAN);
-// fake: FakeFtSensor (scripted results, below).
+// fake: FakeFtSensor (scripted results; zerog/rtio/fake_ft_sensor.hpp in zerog::rtio_fakes, which
+// only tests and the emulators link).
 #include <array>
 #include <chrono>
 #include <cstddef>
@@ -86,34 +87,6 @@ class FtSensor {
   }
   /// A snapshot of the counters (call from the thread that reads samples).
   virtual FtCounters counters() const = 0;
-};
-
-/// Scripted FtSensor for tests: queue results with push(); read_sample returns them in order,
-/// then `timeout` when the script is empty. Counts like a real device.
-class FakeFtSensor final : public FtSensor {
- public:
-  static constexpr std::size_t kScriptCapacity = 64;
-
-  void set_start_status(FtStartStatus status) { start_status_ = status; }
-  /// Appends a result; false when the script is full.
-  bool push(FtReadStatus status, const FtSample& sample = {});
-
-  FtStartStatus start() override;
-  FtReadStatus read_sample(FtSample& out) override;
-  FtCounters counters() const override { return counters_; }
-
- private:
-  struct Step {
-    FtReadStatus status = FtReadStatus::timeout;
-    FtSample sample;
-  };
-  std::array<Step, kScriptCapacity> script_{};
-  std::size_t head_ = 0;
-  std::size_t count_ = 0;
-  FtStartStatus start_status_ = FtStartStatus::ok;
-  bool started_ = false;
-  std::uint64_t sequence_ = 0;
-  FtCounters counters_;
 };
 
 }  // namespace zerog::rtio

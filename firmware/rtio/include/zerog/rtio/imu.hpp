@@ -1,6 +1,7 @@
 #pragma once
 // An IMU as the loop sees it. Real: Stim300Imu (Sensonor STIM300 on a serial port); fake:
-// FakeImu (scripted results, below).
+// FakeImu (scripted results; zerog/rtio/fake_imu.hpp in zerog::rtio_fakes, which only tests and
+// the emulators link).
 #include <array>
 #include <chrono>
 #include <cstddef>
@@ -63,32 +64,6 @@ class Imu {
   }
   /// A snapshot of the counters (call from the thread that reads samples).
   virtual ImuCounters counters() const = 0;
-};
-
-/// Scripted Imu for tests: read_sample returns the pushed results in order, then `timeout`.
-class FakeImu final : public Imu {
- public:
-  static constexpr std::size_t kScriptCapacity = 64;
-
-  void set_start_status(ImuStartStatus status) { start_status_ = status; }
-  bool push(ImuReadStatus status, const ImuSample& sample = {});
-
-  ImuStartStatus start() override;
-  ImuReadStatus read_sample(ImuSample& out) override;
-  ImuCounters counters() const override { return counters_; }
-
- private:
-  struct Step {
-    ImuReadStatus status = ImuReadStatus::timeout;
-    ImuSample sample;
-  };
-  std::array<Step, kScriptCapacity> script_{};
-  std::size_t head_ = 0;
-  std::size_t count_ = 0;
-  ImuStartStatus start_status_ = ImuStartStatus::ok;
-  bool started_ = false;
-  std::uint64_t sequence_ = 0;
-  ImuCounters counters_;
 };
 
 }  // namespace zerog::rtio

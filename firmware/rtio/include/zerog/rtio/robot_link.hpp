@@ -1,7 +1,8 @@
 #pragma once
 // The robot controller as the loop sees it: one message per interpolation cycle in, one reply
 // with the same IPOC out. Real: RsiEndpoint (KUKA RSI-like XML over UDP, rsi_endpoint.hpp);
-// fake: FakeRobotLink (below). Message and correction types are the codec's (proto/rsi.md).
+// fake: FakeRobotLink (zerog/rtio/fake_robot_link.hpp in zerog::rtio_fakes, which only tests
+// and the emulators link). Message and correction types are the codec's (proto/rsi.md).
 #include <array>
 #include <cstddef>
 #include <cstdint>
@@ -88,41 +89,6 @@ class RobotLink {
 
  private:
   proto::rsi::RobotMessage wire_;  ///< receive_sample()'s message, in the wire's units
-};
-
-/// Scripted RobotLink for tests: receive() returns pushed messages in order, then timeout;
-/// replies (RKorr and AKorr) are recorded in the order they were given.
-class FakeRobotLink final : public RobotLink {
- public:
-  static constexpr std::size_t kCapacity = 64;
-  struct Reply {
-    proto::rsi::Correction correction;  ///< valid if !axis
-    std::uint64_t ipoc = 0;
-    bool axis = false;                  ///< reply_axes(): akorr_deg holds the correction
-    std::array<double, 6> akorr_deg{};  ///< valid if axis
-  };
-
-  bool push(const proto::rsi::RobotMessage& message);
-  std::size_t reply_count() const { return reply_count_; }
-  /// The i-th reply of the last kCapacity.
-  const Reply& reply_at(std::size_t i) const { return replies_[i % kCapacity]; }
-
-  RobotStartStatus start() override;
-  RobotReceiveStatus receive(proto::rsi::RobotMessage& out) override;
-  RobotReplyStatus reply(const proto::rsi::Correction& correction, std::uint64_t ipoc) override;
-  RobotReplyStatus reply_axes(const std::array<double, 6>& akorr_deg, std::uint64_t ipoc) override;
-  const RobotLinkCounters& counters() const override { return counters_; }
-
- private:
-  RobotReplyStatus record(const Reply& reply, const double* values);
-  std::array<proto::rsi::RobotMessage, kCapacity> script_{};
-  std::size_t head_ = 0;
-  std::size_t count_ = 0;
-  std::array<Reply, kCapacity> replies_{};
-  std::size_t reply_count_ = 0;
-  bool started_ = false;
-  bool have_peer_ = false;
-  RobotLinkCounters counters_;
 };
 
 }  // namespace zerog::rtio

@@ -23,7 +23,7 @@
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
-#include "zerog/loop/cycle.hpp"
+#include "zerog/loop/cycle_record.hpp"
 
 namespace zerog::ident {
 

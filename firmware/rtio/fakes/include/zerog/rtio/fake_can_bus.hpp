@@ -1,7 +1,8 @@
 #pragma once
-// FakeCanBus: an in-memory CanBus for unit tests and the no-allocation test. Frames written are
-// logged and handed to an optional responder (e.g. a board emulator), which may queue frames for
-// read(). read() never sleeps: an empty queue is an immediate timeout. Single-threaded.
+// FakeCanBus (zerog::rtio_fakes): an in-memory CanBus for unit tests, the no-allocation test and
+// the emulated F/T board (host/emu). Frames written are logged and handed to an optional
+// responder (e.g. a board emulator), which may queue frames for read(). read() never sleeps: an
+// empty queue is an immediate timeout. Single-threaded.
 #include <array>
 #include <chrono>
 #include <cstddef>
