@@ -73,7 +73,7 @@ void add_decode_rsi_command(CLI::App& app) {
   s->callback([a] {
     io::RsiDecodeOptions o;
     if (!a->rig.empty()) {
-      const io::Rig rig = io::read_rig(a->rig);
+      const formats::Rig rig = formats::read_rig(a->rig);
       if (!rig.robot_model)
         throw std::runtime_error(a->rig + ": the rig describes no robot ([robot] or robot_file)");
       if (rig.robot_model->joint_count != 6)

@@ -93,7 +93,7 @@ OmegaDotCheck omega_dot_check(const io::ModelFile& fit) {
 }
 
 // What makes a fit unfit to deploy on this rig, said before anything is built.
-void check_exportable(const ExportArgs& a, const io::ModelFile& fit, const io::Rig& rig) {
+void check_exportable(const ExportArgs& a, const io::ModelFile& fit, const formats::Rig& rig) {
   if (!fit.rig_name.empty() && fit.rig_name != rig.name)
     throw std::runtime_error(a.model + ": fitted on rig '" + fit.rig_name + "', but " + a.rig +
                              " describes rig '" + rig.name + "'");
@@ -109,7 +109,7 @@ void check_exportable(const ExportArgs& a, const io::ModelFile& fit, const io::R
 
 // The calibration log of --calibration (the quantisation's ranges and the checks below).
 struct Calibration {
-  std::optional<io::Log> log;
+  std::optional<formats::Log> log;
   std::optional<ident::Dataset> data;
 };
 
@@ -128,7 +128,7 @@ void add_network(const ExportArgs& a, const io::ModelFile& fit, learn::NetworkFi
   q.weight_bits = a.weight_bits;
   q.input_clip = a.input_clip;
   if (!a.calibration.empty()) {
-    calib.log = io::read_log(a.calibration);
+    calib.log = formats::read_log(a.calibration);
     calib.data = ident::make_dataset(*calib.log);
     inputs.emplace_back(a.calibration);
     provenance["calibration"] = fs::path(a.calibration).filename().string();
@@ -197,7 +197,7 @@ void check_on_calibration(const ExportArgs& a, const infer::DeployedModel& model
 
 void run_export(const ExportArgs& a) {
   const io::ModelFile fit = io::read_model(a.model);
-  const io::Rig rig = io::read_rig(a.rig);
+  const formats::Rig rig = formats::read_rig(a.rig);
   check_exportable(a, fit, rig);
   infer::DeployedModel m;
   m.rig = learn::rig_description(rig);
@@ -222,7 +222,7 @@ void run_export(const ExportArgs& a) {
   const infer::LoadResult check = infer::load_deployed_model(bytes, m.rig, a.out);
   if (!check.ok())
     throw std::runtime_error("internal: the exported file does not load: " + check.message);
-  io::write_file_atomic(a.out, bytes, inputs);
+  formats::write_file_atomic(a.out, bytes, inputs);
   // Said even with --quiet: the deployed model may not run on the signal it was fitted on.
   if (!omega_dot.effects.empty() && omega_dot.recorded() && !omega_dot.matches())
     warn_omega_dot(a, omega_dot);

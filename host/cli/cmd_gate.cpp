@@ -51,7 +51,7 @@ void add_gate_command(CLI::App& app) {
       o.force_now_N = c.limits.force_deadband_N;
       o.torque_now_Nm = c.limits.torque_deadband_Nm;
     }
-    const ident::GateAdvice advice = ident::gate_rule(io::read_cycles_csv(a->cycles), o);
+    const ident::GateAdvice advice = ident::gate_rule(formats::read_cycles_csv(a->cycles), o);
     if (a->json) {
       nlohmann::json j = ident::to_json(advice, o);
       j["kind"] = "zerog-gate";

@@ -244,7 +244,7 @@ std::string param_table(const model::ModelParams& p, const std::optional<ident::
 }
 
 // A usable fit as a model file; an unusable one is refused, so nothing gets written.
-io::ModelFile fitted_model_file(const ident::FitResult& r, const io::Rig& rig,
+io::ModelFile fitted_model_file(const ident::FitResult& r, const formats::Rig& rig,
                                 const std::string& log_path, const ident::Dataset& data) {
   if (!r.usable)
     throw std::runtime_error("the fit is not usable (" + r.termination + "); nothing written");
@@ -296,7 +296,7 @@ void run_fit(const Common& c, const std::string& effects, const std::string& out
              const std::string& truth_path, const std::string& std_kind, double cluster_s,
              bool consistency) {
   // Streamed: the log's rows go straight into the dataset, never held whole (issue 16).
-  io::Rig rig;
+  formats::Rig rig;
   const ident::Dataset data = ident::read_dataset(c.log, &rig);
   ident::FitOptions o;
   const io::ModelSpec spec = io::parse_model_spec(effects);
@@ -326,7 +326,7 @@ void run_fit(const Common& c, const std::string& effects, const std::string& out
   }
   std::optional<io::ModelFile> truth;
   if (!truth_path.empty()) truth = io::read_model(truth_path);
-  if (write_fitted_model(c, m, out, {c.log, io::rig_path_for(c.log)})) return;
+  if (write_fitted_model(c, m, out, {c.log, formats::rig_path_for(c.log)})) return;
   std::printf("fitted %s on %zu samples in %.2f s (%d iterations): %s\n",
               io::model_spec_string(r.params.effects, r.params.user, spec.files).c_str(), r.samples,
               r.seconds, r.iterations, r.termination.c_str());
@@ -368,7 +368,7 @@ void run_tool_change(const Common& c, const std::string& base_path, const std::s
     throw std::invalid_argument(
         "--tool-change needs --base: the previous fit whose sensor model "
         "(bias and other effects) stays frozen");
-  io::Rig rig;
+  formats::Rig rig;
   const ident::Dataset data = ident::read_dataset(c.log, &rig);
   const io::ModelFile base = io::read_model(base_path);
   ident::ToolChangeOptions o;
@@ -388,7 +388,7 @@ void run_tool_change(const Common& c, const std::string& base_path, const std::s
                                    {"static_samples", tc.static_samples},
                                    {"dwells", tc.dwells},
                                    {"gravity_spread_deg", tc.spread_deg}};
-  if (write_fitted_model(c, m, out, {c.log, io::rig_path_for(c.log), base_path})) return;
+  if (write_fitted_model(c, m, out, {c.log, formats::rig_path_for(c.log), base_path})) return;
   std::printf(
       "tool change: %zu of %zu samples static (%zu dwells), %zu fitted; frozen from %s: %s\n",
       tc.static_samples, data.size(), tc.dwells, r.samples, base_path.c_str(),
@@ -508,7 +508,7 @@ std::vector<ident::UserCandidate> user_candidates(const std::string& list) {
 std::string new_file_beside(const std::string& log, const std::string& stem, const char* ext) {
   for (int n = 1;; ++n) {
     const std::filesystem::path p =
-        io::beside_input(log, stem + (n == 1 ? std::string() : std::to_string(n)) + ext);
+        formats::beside_input(log, stem + (n == 1 ? std::string() : std::to_string(n)) + ext);
     std::error_code ec;
     if (!std::filesystem::exists(p, ec) && !ec) return p.string();
   }
@@ -640,7 +640,7 @@ void plot_ladder(const nlohmann::json& j, const std::string& plot,
     if (std::filesystem::weakly_canonical(in) == std::filesystem::weakly_canonical(plot))
       throw std::runtime_error(plot + " is an input of this run; refusing to overwrite it");
   const std::string tmp = plot + ".ladder.json.tmp";
-  io::write_file_atomic(tmp, j.dump() + "\n", inputs);
+  formats::write_file_atomic(tmp, j.dump() + "\n", inputs);
   try {
     run_report_script({"--ladder-plot", tmp, plot});
   } catch (...) {
@@ -691,8 +691,8 @@ void run_ladder(const LadderArgs& a) {
   j["made_for"] = {{"model", nullptr},
                    {"start", model_identity(spec.effects, spec.user)["effects"]},
                    {"log", log_identity(a.c.log)}};
-  const std::vector<std::filesystem::path> inputs = {a.c.log, io::rig_path_for(a.c.log)};
-  if (!a.out.empty()) io::write_file_atomic(a.out, j.dump(2) + "\n", inputs);
+  const std::vector<std::filesystem::path> inputs = {a.c.log, formats::rig_path_for(a.c.log)};
+  if (!a.out.empty()) formats::write_file_atomic(a.out, j.dump(2) + "\n", inputs);
   if (!a.plot.empty()) plot_ladder(j, a.plot, inputs);
   if (a.c.json) {
     std::cout << j.dump(2) << "\n";

@@ -51,13 +51,13 @@ void run_import(const ImportOptions& o) {
         ")");
   }
   if (bag) result.inputs.push_back(o.bag.bag);
-  if (!o.dry_run) io::write_log(result.log, o.out, result.inputs);
+  if (!o.dry_run) formats::write_log(result.log, o.out, result.inputs);
   std::fputs(result.report.summary().c_str(), stdout);
   if (o.dry_run) {
     std::printf("dry run: nothing written\n");
   } else {
     std::printf("wrote %s and %s (%zu rows)\n", o.out.c_str(),
-                io::rig_path_for(o.out).string().c_str(), result.log.samples.size());
+                formats::rig_path_for(o.out).string().c_str(), result.log.samples.size());
   }
 }
 

@@ -64,7 +64,7 @@ void run_train(const TrainArgs& a) {
         "their papers' inputs)");
   if (!a.sweep.empty() && *kind != learn::NetworkKind::paper_bp)
     throw std::invalid_argument("--sweep applies to --kind paper-bp only (000_… §4.3)");
-  const io::Log log = io::read_log(a.log);
+  const formats::Log log = formats::read_log(a.log);
   const ident::Dataset data = ident::make_dataset(log);
   learn::TrainOptions o;
   o.kind = *kind;
@@ -115,7 +115,7 @@ void run_train(const TrainArgs& a) {
     net.training["heldout"] = heldout;
   }
   net.training["log"] = a.log;
-  std::vector<std::filesystem::path> inputs = {a.log, io::rig_path_for(a.log)};
+  std::vector<std::filesystem::path> inputs = {a.log, formats::rig_path_for(a.log)};
   if (!a.model.empty()) inputs.push_back(a.model);
   if (!a.out.empty()) learn::write_network(net, a.out, inputs);
   if (a.json) {
@@ -235,7 +235,7 @@ void add_learn_commands(CLI::App& app) {
       ro.keep_dir = *keep;
       const learn::Results r = learn::run_results(ro);
       const nlohmann::json j = learn::to_json(r);
-      if (!json_out->empty()) io::write_file_atomic(*json_out, j.dump(2) + "\n");
+      if (!json_out->empty()) formats::write_file_atomic(*json_out, j.dump(2) + "\n");
       if (*json)
         std::cout << j.dump(2) << "\n";
       else

@@ -57,8 +57,8 @@ Document read_checked(const std::string& path, const char* kind, const char* wha
   if (path.empty()) return d;
   d.doc = read_json(path);
   if (!d.doc.is_object() || (d.doc.contains("kind") && d.doc["kind"] != kind))
-    throw io::InputError(path, 0, 0,
-                         std::string("not a ") + kind + " document (" + what + " of zerog)");
+    throw formats::InputError(path, 0, 0,
+                              std::string("not a ") + kind + " document (" + what + " of zerog)");
   const MadeForCheck c = check_made_for(d.doc, path, model_id, log_id, check_model);
   std::string text;
   const std::string which = check_model ? "model and log" : "log";
@@ -68,10 +68,10 @@ Document read_checked(const std::string& path, const char* kind, const char* wha
       break;
     case Match::other:
       if (!allow)
-        throw io::InputError(path, 0, 0,
-                             std::string("this ") + what + " was made " + c.made_for +
-                                 ", the report is " + c.report_for + ": run `" + rerun +
-                                 "` again, or pass " + flag + " to include it labelled");
+        throw formats::InputError(path, 0, 0,
+                                  std::string("this ") + what + " was made " + c.made_for +
+                                      ", the report is " + c.report_for + ": run `" + rerun +
+                                      "` again, or pass " + flag + " to include it labelled");
       text = "made " + c.made_for + "; this report is " + c.report_for;
       break;
     case Match::unknown:
@@ -177,7 +177,7 @@ nlohmann::json bundle_summary(const ReportOptions& o, const io::ModelFile& m,
 }
 
 void run_report(const ReportOptions& o) {
-  const io::Log log = io::read_log(o.log);
+  const formats::Log log = formats::read_log(o.log);
   const ident::Dataset data = ident::make_dataset(log);
   const io::ModelFile m = io::read_model(o.model);
   const nlohmann::json model_id = model_identity(m.params.effects, m.params.user, o.model);
@@ -199,7 +199,7 @@ void run_report(const ReportOptions& o) {
   const auto heldout = ident::heldout_mask(data);
 
   const fs::path out =
-      fs::absolute(o.out.empty() ? io::beside_input(o.log, ".report") : fs::path(o.out));
+      fs::absolute(o.out.empty() ? formats::beside_input(o.log, ".report") : fs::path(o.out));
   if (fs::exists(out) && !fs::is_directory(out))
     throw std::runtime_error(out.string() + " exists and is not a folder");
   std::random_device rd;

@@ -84,7 +84,7 @@ sim::SimConfig make_config(const SimArgs& a) {
       throw std::invalid_argument("--set wants key=value, got '" + kv + "'");
     const std::string value = kv.substr(eq + 1);
     double x = 0.0;
-    if (io::detail::parse_number(value, x) != io::detail::NumberStatus::ok)
+    if (formats::detail::parse_number(value, x) != formats::detail::NumberStatus::ok)
       throw std::invalid_argument("--set " + kv + ": '" + value + "' is not a number");
     sim::set_config_value(c, kv.substr(0, eq), x);
   }
@@ -115,7 +115,7 @@ void run_sim(const SimArgs& a) {
   if (a.out.empty()) throw std::invalid_argument("--out is required");
   const fs::path out = a.out;
   if (out.extension() != ".csv") throw std::invalid_argument("--out must name a .csv file");
-  const fs::path rig_out = io::rig_path_for(out);
+  const fs::path rig_out = formats::rig_path_for(out);
   const fs::path truth_out = truth_path_for(out);
   const fs::path clean_out = clean_path_for(out);
 
@@ -125,7 +125,7 @@ void run_sim(const SimArgs& a) {
   if (!a.design.empty()) {
     if (!a.kind.empty()) throw std::invalid_argument("give either --design or --kind, not both");
     inputs.push_back(a.design);
-    for (const fs::path& o : {out, rig_out, truth_out, clean_out, io::rig_path_for(clean_out)})
+    for (const fs::path& o : {out, rig_out, truth_out, clean_out, formats::rig_path_for(clean_out)})
       if (same_file(o, a.design))
         throw std::invalid_argument("refusing to overwrite the input " + a.design);
     points = sim::read_design(a.design);
@@ -167,8 +167,8 @@ void run_sim(const SimArgs& a) {
   // report --truth read it for the sensor floor (proto/model_format.md).
   result.truth.extra["clean_signals_log"] = clean_out.filename().string();
 
-  io::write_log(result.log, out, inputs);
-  io::write_log(result.clean_log, clean_out, inputs);
+  formats::write_log(result.log, out, inputs);
+  formats::write_log(result.clean_log, clean_out, inputs);
   io::write_model(result.truth, truth_out, inputs);  // last: it names the other files
 
   const sim::SimStats& s = result.stats;

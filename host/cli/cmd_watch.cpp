@@ -188,7 +188,7 @@ int run_watch(const WatchArgs& a) {
   }
   std::fprintf(stderr, "zerog watch: %llu wrench samples\n",
                static_cast<unsigned long long>(wrench_count));
-  if (!a.csv.empty()) io::write_file_atomic(a.csv, csv);
+  if (!a.csv.empty()) formats::write_file_atomic(a.csv, csv);
   return 0;
 }
 

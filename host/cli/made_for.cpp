@@ -23,7 +23,7 @@ bool is_text(const json& j, const char* key, bool nullable) {
 
 void check_model_identity(const json& m, const std::string& doc_path) {
   const auto bad = [&](const std::string& why) {
-    throw io::InputError(doc_path, 0, 0, "made_for.model: " + why);
+    throw formats::InputError(doc_path, 0, 0, "made_for.model: " + why);
   };
   if (!m.is_object()) bad("expected an object or null");
   if (!m.contains("effects") || !m["effects"].is_array()) bad("\"effects\" must be a list");
@@ -36,9 +36,9 @@ void check_model_identity(const json& m, const std::string& doc_path) {
 void check_log_identity(const json& l, const std::string& doc_path) {
   if (!l.is_object() || !is_text(l, "file", false) || !is_text(l, "crc32", false) ||
       !is_text(l, "rig_file", false) || !is_text(l, "rig_crc32", false))
-    throw io::InputError(doc_path, 0, 0,
-                         "made_for.log: expected {\"file\", \"crc32\", \"rig_file\", "
-                         "\"rig_crc32\"}, all strings");
+    throw formats::InputError(doc_path, 0, 0,
+                              "made_for.log: expected {\"file\", \"crc32\", \"rig_file\", "
+                              "\"rig_crc32\"}, all strings");
 }
 
 std::string model_words(const json& m, bool with_crc) {
@@ -93,7 +93,7 @@ json model_identity(const model::EffectSet& effects, const model::UserEffects& u
 }
 
 json log_identity(const std::string& log_path) {
-  const std::filesystem::path rig = io::rig_path_for(log_path);
+  const std::filesystem::path rig = formats::rig_path_for(log_path);
   return {{"file", log_path},
           {"crc32", file_crc32(log_path)},
           {"rig_file", rig.string()},
@@ -110,7 +110,7 @@ MadeForCheck check_made_for(const json& doc, const std::string& doc_path, const 
   }
   const json& f = doc["made_for"];
   if (!f.is_object() || !f.contains("log") || !f.contains("model"))
-    throw io::InputError(doc_path, 0, 0, "made_for: expected {\"model\", \"log\"}");
+    throw formats::InputError(doc_path, 0, 0, "made_for: expected {\"model\", \"log\"}");
   check_log_identity(f["log"], doc_path);
   if (!f["model"].is_null()) check_model_identity(f["model"], doc_path);
   const json& l = f["log"];

@@ -37,7 +37,7 @@ struct MadeForCheck {
 
 /// Compares `doc["made_for"]` with the report's model and log identities. With `check_model`
 /// false (a ladder, which climbs from its own start) only the log counts. A document without
-/// "made_for" (written before it existed) is Match::unknown. Throws io::InputError naming
+/// "made_for" (written before it existed) is Match::unknown. Throws formats::InputError naming
 /// `doc_path` if "made_for" is malformed.
 MadeForCheck check_made_for(const nlohmann::json& doc, const std::string& doc_path,
                             const nlohmann::json& report_model, const nlohmann::json& report_log,

@@ -25,7 +25,7 @@ int main(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
-  } catch (const zerog::io::InputError& e) {
+  } catch (const zerog::formats::InputError& e) {
     std::fprintf(stderr, "zerog: error: %s\n", e.what());
     return 2;
   } catch (const std::exception& e) {

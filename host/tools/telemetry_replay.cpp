@@ -100,7 +100,7 @@ int main(int argc, char** argv) {
   try {
     std::vector<CycleRecord> records;
     if (!csv_in.empty()) {
-      records = zerog::io::read_cycles_csv(csv_in);
+      records = zerog::formats::read_cycles_csv(csv_in);
     } else {
       for (int i = 1; i <= generate; ++i)
         records.push_back(
@@ -110,8 +110,8 @@ int main(int argc, char** argv) {
     }
     if (!csv_out.empty()) {
       std::string text;
-      zerog::io::append_record_header(text);
-      for (const CycleRecord& r : records) zerog::io::append_record_row(r, text);
+      zerog::formats::append_record_header(text);
+      for (const CycleRecord& r : records) zerog::formats::append_record_row(r, text);
       std::ofstream out(csv_out, std::ios::binary | std::ios::trunc);
       out << text;
       if (!out) throw std::runtime_error(csv_out + ": cannot be written");

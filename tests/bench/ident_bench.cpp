@@ -40,7 +40,7 @@ using namespace zerog;
 
 // The first `samples` samples of a random path with the given truth effects: 200 points per
 // 100,000 samples (a longer path for a longer log, the same path up to 100,000 samples).
-io::Log simulated_log(const std::string& effects, std::size_t samples) {
+formats::Log simulated_log(const std::string& effects, std::size_t samples) {
   sim::SimConfig cfg = sim::default_sim_config(1);
   cfg.effects = sim::parse_sim_effects(effects);
   sim::DesignOptions d;
@@ -48,7 +48,7 @@ io::Log simulated_log(const std::string& effects, std::size_t samples) {
   d.points = 200 * static_cast<int>((samples + 99999) / 100000);
   d.workspace.floor_z_m = cfg.floor_z_m;
   sim::RigSimulator s(cfg, sim::make_design(d).points_rad);
-  io::Log log = s.run().log;
+  formats::Log log = s.run().log;
   if (log.samples.size() < samples)
     throw std::runtime_error("the simulated path gave " + std::to_string(log.samples.size()) +
                              " samples, fewer than " + std::to_string(samples));
@@ -134,7 +134,7 @@ struct LogFile {
     std::error_code ec;
     if (csv.empty()) return;
     std::filesystem::remove(csv, ec);
-    std::filesystem::remove(io::rig_path_for(csv), ec);
+    std::filesystem::remove(formats::rig_path_for(csv), ec);
   }
   ~LogFile() { remove(); }
 };
@@ -144,7 +144,7 @@ const std::filesystem::path& log_file(std::size_t samples) {
     file.remove();
     file.csv = std::filesystem::temp_directory_path() /
                ("zerog_ident_bench_" + std::to_string(::getpid()) + ".csv");
-    io::write_log(simulated_log(kAllLibraryEffects, samples), file.csv);
+    formats::write_log(simulated_log(kAllLibraryEffects, samples), file.csv);
     file.samples = samples;
   }
   return file.csv;
@@ -394,7 +394,7 @@ void BM_ScaleLadder(benchmark::State& state) { scale_ladder(state, false); }
 void BM_ScaleLadderExactCandidates(benchmark::State& state) { scale_ladder(state, true); }
 
 // Reading a log file into a dataset, as `zerog fit` does (argument 0): 0 the whole file first
-// (io::read_log, then make_dataset: text, parsed rows and dataset held at once), 1 streamed
+// (formats::read_log, then make_dataset: text, parsed rows and dataset held at once), 1 streamed
 // (ident::read_dataset: rows in chunks into the dataset). Counter dataset_B_per_sample: what the
 // dataset itself holds.
 void BM_ScaleReadLog(benchmark::State& state) {
@@ -405,7 +405,7 @@ void BM_ScaleReadLog(benchmark::State& state) {
   double bytes_per_sample = 0.0;
   for (auto _ : state) {
     const ident::Dataset data =
-        streamed ? ident::read_dataset(csv) : ident::make_dataset(io::read_log(csv));
+        streamed ? ident::read_dataset(csv) : ident::make_dataset(formats::read_log(csv));
     samples = data.size();
     bytes_per_sample = dataset_bytes_per_sample(data);
   }

@@ -70,7 +70,7 @@ void cycle_step(benchmark::State& state, bool si, bool fused = false) {
     config.motion.source = loop::MotionSource::fused;
     config.motion.ft_rate_hz = 500.0;
     config.motion.imu_rate_hz = 2000.0;
-    robot::RobotModel arm = io::kr210_r2700();
+    robot::RobotModel arm = formats::kr210_r2700();
     for (int i = 0; i < 6; ++i) arm.elasticity[i] = {1e6, 8.0, 0.05};
     config.robot = arm;
   }

@@ -1,6 +1,6 @@
 // User-defined effect files (proto/user_effects.md), read by fit, diagnose and ladder for every
-// @FILE of an effect list. read_effect_file throws io::InputError (or its TomlError) naming file,
-// line and column; any other exception, a crash or a hang is a finding.
+// @FILE of an effect list. read_effect_file throws formats::InputError (or its TomlError) naming
+// file, line and column; any other exception, a crash or a hang is a finding.
 //
 // Properties: a file that reads adds all its terms or none (the effects read before are kept as
 // they were); what it read writes back (effect_file_text) into a file that reads to the same terms
@@ -15,6 +15,7 @@
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   namespace io = zerog::io;
+  namespace formats = zerog::formats;
   namespace model = zerog::model;
   const auto& dir = zerog::fuzz::scratch_dir();
   const auto path = dir / "input.toml";
@@ -33,7 +34,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const model::UserEffects before = u;
   try {
     io::read_effect_file(path, u);
-  } catch (const io::InputError&) {
+  } catch (const formats::InputError&) {
     ZEROG_FUZZ_CHECK(u.num_terms == before.num_terms && u.num_effects == before.num_effects);
     return 0;
   }

@@ -1,6 +1,6 @@
 // `zerog import`: the TOML mapping (proto/import_mapping.md) and the user's delimited data files it
-// names. import_recordings throws io::InputError (file, line, column) for a bad mapping or data,
-// and a plain std::runtime_error when no master row survives; any other exception (e.g. a
+// names. import_recordings throws formats::InputError (file, line, column) for a bad mapping or
+// data, and a plain std::runtime_error when no master row survives; any other exception (e.g. a
 // std::filesystem_error), a crash or a hang is a finding.
 //
 // Input: the mapping text, optionally followed by a line `#@data` and the content of a data file
@@ -22,6 +22,7 @@
 
 namespace fs = std::filesystem;
 namespace io = zerog::io;
+namespace formats = zerog::formats;
 
 namespace {
 
@@ -62,7 +63,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   io::ImportResult result;
   try {
     result = io::import_recordings(mapping);
-  } catch (const io::InputError&) {
+  } catch (const formats::InputError&) {
     return 0;
   } catch (const std::runtime_error& e) {
     // Documented only for "no master row survives"; a subclass (filesystem_error, …) escaped.
@@ -79,12 +80,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
 
   const fs::path out = dir / "imported.csv";
   try {
-    io::write_log(result.log, out, result.inputs);
+    formats::write_log(result.log, out, result.inputs);
   } catch (const std::invalid_argument& e) {
     std::fprintf(stderr, "import produced a log write_log refuses: %s\n", e.what());
     __builtin_trap();
   }
-  const io::Log back = io::read_log(out);
+  const formats::Log back = formats::read_log(out);
   ZEROG_FUZZ_CHECK(back.samples.size() == result.log.samples.size());
   return 0;
 }

@@ -21,7 +21,7 @@ inline bool near_rotation(const Eigen::Quaterniond& a, const Eigen::Quaterniond&
   return (a.coeffs() - sign * b.coeffs()).cwiseAbs().maxCoeff() <= tol;
 }
 
-inline bool same_rig(const io::Rig& a, const io::Rig& b) {
+inline bool same_rig(const formats::Rig& a, const formats::Rig& b) {
   constexpr double kExact = 1e-15;  // the rig is written in shortest round-trip form
   return a.name == b.name && a.robot == b.robot &&
          near_vec(a.flange_sensor.p_m, b.flange_sensor.p_m, kExact) &&

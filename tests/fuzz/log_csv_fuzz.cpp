@@ -1,7 +1,7 @@
 // The log CSV (proto/log_format.md) as `zerog fit`, compare, diagnose … read it: read_log on a
 // fuzzed `NAME.csv` beside a valid rig sidecar (rig_toml_fuzz covers the sidecar). read_log
-// throws io::InputError naming file, line and column; any other exception, a crash or a hang is
-// a finding.
+// throws formats::InputError naming file, line and column; any other exception, a crash or a hang
+// is a finding.
 //
 // Property: a log that reads writes back (write_log: t_s exact, other values to 9 significant
 // digits) and reads again to the same samples within that precision.
@@ -12,7 +12,7 @@
 #include "io_compare.hpp"
 #include "zerog/formats/log.hpp"
 
-namespace io = zerog::io;
+namespace formats = zerog::formats;
 using zerog::fuzz::near;
 using zerog::fuzz::near_rotation;
 using zerog::fuzz::near_vec;
@@ -34,7 +34,8 @@ q_wxyz = [1.0, 0.0, 0.0, 0.0]
 
 constexpr double k9Digits = 1e-8;  // 9 significant digits, plus the reader's rounding
 
-bool same_sample(const io::Sample& a, const io::Sample& b, const io::Columns& columns) {
+bool same_sample(const formats::Sample& a, const formats::Sample& b,
+                 const formats::Columns& columns) {
   if (a.t_s != b.t_s) return false;  // written in shortest round-trip form
   if (columns.joints) {
     for (int j = 0; j < 6; ++j)
@@ -60,23 +61,23 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const auto& dir = zerog::fuzz::scratch_dir();
   const auto csv = dir / "input.csv";
   static const bool rig_written = [&] {
-    zerog::fuzz::write_bytes(io::rig_path_for(csv), kRig);
+    zerog::fuzz::write_bytes(formats::rig_path_for(csv), kRig);
     return true;
   }();
   (void)rig_written;
   zerog::fuzz::write_bytes(csv, zerog::fuzz::as_text(data, size));
-  io::Log log;
+  formats::Log log;
   try {
-    log = io::read_log(csv);
-  } catch (const io::InputError&) {
+    log = formats::read_log(csv);
+  } catch (const formats::InputError&) {
     return 0;
   }
   for (std::size_t i = 1; i < log.samples.size(); ++i)
     ZEROG_FUZZ_CHECK(log.samples[i].t_s > log.samples[i - 1].t_s);
 
   const auto again = dir / "again.csv";
-  io::write_log(log, again, {csv});
-  const io::Log back = io::read_log(again);
+  formats::write_log(log, again, {csv});
+  const formats::Log back = formats::read_log(again);
   ZEROG_FUZZ_CHECK(back.columns == log.columns);
   ZEROG_FUZZ_CHECK(back.samples.size() == log.samples.size());
   for (std::size_t i = 0; i < log.samples.size(); ++i)

@@ -214,7 +214,7 @@ void modbus_seeds() {
 }
 
 void io_seeds(const fs::path& source) {
-  io::Rig rig;
+  formats::Rig rig;
   rig.name = "fuzz";
   rig.flange_sensor.p_m = {0.0, 0.0, 0.06};
   rig.sensor_imu.p_m = {0.0, 0.0, -0.03};
@@ -223,18 +223,18 @@ void io_seeds(const fs::path& source) {
   rig.floor_z_m = -0.675;
   const fs::path tmp = fs::temp_directory_path() / "zerog-make-seeds";
   fs::create_directories(tmp);
-  io::write_rig(rig, tmp / "w.rig.toml");
+  formats::write_rig(rig, tmp / "w.rig.toml");
   put("rig_toml", "written.rig.toml", read_text(tmp / "w.rig.toml"));
   put("rig_toml", "import_example.rig.toml",
       read_text(source / "calib/import_example/kr210.rig.toml"));
 
-  io::Log log;
+  formats::Log log;
   log.rig = rig;
   for (bool all : {true, false}) {
     log.columns = {.joints = all, .specific_force = all, .angular_rate = all, .temperature = all};
     log.samples.clear();
     for (int i = 0; i < 4; ++i) {
-      io::Sample s;
+      formats::Sample s;
       s.t_s = 0.012 * i;
       s.joints_rad = {0.1 * i, -1.5, 1.5, 0.0, 0.5, -0.2};
       s.p_base_sensor_m = {1.7, 0.3 + 0.001 * i, 1.5};
@@ -246,7 +246,7 @@ void io_seeds(const fs::path& source) {
       s.temperature_C = 31.5;
       log.samples.push_back(s);
     }
-    io::write_log(log, tmp / "w.csv");
+    formats::write_log(log, tmp / "w.csv");
     put("log_csv", all ? "all_columns.csv" : "required_columns.csv", read_text(tmp / "w.csv"));
   }
   put("log_csv", "comments_crlf.csv",

@@ -43,8 +43,8 @@ SimRun simulate(std::uint64_t seed, const sim::NoiseConfig& noise) {
   const fs::path dir = fs::temp_directory_path() / ("zerog_eiv_" + std::to_string(::getpid()));
   fs::create_directories(dir);
   const fs::path csv = dir / ("run" + std::to_string(seed) + ".csv");
-  io::write_log(r.out.log, csv);
-  const io::Log back = io::read_log(csv);
+  formats::write_log(r.out.log, csv);
+  const formats::Log back = formats::read_log(csv);
   EXPECT_EQ(back.rig.imu_sampling, r.out.log.rig.imu_sampling);
   fs::remove_all(dir);
   r.data = ident::make_dataset(back);
@@ -90,7 +90,7 @@ double uncorrected_worst_inertia_z(const sim::NoiseConfig& noise) {
   double worst_off_inertia = 0.0;
   for (std::uint64_t seed = 1; seed <= 5; ++seed) {
     const SimRun run = simulate(seed, noise);
-    EXPECT_EQ(run.data.imu_sampling.rows, io::ImuRows::point);
+    EXPECT_EQ(run.data.imu_sampling.rows, formats::ImuRows::point);
     const model::ModelParams& truth = run.out.truth.params;
 
     ident::FitOptions off;
@@ -197,7 +197,7 @@ TEST(PointSampledRows, RowNoiseEstimatedFromTheLogMatchesTheSimulatedNoise) {
 // the correction on those mean rows keeps every parameter within 3σ.
 TEST(MeanRows, AutoChangesNothingAndOnStaysWithinThreeSigma) {
   const SimRun run = simulate(3, sim::NoiseConfig{});
-  ASSERT_EQ(run.data.imu_sampling.rows, io::ImuRows::unknown);
+  ASSERT_EQ(run.data.imu_sampling.rows, formats::ImuRows::unknown);
   ident::FitOptions o;
   o.effects = model::kDefaultModel;
   const ident::FitResult deflt = ident::fit(run.data, o);

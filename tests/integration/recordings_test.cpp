@@ -92,14 +92,14 @@ class Recordings : public ::testing::Test {
 
   // `zerog sim` with `effects` hidden, `points` random path points (about 7 s each), period
   // `period_s`; returns the log.
-  static zerog::io::Log simulate(unsigned seed, const std::string& effects, double period_s,
-                                 int points) {
+  static zerog::formats::Log simulate(unsigned seed, const std::string& effects, double period_s,
+                                      int points) {
     const Result r =
         run("sim --kind random --points " + std::to_string(points) + " --design-seed " +
             std::to_string(seed) + " --seed " + std::to_string(seed) + " --effects " + effects +
             " --period " + cell(period_s) + " -q --out " + path("sim.csv"));
     EXPECT_EQ(r.status, 0) << r.err;
-    return zerog::io::read_log(dir() / "sim.csv");
+    return zerog::formats::read_log(dir() / "sim.csv");
   }
   // The simulator's rig with the robot described (robot_file in place of the name), as a user
   // edits a rig for kinematics = "robot".
@@ -138,7 +138,7 @@ struct CanSession {
   std::vector<zerog::io::CandumpRecord> records;
   std::array<double, 6> resolution{};  ///< wrench of one count on every gauge (AtiBoard)
 };
-CanSession can_session(const zerog::io::Log& log, std::int64_t start_ns) {
+CanSession can_session(const zerog::formats::Log& log, std::int64_t start_ns) {
   std::array<double, 6> peak{};
   for (const auto& s : log.samples)
     for (int k = 0; k < 3; ++k) {
@@ -197,7 +197,7 @@ CanSession can_session(const zerog::io::Log& log, std::int64_t start_ns) {
 }
 
 // The robot's logger: time, pose of S, joints and the IMU at every row of the simulated run.
-void write_robot_file(const zerog::io::Log& log, const fs::path& file) {
+void write_robot_file(const zerog::formats::Log& log, const fs::path& file) {
   std::string text = "t,qw,qx,qy,qz,px,py,pz,A1,A2,A3,A4,A5,A6,fx,fy,fz,wx,wy,wz\n";
   for (const auto& s : log.samples) {
     text += cell(s.t_s) + "," + cell(s.q_base_sensor.w()) + "," + cell(s.q_base_sensor.x()) + "," +
@@ -215,7 +215,7 @@ TEST_F(Recordings, CandumpDefaultAndTaThroughDecodeImportFitDiagnoseFindTheCable
   const double period_s = 0.004;  // the sensor polled at 250 Hz
   const std::int64_t start_ns = 1'700'000'000'000'000'000;
   for (unsigned seed : {21u, 22u}) {
-    const zerog::io::Log truth = simulate(seed, "cable", period_s, 12);
+    const zerog::formats::Log truth = simulate(seed, "cable", period_s, 12);
     ASSERT_GT(truth.samples.size(), 15000u);
     ASSERT_EQ(truth.samples.front().t_s, 0.0);
     write_robot_file(truth, dir() / "robot.csv");
@@ -258,7 +258,7 @@ TEST_F(Recordings, CandumpDefaultAndTaThroughDecodeImportFitDiagnoseFindTheCable
       ASSERT_EQ(imported.status, 0) << imported.err;
       // Every sample survives (the robot file covers the bus log's span; the -ta clock's
       // 1.7e9 s leave the first row a rounding away from the robot file's first sample).
-      const zerog::io::Log log = zerog::io::read_log(dir() / "run.csv");
+      const zerog::formats::Log log = zerog::formats::read_log(dir() / "run.csv");
       ASSERT_GE(log.samples.size() + 1, truth.samples.size()) << imported.out;
 
       // The wrench on the bus is the simulated one to within the gauge quantisation, each row
@@ -296,7 +296,7 @@ TEST_F(Recordings, JointsOnlyWithAJointDelayDiagnosesTheTimeOffset) {
   const double delay_s = 0.012;   // the joints are stamped this much late
   for (unsigned seed : {31u, 32u}) {
     SCOPED_TRACE("seed " + std::to_string(seed));
-    const zerog::io::Log truth = simulate(seed, "rotational_inertia", period_s, 16);
+    const zerog::formats::Log truth = simulate(seed, "rotational_inertia", period_s, 16);
     write_cell_rig();
     std::string wrench = "t,Fx_N,Fy_N,Fz_N,Mx_Nm,My_Nm,Mz_Nm\n", joints = "t,A1,A2,A3,A4,A5,A6\n";
     for (const auto& s : truth.samples) {
@@ -378,7 +378,7 @@ TEST_F(Recordings, StaticTableIsDiagnosedByCrossValidationAndFitWorks) {
 // (`frame = "base"`), which must fit as the simulator's own log does.
 TEST_F(Recordings, AccelerometerOnlyAndBaseFrameWrenchFitCompareDiagnose) {
   const unsigned seed = 41;
-  const zerog::io::Log truth = simulate(seed, "rotational_inertia", 0.012, 8);
+  const zerog::formats::Log truth = simulate(seed, "rotational_inertia", 0.012, 8);
   const nlohmann::json truth_model = nlohmann::json::parse(slurp(dir() / "sim.truth.json"));
   const double mass_kg = truth_model["parameters"]["gravity"]["mass"]["value"].get<double>();
   std::string acc = "t,Fx_N,Fy_N,Fz_N,Mx_Nm,My_Nm,Mz_Nm,qw,qx,qy,qz,px,py,pz,ax_g,ay_g,az_g\n";

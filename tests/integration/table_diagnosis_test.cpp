@@ -57,14 +57,14 @@ constexpr double kOutlierN = 15.0;
 
 // A static table: one row per pose held still, the simulator's reading with its noise
 // (Omega191 quantisation), rows counting 0, 1, … (proto/log_format.md).
-io::Log table(std::uint64_t seed, int n, Flaw flaw, double step_scale = 1.0) {
+formats::Log table(std::uint64_t seed, int n, Flaw flaw, double step_scale = 1.0) {
   sim::SimConfig cfg = sim::default_sim_config(seed);
   cfg.effects = sim::parse_sim_effects("none");
   const sim::RigSimulator simulator(cfg);
   const auto points = poses(n);
   std::mt19937_64 rng(seed * 1000 + static_cast<std::uint64_t>(n));
   std::normal_distribution<double> gauss(0.0, 1.0);
-  io::Log log;
+  formats::Log log;
   log.rig = simulator.rig();
   log.columns.static_rows = true;
   log.columns.specific_force = true;
@@ -72,7 +72,7 @@ io::Log table(std::uint64_t seed, int n, Flaw flaw, double step_scale = 1.0) {
     sim::JointState js;
     js.q_rad = points[i];
     const sim::Measurement m = simulator.measure(js, 0.0);
-    io::Sample s;
+    formats::Sample s;
     s.t_s = static_cast<double>(i);
     Eigen::Matrix<double, 6, 1> w = m.wrench_sensor;
     if (flaw == Flaw::step && i >= points.size() / 2) {
@@ -124,7 +124,7 @@ class Tables : public ::testing::TestWithParam<std::tuple<int, Flaw, std::uint64
 
 TEST_P(Tables, TheFlawIsNamedNothingIsProposedWhenCleanAndTheAdviceGivesTheMass) {
   const auto [n, flaw, seed] = GetParam();
-  const io::Log log = table(seed, n, flaw);
+  const formats::Log log = table(seed, n, flaw);
   const ident::Dataset data = ident::make_dataset(log);
   const ident::Diagnosis d = ident::diagnose(data, options());
   const std::string report = ident::format_diagnosis(d);
@@ -170,7 +170,7 @@ INSTANTIATE_TEST_SUITE_P(SizesFlawsSeeds, Tables,
 TEST(SmallTables, AStepBelowTheNoiseIsNotADriftAndNineRowsAreRefused) {
   const ident::Dataset tiny = ident::make_dataset(table(1, 50, Flaw::step, 0.01));
   EXPECT_NE(ident::diagnose(tiny, options()).verdict, ident::Diagnosis::Verdict::effect);
-  io::Log nine = table(1, 15, Flaw::clean);
+  formats::Log nine = table(1, 15, Flaw::clean);
   nine.samples.resize(9);
   try {
     ident::diagnose(ident::make_dataset(nine), options());
@@ -181,7 +181,7 @@ TEST(SmallTables, AStepBelowTheNoiseIsNotADriftAndNineRowsAreRefused) {
 }
 
 TEST(SmallTables, RowsNotInTheOrderRecordedGetNoDrift) {
-  io::Log log = table(1, 50, Flaw::step);
+  formats::Log log = table(1, 50, Flaw::step);
   // The step is a drift while the rows are in the order recorded (the default)...
   const ident::Diagnosis ordered = ident::diagnose(ident::make_dataset(log), options());
   ASSERT_FALSE(ordered.candidates.empty());

@@ -320,7 +320,7 @@ class Soak {
 
   fs::path temp_root_;  ///< made by this program (removed at the end unless --keep)
   fs::path dir_;
-  io::Rig rig_;
+  formats::Rig rig_;
   loop::CycleConfig config_;
   std::unique_ptr<rtio::RsiEndpoint> endpoint_;
   std::unique_ptr<rt::Runtime> runtime_;

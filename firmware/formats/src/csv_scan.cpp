@@ -11,7 +11,7 @@
 
 #include "zerog/formats/log.hpp"
 
-namespace zerog::io::detail {
+namespace zerog::formats::detail {
 
 std::string read_whole_file(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
@@ -167,4 +167,4 @@ std::string number_error(NumberStatus status, std::string_view cell_text, std::s
   }
 }
 
-}  // namespace zerog::io::detail
+}  // namespace zerog::formats::detail

@@ -13,7 +13,7 @@
 
 #include "zerog/proto/rsi_si.hpp"
 
-namespace zerog::io {
+namespace zerog::formats {
 
 namespace {
 
@@ -254,4 +254,4 @@ std::vector<loop::CycleRecord> read_cycles_csv(const std::filesystem::path& file
   return records;
 }
 
-}  // namespace zerog::io
+}  // namespace zerog::formats

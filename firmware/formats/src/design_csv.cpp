@@ -7,7 +7,7 @@
 
 #include "zerog/formats/log.hpp"
 
-namespace zerog::io {
+namespace zerog::formats {
 namespace {
 
 constexpr const char* kJointNames[6] = {"q1_rad", "q2_rad", "q3_rad", "q4_rad", "q5_rad", "q6_rad"};
@@ -96,4 +96,4 @@ std::vector<DesignPoint> read_design(const std::filesystem::path& path) {
   return points;
 }
 
-}  // namespace zerog::io
+}  // namespace zerog::formats

@@ -22,7 +22,7 @@
 #include "zerog/formats/detail/rig_toml.hpp"
 #include "zerog/formats/robot_toml.hpp"
 
-namespace zerog::io {
+namespace zerog::formats {
 
 namespace fs = std::filesystem;
 
@@ -730,7 +730,7 @@ LogReader& LogReader::operator=(LogReader&&) noexcept = default;
 const Columns& LogReader::columns() const { return state_->columns; }
 int LogReader::version() const { return state_->version; }
 std::size_t LogReader::rows() const { return state_->rows; }
-Rig LogReader::read_rig() const { return io::read_rig(rig_path_for(state_->csv)); }
+Rig LogReader::read_rig() const { return formats::read_rig(rig_path_for(state_->csv)); }
 
 std::size_t LogReader::read(std::vector<Sample>& out, std::size_t max_rows) {
   State& st = *state_;
@@ -1027,4 +1027,4 @@ Rig read_rig(const fs::path& toml) {
   return detail::rig_from_toml(table, toml, false, "", nullptr);
 }
 
-}  // namespace zerog::io
+}  // namespace zerog::formats

@@ -6,7 +6,7 @@
 
 #include "zerog/formats/detail/rig_toml.hpp"
 
-namespace zerog::io {
+namespace zerog::formats {
 namespace {
 
 constexpr double kRadPerDeg = std::numbers::pi / 180.0;
@@ -193,4 +193,4 @@ std::string robot_toml_text(const std::string& table, const std::string& name,
   return out;
 }
 
-}  // namespace zerog::io
+}  // namespace zerog::formats

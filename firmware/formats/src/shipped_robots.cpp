@@ -4,7 +4,7 @@
 
 #include "zerog/formats/robot_toml.hpp"
 
-namespace zerog::io {
+namespace zerog::formats {
 namespace {
 
 constexpr std::string_view kKr210R2700Text =
@@ -19,4 +19,4 @@ robot::RobotModel kr210_r2700(const robot::FrameTransform& flange_sensor) {
   return model;
 }
 
-}  // namespace zerog::io
+}  // namespace zerog::formats

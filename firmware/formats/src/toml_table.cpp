@@ -5,7 +5,7 @@
 
 #include "zerog/formats/detail/csv_scan.hpp"
 
-namespace zerog::io {
+namespace zerog::formats {
 
 namespace fs = std::filesystem;
 
@@ -276,4 +276,4 @@ Eigen::Matrix3d TomlTable::matrix3(std::string_view key, std::string_view explai
   return m;
 }
 
-}  // namespace zerog::io
+}  // namespace zerog::formats

@@ -21,8 +21,8 @@
 namespace zerog::rt {
 
 namespace fs = std::filesystem;
-using io::number_text;
-using io::TomlTable;
+using formats::number_text;
+using formats::TomlTable;
 
 namespace {
 
@@ -197,8 +197,8 @@ FtSection read_ft(const TomlTable& file) {
   }
   if (at_zero) {
     proto::netcanoem::ThermistorConversion c;
-    c.celsius_at_zero_counts = ft.number("thermistor_C_at_zero_counts", io::NumberRange{});
-    c.celsius_per_count = ft.number("thermistor_C_per_count", io::NumberRange{});
+    c.celsius_at_zero_counts = ft.number("thermistor_C_at_zero_counts", formats::NumberRange{});
+    c.celsius_per_count = ft.number("thermistor_C_per_count", formats::NumberRange{});
     if (c.celsius_per_count == 0.0) {
       ft.fail("thermistor_C_per_count", "must not be 0 (every reading would be the same °C)");
     }
@@ -249,8 +249,8 @@ void read_body(const TomlTable& file, RtConfig& c) {
 // [limits]: the motion limits; defaults are control::MotionLimits'.
 control::MotionLimits read_limits(const TomlTable& file) {
   const TomlTable limits = file.sub_table("limits", kLimitsKeys);
-  const io::NumberRange at_least_zero{0.0, false};
-  const io::NumberRange positive{0.0, true};
+  const formats::NumberRange at_least_zero{0.0, false};
+  const formats::NumberRange positive{0.0, true};
   control::MotionLimits l;
   l.force_deadband_N =
       limits.optional_number("force_deadband_N", l.force_deadband_N, at_least_zero);
@@ -543,13 +543,13 @@ const char* can_transport_name(CanTransport transport) {
 
 ConfigError::ConfigError(fs::path file, std::string key, int line, int column,
                          const std::string& why)
-    : io::InputError(std::move(file), line, column, (key.empty() ? "" : key + ": ") + why),
+    : formats::InputError(std::move(file), line, column, (key.empty() ? "" : key + ": ") + why),
       key_(std::move(key)) {}
 
 RtConfig parse_config(const std::string& text, const fs::path& path) {
   try {
-    return read_tables(io::parse_toml(text, path), path);
-  } catch (const io::TomlError& e) {
+    return read_tables(formats::parse_toml(text, path), path);
+  } catch (const formats::TomlError& e) {
     throw ConfigError(path, e.key(), e.line(), e.column(), e.reason());
   }
 }

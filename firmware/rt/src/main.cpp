@@ -351,7 +351,7 @@ int finish(const Options& opt, const rt::RtConfig& config, rt::Runtime& runtime)
   }
   if (!opt.summary_out.empty()) {
     try {
-      io::write_file_atomic(opt.summary_out, runtime.summary_json(), {}, rt::kRecordFileMode);
+      formats::write_file_atomic(opt.summary_out, runtime.summary_json(), {}, rt::kRecordFileMode);
     } catch (const std::exception& e) {
       print_err(std::string("zerog-rt: cannot write the summary: ") + e.what());
       code = kExitOutputFailed;

@@ -105,8 +105,8 @@ Recorder::Recorder(RecorderOptions options) : options_(std::move(options)) {
     throw std::runtime_error(dir.string() + ": cannot create the record folder" +
                              (ec ? " (" + ec.message() + ")" : std::string(" (not a folder)")));
   }
-  if (fs::exists(io::rig_path_for(log_path()), ec)) {
-    throw std::runtime_error(io::rig_path_for(log_path()).string() +
+  if (fs::exists(formats::rig_path_for(log_path()), ec)) {
+    throw std::runtime_error(formats::rig_path_for(log_path()).string() +
                              ": exists already; zerog-rt never writes over a recording (choose "
                              "another --record folder)");
   }
@@ -117,7 +117,7 @@ Recorder::Recorder(RecorderOptions options) : options_(std::move(options)) {
   log_writer_.append_header(row_);
   log_.append(row_);
   row_.clear();
-  io::append_record_header(row_);
+  formats::append_record_header(row_);
   cycles_.append(row_);
 }
 
@@ -132,7 +132,7 @@ void Recorder::add(const loop::CycleRecord& r) {
   ++counters_.records;
   if (!options_.dir) return;
   row_.clear();
-  io::append_record_row(r, row_);
+  formats::append_record_row(r, row_);
   cycles_.append(row_);
 
   if (r.ft_samples > 0) seen_ft_ = true;
@@ -149,7 +149,7 @@ void Recorder::add(const loop::CycleRecord& r) {
     ++counters_.skipped_no_temperature;  // temp_C would be the configured guess, not a reading
     return;
   }
-  io::Sample s;
+  formats::Sample s;
   s.t_s = r.t_s;
   s.temperature_C = r.temperature_C;  // °C, the log's unit for temp_C (written with the column)
   s.joints_rad = r.joints_rad;
@@ -181,16 +181,16 @@ fs::path Recorder::dump_black_box(const loop::Cycle::Box& box) {
                      " cycles, oldest first; fault " +
                      (last != nullptr ? loop::fault_name(last->fault) : "none") + " at cycle " +
                      std::to_string(cycle) + " (proto/loop.md)\n";
-  io::append_record_header(text);
-  for (std::size_t i = 0; i < box.size(); ++i) io::append_record_row(box.at(i), text);
-  io::write_file_atomic(path, text, {}, kRecordFileMode);
+  formats::append_record_header(text);
+  for (std::size_t i = 0; i < box.size(); ++i) formats::append_record_row(box.at(i), text);
+  formats::write_file_atomic(path, text, {}, kRecordFileMode);
   ++counters_.black_boxes;
   return path;
 }
 
 void Recorder::finish() {
   if (!options_.dir) return;
-  io::write_rig(options_.rig, io::rig_path_for(log_path()), {}, kRecordFileMode);
+  formats::write_rig(options_.rig, formats::rig_path_for(log_path()), {}, kRecordFileMode);
   log_.finish();
   cycles_.finish();
 }

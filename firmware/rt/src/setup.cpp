@@ -17,7 +17,7 @@ namespace zerog::rt {
 
 namespace fs = std::filesystem;
 
-infer::RigDescription running_rig(const io::Rig& rig, double cycle_period_s) {
+infer::RigDescription running_rig(const formats::Rig& rig, double cycle_period_s) {
   infer::RigDescription out;
   out.name = rig.name;
   out.robot = rig.robot;
@@ -57,8 +57,8 @@ Setup load_setup(const RtConfig& config) {
   check_input(config.rig_file, "[rig] file", config.file);
   check_input(config.model_file, "[model] file", config.file);
   try {
-    s.rig = io::read_rig(config.rig_file);
-  } catch (const io::InputError& e) {
+    s.rig = formats::read_rig(config.rig_file);
+  } catch (const formats::InputError& e) {
     throw std::runtime_error(std::string("[rig] file: ") + e.what());
   }
   const double period_s = config.robot.cycle_s();
@@ -110,7 +110,7 @@ PtpJointPath::PtpJointPath(std::vector<robot::JointVector6> points_rad, double s
 
 std::unique_ptr<PtpJointPath> load_collection_path(const fs::path& design,
                                                    const CollectionSection& settings) {
-  std::vector<io::DesignPoint> points = io::read_design(design);
+  std::vector<formats::DesignPoint> points = formats::read_design(design);
   if (points.empty()) throw std::runtime_error(design.string() + ": the design has no points");
   return std::make_unique<PtpJointPath>(std::move(points), settings.speed_fraction,
                                         settings.dwell_s);

@@ -135,7 +135,8 @@ int run(const Args& a) {
     io::write_model(emu::emulator_truth(scenario, emulator.physics().simulator()), a.write_model,
                     inputs);
   if (!a.write_rig.empty())
-    io::write_rig(emu::emulator_rig(scenario, emulator.physics().simulator()), a.write_rig, inputs);
+    formats::write_rig(emu::emulator_rig(scenario, emulator.physics().simulator()), a.write_rig,
+                       inputs);
   if (a.write_only) return 0;
 
   // Devices ready before the first datagram. The board's bus: a SocketCAN interface (--can) or
@@ -190,9 +191,10 @@ int run(const Args& a) {
   can_local.close();  // unlinks --can-local's socket
   if (error) std::rethrow_exception(error);
 
-  if (!a.truth_out.empty()) io::write_file_atomic(a.truth_out, emulator.truth_csv(), inputs);
+  if (!a.truth_out.empty()) formats::write_file_atomic(a.truth_out, emulator.truth_csv(), inputs);
   const nlohmann::json summary = emulator.summary();
-  if (!a.summary_out.empty()) io::write_file_atomic(a.summary_out, summary.dump(2) + "\n", inputs);
+  if (!a.summary_out.empty())
+    formats::write_file_atomic(a.summary_out, summary.dump(2) + "\n", inputs);
   const nlohmann::json& r = summary["replies"];
   std::fprintf(stderr,
                "zerog-emu: %zu cycles, replies ok %llu, late %llu, missing %llu, wrong IPOC %llu, "
@@ -255,7 +257,7 @@ int main(int argc, char** argv) {
     return run(a);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
-  } catch (const io::InputError& e) {
+  } catch (const formats::InputError& e) {
     std::fprintf(stderr, "zerog-emu: error: %s\n", e.what());
     return 2;
   } catch (const std::exception& e) {

@@ -135,8 +135,8 @@ const char* reply_status_name(ReplyStatus status) {
   return "?";
 }
 
-io::Rig emulator_rig(const Scenario& scenario, const sim::RigSimulator& simulator) {
-  io::Rig rig = simulator.rig();
+formats::Rig emulator_rig(const Scenario& scenario, const sim::RigSimulator& simulator) {
+  formats::Rig rig = simulator.rig();
   rig.name = kEmulatorRigName;
   rig.sample_period_s = scenario.cycle_s();
   rig.ft_rate_hz = 0.0;  // as fast as zerog-rt asks: the board answers each request

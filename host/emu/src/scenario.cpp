@@ -11,9 +11,9 @@
 namespace zerog::emu {
 namespace {
 
-using io::number_text;
-using io::throw_at;
-using io::TomlTable;
+using formats::number_text;
+using formats::throw_at;
+using formats::TomlTable;
 namespace fs = std::filesystem;
 
 constexpr double kDeg = 3.14159265358979323846 / 180.0;
@@ -295,9 +295,11 @@ Scenario default_scenario() {
 }
 
 Scenario parse_scenario(std::string_view toml_text, const fs::path& file) {
-  return from_table(io::parse_toml(toml_text, file), file);
+  return from_table(formats::parse_toml(toml_text, file), file);
 }
 
-Scenario read_scenario(const fs::path& file) { return from_table(io::parse_toml_file(file), file); }
+Scenario read_scenario(const fs::path& file) {
+  return from_table(formats::parse_toml_file(file), file);
+}
 
 }  // namespace zerog::emu

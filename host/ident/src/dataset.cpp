@@ -13,7 +13,7 @@ namespace zerog::ident {
 
 using model::Effect;
 
-DatasetBuilder::DatasetBuilder(const io::Columns& columns, std::size_t expected_samples) {
+DatasetBuilder::DatasetBuilder(const formats::Columns& columns, std::size_t expected_samples) {
   d_.columns = columns;
   if (expected_samples == 0) return;
   d_.t_s.reserve(expected_samples);
@@ -27,8 +27,8 @@ DatasetBuilder::DatasetBuilder(const io::Columns& columns, std::size_t expected_
   raw_moving_.reserve(expected_samples);
 }
 
-void DatasetBuilder::add(const io::Sample& s) {
-  const io::Columns& columns = d_.columns;
+void DatasetBuilder::add(const formats::Sample& s) {
+  const formats::Columns& columns = d_.columns;
   const std::size_t i = n_;
   d_.t_s.push_back(s.t_s);
   // Dataset::pose forms the matrix (toRotationMatrix) and t_rel_s from these.
@@ -53,7 +53,7 @@ void DatasetBuilder::add(const io::Sample& s) {
   // Rows without time are independent held poses: nothing is differenced across them, rates
   // and accelerations not measured stay zero, and no row moves.
   if (columns.static_rows) return;
-  const io::Sample s0 = previous_;
+  const formats::Sample s0 = previous_;
   previous_ = s;
   // Motion: from the logged pose (the orientation always, the position if logged). Speeds by
   // differencing (dilated by 3 rows in finish()).
@@ -66,7 +66,7 @@ void DatasetBuilder::add(const io::Sample& s) {
   }
 }
 
-Dataset DatasetBuilder::finish(const io::Rig& rig) {
+Dataset DatasetBuilder::finish(const formats::Rig& rig) {
   const std::size_t n = n_;
   if (n < 3) throw std::runtime_error("log has " + std::to_string(n) + " samples; need at least 3");
   Dataset& d = d_;
@@ -93,9 +93,9 @@ Dataset DatasetBuilder::finish(const io::Rig& rig) {
   return std::move(d_);
 }
 
-Dataset make_dataset(const io::Log& log) {
+Dataset make_dataset(const formats::Log& log) {
   DatasetBuilder builder(log.columns, log.samples.size());
-  for (const io::Sample& s : log.samples) builder.add(s);
+  for (const formats::Sample& s : log.samples) builder.add(s);
   return builder.finish(log.rig);
 }
 
@@ -116,18 +116,18 @@ std::size_t count_lines(const std::filesystem::path& path) {
 
 }  // namespace
 
-Dataset read_dataset(const std::filesystem::path& csv, io::Rig* rig, std::size_t chunk_rows,
+Dataset read_dataset(const std::filesystem::path& csv, formats::Rig* rig, std::size_t chunk_rows,
                      std::size_t buffer_bytes) {
-  io::LogReader reader(csv, buffer_bytes);
+  formats::LogReader reader(csv, buffer_bytes);
   DatasetBuilder builder(reader.columns(), count_lines(csv));
-  std::vector<io::Sample> chunk;
+  std::vector<formats::Sample> chunk;
   chunk.reserve(chunk_rows);
   for (;;) {
     chunk.clear();
     if (reader.read(chunk, chunk_rows) == 0) break;
-    for (const io::Sample& s : chunk) builder.add(s);
+    for (const formats::Sample& s : chunk) builder.add(s);
   }
-  const io::Rig log_rig = reader.read_rig();
+  const formats::Rig log_rig = reader.read_rig();
   if (rig != nullptr) *rig = log_rig;
   return builder.finish(log_rig);
 }
@@ -280,7 +280,7 @@ void check_signals(const model::EffectSet& effects, const Dataset& data) {
     if (!effects.has(e)) continue;
     const auto& ei = model::info(e);
     const std::string effect = std::string("effect '") + ei.name + "' ";
-    const io::Columns& c = data.columns;
+    const formats::Columns& c = data.columns;
     // linear_inertia: the accelerometer (a rate, if logged, adds the lever-arm terms).
     if (e == Effect::linear_inertia && !c.specific_force)
       throw std::runtime_error(

@@ -173,15 +173,15 @@ bool errors_in_variables_applies(const FitOptions& o, const Dataset& data, std::
   const std::string& mode = o.errors_in_variables;
   if (mode != "off" && mode != "on" && mode != "auto")
     throw std::invalid_argument("unknown errors_in_variables '" + mode + "' (off, on, auto)");
-  const bool point = data.imu_sampling.rows == io::ImuRows::point;
+  const bool point = data.imu_sampling.rows == formats::ImuRows::point;
   if (mode == "off") {
     why = "off as asked";
   } else if (!data.columns.any_imu()) {
     why = "the log has no IMU columns: no regressor noise to correct";
   } else if (mode == "auto" && !point) {
     why = std::string("auto: the rig says the IMU rows are ") +
-          (data.imu_sampling.rows == io::ImuRows::mean ? "means over the row period"
-                                                       : "not how they were sampled") +
+          (data.imu_sampling.rows == formats::ImuRows::mean ? "means over the row period"
+                                                            : "not how they were sampled") +
           ", not point samples: the block means suffice";
   } else if (o.loss != "none") {
     if (mode == "on")

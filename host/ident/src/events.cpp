@@ -352,7 +352,7 @@ ExcludeSpec parse_exclude(const std::string& text) {
   spec.text = text;
   auto number = [&](const std::string& s, const std::string& item) {
     double x = 0.0;
-    if (io::detail::parse_number(s, x) != io::detail::NumberStatus::ok)
+    if (formats::detail::parse_number(s, x) != formats::detail::NumberStatus::ok)
       throw std::invalid_argument("--exclude item '" + item + "': '" + s + "' is not a number");
     return x;
   };

@@ -6,50 +6,50 @@ namespace zerog::ident {
 
 namespace {
 
-std::string source_of(bool present, io::KinematicsOrigin origin) {
-  return present ? io::to_string(origin) : "none";
+std::string source_of(bool present, formats::KinematicsOrigin origin) {
+  return present ? formats::to_string(origin) : "none";
 }
 
 // How the dataset's ω̇ was formed (make_dataset): the log's imu_dw* columns, or host/ident's
 // difference of the angular-rate column.
 std::string omega_dot_method(const Dataset& data) {
-  const io::Columns& c = data.columns;
-  const io::KinematicsRecord& k = data.kinematics;
-  if (c.angular_accel && k.angular_accel == io::KinematicsOrigin::logged)
+  const formats::Columns& c = data.columns;
+  const formats::KinematicsRecord& k = data.kinematics;
+  if (c.angular_accel && k.angular_accel == formats::KinematicsOrigin::logged)
     return "the recording's own, logged (imu_dw*_radps2 columns)";
   if (!c.angular_rate || c.static_rows) return "none (no angular rate with time: taken as zero)";
   if (!c.angular_accel)
     return std::string(
                "5-point central difference of the angular-rate column (host/ident), "
                "whose source is ") +
-           io::to_string(k.angular_rate);
-  if (k.angular_accel == io::KinematicsOrigin::imu)
+           formats::to_string(k.angular_rate);
+  if (k.angular_accel == formats::KinematicsOrigin::imu)
     return "the gyro differenced at import by Savitzky-Golay (imu_dw*_radps2 columns)";
-  if (k.angular_accel == io::KinematicsOrigin::fused)
+  if (k.angular_accel == formats::KinematicsOrigin::fused)
     return "fused at import: the joints' Savitzky-Golay second derivative, the gyro below the "
            "crossover (imu_dw*_radps2 columns)";
   return std::string("the robot's Savitzky-Golay second derivative from the ") +
-         io::to_string(k.angular_accel) + " at import (imu_dw*_radps2 columns)";
+         formats::to_string(k.angular_accel) + " at import (imu_dw*_radps2 columns)";
 }
 
 }  // namespace
 
 std::string omega_dot_source(const Dataset& data) {
-  const io::Columns& c = data.columns;
-  if (c.angular_accel && data.kinematics.angular_accel == io::KinematicsOrigin::logged)
+  const formats::Columns& c = data.columns;
+  if (c.angular_accel && data.kinematics.angular_accel == formats::KinematicsOrigin::logged)
     return "logged";
   if (!c.angular_rate || c.static_rows) return "none";
   if (!c.angular_accel) return std::string(kCycleOmegaDotSource);
   switch (data.kinematics.angular_accel) {
-    case io::KinematicsOrigin::imu:
+    case formats::KinematicsOrigin::imu:
       return "gyro_savitzky_golay";
-    case io::KinematicsOrigin::joints:
+    case formats::KinematicsOrigin::joints:
       return "joints";
-    case io::KinematicsOrigin::pose:
+    case formats::KinematicsOrigin::pose:
       return "pose";
-    case io::KinematicsOrigin::fused:
+    case formats::KinematicsOrigin::fused:
       return "fused";
-    case io::KinematicsOrigin::logged:
+    case formats::KinematicsOrigin::logged:
       break;
   }
   return "logged";
@@ -57,8 +57,8 @@ std::string omega_dot_source(const Dataset& data) {
 
 std::vector<EffectFeeds> kinematics_feeds(const model::EffectSet& effects, const Dataset& data) {
   using model::Effect;
-  const io::Columns& c = data.columns;
-  const io::KinematicsRecord& k = data.kinematics;
+  const formats::Columns& c = data.columns;
+  const formats::KinematicsRecord& k = data.kinematics;
   const SignalFeed omega{"omega", source_of(c.angular_rate, k.angular_rate)};
   // No rate or no time: no ω̇ (taken as zero).
   const SignalFeed omega_dot{"omega_dot",
@@ -81,7 +81,7 @@ std::vector<EffectFeeds> kinematics_feeds(const model::EffectSet& effects, const
 }
 
 nlohmann::json kinematics_json(const std::vector<EffectFeeds>& feeds, const Dataset& data) {
-  const io::KinematicsRecord& k = data.kinematics;
+  const formats::KinematicsRecord& k = data.kinematics;
   nlohmann::json j;
   j["mode"] = k.mode;
   j["omega_dot"] = omega_dot_method(data);
@@ -101,7 +101,7 @@ nlohmann::json kinematics_json(const std::vector<EffectFeeds>& feeds, const Data
     j["differentiator"] = nullptr;
   }
   if (data.columns.angular_accel && k.accel_sg_half_width > 0) {
-    const bool gyro = k.angular_accel == io::KinematicsOrigin::imu;
+    const bool gyro = k.angular_accel == formats::KinematicsOrigin::imu;
     j["omega_dot_differentiator"] = {
         {"method", "savitzky_golay"},
         {"derivative", gyro ? 1 : 2},
@@ -133,7 +133,7 @@ std::string format_kinematics(const std::vector<EffectFeeds>& feeds, const Datas
       out += std::string(i == 0 ? " " : ", ") + f.signals[i].signal + " " + f.signals[i].source;
     out += "\n";
   }
-  const io::KinematicsRecord& k = data.kinematics;
+  const formats::KinematicsRecord& k = data.kinematics;
   if (k.derived()) {
     char line[300];
     std::snprintf(line, sizeof line,
@@ -151,7 +151,7 @@ std::string format_kinematics(const std::vector<EffectFeeds>& feeds, const Datas
   if (omega_dot_fed && (data.columns.angular_accel || k.mode != "imu")) {
     out += "kinematics: omega_dot is " + omega_dot_method(data);
     if (data.columns.angular_accel && k.accel_sg_half_width > 0) {
-      const bool gyro = k.angular_accel == io::KinematicsOrigin::imu;
+      const bool gyro = k.angular_accel == formats::KinematicsOrigin::imu;
       char line[200];
       std::snprintf(line, sizeof line,
                     " (M = %d, order %d at %.4g s, lag 0, -3 dB %.3g Hz, noise gain %.3g %s)",

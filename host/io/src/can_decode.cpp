@@ -13,6 +13,9 @@
 
 namespace zerog::io {
 
+using formats::InputError;
+using formats::write_file_atomic;
+
 namespace nc = proto::netcanoem;
 
 namespace {

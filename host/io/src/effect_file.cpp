@@ -10,6 +10,12 @@
 #include "zerog/io/model_file.hpp"
 
 namespace zerog::io {
+
+using formats::InputError;
+using formats::number_text;
+using formats::parse_toml_file;
+using formats::TomlTable;
+using formats::write_file_atomic;
 namespace {
 
 namespace fs = std::filesystem;

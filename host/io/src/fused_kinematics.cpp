@@ -12,6 +12,9 @@
 
 namespace zerog::io {
 
+using formats::Log;
+using formats::Sample;
+
 namespace {
 
 // Linear interpolation of per-row vectors at time t (clamped at the ends); `k` walks forward.

@@ -27,6 +27,16 @@
 
 namespace zerog::io {
 
+using formats::InputError;
+using formats::KinematicsOrigin;
+using formats::KinematicsRecord;
+using formats::Log;
+using formats::read_rig;
+using formats::Sample;
+using formats::throw_at;
+using formats::to_string;
+using formats::write_log;
+
 using namespace importer;
 
 namespace {

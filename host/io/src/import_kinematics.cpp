@@ -16,6 +16,13 @@
 
 namespace zerog::io::importer {
 
+using formats::KinematicsOrigin;
+using formats::KinematicsRecord;
+using formats::Log;
+using formats::Sample;
+using formats::throw_at;
+using formats::to_frame_transform;
+
 // ---------------------------------------------------------------------------------------------
 // Kinematics from the robot (proto/import_mapping.md "kinematics", proto/robot_kinematics.md):
 // ω, ω̇ and the specific force of S derived from the joint stream (forward kinematics through

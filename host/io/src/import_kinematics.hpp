@@ -14,7 +14,8 @@ namespace zerog::io::importer {
 
 std::string quantity_file(const Mapping& m, const std::array<int, kQuantityCount>& source,
                           Quantity q);
-robot::RobotModel robot_for_joints(const Mapping& m, const fs::path& mapping_path, const Log& log,
+robot::RobotModel robot_for_joints(const Mapping& m, const fs::path& mapping_path,
+                                   const formats::Log& log,
                                    const std::array<int, kQuantityCount>& source,
                                    const std::string& use);
 void derive_from_robot(const Mapping& m, const fs::path& mapping_path,

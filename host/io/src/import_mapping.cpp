@@ -13,6 +13,12 @@
 
 namespace zerog::io::importer {
 
+using formats::NumberRange;
+using formats::TomlTable;
+using formats::Transform;
+namespace detail = formats::detail;
+using formats::throw_at;
+
 const std::array<QuantityInfo, kQuantityCount>& quantity_infos() {
   static const std::array<QuantityInfo, kQuantityCount> infos = {{
       {"force", 3, 3, {{"N", 1.0}, {"kN", 1e3}}, "force on the sensor, sensor frame"},

@@ -24,8 +24,8 @@ namespace zerog::io::importer {
 
 namespace fs = std::filesystem;
 
-using detail::throw_at;
-using detail::TomlTable;
+using formats::detail::throw_at;
+using formats::detail::TomlTable;
 
 // ---------------------------------------------------------------------------------------------
 // What a mapping can name, and in which units (proto/import_mapping.md).
@@ -132,8 +132,8 @@ constexpr double kDefaultAccelBandwidthHz = 15.0;
 struct Mapping {
   std::vector<FileSpec> files;  ///< master first
   bool pose_of_flange = false;
-  std::optional<Rig> rig;      ///< from the [rig] table
-  bool rig_has_period = true;  ///< the [rig] table gave sample_period_s
+  std::optional<formats::Rig> rig;  ///< from the [rig] table
+  bool rig_has_period = true;       ///< the [rig] table gave sample_period_s
   std::optional<fs::path> rig_file;
   /// `kinematics`: where ω, ω̇ and the specific force come from (proto/import_mapping.md).
   robot::KinematicsMode kinematics = robot::KinematicsMode::imu;

@@ -13,6 +13,10 @@
 
 namespace zerog::io::importer {
 
+using formats::InputError;
+namespace detail = formats::detail;
+using formats::throw_at;
+
 bool skippable(std::string_view line, const std::string& comment) {
   const std::string_view s = detail::trim(line);
   return s.empty() || (!comment.empty() && s.substr(0, comment.size()) == comment);

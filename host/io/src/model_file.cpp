@@ -11,6 +11,8 @@
 
 namespace zerog::io {
 
+using formats::write_file_atomic;
+
 using model::Effect;
 using model::info;
 

@@ -15,6 +15,9 @@
 
 namespace zerog::io {
 
+using formats::InputError;
+using formats::write_file_atomic;
+
 namespace {
 
 namespace rsi = proto::rsi;

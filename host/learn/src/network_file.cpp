@@ -197,7 +197,7 @@ NetworkFile read_network(const std::filesystem::path& path) {
 
 void write_network(const NetworkFile& n, const std::filesystem::path& path,
                    const std::vector<std::filesystem::path>& inputs) {
-  io::write_file_atomic(path, to_json(n).dump(1) + "\n", inputs);
+  formats::write_file_atomic(path, to_json(n).dump(1) + "\n", inputs);
 }
 
 void round_to_float(NetworkFile& n) {

@@ -7,7 +7,7 @@
 namespace zerog::learn {
 
 std::vector<double> network_outputs(const NetworkFile& net, const ident::Dataset& data,
-                                    const io::Log& log) {
+                                    const formats::Log& log) {
   validate(net);
   check_feature_signals(net.inputs, data);
   if (log.samples.size() != data.size())
@@ -34,7 +34,7 @@ ident::Wrench tool_wrench(const ToolLoad& tool, const Eigen::Matrix3d& R_base_se
 }
 
 std::vector<ident::Wrench> predictions(const NetworkFile& net, const ident::Dataset& data,
-                                       const io::Log& log) {
+                                       const formats::Log& log) {
   const std::vector<double> y = network_outputs(net, data, log);
   const auto k = net.output_axes.size();
   if (net.physics) ident::check_signals(net.physics->params.effects, data);

@@ -7,7 +7,7 @@
 
 namespace zerog::learn {
 
-infer::RigDescription rig_description(const io::Rig& r) {
+infer::RigDescription rig_description(const formats::Rig& r) {
   infer::RigDescription d;
   d.name = r.name;
   d.robot = r.robot;
@@ -20,7 +20,7 @@ infer::RigDescription rig_description(const io::Rig& r) {
 }
 
 infer::DeployedNetwork deploy_network(const NetworkFile& net, deploy::QuantiseOptions q,
-                                      const ident::Dataset* data, const io::Log* log) {
+                                      const ident::Dataset* data, const formats::Log* log) {
   // QuantiseOptions::calibration_inputs is a view: the rows must outlive the quantisation.
   // (They were a temporary once: ASan found the read after free.)
   std::vector<double> rows;
@@ -33,11 +33,12 @@ infer::DeployedNetwork deploy_network(const NetworkFile& net, deploy::QuantiseOp
     q.calibration_inputs = rows;
   }
   return deploy::make_deployed_network(net.inputs, net.output_axes, net.shape, net.normalisation,
-                                      net.params, q);
+                                       net.params, q);
 }
 
 std::vector<ident::Wrench> quantised_prediction(const NetworkFile& residual,
-                                                const ident::Dataset& data, const io::Log& log) {
+                                                const ident::Dataset& data,
+                                                const formats::Log& log) {
   if (residual.kind != NetworkKind::residual || !residual.physics)
     throw std::runtime_error(
         "quantised prediction needs a residual network with its physics model");

@@ -97,8 +97,8 @@ sim::SimOutput simulate_run(const ResultsOptions& o, Results& r) {
 // The run's files, as zerog sim writes them, into --keep.
 void keep_run(const std::filesystem::path& dir, const sim::SimOutput& out) {
   std::filesystem::create_directories(dir);
-  io::write_log(out.log, dir / "run.csv");
-  io::write_log(out.clean_log, dir / "run.clean.csv");
+  formats::write_log(out.log, dir / "run.csv");
+  formats::write_log(out.clean_log, dir / "run.clean.csv");
   io::ModelFile truth = out.truth;
   truth.extra["clean_signals_log"] = "run.clean.csv";  // as zerog sim names it
   io::write_model(truth, dir / "run.truth.json");
@@ -127,7 +127,7 @@ struct Physics {
   double ladder_s = 0.0, fit_s = 0.0;
 };
 
-Physics fit_physics(const ResultsOptions& o, const ident::Dataset& data, const io::Log& log,
+Physics fit_physics(const ResultsOptions& o, const ident::Dataset& data, const formats::Log& log,
                     const Split& split, Results& r) {
   Physics ph;
   auto t0 = Clock::now();
@@ -164,8 +164,8 @@ struct Networks {
   double s_bp = 0, s_zp = 0, s_res = 0;
 };
 
-Networks train_networks(const ResultsOptions& o, const ident::Dataset& data, const io::Log& log,
-                        const io::ModelFile& physics, const Split& split) {
+Networks train_networks(const ResultsOptions& o, const ident::Dataset& data,
+                        const formats::Log& log, const io::ModelFile& physics, const Split& split) {
   TrainOptions to;
   to.seed = o.train_seed;
   to.usable = &split.usable;
@@ -194,7 +194,7 @@ Networks train_networks(const ResultsOptions& o, const ident::Dataset& data, con
 }
 
 // 4. Every method's held-out error, the floors last.
-void evaluate_methods(const ResultsOptions& o, const ident::Dataset& data, const io::Log& log,
+void evaluate_methods(const ResultsOptions& o, const ident::Dataset& data, const formats::Log& log,
                       const sim::SimOutput& out, const Physics& ph, const Networks& n,
                       const std::vector<std::uint8_t>& test, Results& r) {
   auto add = [&](std::string key, std::string label, const std::vector<ident::Wrench>* pred,
@@ -273,7 +273,7 @@ Results run_results(const ResultsOptions& o) {
   Results r;
   r.seed = o.seed;
   const sim::SimOutput out = simulate_run(o, r);
-  const io::Log& log = out.log;
+  const formats::Log& log = out.log;
   const ident::Dataset data = ident::make_dataset(log);
   r.samples = data.size();
   r.duration_s = data.pose(data.size() - 1).t_rel_s;

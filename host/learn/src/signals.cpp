@@ -7,7 +7,7 @@ namespace zerog::learn {
 
 using model::Feature;
 
-model::FeatureSignals feature_signals(const ident::Dataset& data, const io::Log& log,
+model::FeatureSignals feature_signals(const ident::Dataset& data, const formats::Log& log,
                                       std::size_t i) {
   model::FeatureSignals s;
   const model::PoseSignals p = data.pose(i);
@@ -71,7 +71,7 @@ void check_feature_signals(std::span<const Feature> features, const ident::Datas
   }
 }
 
-std::vector<double> feature_rows(const ident::Dataset& data, const io::Log& log,
+std::vector<double> feature_rows(const ident::Dataset& data, const formats::Log& log,
                                  std::span<const Feature> features,
                                  std::span<const std::size_t> samples) {
   const std::size_t d = features.size();

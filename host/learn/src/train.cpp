@@ -58,7 +58,7 @@ std::vector<std::size_t> subsample(std::vector<std::size_t> v, std::size_t max,
   return v;
 }
 
-TrainingSet make_set(const ident::Dataset& data, const io::Log& log,
+TrainingSet make_set(const ident::Dataset& data, const formats::Log& log,
                      const std::vector<Feature>& features, const std::vector<std::size_t>& idx,
                      std::span<const ident::Wrench> target, const std::vector<int>& axes) {
   TrainingSet s;
@@ -110,7 +110,7 @@ int hidden_or(const TrainOptions& o, int fallback) {
   return h;
 }
 
-void check_common(const ident::Dataset& data, const io::Log& log, const TrainOptions& o) {
+void check_common(const ident::Dataset& data, const formats::Log& log, const TrainOptions& o) {
   if (log.samples.size() != data.size())
     throw std::invalid_argument("the dataset was not made from this log");
   if (o.usable && o.usable->size() != data.size())
@@ -126,7 +126,8 @@ struct BpTrained {
 };
 
 // 000_… §3–4: one hidden sigmoid layer, random 60/20/20 split into training, validation and test.
-BpTrained train_paper_bp(const ident::Dataset& data, const io::Log& log, const TrainOptions& o) {
+BpTrained train_paper_bp(const ident::Dataset& data, const formats::Log& log,
+                         const TrainOptions& o) {
   if (!data.columns.full_imu() || data.columns.static_rows)
     throw std::runtime_error(
         "paper-bp needs both IMU groups (imu_f*_mps2 and imu_w*_radps) and time (t_s); the log "
@@ -194,7 +195,8 @@ BpTrained train_paper_bp(const ident::Dataset& data, const io::Log& log, const T
 // the Table 2 schedule, L2), then the least-squares tool load (eq. 9–14) on the static poses
 // minus the zero point. One pose per static dwell: the median of its samples (001_… §4: 200
 // samples per posture, the median taken).
-NetworkFile train_paper_zp(const ident::Dataset& data, const io::Log& log, const TrainOptions& o) {
+NetworkFile train_paper_zp(const ident::Dataset& data, const formats::Log& log,
+                           const TrainOptions& o) {
   const std::vector<Dwell> dwells = static_dwells(data, o.usable);
   if (dwells.size() < 10)
     throw std::runtime_error("paper-zp: needs at least 10 static dwells (poses), found " +
@@ -268,7 +270,8 @@ NetworkFile train_paper_zp(const ident::Dataset& data, const io::Log& log, const
   return n;
 }
 
-NetworkFile train_residual(const ident::Dataset& data, const io::Log& log, const TrainOptions& o) {
+NetworkFile train_residual(const ident::Dataset& data, const formats::Log& log,
+                           const TrainOptions& o) {
   if (!o.physics)
     throw std::invalid_argument("residual: needs the physics model (--model fit.json)");
   const io::ModelFile& physics = *o.physics;
@@ -408,7 +411,8 @@ std::vector<Feature> inputs_from_diagnosis(const ident::Dataset& data, const io:
   return out;
 }
 
-NetworkFile train(const ident::Dataset& data, const io::Log& log, const TrainOptions& options) {
+NetworkFile train(const ident::Dataset& data, const formats::Log& log,
+                  const TrainOptions& options) {
   check_common(data, log, options);
   const auto t0 = std::chrono::steady_clock::now();
   NetworkFile n;
@@ -433,7 +437,7 @@ NetworkFile train(const ident::Dataset& data, const io::Log& log, const TrainOpt
   return n;
 }
 
-std::vector<SweepRow> sweep_hidden(const ident::Dataset& data, const io::Log& log,
+std::vector<SweepRow> sweep_hidden(const ident::Dataset& data, const formats::Log& log,
                                    const TrainOptions& options, const std::vector<int>& hidden,
                                    int repeats) {
   check_common(data, log, options);

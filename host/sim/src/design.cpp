@@ -287,32 +287,32 @@ DesignMetrics design_metrics(const std::vector<JointVector>& points, const Works
 
 std::vector<Eigen::Vector3d> read_attitudes(const std::filesystem::path& path) {
   std::ifstream in(path);
-  if (!in) throw io::InputError(path, 0, 0, "cannot open attitude file");
+  if (!in) throw formats::InputError(path, 0, 0, "cannot open attitude file");
   int line_no = 0;
   std::array<int, 3> col{-1, -1, -1};  // cell index of rx_rad, ry_rad, rz_rad
   std::size_t num_cells = 0;
   std::vector<Eigen::Vector3d> out;
   std::vector<std::string> cells;
   std::vector<int> columns;
-  while (io::read_design_line(in, line_no, cells, columns)) {
+  while (formats::read_design_line(in, line_no, cells, columns)) {
     if (num_cells == 0) {
       constexpr const char* kNames[3] = {"rx_rad", "ry_rad", "rz_rad"};
       for (int k = 0; k < 3; ++k) {
         for (std::size_t c = 0; c < cells.size(); ++c)
           if (cells[c] == kNames[k]) col[k] = static_cast<int>(c);
         if (col[k] < 0)
-          throw io::InputError(path, line_no, 1,
-                               std::string("the header must name the columns rx_rad, ry_rad, "
-                                           "rz_rad (rotation vector, rad); '") +
-                                   kNames[k] + "' is missing");
+          throw formats::InputError(path, line_no, 1,
+                                    std::string("the header must name the columns rx_rad, ry_rad, "
+                                                "rz_rad (rotation vector, rad); '") +
+                                        kNames[k] + "' is missing");
       }
       num_cells = cells.size();
       continue;
     }
     if (cells.size() != num_cells)
-      throw io::InputError(path, line_no, 1,
-                           "expected " + std::to_string(num_cells) + " columns, found " +
-                               std::to_string(cells.size()));
+      throw formats::InputError(path, line_no, 1,
+                                "expected " + std::to_string(num_cells) + " columns, found " +
+                                    std::to_string(cells.size()));
     Eigen::Vector3d r;
     for (int k = 0; k < 3; ++k) {
       const std::string& cell_text = cells[static_cast<std::size_t>(col[k])];
@@ -320,14 +320,14 @@ std::vector<Eigen::Vector3d> read_attitudes(const std::filesystem::path& path) {
       cell.imbue(std::locale::classic());
       double x = 0.0;
       if (!(cell >> x) || !(cell >> std::ws).eof() || !std::isfinite(x))
-        throw io::InputError(path, line_no, columns[static_cast<std::size_t>(col[k])],
-                             "not a finite number: '" + cell_text + "'");
+        throw formats::InputError(path, line_no, columns[static_cast<std::size_t>(col[k])],
+                                  "not a finite number: '" + cell_text + "'");
       r[k] = x;
     }
     out.push_back(r);
   }
-  if (num_cells == 0) throw io::InputError(path, line_no, 0, "no header line");
-  if (out.empty()) throw io::InputError(path, line_no, 0, "no attitudes");
+  if (num_cells == 0) throw formats::InputError(path, line_no, 0, "no header line");
+  if (out.empty()) throw formats::InputError(path, line_no, 0, "no attitudes");
   return out;
 }
 
@@ -402,7 +402,8 @@ void write_design(const Design& design, const std::filesystem::path& path,
           << " points=" << design.points_rad.size() << " candidates=" << design.candidates
           << " rejected=" << design.rejected;
   if (design.kind == DesignKind::oa) comment << " levels=" << design.levels;
-  io::write_file_atomic(path, io::design_csv_text(comment.str(), design.points_rad), inputs);
+  formats::write_file_atomic(path, formats::design_csv_text(comment.str(), design.points_rad),
+                             inputs);
 }
 
 }  // namespace zerog::sim

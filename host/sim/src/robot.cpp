@@ -12,7 +12,7 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 }  // namespace
 
 const robot::RobotModel& kr210() {
-  static const robot::RobotModel model = io::kr210_r2700();
+  static const robot::RobotModel model = formats::kr210_r2700();
   return model;
 }
 

@@ -354,8 +354,8 @@ RigSimulator::RigSimulator(SimConfig config, std::vector<JointVector> path_point
 
 RigSimulator::RigSimulator(SimConfig config) : RigSimulator(std::move(config), {kr210_home()}) {}
 
-io::Rig RigSimulator::rig() const {
-  io::Rig r;
+formats::Rig RigSimulator::rig() const {
+  formats::Rig r;
   r.name = "kr210-omega191-stim300-sim";
   r.robot = "KR 210 R2700";
   r.flange_sensor.p_m = config_.p_flange_sensor_m;
@@ -369,7 +369,7 @@ io::Rig RigSimulator::rig() const {
   // Point-sampled IMU rows are said, with the noise per row (NoiseConfig); mean rows are not, as
   // before.
   if (config_.noise.imu_point_rows)
-    r.imu_sampling = {io::ImuRows::point, config_.noise.gyro_radps, config_.noise.accel_mps2};
+    r.imu_sampling = {formats::ImuRows::point, config_.noise.gyro_radps, config_.noise.accel_mps2};
   return r;
 }
 
@@ -673,7 +673,7 @@ Contact parse_contact(const std::string& text) {
         what + ": wants START:DURATION:FX,FY,FZ[,MX,MY,MZ][:sensor|base][:plateau|spike]");
   auto number = [&](const std::string& s, const char* name) {
     double x = 0.0;
-    if (io::detail::parse_number(s, x) != io::detail::NumberStatus::ok)
+    if (formats::detail::parse_number(s, x) != formats::detail::NumberStatus::ok)
       throw std::invalid_argument(what + ": " + name + " '" + s + "' is not a number");
     return x;
   };
@@ -710,7 +710,7 @@ Contact parse_contact(const std::string& text) {
 namespace {
 
 // The pose the controller reports for joint angles q: nominal kinematics, nominal mounting.
-void set_nominal_pose(io::Sample& s, const JointVector& q, const SimConfig& c) {
+void set_nominal_pose(formats::Sample& s, const JointVector& q, const SimConfig& c) {
   const robot::Pose fp = robot::flange_pose(kr210(), q);
   s.p_base_sensor_m = fp.p_m + fp.R * c.p_flange_sensor_m;
   s.q_base_sensor = Eigen::Quaterniond(fp.R).normalized();
@@ -837,7 +837,7 @@ SimOutput RigSimulator::run(const std::function<void(double)>& progress) const {
   ImuBias bias(c.noise, c.period_s, noise);
   for (std::size_t k = 0; k < n; ++k) {
     const double t = static_cast<double>(k) * c.period_s;
-    io::Sample s;
+    formats::Sample s;
     s.t_s = t;
     const JointState motor = trajectory_.at(t);
     const JointState js = c.elastic.enabled ? arm.advance(t, trajectory_, load) : motor;
@@ -879,7 +879,7 @@ SimOutput RigSimulator::run(const std::function<void(double)>& progress) const {
     s.temperature_C = c.temperature.at(t);
     // The clean log: noise-free signals (the link's joints and pose when the robot is elastic),
     // the noisy wrench.
-    io::Sample& clean = out.clean_log.samples.emplace_back(s);
+    formats::Sample& clean = out.clean_log.samples.emplace_back(s);
     if (c.elastic.enabled || c.noise.encoder_rad > 0.0) {
       clean.joints_rad = js.q_rad;
       set_nominal_pose(clean, js.q_rad, c);

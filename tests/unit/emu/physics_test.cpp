@@ -65,7 +65,7 @@ TEST(Physics, ContactIsMeasuredMinusPredicted) {
        PushProfile::constant}};
   const PayloadPhysics physics(quiet(effects), pushes, 2000.0);
   const io::ModelFile truth = physics.simulator().truth();
-  const io::Rig rig = physics.simulator().rig();
+  const formats::Rig rig = physics.simulator().rig();
   model::RigGeometry geometry;
   geometry.R_sensor_imu = rig.sensor_imu.q.toRotationMatrix();
   geometry.p_sensor_imu_m = rig.sensor_imu.p_m;

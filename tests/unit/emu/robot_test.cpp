@@ -567,9 +567,9 @@ TEST(RigEmulatorLoop, TruthModelAndRigReadBackAndNameTheSameRig) {
   const std::filesystem::path dir = std::filesystem::temp_directory_path() / "zerog_emu_rig_test";
   std::filesystem::create_directories(dir);
   io::write_model(emulator_truth(scenario, simulator), dir / "truth.json");
-  io::write_rig(emulator_rig(scenario, simulator), dir / "emu.rig.toml");
+  formats::write_rig(emulator_rig(scenario, simulator), dir / "emu.rig.toml");
   const io::ModelFile model = io::read_model(dir / "truth.json");
-  const io::Rig rig = io::read_rig(dir / "emu.rig.toml");
+  const formats::Rig rig = formats::read_rig(dir / "emu.rig.toml");
   std::filesystem::remove_all(dir);
   EXPECT_EQ(model.rig_name, rig.name);
   EXPECT_EQ(rig.name, kEmulatorRigName);

@@ -73,7 +73,7 @@ start_s = 4.0
 std::string error_of(const std::string& text) {
   try {
     parse_scenario(text, kFile);
-  } catch (const io::InputError& e) {
+  } catch (const formats::InputError& e) {
     return e.what();
   }
   return "";
@@ -150,7 +150,7 @@ TEST(Scenario, ReadsAFile) {
   try {
     read_scenario(file);
     FAIL();
-  } catch (const io::InputError& e) {
+  } catch (const formats::InputError& e) {
     EXPECT_EQ(e.file(), file);
     EXPECT_EQ(e.line(), 2);
   }

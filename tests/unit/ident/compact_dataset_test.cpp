@@ -18,7 +18,7 @@ namespace {
 using model::Effect;
 
 // A simulator run of `seconds` with every library effect on (seed `seed`).
-io::Log sim_log(unsigned seed, double seconds) {
+formats::Log sim_log(unsigned seed, double seconds) {
   sim::SimConfig c = sim::default_sim_config(seed);
   c.effects = sim::parse_sim_effects(
       "all,-joint6_friction,-swivel_viscous,-hose_drag,"
@@ -29,8 +29,8 @@ io::Log sim_log(unsigned seed, double seconds) {
 
 // The pose signals of sample i as make_dataset stored them before issue 16 (the formula the
 // on-demand Dataset::pose replaced), straight from the log.
-model::PoseSignals stored_pose(const io::Log& log, std::size_t i) {
-  const io::Sample& s = log.samples[i];
+model::PoseSignals stored_pose(const formats::Log& log, std::size_t i) {
+  const formats::Sample& s = log.samples[i];
   model::PoseSignals p;
   p.R_base_sensor = s.q_base_sensor.normalized().toRotationMatrix();
   p.t_rel_s = s.t_s - log.samples.front().t_s;
@@ -41,11 +41,11 @@ model::PoseSignals stored_pose(const io::Log& log, std::size_t i) {
 
 // The joint velocities as make_dataset stored them before: backward differences, row 0 taking
 // row 1's, zero without joints or time.
-std::array<double, 6> stored_joint_vel(const io::Log& log, std::size_t i) {
+std::array<double, 6> stored_joint_vel(const formats::Log& log, std::size_t i) {
   std::array<double, 6> v{};
   if (log.columns.static_rows || !log.columns.joints) return v;
   const std::size_t r = i == 0 ? 1 : i;
-  const io::Sample &s = log.samples[r], &s0 = log.samples[r - 1];
+  const formats::Sample &s = log.samples[r], &s0 = log.samples[r - 1];
   const double dt = s.t_s - s0.t_s;
   for (std::size_t j = 0; j < 6; ++j) v[j] = (s.joints_rad[j] - s0.joints_rad[j]) / dt;
   return v;
@@ -86,13 +86,13 @@ TEST(CompactDataset, PredictionsAndSignalsEqualTheStoredFormulasBitForBit) {
   ASSERT_TRUE(models[1].effects.has(Effect::gravity) && models[1].effects.has(Effect::cable));
   for (unsigned seed : {1u, 2u, 3u}) {
     SCOPED_TRACE("seed " + std::to_string(seed));
-    io::Log log = sim_log(seed, 30.0);
+    formats::Log log = sim_log(seed, 30.0);
     ASSERT_TRUE(log.columns.joints && log.columns.temperature && !log.columns.static_rows);
     // The same log without temperature and joints: the constants and zeros of those cases.
-    io::Log partial = log;
+    formats::Log partial = log;
     partial.columns.temperature = false;
     partial.columns.joints = false;
-    for (const io::Log* l : {&log, &partial}) {
+    for (const formats::Log* l : {&log, &partial}) {
       const Dataset d = make_dataset(*l);
       ASSERT_EQ(d.size(), l->samples.size());
       const std::size_t n = d.size();
@@ -138,11 +138,11 @@ TEST(CompactDataset, PredictionsAndSignalsEqualTheStoredFormulasBitForBit) {
 // motion flag 1, position 24 = 241 (337 before issue 16: the matrix, t_rel_s and the joint
 // velocities stored); 233 without the temperature column.
 TEST(CompactDataset, BytesPerSampleStayUnderTheBound) {
-  const io::Log log = sim_log(1, 30.0);
+  const formats::Log log = sim_log(1, 30.0);
   const Dataset d = make_dataset(log);
   const double per_sample = static_cast<double>(d.bytes()) / static_cast<double>(d.size());
   EXPECT_LE(per_sample, 241.0) << "bytes a sample";
-  io::Log no_temperature = log;
+  formats::Log no_temperature = log;
   no_temperature.columns.temperature = false;
   const Dataset t = make_dataset(no_temperature);
   EXPECT_LE(static_cast<double>(t.bytes()) / static_cast<double>(t.size()), 233.0)

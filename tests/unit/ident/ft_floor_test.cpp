@@ -16,8 +16,9 @@ using ::testing::HasSubstr;
 // Rows at 12 ms: dwells of 2 s at rest (a slow drift and a 0.1 Hz wave on the load) between
 // 1-s moves (the sensor turns), white noise σ_F on the force and σ_M on the torque axes, and a
 // few steps (a touch) in the dwells.
-io::Log dwell_log(double sigma_force, double sigma_torque, std::uint64_t seed, int dwells = 60) {
-  io::Log log;
+formats::Log dwell_log(double sigma_force, double sigma_torque, std::uint64_t seed,
+                       int dwells = 60) {
+  formats::Log log;
   log.rig.sample_period_s = 0.012;
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> n01(0.0, 1.0);
@@ -27,7 +28,7 @@ io::Log dwell_log(double sigma_force, double sigma_torque, std::uint64_t seed, i
     for (int phase = 0; phase < 2; ++phase) {
       const int rows = phase == 0 ? 167 : 83;
       for (int r = 0; r < rows; ++r, ++row) {
-        io::Sample s;
+        formats::Sample s;
         s.t_s = 0.012 * static_cast<double>(row);
         if (phase == 1) angle += 0.01;  // moving: the sensor turns
         s.q_base_sensor = Eigen::Quaterniond(Eigen::AngleAxisd(angle, Eigen::Vector3d::UnitZ()));
@@ -75,14 +76,14 @@ TEST(FtFloor, IsTheWhiteNoiseOfARowOnThreeSeeds) {
 
 TEST(FtFloor, SaysWhyItIsNotKnown) {
   // No rest: every row moves.
-  io::Log moving = dwell_log(0.25, 0.03, 1, 1);
+  formats::Log moving = dwell_log(0.25, 0.03, 1, 1);
   moving.samples.erase(moving.samples.begin(), moving.samples.begin() + 167);
   const FtFloor none = ft_floor(make_dataset(moving));
   EXPECT_FALSE(none.known);
   EXPECT_THAT(none.note, HasSubstr("record a few seconds with the robot still"));
   EXPECT_THAT(format_ft_floor(none, nullptr), HasSubstr("F/T-only floor: not known"));
   // A static table: rows are poses, not a time series.
-  io::Log table = dwell_log(0.25, 0.03, 1, 1);
+  formats::Log table = dwell_log(0.25, 0.03, 1, 1);
   table.columns.static_rows = true;
   for (std::size_t i = 0; i < table.samples.size(); ++i)
     table.samples[i].t_s = static_cast<double>(i);

@@ -117,7 +117,7 @@ Truth truth_of(const sim::SimConfig& c) {
 }
 
 // Imports a static table with the example's mapping (copied beside it).
-io::Log import_table(const fs::path& dir, const std::string& table) {
+formats::Log import_table(const fs::path& dir, const std::string& table) {
   fs::copy_file(kCalibDir / "mapping.toml", dir / "mapping.toml",
                 fs::copy_options::overwrite_existing);
   fs::copy_file(kCalibDir / "rig.rig.toml", dir / "rig.rig.toml",
@@ -142,14 +142,14 @@ TEST(StaticTable, CalibExampleIsTheSimulatorsTableAndFits) {
   const std::string table = static_table(simulator, points, 1001);
   if (std::getenv("ZEROG_WRITE_CALIB") != nullptr) {
     write_text(kCalibDir / "table.csv", table);
-    io::write_rig(simulator.rig(), kCalibDir / "rig.rig.toml");
+    formats::write_rig(simulator.rig(), kCalibDir / "rig.rig.toml");
     std::printf("wrote %s and its rig\n", (kCalibDir / "table.csv").c_str());
   }
   // The committed example is what this generator writes (regenerate as in the file comment).
   EXPECT_EQ(read_text(kCalibDir / "table.csv"), table)
       << "calib/static_table/table.csv is out of date: ZEROG_WRITE_CALIB=1 ident_test "
          "--gtest_filter='StaticTable.*'";
-  const io::Log log = io::import_recordings(kCalibDir / "mapping.toml").log;
+  const formats::Log log = io::import_recordings(kCalibDir / "mapping.toml").log;
   EXPECT_TRUE(log.columns.static_rows);
   EXPECT_FALSE(log.columns.position);
   EXPECT_TRUE(log.columns.specific_force);
@@ -238,7 +238,7 @@ TEST(StaticTable, SplitOverTwoFilesIsJoinedRowByRow) {
   const fs::path dir = fresh_dir("split");
   const sim::RigSimulator simulator(sim::default_sim_config(5));
   const std::string table = static_table(simulator, points, 5);
-  const io::Log whole = import_table(dir, table);
+  const formats::Log whole = import_table(dir, table);
   // Cells 1-6 into wrench.csv, 7-18 into pose.csv (the comment line dropped: headerless).
   std::string wrench, pose;
   for (const auto& [w, p] : split_rows(table)) {
@@ -280,7 +280,7 @@ TEST(StaticTable, SplitOverTwoFilesIsJoinedRowByRow) {
   // One pose short: refused, naming both files' rows.
   write_text(dir / "pose.csv", pose.substr(0, pose.rfind('\n', pose.size() - 2) + 1));
   EXPECT_THAT([&] { (void)io::import_recordings(dir / "split.toml"); },
-              ::testing::ThrowsMessage<io::InputError>(
+              ::testing::ThrowsMessage<formats::InputError>(
                   AllOf(HasSubstr("files.pose has 14 rows and files.ft (wrench.csv) 15"),
                         HasSubstr("one row per pose, in the same order"))));
   // Time in one file only: refused, saying give time to all or none.
@@ -289,7 +289,7 @@ TEST(StaticTable, SplitOverTwoFilesIsJoinedRowByRow) {
   timed.insert(timed.find("force = "), "time = { column = 1, unit = \"s\" }\n");
   write_text(dir / "timed.toml", timed);
   EXPECT_THAT([&] { (void)io::import_recordings(dir / "timed.toml"); },
-              ::testing::ThrowsMessage<io::InputError>(
+              ::testing::ThrowsMessage<formats::InputError>(
                   HasSubstr("files.pose has no 'time' but files.ft has")));
   fs::remove_all(dir);
 }
@@ -301,7 +301,7 @@ TEST(StaticTable, SplitByPoseIndexIsJoinedByIt) {
   const fs::path dir = fresh_dir("pose_index");
   const sim::RigSimulator simulator(sim::default_sim_config(5));
   const std::string table = static_table(simulator, points, 5);
-  const io::Log whole = import_table(dir, table);
+  const formats::Log whole = import_table(dir, table);
   std::vector<std::string> wrench, pose;
   for (const auto& [w, p] : split_rows(table)) {
     const std::string index = std::to_string(wrench.size() + 1);
@@ -330,8 +330,8 @@ TEST(StaticTable, SplitByPoseIndexIsJoinedByIt) {
   ASSERT_TRUE(joined.log.columns.static_rows);
   ASSERT_EQ(joined.log.samples.size(), 14u);
   for (std::size_t i = 0; i < 14; ++i) {
-    const io::Sample& want = whole.samples[i < 8 ? i : i + 1];
-    const io::Sample& got = joined.log.samples[i];
+    const formats::Sample& want = whole.samples[i < 8 ? i : i + 1];
+    const formats::Sample& got = joined.log.samples[i];
     EXPECT_EQ(got.t_s, static_cast<double>(i));
     EXPECT_EQ(got.force_sensor_N, want.force_sensor_N) << i;
     // The same rotation (a quaternion up to sign: the reader keeps neighbours in one
@@ -351,16 +351,16 @@ TEST(StaticTable, SplitByPoseIndexIsJoinedByIt) {
   write_text(dir / "pose.csv", pose_text + pose[3]);
   EXPECT_THAT(
       [&] { (void)io::import_recordings(dir / "split.toml"); },
-      ::testing::ThrowsMessage<io::InputError>(AllOf(
+      ::testing::ThrowsMessage<formats::InputError>(AllOf(
           HasSubstr("pose.csv:16:"), HasSubstr("pose index 4"), HasSubstr("at line 2 already"))));
   write_text(dir / "pose.csv", pose_text.substr(0, pose_text.rfind(", ")) + ", 10.5\n");
   EXPECT_THAT([&] { (void)io::import_recordings(dir / "split.toml"); },
-              ::testing::ThrowsMessage<io::InputError>(HasSubstr("is not a whole number")));
+              ::testing::ThrowsMessage<formats::InputError>(HasSubstr("is not a whole number")));
   std::string half = mapping;
   half.erase(half.find("pose_index = { column = 13 }\n"), 29);
   write_text(dir / "half.toml", half);
   EXPECT_THAT([&] { (void)io::import_recordings(dir / "half.toml"); },
-              ::testing::ThrowsMessage<io::InputError>(
+              ::testing::ThrowsMessage<formats::InputError>(
                   HasSubstr("files.ft has a pose_index and files.pose has none")));
   fs::remove_all(dir);
 }
@@ -403,9 +403,10 @@ TEST(StaticTable, ToolChangeFromTheTable) {
 
 // Writes one simulated stream at its own rate. `row` returns the cells after the time.
 template <typename Row>
-void write_stream(const fs::path& file, const std::string& header, const io::Log& log, Row row) {
+void write_stream(const fs::path& file, const std::string& header, const formats::Log& log,
+                  Row row) {
   std::string text = header + "\n";
-  for (const io::Sample& s : log.samples) text += cell(s.t_s) + "," + row(s) + "\n";
+  for (const formats::Sample& s : log.samples) text += cell(s.t_s) + "," + row(s) + "\n";
   write_text(file, text);
 }
 
@@ -426,31 +427,32 @@ TEST(PartialFiles, AccelerometerOnlyOrientationOnlyBaseFrameWrench) {
   const fs::path dir = fresh_dir("partial");
   const std::uint64_t seed = 5;
   // Three recorders on one clock: the same motion sampled at 700, 250 and 100 Hz.
-  const io::Log ft = sim::RigSimulator(moving_config(seed, seed, 1.0 / 700.0), points).run().log;
-  const io::Log acc =
+  const formats::Log ft =
+      sim::RigSimulator(moving_config(seed, seed, 1.0 / 700.0), points).run().log;
+  const formats::Log acc =
       sim::RigSimulator(moving_config(seed, seed + 1, 1.0 / 250.0), points).run().log;
   const sim::RigSimulator robot_sim(moving_config(seed, seed + 2, 1.0 / 100.0), points);
   const sim::SimOutput robot = robot_sim.run();
   // F/T in the base frame's axes (the recording software rotated it): F_B = R_BS F_S.
-  write_stream(dir / "ft.csv", "t,FxB,FyB,FzB,MxB,MyB,MzB", ft, [](const io::Sample& s) {
+  write_stream(dir / "ft.csv", "t,FxB,FyB,FzB,MxB,MyB,MzB", ft, [](const formats::Sample& s) {
     const Eigen::Vector3d F = s.q_base_sensor * s.force_sensor_N;
     const Eigen::Vector3d M = s.q_base_sensor * s.torque_sensor_Nm;
     return cell(F.x()) + "," + cell(F.y()) + "," + cell(F.z()) + "," + cell(M.x()) + "," +
            cell(M.y()) + "," + cell(M.z());
   });
-  write_stream(dir / "acc.csv", "t,ax_g,ay_g,az_g", acc, [](const io::Sample& s) {
+  write_stream(dir / "acc.csv", "t,ax_g,ay_g,az_g", acc, [](const formats::Sample& s) {
     const Eigen::Vector3d a = s.specific_force_imu_mps2 / kG;
     return cell(a.x()) + "," + cell(a.y()) + "," + cell(a.z());
   });
   write_stream(dir / "pose.csv", "t,r11,r12,r13,r21,r22,r23,r31,r32,r33", robot.log,
-               [](const io::Sample& s) {
+               [](const formats::Sample& s) {
                  const Eigen::Matrix3d R = s.q_base_sensor.toRotationMatrix();
                  std::string out;
                  for (int r = 0; r < 3; ++r)
                    for (int c = 0; c < 3; ++c) out += (out.empty() ? "" : ",") + cell(R(r, c));
                  return out;
                });
-  io::write_rig(robot.log.rig, dir / "rig.rig.toml");
+  formats::write_rig(robot.log.rig, dir / "rig.rig.toml");
   write_text(
       dir / "mapping.toml",
       "format = \"zerog-import\"\nversion = 1\nmaster = \"ft\"\nrig_file = \"rig.rig.toml\"\n"
@@ -464,14 +466,14 @@ TEST(PartialFiles, AccelerometerOnlyOrientationOnlyBaseFrameWrench) {
       "orientation = { type = \"matrix\", columns = [\"r11\", \"r12\", \"r13\", \"r21\", "
       "\"r22\", \"r23\", \"r31\", \"r32\", \"r33\"] }\n");
   const io::ImportResult imported = io::import_recordings(dir / "mapping.toml");
-  const io::Log& log = imported.log;
-  EXPECT_EQ(log.columns, (io::Columns{.specific_force = true, .position = false}));
+  const formats::Log& log = imported.log;
+  EXPECT_EQ(log.columns, (formats::Columns{.specific_force = true, .position = false}));
   EXPECT_GT(log.samples.size(), 50000u);
   std::printf("%s", imported.report.summary().c_str());
 
   // Through the log format (version 2) and back.
-  io::write_log(log, dir / "run.csv");
-  const Dataset data = make_dataset(io::read_log(dir / "run.csv"));
+  formats::write_log(log, dir / "run.csv");
+  const Dataset data = make_dataset(formats::read_log(dir / "run.csv"));
   const Truth truth = truth_of(robot_sim.config());
 
   FitOptions fo;
@@ -506,9 +508,9 @@ TEST(PartialFiles, AccelerometerOnlyOrientationOnlyBaseFrameWrench) {
   std::string auto_mapping = read_text(dir / "mapping.toml");
   auto_mapping.insert(auto_mapping.find("[files.ft]"), "kinematics = \"auto\"\n");
   write_text(dir / "mapping.toml", auto_mapping);
-  const io::Log derived = io::import_recordings(dir / "mapping.toml").log;
-  EXPECT_EQ(derived.rig.kinematics.angular_rate, io::KinematicsOrigin::pose);
-  EXPECT_EQ(derived.rig.kinematics.specific_force, io::KinematicsOrigin::imu);
+  const formats::Log derived = io::import_recordings(dir / "mapping.toml").log;
+  EXPECT_EQ(derived.rig.kinematics.angular_rate, formats::KinematicsOrigin::pose);
+  EXPECT_EQ(derived.rig.kinematics.specific_force, formats::KinematicsOrigin::imu);
   const Dataset with_rates = make_dataset(derived);
   fo.effects = {Effect::bias, Effect::gravity, Effect::linear_inertia};
   const FitResult rr = fit(with_rates, fo);

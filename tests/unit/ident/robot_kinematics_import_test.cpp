@@ -59,23 +59,24 @@ std::string cell(double v) {
 
 // One simulated stream as a CSV file: the time, then `row`'s cells.
 template <typename Row>
-void write_stream(const fs::path& file, const std::string& header, const io::Log& log, Row row) {
+void write_stream(const fs::path& file, const std::string& header, const formats::Log& log,
+                  Row row) {
   std::string text = header + "\n";
-  for (const io::Sample& s : log.samples) text += cell(s.t_s) + "," + row(s) + "\n";
+  for (const formats::Sample& s : log.samples) text += cell(s.t_s) + "," + row(s) + "\n";
   write_text(file, text);
 }
 
-std::string wrench_cells(const io::Sample& s) {
+std::string wrench_cells(const formats::Sample& s) {
   std::string out;
   for (int k = 0; k < 3; ++k) out += cell(s.force_sensor_N[k]) + ",";
   for (int k = 0; k < 3; ++k) out += cell(s.torque_sensor_Nm[k]) + (k < 2 ? "," : "");
   return out;
 }
-std::string quaternion_cells(const io::Sample& s) {
+std::string quaternion_cells(const formats::Sample& s) {
   return cell(s.q_base_sensor.w()) + "," + cell(s.q_base_sensor.x()) + "," +
          cell(s.q_base_sensor.y()) + "," + cell(s.q_base_sensor.z());
 }
-std::string joint_cells(const io::Sample& s) {
+std::string joint_cells(const formats::Sample& s) {
   std::string out;
   for (int j = 0; j < 6; ++j) out += (j ? "," : "") + cell(s.joints_rad[j]);
   return out;
@@ -85,8 +86,8 @@ std::string vector_cells(const Eigen::Vector3d& v) {
 }
 
 // The simulator's rig as text, its robot given as `robot_line` in place of the name.
-std::string rig_text(const io::Rig& rig, const fs::path& dir, const std::string& robot_line) {
-  io::write_rig(rig, dir / "tmp.rig.toml");
+std::string rig_text(const formats::Rig& rig, const fs::path& dir, const std::string& robot_line) {
+  formats::write_rig(rig, dir / "tmp.rig.toml");
   std::ifstream in(dir / "tmp.rig.toml");
   std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   const std::string name_line = "robot = \"" + rig.robot + "\"\n";
@@ -155,7 +156,7 @@ const model::EffectSet kDynamicModel = {Effect::bias, Effect::gravity, Effect::l
 
 // RMS of the norm of the difference of two IMU vectors over the rows.
 template <typename Get>
-double rms_difference(const io::Log& a, const io::Log& b, Get get) {
+double rms_difference(const formats::Log& a, const formats::Log& b, Get get) {
   double sum = 0.0;
   for (std::size_t i = 0; i < a.samples.size(); ++i)
     sum += (get(a.samples[i]) - get(b.samples[i])).squaredNorm();
@@ -180,7 +181,7 @@ TEST(RobotKinematics, JointsOnlyFitsMassAndInertiaOnSeveralSeeds) {
     const sim::SimOutput out = simulator.run();
 
     write_stream(dir / "robot.csv", "t,Fx,Fy,Fz,Mx,My,Mz,qw,qx,qy,qz,A1,A2,A3,A4,A5,A6", out.log,
-                 [](const io::Sample& s) {
+                 [](const formats::Sample& s) {
                    return wrench_cells(s) + "," + quaternion_cells(s) + "," + joint_cells(s);
                  });
     write_text(dir / "cell.rig.toml",
@@ -192,23 +193,23 @@ TEST(RobotKinematics, JointsOnlyFitsMassAndInertiaOnSeveralSeeds) {
                    kWrenchKeys + kQuaternionKey + kJointsKey);
     const io::ImportResult imported = io::import_recordings(dir / "mapping.toml");
     std::printf("%s", imported.report.summary().c_str());
-    const io::Log& log = imported.log;
+    const formats::Log& log = imported.log;
     ASSERT_TRUE(log.columns.angular_rate && log.columns.specific_force);
-    EXPECT_EQ(log.rig.kinematics.angular_rate, io::KinematicsOrigin::joints);
-    EXPECT_EQ(log.rig.kinematics.specific_force, io::KinematicsOrigin::joints);
+    EXPECT_EQ(log.rig.kinematics.angular_rate, formats::KinematicsOrigin::joints);
+    EXPECT_EQ(log.rig.kinematics.specific_force, formats::KinematicsOrigin::joints);
     EXPECT_EQ(log.rig.robot, "KR 210 R2700");
     ASSERT_TRUE(log.rig.robot_model.has_value());
 
     // The derived columns against the simulator's noise-free IMU (same rows).
     ASSERT_EQ(log.samples.size(), out.clean_log.samples.size());
     const double rate_error = rms_difference(
-        log, out.clean_log, [](const io::Sample& s) { return s.angular_rate_imu_radps; });
+        log, out.clean_log, [](const formats::Sample& s) { return s.angular_rate_imu_radps; });
     const double force_error = rms_difference(
-        log, out.clean_log, [](const io::Sample& s) { return s.specific_force_imu_mps2; });
+        log, out.clean_log, [](const formats::Sample& s) { return s.specific_force_imu_mps2; });
     const double imu_rate_noise = rms_difference(
-        out.log, out.clean_log, [](const io::Sample& s) { return s.angular_rate_imu_radps; });
+        out.log, out.clean_log, [](const formats::Sample& s) { return s.angular_rate_imu_radps; });
     const double imu_force_noise = rms_difference(
-        out.log, out.clean_log, [](const io::Sample& s) { return s.specific_force_imu_mps2; });
+        out.log, out.clean_log, [](const formats::Sample& s) { return s.specific_force_imu_mps2; });
     std::printf(
         "derived from joints at 12 ms: angular rate error %.2e rad/s (IMU %.2e), specific "
         "force error %.4f m/s^2 (IMU %.4f), RMS of the 3-axis norm against the truth\n",
@@ -217,9 +218,9 @@ TEST(RobotKinematics, JointsOnlyFitsMassAndInertiaOnSeveralSeeds) {
     EXPECT_LT(force_error, 0.5 * imu_force_noise);  // the lever arm alone is ~0.03 m/s²
 
     // Through the log format and back: the rig keeps the robot and where the columns came from.
-    io::write_log(log, dir / "run.csv");
-    const io::Log read = io::read_log(dir / "run.csv");
-    EXPECT_EQ(read.rig.kinematics.angular_rate, io::KinematicsOrigin::joints);
+    formats::write_log(log, dir / "run.csv");
+    const formats::Log read = formats::read_log(dir / "run.csv");
+    EXPECT_EQ(read.rig.kinematics.angular_rate, formats::KinematicsOrigin::joints);
     EXPECT_EQ(read.rig.kinematics.sg_half_width, log.rig.kinematics.sg_half_width);
     EXPECT_GT(read.rig.kinematics.noise_gain_accel_per_s2, 0.0);
     ASSERT_TRUE(read.rig.robot_model.has_value());
@@ -290,7 +291,7 @@ TEST(RobotKinematics, JointsOnlyHiddenEffectsAreDiagnosed) {
     config.effects.add(sim_effect);
     const sim::SimOutput out = sim::RigSimulator(config, design_points()).run();
     write_stream(dir / "robot.csv", "t,Fx,Fy,Fz,Mx,My,Mz,A1,A2,A3,A4,A5,A6", out.log,
-                 [](const io::Sample& s) { return wrench_cells(s) + "," + joint_cells(s); });
+                 [](const formats::Sample& s) { return wrench_cells(s) + "," + joint_cells(s); });
     write_text(dir / "cell.rig.toml",
                rig_text(out.log.rig, dir, "robot_file = \"" + kRobotFile.string() + "\"\n"));
     write_text(dir / "mapping.toml",
@@ -328,22 +329,24 @@ TEST(RobotKinematics, AccelerometerOnlyGetsRatesFromTheOrientation) {
     auto config = [&](std::uint64_t noise_seed, double period_s) {
       return lever_arm_stream(seed, noise_seed, period_s, 90.0);
     };
-    const io::Log ft = sim::RigSimulator(config(seed, 1.0 / 700.0), design_points()).run().log;
-    const io::Log acc = sim::RigSimulator(config(seed + 1, 1.0 / 250.0), design_points()).run().log;
+    const formats::Log ft = sim::RigSimulator(config(seed, 1.0 / 700.0), design_points()).run().log;
+    const formats::Log acc =
+        sim::RigSimulator(config(seed + 1, 1.0 / 250.0), design_points()).run().log;
     const sim::RigSimulator pose_sim(config(seed + 2, 1.0 / 100.0), design_points());
     const sim::SimOutput pose = pose_sim.run();
     write_stream(dir / "ft.csv", "t,Fx,Fy,Fz,Mx,My,Mz", ft, wrench_cells);
-    write_stream(dir / "acc.csv", "t,ax_g,ay_g,az_g", acc,
-                 [](const io::Sample& s) { return vector_cells(s.specific_force_imu_mps2 / kG); });
+    write_stream(dir / "acc.csv", "t,ax_g,ay_g,az_g", acc, [](const formats::Sample& s) {
+      return vector_cells(s.specific_force_imu_mps2 / kG);
+    });
     write_stream(dir / "pose.csv", "t,r11,r12,r13,r21,r22,r23,r31,r32,r33", pose.log,
-                 [](const io::Sample& s) {
+                 [](const formats::Sample& s) {
                    const Eigen::Matrix3d R = s.q_base_sensor.toRotationMatrix();
                    std::string out;
                    for (int r = 0; r < 3; ++r)
                      for (int c = 0; c < 3; ++c) out += (out.empty() ? "" : ",") + cell(R(r, c));
                    return out;
                  });
-    io::write_rig(pose.log.rig, dir / "rig.rig.toml");
+    formats::write_rig(pose.log.rig, dir / "rig.rig.toml");
     auto mapping = [&](const std::string& kinematics) {
       write_text(
           dir / "mapping.toml",
@@ -361,8 +364,8 @@ TEST(RobotKinematics, AccelerometerOnlyGetsRatesFromTheOrientation) {
     EXPECT_FALSE(imu_only.columns.angular_rate);
     const Dataset with_rates = mapping("kinematics = \"auto\"\n");
     ASSERT_TRUE(with_rates.columns.angular_rate);
-    EXPECT_EQ(with_rates.kinematics.angular_rate, io::KinematicsOrigin::pose);
-    EXPECT_EQ(with_rates.kinematics.specific_force, io::KinematicsOrigin::imu);
+    EXPECT_EQ(with_rates.kinematics.angular_rate, formats::KinematicsOrigin::pose);
+    EXPECT_EQ(with_rates.kinematics.specific_force, formats::KinematicsOrigin::imu);
     EXPECT_THAT(with_rates.kinematics.angular_rate_reason, HasSubstr("no gyro"));
 
     const model::EffectSet linear = {Effect::bias, Effect::gravity, Effect::linear_inertia};
@@ -411,9 +414,9 @@ TEST(RobotKinematics, AccelerometerAndJointsTakeRotationFromTheJointsAndAccelera
       return lever_arm_stream(seed, noise_seed, period_s, 120.0);
     };
     const sim::SimOutput ft = sim::RigSimulator(config(seed, 0.004), design_points()).run();
-    const io::Log arm = sim::RigSimulator(config(seed + 1, 0.012), design_points()).run().log;
+    const formats::Log arm = sim::RigSimulator(config(seed + 1, 0.012), design_points()).run().log;
     write_stream(dir / "ft_acc.csv", "t,Fx,Fy,Fz,Mx,My,Mz,ax,ay,az", ft.log,
-                 [](const io::Sample& s) {
+                 [](const formats::Sample& s) {
                    return wrench_cells(s) + "," + vector_cells(s.specific_force_imu_mps2);
                  });
     write_stream(dir / "arm.csv", "t,A1,A2,A3,A4,A5,A6", arm, joint_cells);
@@ -429,21 +432,21 @@ TEST(RobotKinematics, AccelerometerAndJointsTakeRotationFromTheJointsAndAccelera
                    kJointsKey);
     const io::ImportResult imported = io::import_recordings(dir / "mapping.toml");
     std::printf("%s", imported.report.summary().c_str());
-    const io::Log& log = imported.log;
+    const formats::Log& log = imported.log;
     ASSERT_TRUE(log.columns.angular_rate && log.columns.angular_accel &&
                 log.columns.specific_force);
-    const io::KinematicsRecord& k = log.rig.kinematics;
+    const formats::KinematicsRecord& k = log.rig.kinematics;
     EXPECT_EQ(k.mode, "auto");
-    EXPECT_EQ(k.angular_rate, io::KinematicsOrigin::joints);
-    EXPECT_EQ(k.angular_accel, io::KinematicsOrigin::joints);
-    EXPECT_EQ(k.specific_force, io::KinematicsOrigin::imu);
+    EXPECT_EQ(k.angular_rate, formats::KinematicsOrigin::joints);
+    EXPECT_EQ(k.angular_accel, formats::KinematicsOrigin::joints);
+    EXPECT_EQ(k.specific_force, formats::KinematicsOrigin::imu);
     EXPECT_NEAR(k.period_s, 0.012, 1e-9);  // differentiated at the joints' own rate
 
     // The specific force is the accelerometer's, as logged (the master's own rows); ω from the
     // joints is far closer to the truth than the simulator's gyro would have been.
     std::size_t row = 0;
     double force_difference = 0.0;
-    for (const io::Sample& s : log.samples) {
+    for (const formats::Sample& s : log.samples) {
       while (ft.log.samples[row].t_s < s.t_s - 1e-7) ++row;
       ASSERT_NEAR(ft.log.samples[row].t_s, s.t_s, 1e-7);
       force_difference = std::max(
@@ -453,7 +456,7 @@ TEST(RobotKinematics, AccelerometerAndJointsTakeRotationFromTheJointsAndAccelera
     EXPECT_LT(force_difference, 1e-6);
     double rate_error = 0.0, gyro_noise = 0.0;
     row = 0;
-    for (const io::Sample& s : log.samples) {
+    for (const formats::Sample& s : log.samples) {
       while (ft.clean_log.samples[row].t_s < s.t_s - 1e-7) ++row;
       rate_error += (s.angular_rate_imu_radps - ft.clean_log.samples[row].angular_rate_imu_radps)
                         .squaredNorm();
@@ -517,14 +520,14 @@ TEST(RobotKinematics, AutoPicksPerSignalAndDiagnoseReportsIt) {
   const sim::SimOutput out = sim::RigSimulator(config, design_points()).run();
   write_stream(dir / "all.csv",
                "t,Fx,Fy,Fz,Mx,My,Mz,qw,qx,qy,qz,A1,A2,A3,A4,A5,A6,fx,fy,fz,wx,wy,wz", out.log,
-               [](const io::Sample& s) {
+               [](const formats::Sample& s) {
                  return wrench_cells(s) + "," + quaternion_cells(s) + "," + joint_cells(s) + "," +
                         vector_cells(s.specific_force_imu_mps2) + "," +
                         vector_cells(s.angular_rate_imu_radps);
                });
-  io::Rig rig = out.log.rig;
-  rig.robot_model = io::read_robot_file(kRobotFile);
-  io::write_rig(rig, dir / "rig.rig.toml");  // the robot inline, as a [robot] table
+  formats::Rig rig = out.log.rig;
+  rig.robot_model = formats::read_robot_file(kRobotFile);
+  formats::write_rig(rig, dir / "rig.rig.toml");  // the robot inline, as a [robot] table
   const std::string files =
       "[files.all]\npath = \"all.csv\"\ntime = { column = \"t\", unit = \"s\" }\n" + kWrenchKeys +
       kQuaternionKey + kJointsKey;
@@ -552,8 +555,8 @@ TEST(RobotKinematics, AutoPicksPerSignalAndDiagnoseReportsIt) {
                               std::stod(cell(out.log.samples[i].angular_rate_imu_radps.z()))));
   // The gyro alone: ω and ω̇ from it, the specific force from the joints through the robot.
   const io::ImportResult gyro_only = import(gyro);
-  EXPECT_EQ(gyro_only.log.rig.kinematics.angular_rate, io::KinematicsOrigin::imu);
-  EXPECT_EQ(gyro_only.log.rig.kinematics.specific_force, io::KinematicsOrigin::joints);
+  EXPECT_EQ(gyro_only.log.rig.kinematics.angular_rate, formats::KinematicsOrigin::imu);
+  EXPECT_EQ(gyro_only.log.rig.kinematics.specific_force, formats::KinematicsOrigin::joints);
   EXPECT_THAT(gyro_only.report.summary(), HasSubstr("specific force from the joints"));
 
   // diagnose names the sources in its JSON and text.
@@ -579,10 +582,10 @@ TEST(RobotKinematics, RefusalsNameTheKeyAndWhatWouldWork) {
   config.duration_limit_s = 10.0;
   const sim::SimOutput out = sim::RigSimulator(config, design_points()).run();
   write_stream(dir / "robot.csv", "t,Fx,Fy,Fz,Mx,My,Mz,qw,qx,qy,qz,A1,A2,A3,A4,A5,A6", out.log,
-               [](const io::Sample& s) {
+               [](const formats::Sample& s) {
                  return wrench_cells(s) + "," + quaternion_cells(s) + "," + joint_cells(s);
                });
-  io::write_rig(out.log.rig, dir / "rig.rig.toml");  // robot = "KR 210 R2700": a name only
+  formats::write_rig(out.log.rig, dir / "rig.rig.toml");  // robot = "KR 210 R2700": a name only
   auto refusal = [&](const std::string& top, const std::string& keys) {
     write_text(dir / "mapping.toml",
                kMappingHead + "rig_file = \"rig.rig.toml\"\n" + top +
@@ -591,7 +594,7 @@ TEST(RobotKinematics, RefusalsNameTheKeyAndWhatWouldWork) {
                    kWrenchKeys + kQuaternionKey + keys);
     try {
       (void)io::import_recordings(dir / "mapping.toml");
-    } catch (const io::InputError& e) {
+    } catch (const formats::InputError& e) {
       EXPECT_EQ(e.file(), dir / "mapping.toml");
       EXPECT_EQ(e.line(), 4);  // the kinematics key
       return std::string(e.what());
@@ -618,7 +621,7 @@ TEST(RobotKinematics, RefusalsNameTheKeyAndWhatWouldWork) {
                  "\"robot.csv\"\ntime = { column = \"t\", unit = \"s\" }\n" +
                  kWrenchKeys + kQuaternionKey + kJointsKey);
   const io::ImportResult pose = io::import_recordings(dir / "mapping.toml");
-  EXPECT_EQ(pose.log.rig.kinematics.angular_rate, io::KinematicsOrigin::pose);
+  EXPECT_EQ(pose.log.rig.kinematics.angular_rate, formats::KinematicsOrigin::pose);
   EXPECT_FALSE(pose.log.columns.specific_force);
   EXPECT_THAT(pose.report.summary(), HasSubstr("the rig describes no robot"));
   // The fit's refusal names the import's way out.
@@ -647,7 +650,7 @@ double omega_dot_rms(const Dataset& data, const Dataset& reference) {
 TEST(AngularAcceleration, MakeDatasetUsesTheColumnsWhenPresent) {
   sim::SimConfig config = sim::default_sim_config(4);
   config.duration_limit_s = 5.0;
-  io::Log log = sim::RigSimulator(config, design_points()).run().log;
+  formats::Log log = sim::RigSimulator(config, design_points()).run().log;
   const Dataset differenced = make_dataset(log);
   ASSERT_FALSE(differenced.columns.angular_accel);
   // Without the columns: the 5-point central difference of the rate, as before.
@@ -667,8 +670,8 @@ TEST(AngularAcceleration, MakeDatasetUsesTheColumnsWhenPresent) {
   for (std::size_t k = 0; k < 6; ++k) EXPECT_EQ(with.imu[i * 9 + k], differenced.imu[i * 9 + k]);
   // And the fit's report says where ω̇ came from.
   log.rig.kinematics.mode = "robot";
-  log.rig.kinematics.angular_rate = io::KinematicsOrigin::joints;
-  log.rig.kinematics.angular_accel = io::KinematicsOrigin::joints;
+  log.rig.kinematics.angular_rate = formats::KinematicsOrigin::joints;
+  log.rig.kinematics.angular_accel = formats::KinematicsOrigin::joints;
   const Dataset derived = make_dataset(log);
   const nlohmann::json j = kinematics_json(kinematics_feeds(kDynamicModel, derived), derived);
   EXPECT_EQ(j["effects"]["rotational_inertia"]["omega_dot"], "joints");
@@ -686,7 +689,7 @@ TEST(AngularAcceleration, MakeDatasetUsesTheColumnsWhenPresent) {
             "joints");
   // A ω̇ the recording logged (import mapping `angular_accel`): used as logged, and said so.
   log.rig.kinematics = {};
-  log.rig.kinematics.angular_accel = io::KinematicsOrigin::logged;
+  log.rig.kinematics.angular_accel = formats::KinematicsOrigin::logged;
   const Dataset logged = make_dataset(log);
   EXPECT_EQ(Eigen::Map<const Eigen::Vector3d>(&logged.imu[i * 9 + 6]),
             log.samples[i].angular_accel_imu_radps2);
@@ -710,14 +713,14 @@ TEST(AngularAcceleration, ImportWritesTheChosenSourceAndTheFitReadsIt) {
   const sim::SimOutput out = sim::RigSimulator(config, design_points()).run();
   write_stream(dir / "all.csv",
                "t,Fx,Fy,Fz,Mx,My,Mz,qw,qx,qy,qz,A1,A2,A3,A4,A5,A6,wx,wy,wz,fx,fy,fz", out.log,
-               [](const io::Sample& s) {
+               [](const formats::Sample& s) {
                  return wrench_cells(s) + "," + quaternion_cells(s) + "," + joint_cells(s) + "," +
                         vector_cells(s.angular_rate_imu_radps) + "," +
                         vector_cells(s.specific_force_imu_mps2);
                });
-  io::Rig rig = out.log.rig;
-  rig.robot_model = io::read_robot_file(kRobotFile, rig.flange_sensor).model;
-  io::write_rig(rig, dir / "rig.rig.toml");
+  formats::Rig rig = out.log.rig;
+  rig.robot_model = formats::read_robot_file(kRobotFile, rig.flange_sensor).model;
+  formats::write_rig(rig, dir / "rig.rig.toml");
   const std::string gyro =
       "angular_rate = { columns = [\"wx\", \"wy\", \"wz\"], unit = \"rad/s\" }\n"
       "specific_force = { columns = [\"fx\", \"fy\", \"fz\"], unit = \"m/s2\" }\n";
@@ -728,17 +731,17 @@ TEST(AngularAcceleration, ImportWritesTheChosenSourceAndTheFitReadsIt) {
             "\"\n[files.all]\npath = \"all.csv\"\ntime = { column = \"t\", unit = \"s\" }\n" +
             kWrenchKeys + kQuaternionKey + kJointsKey + imu_keys);
     const io::ImportResult r = io::import_recordings(dir / "mapping.toml");
-    io::write_log(r.log, dir / (kinematics + ".csv"));  // through the format and back
-    return io::read_log(dir / (kinematics + ".csv"));
+    formats::write_log(r.log, dir / (kinematics + ".csv"));  // through the format and back
+    return formats::read_log(dir / (kinematics + ".csv"));
   };
   const Dataset truth = make_dataset(out.clean_log);
   const Dataset five_point = make_dataset(out.log);
   const double five_point_error = omega_dot_rms(five_point, truth);
 
   // "robot": ω̇ from the joints, as derive_kinematics gives it for the imported joints.
-  const io::Log robot_log = import("robot", "");
+  const formats::Log robot_log = import("robot", "");
   ASSERT_TRUE(robot_log.columns.angular_accel);
-  EXPECT_EQ(robot_log.rig.kinematics.angular_accel, io::KinematicsOrigin::joints);
+  EXPECT_EQ(robot_log.rig.kinematics.angular_accel, formats::KinematicsOrigin::joints);
   const Dataset robot_data = make_dataset(robot_log);
   {
     const std::size_t n = robot_log.samples.size();
@@ -765,11 +768,11 @@ TEST(AngularAcceleration, ImportWritesTheChosenSourceAndTheFitReadsIt) {
     EXPECT_LT(worst, 1e-6);  // the log's 9 significant digits
   }
   // "auto" with the gyro: ω from it as logged, ω̇ its SG derivative.
-  const io::Log auto_log = import("auto", gyro);
+  const formats::Log auto_log = import("auto", gyro);
   ASSERT_TRUE(auto_log.columns.angular_accel);
-  const io::KinematicsRecord& k = auto_log.rig.kinematics;
-  EXPECT_EQ(k.angular_rate, io::KinematicsOrigin::imu);
-  EXPECT_EQ(k.angular_accel, io::KinematicsOrigin::imu);
+  const formats::KinematicsRecord& k = auto_log.rig.kinematics;
+  EXPECT_EQ(k.angular_rate, formats::KinematicsOrigin::imu);
+  EXPECT_EQ(k.angular_accel, formats::KinematicsOrigin::imu);
   ASSERT_GT(k.accel_sg_half_width, 0);
   const Dataset auto_data = make_dataset(auto_log);
   {
@@ -798,7 +801,7 @@ TEST(AngularAcceleration, ImportWritesTheChosenSourceAndTheFitReadsIt) {
     return worst;
   };
   // The same logs with the ω̇ columns dropped: host/ident's 5-point difference of their ω.
-  io::Log robot_5 = robot_log, auto_5 = auto_log;
+  formats::Log robot_5 = robot_log, auto_5 = auto_log;
   robot_5.columns.angular_accel = auto_5.columns.angular_accel = false;
   const double five_point_inertia = inertia_error(make_dataset(auto_5));
   const double gyro_sg_inertia = inertia_error(auto_data);
@@ -826,7 +829,7 @@ TEST(AngularAcceleration, ImportWritesTheChosenSourceAndTheFitReadsIt) {
   const std::string text = format_kinematics(kinematics_feeds(kDynamicModel, auto_data), auto_data);
   EXPECT_THAT(text, HasSubstr("omega_dot is the gyro differenced at import by Savitzky-Golay"));
   // "imu" (the default) keeps host/ident's 5-point difference: no column.
-  const io::Log imu_log = import("imu", gyro);
+  const formats::Log imu_log = import("imu", gyro);
   EXPECT_FALSE(imu_log.columns.angular_accel);
   fs::remove_all(dir);
 }
@@ -835,13 +838,13 @@ TEST(AngularAcceleration, ImportWritesTheChosenSourceAndTheFitReadsIt) {
 
 TEST(RigRobot, NameTableAndFileReadAndRoundTrip) {
   const fs::path dir = fresh_dir("rig");
-  io::Rig rig;
+  formats::Rig rig;
   rig.name = "cell";
   rig.flange_sensor.p_m = {0.01, -0.02, 0.07};
   rig.flange_sensor.q = Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()));
   // A name only, as every rig before: no kinematics.
-  io::write_rig(rig, dir / "name.rig.toml");
-  const io::Rig name_only = io::read_rig(dir / "name.rig.toml");
+  formats::write_rig(rig, dir / "name.rig.toml");
+  const formats::Rig name_only = formats::read_rig(dir / "name.rig.toml");
   EXPECT_EQ(name_only.robot, "KR 210 R2700");
   EXPECT_FALSE(name_only.robot_model.has_value());
 
@@ -849,13 +852,13 @@ TEST(RigRobot, NameTableAndFileReadAndRoundTrip) {
   fs::create_directories(dir / "robots");
   fs::copy_file(kRobotFile, dir / "robots/kr.robot.toml");
   write_text(dir / "file.rig.toml", rig_text(rig, dir, "robot_file = \"robots/kr.robot.toml\"\n"));
-  const io::Rig from_file = io::read_rig(dir / "file.rig.toml");
+  const formats::Rig from_file = formats::read_rig(dir / "file.rig.toml");
   ASSERT_TRUE(from_file.robot_model.has_value());
   EXPECT_EQ(from_file.robot, "KR 210 R2700");
-  const robot::RobotModel expected = io::read_robot_file(kRobotFile, rig.flange_sensor).model;
+  const robot::RobotModel expected = formats::read_robot_file(kRobotFile, rig.flange_sensor).model;
   // Written back, the robot is inline ([robot]) and reads to the same chain.
-  io::write_rig(from_file, dir / "inline.rig.toml");
-  const io::Rig inline_rig = io::read_rig(dir / "inline.rig.toml");
+  formats::write_rig(from_file, dir / "inline.rig.toml");
+  const formats::Rig inline_rig = formats::read_rig(dir / "inline.rig.toml");
   ASSERT_TRUE(inline_rig.robot_model.has_value());
   EXPECT_EQ(inline_rig.robot, "KR 210 R2700");
   std::mt19937_64 rng(11);
@@ -864,7 +867,7 @@ TEST(RigRobot, NameTableAndFileReadAndRoundTrip) {
     std::array<double, 6> q{};
     for (double& v : q) v = angle(rng);
     const robot::Pose want = robot::sensor_pose(expected, q);
-    for (const io::Rig* r : {&from_file, &inline_rig}) {
+    for (const formats::Rig* r : {&from_file, &inline_rig}) {
       const robot::Pose got = robot::sensor_pose(*r->robot_model, q);
       EXPECT_LT((got.p_m - want.p_m).norm(), 1e-12);
       EXPECT_LT((got.R - want.R).cwiseAbs().maxCoeff(), 1e-12);
@@ -874,11 +877,11 @@ TEST(RigRobot, NameTableAndFileReadAndRoundTrip) {
   std::string both = rig_text(rig, dir, "robot_file = \"robots/kr.robot.toml\"\n");
   both += "\n[robot]\nconvention = \"dh\"\n[[robot.joint]]\na_m = 0.1\nalpha_deg = 0\nd_m = 0\n";
   write_text(dir / "both.rig.toml", both);
-  EXPECT_THAT([&] { (void)io::read_rig(dir / "both.rig.toml"); },
-              ::testing::ThrowsMessage<io::InputError>(HasSubstr("'robot_file' give either")));
+  EXPECT_THAT([&] { (void)formats::read_rig(dir / "both.rig.toml"); },
+              ::testing::ThrowsMessage<formats::InputError>(HasSubstr("'robot_file' give either")));
   write_text(dir / "missing.rig.toml", rig_text(rig, dir, "robot_file = \"nope.robot.toml\"\n"));
-  EXPECT_THAT([&] { (void)io::read_rig(dir / "missing.rig.toml"); },
-              ::testing::ThrowsMessage<io::InputError>(HasSubstr("robot file not found")));
+  EXPECT_THAT([&] { (void)formats::read_rig(dir / "missing.rig.toml"); },
+              ::testing::ThrowsMessage<formats::InputError>(HasSubstr("robot file not found")));
   fs::remove_all(dir);
 }
 

@@ -63,7 +63,7 @@ const model::EffectSet kDynamicModel = {Effect::bias, Effect::gravity, Effect::l
                                         Effect::rotational_inertia};
 
 struct Recording {
-  io::Rig rig;
+  formats::Rig rig;
   robot::RobotModel model;  ///< with the rig's flange_sensor
   std::vector<double> t_s;
   std::vector<std::array<double, kJoints>> joints_rad;  ///< as recorded (with noise)
@@ -78,7 +78,7 @@ Recording simulate(std::uint64_t seed, double duration_s, int step) {
   r.rig.name = "iiwa cell";
   r.rig.flange_sensor.p_m = {0.0, 0.0, 0.035};
   r.rig.flange_sensor.q = Eigen::Quaterniond(Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitZ()));
-  const io::RobotDescription iiwa = io::read_robot_file(kIiwaFile, r.rig.flange_sensor);
+  const formats::RobotDescription iiwa = formats::read_robot_file(kIiwaFile, r.rig.flange_sensor);
   r.rig.robot = iiwa.name;
   r.rig.robot_model = iiwa.model;
   r.model = iiwa.model;
@@ -190,26 +190,26 @@ TEST(SevenAxis, JointsOnlyRecordingImportsAndFitsThePayload) {
     SCOPED_TRACE("seed " + std::to_string(seed));
     const Recording rec = simulate(seed, 60.0, 4);  // 60 s at 4 ms (250 Hz)
     write_recording(rec, dir / "arm.csv");
-    io::write_rig(rec.rig, dir / "cell.rig.toml");  // the iiwa inline, as a [robot] table
+    formats::write_rig(rec.rig, dir / "cell.rig.toml");  // the iiwa inline, as a [robot] table
     write_text(dir / "mapping.toml",
                kMappingHead + "kinematics = \"robot\"\n" + kFileKeys + kSevenJoints);
     const io::ImportResult imported = io::import_recordings(dir / "mapping.toml");
     const std::string summary = imported.report.summary();
     std::printf("%s", summary.c_str());
-    const io::Log& log = imported.log;
+    const formats::Log& log = imported.log;
     // Seven joints: not in the log (it holds q1..q6), and the summary says so.
     EXPECT_FALSE(log.columns.joints);
     EXPECT_THAT(summary, HasSubstr("joints: 7 columns"));
     EXPECT_THAT(summary, HasSubstr("not written to the log"));
     EXPECT_THAT(summary, HasSubstr("pose from them through LBR iiwa 14 R820"));
     ASSERT_TRUE(log.columns.position && log.columns.angular_rate && log.columns.specific_force);
-    EXPECT_EQ(log.rig.kinematics.angular_rate, io::KinematicsOrigin::joints);
-    EXPECT_EQ(log.rig.kinematics.specific_force, io::KinematicsOrigin::joints);
+    EXPECT_EQ(log.rig.kinematics.angular_rate, formats::KinematicsOrigin::joints);
+    EXPECT_EQ(log.rig.kinematics.specific_force, formats::KinematicsOrigin::joints);
     // The pose is the forward kinematics of the recorded joints (noise 1e-5 rad).
     ASSERT_EQ(log.samples.size(), rec.t_s.size());
     double pose_error_m = 0.0, pose_error_rad = 0.0;
     for (std::size_t i = 0; i < rec.t_s.size(); ++i) {
-      const io::Sample& s = log.samples[i];
+      const formats::Sample& s = log.samples[i];
       pose_error_m = std::max(pose_error_m, (s.p_base_sensor_m - rec.pose[i].p_m).norm());
       const Eigen::AngleAxisd d(rec.pose[i].R.transpose() * s.q_base_sensor.toRotationMatrix());
       pose_error_rad = std::max(pose_error_rad, std::abs(d.angle()));
@@ -218,8 +218,8 @@ TEST(SevenAxis, JointsOnlyRecordingImportsAndFitsThePayload) {
     EXPECT_LT(pose_error_rad, 1e-4);
 
     // Through the log format (with the 7-axis robot in the rig) and the fit.
-    io::write_log(log, dir / "run.csv");
-    const io::Log read = io::read_log(dir / "run.csv");
+    formats::write_log(log, dir / "run.csv");
+    const formats::Log read = formats::read_log(dir / "run.csv");
     ASSERT_TRUE(read.rig.robot_model.has_value());
     EXPECT_EQ(read.rig.robot_model->joint_count, kJoints);
     FitOptions fo;
@@ -255,12 +255,12 @@ TEST(SevenAxis, JointsOnlyRefusalsNameTheKeyAndWhatWouldWork) {
   const fs::path dir = fresh_dir("refuse");
   const Recording rec = simulate(3, 1.0, 4);
   write_recording(rec, dir / "arm.csv");
-  auto refusal = [&](const io::Rig& rig, const std::string& keys) {
-    io::write_rig(rig, dir / "cell.rig.toml");
+  auto refusal = [&](const formats::Rig& rig, const std::string& keys) {
+    formats::write_rig(rig, dir / "cell.rig.toml");
     write_text(dir / "mapping.toml", kMappingHead + kFileKeys + keys);
     try {
       (void)io::import_recordings(dir / "mapping.toml");
-    } catch (const io::InputError& e) {
+    } catch (const formats::InputError& e) {
       EXPECT_EQ(e.file(), dir / "mapping.toml");
       return std::string(e.what());
     }
@@ -268,7 +268,7 @@ TEST(SevenAxis, JointsOnlyRefusalsNameTheKeyAndWhatWouldWork) {
     return std::string();
   };
   // No orientation and a rig that names its robot only: the pose cannot be computed.
-  io::Rig named = rec.rig;
+  formats::Rig named = rec.rig;
   named.robot_model.reset();
   const std::string no_robot = refusal(named, kSevenJoints);
   EXPECT_THAT(no_robot, HasSubstr("no 'orientation' is mapped"));

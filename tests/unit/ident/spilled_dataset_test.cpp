@@ -40,7 +40,7 @@ class SpillSettings {
 };
 
 // A random-path run with every library effect, cut to `seconds` (12 ms rows).
-io::Log library_log(double seconds) {
+formats::Log library_log(double seconds) {
   sim::SimConfig cfg = sim::default_sim_config(7);
   cfg.effects =
       sim::parse_sim_effects("all,-joint6_friction,-swivel_viscous,-hose_drag,-dress_pack_bend");
@@ -90,7 +90,7 @@ TEST(SpilledDataset, SmallLogsStayOnTheHeap) {
 
 TEST(SpilledDataset, FitsToTheSameBitsAndReleasesWhatItWalked) {
   constexpr std::size_t kWindow = 256;
-  const io::Log log = library_log(90.0);
+  const formats::Log log = library_log(90.0);
   const Dataset heap = [&] {
     const SpillSettings on_heap(SIZE_MAX, kWindow);
     return make_dataset(log);
@@ -153,7 +153,7 @@ TEST(SpilledDataset, AStaticDatasetIsFreedAtExit) {
 }
 
 TEST(SpilledDataset, ReadsBackWhatItReleased) {
-  const io::Log log = library_log(30.0);
+  const formats::Log log = library_log(30.0);
   const Dataset heap = [&] {
     const SpillSettings on_heap(SIZE_MAX, 64);
     return make_dataset(log);

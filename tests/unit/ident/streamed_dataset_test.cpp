@@ -1,7 +1,7 @@
-// Streamed reading (issue 16): read_dataset (io::LogReader a chunk of rows at a time, fed to
-// DatasetBuilder) gives the Dataset that make_dataset(io::read_log(...)) gives, bit for bit, and
-// the same errors, on simulator logs with every column group, with optional groups missing, with
-// the imu_dw* columns, and with static rows.
+// Streamed reading (issue 16): read_dataset (formats::LogReader a chunk of rows at a time, fed to
+// DatasetBuilder) gives the Dataset that make_dataset(formats::read_log(...)) gives, bit for bit,
+// and the same errors, on simulator logs with every column group, with optional groups missing,
+// with the imu_dw* columns, and with static rows.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -68,7 +68,7 @@ void expect_identical(const Dataset& got, const Dataset& want) {
 // forward differences is the chord's slope, ω̇ by differencing the gyro is its slope (zero on
 // the first and last row), and the sensor moves on every row.
 TEST(DatasetBuilder, DerivativesAreExactOnPolynomialMotion) {
-  io::Columns columns{.joints = true, .specific_force = true, .angular_rate = true};
+  formats::Columns columns{.joints = true, .specific_force = true, .angular_rate = true};
   const std::size_t n = 40;
   const double t0 = 3.0, dt = 0.012;
   const Eigen::Vector3d pa(0.5, -0.25, 0.125), pb(0.1, 0.2, -0.3);  // p = pa t² + pb t
@@ -76,14 +76,14 @@ TEST(DatasetBuilder, DerivativesAreExactOnPolynomialMotion) {
   auto joint = [](int j, double t) { return 0.1 * (j + 1) * t * t - 0.2 * j * t; };
   DatasetBuilder builder(columns);
   for (std::size_t i = 0; i < n; ++i) {
-    io::Sample s;
+    formats::Sample s;
     s.t_s = t0 + dt * static_cast<double>(i);
     s.p_base_sensor_m = pa * s.t_s * s.t_s + pb * s.t_s;
     for (int j = 0; j < 6; ++j) s.joints_rad[static_cast<std::size_t>(j)] = joint(j, s.t_s);
     s.angular_rate_imu_radps = w0 + w1 * s.t_s;
     builder.add(s);
   }
-  const Dataset d = builder.finish(io::Rig{});
+  const Dataset d = builder.finish(formats::Rig{});
   ASSERT_EQ(d.size(), n);
   using model::Signal;
   const auto at = [](Signal s) { return static_cast<std::size_t>(s); };
@@ -122,19 +122,19 @@ class StreamedDataset : public ::testing::Test {
     fs::remove_all(dir_, ec);
   }
   // A simulator run of `seconds` (seed `seed`).
-  static io::Log sim_log(unsigned seed, double seconds) {
+  static formats::Log sim_log(unsigned seed, double seconds) {
     sim::SimConfig c = sim::default_sim_config(seed);
     c.duration_limit_s = seconds;
     return sim::RigSimulator(c, sim::make_design(sim::DesignOptions{}).points_rad).run().log;
   }
   // Writes `log`, then reads it both ways (small chunks and buffers, and the defaults) and
   // compares.
-  void expect_both_paths_equal(const io::Log& log, const std::string& name) {
+  void expect_both_paths_equal(const formats::Log& log, const std::string& name) {
     SCOPED_TRACE(name);
     const fs::path csv = dir_ / (name + ".csv");
-    io::write_log(log, csv);
-    const Dataset whole = make_dataset(io::read_log(csv));
-    io::Rig rig;
+    formats::write_log(log, csv);
+    const Dataset whole = make_dataset(formats::read_log(csv));
+    formats::Rig rig;
     // 7 rows a chunk, 100 bytes a read (shorter than a row): every boundary is crossed.
     expect_identical(read_dataset(csv, &rig, 7, 100), whole);
     EXPECT_EQ(rig.name, log.rig.name);
@@ -144,13 +144,13 @@ class StreamedDataset : public ::testing::Test {
 };
 
 TEST_F(StreamedDataset, EqualsTheWholeFilePathOnSimulatorLogs) {
-  io::Log full = sim_log(4, 40.0);
+  formats::Log full = sim_log(4, 40.0);
   ASSERT_TRUE(full.columns.full_imu() && full.columns.joints && full.columns.position);
   ASSERT_GT(full.samples.size(), 3000u);
   expect_both_paths_equal(full, "all_columns");
 
   // Optional groups missing: no joints, temperature or position; the accelerometer alone.
-  io::Log partial = full;
+  formats::Log partial = full;
   partial.columns.joints = false;
   partial.columns.temperature = false;
   partial.columns.position = false;
@@ -158,7 +158,7 @@ TEST_F(StreamedDataset, EqualsTheWholeFilePathOnSimulatorLogs) {
   expect_both_paths_equal(partial, "no_joints_temperature_position_gyro");
 
   // The gyro alone with the angular acceleration logged (imu_dw*_radps2, format version 2).
-  io::Log accel = sim_log(7, 20.0);
+  formats::Log accel = sim_log(7, 20.0);
   accel.columns.specific_force = false;
   accel.columns.angular_accel = true;
   for (std::size_t i = 0; i < accel.samples.size(); ++i)
@@ -167,7 +167,7 @@ TEST_F(StreamedDataset, EqualsTheWholeFilePathOnSimulatorLogs) {
   expect_both_paths_equal(accel, "gyro_and_imu_dw");
 
   // Static rows (no t_s): nothing differenced across rows.
-  io::Log held = sim_log(5, 5.0);
+  formats::Log held = sim_log(5, 5.0);
   held.columns.static_rows = true;
   held.columns.angular_rate = false;
   held.columns.specific_force = false;
@@ -176,22 +176,22 @@ TEST_F(StreamedDataset, EqualsTheWholeFilePathOnSimulatorLogs) {
   expect_both_paths_equal(held, "static_rows");
 
   // The shortest log it takes, and one too short (the same error both ways).
-  io::Log three = full;
+  formats::Log three = full;
   three.samples.resize(3);
   expect_both_paths_equal(three, "three_rows");
-  io::Log two = full;
+  formats::Log two = full;
   two.samples.resize(2);
   const fs::path csv = dir_ / "two_rows.csv";
-  io::write_log(two, csv);
+  formats::write_log(two, csv);
   EXPECT_THROW((void)read_dataset(csv), std::runtime_error);
 }
 
 // A bad cell far into a log (past many chunks and buffers): the error names the same file, line
 // and column, with the same words, as the whole-file reader.
 TEST_F(StreamedDataset, ErrorsAreTheWholeFileReadersErrors) {
-  const io::Log log = sim_log(4, 10.0);
+  const formats::Log log = sim_log(4, 10.0);
   const fs::path csv = dir_ / "bad.csv";
-  io::write_log(log, csv);
+  formats::write_log(log, csv);
   std::ifstream in(csv);
   std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   // Line 501 (version line, header, then rows): its third cell becomes "abc".
@@ -202,14 +202,14 @@ TEST_F(StreamedDataset, ErrorsAreTheWholeFileReadersErrors) {
   std::ofstream(csv, std::ios::binary) << text;
   std::string whole, streamed;
   try {
-    (void)io::read_log(csv);
-  } catch (const io::InputError& e) {
+    (void)formats::read_log(csv);
+  } catch (const formats::InputError& e) {
     whole = e.what();
     EXPECT_EQ(e.line(), 501);
   }
   try {
     (void)read_dataset(csv, nullptr, 7, 100);
-  } catch (const io::InputError& e) {
+  } catch (const formats::InputError& e) {
     streamed = e.what();
   }
   EXPECT_NE(whole.find(":501:"), std::string::npos) << whole;

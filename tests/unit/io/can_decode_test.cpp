@@ -18,6 +18,8 @@
 #include "zerog/io/candump.hpp"
 
 namespace zerog::io {
+
+using formats::InputError;
 namespace {
 
 namespace nc = proto::netcanoem;
@@ -419,9 +421,8 @@ TEST(DecodeCan, EveryCandumpFormDecodesToTheSameSamples) {
     for (std::size_t k = 0; k < r.samples.size(); ++k) {
       EXPECT_EQ(r.samples[k].wrench, reference.samples[k].wrench) << k;
       EXPECT_EQ(r.samples[k].status, reference.samples[k].status) << k;
-      const double t = f.clock == io::CandumpClock::none
-                           ? static_cast<double>(k) / 500.0
-                           : reference.samples[k].t_s - f.t_offset_s;
+      const double t = f.clock == io::CandumpClock::none ? static_cast<double>(k) / 500.0
+                                                         : reference.samples[k].t_s - f.t_offset_s;
       EXPECT_NEAR(r.samples[k].t_s, t, 2e-6) << k;
     }
     fs::remove(log);

@@ -11,6 +11,8 @@
 #include "zerog/io/model_file.hpp"
 
 namespace zerog::io {
+
+using formats::InputError;
 namespace {
 
 namespace fs = std::filesystem;

@@ -15,6 +15,16 @@
 #include "zerog/formats/log.hpp"
 
 namespace zerog::io {
+
+using formats::read_log;
+
+using formats::Columns;
+using formats::KinematicsOrigin;
+using formats::Log;
+using formats::Rig;
+using formats::Sample;
+using formats::write_log;
+using formats::write_rig;
 namespace {
 
 namespace fs = std::filesystem;

@@ -17,6 +17,23 @@
 #include "zerog/io/model_file.hpp"
 
 namespace zerog::io {
+
+using formats::ImuRows;
+
+using formats::Columns;
+using formats::ImuSampling;
+using formats::KinematicsOrigin;
+using formats::KinematicsRecord;
+using formats::Log;
+using formats::LogReader;
+using formats::read_log;
+using formats::read_rig;
+using formats::Rig;
+using formats::rig_path_for;
+using formats::Sample;
+using formats::write_file_atomic;
+using formats::write_log;
+using formats::write_rig;
 namespace {
 
 namespace fs = std::filesystem;

@@ -27,6 +27,10 @@
 #include "zerog/proto/rsi.hpp"
 
 namespace zerog::io {
+
+using formats::read_rig;
+
+using formats::Rig;
 namespace {
 
 namespace fs = std::filesystem;

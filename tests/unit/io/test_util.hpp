@@ -50,7 +50,7 @@ inline void expect_input_error(const std::function<void()>& fn, const std::files
     fn();
     ADD_FAILURE() << "no InputError thrown (expected " << file << ":" << line << ":" << column
                   << ": …" << part << "…)";
-  } catch (const InputError& e) {
+  } catch (const formats::InputError& e) {
     EXPECT_EQ(e.file(), file) << e.what();
     EXPECT_EQ(e.line(), line) << e.what();
     EXPECT_EQ(e.column(), column) << e.what();

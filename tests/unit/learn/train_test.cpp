@@ -19,7 +19,7 @@ namespace zerog {
 namespace {
 
 struct SimRun {
-  io::Log log;
+  formats::Log log;
   ident::Dataset data;
   io::ModelFile truth;
 };
@@ -152,7 +152,7 @@ TEST(Train, BadOptionsGiveClearErrors) {
     EXPECT_NE(std::string(e.what()).find("static dwells"), std::string::npos) << e.what();
   }
   // A log without IMU columns cannot feed paper-bp.
-  io::Log no_imu = r.log;
+  formats::Log no_imu = r.log;
   no_imu.columns.specific_force = false;
   no_imu.columns.angular_rate = false;
   const ident::Dataset d = ident::make_dataset(no_imu);

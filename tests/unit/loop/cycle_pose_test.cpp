@@ -93,7 +93,7 @@ std::vector<CycleRecord> run(Cycle& c, bool with_rist) {
 
 CycleConfig with_robot(const robot::FrameTransform& flange_sensor) {
   CycleConfig config = test_cycle_config();
-  config.robot = io::kr210_r2700(flange_sensor);
+  config.robot = formats::kr210_r2700(flange_sensor);
   config.robot->elasticity = {};  // the rigid arm: the pose path alone
   return config;
 }

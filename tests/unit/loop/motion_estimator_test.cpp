@@ -238,7 +238,7 @@ TEST(MotionEstimator, RefusesSettingsThatCannotWork) {
 TEST(MotionEstimator, TheCycleWithItDoesNotAllocate) {
   CycleConfig config = test::test_cycle_config();
   config.motion.source = MotionSource::fused;
-  robot::RobotModel arm = io::kr210_r2700();
+  robot::RobotModel arm = formats::kr210_r2700();
   for (int i = 0; i < 6; ++i) arm.elasticity[i] = {1e6, 8.0, 0.05};
   config.robot = arm;
   Cycle c;

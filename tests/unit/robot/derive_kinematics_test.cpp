@@ -94,7 +94,7 @@ Truth truth_of(const sim::JointState& js, const RobotModel& model) {
 TEST(DeriveKinematics, FromNoiseFreeJointsMatchesTheSimulatorsAnalyticMotion) {
   FrameTransform flange_sensor;
   flange_sensor.p_m = {0.0, 0.0, 0.06};
-  const RobotModel model = io::kr210_r2700(flange_sensor);
+  const RobotModel model = formats::kr210_r2700(flange_sensor);
   const double h = 0.004;
   const PtpRun run = ptp_run(h, 30.0);
   DifferentiatorSettings settings;
@@ -128,7 +128,7 @@ TEST(DeriveKinematics, FromNoiseFreeJointsMatchesTheSimulatorsAnalyticMotion) {
 }
 
 TEST(DeriveKinematics, RefusesWithATypedStatus) {
-  const RobotModel model = io::kr210_r2700();
+  const RobotModel model = formats::kr210_r2700();
   DifferentiatorSettings settings;
   settings.sg = {3, 3};
   std::vector<double> t = {0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7};
@@ -155,7 +155,7 @@ TEST(DeriveKinematics, RefusesWithATypedStatus) {
 }
 
 TEST(DeriveKinematics, DoesNotAllocate) {
-  const RobotModel model = io::kr210_r2700();
+  const RobotModel model = formats::kr210_r2700();
   const PtpRun run = ptp_run(0.012, 3.0);
   DifferentiatorSettings settings;
   settings.sg = {8, 3};

@@ -33,7 +33,7 @@ double rotation_error_rad(const Eigen::Matrix3d& A, const Eigen::Matrix3d& B) {
 // 0.126 m: joints 2, 4, 6 turn about +y of the base when the arm is straight, joints 1, 3, 5, 7
 // about z.
 TEST(RobotForwardKinematics, SevenAxisIiwaAtHandComputedPoses) {
-  const RobotModel model = io::read_robot_file(calib("lbr_iiwa14_r820.robot.toml"));
+  const RobotModel model = formats::read_robot_file(calib("lbr_iiwa14_r820.robot.toml"));
   ASSERT_EQ(model.joint_count, 7);
   ASSERT_EQ(model.convention, DhConvention::mdh);
   struct Case {
@@ -67,7 +67,7 @@ TEST(RobotForwardKinematics, SevenAxisIiwaAtHandComputedPoses) {
 // The standard and the modified convention describe the same arm: the KR 210 rewritten in
 // Craig's form (row i carries a_{i−1}, α_{i−1}; the last row's a, α become the flange frame).
 TEST(RobotForwardKinematics, ModifiedDhOfTheKr210MatchesStandard) {
-  const RobotModel dh = io::kr210_r2700();
+  const RobotModel dh = formats::kr210_r2700();
   RobotModel mdh = dh;
   mdh.convention = DhConvention::mdh;
   for (int i = 0; i < 6; ++i) {
@@ -89,37 +89,37 @@ TEST(RobotForwardKinematics, ModifiedDhOfTheKr210MatchesStandard) {
 }
 
 TEST(RobotForwardKinematics, JointOrderPicksTheRecordedColumns) {
-  RobotModel swapped = io::kr210_r2700();
+  RobotModel swapped = formats::kr210_r2700();
   // The recording lists A6 first, then A1..A5.
   for (int i = 0; i < 6; ++i) swapped.input_index[i] = (i + 1) % 6;
   ASSERT_TRUE(validate(swapped).ok());
   const std::array<double, 6> q = {0.1, -1.2, 1.4, 0.3, -0.5, 0.7};
   const std::array<double, 6> recorded = {q[5], q[0], q[1], q[2], q[3], q[4]};
-  const Pose a = flange_pose(io::kr210_r2700(), q), b = flange_pose(swapped, recorded);
+  const Pose a = flange_pose(formats::kr210_r2700(), q), b = flange_pose(swapped, recorded);
   EXPECT_LT((a.p_m - b.p_m).norm(), 1e-15);
 }
 
 TEST(RobotModelValidate, NamesTheFaultyField) {
-  RobotModel m = io::kr210_r2700();
+  RobotModel m = formats::kr210_r2700();
   EXPECT_TRUE(validate(m).ok());
   m.joint_count = 9;
   EXPECT_EQ(validate(m).setting(), "joint_count");
-  m = io::kr210_r2700();
+  m = formats::kr210_r2700();
   m.joints[2].sign = 0.5;
   zerog::Status s = validate(m);
   EXPECT_EQ(s.code(), zerog::StatusCode::invalid_setting);
   EXPECT_EQ(s.setting(), "joints[2].sign");
   EXPECT_EQ(s.message(), "must be +1 or -1");
   EXPECT_EQ(s.text(), "joints[2].sign: must be +1 or -1");
-  m = io::kr210_r2700();
+  m = formats::kr210_r2700();
   m.input_index[1] = 0;
   EXPECT_EQ(validate(m).setting(), "input_index[1]");
-  m = io::kr210_r2700();
+  m = formats::kr210_r2700();
   m.joints[4].d_m = std::nan("");
   s = validate(m);
   EXPECT_EQ(s.setting(), "joints[4]");
   EXPECT_EQ(s.message(), "has a value that is not a finite number");
-  m = io::kr210_r2700();
+  m = formats::kr210_r2700();
   m.flange_sensor.R(0, 0) = 2.0;
   s = validate(m);
   EXPECT_EQ(s.code(), zerog::StatusCode::invalid_setting);
@@ -133,8 +133,8 @@ TEST(RobotToml, RefusesBadTablesNamingTheKey) {
     const fs::path file = dir / "r.robot.toml";
     std::ofstream(file) << "format = \"zerog-robot\"\nversion = 1\n[robot]\n" << robot_text;
     try {
-      io::read_robot_file(file);
-    } catch (const io::InputError& e) {
+      formats::read_robot_file(file);
+    } catch (const formats::InputError& e) {
       return e.what();
     }
     return "";
@@ -164,7 +164,7 @@ TEST(RobotToml, RefusesBadTablesNamingTheKey) {
 }
 
 TEST(RobotForwardKinematics, DoesNotAllocate) {
-  const RobotModel model = io::kr210_r2700();
+  const RobotModel model = formats::kr210_r2700();
   const std::array<double, 6> q = {0.1, -1.2, 1.4, 0.3, -0.5, 0.7};
   const std::size_t before = test::allocation_count();
   double sum = 0.0;
@@ -188,11 +188,11 @@ TEST(RobotForwardKinematics, SensorJacobianIsTheDerivativeOfThePose) {
   FrameTransform mount;
   mount.p_m = Eigen::Vector3d(0.01, -0.02, 0.06);
   mount.R = Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
-  RobotModel permuted = io::kr210_r2700(mount);
+  RobotModel permuted = formats::kr210_r2700(mount);
   permuted.input_index = {5, 4, 3, 2, 1, 0, 6, 7};
-  RobotModel iiwa = io::read_robot_file(calib("lbr_iiwa14_r820.robot.toml"));
+  RobotModel iiwa = formats::read_robot_file(calib("lbr_iiwa14_r820.robot.toml"));
   iiwa.flange_sensor = mount;
-  for (const RobotModel& model : {io::kr210_r2700(mount), permuted, iiwa}) {
+  for (const RobotModel& model : {formats::kr210_r2700(mount), permuted, iiwa}) {
     for (int trial = 0; trial < 5; ++trial) {
       std::array<double, kMaxJoints> q{};
       for (int k = 0; k < model.joint_count; ++k) q[k] = angle(rng);
@@ -228,15 +228,15 @@ Eigen::Vector3d rotation_log(const Eigen::Matrix3d& R) {
 // (modified DH, 7 joints) with a flange frame off its last DH frame; its pose is flange_pose's to
 // the last bit.
 TEST(RobotFlangeMotion, MatchesFiniteDifferencesOfThePose) {
-  RobotModel permuted = io::kr210_r2700();
+  RobotModel permuted = formats::kr210_r2700();
   permuted.input_index = {5, 4, 3, 2, 1, 0, 6, 7};
-  RobotModel iiwa = io::read_robot_file(calib("lbr_iiwa14_r820.robot.toml"));
+  RobotModel iiwa = formats::read_robot_file(calib("lbr_iiwa14_r820.robot.toml"));
   iiwa.last_flange.p_m = {0.02, -0.01, 0.05};
   iiwa.last_flange.R =
       Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, -2, 1).normalized()).toRotationMatrix();
   std::mt19937 gen(7);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
-  for (const RobotModel& model : {io::kr210_r2700(), permuted, iiwa}) {
+  for (const RobotModel& model : {formats::kr210_r2700(), permuted, iiwa}) {
     const auto n = static_cast<std::size_t>(model.joint_count);
     for (int trial = 0; trial < 30; ++trial) {
       std::array<double, kMaxJoints> q{}, qd{}, qdd{};
@@ -288,7 +288,7 @@ TEST(RobotFlangeMotion, MatchesFiniteDifferencesOfThePose) {
 }
 
 TEST(RobotWristInverseKinematics, ReproducesTheOrientation) {
-  const RobotModel model = io::kr210_r2700();
+  const RobotModel model = formats::kr210_r2700();
   std::mt19937 gen(11);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   const sim::JointLimits lim = sim::kr210_table4_limits();
@@ -315,7 +315,7 @@ TEST(RobotWristInverseKinematics, ReproducesTheOrientation) {
 }
 
 TEST(RobotWristInverseKinematics, AtTheSingularity) {
-  const RobotModel model = io::kr210_r2700();
+  const RobotModel model = formats::kr210_r2700();
   constexpr double kDeg = kPi / 180.0;
   sim::JointVector q = sim::kr210_home();
   q[3] = 30 * kDeg;

@@ -1,7 +1,7 @@
 // The shipped KR 210 R2700 robot file (calib/robots/kr210_r2700.robot.toml), the one description
 // of the arm that the simulator, the emulator and the tests move: its rows against the published
 // R2700 DH table and KUKA's joint directions its comment cites, the copy built into zerog
-// (io::kr210_r2700) against the file on disk, and the poses its geometry gives by hand.
+// (formats::kr210_r2700) against the file on disk, and the poses its geometry gives by hand.
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -20,8 +20,8 @@ constexpr double kPi = std::numbers::pi;
 constexpr double kDeg = kPi / 180.0;
 
 RobotModel file_model() {
-  return io::read_robot_file(std::filesystem::path(ZEROG_SOURCE_DIR) /
-                             "calib/robots/kr210_r2700.robot.toml");
+  return formats::read_robot_file(std::filesystem::path(ZEROG_SOURCE_DIR) /
+                                  "calib/robots/kr210_r2700.robot.toml");
 }
 
 // The file's comment cites the R2700 arm's published DH table (the KR 90 R2700, same geometry:
@@ -60,7 +60,7 @@ TEST(Kr210RobotFile, TheBuiltInArmIsTheFile) {
   const RobotModel disk = file_model();
   FrameTransform mount;
   mount.p_m = {0.01, 0.02, 0.03};
-  const RobotModel built_in = io::kr210_r2700(mount);
+  const RobotModel built_in = formats::kr210_r2700(mount);
   EXPECT_EQ(built_in.convention, disk.convention);
   ASSERT_EQ(built_in.joint_count, disk.joint_count);
   for (std::size_t i = 0; i < kMaxJoints; ++i) {

@@ -63,10 +63,10 @@ Figures measure(double period_s, std::uint64_t seed, double bandwidth_hz) {
   o.seed = seed;
   const sim::RigSimulator sim(config, sim::make_design(o).points_rad);
   const sim::SimOutput run = sim.run();
-  const io::Rig rig = sim.rig();
+  const formats::Rig rig = sim.rig();
   EXPECT_EQ(rig.sensor_imu.p_m, Eigen::Vector3d::Zero());  // no lever arm: f_S = R_SI f_I
   const Eigen::Matrix3d R_SI = rig.sensor_imu.q.toRotationMatrix();
-  const RobotModel model = io::kr210_r2700(io::to_frame_transform(rig.flange_sensor));
+  const RobotModel model = formats::kr210_r2700(formats::to_frame_transform(rig.flange_sensor));
 
   const std::size_t n = run.log.samples.size();
   std::vector<double> t(n), joints(n * 6);
@@ -74,7 +74,7 @@ Figures measure(double period_s, std::uint64_t seed, double bandwidth_hz) {
   std::mt19937_64 rng(seed * 7919);
   std::normal_distribution<double> joint_noise(0.0, kJointNoiseRad);
   for (std::size_t k = 0; k < n; ++k) {
-    const io::Sample& s = run.log.samples[k];
+    const formats::Sample& s = run.log.samples[k];
     t[k] = s.t_s;
     for (std::size_t j = 0; j < 6; ++j)
       joints[k * 6 + j] =

@@ -632,10 +632,10 @@ TEST(ZerogRt, AModelFittedAtTwelveMillisecondRowsIsRefusedAtAFourMillisecondCycl
     EXPECT_NE(what.find("cycle_ms = 4"), std::string::npos) << what;
   }
   // Another rig (the IMU moved) is refused naming the running rig's file.
-  io::Rig moved = test::test_rig();
+  formats::Rig moved = test::test_rig();
   moved.sensor_imu.p_m.z() += 0.002;
   test::write_text(dir.path() / "zerog-rt.toml", sample_text());
-  io::write_rig(moved, dir.path() / "rig.rig.toml");
+  formats::write_rig(moved, dir.path() / "rig.rig.toml");
   try {
     load_setup(read_config(dir.path() / "zerog-rt.toml"));
     ADD_FAILURE() << "accepted";

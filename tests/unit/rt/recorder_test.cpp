@@ -1,4 +1,5 @@
-// The recorder's files (a log that io::read_log reads back, cycles.csv with every record field,
+// The recorder's files (a log that formats::read_log reads back, cycles.csv with every record
+// field,
 // `.partial` until finish(), black-box dumps) and the latency histogram's quantiles.
 #include "zerog/rt/recorder.hpp"
 
@@ -87,13 +88,13 @@ TEST(LatencyHistogram, QuantilesAreWithinTheBucketResolution) {
 
 TEST(RecordCsv, EveryRowHasTheHeadersColumns) {
   std::string text;
-  io::append_record_header(text);
-  io::append_record_row(record(7, 0.084), text);
+  formats::append_record_header(text);
+  formats::append_record_row(record(7, 0.084), text);
   const std::vector<std::string> lines = lines_of(text);
   ASSERT_EQ(lines.size(), 2u);
   const auto header = split(lines[0], ',');
   const auto row = split(lines[1], ',');
-  EXPECT_EQ(static_cast<int>(header.size()), io::record_column_count());
+  EXPECT_EQ(static_cast<int>(header.size()), formats::record_column_count());
   ASSERT_EQ(row.size(), header.size());
   auto cell = [&](const std::string& name) {
     const auto it = std::find(header.begin(), header.end(), name);
@@ -114,13 +115,13 @@ TEST(RecordCsv, EveryRowHasTheHeadersColumns) {
 TEST(RecordCsv, ReadsBackWhatItWrites) {
   test::TempDir dir;
   std::string text;
-  io::append_record_header(text);
+  formats::append_record_header(text);
   const loop::CycleRecord a = record(7, 0.084), b = record(8, 0.096);
-  io::append_record_row(a, text);
-  io::append_record_row(b, text);
+  formats::append_record_row(a, text);
+  formats::append_record_row(b, text);
   const fs::path file = dir.path() / "cycles.csv";
-  io::write_file_atomic(file, text);
-  const std::vector<loop::CycleRecord> back = io::read_cycles_csv(file);
+  formats::write_file_atomic(file, text);
+  const std::vector<loop::CycleRecord> back = formats::read_cycles_csv(file);
   ASSERT_EQ(back.size(), 2u);
   EXPECT_EQ(back[1].cycle, 8u);
   EXPECT_EQ(back[1].ipoc, b.ipoc);
@@ -132,10 +133,10 @@ TEST(RecordCsv, ReadsBackWhatItWrites) {
   EXPECT_EQ(back[1].q_base_sensor.coeffs(), b.q_base_sensor.coeffs());
   EXPECT_EQ(back[1].compute_ns, 1234);
   std::string again;
-  io::append_record_header(again);
-  for (const loop::CycleRecord& r : back) io::append_record_row(r, again);
+  formats::append_record_header(again);
+  for (const loop::CycleRecord& r : back) formats::append_record_row(r, again);
   EXPECT_EQ(again, text);
-  EXPECT_THROW(io::read_cycles_csv(dir.path() / "missing.csv"), std::runtime_error);
+  EXPECT_THROW(formats::read_cycles_csv(dir.path() / "missing.csv"), std::runtime_error);
 }
 
 // The temperature the model was fed (temp_C, °C) and whether it was the F/T sensor's reading
@@ -152,8 +153,9 @@ TEST(RecordCsv, TemperatureColumnsReadBack) {
   configured.flags = loop::kTemperatureStale;
   unknown.temperature_C = std::numeric_limits<double>::quiet_NaN();
   std::string text;
-  io::append_record_header(text);
-  for (const loop::CycleRecord& r : {measured, configured, unknown}) io::append_record_row(r, text);
+  formats::append_record_header(text);
+  for (const loop::CycleRecord& r : {measured, configured, unknown})
+    formats::append_record_row(r, text);
   const std::vector<std::string> lines = lines_of(text);
   ASSERT_EQ(lines.size(), 4u);
   const auto cell = [&](std::size_t row, const std::string& name) {
@@ -169,8 +171,8 @@ TEST(RecordCsv, TemperatureColumnsReadBack) {
   EXPECT_EQ(cell(2, "temp_measured"), "0");
   EXPECT_EQ(cell(3, "temp_C"), "");
   const fs::path file = dir.path() / "cycles.csv";
-  io::write_file_atomic(file, text);
-  const std::vector<loop::CycleRecord> back = io::read_cycles_csv(file);
+  formats::write_file_atomic(file, text);
+  const std::vector<loop::CycleRecord> back = formats::read_cycles_csv(file);
   ASSERT_EQ(back.size(), 3u);
   EXPECT_EQ(back[0].temperature_C, 31.25);
   EXPECT_TRUE(back[0].temperature_measured);
@@ -186,8 +188,8 @@ TEST(RecordCsv, TemperatureColumnsReadBack) {
 TEST(RecordCsv, ReadsOlderFilesWithoutTheTemperatureColumns) {
   test::TempDir dir;
   std::string text;
-  io::append_record_header(text);
-  io::append_record_row(record(7, 0.084), text);
+  formats::append_record_header(text);
+  formats::append_record_row(record(7, 0.084), text);
   // Drop the two columns from header and row, as an older writer wrote them.
   std::vector<std::vector<std::string>> rows;
   for (const std::string& line : lines_of(text)) rows.push_back(split(line, ','));
@@ -201,8 +203,8 @@ TEST(RecordCsv, ReadsOlderFilesWithoutTheTemperatureColumns) {
   }
   ASSERT_EQ(old.find("temp_"), std::string::npos);
   const fs::path file = dir.path() / "old_cycles.csv";
-  io::write_file_atomic(file, old);
-  const std::vector<loop::CycleRecord> back = io::read_cycles_csv(file);
+  formats::write_file_atomic(file, old);
+  const std::vector<loop::CycleRecord> back = formats::read_cycles_csv(file);
   ASSERT_EQ(back.size(), 1u);
   EXPECT_EQ(back[0].cycle, 7u);
   EXPECT_EQ(back[0].contact, record(7, 0.084).contact);
@@ -235,7 +237,7 @@ TEST(Recorder, WritesALogThatReadsBackAndCyclesCsvAndRenamesOnlyAtTheEnd) {
     EXPECT_EQ(rec.counters().skipped_stale, 1u);
   }
   EXPECT_FALSE(fs::exists(dir.path() / "run1" / "run.csv.partial"));
-  const io::Log log = io::read_log(dir.path() / "run1" / "run.csv");
+  const formats::Log log = formats::read_log(dir.path() / "run1" / "run.csv");
   ASSERT_EQ(log.samples.size(), 49u);
   EXPECT_TRUE(log.columns.joints);
   EXPECT_TRUE(log.columns.full_imu());
@@ -274,7 +276,7 @@ TEST(Recorder, WritesTheSensorsTemperatureAsTempC) {
     EXPECT_EQ(rec.counters().skipped_no_temperature, 5u);
     EXPECT_EQ(rec.counters().log_rows, 15u);
   }
-  const io::Log log = io::read_log(dir.path() / "warm" / "run.csv");
+  const formats::Log log = formats::read_log(dir.path() / "warm" / "run.csv");
   EXPECT_TRUE(log.columns.temperature);
   ASSERT_EQ(log.samples.size(), 15u);
   EXPECT_NEAR(log.samples[0].temperature_C, 31.56, 1e-9);
@@ -327,11 +329,11 @@ TEST(Recorder, FilesAre0640AndTheFolder0750WhateverTheUmask) {
     box_path = rec.dump_black_box(box);
     rec.finish();
   }
-  io::write_file_atomic(dir.path() / "summary.json", "{}\n", {}, kRecordFileMode);
+  formats::write_file_atomic(dir.path() / "summary.json", "{}\n", {}, kRecordFileMode);
   ::umask(old_umask);
-  for (const fs::path& p :
-       {dir.path() / "run1" / "run.csv", dir.path() / "run1" / "cycles.csv",
-        io::rig_path_for(dir.path() / "run1" / "run.csv"), box_path, dir.path() / "summary.json"}) {
+  for (const fs::path& p : {dir.path() / "run1" / "run.csv", dir.path() / "run1" / "cycles.csv",
+                            formats::rig_path_for(dir.path() / "run1" / "run.csv"), box_path,
+                            dir.path() / "summary.json"}) {
     EXPECT_EQ(fs::status(p).permissions(), static_cast<fs::perms>(0640)) << p;
   }
   EXPECT_EQ(fs::status(dir.path() / "run1").permissions(), static_cast<fs::perms>(0750));

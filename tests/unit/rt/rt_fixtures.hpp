@@ -56,8 +56,8 @@ inline void write_text(const fs::path& p, const std::string& text) {
 }
 
 /// The rig of the sample configuration (firmware/rt/zerog-rt.sample.toml names its files).
-inline io::Rig test_rig() {
-  io::Rig rig;
+inline formats::Rig test_rig() {
+  formats::Rig rig;
   rig.name = "kr210-omega191-stim300";
   rig.robot = "KR 210 R2700";
   rig.flange_sensor.p_m = {0.0, 0.0, 0.06};
@@ -68,14 +68,14 @@ inline io::Rig test_rig() {
 }
 
 /// The loop's payload model, fitted for `rig` (its poses) at the rig's sample period.
-inline infer::DeployedModel payload_model(const io::Rig& rig = test_rig()) {
+inline infer::DeployedModel payload_model(const formats::Rig& rig = test_rig()) {
   return loop::test::payload_model(running_rig(rig, rig.sample_period_s));
 }
 
 /// Writes `deploy.zgm` and `rig.rig.toml` (the sample configuration's names) into `dir`.
-inline void write_model_and_rig(const fs::path& dir, const io::Rig& rig = test_rig()) {
+inline void write_model_and_rig(const fs::path& dir, const formats::Rig& rig = test_rig()) {
   write_text(dir / "deploy.zgm", infer::serialise_deployed_model(payload_model(rig)));
-  io::write_rig(rig, dir / "rig.rig.toml");
+  formats::write_rig(rig, dir / "rig.rig.toml");
 }
 
 }  // namespace zerog::rt::test

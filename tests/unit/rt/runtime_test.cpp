@@ -4,7 +4,7 @@
 // too short for a run). Checked: every datagram is answered with its IPOC; --enable-zero-g's
 // announcement; a push moves the robot; a silent F/T sensor is held, then faults ft_stale at the
 // documented cycle with zero corrections from then on; the black box file appears with the fault
-// cycle last; the recording reads back with io::read_log, one row per cycle; the summary.
+// cycle last; the recording reads back with formats::read_log, one row per cycle; the summary.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -158,7 +158,7 @@ TEST(Runtime, EndToEndOnLoopbackUdp) {
       << rt.status_line();
 
   // The recording: one log row per cycle (samples from the first one), cycles.csv likewise.
-  const io::Log log = io::read_log(dir.path() / "rec" / "run.csv");
+  const formats::Log log = formats::read_log(dir.path() / "rec" / "run.csv");
   ASSERT_EQ(log.samples.size(), cycles);
   EXPECT_DOUBLE_EQ(log.samples[1].t_s - log.samples[0].t_s, 0.012);
   // (the log keeps 9 significant digits)
@@ -301,7 +301,7 @@ TEST(Runtime, CollectStartsWhenReadyAnswersWithAxisCorrectionsAndFinishes) {
   EXPECT_EQ(rt.stop().text(), "");
   EXPECT_EQ(rt.cycle().state_machine().state(), loop::State::idle);
   // The collection is recorded for zerog fit: the joints moved along A1 in the log.
-  const io::Log log = io::read_log(dir.path() / "collect" / "run.csv");
+  const formats::Log log = formats::read_log(dir.path() / "collect" / "run.csv");
   ASSERT_EQ(log.samples.size(), cycles);
   EXPECT_NEAR(log.samples.back().joints_rad[0] - log.samples.front().joints_rad[0], 0.05, 1e-3);
 }
@@ -359,7 +359,7 @@ TEST(Runtime, TheCyclesSiCorrectionReachesTheUdpReplyInMillimetresAndDegreesOnce
   }
   // cycles.csv: the same reply, converted for the file once (and read back to SI).
   const std::vector<loop::CycleRecord> rows =
-      io::read_cycles_csv(dir.path() / "rec" / "cycles.csv");
+      formats::read_cycles_csv(dir.path() / "rec" / "cycles.csv");
   ASSERT_FALSE(rows.empty());
   const samples::RobotCorrection& back = rows.back().reply;
   EXPECT_EQ(back.ipoc, last.ipoc);

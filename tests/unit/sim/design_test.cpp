@@ -143,7 +143,7 @@ TEST(Design, CsvRoundTrip) {
   try {
     read_design(dir / "bad.csv");
     FAIL() << "expected an InputError";
-  } catch (const io::InputError& e) {
+  } catch (const formats::InputError& e) {
     EXPECT_EQ(e.line(), 3);
     EXPECT_EQ(e.column(), 7);
   }
@@ -201,7 +201,7 @@ TEST(Design, AttitudeCsvErrorsNameLineAndColumn) {
   try {
     read_attitudes(dir / "a.csv");
     FAIL() << "expected an InputError";
-  } catch (const io::InputError& e) {
+  } catch (const formats::InputError& e) {
     EXPECT_EQ(e.line(), 5);
     EXPECT_EQ(e.column(), 5);
   }
@@ -209,7 +209,7 @@ TEST(Design, AttitudeCsvErrorsNameLineAndColumn) {
     std::ofstream f(dir / "b.csv");
     f << "number,rx,ry,rz\n1,0,0,0\n";
   }
-  EXPECT_THROW(read_attitudes(dir / "b.csv"), io::InputError);
+  EXPECT_THROW(read_attitudes(dir / "b.csv"), formats::InputError);
   {
     std::ofstream f(dir / "c.csv");
     f << "rz_rad,number,rx_rad,ry_rad\n0.3,1,0.1,0.2\n";  // columns by name, any order

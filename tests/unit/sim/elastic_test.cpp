@@ -77,8 +77,8 @@ TEST(ElasticDefaults, WristModesAreTheStiffnessOverThePayloadsInertia) {
 
 // The robot file is the one description: the simulator's defaults are its values.
 TEST(ElasticDefaults, AreTheRobotFilesValues) {
-  const robot::RobotModel file =
-      io::read_robot_file(std::string(ZEROG_SOURCE_DIR) + "/calib/robots/kr210_r2700.robot.toml");
+  const robot::RobotModel file = formats::read_robot_file(std::string(ZEROG_SOURCE_DIR) +
+                                                          "/calib/robots/kr210_r2700.robot.toml");
   const ElasticityConfig e = kr210_elasticity();
   ASSERT_EQ(file.joint_count, 6);
   ASSERT_TRUE(file.elastic());
@@ -88,8 +88,8 @@ TEST(ElasticDefaults, AreTheRobotFilesValues) {
     EXPECT_EQ(file.elasticity[i].damping_ratio, e.joints[i].damping_ratio) << i;
   }
   // A file without elasticity gives none; one with it for some joints only is refused.
-  EXPECT_FALSE(io::read_robot_file(std::string(ZEROG_SOURCE_DIR) +
-                                   "/calib/robots/lbr_iiwa14_r820.robot.toml")
+  EXPECT_FALSE(formats::read_robot_file(std::string(ZEROG_SOURCE_DIR) +
+                                        "/calib/robots/lbr_iiwa14_r820.robot.toml")
                    .elastic());
   const std::string path = ::testing::TempDir() + "/half_elastic.robot.toml";
   {
@@ -100,7 +100,7 @@ TEST(ElasticDefaults, AreTheRobotFilesValues) {
          "[[robot.joint]]\na_m = 0.1\nalpha_deg = 0\nd_m = 0.2\n";
   }
   try {
-    (void)io::read_robot_file(path);
+    (void)formats::read_robot_file(path);
     FAIL() << "half an elastic robot was read";
   } catch (const std::exception& error) {
     EXPECT_NE(std::string(error.what()).find("robot.joint[2].stiffness_Nm_per_rad"),

@@ -16,6 +16,8 @@
 #include "zerog/sim/simulator.hpp"
 
 namespace zerog::io {
+
+using formats::Log;
 namespace {
 
 // A constant passes unchanged; a symmetric pulse keeps its centre (zero phase); a sine at the
@@ -99,9 +101,9 @@ TEST(FusedKinematics, BeatsTheImuAndNeedsTheElasticity) {
     sim::DesignOptions o;
     o.kind = sim::DesignKind::oa;
     const sim::SimOutput out = sim::RigSimulator(config, sim::make_design(o).points_rad).run();
-    robot::RobotModel elastic = io::kr210_r2700(to_frame_transform(out.log.rig.flange_sensor));
+    robot::RobotModel elastic = formats::kr210_r2700(to_frame_transform(out.log.rig.flange_sensor));
     for (std::size_t j = 0; j < 6; ++j) elastic.elasticity[j] = config.elastic.joints[j];
-    robot::RobotModel rigid = io::kr210_r2700(to_frame_transform(out.log.rig.flange_sensor));
+    robot::RobotModel rigid = formats::kr210_r2700(to_frame_transform(out.log.rig.flange_sensor));
     rigid.elasticity = {};
 
     // The IMU as logged (ω̇ its 5-point difference, as host/ident forms it).

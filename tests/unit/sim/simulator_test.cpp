@@ -36,14 +36,14 @@ SimConfig quiet_config(SimEffectSet effects) {
   return c;
 }
 
-model::RigGeometry geometry(const io::Rig& rig) {
+model::RigGeometry geometry(const formats::Rig& rig) {
   model::RigGeometry g;
   g.R_sensor_imu = rig.sensor_imu.q.normalized().toRotationMatrix();
   g.p_sensor_imu_m = rig.sensor_imu.p_m;
   return g;
 }
 
-model::PoseSignals pose_of(const io::Sample& s, double t0) {
+model::PoseSignals pose_of(const formats::Sample& s, double t0) {
   model::PoseSignals p;
   p.R_base_sensor = s.q_base_sensor.normalized().toRotationMatrix();
   p.t_rel_s = s.t_s - t0;
@@ -62,7 +62,7 @@ std::vector<Vec6> model_minus_sim(const RigSimulator& sim, const SimOutput& out,
       params.effects.has(Effect::imu_time_offset) ? params.block(Effect::imu_time_offset)[0] : 0.0;
   std::vector<Vec6> diff;
   for (std::size_t k = 0; k < out.log.samples.size(); ++k) {
-    const io::Sample& s = out.log.samples[k];
+    const formats::Sample& s = out.log.samples[k];
     model::ImuSignals<double> imu;
     if (tau == 0.0) {
       imu.specific_force_imu = s.specific_force_imu_mps2;
@@ -134,7 +134,7 @@ TEST(Simulator, ReproducedByTheModelLibraryForEachEffect) {
     }
     if (c.effects.has(SimEffect::imu_lever_arm)) {
       // The rig knows the lever arm; a rig without it misses ω̇ × r and ω × (ω × r).
-      io::Rig no_lever = out.log.rig;
+      formats::Rig no_lever = out.log.rig;
       no_lever.sensor_imu.p_m.setZero();
       SimOutput moved = out;
       moved.log.rig = no_lever;
@@ -348,7 +348,7 @@ TEST(Simulator, StaticSampleIsWeightWithinNoise) {
   const Eigen::Vector3d& com = c.payload.com_sensor_m;
   int n = 0;
   Vec6 sum = Vec6::Zero(), sum2 = Vec6::Zero();
-  for (const io::Sample& s : out.log.samples) {
+  for (const formats::Sample& s : out.log.samples) {
     if (!sim.trajectory().is_dwell(s.t_s)) continue;
     const Eigen::Matrix3d R = s.q_base_sensor.toRotationMatrix();
     const Eigen::Vector3d g_s = R.transpose() * Eigen::Vector3d(0, 0, -model::kStandardGravity);
@@ -479,8 +479,8 @@ TEST(Simulator, CleanLogHasNoiseFreeSignalsAndTheNoisyWrench) {
   double ss_acc = 0, ss_gyro = 0, ss_force = 0;
   const std::size_t n = out.log.samples.size();
   for (std::size_t i = 0; i < n; ++i) {
-    const io::Sample &clean = out.clean_log.samples[i], &noisy = out.log.samples[i],
-                     &quiet_s = ref.log.samples[i];
+    const formats::Sample &clean = out.clean_log.samples[i], &noisy = out.log.samples[i],
+                          &quiet_s = ref.log.samples[i];
     // Noise-free signals: those of the run without noise, bit for bit.
     ASSERT_TRUE(clean.specific_force_imu_mps2 == quiet_s.specific_force_imu_mps2) << i;
     ASSERT_TRUE(clean.angular_rate_imu_radps == quiet_s.angular_rate_imu_radps) << i;
@@ -511,9 +511,9 @@ TEST(Simulator, WritesALogThatReadsBack) {
   c.effects = parse_sim_effects("imu_lever_arm,temperature_bias");
   c.duration_limit_s = 3.0;
   const SimOutput out = RigSimulator(c, short_path()).run();
-  io::write_log(out.log, dir / "run.csv");
+  formats::write_log(out.log, dir / "run.csv");
   io::write_model(out.truth, dir / "run.truth.json");
-  const io::Log back = io::read_log(dir / "run.csv");
+  const formats::Log back = formats::read_log(dir / "run.csv");
   ASSERT_EQ(back.samples.size(), out.log.samples.size());
   EXPECT_TRUE(back.columns.joints && back.columns.full_imu() && back.columns.temperature);
   EXPECT_TRUE(back.rig.sensor_imu.p_m.isApprox(c.imu_lever_arm_m, 1e-12));

@@ -9,7 +9,7 @@
 
 #include "zerog/loop/cycle_record.hpp"
 
-namespace zerog::io {
+namespace zerog::formats {
 
 /// Appends the header line (column names, comma separated, '\n').
 void append_record_header(std::string& out);
@@ -33,4 +33,4 @@ int record_column_count();
 /// before them (or an empty temp_C) read as temperature_C NaN (unknown), not measured.
 std::vector<loop::CycleRecord> read_cycles_csv(const std::filesystem::path& path);
 
-}  // namespace zerog::io
+}  // namespace zerog::formats

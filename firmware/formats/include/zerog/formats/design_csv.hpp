@@ -10,7 +10,7 @@
 #include <string_view>
 #include <vector>
 
-namespace zerog::io {
+namespace zerog::formats {
 
 /// Line 1 of every design CSV: the format version.
 inline constexpr std::string_view kDesignMagic = "# zerog-design 1";
@@ -28,7 +28,8 @@ std::string design_csv_text(const std::string& comment, const std::vector<Design
 bool read_design_line(std::istream& in, int& line_no, std::vector<std::string>& cells,
                       std::vector<int>& columns);
 
-/// Reads a design CSV; throws io::InputError naming file, line and column (proto/design_format.md).
+/// Reads a design CSV; throws formats::InputError naming file, line and column
+/// (proto/design_format.md).
 std::vector<DesignPoint> read_design(const std::filesystem::path& path);
 
-}  // namespace zerog::io
+}  // namespace zerog::formats

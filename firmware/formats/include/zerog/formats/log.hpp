@@ -16,7 +16,7 @@
 
 #include "zerog/robot/robot_model.hpp"
 
-namespace zerog::io {
+namespace zerog::formats {
 
 /// The newest log CSV format version this build reads and writes (proto/log_format.md). A log
 /// that fits version 1 (time, position and both or no IMU groups) is still written as version 1.
@@ -260,4 +260,4 @@ class LogCsvWriter {
 void write_file_atomic(const std::filesystem::path& path, const std::string& text,
                        const std::vector<std::filesystem::path>& inputs = {}, unsigned mode = 0644);
 
-}  // namespace zerog::io
+}  // namespace zerog::formats

@@ -11,7 +11,7 @@
 #include "zerog/formats/toml_table.hpp"
 #include "zerog/robot/robot_model.hpp"
 
-namespace zerog::io {
+namespace zerog::formats {
 
 /// Reads a `[robot]` table of `file` (keys named `prefix` + key in messages) and combines it
 /// with the rig's sensor frame S in the flange (`flange_sensor`, the rig's `[flange_sensor]`).
@@ -56,4 +56,4 @@ std::string robot_toml_text(const std::string& table, const std::string& name,
 /// `t` as a rotation matrix and offset (R_parent_child, p_parent_child).
 robot::FrameTransform to_frame_transform(const Transform& t);
 
-}  // namespace zerog::io
+}  // namespace zerog::formats

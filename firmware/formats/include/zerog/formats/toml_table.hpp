@@ -17,7 +17,7 @@
 
 #include "zerog/formats/log.hpp"
 
-namespace zerog::io {
+namespace zerog::formats {
 
 /// A bad key or value in a TOML file. what() reads `FILE:LINE:COLUMN: 'KEY' why`, e.g.
 /// `r.rig.toml:5:19: 'sample_period_s' must be > 0, is 0`; key() and reason() keep the dotted key
@@ -157,4 +157,4 @@ class TomlTable {
   std::string keys_doc_;
 };
 
-}  // namespace zerog::io
+}  // namespace zerog::formats

@@ -5,8 +5,8 @@
 // (a 6-axis KR 210 R2700 and a 7-axis LBR iiwa are both described in calib/robots/).
 //
 // A pure value type: no parsing here (the host reads it from a robot file with
-// zerog/formats/robot_toml.hpp, the shipped KR 210 R2700 with io::kr210_r2700()), no allocation;
-// validate() once at configuration.
+// zerog/formats/robot_toml.hpp, the shipped KR 210 R2700 with formats::kr210_r2700()), no
+// allocation; validate() once at configuration.
 #include <Eigen/Core>
 #include <algorithm>
 #include <array>

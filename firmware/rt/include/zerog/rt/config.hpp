@@ -25,8 +25,8 @@ namespace zerog::rt {
 
 /// A configuration error. what() reads `FILE:LINE:COLUMN: KEY: why` (`FILE: KEY: why` when the
 /// position is unknown, e.g. the file cannot be read). A missing key names its table's position.
-/// file(), line() (1-based; 0 = unknown) and column() come from io::InputError.
-class ConfigError : public io::InputError {
+/// file(), line() (1-based; 0 = unknown) and column() come from formats::InputError.
+class ConfigError : public formats::InputError {
  public:
   ConfigError(std::filesystem::path file, std::string key, int line, int column,
               const std::string& why);

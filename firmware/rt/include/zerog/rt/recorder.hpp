@@ -24,7 +24,7 @@ inline constexpr unsigned kRecordDirMode = 0750;
 struct RecorderOptions {
   std::optional<std::filesystem::path> dir;  ///< --record DIR (created if missing); none: no files
   std::filesystem::path blackbox_dir = ".";  ///< black-box dumps when there is no record dir
-  io::Rig rig;                               ///< written beside the log (sample period = cycle)
+  formats::Rig rig;                          ///< written beside the log (sample period = cycle)
   /// The log gets temp_C, the F/T sensor's temperature ([ft] thermistor conversion configured);
   /// rows before its first reading, or while it is stale (loop::kTemperatureStale), are skipped
   /// (counted skipped_no_temperature).
@@ -91,10 +91,10 @@ class Recorder {
   RecorderCounters counters_;
   PartialFile log_;
   PartialFile cycles_;
-  io::LogCsvWriter log_writer_{io::Columns{.joints = true,
-                                           .specific_force = true,
-                                           .angular_rate = true,
-                                           .temperature = options_.temperature}};
+  formats::LogCsvWriter log_writer_{formats::Columns{.joints = true,
+                                                     .specific_force = true,
+                                                     .angular_rate = true,
+                                                     .temperature = options_.temperature}};
   std::string row_;
   bool seen_ft_ = false, seen_imu_ = false;
 };

@@ -20,11 +20,11 @@ namespace zerog::rt {
 /// The rig as the model loader compares it: the running rig's name, robot and poses, with the
 /// row period of the rows the cycle makes — one robot cycle (a model fitted at 12 ms rows runs
 /// only with a 12 ms RSI cycle).
-infer::RigDescription running_rig(const io::Rig& rig, double cycle_period_s);
+infer::RigDescription running_rig(const formats::Rig& rig, double cycle_period_s);
 
 struct Setup {
   RtConfig config;
-  io::Rig rig;  ///< the running rig, sample_period_s = the robot cycle (what a recording gets)
+  formats::Rig rig;  ///< the running rig, sample_period_s = the robot cycle (what a recording gets)
   infer::DeployedModel model;
   std::uint32_t model_file_crc32 = 0;  ///< CRC-32 of the deploy file's bytes: its identity
   loop::CycleConfig cycle;
@@ -49,7 +49,7 @@ class PtpJointPath final : public loop::JointPath {
 };
 
 /// Reads a design CSV and builds its path with the configuration's [collection] settings.
-/// Throws (io::InputError naming file, line and column) on a bad design.
+/// Throws (formats::InputError naming file, line and column) on a bad design.
 std::unique_ptr<PtpJointPath> load_collection_path(const std::filesystem::path& design,
                                                    const CollectionSection& settings);
 

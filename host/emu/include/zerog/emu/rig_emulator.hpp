@@ -87,10 +87,10 @@ struct CycleRecord {
   std::uint64_t delay = 0;  ///< the Delay D sent in this cycle's datagram
 };
 
-/// The rig zerog-rt runs on in this emulation (io::Rig, the `.rig.toml` of `--write-rig`): the
+/// The rig zerog-rt runs on in this emulation (formats::Rig, the `.rig.toml` of `--write-rig`): the
 /// simulator's geometry, named kEmulatorRigName, one row per RSI cycle, IMU at 2 kHz.
 inline constexpr const char* kEmulatorRigName = "kr210-omega191-stim300-emu";
-io::Rig emulator_rig(const Scenario& scenario, const sim::RigSimulator& simulator);
+formats::Rig emulator_rig(const Scenario& scenario, const sim::RigSimulator& simulator);
 /// The truth model file (io::ModelFile, the format `zerog export` reads) for emulator_rig().
 io::ModelFile emulator_truth(const Scenario& scenario, const sim::RigSimulator& simulator);
 

@@ -2,7 +2,7 @@
 // The scenario file of zerog-emu (TOML, proto/emulator.md): the robot's cycle and servo, the
 // payload's truth (host/sim configuration), the F/T board's counts, scripted pushes and injected
 // faults. Read strictly: an unknown key, a wrong type or an out-of-range value is an
-// io::InputError naming the file, line, column, key and reason.
+// formats::InputError naming the file, line, column, key and reason.
 #include <array>
 #include <cstdint>
 #include <filesystem>
@@ -92,8 +92,8 @@ struct Scenario {
 /// and no faults.
 Scenario default_scenario();
 
-/// Reads and validates a scenario file. Throws io::InputError (file:line:column: why) naming the
-/// key; std::runtime_error if the file cannot be read.
+/// Reads and validates a scenario file. Throws formats::InputError (file:line:column: why) naming
+/// the key; std::runtime_error if the file cannot be read.
 Scenario read_scenario(const std::filesystem::path& file);
 /// The same from text; `file` names it in messages.
 Scenario parse_scenario(std::string_view toml_text, const std::filesystem::path& file);

@@ -29,12 +29,12 @@ using Column = std::vector<T, spill::Allocator<T>>;
 /// depend on where the columns live.
 struct Dataset {
   model::RigGeometry rig;
-  io::Columns columns;
+  formats::Columns columns;
   /// Where the IMU columns came from (logged, or derived at import from joints or pose).
-  io::KinematicsRecord kinematics;
+  formats::KinematicsRecord kinematics;
   /// How the IMU rows were formed and their noise, as the rig says (point samples or means;
   /// FitOptions::errors_in_variables).
-  io::ImuSampling imu_sampling;
+  formats::ImuSampling imu_sampling;
   /// The rig's row_order: a table's rows in the order recorded (their index is their time).
   bool rows_in_recorded_order = true;
   double dt_s = 0.012;  ///< mean row period (IMU time shifts interpolate on this grid)
@@ -157,35 +157,35 @@ class ResidentWindow {
 /// robot's), else by 5-point central differences of the gyroscope column
 /// (model::angular_accel_central), motion flags; joint velocities are formed on demand
 /// (Dataset::joint_vel_radps). (DatasetBuilder fed every sample.)
-Dataset make_dataset(const io::Log& log);
+Dataset make_dataset(const formats::Log& log);
 
-/// make_dataset sample by sample, so that a log read in chunks (io::LogReader) becomes a Dataset
-/// without the parsed log ever held whole: it keeps the previous sample, differences across
+/// make_dataset sample by sample, so that a log read in chunks (formats::LogReader) becomes a
+/// Dataset without the parsed log ever held whole: it keeps the previous sample, differences across
 /// rows as they come and finishes the rest (ω̇ from the gyro, motion dilation) in finish().
 /// The Dataset is the one make_dataset builds from the same samples, bit for bit.
 class DatasetBuilder {
  public:
   /// `columns`: the log's column groups; `expected_samples`: capacity to reserve (0: none). An
   /// estimate above the count costs address space, not resident memory.
-  explicit DatasetBuilder(const io::Columns& columns, std::size_t expected_samples = 0);
+  explicit DatasetBuilder(const formats::Columns& columns, std::size_t expected_samples = 0);
   /// Appends the next sample (times as the log reader checked them: strictly increasing).
-  void add(const io::Sample& sample);
+  void add(const formats::Sample& sample);
   /// The dataset, with the rig's IMU mount and kinematics record. Throws std::runtime_error for a
   /// log of fewer than 3 samples. Call once.
-  Dataset finish(const io::Rig& rig);
+  Dataset finish(const formats::Rig& rig);
 
  private:
   Dataset d_;
   std::size_t n_ = 0;
   std::size_t released_ = 0;  ///< rows before this one released (a spilled dataset, spill.hpp)
-  io::Sample previous_;       ///< sample n − 1
+  formats::Sample previous_;  ///< sample n − 1
   std::vector<std::uint8_t> raw_moving_;
 };
 
-/// Reads a log CSV (io::LogReader, `chunk_rows` rows at a time) straight into a Dataset: the
-/// same Dataset as make_dataset(io::read_log(csv)) and the same InputErrors, without the log's
+/// Reads a log CSV (formats::LogReader, `chunk_rows` rows at a time) straight into a Dataset: the
+/// same Dataset as make_dataset(formats::read_log(csv)) and the same InputErrors, without the log's
 /// text or its parsed rows held whole. `rig`, if given, receives the log's rig.
-Dataset read_dataset(const std::filesystem::path& csv, io::Rig* rig = nullptr,
+Dataset read_dataset(const std::filesystem::path& csv, formats::Rig* rig = nullptr,
                      std::size_t chunk_rows = 4096, std::size_t buffer_bytes = 1 << 20);
 
 /// True when make_dataset forms the angular acceleration from the angular-rate column (the log

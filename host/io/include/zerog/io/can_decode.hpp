@@ -72,7 +72,7 @@ struct CanDecodeResult {
   /// Samples dropped because the run of pairings they belong to never emptied the queue of
   /// waiting 0x0 halves (a 0x1 lost somewhere, or the log ended): they may mix two polls.
   std::size_t unconfirmed = 0;
-  io::CandumpLogInfo log;  ///< the log's form and clock (and why), frames, CAN FD frames
+  io::CandumpLogInfo log;     ///< the log's form and clock (and why), frames, CAN FD frames
   bool time_assumed = false;  ///< t_s from assume_rate_hz (the log has no time)
   std::vector<ThermistorReading> thermistor;  ///< every thermistor reading, in log order
   DiagnosticCounters diagnostic;
@@ -85,10 +85,10 @@ inline constexpr std::size_t kMaxUnconfirmedRun = 32;
 
 /// Decodes a candump log. 0x0 and 0x1 responses are paired in order (a 0x1 overtaken by later
 /// polls' 0x0 still completes its own 0x0; proto::netcanoem::SampleAssembler). Throws
-/// io::InputError (file, line, column) on a malformed line or a line in another form than the log's
-/// first, and std::runtime_error when the log holds no complete calibration and none is given, or
-/// has no timestamps and no assume_rate_hz (or has timestamps and an assume_rate_hz). CAN FD frames
-/// are skipped (counted in `log.fd_frames`).
+/// formats::InputError (file, line, column) on a malformed line or a line in another form than the
+/// log's first, and std::runtime_error when the log holds no complete calibration and none is
+/// given, or has no timestamps and no assume_rate_hz (or has timestamps and an assume_rate_hz). CAN
+/// FD frames are skipped (counted in `log.fd_frames`).
 CanDecodeResult decode_netcanoem_log(const std::filesystem::path& candump,
                                      const CanDecodeOptions& options);
 

@@ -94,7 +94,7 @@ struct RowSignals {
   std::vector<double> t_s;
   std::vector<Eigen::Vector3d> specific_force_mps2, angular_rate_radps, force_N, torque_Nm;
 };
-RowSignals row_signals(const Log& log);
+RowSignals row_signals(const formats::Log& log);
 /// A FusionInput over `rows` (which must outlive it), its robot, joints and mountings unset.
 FusionInput fusion_input(const RowSignals& rows);
 

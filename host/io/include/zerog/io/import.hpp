@@ -53,7 +53,7 @@ struct ImportReport {
 };
 
 struct ImportResult {
-  Log log;
+  formats::Log log;
   ImportReport report;
   /// Every file the import read (mapping, data files, rig file): never to be overwritten.
   std::vector<std::filesystem::path> inputs;

@@ -7,7 +7,7 @@
 // refusals are counted by status with their line and column. Units become SI here (the border):
 // joints in rad, the pose of the sensor frame S in the robot base frame B in m and a unit
 // quaternion, time in s from the IPOC (the controller's interpolation-cycle stamp, ms).
-// Host code: allocates, throws io::InputError on an unreadable file.
+// Host code: allocates, throws formats::InputError on an unreadable file.
 #include <array>
 #include <cstddef>
 #include <cstdint>
@@ -89,7 +89,7 @@ struct RsiDecodeResult {
 
 /// Decodes a capture held in memory. Never throws on content: refusals are counted.
 RsiDecodeResult decode_rsi_capture(std::string_view text, const RsiDecodeOptions& options);
-/// Reads and decodes a file. Throws io::InputError if it cannot be read.
+/// Reads and decodes a file. Throws formats::InputError if it cannot be read.
 RsiDecodeResult decode_rsi_capture_file(const std::filesystem::path& path,
                                         const RsiDecodeOptions& options);
 

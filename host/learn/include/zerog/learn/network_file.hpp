@@ -57,7 +57,7 @@ nlohmann::json to_json(const NetworkFile& n);
 /// Parses a network document; throws std::runtime_error naming `source` and the bad key.
 NetworkFile network_from_json(const nlohmann::json& j, const std::string& source);
 NetworkFile read_network(const std::filesystem::path& path);
-/// Atomic write (io::write_file_atomic); refuses to overwrite one of `inputs`.
+/// Atomic write (formats::write_file_atomic); refuses to overwrite one of `inputs`.
 void write_network(const NetworkFile& n, const std::filesystem::path& path,
                    const std::vector<std::filesystem::path>& inputs = {});
 

@@ -15,7 +15,7 @@ namespace zerog::learn {
 /// The signals of sample i of `data` for model::compute_features. The sensor position comes from
 /// `log` (the Dataset keeps the attitude only); `log` must be the log `data` was made from.
 /// Joint velocities are the Dataset's (backward differences of the joint angles).
-model::FeatureSignals feature_signals(const ident::Dataset& data, const io::Log& log,
+model::FeatureSignals feature_signals(const ident::Dataset& data, const formats::Log& log,
                                       std::size_t i);
 
 /// Parses a comma-separated list of feature names ("sign_qd6,qd6,wz"). Throws
@@ -28,7 +28,7 @@ std::string feature_list_string(std::span<const model::Feature> features);
 void check_feature_signals(std::span<const model::Feature> features, const ident::Dataset& data);
 
 /// Feature rows (row-major, samples.size() × features.size()) of the given samples.
-std::vector<double> feature_rows(const ident::Dataset& data, const io::Log& log,
+std::vector<double> feature_rows(const ident::Dataset& data, const formats::Log& log,
                                  std::span<const model::Feature> features,
                                  std::span<const std::size_t> samples);
 

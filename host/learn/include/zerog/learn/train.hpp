@@ -39,7 +39,7 @@ struct TrainOptions {
 /// Trains a network of `options.kind` on `data` (made from `log`). Deterministic for a seed
 /// (any thread count). Throws std::invalid_argument / std::runtime_error with a clear message on
 /// bad options, missing signals or too little data.
-NetworkFile train(const ident::Dataset& data, const io::Log& log, const TrainOptions& options);
+NetworkFile train(const ident::Dataset& data, const formats::Log& log, const TrainOptions& options);
 
 /// The residual network's default inputs: ident::diagnose on the physics model, its correlated
 /// signals (|ρ| ≥ min_correlation, strongest first, at least the first) mapped to features.
@@ -59,7 +59,7 @@ struct SweepRow {
   double mean = 0.0;
   double seconds = 0.0;
 };
-std::vector<SweepRow> sweep_hidden(const ident::Dataset& data, const io::Log& log,
+std::vector<SweepRow> sweep_hidden(const ident::Dataset& data, const formats::Log& log,
                                    const TrainOptions& options, const std::vector<int>& hidden,
                                    int repeats = 3);
 

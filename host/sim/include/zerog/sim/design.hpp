@@ -104,7 +104,7 @@ DesignMetrics design_metrics(const std::vector<JointVector>& points_rad, const W
 /// rotation vectors r (rad) of the F/T sensor frame S in the robot base frame B,
 /// R_base_sensor = Exp(r). CSV: `#` comment lines, a header naming the columns `rx_rad`,
 /// `ry_rad`, `rz_rad` (other columns, e.g. `number`, are ignored), one attitude per row
-/// (calib/poses/README.md). Throws io::InputError naming file, line and column.
+/// (calib/poses/README.md). Throws formats::InputError naming file, line and column.
 std::vector<Eigen::Vector3d> read_attitudes(const std::filesystem::path& path);
 
 struct AttitudeDesignOptions {
@@ -133,8 +133,8 @@ AttitudeDesign design_from_attitudes(const std::vector<Eigen::Vector3d>& rotvecs
 /// Design CSV (proto/design_format.md). Written atomically; refuses to overwrite `inputs`.
 void write_design(const Design& design, const std::filesystem::path& path,
                   const std::vector<std::filesystem::path>& inputs = {});
-/// Reads a design CSV; throws io::InputError naming file, line and column. The reader lives with
-/// the writer's format in zerog::formats (zerog-rt reads designs too).
-using io::read_design;
+/// Reads a design CSV; throws formats::InputError naming file, line and column. The reader lives
+/// with the writer's format in zerog::formats (zerog-rt reads designs too).
+using formats::read_design;
 
 }  // namespace zerog::sim

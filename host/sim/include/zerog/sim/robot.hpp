@@ -1,6 +1,6 @@
 #pragma once
 // The simulated robot, a KUKA KR 210 R2700: the arm of its robot file
-// (calib/robots/kr210_r2700.robot.toml, read through io::kr210_r2700), moved by zerog::robot's
+// (calib/robots/kr210_r2700.robot.toml, read through formats::kr210_r2700), moved by zerog::robot's
 // kinematics (zerog/robot/forward_kinematics.hpp) as every other caller's arm, with the
 // experiment's joint ranges and home pose.
 //

@@ -292,14 +292,14 @@ struct SimStats {
 };
 
 struct SimOutput {
-  io::Log log;
+  formats::Log log;
   /// The same rows as `log` with every kinematic signal noise-free (IMU specific force and rate
   /// without noise; joints, pose, temperature and time are noise-free in `log` already) and the
   /// wrench columns equal to `log`'s noisy, quantised wrench. The true model on these signals
   /// against that wrench leaves only the F/T sensor's own noise and quantisation: the sensor
   /// floor (docs/insight-loop.md, "Sensor floor and true-model reference"). `zerog sim` writes
   /// it as NAME.clean.csv.
-  io::Log clean_log;
+  formats::Log clean_log;
   io::ModelFile truth;
   /// Noise-free analytic angular acceleration in I for each row, delayed like the IMU (not logged).
   std::vector<Eigen::Vector3d> angular_accel_imu_radps2;
@@ -315,7 +315,7 @@ class RigSimulator {
 
   const SimConfig& config() const { return config_; }
   const PtpTrajectory& trajectory() const { return trajectory_; }
-  io::Rig rig() const;
+  formats::Rig rig() const;
   /// The truth as a model file: model effects that are on, their exact values, and extras.
   io::ModelFile truth() const;
   /// Model effects of the truth (bias, gravity, linear_inertia and the switched ones).

@@ -1,16 +1,16 @@
 #pragma once
-// Internal to the formats (namespace zerog::io::detail): scanning of numeric CSV text shared by
-// the log reader (zerog::formats) and the importer (host/io).
-// Hand-written on purpose: the files are numeric only, and every error must name the exact line
-// and character column of the offending cell; whole-file reading plus in-place std::from_chars
-// parsing keeps 100k rows × 25 columns well under a second.
+// Internal to the formats (namespace zerog::formats::detail): scanning of numeric CSV text shared
+// by the log reader (zerog::formats) and the importer (host/io). Hand-written on purpose: the files
+// are numeric only, and every error must name the exact line and character column of the offending
+// cell; whole-file reading plus in-place std::from_chars parsing keeps 100k rows × 25 columns well
+// under a second.
 #include <cstddef>
 #include <filesystem>
 #include <string>
 #include <string_view>
 #include <vector>
 
-namespace zerog::io::detail {
+namespace zerog::formats::detail {
 
 /// The whole file as bytes. Throws InputError(path, 0, 0, …) if it cannot be read.
 std::string read_whole_file(const std::filesystem::path& path);
@@ -65,4 +65,4 @@ std::string shorten(std::string_view text, std::size_t max = 40);
 /// The message for a cell that did not parse (status != ok), naming the cell and its column.
 std::string number_error(NumberStatus status, std::string_view cell_text, std::string_view column);
 
-}  // namespace zerog::io::detail
+}  // namespace zerog::formats::detail

@@ -1,5 +1,5 @@
 #pragma once
-// Internal to the formats (namespace zerog::io::detail): the rig's TOML reader, shared by
+// Internal to the formats (namespace zerog::formats::detail): the rig's TOML reader, shared by
 // read_rig and the importer's [rig] table (host/io). The strict TOML reader itself is public
 // (zerog/formats/toml_table.hpp); the sources name it through detail as well.
 #include <filesystem>
@@ -8,12 +8,12 @@
 #include "zerog/formats/log.hpp"
 #include "zerog/formats/toml_table.hpp"
 
-namespace zerog::io::detail {
+namespace zerog::formats::detail {
 
-using io::number_text;
-using io::parse_toml_file;
-using io::throw_at;
-using io::TomlTable;
+using formats::number_text;
+using formats::parse_toml_file;
+using formats::throw_at;
+using formats::TomlTable;
 
 /// A transform table `{ p_m = [x, y, z], q_wxyz = [w, x, y, z] }` (m; unit quaternion within
 /// 1e-3, returned normalised): the rig's flange_sensor and sensor_imu, a robot's flange.
@@ -25,4 +25,4 @@ Transform transform_of(const TomlTable& t);
 Rig rig_from_toml(const toml::table& table, const std::filesystem::path& file, bool embedded,
                   const std::string& key_prefix, bool* has_period);
 
-}  // namespace zerog::io::detail
+}  // namespace zerog::formats::detail
