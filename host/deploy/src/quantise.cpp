@@ -12,8 +12,8 @@
 namespace zerog::deploy {
 namespace {
 
-using infer::DeployedNetwork;
 using infer::bias_limit;
+using infer::DeployedNetwork;
 using infer::kActMax;
 using infer::QuantisedLayer;
 using infer::QuantisedNetwork;

@@ -27,16 +27,18 @@ struct QuantiseOptions {
 /// scale per layer (inputs: input_clip; sigmoid/tanh outputs: 1/32767; identity/leaky_relu
 /// hidden outputs: calibrated). Throws std::invalid_argument if the network is malformed.
 infer::QuantisedNetwork quantise_network(const model::NetworkShape& shape,
-                                  const model::NetworkNormalisation& norm,
-                                  std::span<const double> params,
-                                  const QuantiseOptions& options = {});
+                                         const model::NetworkNormalisation& norm,
+                                         std::span<const double> params,
+                                         const QuantiseOptions& options = {});
 
 /// Packages a trained float network for deployment: the float reference as given plus its
 /// quantised form. `output_axes` as in DeployedNetwork. Throws std::invalid_argument if the
 /// parts do not fit together. Host side.
 infer::DeployedNetwork make_deployed_network(std::vector<model::Feature> features,
-                                      std::vector<int> output_axes, model::NetworkShape shape,
-                                      model::NetworkNormalisation norm, std::vector<double> params,
-                                      const QuantiseOptions& options = {});
+                                             std::vector<int> output_axes,
+                                             model::NetworkShape shape,
+                                             model::NetworkNormalisation norm,
+                                             std::vector<double> params,
+                                             const QuantiseOptions& options = {});
 
 }  // namespace zerog::deploy

@@ -73,7 +73,7 @@ struct CandumpRecord {
   /// UTC); after parse_candump(), on the log's clock (-td summed). 0 without timestamps.
   std::int64_t timestamp_ns = 0;
   std::string interface;       ///< e.g. "can0"
-  proto::CanFrame frame;              ///< flags set as SocketCAN would (extended, remote, error)
+  proto::CanFrame frame;       ///< flags set as SocketCAN would (extended, remote, error)
   char direction = '\0';       ///< 'R' or 'T' when the log says so (candump -x), else '\0'
   bool fd = false;             ///< a CAN FD frame: `frame` holds id and flags, no payload
   std::uint8_t fd_length = 0;  ///< its data length (0–64)
@@ -113,9 +113,9 @@ bool parse_candump(std::string_view text, const proto::CanFilter& filter,
                    std::vector<CandumpRecord>& records, CandumpError& error,
                    CandumpLogInfo* info = nullptr, CandumpClock clock = CandumpClock::automatic);
 /// The same, reading from a stream.
-bool parse_candump(std::istream& in, const proto::CanFilter& filter, std::vector<CandumpRecord>& records,
-                   CandumpError& error, CandumpLogInfo* info = nullptr,
-                   CandumpClock clock = CandumpClock::automatic);
+bool parse_candump(std::istream& in, const proto::CanFilter& filter,
+                   std::vector<CandumpRecord>& records, CandumpError& error,
+                   CandumpLogInfo* info = nullptr, CandumpClock clock = CandumpClock::automatic);
 
 /// Formats one record into the log-file form (upper-case hex, as candump -L does). A CAN FD
 /// record formats with zero bytes of payload (the payload is not kept).
