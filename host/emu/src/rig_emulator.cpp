@@ -370,6 +370,11 @@ ImuFault imu_stream_fault(FaultKind kind) {
 }  // namespace
 
 void RigEmulator::device_faults(double t_s) {
+  auto thermistor_silent = [this](bool silent) {
+    AtiBoardQuirks quirks = setup_.ft->quirks();
+    quirks.no_diagnostic_response = silent;
+    setup_.ft->set_quirks(quirks);
+  };
   for (std::size_t i = 0; i < faults_.size(); ++i) {
     const Fault& f = scenario_.faults[i];
     FaultState& st = faults_[i];
@@ -392,12 +397,9 @@ void RigEmulator::device_faults(double t_s) {
         case FaultKind::ft_saturated:
           setup_.ft->set_fault(FtFault::saturated);
           break;
-        case FaultKind::ft_thermistor_silent: {
-          AtiBoardQuirks quirks = setup_.ft->quirks();
-          quirks.no_diagnostic_response = true;
-          setup_.ft->set_quirks(quirks);
+        case FaultKind::ft_thermistor_silent:
+          thermistor_silent(true);
           break;
-        }
         case FaultKind::imu_garbage:
         case FaultKind::imu_crc:
         case FaultKind::imu_gaps:
@@ -424,12 +426,9 @@ void RigEmulator::device_faults(double t_s) {
         case FaultKind::ft_slow:
           setup_.ft->set_response_delay(std::chrono::microseconds(0));
           break;
-        case FaultKind::ft_thermistor_silent: {
-          AtiBoardQuirks quirks = setup_.ft->quirks();
-          quirks.no_diagnostic_response = false;
-          setup_.ft->set_quirks(quirks);
+        case FaultKind::ft_thermistor_silent:
+          thermistor_silent(false);
           break;
-        }
         case FaultKind::imu_unplug: {
           if (const Status plugged = setup_.imu->open(options_.imu_link); !plugged.ok())
             st.note = "re-plug failed: " + plugged.message();
@@ -476,19 +475,22 @@ void RigEmulator::physics_loop(const std::atomic<bool>& stop) {
 
 // --- Robot loop ------------------------------------------------------------------------------
 
+void RigEmulator::transmit(const ScheduledSend& s) {
+  const int fd = s.foreign ? sockets_.foreign_fd : sockets_.fd;
+  const ssize_t n =
+      ::sendto(fd, s.bytes.data(), s.bytes.size(), 0,
+               reinterpret_cast<const sockaddr*>(&sockets_.rt_addr), sizeof sockets_.rt_addr);
+  if (n != static_cast<ssize_t>(s.bytes.size())) ++loop_.counts.send_errors;
+  ++loop_.counts.datagrams_sent;
+}
+
 void RigEmulator::send_due(Clock::time_point now) {
   for (std::size_t i = 0; i < loop_.sends.size();) {
     if (loop_.sends[i].at > now) {
       ++i;
       continue;
     }
-    const ScheduledSend& s = loop_.sends[i];
-    const int fd = s.foreign ? sockets_.foreign_fd : sockets_.fd;
-    const ssize_t n =
-        ::sendto(fd, s.bytes.data(), s.bytes.size(), 0,
-                 reinterpret_cast<const sockaddr*>(&sockets_.rt_addr), sizeof sockets_.rt_addr);
-    if (n != static_cast<ssize_t>(s.bytes.size())) ++loop_.counts.send_errors;
-    ++loop_.counts.datagrams_sent;
+    transmit(loop_.sends[i]);
     loop_.sends.erase(loop_.sends.begin() + static_cast<std::ptrdiff_t>(i));
   }
 }
@@ -876,12 +878,7 @@ void RigEmulator::lockstep_events_before(Clock::time_point limit, std::uint64_t 
     if (next != loop_.sends.end() && next->at < limit && next->at <= deadline) {
       const ScheduledSend s = *next;
       loop_.sends.erase(next);
-      const int fd = s.foreign ? sockets_.foreign_fd : sockets_.fd;
-      const ssize_t n =
-          ::sendto(fd, s.bytes.data(), s.bytes.size(), 0,
-                   reinterpret_cast<const sockaddr*>(&sockets_.rt_addr), sizeof sockets_.rt_addr);
-      if (n != static_cast<ssize_t>(s.bytes.size())) ++loop_.counts.send_errors;
-      ++loop_.counts.datagrams_sent;
+      transmit(s);
       if (!s.foreign) {  // zerog-rt skips foreign datagrams inside receive(): no event
         lockstep_exchange(rtio::LockstepKind::datagram, s.at, window);
         lockstep_.last_rt_event = s.at;
@@ -1107,29 +1104,19 @@ nlohmann::json RigEmulator::physics_summary() const {
           {"worst_datagram_lag_s", loop_.worst_datagram_lag_s}};
 }
 
+// The device counters the summary reports (proto/emulator.md), by nlohmann's field macro.
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(AtiBoard::Counters, requests, sample_requests, samples_sent,
+                                   ignored, saturated_samples, critical_samples, other_frames,
+                                   tx_failed, diagnostic_reads, thermistor_reads)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(Stim300Emulator::Counters, written, dropped, garbage_bytes,
+                                   bad_crc, skipped)
+
 nlohmann::json RigEmulator::devices_summary() const {
   nlohmann::json devices = nlohmann::json::object();
-  if (setup_.ft != nullptr) {
-    const AtiBoard::Counters c = setup_.ft->counters();
-    devices["ft"] = {{"requests", c.requests},
-                     {"sample_requests", c.sample_requests},
-                     {"samples_sent", c.samples_sent},
-                     {"ignored", c.ignored},
-                     {"saturated_samples", c.saturated_samples},
-                     {"critical_samples", c.critical_samples},
-                     {"other_frames", c.other_frames},
-                     {"tx_failed", c.tx_failed},
-                     {"diagnostic_reads", c.diagnostic_reads},
-                     {"thermistor_reads", c.thermistor_reads}};
-  }
+  if (setup_.ft != nullptr) devices["ft"] = setup_.ft->counters();
   if (setup_.imu != nullptr) {
-    const Stim300Emulator::Counters c = setup_.imu->counters();
-    devices["imu"] = {{"written", c.written},
-                      {"dropped", c.dropped},
-                      {"garbage_bytes", c.garbage_bytes},
-                      {"bad_crc", c.bad_crc},
-                      {"skipped", c.skipped},
-                      {"write_failures", physics_thread_.imu_dropped}};
+    devices["imu"] = setup_.imu->counters();
+    devices["imu"]["write_failures"] = physics_thread_.imu_dropped;
   }
   return devices;
 }

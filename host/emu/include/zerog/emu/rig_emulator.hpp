@@ -163,6 +163,9 @@ class RigEmulator {
   void apply_correction(const proto::rsi::Reply& reply);
   void handle_datagram(std::uint64_t n, const char* data, std::size_t size);
   void receive_pending(std::uint64_t n);
+  /// Sends one scheduled datagram to zerog-rt now (from the foreign port if it is foreign),
+  /// counted.
+  void transmit(const ScheduledSend& s);
   void send_due(std::chrono::steady_clock::time_point now);
   std::chrono::steady_clock::time_point cycle_start(std::uint64_t n) const;
   // summary()'s parts, one per owner of what they report.
