@@ -400,16 +400,12 @@ void RigEmulator::device_faults(double t_s) {
         case FaultKind::ft_thermistor_silent:
           thermistor_silent(true);
           break;
-        case FaultKind::imu_garbage:
-        case FaultKind::imu_crc:
-        case FaultKind::imu_gaps:
-        case FaultKind::imu_silent:
-          setup_.imu->set_fault(imu_stream_fault(f.kind));
-          break;
         case FaultKind::imu_unplug:
           setup_.imu->unplug();
           break;
-        default:
+        default:  // the IMU's stream faults (kStreamFaults); the robot's are not timed here
+          if (const ImuFault fault = imu_stream_fault(f.kind); fault != ImuFault::none)
+            setup_.imu->set_fault(fault);
           break;
       }
     }
