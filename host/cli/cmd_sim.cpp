@@ -70,7 +70,7 @@ sim::SimConfig make_config(const SimArgs& a) {
   c.payload.mass_kg = a.mass_kg;
   c.payload.inertia_com_sensor_kgm2 = sim::box_inertia_kgm2(a.mass_kg);
   c.effects = sim::parse_sim_effects(a.effects);
-  if (a.point_mass) c.effects.remove(sim::SimEffect::rotational_inertia);
+  if (a.point_mass) c.effects.remove(model::Effect::rotational_inertia);
   if (a.no_noise) c.noise = sim::NoiseConfig::none();
   if (a.real_robot) sim::make_real_robot(c, !a.no_noise);
   c.period_s = a.period_s;
@@ -99,7 +99,7 @@ void list_effects(const SimArgs& a) {
   std::printf("Switchable effects (--effects a,b,-c; 'all', 'none'; on now: %s):\n",
               sim::sim_effect_list_string(c.effects).c_str());
   for (const auto& e : sim::sim_effect_infos())
-    std::printf("  %-19s %-15s %s\n", e.name, e.model_effect ? "(model)" : "(not in model)",
+    std::printf("  %-19s %-15s %s\n", e.name, e.model_effect() ? "(model)" : "(not in model)",
                 e.default_magnitude);
   std::printf("\nValues for --set KEY=VALUE (seed %llu):\n",
               static_cast<unsigned long long>(c.seed));

@@ -19,33 +19,56 @@ namespace {
 using model::Effect;
 using Vec6 = Eigen::Matrix<double, 6, 1>;
 
-const std::array<SimEffectInfo, kSimEffectCount> kSimEffects = {{
-    {SimEffect::rotational_inertia, "rotational_inertia", Effect::rotational_inertia,
-     "on by default; 0.6 x 0.4 x 0.3 m box, tilted (products of inertia non-zero)"},
-    {SimEffect::base_tilt, "base_tilt", Effect::base_tilt, "alpha, beta +-(2..5) mrad"},
-    {SimEffect::imu_time_offset, "imu_time_offset", Effect::imu_time_offset,
-     "IMU lags the F/T by tau = 8 ms"},
-    {SimEffect::bias_drift, "bias_drift", Effect::bias_drift,
-     "+-(2..5) N and +-(0.2..0.5) N*m per 10 min, linear"},
-    {SimEffect::temperature_bias, "temperature_bias", Effect::temperature_bias,
-     "+-(0.5..1.5) N/K, +-(0.05..0.15) N*m/K; T = 25 + 2(1-exp(-t/300)) + 3 sin(2 pi t/600) C"},
-    {SimEffect::crosstalk, "crosstalk", Effect::crosstalk,
-     "gains +-(0.2..0.5) %, couplings +-(0.05..0.3) % (x or / 0.2 m across F and M)"},
-    {SimEffect::sensor_rotation, "sensor_rotation", Effect::sensor_rotation,
-     "random axis, 5..10 mrad"},
-    {SimEffect::cable, "cable", Effect::cable,
-     "per A4..A6 cos/sin coefficient +-(0.5..3) N, +-(0.1..0.5) N*m"},
-    {SimEffect::imu_lever_arm, "imu_lever_arm", std::nullopt,
+// What the simulated truth puts in for each library effect it can switch (a new library effect
+// fails to compile here until the simulator gives it a magnitude).
+const char* library_magnitude(Effect e) {
+  switch (e) {
+    case Effect::bias:
+    case Effect::gravity:
+    case Effect::linear_inertia:
+      return nullptr;  // always in the truth
+    case Effect::rotational_inertia:
+      return "on by default; 0.6 x 0.4 x 0.3 m box, tilted (products of inertia non-zero)";
+    case Effect::base_tilt:
+      return "alpha, beta +-(2..5) mrad";
+    case Effect::imu_time_offset:
+      return "IMU lags the F/T by tau = 8 ms";
+    case Effect::bias_drift:
+      return "+-(2..5) N and +-(0.2..0.5) N*m per 10 min, linear";
+    case Effect::temperature_bias:
+      return "+-(0.5..1.5) N/K, +-(0.05..0.15) N*m/K; T = 25 + 2(1-exp(-t/300)) + 3 sin(2 pi "
+             "t/600) C";
+    case Effect::crosstalk:
+      return "gains +-(0.2..0.5) %, couplings +-(0.05..0.3) % (x or / 0.2 m across F and M)";
+    case Effect::sensor_rotation:
+      return "random axis, 5..10 mrad";
+    case Effect::cable:
+      return "per A4..A6 cos/sin coefficient +-(0.5..3) N, +-(0.1..0.5) N*m";
+  }
+  return nullptr;
+}
+
+const std::array<SimEffectInfo, kRigEffectCount> kRigEffects = {{
+    {RigEffect::imu_lever_arm, "imu_lever_arm",
      "rig geometry: IMU at (0.045, -0.030, -0.035) m in S (else at the S origin)"},
-    {SimEffect::joint6_friction, "joint6_friction", std::nullopt,
+    {RigEffect::joint6_friction, "joint6_friction",
      "outside the model: Mz += 1.5 N*m * tanh(qd6 / 0.02 rad/s)"},
-    {SimEffect::swivel_viscous, "swivel_viscous", std::nullopt,
+    {RigEffect::swivel_viscous, "swivel_viscous",
      "outside the model: Mz -= 2.0 N*m*s/rad * wz_S (hose swivel's seal drag)"},
-    {SimEffect::hose_drag, "hose_drag", std::nullopt,
+    {RigEffect::hose_drag, "hose_drag",
      "outside the model: F_S -= 25 N*s/m * v_S (supply hose dragged along)"},
-    {SimEffect::dress_pack_bend, "dress_pack_bend", std::nullopt,
+    {RigEffect::dress_pack_bend, "dress_pack_bend",
      "outside the model: Fx += 8 N * sin(q4) * sin(q5) (dress pack bent by A5, wound by A4)"},
 }};
+
+std::array<SimEffectInfo, kSimEffectCount> make_sim_effects() {
+  std::array<SimEffectInfo, kSimEffectCount> out{};
+  std::size_t k = 0;
+  for (Effect e : model::kAllEffects)
+    if (switchable(e)) out.at(k++) = {e, model::info(e).name, library_magnitude(e)};
+  for (const SimEffectInfo& r : kRigEffects) out.at(k++) = r;
+  return out;
+}
 
 std::vector<JointVector> checked_points(std::vector<JointVector> points) {
   const JointLimits lim = kr210_table4_limits();
@@ -142,11 +165,20 @@ nlohmann::json terms_json(const std::vector<OutsideTerm>& terms) {
 
 }  // namespace
 
-const std::array<SimEffectInfo, kSimEffectCount>& sim_effect_infos() { return kSimEffects; }
-const SimEffectInfo& info(SimEffect e) { return kSimEffects[static_cast<int>(e)]; }
+const std::array<SimEffectInfo, kSimEffectCount>& sim_effect_infos() {
+  static const std::array<SimEffectInfo, kSimEffectCount> infos = make_sim_effects();
+  return infos;
+}
+const SimEffectInfo& info(SimEffect e) {
+  for (const SimEffectInfo& i : sim_effect_infos())
+    if (i.id == e) return i;
+  throw std::invalid_argument(
+      "not a simulator effect: " + std::string(model::info(std::get<Effect>(e)).name) +
+      " is always in the truth");
+}
 
 std::optional<SimEffect> sim_effect_from_name(std::string_view name) {
-  for (const auto& i : kSimEffects)
+  for (const auto& i : sim_effect_infos())
     if (name == i.name) return i.id;
   return std::nullopt;
 }
@@ -160,7 +192,7 @@ SimEffectSet parse_sim_effects(const std::string& list, SimEffectSet start) {
     item.erase(item.find_last_not_of(" \t") + 1);
     if (item.empty()) continue;
     if (item == "all" || item == "none") {
-      for (const auto& i : kSimEffects) {
+      for (const auto& i : sim_effect_infos()) {
         if (item == "all") {
           set.add(i.id);
         } else {
@@ -172,9 +204,14 @@ SimEffectSet parse_sim_effects(const std::string& list, SimEffectSet start) {
     const bool off = item[0] == '-';
     const std::string name = off ? item.substr(1) : item;
     const auto e = sim_effect_from_name(name);
+    if (const auto lib = model::effect_from_name(name); lib && !switchable(*lib))
+      throw std::invalid_argument("simulator effect '" + name +
+                                  "' cannot be switched: bias, gravity and linear_inertia are "
+                                  "always in the truth (their parameters are set with --set)");
     if (!e) {
       std::string known;
-      for (const auto& i : kSimEffects) known += std::string(known.empty() ? "" : ", ") + i.name;
+      for (const auto& i : sim_effect_infos())
+        known += std::string(known.empty() ? "" : ", ") + i.name;
       throw std::invalid_argument("unknown simulator effect '" + name + "' (known: " + known +
                                   ", all, none; '-name' switches one off)");
     }
@@ -189,7 +226,7 @@ SimEffectSet parse_sim_effects(const std::string& list, SimEffectSet start) {
 
 std::string sim_effect_list_string(const SimEffectSet& effects) {
   std::string out;
-  for (const auto& i : kSimEffects) {
+  for (const auto& i : sim_effect_infos()) {
     if (!effects.has(i.id)) continue;
     out += (out.empty() ? "" : ",") + std::string(i.name);
   }
@@ -198,25 +235,28 @@ std::string sim_effect_list_string(const SimEffectSet& effects) {
 
 std::vector<OutsideTerm> outside_terms(const SimConfig& config, SimEffect effect) {
   const SimConfig& c = config;
-  switch (effect) {
-    case SimEffect::joint6_friction:
+  const auto* rig = std::get_if<RigEffect>(&effect);
+  if (rig == nullptr) return {};
+  switch (*rig) {
+    case RigEffect::joint6_friction:
       return {{"Mz", tanh_basis("qd6", c.joint6_friction_rate_radps), c.joint6_friction_Nm}};
-    case SimEffect::swivel_viscous:
+    case RigEffect::swivel_viscous:
       return {{"Mz", "wz_S", -c.swivel_damping_Nms_per_rad}};
-    case SimEffect::hose_drag:
+    case RigEffect::hose_drag:
       return {{"Fx", "vx_S", -c.hose_drag_Ns_per_m},
               {"Fy", "vy_S", -c.hose_drag_Ns_per_m},
               {"Fz", "vz_S", -c.hose_drag_Ns_per_m}};
-    case SimEffect::dress_pack_bend:
+    case RigEffect::dress_pack_bend:
       return {{"Fx", "sin(q4)*sin(q5)", c.dress_pack_bend_N}};
-    default:
-      return {};
+    case RigEffect::imu_lever_arm:
+      break;  // geometry, not a wrench
   }
+  return {};
 }
 
 std::vector<OutsideTerm> outside_terms(const SimConfig& config) {
   std::vector<OutsideTerm> out;
-  for (const auto& i : kSimEffects) {
+  for (const auto& i : sim_effect_infos()) {
     if (!config.effects.has(i.id)) continue;
     for (OutsideTerm& t : outside_terms(config, i.id)) out.push_back(std::move(t));
   }
@@ -339,17 +379,17 @@ RigSimulator::RigSimulator(SimConfig config, std::vector<JointVector> path_point
   if (!(c.payload.mass_kg > 0.0)) throw std::invalid_argument("payload mass must be positive");
   if (c.duration_limit_s < 0.0) throw std::invalid_argument("duration limit must not be negative");
   R_world_base_ = Eigen::Matrix3d::Identity();
-  if (c.effects.has(SimEffect::base_tilt)) {
+  if (c.effects.has(Effect::base_tilt)) {
     const double* tilt = c.params.block(Effect::base_tilt);
     R_world_base_ = model::rot_x(tilt[0]) * model::rot_y(tilt[1]);
   }
   R_nominal_true_ = Eigen::Matrix3d::Identity();
-  if (c.effects.has(SimEffect::sensor_rotation))
+  if (c.effects.has(Effect::sensor_rotation))
     R_nominal_true_ = model::rotation_from_vector(Eigen::Vector3d(
         Eigen::Map<const Eigen::Vector3d>(c.params.block(Effect::sensor_rotation))));
   R_sensor_imu_ = model::rotation_from_vector(c.imu_mount_rotvec_rad);
   p_sensor_imu_m_ =
-      c.effects.has(SimEffect::imu_lever_arm) ? c.imu_lever_arm_m : Eigen::Vector3d::Zero();
+      c.effects.has(RigEffect::imu_lever_arm) ? c.imu_lever_arm_m : Eigen::Vector3d::Zero();
 }
 
 RigSimulator::RigSimulator(SimConfig config) : RigSimulator(std::move(config), {kr210_home()}) {}
@@ -375,8 +415,8 @@ formats::Rig RigSimulator::rig() const {
 
 model::EffectSet RigSimulator::truth_model_effects() const {
   model::EffectSet set = {Effect::bias, Effect::gravity, Effect::linear_inertia};
-  for (const auto& i : kSimEffects)
-    if (i.model_effect && config_.effects.has(i.id)) set.add(*i.model_effect);
+  for (const auto& i : sim_effect_infos())
+    if (i.model_effect() && config_.effects.has(i.id)) set.add(*i.model_effect());
   return set;
 }
 
@@ -397,7 +437,7 @@ io::ModelFile RigSimulator::truth() const {
   // (proto/user_effects.md), so that the truth predicts them too. They add after the crosstalk,
   // the simulator's before: with both on, the truth is off by the crosstalk of the outside
   // wrench (a fraction of a percent of it).
-  for (const SimEffectInfo& i : kSimEffects) {
+  for (const SimEffectInfo& i : sim_effect_infos()) {
     if (!c.effects.has(i.id)) continue;
     const std::vector<OutsideTerm> terms = outside_terms(c, i.id);
     if (terms.empty()) continue;
@@ -450,32 +490,32 @@ io::ModelFile RigSimulator::truth() const {
          "joints and pose are the motor side, the clean log's the link side"}};
   }
   x["outside_model"]["joint6_friction"] = {
-      {"enabled", c.effects.has(SimEffect::joint6_friction)},
+      {"enabled", c.effects.has(RigEffect::joint6_friction)},
       {"torque_Nm", c.joint6_friction_Nm},
       {"rate_radps", c.joint6_friction_rate_radps},
       {"formula", "Mz += torque_Nm * tanh(qd6 / rate_radps), added before crosstalk"},
-      {"terms", terms_json(outside_terms(c, SimEffect::joint6_friction))}};
+      {"terms", terms_json(outside_terms(c, RigEffect::joint6_friction))}};
   x["outside_model"]["swivel_viscous"] = {
-      {"enabled", c.effects.has(SimEffect::swivel_viscous)},
+      {"enabled", c.effects.has(RigEffect::swivel_viscous)},
       {"damping_Nms_per_rad", c.swivel_damping_Nms_per_rad},
       {"formula",
        "Mz -= damping_Nms_per_rad * wz_S (payload angular velocity about z of the true sensor "
        "frame), added before crosstalk"},
-      {"terms", terms_json(outside_terms(c, SimEffect::swivel_viscous))}};
+      {"terms", terms_json(outside_terms(c, RigEffect::swivel_viscous))}};
   x["outside_model"]["hose_drag"] = {
-      {"enabled", c.effects.has(SimEffect::hose_drag)},
+      {"enabled", c.effects.has(RigEffect::hose_drag)},
       {"damping_Ns_per_m", c.hose_drag_Ns_per_m},
       {"formula",
        "F_S -= damping_Ns_per_m * v_S (velocity of the sensor origin in the true sensor frame), "
        "no torque about the sensor origin, added before crosstalk"},
-      {"terms", terms_json(outside_terms(c, SimEffect::hose_drag))}};
+      {"terms", terms_json(outside_terms(c, RigEffect::hose_drag))}};
   x["outside_model"]["dress_pack_bend"] = {
-      {"enabled", c.effects.has(SimEffect::dress_pack_bend)},
+      {"enabled", c.effects.has(RigEffect::dress_pack_bend)},
       {"force_N", c.dress_pack_bend_N},
       {"formula",
        "Fx += force_N * sin(q4) * sin(q5) (joint angles A4, A5), added before crosstalk"},
-      {"terms", terms_json(outside_terms(c, SimEffect::dress_pack_bend))}};
-  x["rig_geometry"] = {{"imu_lever_arm_enabled", c.effects.has(SimEffect::imu_lever_arm)},
+      {"terms", terms_json(outside_terms(c, RigEffect::dress_pack_bend))}};
+  x["rig_geometry"] = {{"imu_lever_arm_enabled", c.effects.has(RigEffect::imu_lever_arm)},
                        {"p_sensor_imu_m", vec_json(p_sensor_imu_m_)},
                        {"imu_mount_rotvec_rad", vec_json(c.imu_mount_rotvec_rad)},
                        {"p_flange_sensor_m", vec_json(c.p_flange_sensor_m)}};
@@ -484,7 +524,7 @@ io::ModelFile RigSimulator::truth() const {
   x["payload"] = {{"mass_kg", c.payload.mass_kg},
                   {"com_sensor_m", vec_json(c.payload.com_sensor_m)},
                   {"inertia_com_sensor_kgm2", inertia},
-                  {"point_mass", !c.effects.has(SimEffect::rotational_inertia)}};
+                  {"point_mass", !c.effects.has(Effect::rotational_inertia)}};
   x["temperature_profile"] = {{"base_C", c.temperature.base_C},
                               {"warmup_K", c.temperature.warmup_K},
                               {"warmup_tau_s", c.temperature.warmup_tau_s},
@@ -500,7 +540,7 @@ io::ModelFile RigSimulator::truth() const {
 }
 
 double RigSimulator::imu_delay_s() const {
-  return config_.effects.has(SimEffect::imu_time_offset)
+  return config_.effects.has(Effect::imu_time_offset)
              ? config_.params.block(Effect::imu_time_offset)[0]
              : 0.0;
 }
@@ -544,7 +584,7 @@ Vec6 RigSimulator::wrench_of(const JointState& js, const robot::FlangeMotion& fm
   Vec6 w;
   const Eigen::Vector3d force = c.payload.mass_kg * (g_sensor - a_com_sensor);
   Eigen::Vector3d torque = com.cross(force);
-  if (c.effects.has(SimEffect::rotational_inertia)) {
+  if (c.effects.has(Effect::rotational_inertia)) {
     const Eigen::Matrix3d& I = c.payload.inertia_com_sensor_kgm2;
     torque -= I * omega_dot + omega.cross(I * omega);
   }
@@ -557,7 +597,7 @@ Vec6 RigSimulator::wrench_of(const JointState& js, const robot::FlangeMotion& fm
     w.tail<3>() += push.point_sensor_m.cross(force_sensor) +
                    R_base_sensor.transpose() * push.torque_base_Nm + push.torque_sensor_Nm;
   }
-  if (c.effects.has(SimEffect::cable)) {
+  if (c.effects.has(Effect::cable)) {
     const double* k = c.params.block(Effect::cable);
     for (int j = 0; j < 3; ++j) {
       const double q = js.q_rad[model::kCableJoints[j]];
@@ -567,15 +607,15 @@ Vec6 RigSimulator::wrench_of(const JointState& js, const robot::FlangeMotion& fm
   }
   // Outside the model library: loads on the payload that the sensor carries like the others.
   w += outside_wrench_of(js, fm, R_base_sensor);
-  if (c.effects.has(SimEffect::crosstalk)) {
+  if (c.effects.has(Effect::crosstalk)) {
     const Eigen::Map<const Eigen::Matrix<double, 6, 6, Eigen::RowMajor>> E(
         c.params.block(Effect::crosstalk));
     w = (Eigen::Matrix<double, 6, 6>::Identity() + E) * w;
   }
   w += Eigen::Map<const Vec6>(c.params.block(Effect::bias));
-  if (c.effects.has(SimEffect::bias_drift))
+  if (c.effects.has(Effect::bias_drift))
     w += Eigen::Map<const Vec6>(c.params.block(Effect::bias_drift)) * t_s;
-  if (c.effects.has(SimEffect::temperature_bias))
+  if (c.effects.has(Effect::temperature_bias))
     w += Eigen::Map<const Vec6>(c.params.block(Effect::temperature_bias)) *
          (c.temperature.at(t_s) - model::kTemperatureReferenceC);
   return w;
@@ -586,24 +626,24 @@ Vec6 RigSimulator::outside_wrench_of(const JointState& js, const robot::FlangeMo
   const SimConfig& c = config_;
   Vec6 w = Vec6::Zero();
   // A6 bearing friction, smoothed through zero rate.
-  if (c.effects.has(SimEffect::joint6_friction))
+  if (c.effects.has(RigEffect::joint6_friction))
     w[5] += c.joint6_friction_Nm * std::tanh(js.qd_radps[5] / c.joint6_friction_rate_radps);
   // A rotary hose swivel on the z_S axis whose housing the hose holds still: its seal drags
   // viscously against the payload's angular velocity about that axis.
-  if (c.effects.has(SimEffect::swivel_viscous)) {
+  if (c.effects.has(RigEffect::swivel_viscous)) {
     const Eigen::Vector3d omega_sensor = R_base_sensor.transpose() * fm.omega_base_radps;
     w[5] -= c.swivel_damping_Nms_per_rad * omega_sensor.z();
   }
   // A supply hose clamped at the sensor origin and dragged along: a viscous force against the
   // origin's velocity, no torque about it.
-  if (c.effects.has(SimEffect::hose_drag)) {
+  if (c.effects.has(RigEffect::hose_drag)) {
     const Eigen::Vector3d v_sensor =
         R_base_sensor.transpose() * fm.velocity_of(fm.R_base_flange * c.p_flange_sensor_m);
     w.head<3>() -= c.hose_drag_Ns_per_m * v_sensor;
   }
   // The dress pack over the wrist: its pull grows with the A5 bend, and A4 winds it round the
   // forearm towards x_S.
-  if (c.effects.has(SimEffect::dress_pack_bend))
+  if (c.effects.has(RigEffect::dress_pack_bend))
     w[0] += c.dress_pack_bend_N * std::sin(js.q_rad[3]) * std::sin(js.q_rad[4]);
   return w;
 }
@@ -613,7 +653,7 @@ Vec6 RigSimulator::outside_wrench_at(double t_s) const {
   const robot::FlangeMotion fm =
       robot::flange_motion(kr210(), js.q_rad, js.qd_radps, js.qdd_radps2);
   Vec6 w = outside_wrench_of(js, fm, fm.R_base_flange * R_nominal_true_);
-  if (config_.effects.has(SimEffect::crosstalk)) {
+  if (config_.effects.has(Effect::crosstalk)) {
     const Eigen::Map<const Eigen::Matrix<double, 6, 6, Eigen::RowMajor>> E(
         config_.params.block(Effect::crosstalk));
     w = (Eigen::Matrix<double, 6, 6>::Identity() + E) * w;

@@ -56,8 +56,8 @@ TEST(Physics, PushReachesTheSensorThroughThePayload) {
 TEST(Physics, ContactIsMeasuredMinusPredicted) {
   // What zerog-rt computes: the model with the truth parameters predicts the payload alone; the
   // rest of the reading is the push, in S, torque about the S origin. A moving robot, too.
-  const sim::SimEffectSet effects = {sim::SimEffect::rotational_inertia, sim::SimEffect::cable,
-                                     sim::SimEffect::bias_drift, sim::SimEffect::temperature_bias};
+  const sim::SimEffectSet effects = {model::Effect::rotational_inertia, model::Effect::cable,
+                                     model::Effect::bias_drift, model::Effect::temperature_bias};
   const std::vector<Push> pushes = {
       {0.0, 1.0, Eigen::Vector3d(20.0, 35.0, -10.0), Eigen::Vector3d(1.0, -2.0, 0.5),
        Eigen::Vector3d(0.2, 0.1, 0.3), PushProfile::constant},
@@ -172,7 +172,7 @@ TEST(Physics, PushProfilesAndImpulses) {
 }
 
 TEST(Physics, ImuReportsTheMotionOfTauEarlier) {
-  sim::SimConfig c = quiet({sim::SimEffect::rotational_inertia, sim::SimEffect::imu_time_offset});
+  sim::SimConfig c = quiet({model::Effect::rotational_inertia, model::Effect::imu_time_offset});
   PayloadPhysics physics(c, {}, 2000.0);
   const int delay = static_cast<int>(std::lround(physics.simulator().imu_delay_s() * 2000.0));
   EXPECT_EQ(delay, 16);  // 8 ms

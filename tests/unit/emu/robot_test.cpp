@@ -562,7 +562,7 @@ TEST(RigEmulatorLoop, FaultsAndBadRepliesAreCountedWhereTheyHappen) {
 TEST(RigEmulatorLoop, TruthModelAndRigReadBackAndNameTheSameRig) {
   Scenario scenario = default_scenario();
   scenario.robot.cycle_ms = 4;
-  scenario.sim.effects.add(sim::SimEffect::cable);
+  scenario.sim.effects.add(model::Effect::cable);
   const sim::RigSimulator simulator(scenario.sim);
   const std::filesystem::path dir = std::filesystem::temp_directory_path() / "zerog_emu_rig_test";
   std::filesystem::create_directories(dir);

@@ -94,8 +94,8 @@ TEST(Scenario, FullFile) {
   EXPECT_NEAR(s.robot.start_joints_rad[0], 10 * kDeg, 1e-15);
   EXPECT_NEAR(s.robot.start_joints_rad[5], -20 * kDeg, 1e-15);
   EXPECT_EQ(s.sim.seed, 42u);
-  EXPECT_TRUE(s.sim.effects.has(sim::SimEffect::cable));
-  EXPECT_FALSE(s.sim.effects.has(sim::SimEffect::rotational_inertia));
+  EXPECT_TRUE(s.sim.effects.has(model::Effect::cable));
+  EXPECT_FALSE(s.sim.effects.has(model::Effect::rotational_inertia));
   EXPECT_DOUBLE_EQ(s.sim.payload.mass_kg, 80.0);
   EXPECT_DOUBLE_EQ(s.sim.noise.force_N, 0.5);
   // The rest is the seed's default configuration.

@@ -114,7 +114,7 @@ sim::SimConfig lever_arm_stream(std::uint64_t payload_seed, std::uint64_t noise_
                                 double period_s, double duration_s) {
   sim::SimConfig c = sim::default_sim_config(payload_seed);
   c.seed = noise_seed;
-  c.effects.add(sim::SimEffect::imu_lever_arm);
+  c.effects.add(sim::RigEffect::imu_lever_arm);
   c.period_s = period_s;
   c.duration_limit_s = duration_s;
   return c;
@@ -176,7 +176,7 @@ TEST(RobotKinematics, JointsOnlyFitsMassAndInertiaOnSeveralSeeds) {
     sim::SimConfig config = sim::default_sim_config(seed);
     config.period_s = 0.012;
     config.duration_limit_s = 120.0;
-    config.effects.add(sim::SimEffect::imu_lever_arm);  // the derived IMU columns include it
+    config.effects.add(sim::RigEffect::imu_lever_arm);  // the derived IMU columns include it
     const sim::RigSimulator simulator(config, design_points());
     const sim::SimOutput out = simulator.run();
 
@@ -281,8 +281,8 @@ TEST(RobotKinematics, JointsOnlyFitsMassAndInertiaOnSeveralSeeds) {
 TEST(RobotKinematics, JointsOnlyHiddenEffectsAreDiagnosed) {
   const fs::path dir = fresh_dir("hidden");
   for (const auto& [sim_effect, effect] :
-       {std::pair{sim::SimEffect::cable, Effect::cable},
-        std::pair{sim::SimEffect::bias_drift, Effect::bias_drift}}) {
+       {std::pair{model::Effect::cable, Effect::cable},
+        std::pair{model::Effect::bias_drift, Effect::bias_drift}}) {
     const std::string name = model::info(effect).name;
     SCOPED_TRACE(name);
     sim::SimConfig config = sim::default_sim_config(12);

@@ -106,15 +106,15 @@ TEST(Simulator, ReproducedByTheModelLibraryForEachEffect) {
   const std::vector<JointVector> path = short_path();
   const EffectCase cases[] = {
       {"point mass", {}},
-      {"rotational_inertia", {SimEffect::rotational_inertia}},
-      {"base_tilt", {SimEffect::base_tilt}},
-      {"imu_time_offset", {SimEffect::imu_time_offset}},
-      {"bias_drift", {SimEffect::bias_drift}},
-      {"temperature_bias", {SimEffect::temperature_bias}},
-      {"crosstalk", {SimEffect::crosstalk}},
-      {"sensor_rotation", {SimEffect::sensor_rotation}},
-      {"cable", {SimEffect::cable}},
-      {"imu_lever_arm", {SimEffect::imu_lever_arm}},
+      {"rotational_inertia", {Effect::rotational_inertia}},
+      {"base_tilt", {Effect::base_tilt}},
+      {"imu_time_offset", {Effect::imu_time_offset}},
+      {"bias_drift", {Effect::bias_drift}},
+      {"temperature_bias", {Effect::temperature_bias}},
+      {"crosstalk", {Effect::crosstalk}},
+      {"sensor_rotation", {Effect::sensor_rotation}},
+      {"cable", {Effect::cable}},
+      {"imu_lever_arm", {RigEffect::imu_lever_arm}},
       {"all in the model", all_in_the_model()},
   };
   for (const EffectCase& c : cases) {
@@ -128,11 +128,12 @@ TEST(Simulator, ReproducedByTheModelLibraryForEachEffect) {
     model::ModelParams without = out.truth.params;
     bool removed = false;
     for (const auto& i : sim_effect_infos()) {
-      if (!c.effects.has(i.id) || !i.model_effect || *i.model_effect == Effect::base_tilt) continue;
-      without.effects.remove(*i.model_effect);
+      if (!c.effects.has(i.id) || !i.model_effect() || *i.model_effect() == Effect::base_tilt)
+        continue;
+      without.effects.remove(*i.model_effect());
       removed = true;
     }
-    if (c.effects.has(SimEffect::imu_lever_arm)) {
+    if (c.effects.has(RigEffect::imu_lever_arm)) {
       // The rig knows the lever arm; a rig without it misses ω̇ × r and ω × (ω × r).
       formats::Rig no_lever = out.log.rig;
       no_lever.sensor_imu.p_m.setZero();
@@ -141,8 +142,7 @@ TEST(Simulator, ReproducedByTheModelLibraryForEachEffect) {
       EXPECT_GT(max_abs(model_minus_sim(sim, moved, out.truth.params), 0, 3), 5.0) << c.name;
     }
     // Drift and temperature are slow: they show over a full run (SlowEffectsShowOverAFullRun).
-    const bool slow =
-        c.effects.has(SimEffect::bias_drift) || c.effects.has(SimEffect::temperature_bias);
+    const bool slow = c.effects.has(Effect::bias_drift) || c.effects.has(Effect::temperature_bias);
     if (removed && !slow && std::string(c.name) != "all in the model") {
       const std::vector<Vec6> dw = model_minus_sim(sim, out, without);
       EXPECT_GT(std::max(max_abs(dw, 0, 3) / 0.25, max_abs(dw, 3, 6) / 0.03), 10.0) << c.name;
@@ -153,7 +153,7 @@ TEST(Simulator, ReproducedByTheModelLibraryForEachEffect) {
 TEST(Simulator, BaseTiltMatchesTheModelInStaticPoses) {
   // With the IMU the tilt cannot be seen; from the pose alone (gravity model) it must match.
   const std::vector<JointVector> path = short_path();
-  const RigSimulator sim(quiet_config({SimEffect::base_tilt, SimEffect::rotational_inertia}), path);
+  const RigSimulator sim(quiet_config({Effect::base_tilt, Effect::rotational_inertia}), path);
   const SimOutput out = sim.run();
   model::ModelParams p = out.truth.params;
   p.effects = {Effect::bias, Effect::gravity, Effect::base_tilt};
@@ -175,7 +175,7 @@ TEST(Simulator, BaseTiltMatchesTheModelInStaticPoses) {
 
 TEST(Simulator, Joint6FrictionIsOutsideTheModel) {
   const std::vector<JointVector> path = short_path();
-  SimConfig c = quiet_config({SimEffect::joint6_friction, SimEffect::rotational_inertia});
+  SimConfig c = quiet_config({RigEffect::joint6_friction, Effect::rotational_inertia});
   const RigSimulator sim(c, path);
   const SimOutput out = sim.run();
   const std::vector<Vec6> d = model_minus_sim(sim, out, out.truth.params);
@@ -194,14 +194,14 @@ TEST(Simulator, Joint6FrictionIsOutsideTheModel) {
 // The law of one outside effect evaluated from the simulator's own kinematics: flange twist from
 // the joint state, the true sensor frame, the sensor origin's velocity. Independent of
 // outside_terms (written from the brief's formulas).
-Vec6 outside_law(SimEffect effect, const Measurement& m, const JointState& js) {
+Vec6 outside_law(RigEffect effect, const Measurement& m, const JointState& js) {
   Vec6 w = Vec6::Zero();
   const Eigen::Matrix3d& R = m.R_base_sensor;
   switch (effect) {
-    case SimEffect::swivel_viscous:
+    case RigEffect::swivel_viscous:
       w[5] = -2.0 * (R.transpose() * m.flange.omega_base_radps).z();
       break;
-    case SimEffect::hose_drag: {
+    case RigEffect::hose_drag: {
       // S origin: flange origin + R_BF p_FS; its velocity v_F + ω × (R_BF p_FS).
       const Eigen::Vector3d lever = m.p_base_sensor_m - m.flange.p_base_flange_m;
       const Eigen::Vector3d v_base =
@@ -209,7 +209,7 @@ Vec6 outside_law(SimEffect effect, const Measurement& m, const JointState& js) {
       w.head<3>() = -25.0 * (R.transpose() * v_base);
       break;
     }
-    case SimEffect::dress_pack_bend:
+    case RigEffect::dress_pack_bend:
       w[0] = 8.0 * std::sin(js.q_rad[3]) * std::sin(js.q_rad[4]);
       break;
     default:
@@ -220,17 +220,17 @@ Vec6 outside_law(SimEffect effect, const Measurement& m, const JointState& js) {
 
 TEST(Simulator, OutsideEffectsAddExactlyTheirLaw) {
   const std::vector<JointVector> path = short_path();
-  for (SimEffect e :
-       {SimEffect::swivel_viscous, SimEffect::hose_drag, SimEffect::dress_pack_bend}) {
+  for (RigEffect e :
+       {RigEffect::swivel_viscous, RigEffect::hose_drag, RigEffect::dress_pack_bend}) {
     SCOPED_TRACE(info(e).name);
     // Sensor rotation and an IMU lever arm on, so that "in S" and "of the S origin" matter.
-    const SimEffectSet base = {SimEffect::rotational_inertia, SimEffect::sensor_rotation,
-                               SimEffect::cable, SimEffect::bias_drift};
+    const SimEffectSet base = {Effect::rotational_inertia, Effect::sensor_rotation, Effect::cable,
+                               Effect::bias_drift};
     SimEffectSet with = base;
     with.add(e);
     const RigSimulator off(quiet_config(base), path);
     const RigSimulator on(quiet_config(with), path);
-    EXPECT_FALSE(info(e).model_effect.has_value());
+    EXPECT_FALSE(info(e).model_effect().has_value());
     double largest = 0.0, sum2 = 0.0;
     int n = 0;
     for (double t = 0.0; t < on.trajectory().duration_s(); t += 0.25) {
@@ -246,7 +246,7 @@ TEST(Simulator, OutsideEffectsAddExactlyTheirLaw) {
     }
     ASSERT_GT(n, 80);
     // Clearly above the F/T noise (0.25 N, 0.03 N·m) on this short path.
-    EXPECT_GT(largest, e == SimEffect::swivel_viscous ? 0.5 : 5.0);
+    EXPECT_GT(largest, e == RigEffect::swivel_viscous ? 0.5 : 5.0);
     std::printf("  %-16s largest %.3g, RMS over axes %.3g (N or N*m)\n", info(e).name, largest,
                 std::sqrt(sum2 / n));
   }
@@ -254,13 +254,13 @@ TEST(Simulator, OutsideEffectsAddExactlyTheirLaw) {
 
 TEST(Simulator, OutsideEffectsGoThroughTheCrosstalk) {
   const std::vector<JointVector> path = short_path();
-  const RigSimulator sim(quiet_config({SimEffect::hose_drag, SimEffect::crosstalk}), path);
+  const RigSimulator sim(quiet_config({RigEffect::hose_drag, Effect::crosstalk}), path);
   const SimConfig& c = sim.config();
   const Eigen::Map<const Eigen::Matrix<double, 6, 6, Eigen::RowMajor>> E(
       c.params.block(Effect::crosstalk));
   const double t = 3.3;
   const Measurement m = sim.measure(sim.trajectory().at(t), t);
-  const Vec6 law = outside_law(SimEffect::hose_drag, m, sim.trajectory().at(t));
+  const Vec6 law = outside_law(RigEffect::hose_drag, m, sim.trajectory().at(t));
   ASSERT_GT(law.norm(), 1.0);
   EXPECT_LT((sim.outside_wrench_at(t) - (Vec6(law) + E * law)).norm(), 1e-9);
 }
@@ -278,12 +278,13 @@ TEST(Simulator, OutsideTermsAreTheLaw) {
       EXPECT_EQ(got[k].coefficient, want[k].coefficient) << k;
     }
   };
-  expect_terms(outside_terms(c, SimEffect::joint6_friction), {{"Mz", "tanh(qd6/0.02)", 1.5}});
-  expect_terms(outside_terms(c, SimEffect::swivel_viscous), {{"Mz", "wz_S", -2.0}});
-  expect_terms(outside_terms(c, SimEffect::hose_drag),
+  expect_terms(outside_terms(c, RigEffect::joint6_friction), {{"Mz", "tanh(qd6/0.02)", 1.5}});
+  expect_terms(outside_terms(c, RigEffect::swivel_viscous), {{"Mz", "wz_S", -2.0}});
+  expect_terms(outside_terms(c, RigEffect::hose_drag),
                {{"Fx", "vx_S", -25.0}, {"Fy", "vy_S", -25.0}, {"Fz", "vz_S", -25.0}});
-  expect_terms(outside_terms(c, SimEffect::dress_pack_bend), {{"Fx", "sin(q4)*sin(q5)", 8.0}});
-  for (SimEffect e : {SimEffect::cable, SimEffect::crosstalk, SimEffect::imu_lever_arm})
+  expect_terms(outside_terms(c, RigEffect::dress_pack_bend), {{"Fx", "sin(q4)*sin(q5)", 8.0}});
+  for (const SimEffect e :
+       std::initializer_list<SimEffect>{Effect::cable, Effect::crosstalk, RigEffect::imu_lever_arm})
     EXPECT_TRUE(outside_terms(c, e).empty()) << info(e).name;
 
   // Switched on, in SimEffect order; the values follow set_config_value.
@@ -334,9 +335,42 @@ TEST(Simulator, OutsideEffectsInTheTruthFileAndSettable) {
   EXPECT_EQ(t.params.effects, expected);
   // And by name on the command line.
   EXPECT_EQ(parse_sim_effects("hose_drag,dress_pack_bend,-rotational_inertia"),
-            SimEffectSet({SimEffect::hose_drag, SimEffect::dress_pack_bend}));
+            SimEffectSet({RigEffect::hose_drag, RigEffect::dress_pack_bend}));
   ASSERT_TRUE(sim_effect_from_name("swivel_viscous").has_value());
-  EXPECT_EQ(*sim_effect_from_name("swivel_viscous"), SimEffect::swivel_viscous);
+  EXPECT_EQ(*sim_effect_from_name("swivel_viscous"), SimEffect{RigEffect::swivel_viscous});
+}
+
+// The simulator's switches are the model library's effects (by the library's own names) and the
+// rig's: a library effect the truth can be without has a switch, the three it always has do not.
+TEST(Simulator, SwitchesAreTheLibrarysEffectsThenTheRigs) {
+  std::size_t k = 0;
+  const auto& infos = sim_effect_infos();
+  for (Effect e : model::kAllEffects) {
+    if (!switchable(e)) {
+      EXPECT_FALSE(sim_effect_from_name(model::info(e).name).has_value()) << model::info(e).name;
+      continue;
+    }
+    ASSERT_LT(k, infos.size());
+    EXPECT_EQ(infos[k].id, SimEffect{e});
+    EXPECT_STREQ(infos[k].name, model::info(e).name);
+    EXPECT_EQ(infos[k].model_effect(), e);
+    EXPECT_NE(infos[k].default_magnitude, nullptr) << infos[k].name;
+    ++k;
+  }
+  for (int r = 0; r < kRigEffectCount; ++r, ++k) {
+    ASSERT_LT(k, infos.size());
+    EXPECT_EQ(infos[k].id, SimEffect{static_cast<RigEffect>(r)});
+    EXPECT_FALSE(infos[k].model_effect().has_value()) << infos[k].name;
+    EXPECT_EQ(&info(infos[k].id), &infos[k]);
+  }
+  EXPECT_EQ(k, infos.size());
+  try {
+    parse_sim_effects("cable,-gravity");
+    ADD_FAILURE() << "gravity cannot be switched off";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("always in the truth"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(info(SimEffect{Effect::bias}), std::invalid_argument);
 }
 
 TEST(Simulator, StaticSampleIsWeightWithinNoise) {
@@ -444,7 +478,7 @@ TEST(Simulator, SlowEffectsShowOverAFullRun) {
     const SimOutput out = sim.run();
     EXPECT_LT(max_abs(model_minus_sim(sim, out, out.truth.params)), 1e-6) << name;
     model::ModelParams without = out.truth.params;
-    without.effects.remove(*info(*sim_effect_from_name(name)).model_effect);
+    without.effects.remove(*info(*sim_effect_from_name(name)).model_effect());
     const std::vector<Vec6> d = model_minus_sim(sim, out, without);
     // Per sample a few σ at the end of the run; a fit over ~70k samples sees it at once.
     EXPECT_GT(max_abs(d, 0, 3), 3 * 0.25) << name;

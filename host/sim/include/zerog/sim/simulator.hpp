@@ -15,6 +15,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <variant>
 #include <vector>
 
 #include "zerog/formats/log.hpp"
@@ -26,30 +27,39 @@
 
 namespace zerog::sim {
 
-/// What the simulator can switch on or off in its truth.
-enum class SimEffect : std::uint8_t {
-  rotational_inertia,  ///< payload inertia tensor (off: point mass); on by default
-  base_tilt,
-  imu_time_offset,
-  bias_drift,
-  temperature_bias,
-  crosstalk,
-  sensor_rotation,
-  cable,
+/// Effects of the rig that the model library does not have (proto/effects.md lists the library's).
+enum class RigEffect : std::uint8_t {
   imu_lever_arm,    ///< rig geometry, not a model effect: IMU origin off the sensor origin
-  joint6_friction,  ///< outside the model library: Mz follows the sign of the A6 rate
-  swivel_viscous,   ///< outside the model library: Mz drags against the payload's rate about z_S
-  hose_drag,        ///< outside the model library: force against the sensor origin's velocity
-  dress_pack_bend,  ///< outside the model library: Fx follows sin(A4)·sin(A5)
+  joint6_friction,  ///< Mz follows the sign of the A6 rate
+  swivel_viscous,   ///< Mz drags against the payload's rate about z_S
+  hose_drag,        ///< force against the sensor origin's velocity
+  dress_pack_bend,  ///< Fx follows sin(A4)·sin(A5)
 };
-inline constexpr int kSimEffectCount = 13;
+inline constexpr int kRigEffectCount = 5;
+
+/// What the simulator can switch on or off in its truth: an effect of the model library (every
+/// one but bias, gravity and linear inertia, which the truth always has; see switchable()) or an
+/// effect of the rig.
+using SimEffect = std::variant<model::Effect, RigEffect>;
+
+/// Whether the simulator's truth can be without this library effect.
+constexpr bool switchable(model::Effect e) {
+  return e != model::Effect::bias && e != model::Effect::gravity &&
+         e != model::Effect::linear_inertia;
+}
+inline constexpr int kSimEffectCount = model::kEffectCount - 3 + kRigEffectCount;
 
 struct SimEffectInfo {
   SimEffect id;
-  const char* name;
-  std::optional<model::Effect> model_effect;  ///< the model library's effect, if any
-  const char* default_magnitude;              ///< plain words, for --list-effects
+  const char* name;               ///< the library's name (model::info) or the rig effect's
+  const char* default_magnitude;  ///< plain words, for --list-effects
+  /// The model library's effect, if it is one.
+  std::optional<model::Effect> model_effect() const {
+    if (const auto* e = std::get_if<model::Effect>(&id)) return *e;
+    return std::nullopt;
+  }
 };
+/// The switches: the library's effects in their declaration order, then the rig's.
 const std::array<SimEffectInfo, kSimEffectCount>& sim_effect_infos();
 const SimEffectInfo& info(SimEffect e);
 std::optional<SimEffect> sim_effect_from_name(std::string_view name);
@@ -58,19 +68,32 @@ class SimEffectSet {
  public:
   constexpr SimEffectSet() = default;
   constexpr SimEffectSet(std::initializer_list<SimEffect> effects) {
-    for (SimEffect e : effects) add(e);
+    for (const SimEffect& e : effects) add(e);
   }
-  constexpr bool has(SimEffect e) const { return (bits_ >> static_cast<int>(e)) & 1u; }
-  constexpr void add(SimEffect e) { bits_ |= 1u << static_cast<int>(e); }
-  constexpr void remove(SimEffect e) { bits_ &= ~(1u << static_cast<int>(e)); }
+  constexpr bool has(model::Effect e) const { return library_.has(e); }
+  constexpr bool has(RigEffect e) const { return (rig_bits_ >> static_cast<int>(e)) & 1u; }
+  constexpr bool has(const SimEffect& e) const {
+    return std::visit([this](auto x) { return has(x); }, e);
+  }
+  constexpr void add(model::Effect e) { library_.add(e); }
+  constexpr void add(RigEffect e) { rig_bits_ |= 1u << static_cast<int>(e); }
+  constexpr void add(const SimEffect& e) {
+    std::visit([this](auto x) { add(x); }, e);
+  }
+  constexpr void remove(model::Effect e) { library_.remove(e); }
+  constexpr void remove(RigEffect e) { rig_bits_ &= ~(1u << static_cast<int>(e)); }
+  constexpr void remove(const SimEffect& e) {
+    std::visit([this](auto x) { remove(x); }, e);
+  }
   constexpr bool operator==(const SimEffectSet&) const = default;
 
  private:
-  std::uint32_t bits_ = 0;
+  model::EffectSet library_;
+  std::uint32_t rig_bits_ = 0;
 };
 
 /// The default truth: bias, gravity, linear inertia (always) and rotational inertia.
-inline constexpr SimEffectSet kDefaultSimEffects = {SimEffect::rotational_inertia};
+inline constexpr SimEffectSet kDefaultSimEffects = {model::Effect::rotational_inertia};
 
 /// Applies a list like "base_tilt,cable,-rotational_inertia" to `start`: a name switches an
 /// effect on, "-name" off; "all" and "none" switch all of them. Throws naming an unknown name.
