@@ -1,8 +1,10 @@
 #include "zerog/ident/gate_rule.hpp"
 
+#include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <numbers>
 
 #include "zerog/control/motion.hpp"
@@ -41,6 +43,126 @@ double lag1(const std::vector<double>& v) {
   return den > 0.0 ? num / den : 0.0;
 }
 
+// The confirm statistic: the smallest norm over `confirm` consecutive cycles with no gap among
+// them (a window confirms a push at threshold t when it is above t). Windows over a gap are left
+// out.
+std::vector<double> run_minima(const std::vector<double>& norm,
+                               const std::vector<std::size_t>& gaps, int confirm) {
+  std::vector<double> out;
+  const std::size_t c = static_cast<std::size_t>(std::max(confirm, 1));
+  std::size_t since_gap = 0;
+  for (std::size_t i = 0; i < norm.size(); ++i) {
+    since_gap = gaps[i] ? 1 : since_gap + 1;
+    if (since_gap < c) continue;
+    double m = norm[i];
+    for (std::size_t k = 1; k < c; ++k) m = std::min(m, norm[i - k]);
+    out.push_back(m);
+  }
+  return out;
+}
+
+// t with Q₃(t²/σ²) = q (the tail falls with t; bisection to 1e-9 σ).
+double tail_level(double q, double sigma) {
+  double lo = 0.0, hi = 20.0;
+  while (hi - lo > 1e-9) {
+    const double mid = 0.5 * (lo + hi);
+    (chi2_3_tail(mid * mid) > q ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi) * sigma;
+}
+
+// The exponent e of the rule, measured at moderate levels: at levels t_q where one cycle is
+// above with probability q (the χ² tail), the windows of `confirm` cycles all above t_q are
+// counted; where they are more than q^confirm by three standard errors of that count (and at
+// least 5), q^e = their fraction gives e = ln(fraction) / ln(q). The smallest e over the levels;
+// `confirm` where none is significant. It sees tails heavier than the Gaussian's.
+double measured_exponent(const std::vector<double>& minima, double sigma, int confirm,
+                         int& levels_measured) {
+  levels_measured = 0;
+  double e = confirm;
+  const double n = static_cast<double>(minima.size());
+  if (minima.empty() || sigma <= 0.0) return e;
+  static constexpr double kLevels[] = {0.5,  0.3,  0.2,   0.1,   0.05,  0.03,
+                                       0.02, 0.01, 0.005, 0.002, 0.001, 5e-4};
+  for (const double q : kLevels) {
+    const double t = tail_level(q, sigma);
+    const double count = static_cast<double>(
+        std::count_if(minima.begin(), minima.end(), [t](double m) { return m > t; }));
+    if (count < 5.0) break;
+    ++levels_measured;
+    const double independent = std::pow(q, confirm);
+    const double se = std::sqrt(independent * (1.0 - independent) / n);
+    if (count / n > independent + 3.0 * se) e = std::min(e, std::log(count / n) / std::log(q));
+  }
+  return e;
+}
+
+// The exponent e of the rule for a Gaussian noise with the recording's correlation from cycle
+// to cycle: for X ~ N(0, Σ) over `confirm` cycles, P(all above t) falls as exp(−e t²/2) with
+// e = min over x ≥ 1 of xᵀ Σ⁻¹ x (Σ the correlation matrix; 1ᵀΣ⁻¹1 when Σ⁻¹1 ≥ 0), against
+// exp(−t²/2) for one cycle: so P(run) ≈ Q₃^e deep in the tail, where the rule's threshold lies
+// (at moderate levels the run is rarer than that: the safe side). Σ from the autocorrelation of
+// the three axes pooled (mean included, as in σ), at lags 1 … confirm − 1 within stretches
+// without a gap; a lag whose correlation is within three standard errors (3/√(3n)) of zero is
+// taken as zero, so white noise keeps e = confirm. AR(1) with correlation ρ gives
+// e = (confirm − (confirm − 2) ρ)/(1 + ρ); a Σ that is not positive definite, e = 1.
+double gaussian_exponent(const std::vector<Eigen::Vector3d>& x,
+                         const std::vector<std::size_t>& gaps, int confirm,
+                         std::vector<double>& correlation) {
+  const int c = std::max(confirm, 1);
+  correlation.assign(static_cast<std::size_t>(c), 0.0);
+  correlation[0] = 1.0;
+  double energy = 0.0;
+  for (const Eigen::Vector3d& v : x) energy += v.squaredNorm();
+  if (energy <= 0.0 || c == 1) return 1.0;
+  std::vector<std::size_t> since_gap(x.size());
+  for (std::size_t i = 0; i < x.size(); ++i)
+    since_gap[i] = i == 0 || gaps[i] ? 0 : since_gap[i - 1] + 1;
+  const double significant = 3.0 / std::sqrt(3.0 * static_cast<double>(x.size()));
+  for (int k = 1; k < c; ++k) {
+    double sum = 0.0;
+    const std::size_t lag = static_cast<std::size_t>(k);
+    for (std::size_t i = lag; i < x.size(); ++i)
+      if (since_gap[i] >= lag) sum += x[i].dot(x[i - lag]);
+    const double r = sum / energy;
+    correlation[lag] = std::abs(r) > significant ? r : 0.0;
+  }
+  Eigen::MatrixXd S(c, c);
+  for (int i = 0; i < c; ++i)
+    for (int j = 0; j < c; ++j) S(i, j) = correlation[static_cast<std::size_t>(std::abs(i - j))];
+  const Eigen::LLT<Eigen::MatrixXd> llt(S);
+  if (llt.info() != Eigen::Success) return 1.0;
+  const Eigen::MatrixXd P = llt.solve(Eigen::MatrixXd::Identity(c, c));
+  // min xᵀPx over x ≥ 1: the optimum has some components at 1 (the set A) and the others at
+  // their unconstrained optimum given those, which must be ≥ 1. Every A is tried (2^c − 1 of
+  // them); beyond 12 cycles only A = all, and e = 1 if that is not the optimum.
+  const Eigen::VectorXd ones = Eigen::VectorXd::Ones(c);
+  if (c > 12) {
+    const Eigen::VectorXd g = P * ones;
+    return (g.array() >= 0.0).all() ? ones.dot(g) : 1.0;
+  }
+  double best = std::numeric_limits<double>::infinity();
+  for (unsigned mask = 1; mask < (1u << c); ++mask) {
+    std::vector<int> active, free;
+    for (int i = 0; i < c; ++i) ((mask >> i) & 1u ? active : free).push_back(i);
+    Eigen::VectorXd v = ones;
+    if (!free.empty()) {
+      Eigen::MatrixXd Pff(free.size(), free.size());
+      Eigen::VectorXd rhs = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(free.size()));
+      for (std::size_t a = 0; a < free.size(); ++a) {
+        for (std::size_t b = 0; b < free.size(); ++b)
+          Pff(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) = P(free[a], free[b]);
+        for (const int j : active) rhs[static_cast<Eigen::Index>(a)] -= P(free[a], j);
+      }
+      const Eigen::VectorXd xf = Pff.llt().solve(rhs);
+      if ((xf.array() < 1.0 - 1e-12).any()) continue;
+      for (std::size_t a = 0; a < free.size(); ++a) v[free[a]] = xf[static_cast<Eigen::Index>(a)];
+    }
+    best = std::min(best, v.dot(P * v));
+  }
+  return best;
+}
+
 GateGroup group(const std::vector<Eigen::Vector3d>& x, const std::vector<std::size_t>& gaps,
                 double cycle_s, const GateRuleOptions& o, double now) {
   const double cycles_per_hour = 3600.0 / cycle_s;
@@ -56,9 +178,18 @@ GateGroup group(const std::vector<Eigen::Vector3d>& x, const std::vector<std::si
   std::vector<double> norm(x.size());
   for (std::size_t i = 0; i < x.size(); ++i) norm[i] = x[i].norm();
   g.lag1 = lag1(norm);
-  // The smallest t (in steps of 0.1 % of σ) with cycles/h × Q₃(t²/σ²)^confirm ≤ the target.
+  // How many cycles in a row the noise must clear, in effect: `confirm` for independent
+  // cycles, fewer when the noise stays up for runs of cycles. The smaller of the two exponents
+  // (each errs on the safe side where the other does not), within [1, confirm].
+  const double measured = measured_exponent(run_minima(norm, gaps, o.confirm_cycles), g.sigma,
+                                            o.confirm_cycles, g.levels_measured);
+  const double gaussian = gaussian_exponent(x, gaps, o.confirm_cycles, g.correlation);
+  g.effective_confirm =
+      std::clamp(std::min(measured, gaussian), 1.0, static_cast<double>(o.confirm_cycles));
+  // The smallest t (in steps of 0.1 % of σ) with cycles/h × Q₃(t²/σ²)^e ≤ the target.
   const auto rate = [&](double t) {
-    return cycles_per_hour * std::pow(chi2_3_tail(t * t / (g.sigma * g.sigma)), o.confirm_cycles);
+    return cycles_per_hour *
+           std::pow(chi2_3_tail(t * t / (g.sigma * g.sigma)), g.effective_confirm);
   };
   double t = g.sigma;
   while (rate(t) > o.false_per_hour && t < 100.0 * g.sigma) t += 1e-3 * g.sigma;
@@ -137,12 +268,12 @@ std::string format_gate_advice(const GateAdvice& a, const GateRuleOptions& o) {
   const auto one = [&](const char* name, const char* unit, const GateGroup& g, double now) {
     std::snprintf(line, sizeof line,
                   "  %s: contact RMS %.3g / %.3g / %.3g %s (sigma %.3g), lag-1 correlation of "
-                  "the norm %.2f; threshold %.3g %s (%.3g false confirms/h if independent; "
-                  "replayed: %zu confirms), configured %.3g %s (replayed: %zu confirms, open %zu "
-                  "cycles)\n",
-                  name, g.rms[0], g.rms[1], g.rms[2], unit, g.sigma, g.lag1, g.threshold, unit,
-                  g.false_per_hour, g.confirms_at_threshold, now, unit, g.confirms_now,
-                  g.open_cycles_now);
+                  "the norm %.2f, runs as of %.2f independent cycles (%d levels measured); "
+                  "threshold %.3g %s (%.3g false confirms/h; replayed: %zu confirms), "
+                  "configured %.3g %s (replayed: %zu confirms, open %zu cycles)\n",
+                  name, g.rms[0], g.rms[1], g.rms[2], unit, g.sigma, g.lag1, g.effective_confirm,
+                  g.levels_measured, g.threshold, unit, g.false_per_hour, g.confirms_at_threshold,
+                  now, unit, g.confirms_now, g.open_cycles_now);
     out += line;
   };
   one("force at the virtual centre of mass", "N", a.force, o.force_now_N);
@@ -152,10 +283,15 @@ std::string format_gate_advice(const GateAdvice& a, const GateRuleOptions& o) {
                 "torque_deadband_Nm = %.3g\n",
                 a.force.threshold, a.torque.threshold);
   out += line;
-  if (a.force.lag1 > 0.3 || a.torque.lag1 > 0.3)
+  if (a.force.effective_confirm < o.confirm_cycles || a.torque.effective_confirm < o.confirm_cycles)
     out +=
-        "  note: the noise is correlated from cycle to cycle (lag-1 above 0.3): runs above a "
-        "threshold are likelier than the independent figure says; the replay is the check\n";
+        "  note: the noise is correlated from cycle to cycle: it stays above a threshold for "
+        "runs of cycles more often than independent cycles would, so the thresholds count fewer "
+        "cycles in a row than the gate's (the measured figure above) and sit higher\n";
+  if (a.force.levels_measured == 0 || a.torque.levels_measured == 0)
+    out +=
+        "  note: too few cycles at rest to measure whether the noise is correlated; the "
+        "thresholds assume independent cycles: record longer at rest to check\n";
   return out;
 }
 
@@ -165,6 +301,9 @@ nlohmann::json to_json(const GateAdvice& a, const GateRuleOptions& o) {
     return nlohmann::json{{"rms", x.rms},
                           {"sigma", x.sigma},
                           {"lag1", x.lag1},
+                          {"effective_confirm", x.effective_confirm},
+                          {"levels_measured", x.levels_measured},
+                          {"correlation", x.correlation},
                           {"threshold", x.threshold},
                           {"false_per_hour", x.false_per_hour},
                           {"confirms_at_threshold", x.confirms_at_threshold},

@@ -3,6 +3,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <random>
 
@@ -80,6 +81,87 @@ TEST(GateRule, TheThresholdKeepsTheNoiseOutOnThreeSeeds) {
   EXPECT_THAT(text, HasSubstr("force_deadband_N = "));
   EXPECT_THAT(text, HasSubstr("torque_deadband_Nm = "));
   EXPECT_EQ(to_json(a, com)["force_N"]["confirms_at_threshold"], 0);
+}
+
+// Zero-g at 12 ms, nobody touching: contact noise per axis a first-order autoregression
+// e_k = ρ e_{k−1} + √(1 − ρ²) ε_k of standard deviation σ (an arm that rings, an estimator that
+// smooths: the noise stays up for runs of cycles).
+std::vector<loop::CycleRecord> correlated_cycles(double sigma_F, double sigma_M, double rho,
+                                                 std::uint64_t seed, std::size_t n) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> g(0.0, 1.0);
+  std::vector<loop::CycleRecord> out(n);
+  std::array<double, 6> e{};
+  for (double& v : e) v = g(rng);
+  for (std::size_t i = 0; i < n; ++i) {
+    loop::CycleRecord& r = out[i];
+    r.cycle = i + 1;
+    r.dt_s = 0.012;
+    r.state = loop::State::zero_g;
+    for (std::size_t k = 0; k < 6; ++k) {
+      e[k] = rho * e[k] + std::sqrt(1.0 - rho * rho) * g(rng);
+      r.contact[k] = (k < 3 ? sigma_F : sigma_M) * e[k];
+    }
+  }
+  return out;
+}
+
+TEST(GateRule, CorrelatedNoiseCountsFewerCyclesInARowAndStaysOut) {
+  GateRuleOptions o;
+  for (const std::uint64_t seed : {4u, 5u, 6u}) {
+    SCOPED_TRACE(seed);
+    // White noise: the runs are as rare as independent cycles make them.
+    const GateAdvice white = gate_rule(cycles(0.6, 0.06, seed, 20000, 15000), o);
+    EXPECT_EQ(white.force.effective_confirm, 3.0);
+    EXPECT_EQ(white.torque.effective_confirm, 3.0);
+    EXPECT_GE(white.force.levels_measured, 3);
+    // Twelve minutes of noise correlated from cycle to cycle (ρ = 0.9: a time constant of ten
+    // cycles). The independent rule's threshold (3.72 σ, replayed as the configured one) lets
+    // the noise confirm pushes; the measured rule counts fewer cycles in a row and does not.
+    GateRuleOptions independent = o;
+    independent.force_now_N = 3.72 * 0.6;
+    independent.torque_now_Nm = 3.72 * 0.06;
+    const GateAdvice a = gate_rule(correlated_cycles(0.6, 0.06, 0.9, seed, 60000), independent);
+    ASSERT_TRUE(a.known) << a.note;
+    EXPECT_GE(a.force.confirms_now + a.torque.confirms_now, 2u);
+    EXPECT_LT(a.force.effective_confirm, 2.0);
+    EXPECT_LT(a.torque.effective_confirm, 2.0);
+    EXPECT_GT(a.force.threshold, 4.0 * a.force.sigma);
+    EXPECT_EQ(a.force.confirms_at_threshold, 0u);
+    EXPECT_EQ(a.torque.confirms_at_threshold, 0u);
+    EXPECT_THAT(format_gate_advice(a, o), HasSubstr("correlated from cycle to cycle"));
+    // Deep in the tail a Gaussian noise of correlation ρ stays above t for three cycles with
+    // Q₃^((3 − ρ)/(1 + ρ)); at ρ = 0.5 (5/3) the runs above moderate levels alone say about 2.
+    const GateAdvice half = gate_rule(correlated_cycles(0.6, 0.06, 0.5, seed, 60000), o);
+    EXPECT_NEAR(half.force.effective_confirm, 2.5 / 1.5, 0.05);
+    EXPECT_NEAR(half.torque.effective_confirm, 2.5 / 1.5, 0.05);
+    EXPECT_EQ(half.force.confirms_at_threshold, 0u);
+  }
+}
+
+// White noise with bursts (an arm that rings for a few cycles after a bump): every 2000 cycles,
+// four cycles 5 σ along a random direction. Too rare to correlate the cycles measurably, but
+// they stay above the independent rule's threshold for three cycles at a time; the runs
+// counted above moderate levels see them and the threshold goes above them.
+TEST(GateRule, BurstsOfNoiseStayOutToo) {
+  GateRuleOptions o;
+  for (const std::uint64_t seed : {4u, 5u, 6u}) {
+    SCOPED_TRACE(seed);
+    std::vector<loop::CycleRecord> c = correlated_cycles(0.6, 0.06, 0.0, seed, 60000);
+    std::mt19937_64 rng(seed + 100);
+    std::normal_distribution<double> g(0.0, 1.0);
+    for (std::size_t start = 1000; start + 4 < c.size(); start += 2000) {
+      const Eigen::Vector3d d = Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized();
+      for (std::size_t i = start; i < start + 4; ++i)
+        for (std::size_t k = 0; k < 3; ++k) c[i].contact[k] += 5.0 * 0.6 * d[k];
+    }
+    GateRuleOptions independent = o;
+    independent.force_now_N = 3.72 * 0.6;
+    const GateAdvice a = gate_rule(c, independent);
+    EXPECT_GE(a.force.confirms_now, 10u);
+    EXPECT_LT(a.force.effective_confirm, 1.5);
+    EXPECT_EQ(a.force.confirms_at_threshold, 0u);
+  }
 }
 
 TEST(GateRule, TooFewCyclesAtRestSaySo) {

@@ -9,13 +9,15 @@
 // body has not moved: no push was confirmed), the contact wrench's RMS per axis (its mean
 // included: a model offset is seen by the gate too) gives σ² = (RMS_x² + RMS_y² + RMS_z²) / 3; the
 // norm of three such axes exceeds t with p(t) = Q₃(t²/σ²), the χ² tail with 3 degrees of freedom
-// (Q₃(x) = erfc(√(x/2)) + √(2x/π) e^(−x/2)), and `confirm` cycles in a row, taken as
-// independent, with p(t)^confirm. The threshold is the smallest t whose expected false confirms,
-// cycles per hour × p(t)^confirm, stay below `false_per_hour` (default 0.01: one per 100 hours
-// of zero-g). The cycles are not independent (the IMU's differenced noise spans 5 cycles): the
-// lag-1 correlation of the norm is reported, and the recording is replayed through zerog-rt's
-// own gate (control::ContactGate) at the threshold (it must not confirm) and at the configured
-// one.
+// (Q₃(x) = erfc(√(x/2)) + √(2x/π) e^(−x/2)), and `confirm` cycles in a row with p(t)^e: e =
+// confirm for independent cycles. The cycles are not always independent (the IMU's differenced
+// noise spans 5 cycles; an elastic arm rings over many): e comes from the recording, the smaller
+// of the deep-tail exponent of a Gaussian noise with its correlation from cycle to cycle and the
+// exponent of how often `confirm` consecutive cycles stay above moderate levels (gate_rule.cpp),
+// and is smaller when runs are likelier. The threshold is the smallest t
+// whose expected false confirms, cycles per hour × p(t)^e, stay below `false_per_hour` (default
+// 0.01: one per 100 hours of zero-g). The recording is then replayed through zerog-rt's own gate
+// (control::ContactGate) at the threshold (it must not confirm) and at the configured one.
 #include <cstddef>
 #include <string>
 #include <vector>
@@ -37,9 +39,16 @@ struct GateRuleOptions {
 };
 
 struct GateGroup {
-  std::array<double, 3> rms{};            ///< per axis, the mean included
-  double sigma = 0.0;                     ///< sqrt(mean of rms²)
-  double lag1 = 0.0;                      ///< lag-1 correlation of the norm over the cycles used
+  std::array<double, 3> rms{};  ///< per axis, the mean included
+  double sigma = 0.0;           ///< sqrt(mean of rms²)
+  double lag1 = 0.0;            ///< lag-1 correlation of the norm over the cycles used
+  /// The cycles in a row the rule counts: confirm_cycles if the recording's runs above
+  /// moderate levels are as rare as independent cycles make them, fewer if they are not.
+  double effective_confirm = 0.0;
+  int levels_measured = 0;  ///< levels with enough windows above them to measure it
+  /// The pooled autocorrelation of the three axes at lags 0 … confirm − 1 (0 where not
+  /// significant).
+  std::vector<double> correlation;
   double threshold = 0.0;                 ///< the rule's
   double false_per_hour = 0.0;            ///< expected at the threshold (independent cycles)
   std::size_t confirms_at_threshold = 0;  ///< replayed through the gate
