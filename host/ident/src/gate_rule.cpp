@@ -1,9 +1,11 @@
 #include "zerog/ident/gate_rule.hpp"
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <limits>
 #include <numbers>
 
@@ -61,23 +63,54 @@ std::vector<double> run_minima(const std::vector<double>& norm,
   return out;
 }
 
-// t with Q₃(t²/σ²) = q (the tail falls with t; bisection to 1e-9 σ).
-double tail_level(double q, double sigma) {
+// P(|x| > t) of one cycle's noise (norm_tail over the noise's principal variances).
+using Tail = std::function<double(double)>;
+
+// t with tail(t) = q (the tail falls with t; bisection to 1e-9 of `scale`).
+double tail_level(double q, const Tail& tail, double scale) {
   double lo = 0.0, hi = 20.0;
   while (hi - lo > 1e-9) {
     const double mid = 0.5 * (lo + hi);
-    (chi2_3_tail(mid * mid) > q ? lo : hi) = mid;
+    (tail(mid * scale) > q ? lo : hi) = mid;
   }
-  return 0.5 * (lo + hi) * sigma;
+  return 0.5 * (lo + hi) * scale;
 }
 
+// The 48-point Gauss–Legendre rule on [−1, 1]: nodes by Newton's iteration on P₄₈ from
+// Chebyshev's first guesses (Press et al., Numerical Recipes, "gauleg").
+struct GaussLegendre {
+  static constexpr int kN = 48;
+  std::array<double, kN> x{}, w{};
+  GaussLegendre() {
+    for (int i = 0; i < (kN + 1) / 2; ++i) {
+      double z = std::cos(std::numbers::pi * (i + 0.75) / (kN + 0.5)), dp = 0.0;
+      for (int it = 0; it < 100; ++it) {
+        double p1 = 1.0, p2 = 0.0;
+        for (int j = 1; j <= kN; ++j) {
+          const double p3 = p2;
+          p2 = p1;
+          p1 = ((2.0 * j - 1.0) * z * p2 - (j - 1.0) * p3) / j;
+        }
+        dp = kN * (z * p1 - p2) / (z * z - 1.0);
+        const double dz = p1 / dp;
+        z -= dz;
+        if (std::abs(dz) < 1e-15) break;
+      }
+      x[static_cast<std::size_t>(i)] = -z;
+      x[static_cast<std::size_t>(kN - 1 - i)] = z;
+      w[static_cast<std::size_t>(i)] = w[static_cast<std::size_t>(kN - 1 - i)] =
+          2.0 / ((1.0 - z * z) * dp * dp);
+    }
+  }
+};
+
 // The exponent e of the rule, measured at moderate levels: at levels t_q where one cycle is
-// above with probability q (the χ² tail), the windows of `confirm` cycles all above t_q are
+// above with probability q (norm_tail), the windows of `confirm` cycles all above t_q are
 // counted; where they are more than q^confirm by three standard errors of that count (and at
 // least 5), q^e = their fraction gives e = ln(fraction) / ln(q). The smallest e over the levels;
 // `confirm` where none is significant. It sees tails heavier than the Gaussian's.
-double measured_exponent(const std::vector<double>& minima, double sigma, int confirm,
-                         int& levels_measured) {
+double measured_exponent(const std::vector<double>& minima, const Tail& tail, double sigma,
+                         int confirm, int& levels_measured) {
   levels_measured = 0;
   double e = confirm;
   const double n = static_cast<double>(minima.size());
@@ -85,7 +118,7 @@ double measured_exponent(const std::vector<double>& minima, double sigma, int co
   static constexpr double kLevels[] = {0.5,  0.3,  0.2,   0.1,   0.05,  0.03,
                                        0.02, 0.01, 0.005, 0.002, 0.001, 5e-4};
   for (const double q : kLevels) {
-    const double t = tail_level(q, sigma);
+    const double t = tail_level(q, tail, sigma);
     const double count = static_cast<double>(
         std::count_if(minima.begin(), minima.end(), [t](double m) { return m > t; }));
     if (count < 5.0) break;
@@ -175,24 +208,40 @@ GateGroup group(const std::vector<Eigen::Vector3d>& x, const std::vector<std::si
     sum += s / static_cast<double>(x.size());
   }
   g.sigma = std::sqrt(sum / 3.0);
+  // The noise's principal variances (the eigenvalues of its second moment, the mean included):
+  // the norm's tail is that of unequal axes (the torque's z axis is often half the others).
+  Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
+  for (const Eigen::Vector3d& v : x) S += v * v.transpose();
+  S /= static_cast<double>(x.size());
+  const Eigen::Vector3d lambda =
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(S, Eigen::EigenvaluesOnly).eigenvalues();
+  for (int k = 0; k < 3; ++k)
+    g.principal_sigma[static_cast<std::size_t>(k)] = std::sqrt(std::max(0.0, lambda[k]));
+  const Tail tail = [lambda](double t) { return norm_tail(lambda, t); };
   std::vector<double> norm(x.size());
   for (std::size_t i = 0; i < x.size(); ++i) norm[i] = x[i].norm();
   g.lag1 = lag1(norm);
   // How many cycles in a row the noise must clear, in effect: `confirm` for independent
   // cycles, fewer when the noise stays up for runs of cycles. The smaller of the two exponents
   // (each errs on the safe side where the other does not), within [1, confirm].
-  const double measured = measured_exponent(run_minima(norm, gaps, o.confirm_cycles), g.sigma,
+  const double measured = measured_exponent(run_minima(norm, gaps, o.confirm_cycles), tail, g.sigma,
                                             o.confirm_cycles, g.levels_measured);
   const double gaussian = gaussian_exponent(x, gaps, o.confirm_cycles, g.correlation);
   g.effective_confirm =
       std::clamp(std::min(measured, gaussian), 1.0, static_cast<double>(o.confirm_cycles));
-  // The smallest t (in steps of 0.1 % of σ) with cycles/h × Q₃(t²/σ²)^e ≤ the target.
+  // The smallest t with cycles/h × P(|x| > t)^e ≤ the target (bisection to 1e-6 σ; the rate
+  // falls with t).
   const auto rate = [&](double t) {
-    return cycles_per_hour *
-           std::pow(chi2_3_tail(t * t / (g.sigma * g.sigma)), g.effective_confirm);
+    return cycles_per_hour * std::pow(tail(t), g.effective_confirm);
   };
-  double t = g.sigma;
-  while (rate(t) > o.false_per_hour && t < 100.0 * g.sigma) t += 1e-3 * g.sigma;
+  double t = 100.0 * g.sigma;
+  if (g.sigma > 0.0 && rate(t) <= o.false_per_hour) {
+    double lo = 0.0;
+    while (t - lo > 1e-6 * g.sigma) {
+      const double mid = 0.5 * (lo + t);
+      (rate(mid) > o.false_per_hour ? lo : t) = mid;
+    }
+  }
   g.threshold = t;
   g.false_per_hour = rate(t);
   replay(x, gaps, t, cycle_s, o, g.confirms_at_threshold, g.open_cycles_at_threshold);
@@ -205,6 +254,34 @@ GateGroup group(const std::vector<Eigen::Vector3d>& x, const std::vector<std::si
 double chi2_3_tail(double x) {
   if (x <= 0.0) return 1.0;
   return std::erfc(std::sqrt(x / 2.0)) + std::sqrt(2.0 * x / std::numbers::pi) * std::exp(-x / 2.0);
+}
+
+double norm_tail(const Eigen::Vector3d& variances, double t) {
+  if (t <= 0.0) return 1.0;
+  // x = Λ^½ z with z standard normal: over the directions d of z (uniform on the sphere) |z| is
+  // χ₃-distributed, so P(|x| > t) = (1/4π) ∫ Q₃(t² / dᵀΛd) dΩ. The integrand is smooth however
+  // unequal the axes (the density of x itself is not: with one axis a thousandth of the others
+  // it lives in a sliver of directions). The octant times eight (even in each axis), the largest
+  // variance at the pole, 48 × 48 Gauss–Legendre points.
+  std::array<double, 3> l = {variances[0], variances[1], variances[2]};
+  std::sort(l.begin(), l.end());
+  if (!(l[2] > 0.0)) return 0.0;
+  for (double& v : l) v = std::max(v, 0.0);
+  static const GaussLegendre gl;
+  const double quarter = std::numbers::pi / 4.0;  // [0, π/2] mapped from [−1, 1]
+  double sum = 0.0;
+  for (int i = 0; i < GaussLegendre::kN; ++i) {
+    const double th = quarter * (gl.x[static_cast<std::size_t>(i)] + 1.0);
+    const double st = std::sin(th), ct = std::cos(th);
+    for (int j = 0; j < GaussLegendre::kN; ++j) {
+      const double ph = quarter * (gl.x[static_cast<std::size_t>(j)] + 1.0);
+      const double cp = std::cos(ph), sp = std::sin(ph);
+      const double a = st * st * (l[0] * cp * cp + l[1] * sp * sp) + ct * ct * l[2];
+      const double q = a > 0.0 ? chi2_3_tail(t * t / a) : 0.0;
+      sum += gl.w[static_cast<std::size_t>(i)] * gl.w[static_cast<std::size_t>(j)] * st * q;
+    }
+  }
+  return std::min(1.0, sum * quarter * quarter * 2.0 / std::numbers::pi);
 }
 
 GateAdvice gate_rule(const std::vector<loop::CycleRecord>& cycles, const GateRuleOptions& o) {
@@ -258,7 +335,7 @@ GateAdvice gate_rule(const std::vector<loop::CycleRecord>& cycles, const GateRul
 std::string format_gate_advice(const GateAdvice& a, const GateRuleOptions& o) {
   if (!a.known) return "gate: not known: " + a.note + "\n";
   std::string out;
-  char line[400];
+  char line[600];
   std::snprintf(line, sizeof line,
                 "gate: %zu zero-g cycles at rest (%.4g s each), confirm %d cycles in a row, "
                 "target %.3g false confirms per hour (docs/zerog-rt.md, \"Setting the contact "
@@ -267,11 +344,12 @@ std::string format_gate_advice(const GateAdvice& a, const GateRuleOptions& o) {
   out += line;
   const auto one = [&](const char* name, const char* unit, const GateGroup& g, double now) {
     std::snprintf(line, sizeof line,
-                  "  %s: contact RMS %.3g / %.3g / %.3g %s (sigma %.3g), lag-1 correlation of "
-                  "the norm %.2f, runs as of %.2f independent cycles (%d levels measured); "
-                  "threshold %.3g %s (%.3g false confirms/h; replayed: %zu confirms), "
-                  "configured %.3g %s (replayed: %zu confirms, open %zu cycles)\n",
-                  name, g.rms[0], g.rms[1], g.rms[2], unit, g.sigma, g.lag1, g.effective_confirm,
+                  "  %s: contact RMS %.3g / %.3g / %.3g %s (principal %.3g / %.3g / %.3g), "
+                  "lag-1 correlation of the norm %.2f, runs as of %.2f independent cycles (%d "
+                  "levels measured); threshold %.3g %s (%.3g false confirms/h; replayed: %zu "
+                  "confirms), configured %.3g %s (replayed: %zu confirms, open %zu cycles)\n",
+                  name, g.rms[0], g.rms[1], g.rms[2], unit, g.principal_sigma[0],
+                  g.principal_sigma[1], g.principal_sigma[2], g.lag1, g.effective_confirm,
                   g.levels_measured, g.threshold, unit, g.false_per_hour, g.confirms_at_threshold,
                   now, unit, g.confirms_now, g.open_cycles_now);
     out += line;
@@ -300,6 +378,7 @@ nlohmann::json to_json(const GateAdvice& a, const GateRuleOptions& o) {
   const auto g = [](const GateGroup& x) {
     return nlohmann::json{{"rms", x.rms},
                           {"sigma", x.sigma},
+                          {"principal_sigma", x.principal_sigma},
                           {"lag1", x.lag1},
                           {"effective_confirm", x.effective_confirm},
                           {"levels_measured", x.levels_measured},

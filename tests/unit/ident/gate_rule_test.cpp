@@ -22,6 +22,24 @@ TEST(GateRule, TheChiSquareTailOfThreeDegrees) {
   EXPECT_EQ(chi2_3_tail(0.0), 1.0);
 }
 
+TEST(GateRule, TheNormsTailWithUnequalAxes) {
+  for (const double t : {0.5, 1.0, 2.0, 3.0, 4.0, 5.0})
+    EXPECT_NEAR(norm_tail(Eigen::Vector3d(1.0, 1.0, 1.0), t) / chi2_3_tail(t * t), 1.0, 1e-9) << t;
+  // Two axes: P(χ²₂ > t²) = e^(−t²/2); one: P(|z| > t) = erfc(t/√2).
+  for (const double t : {1.0, 2.0, 3.0, 4.0}) {
+    EXPECT_NEAR(norm_tail(Eigen::Vector3d(1.0, 1.0, 1e-10), t) / std::exp(-0.5 * t * t), 1.0, 1e-3)
+        << t;
+    EXPECT_NEAR(norm_tail(Eigen::Vector3d(1e-10, 1.0, 1e-10), t) / std::erfc(t / std::sqrt(2.0)),
+                1.0, 1e-3)
+        << t;
+  }
+  // The torque about the centre of mass at rest (quiet_fused, seed 11): z at half of x and y.
+  // The pooled σ's χ² tail is 2.4× too small at 4.2 σ; the tail of the three axes is not.
+  const Eigen::Vector3d torque(0.0196 * 0.0196, 0.0426 * 0.0426, 0.0433 * 0.0433);
+  const double sigma = std::sqrt(torque.mean());
+  EXPECT_GT(norm_tail(torque, 4.2 * sigma) / chi2_3_tail(4.2 * 4.2), 2.5);
+}
+
 // Zero-g cycles at 12 ms with white contact noise σ_F per force axis and σ_M per torque axis; a
 // push at cycle `push` (20 N for 10 cycles) after which the body moves.
 std::vector<loop::CycleRecord> cycles(double sigma_F, double sigma_M, std::uint64_t seed,
@@ -162,6 +180,33 @@ TEST(GateRule, BurstsOfNoiseStayOutToo) {
     EXPECT_LT(a.force.effective_confirm, 1.5);
     EXPECT_EQ(a.force.confirms_at_threshold, 0u);
   }
+}
+
+// White noise on one axis only (the others a thousandth of it): the norm is |z| of one axis,
+// whose tail is far heavier than the χ² tail of three axes at the pooled σ. The pooled rule's
+// threshold (3.72 σ, replayed as the configured one) lets the noise confirm pushes; the rule on
+// the axes' own variances does not.
+TEST(GateRule, NoiseOnOneAxisStaysOut) {
+  GateRuleOptions o;
+  std::size_t pooled_confirms = 0;
+  for (const std::uint64_t seed : {7u, 8u, 9u}) {
+    SCOPED_TRACE(seed);
+    std::vector<loop::CycleRecord> c = correlated_cycles(0.6, 0.06, 0.0, seed, 120000);
+    for (loop::CycleRecord& r : c)
+      for (const std::size_t k : {1u, 2u, 4u, 5u}) r.contact[k] *= 1e-3;
+    GateRuleOptions pooled = o;
+    const double pooled_sigma = 0.6 / std::sqrt(3.0);
+    pooled.force_now_N = 3.72 * pooled_sigma;
+    const GateAdvice a = gate_rule(c, pooled);
+    ASSERT_TRUE(a.known) << a.note;
+    EXPECT_NEAR(a.force.sigma, pooled_sigma, 0.02 * pooled_sigma);
+    EXPECT_NEAR(a.force.principal_sigma[2], 0.6, 0.012);
+    pooled_confirms += a.force.confirms_now;
+    EXPECT_GT(a.force.threshold, 1.3 * pooled.force_now_N);
+    EXPECT_EQ(a.force.confirms_at_threshold, 0u);
+    EXPECT_EQ(a.torque.confirms_at_threshold, 0u);
+  }
+  EXPECT_GE(pooled_confirms, 3u);
 }
 
 TEST(GateRule, TooFewCyclesAtRestSaySo) {
