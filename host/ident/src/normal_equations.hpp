@@ -2,9 +2,9 @@
 // The fit's "normal" engine (fit.hpp, FitOptions::engine): Levenberg–Marquardt on the whitened
 // normal equations JᵀJ, Jᵀr of the block residuals, accumulated in one streaming pass over the
 // blocks per iteration. A block's residual (6) and Jacobian (6 × free parameters) come from the
-// caller's BlockEvaluator (fit's NormalBlocks, residual_blocks.hpp, evaluates them exactly as the
-// block_stats engine does); no block's Jacobian outlives its chunk, so memory does not grow with
-// the number of blocks beyond one n × n partial sum per chunk.
+// caller's BlockEvaluator (fit.cpp evaluates them exactly as the block_stats engine does); no
+// block's Jacobian outlives its chunk, so memory does not grow with the number of blocks beyond
+// one n × n partial sum per chunk.
 //
 // Determinism: the blocks are cut into fixed chunks (kChunkBlocks); each chunk's partial sums
 // are computed independently (by whichever thread) and added in chunk order, so the result is

@@ -55,7 +55,7 @@ class TrainingProblem {
 /// diagonal), eigen-directions below kRankCut of the largest carry no step (a pseudo-inverse).
 class BorderedSolver {
  public:
-  static constexpr double kRankCut = 1e-9;  ///< fit_covariance.cpp rank_check's nominal cut
+  static constexpr double kRankCut = 1e-9;  ///< fit.cpp rank_check's nominal cut
   /// `H` (n × n) and `g` (n) are held by reference: they must outlive the solver.
   /// `drop_coupling` is a test-only mutant: it ignores H_bc (the candidate alone, base held),
   /// which the screening tests must detect.

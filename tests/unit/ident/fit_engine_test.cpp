@@ -164,7 +164,7 @@ struct Agreement {
   int stds_compared = 0;
 };
 
-// Where the fit's identifiability check lands (fit_covariance.cpp, rank_check: eigenvalues of the
+// Where the fit's identifiability check lands (fit.cpp, rank_check: eigenvalues of the
 // column-scaled JᵀJ below 1e-9 of the largest, the cut moved to the widest gap of the spectrum
 // nearby, are a rank deficiency; the parameters with large entries in the null space's
 // directions, chosen from its projector, get no std). Either way both fits must report the same

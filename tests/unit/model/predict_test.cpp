@@ -253,10 +253,10 @@ TEST(PayloadWrenchMean, EqualsTheMeanOfPayloadWrenchForEveryEffectCombination) {
   EXPECT_EQ(payload_wrench_mean<double>(p.effects, pointers(p), means, {}), Wrench<double>::Zero());
 }
 
-// The host fit (residual_blocks.hpp, the normal engine) evaluates stage 1 with the mount computed
-// once per parameter point, with Jet parameters on means that are plain doubles, and takes the
-// derivative the means carry (the IMU time offset's) from a second evaluation with one-slot Jets.
-// Jet arithmetic is slot by slot, so that must give exactly (bit for bit) the numbers of the one
+// The host fit (fit.cpp, the normal engine) evaluates stage 1 with the mount computed once per
+// parameter point, with Jet parameters on means that are plain doubles, and takes the derivative
+// the means carry (the IMU time offset's) from a second evaluation with one-slot Jets. Jet
+// arithmetic is slot by slot, so that must give exactly (bit for bit) the numbers of the one
 // evaluation on Jet means: checked here for every combination of the stage-1 effects.
 TEST(PayloadWrenchMean, SplitEvaluationGivesTheNumbersOfTheJetEvaluation) {
   using J = ceres::Jet<double, 16>;
