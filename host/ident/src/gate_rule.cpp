@@ -135,7 +135,7 @@ double measured_exponent(const std::vector<double>& minima, const Tail& tail, do
 // The exponent e of the rule for a Gaussian noise with the recording's correlation from cycle
 // to cycle: for X ~ N(0, Σ) over `confirm` cycles, P(all above t) falls as exp(−e t²/2) with
 // e = min over x ≥ 1 of xᵀ Σ⁻¹ x (Σ the correlation matrix; 1ᵀΣ⁻¹1 when Σ⁻¹1 ≥ 0), against
-// exp(−t²/2) for one cycle: so P(run) ≈ Q₃^e deep in the tail, where the rule's threshold lies
+// exp(−t²/2) for one cycle: so P(run) ≈ p(t)^e deep in the tail, where the rule's threshold lies
 // (at moderate levels the run is rarer than that: the safe side). Σ from the autocorrelation of
 // the three axes pooled (mean included, as in σ), at lags 1 … confirm − 1 within stretches
 // without a gap; a lag whose correlation is within three standard errors (3/√(3n)) of zero is
