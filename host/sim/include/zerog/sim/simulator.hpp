@@ -8,6 +8,7 @@
 // Conventions are those of proto/frames.md, so that zerog::model::predict_wrench with the truth
 // parameters reproduces the noise-free simulated wrench (checked in tests/unit/sim).
 #include <Eigen/Core>
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <functional>
@@ -47,7 +48,8 @@ constexpr bool switchable(model::Effect e) {
   return e != model::Effect::bias && e != model::Effect::gravity &&
          e != model::Effect::linear_inertia;
 }
-inline constexpr int kSimEffectCount = model::kEffectCount - 3 + kRigEffectCount;
+inline constexpr int kSimEffectCount =
+    static_cast<int>(std::ranges::count_if(model::kAllEffects, switchable)) + kRigEffectCount;
 
 struct SimEffectInfo {
   SimEffect id;
