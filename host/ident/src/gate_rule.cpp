@@ -66,14 +66,21 @@ std::vector<double> run_minima(const std::vector<double>& norm,
 // P(|x| > t) of one cycle's noise (norm_tail over the noise's principal variances).
 using Tail = std::function<double(double)>;
 
-// t with tail(t) = q (the tail falls with t; bisection to 1e-9 of `scale`).
-double tail_level(double q, const Tail& tail, double scale) {
-  double lo = 0.0, hi = 20.0;
-  while (hi - lo > 1e-9) {
+// The smallest x in [0, hi] with f(x) ≤ target, for an f that falls with x, by bisection to
+// `tol`; hi if f(hi) is still above it.
+double first_below(const std::function<double(double)>& f, double target, double hi, double tol) {
+  if (!(f(hi) <= target)) return hi;
+  double lo = 0.0;
+  while (hi - lo > tol) {
     const double mid = 0.5 * (lo + hi);
-    (tail(mid * scale) > q ? lo : hi) = mid;
+    (f(mid) > target ? lo : hi) = mid;
   }
-  return 0.5 * (lo + hi) * scale;
+  return hi;
+}
+
+// t with tail(t) = q, t within 20 `scale`.
+double tail_level(double q, const Tail& tail, double scale) {
+  return first_below(tail, q, 20.0 * scale, 1e-9 * scale);
 }
 
 // The 48-point Gauss–Legendre rule on [−1, 1]: the nodes are the roots of the Legendre
@@ -231,19 +238,11 @@ GateGroup group(const std::vector<Eigen::Vector3d>& x, const std::vector<std::si
   const double gaussian = gaussian_exponent(x, gaps, o.confirm_cycles, g.correlation);
   g.effective_confirm =
       std::clamp(std::min(measured, gaussian), 1.0, static_cast<double>(o.confirm_cycles));
-  // The smallest t with cycles/h × P(|x| > t)^e ≤ the target (bisection to 1e-6 σ; the rate
-  // falls with t).
+  // The smallest t (within 100 σ, to 1e-6 σ) with cycles/h × P(|x| > t)^e ≤ the target.
   const auto rate = [&](double t) {
     return cycles_per_hour * std::pow(tail(t), g.effective_confirm);
   };
-  double t = 100.0 * g.sigma;
-  if (g.sigma > 0.0 && rate(t) <= o.false_per_hour) {
-    double lo = 0.0;
-    while (t - lo > 1e-6 * g.sigma) {
-      const double mid = 0.5 * (lo + t);
-      (rate(mid) > o.false_per_hour ? lo : t) = mid;
-    }
-  }
+  const double t = first_below(rate, o.false_per_hour, 100.0 * g.sigma, 1e-6 * g.sigma);
   g.threshold = t;
   g.false_per_hour = rate(t);
   replay(x, gaps, t, cycle_s, o, g.confirms_at_threshold, g.open_cycles_at_threshold);
