@@ -211,12 +211,74 @@ def contact_noise(run, t0, t1, what):
     print(f"  contact noise against the floor: {force_ratio:.2f}x (force), {torque_ratio:.2f}x (torque)")
     if FUSED["on"] and FUSED["elastic"]:
         print(f"  (elastic arm: the motion estimator's noise limits are not held here)")
+        mode_bands(run, t[sel], r, floor, what)
     elif FUSED["on"]:
         limit = FUSED_REST_LIMIT if what == "at_rest" else FUSED_MOVING_LIMIT
         worst = int(np.argmax(rms / floor))
         check(bool(np.all(rms <= limit * floor)),
               f"motion estimator: contact noise {what.replace('_', ' ')} within {limit}x the F/T "
               f"floor on every axis (worst {AXES[worst]} {rms[worst] / floor[worst]:.2f}x)")
+
+
+def mode_band_rows(t, r, floor, joints):
+    """The contact noise r (cycles × 6, at times t) in a band of ±MODE_BAND_HZ around each
+    joint's mode below the cycles' Nyquist (`joints`: the rig's [[robot.joint]] tables, mode_hz),
+    pooled per force and torque, with the share of that band the F/T floor's white noise would
+    have (floor · √(band / Nyquist)). The spectrum is of the longest stretch of consecutive
+    cycles, its mean removed. None if that stretch is shorter than 64 cycles."""
+    dt = float(np.median(np.diff(t)))
+    breaks = np.flatnonzero(np.diff(t) > 1.5 * dt)
+    starts, ends = np.r_[0, breaks + 1], np.r_[breaks + 1, len(t)]
+    k = int(np.argmax(ends - starts))
+    x = r[starts[k]:ends[k]] - r[starts[k]:ends[k]].mean(axis=0)
+    n = len(x)
+    if n < 64:
+        return None
+    nyquist = 0.5 / dt
+    freq = np.fft.rfftfreq(n, dt)
+    # One-sided power per bin, so that the bins' sum is the mean square (Parseval).
+    power = np.abs(np.fft.rfft(x, axis=0)) ** 2 / n ** 2
+    power[1:] *= 2.0
+    if n % 2 == 0:
+        power[-1] /= 2.0
+    pooled = lambda v, k: float(np.sqrt(np.mean(v[k:k + 3] ** 2)))
+    rows = []
+    for i, j in enumerate(joints):
+        f0 = float(j.get("mode_hz", 0.0))
+        if not 0.0 < f0 < nyquist:
+            continue
+        lo, hi = max(f0 - MODE_BAND_HZ, 0.0), min(f0 + MODE_BAND_HZ, nyquist)
+        band = (freq >= lo) & (freq < hi)
+        rms = np.sqrt(power[band].sum(axis=0))
+        share = floor * math.sqrt((hi - lo) / nyquist)
+        rows.append({"joint": f"A{i + 1}", "mode_hz": f0,
+                     "force_N": pooled(rms, 0), "torque_Nm": pooled(rms, 3),
+                     "floor_force_N": pooled(share, 0), "floor_torque_Nm": pooled(share, 3)})
+    return rows
+
+
+def mode_bands(run, t, r, floor, what):
+    """Where the contact noise of the elastic arm sits (mode_band_rows on the rig's robot
+    file): a band well above its floor's share names the mode the estimator leaves in the
+    contact. Printed and written to check.json (mode_band_{what}), not held."""
+    try:
+        with open(f"{run.dir}/rig.rig.toml", "rb") as f:
+            joints = tomllib.load(f).get("robot", {}).get("joint", [])
+    except (OSError, tomllib.TOMLDecodeError) as e:
+        print(f"  mode bands ({what}): the rig's robot file could not be read ({e})")
+        return
+    rows = mode_band_rows(t, r, floor, joints)
+    if rows is None:
+        print(f"  mode bands ({what}): fewer than 64 consecutive cycles, not measured")
+        return
+    figure(f"mode_band_{what}", rows)
+    print(f"  contact noise {what} in its joints' mode bands (±{MODE_BAND_HZ:g} Hz; the F/T "
+          f"floor's white share in brackets): " + "; ".join(
+              f"{b['joint']} {b['mode_hz']:g} Hz {b['force_N']:.3f} N ({b['floor_force_N']:.3f}), "
+              f"{b['torque_Nm']:.4f} N*m ({b['floor_torque_Nm']:.4f})" for b in rows))
+
+
+MODE_BAND_HZ = 1.0
 
 
 def gate_checks(run):
