@@ -184,7 +184,7 @@ class MotionEstimator {
   // split the two by their noise.
   static constexpr double kPriorVariance = 100.0;
   static constexpr double kRingingWindow_s = 0.05;  ///< step 4's mean square
-  static constexpr int kObservedAxes = 3;           ///< step 4a: A1–A3 (their modes < Nyquist)
+  static constexpr int kObservedAxes = 3;           ///< step 4a: A1–A3 (A5 is not observed)
   static constexpr double kDamping = 1e-6;          ///< step 4a's least squares (A2 ∥ A3)
   Eigen::Vector3d bias_I_ = Eigen::Vector3d::Zero(), error_B_ = Eigen::Vector3d::Zero();
   Eigen::Matrix<double, 6, 6> P_ = Eigen::Matrix<double, 6, 6>::Identity() * kPriorVariance;
