@@ -389,6 +389,10 @@ void Cycle::run(const samples::RobotSample& m) noexcept {
                                                           .collection = data_.collection,
                                                           .runs = data_.watchdogs,
                                                           .counters = counters_});
+  // The arm may ring beyond what its joints show after this cycle's push, limit or path: the
+  // motion estimator's step 4 (motion_estimator.hpp) acts for a while after it.
+  data_.model.estimator.note_excitation(motion_.in_contact() || motion.limit_flags != 0 ||
+                                        sm_.state() == State::collecting);
   publish_outcome(command, motion.command_accepted);
   raise(motion.fault);
   // Every field is written below (make_record and the reply): nothing is carried over.

@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 #include "zerog/model/rotation.hpp"
@@ -35,6 +36,8 @@ zerog::Status check_estimator_config(const MotionEstimatorConfig& c) {
     return zerog::Status::invalid("ringing_radps", "must be >= 0");
   if (!(std::isfinite(c.mode_gain) && c.mode_gain >= 0.0 && c.mode_gain <= 1.0))
     return zerog::Status::invalid("mode_gain", "must be in [0, 1]");
+  if (!(std::isfinite(c.ringing_hold_s) && c.ringing_hold_s >= 0.0))
+    return zerog::Status::invalid("ringing_hold_s", "must be >= 0 s");
   if (!(positive(c.substep_s) && c.substep_s <= 0.01))
     return zerog::Status::invalid("substep_s", "must be in (0, 0.01] s");
   auto non_negative = [](double v) { return std::isfinite(v) && v >= 0.0; };
@@ -81,6 +84,8 @@ void MotionEstimator::reset() noexcept {
   delta_dot_ = {};
   offset_w_.setZero();
   residual_ms_ = 0.0;
+  excited_ = false;
+  since_excitation_s_ = std::numeric_limits<double>::infinity();
   bias_I_.setZero();
   error_B_.setZero();
   P_ = Eigen::Matrix<double, 6, 6>::Identity() * kPriorVariance;
@@ -293,11 +298,14 @@ bool MotionEstimator::update(std::span<const model::FeatureSignals* const> rows,
 
   const bool ringing_on =
       config_.ringing_radps > 0.0 && !config_.mutant_without_ringing && !config_.mutant_without_imu;
-  const double threshold = 3.0 * config_.ringing_radps;
-  const double schedule =
-      ringing_on ? residual_ms_ / (residual_ms_ + threshold * threshold) : 0.0;  // last row's
-  // 2. The link's deflection at c (and 4a).
   const double dt = started_ ? t_c - t_s_ : 0.0;
+  since_excitation_s_ = excited_ ? 0.0 : since_excitation_s_ + dt;
+  const bool after_excitation = since_excitation_s_ <= config_.ringing_hold_s;
+  const double threshold = 3.0 * config_.ringing_radps;
+  const double schedule = ringing_on && after_excitation
+                              ? residual_ms_ / (residual_ms_ + threshold * threshold)
+                              : 0.0;  // last row's
+  // 2. The link's deflection at c (and 4a).
   if (elastic_) deflect(motor, centre, wrench, imu_at_c, dt, schedule, link, out);
 
   // The robot's signals at the IMU, I axes, at the F/T's instant (the output) and at the IMU's

@@ -107,7 +107,7 @@ const std::vector<std::string_view> kWatchdogKeys{"ft_fault_cycles", "imu_fault_
                                                   "model_fault_cycles"};
 const std::vector<std::string_view> kFilterKeys{
     "angular_accel_order", "motion",      "crossover_hz",  "load_bandwidth_hz", "excitation_hz",
-    "ft_delay_s",          "imu_delay_s", "ringing_radps", "mode_gain"};
+    "ft_delay_s",          "imu_delay_s", "ringing_radps", "mode_gain",         "ringing_hold_s"};
 const std::vector<std::string_view> kCollectionKeys{"speed_fraction", "dwell_s",
                                                     "max_axis_step_rad", "approach_speed_radps",
                                                     "approach_accel_radps2"};
@@ -333,6 +333,8 @@ void read_filter(const TomlTable& file, RtConfig& c) {
   m.ringing_radps =
       filter.optional_number("ringing_radps", m.ringing_radps, {0.0, false, 0.1, false});
   m.mode_gain = filter.optional_number("mode_gain", m.mode_gain, {0.0, false, 1.0, false});
+  m.ringing_hold_s =
+      filter.optional_number("ringing_hold_s", m.ringing_hold_s, {0.0, false, 3600.0, false});
   m.ft_delay_s = filter.optional_number("ft_delay_s", m.ft_delay_s, {0.0, false, 0.1, false});
   m.imu_delay_s = filter.optional_number("imu_delay_s", m.imu_delay_s, {0.0, false, 0.1, false});
 }
@@ -455,6 +457,7 @@ std::pair<std::string_view, std::string_view> file_key(std::string_view setting)
           {"motion.ft_delay_s", {"filter", "ft_delay_s"}},
           {"motion.ringing_radps", {"filter", "ringing_radps"}},
           {"motion.mode_gain", {"filter", "mode_gain"}},
+          {"motion.ringing_hold_s", {"filter", "ringing_hold_s"}},
           {"motion.imu_delay_s", {"filter", "imu_delay_s"}},
           {"motion.ft_rate_hz", {"ft", "rate_hz"}},
           {"body.mass_kg", {"body", "mass_kg"}},

@@ -170,15 +170,18 @@ TEST(MotionEstimator, TheImusShareFindsATiltAndFiltersItsNoise) {
   }
 }
 
-// Step 4: at rest the gyro's row noise leaves the robot's output alone; when the IMU shows an
-// oscillation the robot does not (a link ringing against its motor), the output follows the
-// IMU within a few rows; with the step left out (the mutant) it never does.
-TEST(MotionEstimator, WhileTheArmRingsTheImuTakesOver) {
+// Step 4: at rest the gyro's row noise leaves the robot's output alone; a ringing nobody
+// excited (no contact, no limit: note_excitation false) is left to the model too; after a push
+// (note_excitation true for rows 700-719) the output follows the IMU within a few rows, and
+// ringing_hold_s (1 s) after the push step 4 is off again; with the step left out (the mutant)
+// it never follows.
+TEST(MotionEstimator, AfterAPushWhileTheArmRingsTheImuTakesOver) {
   for (const bool without : {false, true}) {
     MotionEstimator e;
     MotionEstimatorConfig config;
     config.source = MotionSource::fused;
     config.mutant_without_ringing = without;
+    ASSERT_EQ(config.ringing_hold_s, 1.0);
     ASSERT_TRUE(e.configure(config, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero(), {}).ok());
     std::uint64_t state = 777;
     auto noise = [&] {  // uniform, σ = 1e-4 rad/s: the emulated gyro's row mean
@@ -186,8 +189,8 @@ TEST(MotionEstimator, WhileTheArmRingsTheImuTakesOver) {
       return 1e-4 * std::sqrt(12.0) * (static_cast<double>(state >> 11) * 0x1.0p-53 - 0.5);
     };
     MotionEstimate out;
-    double worst_rest = 0.0, worst_follow = 0.0;
-    for (int c = 2; c < 1200; ++c) {
+    double worst_rest = 0.0, most_unexcited = 0.0, worst_follow = 0.0, most_after_hold = 0.0;
+    for (int c = 2; c < 1000; ++c) {
       std::array<model::FeatureSignals, 5> rows;
       std::array<const model::FeatureSignals*, 5> window;
       for (int j = 0; j < 5; ++j) {
@@ -203,17 +206,22 @@ TEST(MotionEstimator, WhileTheArmRingsTheImuTakesOver) {
           c >= 600 ? Eigen::Vector3d(5e-3 * std::sin(2.0 * std::numbers::pi * 6.0 * t), 0.0, 0.0)
                    : Eigen::Vector3d::Zero();
       imu.angular_rate_imu += ring;
+      e.note_excitation(c >= 700 && c < 720);
       ASSERT_TRUE(e.update(window, {}, imu, {}, out));
       if (c > 300 && c < 600) worst_rest = std::max(worst_rest, out.ringing);
-      if (c > 640) worst_follow = std::max(worst_follow, (out.imu.angular_rate_imu - ring).norm());
+      if (c >= 600 && c < 700) most_unexcited = std::max(most_unexcited, out.ringing);
+      if (c > 740 && c < 800)
+        worst_follow = std::max(worst_follow, (out.imu.angular_rate_imu - ring).norm());
+      // The hold counts from the last excited row (719): 1 s is 83.3 rows of 12 ms.
+      if (c > 805) most_after_hold = std::max(most_after_hold, out.ringing);
     }
+    EXPECT_EQ(most_unexcited, 0.0) << "a ringing nobody excited leaves step 4 off";
+    EXPECT_EQ(most_after_hold, 0.0) << "ringing_hold_s after the push step 4 is off";
     if (without) {
-      EXPECT_EQ(out.ringing, 0.0);
       EXPECT_GT(worst_follow, 4e-3) << "the ringing stays unseen";
     } else {
       EXPECT_LT(worst_rest, 0.02) << "at rest the gyro's noise does not open step 4";
-      EXPECT_GT(out.ringing, 0.8);
-      EXPECT_LT(worst_follow, 1.5e-3) << "while it rings the output follows the gyro";
+      EXPECT_LT(worst_follow, 1.5e-3) << "after the push the output follows the gyro";
     }
   }
 }
@@ -228,6 +236,9 @@ TEST(MotionEstimator, RefusesSettingsThatCannotWork) {
   c = {};
   c.substep_s = 0.1;
   EXPECT_EQ(check_estimator_config(c).setting(), "substep_s");
+  c = {};
+  c.ringing_hold_s = -1.0;
+  EXPECT_EQ(check_estimator_config(c).setting(), "ringing_hold_s");
   CycleConfig cycle = test::test_cycle_config();
   cycle.motion.excitation_hz = -1.0;
   EXPECT_EQ(check_config(cycle).setting(), "motion.excitation_hz");

@@ -34,8 +34,10 @@
 //    (the same gain, K = max(K, 1/n) at the start). ω̇ is the robot's alone.
 //    What the IMU corrects: the sag the model of step 2 misses, a tilted base, the mounting;
 //    what the robot gives: everything faster, free of the IMU's white noise.
-// 4. while the arm rings (elastic robot after a push, a stop): the gyro's disagreement with the
-//    rigid robot's rate, its mean square over kRingingWindow_s (50 ms), sets a schedule
+// 4. while the arm rings (elastic robot after a push, a stop): within ringing_hold_s of a
+//    contact (the zero-g gates open) or a motion limit acting (note_excitation), the gyro's
+//    disagreement with the rigid robot's rate, its mean square over kRingingWindow_s (50 ms),
+//    sets a schedule
 //    s = e² / (e² + (3 ringing_radps)²): near 0 at rest (the gyro's row noise is about 1e-4
 //    rad/s), near 1 while the link oscillates against the motor. With s, (a) the gyro's residual
 //    against the modelled link rate corrects the modes' rates (δ̇ += s · mode_gain · J_ω⁺ e,
@@ -44,7 +46,10 @@
 //    difference's ω̇). Why: the modelled ringing misses about 10 % of the real one, and a miss in
 //    the mode band closes a loop through the virtual body (measured: proto/loop.md). This is
 //    not the Kalman filter with the modes as states that the method calls for; it is the
-//    measured-stable step toward it.
+//    measured-stable step toward it (that filter, on the gyro, was tried and measured worse:
+//    proto/loop.md). Away from contacts and limits, step 4 is off: the gyro's disagreement
+//    there is its noise and a slow residual of the turning link (a quasi-static deflection's
+//    rate), which step 4 would put into the modes and the output (measured: proto/loop.md).
 //
 // Instants: the row's F/T and IMU values are means of the samples of the window that ended at
 // the robot's message (the row's time t_c); n samples at rate f, the last `delay` before the
@@ -94,6 +99,8 @@ struct MotionEstimatorConfig {
   /// Step 4: the share of the gyro's residual that corrects the modes' rates per row, at full
   /// schedule.
   double mode_gain = 0.5;
+  /// Step 4 acts for this long after a contact or a motion limit (note_excitation), s.
+  double ringing_hold_s = 1.0;
   /// The rates of the samples that make a row (zerog-rt: [ft] rate_hz, the rig's imu_rate_hz)
   /// and the time from a window's last sample to the robot's message beyond what the count
   /// says (0 in lockstep, where the window's last samples are taken at the message): the
@@ -146,6 +153,10 @@ class MotionEstimator {
                           const Eigen::Vector3d& p_sensor_imu_m,
                           const std::optional<robot::RobotModel>& robot);
   const MotionEstimatorConfig& config() const { return config_; }
+  /// Whether the arm was excited in the last cycle beyond what the robot's joints show: a
+  /// push passed on (a contact gate open), a motion limit acting, a path being followed. Step 4
+  /// acts within ringing_hold_s of it. Real-time safe.
+  void note_excitation(bool excited) noexcept { excited_ = excited; }
   /// Forget the past (the next update starts afresh: static sag, the IMU's share averaged anew).
   void reset() noexcept;
 
@@ -175,7 +186,9 @@ class MotionEstimator {
   std::array<double, robot::kMaxJoints> tau_{};                  ///< the load at t_s_
   std::array<double, robot::kMaxJoints> delta_{}, delta_dot_{};
   Eigen::Vector3d offset_w_ = Eigen::Vector3d::Zero();
-  double residual_ms_ = 0.0;  ///< step 4: the gyro's mean-square disagreement, (rad/s)²
+  double residual_ms_ = 0.0;         ///< step 4: the gyro's mean-square disagreement, (rad/s)²
+  bool excited_ = false;             ///< note_excitation's last word
+  double since_excitation_s_ = 0.0;  ///< rows' time since it was true (reset: never)
   // Step 3's Kalman filter of the specific force's two offsets, in units of the variance of the
   // IMU's row mean (the STIM300's VRW 0.06 m/s/√h over 12 ms: about (0.009 m/s²)²,
   // proto/sim_robot.md). The prior of each part: σ = 10 such units (≈ 0.1 m/s²: a 10 mrad
