@@ -28,10 +28,21 @@ Eigen::Vector3d deadband(const Eigen::Vector3d& x, double d) {
   return x * ((n - d) / n);
 }
 
-Eigen::Vector3d ContactGate::step(const Eigen::Vector3d& x, double dt_s, double open, double close,
-                                  int confirm) {
+Eigen::Vector3d torque_gate_input(const Eigen::Vector3d& torque_sensor_Nm,
+                                  const Eigen::Vector3d& force_sensor_N,
+                                  const Eigen::Vector3d& p_sensor_com_m, double force_open_N) {
+  const Eigen::Vector3d about_com =
+      torque_about(torque_sensor_Nm, force_sensor_N, Eigen::Vector3d::Zero(), p_sensor_com_m);
+  if (force_open_N > 0.0 && force_sensor_N.norm() <= force_open_N &&
+      torque_sensor_Nm.norm() < about_com.norm())
+    return torque_sensor_Nm;
+  return about_com;
+}
+
+Eigen::Vector3d ContactGate::step(const Eigen::Vector3d& judged, const Eigen::Vector3d& x,
+                                  double dt_s, double open, double close, int confirm) {
   if (open <= 0.0) return x;
-  const double n = x.norm();
+  const double n = judged.norm();
   if (open_) {
     run_ = n < close ? run_ + 1 : 0;
     if (run_ >= confirm) reset();
@@ -93,19 +104,23 @@ std::uint32_t ZeroGMotion::step(const Eigen::Vector3d& force_sensor_N,
 
   // The contact wrench (measured − predicted) is the person's push on the payload as the sensor
   // passes it on: sensor frame, torque about the sensor origin. It drives the virtual body.
-  // The contact gates act on the wrench at the virtual centre of mass, where it drives
-  // translation and rotation: gating the torque about the sensor origin would turn a push
-  // through the centre of mass into a spurious torque.
+  // The contact gates pass the wrench at the virtual centre of mass, where it drives
+  // translation and rotation. The torque gate judges torque_gate_input: about the centre of
+  // mass when the force counts, else the smaller of that and the torque about the sensor
+  // origin (a rejected force's lever is not a torque).
   const Eigen::Quaterniond R = body_.state().q_world_body;
   const Eigen::Vector3d M_com_raw =
       torque_about(torque_sensor_Nm, force_sensor_N, Eigen::Vector3d::Zero(), p_sensor_com_m_);
+  const Eigen::Vector3d M_judged = torque_gate_input(torque_sensor_Nm, force_sensor_N,
+                                                     p_sensor_com_m_, limits_.force_deadband_N);
   const double release = limits_.contact_release_fraction;
   const int confirm = limits_.contact_confirm_cycles;
   const Eigen::Vector3d F_world =
       R * force_gate_.step(force_sensor_N, dt_s, limits_.force_deadband_N,
                            release * limits_.force_deadband_N, confirm);
-  const Eigen::Vector3d M_com_sensor = torque_gate_.step(
-      M_com_raw, dt_s, limits_.torque_deadband_Nm, release * limits_.torque_deadband_Nm, confirm);
+  const Eigen::Vector3d M_com_sensor =
+      torque_gate_.step(M_judged, M_com_raw, dt_s, limits_.torque_deadband_Nm,
+                        release * limits_.torque_deadband_Nm, confirm);
   const Eigen::Vector3d M_world = R * M_com_sensor;
 
   const Eigen::Vector3d p_sensor_before = sensor_position_world();

@@ -208,7 +208,7 @@ constexpr std::array kMap{
   holding(26, "torque_deadband_Nm", 1000, "N·m", 0.0, 20.0,
           +[](const Tunables& t) { return t.limits.torque_deadband_Nm; },
           +[](Tunables& t, double v) { t.limits.torque_deadband_Nm = v; },
-          "contact gate threshold on the torque about the virtual centre of mass"),
+          "contact gate threshold on the torque (judged as control::torque_gate_input)"),
   holding(28, "contact_confirm_cycles", 1, "", 1.0, 100.0,
           +[](const Tunables& t) { return double(t.limits.contact_confirm_cycles); },
           +[](Tunables& t, double v) { t.limits.contact_confirm_cycles = static_cast<int>(std::lround(v)); },

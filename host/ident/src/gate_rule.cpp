@@ -287,7 +287,7 @@ double norm_tail(const Eigen::Vector3d& variances, double t) {
 
 GateAdvice gate_rule(const std::vector<loop::CycleRecord>& cycles, const GateRuleOptions& o) {
   GateAdvice a;
-  std::vector<Eigen::Vector3d> force, torque;
+  std::vector<Eigen::Vector3d> force, torque_sensor;
   std::vector<std::size_t> gaps;
   std::vector<double> dt;
   std::uint64_t last = 0;
@@ -312,7 +312,7 @@ GateAdvice gate_rule(const std::vector<loop::CycleRecord>& cycles, const GateRul
     const Eigen::Vector3d F(r.contact[0], r.contact[1], r.contact[2]);
     const Eigen::Vector3d M(r.contact[3], r.contact[4], r.contact[5]);
     force.push_back(F);
-    torque.push_back(control::torque_about(M, F, Eigen::Vector3d::Zero(), o.com_sensor_m));
+    torque_sensor.push_back(M);
     gaps.push_back(last != 0 && r.cycle != last + 1 ? 1 : 0);
     last = r.cycle;
     dt.push_back(r.dt_s);
@@ -328,7 +328,18 @@ GateAdvice gate_rule(const std::vector<loop::CycleRecord>& cycles, const GateRul
   std::nth_element(dt.begin(), dt.begin() + static_cast<std::ptrdiff_t>(dt.size() / 2), dt.end());
   a.cycle_s = dt[dt.size() / 2];
   a.force = group(force, gaps, a.cycle_s, o, o.force_now_N);
-  a.torque = group(torque, gaps, a.cycle_s, o, o.torque_now_Nm);
+  // The torque the torque gate judges (control::torque_gate_input) depends on the force gate's
+  // threshold: the advised one for the advice and its replay, the configured one for the
+  // configured gate's replay.
+  const auto judged = [&](double force_open_N) {
+    std::vector<Eigen::Vector3d> m(force.size());
+    for (std::size_t i = 0; i < force.size(); ++i)
+      m[i] = control::torque_gate_input(torque_sensor[i], force[i], o.com_sensor_m, force_open_N);
+    return m;
+  };
+  a.torque = group(judged(a.force.threshold), gaps, a.cycle_s, o, o.torque_now_Nm);
+  replay(judged(o.force_now_N), gaps, o.torque_now_Nm, a.cycle_s, o, a.torque.confirms_now,
+         a.torque.open_cycles_now);
   a.known = true;
   return a;
 }
@@ -355,8 +366,9 @@ std::string format_gate_advice(const GateAdvice& a, const GateRuleOptions& o) {
                   now, unit, g.confirms_now, g.open_cycles_now);
     out += line;
   };
-  one("force at the virtual centre of mass", "N", a.force, o.force_now_N);
-  one("torque about it", "N*m", a.torque, o.torque_now_Nm);
+  one("force", "N", a.force, o.force_now_N);
+  one("torque the torque gate judges (control::torque_gate_input)", "N*m", a.torque,
+      o.torque_now_Nm);
   std::snprintf(line, sizeof line,
                 "[limits] for zerog-rt (proto/rt_config.md):\nforce_deadband_N = %.3g\n"
                 "torque_deadband_Nm = %.3g\n",

@@ -126,6 +126,61 @@ TEST(ZeroGMotion, OffCentrePushAlsoTurnsAboutTheVirtualCentreOfMass) {
   EXPECT_NEAR(turned.y(), -0.3 * 10 * kDt / 6.0 * 99 * kDt, 1e-4);
 }
 
+// The torque gate judges torque_gate_input: a force the force gate rejects is no force, so its
+// lever about the centre of mass is no torque (seed 11's false contact in ten quiet minutes:
+// |F| 0.46-0.55 N under a 0.61 N force gate, 0.25 m below the centre of mass, made 0.15-0.17 N·m
+// about it against a 0.147 N·m torque gate, while the torque at the sensor was 0.04 N·m). A
+// couple still turns the body, and a push the force gate counts still turns it about the centre
+// of mass, from the same cycle and with the whole angular impulse.
+TEST(ZeroGMotion, TheTorqueGateJudgesTheForceTheForceGateCounts) {
+  MotionLimits l = loose();
+  l.force_deadband_N = 0.61, l.torque_deadband_Nm = 0.147;
+  const Eigen::Vector3d com(0.0, 0.0, 0.25);
+  PoseCorrection c;
+  {  // 0.55 N along x for 10 cycles: under the force gate; about the centre of mass 0.1375 N·m
+     // with the sensor's torque noise of 0.03 N·m on y on top: 0.1675 N·m.
+    ZeroGMotion m(body100(), l, com);
+    m.reset(Eigen::Vector3d::Zero(), Eigen::Quaterniond::Identity());
+    for (int i = 0; i < 10; ++i)
+      ASSERT_EQ(m.step(Eigen::Vector3d(0.55, 0, 0), Eigen::Vector3d(0, 0.03, 0), kDt, c),
+                kLimitNone);
+    EXPECT_FALSE(m.in_contact());
+    EXPECT_EQ(m.body().state().L_world_kgm2ps, Eigen::Vector3d::Zero());
+    EXPECT_EQ(m.body().state().v_world_mps, Eigen::Vector3d::Zero());
+  }
+  {  // A couple of 0.15 N·m about x, no force: confirmed in the third cycle, all three kept.
+    ZeroGMotion m(body100(), l, com);
+    m.reset(Eigen::Vector3d::Zero(), Eigen::Quaterniond::Identity());
+    for (int i = 0; i < 3; ++i)
+      m.step(Eigen::Vector3d::Zero(), Eigen::Vector3d(0.15, 0, 0), kDt, c);
+    EXPECT_TRUE(m.in_contact());
+    EXPECT_NEAR(m.body().state().L_world_kgm2ps.x(), 3 * 0.15 * kDt, 1e-12);
+  }
+  {  // 10 N along x through the sensor origin (no torque there), 0.25 m below the centre of
+     // mass: the force gate counts it, so the torque about the centre of mass, (0, -2.5, 0) N·m,
+     // is judged and passed, from the cycle the force is confirmed, with the whole impulse.
+    ZeroGMotion m(body100(), l, com);
+    m.reset(Eigen::Vector3d::Zero(), Eigen::Quaterniond::Identity());
+    for (int i = 0; i < 3; ++i) m.step(Eigen::Vector3d(10, 0, 0), Eigen::Vector3d::Zero(), kDt, c);
+    const BodyState s = m.body().state();
+    EXPECT_NEAR(s.v_world_mps.x(), 3 * 10 * kDt / 100.0, 1e-12);
+    EXPECT_NEAR(s.L_world_kgm2ps.y(), -3 * 2.5 * kDt, 1e-12);
+  }
+  // The judged torque itself. With a force at or under the threshold, the smaller of the
+  // torque about the sensor origin and about the centre of mass: the sensor's force noise
+  // shows about the centre of mass, the prediction's acceleration error (a force at the centre
+  // of mass) about the sensor origin.
+  const Eigen::Vector3d M(0.01, 0.02, 0.03), F(0.5, 0, 0);
+  EXPECT_EQ(torque_gate_input(M, F, com, 0.61), M);
+  const Eigen::Vector3d lever = com.cross(F);  // 0.5 N acting at the centre of mass
+  EXPECT_LT(torque_gate_input(M + lever, F, com, 0.61).norm(), 1e-15 + M.norm());
+  EXPECT_EQ(torque_gate_input(M + lever, F, com, 0.61),
+            torque_about(M + lever, F, Eigen::Vector3d::Zero(), com));
+  // Above the threshold, or with no force gate, about the centre of mass.
+  EXPECT_EQ(torque_gate_input(M, F, com, 0.4), torque_about(M, F, Eigen::Vector3d::Zero(), com));
+  EXPECT_EQ(torque_gate_input(M, F, com, 0.0), torque_about(M, F, Eigen::Vector3d::Zero(), com));
+}
+
 TEST(ZeroGMotion, ForceOverTheLimitStopsTheBody) {
   ZeroGMotion m(body100(), loose(), Eigen::Vector3d::Zero());
   m.reset(Eigen::Vector3d::Zero(), Eigen::Quaterniond::Identity());

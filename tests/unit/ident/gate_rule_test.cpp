@@ -90,11 +90,14 @@ TEST(GateRule, TheThresholdKeepsTheNoiseOutOnThreeSeeds) {
   strict.false_per_hour = 1e-4;
   EXPECT_GT(gate_rule(cycles(0.6, 0.06, 1, 20000, 15000), strict).force.threshold,
             gate_rule(cycles(0.6, 0.06, 1, 20000, 15000), o).force.threshold);
-  // The torque about the virtual centre of mass: a force noise 0.2 m from it adds to it.
+  // The torque the gate judges (control::torque_gate_input): with the force under the force
+  // gate's threshold, about the sensor origin, so a force noise 0.2 m from the virtual centre of
+  // mass does not add to it; about the centre of mass it would (√(0.06² + ⅔ 0.12²) = 0.115).
   GateRuleOptions com = o;
   com.com_sensor_m = Eigen::Vector3d(0.0, 0.0, 0.2);
   const GateAdvice a = gate_rule(cycles(0.6, 0.06, 1, 20000, 15000), com);
-  EXPECT_NEAR(a.torque.sigma, std::sqrt(0.06 * 0.06 + (2.0 / 3.0) * 0.12 * 0.12), 0.003);
+  EXPECT_NEAR(a.torque.sigma, 0.06, 0.06 * 0.03);
+  EXPECT_EQ(a.torque.confirms_at_threshold, 0u);
   const std::string text = format_gate_advice(a, com);
   EXPECT_THAT(text, HasSubstr("force_deadband_N = "));
   EXPECT_THAT(text, HasSubstr("torque_deadband_Nm = "));

@@ -16,8 +16,11 @@ struct MotionLimits {
   /// Contact detection (ContactGate): a force at the virtual centre of mass must exceed this for
   /// contact_confirm_cycles cycles in a row to count as a push (0: no gate).
   double force_deadband_N = 2.0;
-  double torque_deadband_Nm = 0.3;  ///< likewise for the torque about the virtual centre of mass
-  int contact_confirm_cycles = 3;   ///< cycles above the threshold that confirm a contact
+  /// Likewise for the torque the torque gate judges (torque_gate_input: about the virtual
+  /// centre of mass with a force above force_deadband_N, else the smaller of it and the torque
+  /// about the sensor origin); what it passes is always the torque about the centre of mass.
+  double torque_deadband_Nm = 0.3;
+  int contact_confirm_cycles = 3;  ///< cycles above the threshold that confirm a contact
   /// An open gate closes after contact_confirm_cycles cycles below this fraction of the threshold.
   double contact_release_fraction = 0.5;
   double max_contact_force_N = 400.0;  ///< above this: fault (someone or something collided)
@@ -51,8 +54,24 @@ enum LimitFlags : std::uint32_t {
 /// direction (|x| ≤ d → 0, else x (|x| − d)/|x|).
 Eigen::Vector3d deadband(const Eigen::Vector3d& x, double d);
 
-/// Contact detection on one part of the contact wrench (force, or torque about the virtual
-/// centre of mass) that keeps the whole impulse of a real push, where a deadband would shave
+/// The torque the torque gate judges, from the contact wrench in the sensor frame (torque about
+/// the sensor origin): with a force the force gate counts (above `force_open_N` this cycle, or
+/// no force gate) the torque about the virtual centre of mass at `p_sensor_com_m`, as the body
+/// takes it. With a smaller force, which the force gate counts as none, the torque about the
+/// centre of mass and about the sensor origin should be the same couple; they differ by r × F,
+/// the lever of that rejected force, and the smaller of the two is the one without it. The
+/// F/T sensor's force noise acts at the sensor (its lever shows about the centre of mass:
+/// 0.15 N × 0.25 m ≈ 0.04 N·m, twice the sensor's own torque noise); an error of the predicted
+/// acceleration acts at the centre of mass (its lever shows about the sensor origin). So
+/// neither reaches the torque gate through the lever, while a couple, or a push off the centre
+/// of mass that the force gate counts, still turns the body (proto/loop.md, "Motion
+/// estimator", the contact gate). One formula for zerog-rt and `zerog gate`. Real-time safe.
+Eigen::Vector3d torque_gate_input(const Eigen::Vector3d& torque_sensor_Nm,
+                                  const Eigen::Vector3d& force_sensor_N,
+                                  const Eigen::Vector3d& p_sensor_com_m, double force_open_N);
+
+/// Contact detection on one part of the contact wrench (force, or torque) that keeps the whole
+/// impulse of a real push, where a deadband would shave
 /// threshold × duration off it (2 N over a 0.5 s push is 8 % of a 40 N half-sine's impulse).
 /// Closed, it passes nothing; a magnitude above `open` for `confirm` cycles in a row opens it and
 /// releases, in the opening cycle, the impulse of the cycles that confirmed it. Open, it passes
@@ -64,7 +83,13 @@ class ContactGate {
   /// Input `x` (N or N·m) over a cycle of `dt_s`; returns what drives the body this cycle.
   /// `open` ≤ 0 disables the gate (pass-through).
   Eigen::Vector3d step(const Eigen::Vector3d& x, double dt_s, double open, double close,
-                       int confirm);
+                       int confirm) {
+    return step(x, x, dt_s, open, close, confirm);
+  }
+  /// The same, judging `judged` against the thresholds and passing `passed` (the torque gate:
+  /// torque_gate_input judged, the torque about the centre of mass passed).
+  Eigen::Vector3d step(const Eigen::Vector3d& judged, const Eigen::Vector3d& passed, double dt_s,
+                       double open, double close, int confirm);
   void reset();
   bool is_open() const { return open_; }
 

@@ -1,8 +1,10 @@
 #pragma once
 // The contact gate's threshold from the measured noise (issue 28, item 4; `zerog gate`,
 // docs/zerog-rt.md "Setting the contact gate"). zerog-rt confirms a push when the contact force
-// at the virtual centre of mass (|F|), or the torque about it (|M|), stays above its threshold
-// for contact_confirm_cycles cycles in a row (control::ContactGate). The lower the threshold, the
+// (|F|), or the torque its torque gate judges (|M|, control::torque_gate_input: about the virtual
+// centre of mass with a force above the force threshold, else the smaller of that and the
+// torque about the sensor origin), stays
+// above its threshold for contact_confirm_cycles cycles in a row (control::ContactGate). The lower the threshold, the
 // gentler the push that moves the part, and the likelier the noise alone confirms one.
 //
 // The rule: from a recording of zerog-rt at rest in zero-g (cycles.csv; the cycles whose virtual
@@ -10,7 +12,7 @@
 // included: a model offset is seen by the gate too) has principal variances λ₁, λ₂, λ₃ (σ² is
 // their mean, reported); the norm exceeds t with p(t) = P(|x| > t), x ~ N(0, diag(λ)) (norm_tail;
 // with equal axes the χ² tail Q₃(t²/σ²), Q₃(x) = erfc(√(x/2)) + √(2x/π) e^(−x/2)). Unequal axes
-// matter: the torque about the centre of mass has z at half of x and y, and with the pooled σ
+// matter: the torque about the centre of mass had z at half of x and y, and with the pooled σ
 // the χ² tail was 2.4× too small at 4.2 σ (ten minutes at rest, docs/zerog-rt.md). `confirm`
 // cycles in a row exceed t with p(t)^e: e = confirm for independent cycles. The cycles are not
 // always independent (the IMU's differenced noise spans 5 cycles; an elastic arm rings over
