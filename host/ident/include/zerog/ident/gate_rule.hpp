@@ -3,9 +3,9 @@
 // docs/zerog-rt.md "Setting the contact gate"). zerog-rt confirms a push when the contact force
 // (|F|), or the torque its torque gate judges (|M|, control::torque_gate_input: about the virtual
 // centre of mass with a force above the force threshold, else the smaller of that and the
-// torque about the sensor origin), stays
-// above its threshold for contact_confirm_cycles cycles in a row (control::ContactGate). The lower the threshold, the
-// gentler the push that moves the part, and the likelier the noise alone confirms one.
+// torque about the sensor origin), stays above its threshold for contact_confirm_cycles cycles
+// in a row (control::ContactGate). The lower the threshold, the gentler the push that moves the
+// part, and the likelier the noise alone confirms one.
 //
 // The rule: from a recording of zerog-rt at rest in zero-g (cycles.csv; the cycles whose virtual
 // body has not moved: no push was confirmed), the contact wrench's second moment (its mean
