@@ -91,7 +91,7 @@ struct MotionEstimatorConfig {
   MotionSource source = MotionSource::imu;
   double crossover_hz = 0.1;       ///< below it the IMU, above it the robot
   double load_bandwidth_hz = 3.0;  ///< the measured wrench as the joints' load
-  double excitation_hz = 5.0;      ///< the motor's acceleration that drives the modes
+  double excitation_hz = 2.0;      ///< the motor's acceleration that drives the modes
   double substep_s = 1e-3;         ///< the deflection's integration step
   /// Step 4 (header): the gyro's disagreement with the rigid robot (RMS per axis over
   /// kRingingWindow_s) at which the IMU takes a tenth of the output; 0: step 4 off.
