@@ -29,14 +29,12 @@ Eigen::Vector3d deadband(const Eigen::Vector3d& x, double d) {
 }
 
 Eigen::Vector3d torque_gate_input(const Eigen::Vector3d& torque_sensor_Nm,
-                                  const Eigen::Vector3d& force_sensor_N,
-                                  const Eigen::Vector3d& p_sensor_com_m, double force_open_N) {
-  const Eigen::Vector3d about_com =
-      torque_about(torque_sensor_Nm, force_sensor_N, Eigen::Vector3d::Zero(), p_sensor_com_m);
+                                  const Eigen::Vector3d& torque_com_Nm,
+                                  const Eigen::Vector3d& force_sensor_N, double force_open_N) {
   if (force_open_N > 0.0 && force_sensor_N.norm() <= force_open_N &&
-      torque_sensor_Nm.norm() < about_com.norm())
+      torque_sensor_Nm.norm() < torque_com_Nm.norm())
     return torque_sensor_Nm;
-  return about_com;
+  return torque_com_Nm;
 }
 
 Eigen::Vector3d ContactGate::step(const Eigen::Vector3d& judged, const Eigen::Vector3d& x,
@@ -111,8 +109,8 @@ std::uint32_t ZeroGMotion::step(const Eigen::Vector3d& force_sensor_N,
   const Eigen::Quaterniond R = body_.state().q_world_body;
   const Eigen::Vector3d M_com_raw =
       torque_about(torque_sensor_Nm, force_sensor_N, Eigen::Vector3d::Zero(), p_sensor_com_m_);
-  const Eigen::Vector3d M_judged = torque_gate_input(torque_sensor_Nm, force_sensor_N,
-                                                     p_sensor_com_m_, limits_.force_deadband_N);
+  const Eigen::Vector3d M_judged =
+      torque_gate_input(torque_sensor_Nm, M_com_raw, force_sensor_N, limits_.force_deadband_N);
   const double release = limits_.contact_release_fraction;
   const int confirm = limits_.contact_confirm_cycles;
   const Eigen::Vector3d F_world =

@@ -205,8 +205,11 @@ double gaussian_exponent(const std::vector<Eigen::Vector3d>& x,
   return best;
 }
 
-GateGroup group(const std::vector<Eigen::Vector3d>& x, const std::vector<std::size_t>& gaps,
-                double cycle_s, const GateRuleOptions& o, double now) {
+// `x` the noise the advised gate judges, `x_now` the one the configured gate (threshold `now`)
+// judges: the same for the force; for the torque they differ with the force gate's threshold.
+GateGroup group(const std::vector<Eigen::Vector3d>& x, const std::vector<Eigen::Vector3d>& x_now,
+                const std::vector<std::size_t>& gaps, double cycle_s, const GateRuleOptions& o,
+                double now) {
   const double cycles_per_hour = 3600.0 / cycle_s;
   GateGroup g;
   double sum = 0.0;
@@ -246,7 +249,7 @@ GateGroup group(const std::vector<Eigen::Vector3d>& x, const std::vector<std::si
   g.threshold = t;
   g.false_per_hour = rate(t);
   replay(x, gaps, t, cycle_s, o, g.confirms_at_threshold, g.open_cycles_at_threshold);
-  replay(x, gaps, now, cycle_s, o, g.confirms_now, g.open_cycles_now);
+  replay(x_now, gaps, now, cycle_s, o, g.confirms_now, g.open_cycles_now);
   return g;
 }
 
@@ -287,7 +290,7 @@ double norm_tail(const Eigen::Vector3d& variances, double t) {
 
 GateAdvice gate_rule(const std::vector<loop::CycleRecord>& cycles, const GateRuleOptions& o) {
   GateAdvice a;
-  std::vector<Eigen::Vector3d> force, torque_sensor;
+  std::vector<Eigen::Vector3d> force, torque_sensor, torque_com;
   std::vector<std::size_t> gaps;
   std::vector<double> dt;
   std::uint64_t last = 0;
@@ -313,6 +316,7 @@ GateAdvice gate_rule(const std::vector<loop::CycleRecord>& cycles, const GateRul
     const Eigen::Vector3d M(r.contact[3], r.contact[4], r.contact[5]);
     force.push_back(F);
     torque_sensor.push_back(M);
+    torque_com.push_back(control::torque_about(M, F, Eigen::Vector3d::Zero(), o.com_sensor_m));
     gaps.push_back(last != 0 && r.cycle != last + 1 ? 1 : 0);
     last = r.cycle;
     dt.push_back(r.dt_s);
@@ -327,19 +331,18 @@ GateAdvice gate_rule(const std::vector<loop::CycleRecord>& cycles, const GateRul
   }
   std::nth_element(dt.begin(), dt.begin() + static_cast<std::ptrdiff_t>(dt.size() / 2), dt.end());
   a.cycle_s = dt[dt.size() / 2];
-  a.force = group(force, gaps, a.cycle_s, o, o.force_now_N);
+  a.force = group(force, force, gaps, a.cycle_s, o, o.force_now_N);
   // The torque the torque gate judges (control::torque_gate_input) depends on the force gate's
   // threshold: the advised one for the advice and its replay, the configured one for the
   // configured gate's replay.
   const auto judged = [&](double force_open_N) {
     std::vector<Eigen::Vector3d> m(force.size());
     for (std::size_t i = 0; i < force.size(); ++i)
-      m[i] = control::torque_gate_input(torque_sensor[i], force[i], o.com_sensor_m, force_open_N);
+      m[i] = control::torque_gate_input(torque_sensor[i], torque_com[i], force[i], force_open_N);
     return m;
   };
-  a.torque = group(judged(a.force.threshold), gaps, a.cycle_s, o, o.torque_now_Nm);
-  replay(judged(o.force_now_N), gaps, o.torque_now_Nm, a.cycle_s, o, a.torque.confirms_now,
-         a.torque.open_cycles_now);
+  a.torque =
+      group(judged(a.force.threshold), judged(o.force_now_N), gaps, a.cycle_s, o, o.torque_now_Nm);
   a.known = true;
   return a;
 }

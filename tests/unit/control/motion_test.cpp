@@ -171,14 +171,16 @@ TEST(ZeroGMotion, TheTorqueGateJudgesTheForceTheForceGateCounts) {
   // shows about the centre of mass, the prediction's acceleration error (a force at the centre
   // of mass) about the sensor origin.
   const Eigen::Vector3d M(0.01, 0.02, 0.03), F(0.5, 0, 0);
-  EXPECT_EQ(torque_gate_input(M, F, com, 0.61), M);
+  const auto about_com = [&](const Eigen::Vector3d& m) {
+    return torque_about(m, F, Eigen::Vector3d::Zero(), com);
+  };
+  EXPECT_EQ(torque_gate_input(M, about_com(M), F, 0.61), M);
   const Eigen::Vector3d lever = com.cross(F);  // 0.5 N acting at the centre of mass
-  EXPECT_LT(torque_gate_input(M + lever, F, com, 0.61).norm(), 1e-15 + M.norm());
-  EXPECT_EQ(torque_gate_input(M + lever, F, com, 0.61),
-            torque_about(M + lever, F, Eigen::Vector3d::Zero(), com));
+  EXPECT_LT(torque_gate_input(M + lever, about_com(M + lever), F, 0.61).norm(), 1e-15 + M.norm());
+  EXPECT_EQ(torque_gate_input(M + lever, about_com(M + lever), F, 0.61), about_com(M + lever));
   // Above the threshold, or with no force gate, about the centre of mass.
-  EXPECT_EQ(torque_gate_input(M, F, com, 0.4), torque_about(M, F, Eigen::Vector3d::Zero(), com));
-  EXPECT_EQ(torque_gate_input(M, F, com, 0.0), torque_about(M, F, Eigen::Vector3d::Zero(), com));
+  EXPECT_EQ(torque_gate_input(M, about_com(M), F, 0.4), about_com(M));
+  EXPECT_EQ(torque_gate_input(M, about_com(M), F, 0.0), about_com(M));
 }
 
 TEST(ZeroGMotion, ForceOverTheLimitStopsTheBody) {

@@ -54,21 +54,22 @@ enum LimitFlags : std::uint32_t {
 /// direction (|x| ≤ d → 0, else x (|x| − d)/|x|).
 Eigen::Vector3d deadband(const Eigen::Vector3d& x, double d);
 
-/// The torque the torque gate judges, from the contact wrench in the sensor frame (torque about
-/// the sensor origin): with a force the force gate counts (above `force_open_N` this cycle, or
-/// no force gate) the torque about the virtual centre of mass at `p_sensor_com_m`, as the body
-/// takes it. With a smaller force, which the force gate counts as none, the torque about the
-/// centre of mass and about the sensor origin should be the same couple; they differ by r × F,
-/// the lever of that rejected force, and the smaller of the two is the one without it. The
-/// F/T sensor's force noise acts at the sensor (its lever shows about the centre of mass:
-/// 0.15 N × 0.25 m ≈ 0.04 N·m, twice the sensor's own torque noise); an error of the predicted
-/// acceleration acts at the centre of mass (its lever shows about the sensor origin). So
-/// neither reaches the torque gate through the lever, while a couple, or a push off the centre
-/// of mass that the force gate counts, still turns the body (proto/loop.md, "Motion
-/// estimator", the contact gate). One formula for zerog-rt and `zerog gate`. Real-time safe.
+/// The torque the torque gate judges, from the contact wrench in the sensor frame: the torque
+/// about the sensor origin, the same about the virtual centre of mass (torque_about), and the
+/// force. With a force the force gate counts (above `force_open_N` this cycle, or no force
+/// gate) the torque about the centre of mass, as the body takes it. With a smaller force, which the
+/// force gate counts as none, the torque about the centre of mass and about the sensor origin
+/// should be the same couple; they differ by r × F, the lever of that rejected force, and the
+/// smaller of the two is the one without it. The F/T sensor's force noise acts at the sensor (its
+/// lever shows about the centre of mass: 0.15 N × 0.25 m ≈ 0.04 N·m, twice the sensor's own torque
+/// noise); an error of the predicted acceleration acts at the centre of mass (its lever shows about
+/// the sensor origin). So neither reaches the torque gate through the lever, while a couple, or a
+/// push off the centre of mass that the force gate counts, still turns the body (proto/loop.md,
+/// "Motion estimator", the contact gate). One formula for zerog-rt and `zerog gate`. Real-time
+/// safe.
 Eigen::Vector3d torque_gate_input(const Eigen::Vector3d& torque_sensor_Nm,
-                                  const Eigen::Vector3d& force_sensor_N,
-                                  const Eigen::Vector3d& p_sensor_com_m, double force_open_N);
+                                  const Eigen::Vector3d& torque_com_Nm,
+                                  const Eigen::Vector3d& force_sensor_N, double force_open_N);
 
 /// Contact detection on one part of the contact wrench (force, or torque) that keeps the whole
 /// impulse of a real push, where a deadband would shave
