@@ -220,6 +220,10 @@ def contact_noise(run, t0, t1, what):
               f"floor on every axis (worst {AXES[worst]} {rms[worst] / floor[worst]:.2f}x)")
 
 
+# The half-width of the band around each joint's mode (mode_band_rows).
+MODE_BAND_HZ = 1.0
+
+
 def mode_band_rows(t, r, floor, joints):
     """The contact noise r (cycles × 6, at times t) in a band of ±MODE_BAND_HZ around each
     joint's mode below the cycles' Nyquist (`joints`: the rig's [[robot.joint]] tables, mode_hz),
@@ -277,8 +281,6 @@ def mode_bands(run, t, r, floor, what):
               f"{b['joint']} {b['mode_hz']:g} Hz {b['force_N']:.3f} N ({b['floor_force_N']:.3f}), "
               f"{b['torque_Nm']:.4f} N*m ({b['floor_torque_Nm']:.4f})" for b in rows))
 
-
-MODE_BAND_HZ = 1.0
 
 
 def gate_checks(run):

@@ -190,6 +190,7 @@ TEST(MotionEstimator, AfterAPushWhileTheArmRingsTheImuTakesOver) {
     };
     MotionEstimate out;
     double worst_rest = 0.0, most_unexcited = 0.0, worst_follow = 0.0, most_after_hold = 0.0;
+    double ringing_within_hold = 0.0, most_following = 0.0;  // the former at the last row of it
     for (int c = 2; c < 1000; ++c) {
       std::array<model::FeatureSignals, 5> rows;
       std::array<const model::FeatureSignals*, 5> window;
@@ -210,17 +211,22 @@ TEST(MotionEstimator, AfterAPushWhileTheArmRingsTheImuTakesOver) {
       ASSERT_TRUE(e.update(window, {}, imu, {}, out));
       if (c > 300 && c < 600) worst_rest = std::max(worst_rest, out.ringing);
       if (c >= 600 && c < 700) most_unexcited = std::max(most_unexcited, out.ringing);
-      if (c > 740 && c < 800)
+      if (c > 740 && c < 800) {
         worst_follow = std::max(worst_follow, (out.imu.angular_rate_imu - ring).norm());
+        ringing_within_hold = out.ringing;
+        most_following = std::max(most_following, out.ringing);
+      }
       // The hold counts from the last excited row (719): 1 s is 83.3 rows of 12 ms.
       if (c > 805) most_after_hold = std::max(most_after_hold, out.ringing);
     }
     EXPECT_EQ(most_unexcited, 0.0) << "a ringing nobody excited leaves step 4 off";
     EXPECT_EQ(most_after_hold, 0.0) << "ringing_hold_s after the push step 4 is off";
     if (without) {
+      EXPECT_EQ(most_following, 0.0);
       EXPECT_GT(worst_follow, 4e-3) << "the ringing stays unseen";
     } else {
       EXPECT_LT(worst_rest, 0.02) << "at rest the gyro's noise does not open step 4";
+      EXPECT_GT(ringing_within_hold, 0.8);
       EXPECT_LT(worst_follow, 1.5e-3) << "after the push the output follows the gyro";
     }
   }

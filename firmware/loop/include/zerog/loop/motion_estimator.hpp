@@ -69,6 +69,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <span>
 
@@ -186,9 +187,10 @@ class MotionEstimator {
   std::array<double, robot::kMaxJoints> tau_{};                  ///< the load at t_s_
   std::array<double, robot::kMaxJoints> delta_{}, delta_dot_{};
   Eigen::Vector3d offset_w_ = Eigen::Vector3d::Zero();
-  double residual_ms_ = 0.0;         ///< step 4: the gyro's mean-square disagreement, (rad/s)²
-  bool excited_ = false;             ///< note_excitation's last word
-  double since_excitation_s_ = 0.0;  ///< rows' time since it was true (reset: never)
+  double residual_ms_ = 0.0;  ///< step 4: the gyro's mean-square disagreement, (rad/s)²
+  bool excited_ = false;      ///< note_excitation's last word
+  /// Rows' time since it was true (infinite: never, as after reset()).
+  double since_excitation_s_ = std::numeric_limits<double>::infinity();
   // Step 3's Kalman filter of the specific force's two offsets, in units of the variance of the
   // IMU's row mean (the STIM300's VRW 0.06 m/s/√h over 12 ms: about (0.009 m/s²)²,
   // proto/sim_robot.md). The prior of each part: σ = 10 such units (≈ 0.1 m/s²: a 10 mrad
