@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 namespace zerog::control {
 namespace {
@@ -38,7 +39,8 @@ Eigen::Vector3d torque_gate_input(const Eigen::Vector3d& torque_sensor_Nm,
 }
 
 Eigen::Vector3d ContactGate::step(const Eigen::Vector3d& judged, const Eigen::Vector3d& x,
-                                  double dt_s, double open, double close, int confirm) {
+                                  double dt_s, double open, double close, int confirm,
+                                  bool may_open) {
   if (open <= 0.0) return x;
   const double n = judged.norm();
   if (open_) {
@@ -46,7 +48,7 @@ Eigen::Vector3d ContactGate::step(const Eigen::Vector3d& judged, const Eigen::Ve
     if (run_ >= confirm) reset();
     return x;
   }
-  if (n <= open) {
+  if (n <= open || !may_open) {
     run_ = 0;
     pending_impulse_.setZero();
     return Eigen::Vector3d::Zero();
@@ -82,6 +84,10 @@ void ZeroGMotion::reset(const Eigen::Vector3d& p_world_sensor_m,
   body_.reset(s);
   force_gate_.reset();
   torque_gate_.reset();
+  force_lp1_.setZero();
+  force_lp2_.setZero();
+  torque_lp1_.setZero();
+  torque_lp2_.setZero();
 }
 
 Eigen::Vector3d ZeroGMotion::sensor_position_world() const {
@@ -93,7 +99,7 @@ Eigen::Quaterniond ZeroGMotion::sensor_attitude_world() const { return body_.sta
 
 std::uint32_t ZeroGMotion::step(const Eigen::Vector3d& force_sensor_N,
                                 const Eigen::Vector3d& torque_sensor_Nm, double dt_s,
-                                PoseCorrection& out) {
+                                PoseCorrection& out, bool may_confirm) {
   out = PoseCorrection{};
   std::uint32_t flags = kLimitNone;
   if (force_sensor_N.norm() > limits_.max_contact_force_N) flags |= kForceOverLimit;
@@ -113,12 +119,22 @@ std::uint32_t ZeroGMotion::step(const Eigen::Vector3d& force_sensor_N,
       torque_gate_input(torque_sensor_Nm, M_com_raw, force_sensor_N, limits_.force_deadband_N);
   const double release = limits_.contact_release_fraction;
   const int confirm = limits_.contact_confirm_cycles;
-  const Eigen::Vector3d F_world =
+  Eigen::Vector3d F_world =
       R * force_gate_.step(force_sensor_N, dt_s, limits_.force_deadband_N,
-                           release * limits_.force_deadband_N, confirm);
-  const Eigen::Vector3d M_com_sensor =
+                           release * limits_.force_deadband_N, confirm, may_confirm);
+  Eigen::Vector3d M_com_sensor =
       torque_gate_.step(M_judged, M_com_raw, dt_s, limits_.torque_deadband_Nm,
-                        release * limits_.torque_deadband_Nm, confirm);
+                        release * limits_.torque_deadband_Nm, confirm, may_confirm);
+  if (limits_.contact_lowpass_hz > 0.0) {
+    // Exact first-order steps: y += (1 − e^(−2π f dt)) (x − y), twice.
+    const double k = 1.0 - std::exp(-2.0 * std::numbers::pi * limits_.contact_lowpass_hz * dt_s);
+    force_lp1_ += k * (F_world - force_lp1_);
+    force_lp2_ += k * (force_lp1_ - force_lp2_);
+    torque_lp1_ += k * (M_com_sensor - torque_lp1_);
+    torque_lp2_ += k * (torque_lp1_ - torque_lp2_);
+    F_world = force_lp2_;
+    M_com_sensor = torque_lp2_;
+  }
   const Eigen::Vector3d M_world = R * M_com_sensor;
 
   const Eigen::Vector3d p_sensor_before = sensor_position_world();

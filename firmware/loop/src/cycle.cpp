@@ -53,6 +53,8 @@ TunablesCheck check_tunables(const Tunables& t) noexcept {
     return {"limits.linear_damping_per_s", "must be zero or positive"};
   if (!(l.angular_damping_per_s >= 0.0 && std::isfinite(l.angular_damping_per_s)))
     return {"limits.angular_damping_per_s", "must be zero or positive"};
+  if (!(l.contact_lowpass_hz >= 0.0 && std::isfinite(l.contact_lowpass_hz)))
+    return {"limits.contact_lowpass_hz", "must be zero (off) or positive"};
   if (!l.workspace_min_m.allFinite()) return {"limits.workspace_min_m", "must be finite"};
   if (!l.workspace_max_m.allFinite()) return {"limits.workspace_max_m", "must be finite"};
   if (!(l.workspace_min_m.array() < l.workspace_max_m.array()).all())

@@ -338,6 +338,10 @@ ModelResult evaluate_model(const CycleConfig& config, infer::Inference& inferenc
     flags |= kContactHeld;
     set_zero(contact);
   }
+  // The first rows of the fused path average the IMU's share: its error is the IMU's row noise
+  // × mass over √n (0.9 N per axis at one row, 100 kg), above a gate set from the settled noise.
+  if (config.motion.source == MotionSource::fused && !model.estimate.settled)
+    flags |= kEstimatorSettling;
   // Ready for zero-g: a prediction, and this cycle's samples fresh.
   return {.evaluated = true,
           .written = true,
@@ -408,7 +412,8 @@ MotionResult run_motion(const CycleConfig& config, const MotionInputs& in,
       const Eigen::Vector3d F(in.model.contact[0], in.model.contact[1], in.model.contact[2]);
       const Eigen::Vector3d M(in.model.contact[3], in.model.contact[4], in.model.contact[5]);
       control::PoseCorrection c;
-      out.limit_flags = motion.step(F, M, in.timing.dt_s, c);
+      out.limit_flags =
+          motion.step(F, M, in.timing.dt_s, c, (in.model.flags & kEstimatorSettling) == 0);
       if ((out.limit_flags & (control::kForceOverLimit | control::kTorqueOverLimit)) != 0) {
         out.fault = Fault::contact_over_limit;
         break;

@@ -89,6 +89,8 @@ void MotionEstimator::reset() noexcept {
   bias_I_.setZero();
   error_B_.setZero();
   P_ = Eigen::Matrix<double, 6, 6>::Identity() * kPriorVariance;
+  sum_variance_ = 2.0 * kPriorVariance;
+  steady_gain_ = 0.0;
 }
 
 void MotionEstimator::update_force_offsets(const Eigen::Vector3d& y, const Eigen::Matrix3d& R_IB,
@@ -114,6 +116,7 @@ void MotionEstimator::update_force_offsets(const Eigen::Vector3d& y, const Eigen
   // Joseph form: P stays symmetric and positive under rounding over hours of rows.
   const Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Identity() - K * H;
   P_ = A * P_ * A.transpose() + K * K.transpose();
+  sum_variance_ = (H * P_ * H.transpose()).diagonal().maxCoeff();
 }
 
 // Step 1's result: the motor side's motion at the centre row c, from the quadratic fits of the
@@ -256,6 +259,7 @@ void MotionEstimator::track_offsets(const model::ImuSignals<double>& imu_at_c,
   ++updates_;
   if (config_.mutant_without_imu) return;
   const double k_steady = started_ ? lowpass_gain(config_.crossover_hz, dt) : 1.0;
+  if (started_) steady_gain_ = k_steady;
   const double k = std::max(k_steady, 1.0 / static_cast<double>(updates_));
   offset_w_ += k * (imu_at_c.angular_rate_imu - omega_I_cmp - offset_w_);
   update_force_offsets(imu_at_c.specific_force_imu - f_I_cmp,
@@ -342,6 +346,9 @@ bool MotionEstimator::update(std::span<const model::FeatureSignals* const> rows,
   out.specific_force_bias_imu = bias_I_;
   out.specific_force_error_base = error_B_;
   out.angular_rate_offset = offset_w_;
+  // Without the IMU (the test mutant) there is no share to settle.
+  out.settled = config_.mutant_without_imu || config_.mutant_settled_at_once ||
+                (steady_gain_ > 0.0 && sum_variance_ <= kSettledRatio * steady_gain_);
   out.imu.specific_force_imu = f_I + offset_f;
   out.imu.angular_rate_imu = omega_I + offset_w_;
   out.imu.angular_accel_imu = omega_dot_I;

@@ -101,7 +101,8 @@ const std::vector<std::string_view> kLimitsKeys{
     "max_speed_mps",          "max_angular_speed_radps",
     "max_accel_mps2",         "max_angular_accel_radps2",
     "linear_damping_per_s",   "angular_damping_per_s",
-    "workspace_min_m",        "workspace_max_m"};
+    "contact_lowpass_hz",     "workspace_min_m",
+    "workspace_max_m"};
 const std::vector<std::string_view> kWatchdogKeys{"ft_fault_cycles", "imu_fault_cycles",
                                                   "robot_fault_cycles", "robot_late_cycles",
                                                   "model_fault_cycles"};
@@ -274,6 +275,8 @@ control::MotionLimits read_limits(const TomlTable& file) {
                                                   {0.0, false, 100.0, false});
   l.angular_damping_per_s = limits.optional_number("angular_damping_per_s", l.angular_damping_per_s,
                                                    {0.0, false, 100.0, false});
+  l.contact_lowpass_hz = limits.optional_number("contact_lowpass_hz", l.contact_lowpass_hz,
+                                                {0.0, false, 100.0, false});
   l.workspace_min_m = limits.optional_vector3("workspace_min_m", l.workspace_min_m);
   l.workspace_max_m = limits.optional_vector3("workspace_max_m", l.workspace_max_m);
   // Deadbands below the contact limits: the loop's own rule (check_cycle).

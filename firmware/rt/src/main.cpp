@@ -95,6 +95,10 @@ void apply_mutant(const std::string& name, loop::CycleConfig& cycle) {
     cycle.motion.mutant_one_row_late = true;
   } else if (name == "estimator_without_ringing") {  // the elastic arm's ringing left unseen
     cycle.motion.mutant_without_ringing = true;
+  } else if (name == "estimator_settled_at_once") {  // a push confirmed on its first rows
+    cycle.motion.mutant_settled_at_once = true;
+  } else if (name == "contact_lowpass_off") {  // the gates' output drives the body directly
+    cycle.limits.contact_lowpass_hz = 0.0;
   }
 }
 
@@ -463,12 +467,14 @@ int main(int argc, char** argv) {
                  "TEST ONLY: run a deliberately broken zerog-rt (gate_never_opens: no push is "
                  "confirmed; watchdog_doubled: every watchdog threshold doubled; exit_at_start: "
                  "exits with a start-up error before the devices open; estimator_without_imu, "
-                 "estimator_without_joints, estimator_one_row_late, estimator_without_ringing: the "
-                 "motion estimator without the IMU's share, the IMU alone, the estimate one row "
-                 "late, the ringing arm's step left out)")
+                 "estimator_without_joints, estimator_one_row_late, estimator_without_ringing, "
+                 "estimator_settled_at_once: the motion estimator without the IMU's share, the "
+                 "IMU alone, the estimate one row late, the ringing arm's step left out, its first "
+                 "rows trusted; contact_lowpass_off: [limits] contact_lowpass_hz ignored)")
       ->check(CLI::IsMember({"gate_never_opens", "watchdog_doubled", "exit_at_start",
                              "estimator_without_imu", "estimator_without_joints",
-                             "estimator_one_row_late", "estimator_without_ringing"}));
+                             "estimator_one_row_late", "estimator_without_ringing",
+                             "estimator_settled_at_once", "contact_lowpass_off"}));
   app.add_flag("--check-config", opt.check_config,
                "check the configuration, the model and the rig (and --collect's design), then "
                "exit 0 (all good) or 1");

@@ -65,6 +65,37 @@ TEST(ContactGate, KeepsTheWholeImpulseOfAPushAndPassesNoNoise) {
   EXPECT_EQ(off.step(Eigen::Vector3d(0.1, 0, 0), dt, 0.0, 0.0, 3).x(), 0.1);
 }
 
+// While its input is not trusted (zerog-rt: the motion estimator settling), a closed gate stays
+// closed and counts nothing toward confirming; once trusted it needs its whole `confirm` run;
+// an open gate carries on and closes as before. ZeroGMotion holds both gates the same way and
+// still checks the limits.
+TEST(ContactGate, WhileItsInputIsNotTrustedAClosedGateStaysClosed) {
+  const double dt = 0.012;
+  const Eigen::Vector3d push(10, 0, 0);
+  ContactGate g;
+  for (int i = 0; i < 10; ++i) EXPECT_EQ(g.step(push, dt, 2.0, 1.0, 3, false).norm(), 0.0);
+  EXPECT_FALSE(g.is_open());
+  EXPECT_EQ(g.step(push, dt, 2.0, 1.0, 3).norm(), 0.0);
+  EXPECT_EQ(g.step(push, dt, 2.0, 1.0, 3).norm(), 0.0);
+  EXPECT_NEAR(g.step(push, dt, 2.0, 1.0, 3).x(), 30.0, 1e-12) << "the held cycles add nothing";
+  EXPECT_NEAR(g.step(push, dt, 2.0, 1.0, 3, false).x(), 10.0, 1e-15) << "open carries on";
+  for (int i = 0; i < 3; ++i) g.step(Eigen::Vector3d(0.5, 0, 0), dt, 2.0, 1.0, 3, false);
+  EXPECT_FALSE(g.is_open());
+
+  ZeroGMotion m(body100(), loose(), Eigen::Vector3d::Zero());
+  m.reset(Eigen::Vector3d::Zero(), Eigen::Quaterniond::Identity());
+  PoseCorrection c;
+  for (int i = 0; i < 10; ++i) EXPECT_EQ(m.step(push, Eigen::Vector3d(0, 0, 2), kDt, c, false), 0u);
+  EXPECT_FALSE(m.in_contact());
+  EXPECT_EQ(m.body().state().v_world_mps.norm(), 0.0);
+  EXPECT_EQ(m.body().state().L_world_kgm2ps.norm(), 0.0);
+  EXPECT_TRUE(m.step(Eigen::Vector3d(500, 0, 0), Eigen::Vector3d::Zero(), kDt, c, false) &
+              kForceOverLimit);
+  for (int i = 0; i < 3; ++i) m.step(push, Eigen::Vector3d(0, 0, 2), kDt, c);
+  EXPECT_TRUE(m.in_contact());
+  EXPECT_GT(m.body().state().v_world_mps.norm(), 0.0);
+}
+
 TEST(ZeroGMotion, PushThroughTheCentreOfMassTranslatesOnly) {
   MotionLimits l = loose();
   l.force_deadband_N = 0;

@@ -5,8 +5,10 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 
 #include "alloc_count.hpp"
@@ -252,6 +254,120 @@ TEST(MotionEstimator, RefusesSettingsThatCannotWork) {
 
 // The cycle with the fused path and the elastic KR 210 (its deflection stepped every cycle)
 // allocates nothing.
+// The first rows average the IMU's share, so its error falls as 1/√n: with the STIM300's row
+// noise (about 0.009 m/s², proto/sim_robot.md) one row is 0.9 N per axis on 100 kg, well above
+// a gate at a third of today's (0.667 N). `settled` comes when the offsets' variance is within
+// twice its steady value: about a second of rows (measured here: the first settled row), when
+// the share's error is down to about a tenth of a newton; without the IMU there is nothing to
+// settle.
+TEST(MotionEstimator, TheImusShareSettlesBeforeItsContactIsTrusted) {
+  constexpr int kSeeds = 40, kRows = 200, kEarly = 5;
+  std::uint64_t state = 777;
+  auto noise = [&] {  // uniform, σ = 0.009 m/s²
+    state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+    return 0.009 * std::sqrt(12.0) * (static_cast<double>(state >> 11) * 0x1.0p-53 - 0.5);
+  };
+  double early_square = 0.0, settled_square = 0.0;
+  int first_min = kRows, first_max = 0;
+  for (int seed = 0; seed < kSeeds; ++seed) {
+    MotionEstimator e;
+    MotionEstimatorConfig config;
+    config.source = MotionSource::fused;
+    ASSERT_TRUE(e.configure(config, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero(), {}).ok());
+    MotionEstimate out;
+    int first = -1;
+    for (int c = 0; c < kRows; ++c) {
+      std::array<model::FeatureSignals, 5> rows;
+      std::array<const model::FeatureSignals*, 5> window;
+      for (int j = 0; j < 5; ++j) {
+        rows[j] = row_at(0.0);
+        rows[j].t_s = (c + j) * kDt;
+        window[j] = &rows[j];
+      }
+      model::ImuSignals<double> imu = truth_at(0.0, config.gravity_base_mps2);
+      const Eigen::Vector3d clean = imu.specific_force_imu;
+      imu.specific_force_imu += Eigen::Vector3d(noise(), noise(), noise());
+      ASSERT_TRUE(e.update(window, {}, imu, {}, out));
+      const double error_N = 100.0 * (out.imu.specific_force_imu - clean).norm() / std::sqrt(3.0);
+      if (c == kEarly) early_square += error_N * error_N;
+      if (first < 0 && out.settled) {
+        first = c;
+        settled_square += error_N * error_N;
+      }
+      if (first >= 0) {
+        ASSERT_TRUE(out.settled) << "settled stays settled (row " << c << ")";
+      }
+    }
+    ASSERT_GE(first, 0) << "seed " << seed << " never settled in " << kRows << " rows";
+    first_min = std::min(first_min, first);
+    first_max = std::max(first_max, first);
+  }
+  // Every seed the same row: the variance does not depend on the noise drawn.
+  EXPECT_EQ(first_min, first_max);
+  EXPECT_GT(first_min, 50);
+  EXPECT_LT(first_min, 120);
+  const double early = std::sqrt(early_square / kSeeds), late = std::sqrt(settled_square / kSeeds);
+  EXPECT_GT(early, 0.25) << "row " << kEarly << ": the share's error per axis, N";
+  EXPECT_LT(late, 0.15) << "row " << first_min << " (settled)";
+  std::printf(
+      "settled at row %d (%.2f s); the share's error per axis on 100 kg: %.3f N at row %d, "
+      "%.3f N settled\n",
+      first_min, first_min * kDt, early, kEarly, late);
+
+  MotionEstimator without;
+  MotionEstimatorConfig config;
+  config.source = MotionSource::fused;
+  config.mutant_without_imu = true;
+  ASSERT_TRUE(
+      without.configure(config, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero(), {}).ok());
+  std::array<model::FeatureSignals, 5> rows;
+  std::array<const model::FeatureSignals*, 5> window;
+  for (int j = 0; j < 5; ++j) {
+    rows[j] = row_at(0.0);
+    rows[j].t_s = j * kDt;
+    window[j] = &rows[j];
+  }
+  MotionEstimate out;
+  ASSERT_TRUE(without.update(window, {}, truth_at(0.0, config.gravity_base_mps2), {}, out));
+  EXPECT_TRUE(out.settled);
+}
+
+// In the cycle: a push from zero-g's first cycle is not confirmed while the estimator settles
+// (kEstimatorSettling), then as any push (the gate's confirm cycles from the settled row); the
+// IMU path has nothing to settle.
+TEST(MotionEstimator, ThePushWaitsForTheEstimatorToSettle) {
+  for (const MotionSource source : {MotionSource::fused, MotionSource::imu}) {
+    CycleConfig config = test::test_cycle_config();
+    config.motion.source = source;
+    config.robot = formats::kr210_r2700();
+    Cycle c;
+    ASSERT_EQ(c.configure(config, test::payload_model()).text(), "");
+    test::StaticRobot rig;
+    for (int i = 0; i < 6; ++i) rig.quiet(c);
+    ASSERT_TRUE(c.request(Command::enable_zero_g));
+    rig.quiet(c);
+    ASSERT_EQ(c.state_machine().state(), State::zero_g);
+    int settled_at = -1, moved_at = -1;
+    for (int i = 0; i < 200 && moved_at < 0; ++i) {
+      rig.cycle(c, test::push(30.0, 0.0, 0.0));
+      const bool settling = (c.last().flags & kEstimatorSettling) != 0;
+      if (!settling && settled_at < 0) settled_at = i;
+      if (settling) {
+        ASSERT_LT(settled_at, 0) << "the flag came back at cycle " << i;
+      }
+      if (c.motion().body().state().v_world_mps.norm() > 0.0) moved_at = i;
+    }
+    if (source == MotionSource::imu) {
+      EXPECT_EQ(settled_at, 0);
+      EXPECT_EQ(moved_at, c.delay_rows() + 2)
+          << "confirmed on the third cycle of the push the model's row (D rows back) sees";
+    } else {
+      EXPECT_GT(settled_at, 40) << "the estimator started with the first rows, before zero-g";
+      EXPECT_EQ(moved_at, settled_at + 2) << "then confirmed as any push";
+    }
+  }
+}
+
 TEST(MotionEstimator, TheCycleWithItDoesNotAllocate) {
   CycleConfig config = test::test_cycle_config();
   config.motion.source = MotionSource::fused;

@@ -94,6 +94,7 @@ TEST(RtConfig, TheSampleReadsWithItsValuesAndRelativePathsFromItsFolder) {
   EXPECT_EQ(c.watchdog.ft_fault_cycles, 5);
   EXPECT_EQ(c.limits.contact_confirm_cycles, 3);
   EXPECT_DOUBLE_EQ(c.limits.contact_release_fraction, 0.5);
+  EXPECT_DOUBLE_EQ(c.limits.contact_lowpass_hz, 2.0);
   EXPECT_EQ(c.realtime.priority, 80);
   EXPECT_FALSE(c.record_dir.has_value());
   const loop::CycleConfig cc = cycle_config(c);
@@ -184,6 +185,9 @@ TEST(RtConfig, EachErrorNamesFileKeyPositionAndWhy) {
   expect_error(with_line(s, "max_speed_mps = 0.25", "linear_damping_per_s = -0.1"),
                {"limits.linear_damping_per_s", line_of(s, "max_speed_mps = 0.25"), 24,
                 "must be in [0, 100], is -0.1"});
+  expect_error(with_line(s, "contact_lowpass_hz = 2.0", "contact_lowpass_hz = -1"),
+               {"limits.contact_lowpass_hz", line_of(s, "contact_lowpass_hz = 2.0"), 22,
+                "must be in [0, 100], is -1"});
   expect_error(with_line(s, "# [record]", "[record]\nper_run = true"),
                {"record.per_run", line_of(s, "# [record]") + 1, 11, "needs [record] dir"});
   // A matrix of the wrong shape, and one that is no inertia.

@@ -34,6 +34,13 @@ struct MotionLimits {
   /// heavy part settle. Applied exactly per step (v ← v·e^(−c·dt)).
   double linear_damping_per_s = 0.0;
   double angular_damping_per_s = 0.0;
+  /// What the contact gates pass drives the body through two first-order low-passes at this
+  /// corner (0: directly). Unit gain at DC, so a push's whole impulse still arrives (later by
+  /// 2 / (2π f) on average: 0.16 s at 2 Hz); what it removes is the 5–25 Hz band where an elastic
+  /// arm's modes sit, through which an open gate can close a loop (the modes' residual in the
+  /// contact drives the body, the body's motion drives the modes: proto/loop.md, "The contact
+  /// gate on it"). The gates judge the wrench unfiltered, so a push is confirmed as fast.
+  double contact_lowpass_hz = 0.0;
   Eigen::Vector3d workspace_min_m{-0.5, -1.5, 0.3};  ///< box for the centre of mass, world
   Eigen::Vector3d workspace_max_m{2.5, 1.5, 2.2};
 };
@@ -84,13 +91,15 @@ class ContactGate {
   /// Input `x` (N or N·m) over a cycle of `dt_s`; returns what drives the body this cycle.
   /// `open` ≤ 0 disables the gate (pass-through).
   Eigen::Vector3d step(const Eigen::Vector3d& x, double dt_s, double open, double close,
-                       int confirm) {
-    return step(x, x, dt_s, open, close, confirm);
+                       int confirm, bool may_open = true) {
+    return step(x, x, dt_s, open, close, confirm, may_open);
   }
   /// The same, judging `judged` against the thresholds and passing `passed` (the torque gate:
-  /// torque_gate_input judged, the torque about the centre of mass passed).
+  /// torque_gate_input judged, the torque about the centre of mass passed). `may_open` false:
+  /// a closed gate stays closed and counts no cycle toward confirming (its input is not yet
+  /// trusted); an open gate carries on.
   Eigen::Vector3d step(const Eigen::Vector3d& judged, const Eigen::Vector3d& passed, double dt_s,
-                       double open, double close, int confirm);
+                       double open, double close, int confirm, bool may_open = true);
   void reset();
   bool is_open() const { return open_; }
 
@@ -121,8 +130,11 @@ class ZeroGMotion {
   /// One cycle. `force_sensor_N`, `torque_sensor_Nm`: contact wrench in the sensor frame, torque
   /// about the sensor origin. Returns the limit flags; `out` gets the sensor pose correction.
   /// A force/torque over its limit leaves the body untouched and returns a zero correction.
+  /// `may_confirm` false: the contact wrench is not yet trusted to start a push (zerog-rt: the
+  /// motion estimator settling, loop::kEstimatorSettling): closed gates stay closed, open ones
+  /// carry on, and the limits are checked as always.
   std::uint32_t step(const Eigen::Vector3d& force_sensor_N, const Eigen::Vector3d& torque_sensor_Nm,
-                     double dt_s, PoseCorrection& out);
+                     double dt_s, PoseCorrection& out, bool may_confirm = true);
 
   const VirtualBody& body() const { return body_; }
   /// True while a push is being passed on (force or torque gate open).
@@ -135,6 +147,10 @@ class ZeroGMotion {
   VirtualBody body_;
   MotionLimits limits_;
   ContactGate force_gate_, torque_gate_;
+  /// contact_lowpass_hz's two stages of the passed force (world) and torque (sensor axes, about
+  /// the centre of mass).
+  Eigen::Vector3d force_lp1_ = Eigen::Vector3d::Zero(), force_lp2_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d torque_lp1_ = Eigen::Vector3d::Zero(), torque_lp2_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d p_sensor_com_m_;
 };
 

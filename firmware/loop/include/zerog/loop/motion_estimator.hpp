@@ -34,6 +34,14 @@
 //    (the same gain, K = max(K, 1/n) at the start). ω̇ is the robot's alone.
 //    What the IMU corrects: the sag the model of step 2 misses, a tilted base, the mounting;
 //    what the robot gives: everything faster, free of the IMU's white noise.
+//    Settled: the first rows average, so the share's error falls as 1/√n (one row: the IMU's
+//    row noise × 100 kg ≈ 0.9 N per axis in the contact force). The estimate is settled once the
+//    variance of the offsets' sum (H P Hᵀ, worst axis) is within kSettledRatio of its steady
+//    value, the steady gain K (r = 1; the rate's offset, averaged as 1/n, is there by then too):
+//    row 73 (0.88 s) at 0.1 Hz and 12 ms, the share's error then 0.10 N per axis on 100 kg
+//    against 0.35 N at row 5 (MotionEstimator.TheImusShareSettlesBeforeItsContactIsTrusted).
+//    Before that the contact wrench is not trusted to confirm a push (Cycle:
+//    kEstimatorSettling; why: proto/loop.md, "Motion estimator").
 // 4. while the arm rings (elastic robot after a push, a stop): within ringing_hold_s of a
 //    contact (the zero-g gates open) or a motion limit acting (note_excitation), the gyro's
 //    disagreement with the rigid robot's rate, its mean square over kRingingWindow_s (50 ms),
@@ -117,6 +125,7 @@ struct MotionEstimatorConfig {
   bool mutant_without_imu = false;
   bool mutant_one_row_late = false;
   bool mutant_without_ringing = false;  ///< step 4 dropped (the elastic arm then rings up)
+  bool mutant_settled_at_once = false;  ///< `settled` from the first row (a false start)
 };
 
 /// Whether `c` can be used: ok(), or invalid_setting naming the field ("crossover_hz", …).
@@ -141,7 +150,9 @@ struct MotionEstimate {
   Eigen::Vector3d specific_force_error_base = Eigen::Vector3d::Zero();  ///< e_B, B axes
   Eigen::Vector3d angular_rate_offset = Eigen::Vector3d::Zero();
   std::array<double, robot::kMaxJoints> deflection_rad{};  ///< δ per recorded joint at c
-  double ringing = 0.0;        ///< step 4's schedule s in [0, 1): the IMU's share of the output
+  double ringing = 0.0;  ///< step 4's schedule s in [0, 1): the IMU's share of the output
+  /// Step 3's share has settled (header): the offsets' variance within kSettledRatio of steady.
+  bool settled = false;
   double ft_instant_s = 0.0;   ///< the F/T mean's instant, from the centre row's time (≤ 0)
   double imu_instant_s = 0.0;  ///< the IMU mean's
 };
@@ -203,6 +214,11 @@ class MotionEstimator {
   static constexpr double kDamping = 1e-6;          ///< step 4a's least squares (A2 ∥ A3)
   Eigen::Vector3d bias_I_ = Eigen::Vector3d::Zero(), error_B_ = Eigen::Vector3d::Zero();
   Eigen::Matrix<double, 6, 6> P_ = Eigen::Matrix<double, 6, 6>::Identity() * kPriorVariance;
+  /// The offsets' sum's variance after the last row (H P Hᵀ, worst axis) and the steady gain K
+  /// it tends to (0 before the second row): settled when the one is within kSettledRatio × K.
+  static constexpr double kSettledRatio = 2.0;
+  double sum_variance_ = 2.0 * kPriorVariance;
+  double steady_gain_ = 0.0;
 
   // update()'s phases (motion_estimator.cpp): 1, 2 with 4a, 3.
   struct MotorMotion;

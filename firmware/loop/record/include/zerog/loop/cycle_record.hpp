@@ -41,6 +41,10 @@ enum CycleFlags : std::uint32_t {
   /// temperature_stale: the board stopped answering the thermistor reads): the model gets
   /// CycleConfig::temperature_C again (temperature_measured false) until a fresh reading comes.
   kTemperatureStale = 1u << 15,
+  /// The motion estimator's IMU share has not settled yet (MotionEstimate::settled; [filter]
+  /// motion = "fused" only): the contact wrench drives an open gate and is checked against the
+  /// limits, but a closed contact gate does not open (ZeroGMotion::step's `may_confirm`).
+  kEstimatorSettling = 1u << 16,
 };
 
 /// Everything one cycle did: the black box, the recorder and telemetry take it. Fixed size.
