@@ -8,8 +8,9 @@
 // BM_CycleStepSi/0,1 step with the SI sample as zerog-rt's RSI endpoint hands it
 // (Cycle::step(RobotSample, RobotCorrection&): the cycle alone, conversions excluded, as in
 // zerog-rt where rtio converts). BM_CycleStepFused/0,1: as BM_CycleStepSi with the motion estimator
-// ([filter] motion = "fused") on the elastic KR 210 (its deflection stepped every cycle,
-// proto/loop.md "Motion estimator"): its cost is the ratio to BM_CycleStepSi of the same run.
+// ([filter] motion = "fused") on the elastic KR 210 (its deflection stepped every cycle, the servo
+// model fed every cycle's correction, proto/loop.md "Motion estimator"): its cost is the ratio to
+// BM_CycleStepSi of the same run.
 #include <benchmark/benchmark.h>
 
 #include <random>
@@ -70,6 +71,7 @@ void cycle_step(benchmark::State& state, bool si, bool fused = false) {
     config.motion.source = loop::MotionSource::fused;
     config.motion.ft_rate_hz = 500.0;
     config.motion.imu_rate_hz = 2000.0;
+    config.motion.servo_hz = 8.0;  // the servo model fed every cycle's correction
     robot::RobotModel arm = formats::kr210_r2700();
     for (int i = 0; i < 6; ++i) arm.elasticity[i] = {1e6, 8.0, 0.05};
     config.robot = arm;

@@ -9,6 +9,7 @@
 #include "zerog/model/rotation.hpp"
 #include "zerog/robot/forward_kinematics.hpp"
 #include "zerog/robot/savitzky_golay.hpp"
+#include "zerog/robot/servo.hpp"
 
 namespace zerog::loop {
 namespace {
@@ -32,6 +33,8 @@ zerog::Status check_estimator_config(const MotionEstimatorConfig& c) {
     return zerog::Status::invalid("load_bandwidth_hz", "must be positive");
   if (!positive(c.excitation_hz))
     return zerog::Status::invalid("excitation_hz", "must be positive");
+  if (!(c.servo_hz >= 0.0 && std::isfinite(c.servo_hz)))
+    return zerog::Status::invalid("servo_hz", "must be zero (off) or positive");
   if (!(std::isfinite(c.ringing_radps) && c.ringing_radps >= 0.0))
     return zerog::Status::invalid("ringing_radps", "must be >= 0");
   if (!(std::isfinite(c.mode_gain) && c.mode_gain >= 0.0 && c.mode_gain <= 1.0))
@@ -76,9 +79,18 @@ void MotionEstimator::reset() noexcept {
   started_ = false;
   updates_ = 0;
   t_s_ = 0.0;
+  t_before_s_ = -1.0;
   wrench_lp_ = {};
   qdd_lp1_ = {};
   qdd_lp2_ = {};
+  drive_ = {};
+  servo_s_ = {};
+  servo_q_ = {};
+  servo_qd_ = {};
+  servo_rows_ = {};
+  servo_have_prev_ = false;
+  servo_distrust_s_ = 0.0;
+  servo_next_ = 0;
   tau_ = {};
   delta_ = {};
   delta_dot_ = {};
@@ -192,6 +204,7 @@ bool MotionEstimator::fit_motor_side(std::span<const model::FeatureSignals* cons
 void MotionEstimator::deflect(const MotorMotion& m, const model::FeatureSignals& centre,
                               const std::array<double, 6>& wrench,
                               const model::ImuSignals<double>& imu_at_c, double dt, double schedule,
+                              const std::array<double, robot::kMaxJoints>& servo_qdd,
                               LinkMotion& link, MotionEstimate& out) noexcept {
   const int J = have_robot_ ? robot_.joint_count : 0;
   Eigen::Matrix<double, 6, robot::kMaxJoints> jac;
@@ -206,9 +219,12 @@ void MotionEstimator::deflect(const MotorMotion& m, const model::FeatureSignals&
   for (int j = 0; j < J; ++j) {
     const std::size_t u = static_cast<std::size_t>(j);
     const double tau1 = jac.col(j).head<3>().dot(F_B) + jac.col(j).tail<3>().dot(M_B);
-    const double qdd0 = qdd_lp2_[u];
-    qdd_lp1_[u] += k_exc * (m.qdd[u] - qdd_lp1_[u]);
+    // The drive: the servo model's acceleration (zero without one) plus the measured joints'
+    // disagreement with it through the two stages.
+    const double qdd0 = drive_[u];
+    qdd_lp1_[u] += k_exc * (m.qdd[u] - servo_qdd[u] - qdd_lp1_[u]);
     qdd_lp2_[u] += k_exc * (qdd_lp1_[u] - qdd_lp2_[u]);
+    drive_[u] = servo_qdd[u] + qdd_lp2_[u];
     const robot::JointElasticity& e = elasticity_[u];
     double ddot = 0.0;
     if (!started_) {
@@ -216,7 +232,7 @@ void MotionEstimator::deflect(const MotorMotion& m, const model::FeatureSignals&
       delta_dot_[u] = 0.0;
     } else {
       ddot = robot::advance_deflection(e, delta_[u], delta_dot_[u], dt, config_.substep_s, qdd0,
-                                       qdd_lp2_[u], tau_[u], tau1);
+                                       drive_[u], tau_[u], tau1);
     }
     tau_[u] = tau1;
     const Eigen::Vector3d Jv = jac.col(j).head<3>(), Jw = jac.col(j).tail<3>();
@@ -267,6 +283,62 @@ void MotionEstimator::track_offsets(const model::ImuSignals<double>& imu_at_c,
                        started_ ? k_steady : 0.0);
 }
 
+samples::RobotCorrection as_sent_over_rsi(const samples::RobotCorrection& correction) noexcept {
+  samples::RobotCorrection sent = correction;
+  constexpr double kDeg = std::numbers::pi / 180.0;
+  auto digits = [](double v, double unit) { return std::round(v / unit * 1e4) * 1e-4 * unit; };
+  for (double& v : sent.translation_m) v = digits(v, 1e-3);
+  for (double& v : sent.axes_rad) v = digits(v, kDeg);
+  Eigen::Matrix3d R;
+  for (int r = 0; r < 3; ++r)
+    for (int k = 0; k < 3; ++k) R(r, k) = sent.R_correction[static_cast<std::size_t>(3 * r + k)];
+  Eigen::Vector3d abc = model::kuka_abc_from_rotation(R);
+  for (int k = 0; k < 3; ++k) abc[k] = digits(abc[k], kDeg);
+  R = model::rotation_from_kuka_abc(abc[0], abc[1], abc[2]);
+  for (int r = 0; r < 3; ++r)
+    for (int k = 0; k < 3; ++k) sent.R_correction[static_cast<std::size_t>(3 * r + k)] = R(r, k);
+  return sent;
+}
+
+void MotionEstimator::note_command(const samples::RobotCorrection& correction,
+                                   std::span<const double> joints_rad, double t_row_s,
+                                   double cycle_s) noexcept {
+  if (!(config_.servo_hz > 0.0) || !have_robot_ || !(cycle_s > 0.0)) return;
+  // The joint increment: AKorr as it is; RKorr (B axes, the sensor frame's origin and
+  // orientation) through the Jacobian at the row's joints, as the controller's inverse
+  // kinematics takes it to first order (damped least squares, A2 ∥ A3 kept apart).
+  Eigen::Matrix<double, robot::kMaxJoints, 1> dq =
+      Eigen::Matrix<double, robot::kMaxJoints, 1>::Zero();
+  if (correction.kind == samples::RobotCorrection::Kind::axes) {
+    for (int j = 0; j < std::min(robot_.joint_count, 6); ++j)
+      dq[j] = correction.axes_rad[static_cast<std::size_t>(j)];
+  } else if (correction.kind == samples::RobotCorrection::Kind::cartesian) {
+    Eigen::Matrix<double, 6, robot::kMaxJoints> jac;
+    robot::sensor_jacobian(robot_, joints_rad, jac);
+    const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> R(
+        correction.R_correction.data());
+    Eigen::Matrix<double, 6, 1> x;
+    x.head<3>() = Eigen::Map<const Eigen::Vector3d>(correction.translation_m.data());
+    const Eigen::AngleAxisd turn{Eigen::Matrix3d(R)};
+    x.tail<3>() = turn.angle() * turn.axis();
+    const Eigen::Matrix<double, 6, 6> A =
+        jac * jac.transpose() + kDamping * Eigen::Matrix<double, 6, 6>::Identity();
+    dq = jac.transpose() * A.ldlt().solve(x);
+  }
+  const double w = 2.0 * std::numbers::pi * config_.servo_hz;
+  const Eigen::Matrix2d phi = robot::servo_transition(w, cycle_s);
+  ServoRow& row = servo_rows_[servo_next_];
+  servo_next_ = (servo_next_ + 1) % kServoRows;
+  row.t_from_s = t_row_s;
+  for (int j = 0; j < robot_.joint_count; ++j) {
+    const std::size_t u = static_cast<std::size_t>(j);
+    // The interpolator spreads the increment over the cycle: a ramp, exact (robot/servo.hpp).
+    robot::servo_advance(w, cycle_s, dq[j] / cycle_s, phi, servo_s_[u], servo_q_[u], servo_qd_[u]);
+    row.q[u] = servo_q_[u];
+    row.qdd[u] = robot::servo_accel(w, servo_s_[u], servo_q_[u], servo_qd_[u]);
+  }
+}
+
 bool MotionEstimator::update(std::span<const model::FeatureSignals* const> rows,
                              const std::array<double, 6>& wrench,
                              const model::ImuSignals<double>& imu_at_c, const WindowCounts& counts,
@@ -310,7 +382,39 @@ bool MotionEstimator::update(std::span<const model::FeatureSignals* const> rows,
                               ? residual_ms_ / (residual_ms_ + threshold * threshold)
                               : 0.0;  // last row's
   // 2. The link's deflection at c (and 4a).
-  if (elastic_) deflect(motor, centre, wrench, imu_at_c, dt, schedule, link, out);
+  // The servo model's acceleration at c: the entry of the row two before c (header of
+  // servo_rows_), which is the centre before the last one when the rows come one by one.
+  std::array<double, robot::kMaxJoints> servo_qdd{};
+  const ServoRow* servo = nullptr;
+  for (const ServoRow& r : servo_rows_) {
+    if (started_ && r.t_from_s == t_before_s_ && rows[c - 1]->t_s == t_s_) servo = &r;
+  }
+  out.servo_followed = true;
+  if (servo != nullptr) {
+    const int J = robot_.joint_count;
+    if (servo_have_prev_) {
+      for (int j = 0; j < J; ++j) {
+        const std::size_t u = static_cast<std::size_t>(j);
+        const double model_step = servo->q[u] - servo_q_prev_[u];
+        const double measured_step = centre.joints_rad[u] - joints_prev_[u];
+        if (std::abs(model_step - measured_step) >
+            kServoTolerance * std::abs(model_step) + kServoSlack_rad)
+          out.servo_followed = false;
+      }
+    }
+    servo_have_prev_ = true;
+    for (int j = 0; j < J; ++j) {
+      const std::size_t u = static_cast<std::size_t>(j);
+      servo_q_prev_[u] = servo->q[u];
+      joints_prev_[u] = centre.joints_rad[u];
+    }
+  } else {
+    servo_have_prev_ = false;
+  }
+  servo_distrust_s_ = out.servo_followed ? std::max(0.0, servo_distrust_s_ - dt) : kServoDistrust_s;
+  if (servo != nullptr && servo_distrust_s_ == 0.0) servo_qdd = servo->qdd;
+  out.servo_accel_radps2 = servo_qdd;
+  if (elastic_) deflect(motor, centre, wrench, imu_at_c, dt, schedule, servo_qdd, link, out);
 
   // The robot's signals at the IMU, I axes, at the F/T's instant (the output) and at the IMU's
   // (the comparison of step 3).
@@ -335,6 +439,7 @@ bool MotionEstimator::update(std::span<const model::FeatureSignals* const> rows,
   track_offsets(imu_at_c, f_I_cmp, omega_I_cmp, link.R_imu, dt);
   const Eigen::Vector3d offset_f =
       bias_I_ + R_sensor_imu_.transpose() * link.R_ft.transpose() * error_B_;
+  t_before_s_ = started_ ? t_s_ : -1.0;
   started_ = true;
   t_s_ = t_c;
 

@@ -107,8 +107,9 @@ const std::vector<std::string_view> kWatchdogKeys{"ft_fault_cycles", "imu_fault_
                                                   "robot_fault_cycles", "robot_late_cycles",
                                                   "model_fault_cycles"};
 const std::vector<std::string_view> kFilterKeys{
-    "angular_accel_order", "motion",      "crossover_hz",  "load_bandwidth_hz", "excitation_hz",
-    "ft_delay_s",          "imu_delay_s", "ringing_radps", "mode_gain",         "ringing_hold_s"};
+    "angular_accel_order", "motion",         "crossover_hz", "load_bandwidth_hz",
+    "excitation_hz",       "ft_delay_s",     "imu_delay_s",  "ringing_radps",
+    "mode_gain",           "ringing_hold_s", "servo_hz"};
 const std::vector<std::string_view> kCollectionKeys{"speed_fraction", "dwell_s",
                                                     "max_axis_step_rad", "approach_speed_radps",
                                                     "approach_accel_radps2"};
@@ -333,6 +334,7 @@ void read_filter(const TomlTable& file, RtConfig& c) {
       filter.optional_number("load_bandwidth_hz", m.load_bandwidth_hz, {0.0, true, 100.0, false});
   m.excitation_hz =
       filter.optional_number("excitation_hz", m.excitation_hz, {0.0, true, 100.0, false});
+  m.servo_hz = filter.optional_number("servo_hz", m.servo_hz, {0.0, false, 1000.0, false});
   m.ringing_radps =
       filter.optional_number("ringing_radps", m.ringing_radps, {0.0, false, 0.1, false});
   m.mode_gain = filter.optional_number("mode_gain", m.mode_gain, {0.0, false, 1.0, false});
@@ -457,6 +459,7 @@ std::pair<std::string_view, std::string_view> file_key(std::string_view setting)
           {"motion.crossover_hz", {"filter", "crossover_hz"}},
           {"motion.load_bandwidth_hz", {"filter", "load_bandwidth_hz"}},
           {"motion.excitation_hz", {"filter", "excitation_hz"}},
+          {"motion.servo_hz", {"filter", "servo_hz"}},
           {"motion.ft_delay_s", {"filter", "ft_delay_s"}},
           {"motion.ringing_radps", {"filter", "ringing_radps"}},
           {"motion.mode_gain", {"filter", "mode_gain"}},

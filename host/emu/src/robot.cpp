@@ -12,6 +12,7 @@
 
 #include "zerog/model/rotation.hpp"
 #include "zerog/proto/rsi_si.hpp"
+#include "zerog/robot/servo.hpp"
 
 namespace zerog::emu {
 namespace {
@@ -178,14 +179,11 @@ CorrectionOutcome RobotEmulator::apply_akorr(const std::array<double, 6>& akorr_
 }
 
 Eigen::Matrix2d RobotEmulator::servo_transition(double tau_s) const {
-  const double w = omega_radps_, e = std::exp(-w * tau_s);
-  Eigen::Matrix2d phi;
-  phi << e * (1.0 + w * tau_s), e * tau_s, -e * w * w * tau_s, e * (1.0 - w * tau_s);
-  return phi;
+  return robot::servo_transition(omega_radps_, tau_s);
 }
 
 void RobotEmulator::step() {
-  const double w = omega_radps_, w2 = w * w;
+  const double w = omega_radps_;
   for (int i = 0; i < 6; ++i) {
     double s = q_setpoint_rad_[i];
     double q = actual_.q_rad[i];
@@ -204,11 +202,7 @@ void RobotEmulator::step() {
       s = q_cmd_rad_[i];  // reached (or no interpolation): held from here
     }
     auto advance = [&](double tau_s, double rate, const Eigen::Matrix2d& phi) {
-      const Eigen::Vector2d x(q - s + 2.0 * rate / w, qd - rate);
-      const Eigen::Vector2d next = phi * x;
-      s += rate * tau_s;
-      q = s + next[0] - 2.0 * rate / w;
-      qd = next[1] + rate;
+      robot::servo_advance(w, tau_s, rate, phi, s, q, qd);
     };
     if (ramp_s >= h_s_) {
       advance(h_s_, r, phi_);
@@ -222,7 +216,7 @@ void RobotEmulator::step() {
     q_setpoint_rad_[i] = s;
     actual_.q_rad[i] = q;
     actual_.qd_radps[i] = qd;
-    actual_.qdd_radps2[i] = w2 * (s - q) - 2.0 * w * qd;
+    actual_.qdd_radps2[i] = robot::servo_accel(w, s, q, qd);
   }
   ++counters_.servo_steps;
 }

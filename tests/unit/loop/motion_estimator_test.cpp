@@ -9,6 +9,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <numbers>
 
 #include "alloc_count.hpp"
@@ -17,6 +18,8 @@
 #include "zerog/loop/cycle.hpp"
 #include "zerog/loop/motion_estimator.hpp"
 #include "zerog/model/rotation.hpp"
+#include "zerog/proto/rsi.hpp"
+#include "zerog/proto/rsi_si.hpp"
 
 namespace zerog::loop {
 namespace {
@@ -247,6 +250,11 @@ TEST(MotionEstimator, RefusesSettingsThatCannotWork) {
   c = {};
   c.ringing_hold_s = -1.0;
   EXPECT_EQ(check_estimator_config(c).setting(), "ringing_hold_s");
+  c = {};
+  c.servo_hz = -8.0;
+  EXPECT_EQ(check_estimator_config(c).setting(), "servo_hz");
+  c.servo_hz = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(check_estimator_config(c).setting(), "servo_hz");
   CycleConfig cycle = test::test_cycle_config();
   cycle.motion.excitation_hz = -1.0;
   EXPECT_EQ(check_config(cycle).setting(), "motion.excitation_hz");
@@ -368,9 +376,107 @@ TEST(MotionEstimator, ThePushWaitsForTheEstimatorToSettle) {
   }
 }
 
+// The servo model follows what the robot receives: as_sent_over_rsi is the wire's resolution
+// (the reply formatted and parsed back, proto/rsi), for a Cartesian and an axis correction.
+TEST(MotionEstimator, TheServoModelTakesTheCorrectionAsTheWireCarriesIt) {
+  samples::RobotCorrection c;
+  c.kind = samples::RobotCorrection::Kind::cartesian;
+  c.translation_m = {1.23456789e-3, -4.4444444e-4, 7.77777e-6};
+  const Eigen::Matrix3d R =
+      model::rot_z(0.00731234) * model::rot_y(-0.0012345) * model::rot_x(3.3333e-5);
+  for (int r = 0; r < 3; ++r)
+    for (int k = 0; k < 3; ++k) c.R_correction[3 * r + k] = R(r, k);
+  c.axes_rad = {1.2345678e-3, -2e-7, 0.0, 5.55555e-4, 0.0, -9.87654e-5};
+  const samples::RobotCorrection ours = as_sent_over_rsi(c);
+  const proto::rsi::Reply r = proto::rsi::reply_from_correction(c);
+  std::array<char, 512> text{};
+  const proto::rsi::FormatResult f = proto::rsi::format_reply(r.rkorr, 1, text, "zerog");
+  ASSERT_EQ(f.status, proto::rsi::FormatStatus::ok);
+  proto::rsi::Reply back;
+  ASSERT_TRUE(proto::rsi::parse_reply(std::string_view(text.data(), f.size), back).ok());
+  const samples::RobotCorrection wire = proto::rsi::correction_from_reply(back);
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(ours.translation_m[k], wire.translation_m[k], 1e-15);
+  for (int k = 0; k < 9; ++k) EXPECT_NEAR(ours.R_correction[k], wire.R_correction[k], 1e-15);
+  EXPECT_NE(ours.translation_m[0], c.translation_m[0]) << "rounded";
+  std::array<double, 6> akorr_deg;
+  for (int k = 0; k < 6; ++k) akorr_deg[k] = c.axes_rad[k] / proto::rsi::kRadPerDeg;
+  const proto::rsi::FormatResult fa = proto::rsi::format_axis_reply(akorr_deg, 1, text, "zerog");
+  ASSERT_EQ(fa.status, proto::rsi::FormatStatus::ok);
+  ASSERT_TRUE(proto::rsi::parse_reply(std::string_view(text.data(), fa.size), back).ok());
+  for (int k = 0; k < 6; ++k)
+    EXPECT_NEAR(ours.axes_rad[k], back.akorr_deg[k] * proto::rsi::kRadPerDeg, 1e-15) << k;
+}
+
+// The servo model: an axis correction Δ on A1 answered at row 10 takes effect at the next
+// tick and is interpolated over that cycle, so the model's acceleration is zero up to row 11
+// and at row 12 that of a critically damped servo at the end of a ramp of Δ over one cycle T,
+// Δ ω² e^(−ωT) (the ramp response q̈(t) = r ω² t e^(−ωt), r = Δ / T), at row 13 the closed form
+// after the ramp; without servo_hz, zero. The measured joints follow the same servo (the ramp
+// response q(t) = r (t − 2/ω + (2/ω + t) e^(−ωt)), less its copy one cycle later). A robot that
+// holds still instead (its controller ignoring the corrections) turns the model off: no
+// acceleration from it, servo_followed false.
+TEST(MotionEstimator, TheServoModelFollowsTheCommandFromTheControllersNextTick) {
+  for (const double servo_hz : {8.0, 0.0}) {
+    for (const bool robot_follows : {true, false}) {
+      MotionEstimator e;
+      MotionEstimatorConfig config;
+      config.source = MotionSource::fused;
+      config.servo_hz = servo_hz;
+      robot::RobotModel arm = formats::kr210_r2700();
+      for (int i = 0; i < 6; ++i) arm.elasticity[i] = {1e6, 8.0, 0.05};
+      ASSERT_TRUE(
+          e.configure(config, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero(), arm).ok());
+      const double delta = 1e-3, w = 2.0 * std::numbers::pi * 8.0, r = delta / kDt;
+      auto ramp = [&](double t) {
+        return t <= 0.0 ? 0.0 : r * (t - 2.0 / w + (2.0 / w + t) * std::exp(-w * t));
+      };
+      std::array<model::FeatureSignals, 20> rows;
+      const std::array<double, 6> q{0.1, -1.4, 1.5, 0.2, 0.7, -0.3};
+      for (int k = 0; k < 20; ++k) {
+        rows[k] = row_at(0.0);
+        rows[k].t_s = k * kDt;
+        for (int j = 0; j < 6; ++j) rows[k].joints_rad[j] = q[j];
+        const double t = (k - 11) * kDt;  // from the tick after row 10's reply
+        if (robot_follows) rows[k].joints_rad[0] += ramp(t) - ramp(t - kDt);
+      }
+      const double ws = 2.0 * std::numbers::pi * servo_hz, decay = std::exp(-ws * kDt);
+      MotionEstimate out;
+      bool followed_always = true;
+      for (int n = 4; n < 16; ++n) {
+        std::array<const model::FeatureSignals*, 5> window;
+        for (int j = 0; j < 5; ++j) window[j] = &rows[n - 4 + j];
+        ASSERT_TRUE(e.update(window, {}, truth_at(0.0, config.gravity_base_mps2), {}, out));
+        followed_always = followed_always && out.servo_followed;
+        const int c = n - 2;
+        // After the ramp (row 13): the ramp's response less the same ramp one cycle later,
+        // r ω² (2T e^(−2ωT) − T e^(−ωT)).
+        double expected = 0.0;
+        if (servo_hz > 0.0 && robot_follows) {
+          expected = c == 12   ? delta * ws * ws * decay
+                     : c == 13 ? delta * ws * ws * decay * (2.0 * decay - 1.0)
+                     : c < 12  ? 0.0
+                               : out.servo_accel_radps2[0];
+        }
+        EXPECT_NEAR(out.servo_accel_radps2[0], expected, 1e-9)
+            << "row " << c << ", " << servo_hz << " Hz, robot follows " << robot_follows;
+        for (int j = 1; j < 6; ++j) EXPECT_EQ(out.servo_accel_radps2[j], 0.0) << j;
+        samples::RobotCorrection cmd;
+        if (n == 10) {
+          cmd.kind = samples::RobotCorrection::Kind::axes;
+          cmd.axes_rad[0] = delta;
+        }
+        e.note_command(cmd, rows[n].joints_rad, rows[n].t_s, kDt);
+      }
+      EXPECT_EQ(followed_always, robot_follows || servo_hz == 0.0)
+          << servo_hz << " Hz, robot follows " << robot_follows;
+    }
+  }
+}
+
 TEST(MotionEstimator, TheCycleWithItDoesNotAllocate) {
   CycleConfig config = test::test_cycle_config();
   config.motion.source = MotionSource::fused;
+  config.motion.servo_hz = 8.0;
   robot::RobotModel arm = formats::kr210_r2700();
   for (int i = 0; i < 6; ++i) arm.elasticity[i] = {1e6, 8.0, 0.05};
   config.robot = arm;
@@ -382,17 +488,21 @@ TEST(MotionEstimator, TheCycleWithItDoesNotAllocate) {
   rig.quiet(c);
   ASSERT_EQ(c.state_machine().state(), State::zero_g);
   zerog::test::AllocGuard guard("Cycle::step (fused motion)");
-  double most_ringing = 0.0;
+  double most_ringing = 0.0, most_servo = 0.0;
   for (int i = 0; i < 200; ++i) {
-    // From cycle 100 the gyro shows a 6 Hz ringing the robot does not: step 4 (the gyro's
-    // correction of the modes and the blend) runs too.
+    // A push once the estimator has settled (cycles 80-129), so the body moves and the servo
+    // model runs; from cycle 100 the gyro shows a 6 Hz ringing the robot does not: step 4 (the
+    // gyro's correction of the modes and the blend) runs too.
     rig.imu_sample.rate_rad_s[0] =
         i >= 100 ? 5e-3 * std::sin(2.0 * std::numbers::pi * 6.0 * 0.012 * i) : 0.0;
-    rig.cycle(c, test::push(i < 50 ? 30.0 : 0.0, 5.0, 0.0));
+    rig.cycle(c, test::push(i >= 80 && i < 130 ? 30.0 : 0.0, 5.0, 0.0));
     most_ringing = std::max(most_ringing, c.motion_estimate().ringing);
+    for (double a : c.motion_estimate().servo_accel_radps2)
+      most_servo = std::max(most_servo, std::abs(a));
   }
   guard.stop();
   EXPECT_GT(most_ringing, 0.5) << "step 4 ran";
+  EXPECT_GT(most_servo, 0.0) << "the servo model ran";
   EXPECT_EQ(guard.allocations(), 0u) << guard.first_call();
   EXPECT_EQ(guard.frees(), 0u) << guard.first_call();
   EXPECT_TRUE(std::isfinite(c.last().predicted[0]));

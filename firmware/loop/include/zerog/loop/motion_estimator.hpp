@@ -19,7 +19,10 @@
 // 2. with an elastic robot (the rig's robot file, robot::RobotModel::elasticity), the link's
 //    deflection δ per joint, integrated one row at a time (robot::advance_deflection) from the
 //    static sag, driven by the motor's q̈ low-passed at excitation_hz (two first-order stages:
-//    the encoders' quantisation differenced must not ring the modes) and by the load τ = Jᵀ w
+//    the encoders' quantisation differenced must not ring the modes) or, with servo_hz, by a
+//    model of the robot's servo fed with the corrections sent (note_command: the controller's
+//    own motion, not quantised) plus the measured q̈'s disagreement with it through the same
+//    stages, and by the load τ = Jᵀ w
 //    of the measured wrench low-passed at load_bandwidth_hz; the link then turns by J_ω δ and
 //    moves with the extra J_ω δ̇, J_ω δ̈, J_v δ̈ (the Jacobian's rate terms neglected);
 // 3. the IMU below crossover_hz, compared with the robot at the IMU mean's instant: the
@@ -84,6 +87,7 @@
 #include "zerog/model/features.hpp"
 #include "zerog/model/predict.hpp"
 #include "zerog/robot/robot_model.hpp"
+#include "zerog/samples/robot_sample.hpp"
 #include "zerog/status.hpp"
 
 namespace zerog::loop {
@@ -101,7 +105,13 @@ struct MotionEstimatorConfig {
   double crossover_hz = 0.1;       ///< below it the IMU, above it the robot
   double load_bandwidth_hz = 3.0;  ///< the measured wrench as the joints' load
   double excitation_hz = 2.0;      ///< the motor's acceleration that drives the modes
-  double substep_s = 1e-3;         ///< the deflection's integration step
+  /// The robot's position servo (robot::servo_accel: critically damped, this bandwidth), fed
+  /// each cycle with the joint increment of the correction zerog-rt sent (note_command),
+  /// interpolated over one cycle: the modes' drive is then this model's acceleration plus the
+  /// measured joints' disagreement with it below excitation_hz (header, step 2). 0: the
+  /// measured joints' alone.
+  double servo_hz = 0.0;
+  double substep_s = 1e-3;  ///< the deflection's integration step
   /// Step 4 (header): the gyro's disagreement with the rigid robot (RMS per axis over
   /// kRingingWindow_s) at which the IMU takes a tenth of the output; 0: step 4 off.
   double ringing_radps = 3e-4;
@@ -128,6 +138,12 @@ struct MotionEstimatorConfig {
   bool mutant_settled_at_once = false;  ///< `settled` from the first row (a false start)
 };
 
+/// The correction as the robot receives it: RSI carries 4 decimals of mm and of degrees
+/// (proto::rsi::kReplyDecimals; the rotation as KUKA's A, B, C), so the servo model follows the
+/// rounded increments the controller executes (at 0.6 rad/s the rounding is as large as the
+/// encoders' quantisation in q̈). Real-time safe.
+samples::RobotCorrection as_sent_over_rsi(const samples::RobotCorrection& correction) noexcept;
+
 /// Whether `c` can be used: ok(), or invalid_setting naming the field ("crossover_hz", …).
 zerog::Status check_estimator_config(const MotionEstimatorConfig& c);
 
@@ -150,6 +166,11 @@ struct MotionEstimate {
   Eigen::Vector3d specific_force_error_base = Eigen::Vector3d::Zero();  ///< e_B, B axes
   Eigen::Vector3d angular_rate_offset = Eigen::Vector3d::Zero();
   std::array<double, robot::kMaxJoints> deflection_rad{};  ///< δ per recorded joint at c
+  /// The servo model's acceleration per recorded joint at c (servo_hz; 0 without), rad/s².
+  std::array<double, robot::kMaxJoints> servo_accel_radps2{};
+  /// The robot followed the servo model from the last centre row to c (false: the model is off
+  /// for a second, header of MotionEstimator::servo_rows_; true without servo_hz).
+  bool servo_followed = true;
   double ringing = 0.0;  ///< step 4's schedule s in [0, 1): the IMU's share of the output
   /// Step 3's share has settled (header): the offsets' variance within kSettledRatio of steady.
   bool settled = false;
@@ -169,6 +190,11 @@ class MotionEstimator {
   /// push passed on (a contact gate open), a motion limit acting, a path being followed. Step 4
   /// acts within ringing_hold_s of it. Real-time safe.
   void note_excitation(bool excited) noexcept { excited_ = excited; }
+  /// The correction sent in reply to the message whose row has time `t_row_s` (none: nothing
+  /// commanded), at that row's joints, the robot's cycle `cycle_s`: with servo_hz, the servo
+  /// model is advanced over the cycle and its acceleration kept for the next row. Real-time safe.
+  void note_command(const samples::RobotCorrection& correction, std::span<const double> joints_rad,
+                    double t_row_s, double cycle_s) noexcept;
   /// Forget the past (the next update starts afresh: static sag, the IMU's share averaged anew).
   void reset() noexcept;
 
@@ -192,10 +218,39 @@ class MotionEstimator {
   // State at the last update's centre row.
   bool started_ = false;
   double t_s_ = 0.0;
+  double t_before_s_ = -1.0;  ///< the centre row's before t_s_ (the servo model's key, step 2)
   std::uint64_t updates_ = 0;
   std::array<double, 6> wrench_lp_{};
   std::array<double, robot::kMaxJoints> qdd_lp1_{}, qdd_lp2_{};  ///< the excitation's stages
-  std::array<double, robot::kMaxJoints> tau_{};                  ///< the load at t_s_
+  std::array<double, robot::kMaxJoints> drive_{};  ///< the modes' drive at t_s_ (step 2)
+  // The servo model (servo_hz): its state per recorded joint (set point, angle, rate; only
+  // differences matter) and its accelerations after the last commands, each keyed by the time
+  // of the row whose reply commanded it. A correction takes effect at the controller's next
+  // tick and is interpolated over that cycle (proto/emulator.md, as a KUKA controller): the
+  // reply to row k moves the joints from row k + 1 to row k + 2, so row c takes the entry of
+  // row c − 2 (measured on the elastic HIL spin: one row earlier, 1.97x torque against 1.43x).
+  std::array<double, robot::kMaxJoints> servo_s_{}, servo_q_{}, servo_qd_{};
+  struct ServoRow {
+    double t_from_s = -1.0;
+    std::array<double, robot::kMaxJoints> q{}, qdd{};
+  };
+  // Whether the robot follows the model: the model's and the measured joints' step from the
+  // last centre row to this one (servo_followed); a row that disagrees by more than
+  // kServoTolerance of the model's step plus kServoSlack_rad (about ten of the encoders' 1e-4°
+  // steps: with 4e-6 the elastic spin tripped it three times in 15 s, A5's step quantised to
+  // 4 steps against a modelled 0.5) turns the model off for kServoDistrust_s: a robot that
+  // holds still while zerog-rt commands (a controller that ignores the corrections, a stop)
+  // would otherwise ring modes nobody rang.
+  static constexpr double kServoTolerance = 0.2;
+  static constexpr double kServoSlack_rad = 2e-5;
+  static constexpr double kServoDistrust_s = 1.0;
+  bool servo_have_prev_ = false;
+  std::array<double, robot::kMaxJoints> servo_q_prev_{}, joints_prev_{};
+  double servo_distrust_s_ = 0.0;
+  static constexpr std::size_t kServoRows = 8;
+  std::array<ServoRow, kServoRows> servo_rows_{};
+  std::size_t servo_next_ = 0;
+  std::array<double, robot::kMaxJoints> tau_{};  ///< the load at t_s_
   std::array<double, robot::kMaxJoints> delta_{}, delta_dot_{};
   Eigen::Vector3d offset_w_ = Eigen::Vector3d::Zero();
   double residual_ms_ = 0.0;  ///< step 4: the gyro's mean-square disagreement, (rad/s)²
@@ -227,7 +282,8 @@ class MotionEstimator {
                       MotorMotion& m) const noexcept;
   void deflect(const MotorMotion& m, const model::FeatureSignals& centre,
                const std::array<double, 6>& wrench, const model::ImuSignals<double>& imu_at_c,
-               double dt, double schedule, LinkMotion& link, MotionEstimate& out) noexcept;
+               double dt, double schedule, const std::array<double, robot::kMaxJoints>& servo_qdd,
+               LinkMotion& link, MotionEstimate& out) noexcept;
   void track_offsets(const model::ImuSignals<double>& imu_at_c, const Eigen::Vector3d& f_I_cmp,
                      const Eigen::Vector3d& omega_I_cmp, const Eigen::Matrix3d& R_link_imu,
                      double dt) noexcept;
