@@ -84,13 +84,6 @@ void MotionEstimator::reset() noexcept {
   qdd_lp1_ = {};
   qdd_lp2_ = {};
   drive_ = {};
-  servo_s_ = {};
-  servo_q_ = {};
-  servo_qd_ = {};
-  servo_rows_ = {};
-  servo_have_prev_ = false;
-  servo_distrust_s_ = 0.0;
-  servo_next_ = 0;
   tau_ = {};
   delta_ = {};
   delta_dot_ = {};
@@ -98,6 +91,11 @@ void MotionEstimator::reset() noexcept {
   residual_ms_ = 0.0;
   excited_ = false;
   since_excitation_s_ = std::numeric_limits<double>::infinity();
+  offsets_.reset();
+  servo_.configure(config_.servo_hz);
+}
+
+void ForceOffsets::reset() noexcept {
   bias_I_.setZero();
   error_B_.setZero();
   P_ = Eigen::Matrix<double, 6, 6>::Identity() * kPriorVariance;
@@ -105,14 +103,15 @@ void MotionEstimator::reset() noexcept {
   steady_gain_ = 0.0;
 }
 
-void MotionEstimator::update_force_offsets(const Eigen::Vector3d& y, const Eigen::Matrix3d& R_IB,
-                                           double k_steady) noexcept {
+void ForceOffsets::update(const Eigen::Vector3d& y, const Eigen::Matrix3d& R_IB,
+                          double k_steady) noexcept {
   // The Kalman filter of the two offsets x = (b_I, e_B), y = b_I + R_IB e_B + v (header, step
   // 3). Units: the IMU's white noise variance per row is the unit (r = 1); a random walk of
   // variance q per row has the steady-state gain K with q = K² r / (1 − K) (the scalar
   // filter's Riccati equation), shared half and half so that their sum, all a still payload
   // sees, follows at the crossover.
   if (k_steady > 0.0) {
+    steady_gain_ = k_steady;
     const double q = 0.5 * k_steady * k_steady / (1.0 - k_steady);
     P_.diagonal().array() += q;
   }
@@ -275,12 +274,10 @@ void MotionEstimator::track_offsets(const model::ImuSignals<double>& imu_at_c,
   ++updates_;
   if (config_.mutant_without_imu) return;
   const double k_steady = started_ ? lowpass_gain(config_.crossover_hz, dt) : 1.0;
-  if (started_) steady_gain_ = k_steady;
   const double k = std::max(k_steady, 1.0 / static_cast<double>(updates_));
   offset_w_ += k * (imu_at_c.angular_rate_imu - omega_I_cmp - offset_w_);
-  update_force_offsets(imu_at_c.specific_force_imu - f_I_cmp,
-                       R_sensor_imu_.transpose() * R_link_imu.transpose(),
-                       started_ ? k_steady : 0.0);
+  offsets_.update(imu_at_c.specific_force_imu - f_I_cmp,
+                  R_sensor_imu_.transpose() * R_link_imu.transpose(), started_ ? k_steady : 0.0);
 }
 
 samples::RobotCorrection as_sent_over_rsi(const samples::RobotCorrection& correction) noexcept {
@@ -325,18 +322,8 @@ void MotionEstimator::note_command(const samples::RobotCorrection& correction,
         jac * jac.transpose() + kDamping * Eigen::Matrix<double, 6, 6>::Identity();
     dq = jac.transpose() * A.ldlt().solve(x);
   }
-  const double w = 2.0 * std::numbers::pi * config_.servo_hz;
-  const Eigen::Matrix2d phi = robot::servo_transition(w, cycle_s);
-  ServoRow& row = servo_rows_[servo_next_];
-  servo_next_ = (servo_next_ + 1) % kServoRows;
-  row.t_from_s = t_row_s;
-  for (int j = 0; j < robot_.joint_count; ++j) {
-    const std::size_t u = static_cast<std::size_t>(j);
-    // The interpolator spreads the increment over the cycle: a ramp, exact (robot/servo.hpp).
-    robot::servo_advance(w, cycle_s, dq[j] / cycle_s, phi, servo_s_[u], servo_q_[u], servo_qd_[u]);
-    row.q[u] = servo_q_[u];
-    row.qdd[u] = robot::servo_accel(w, servo_s_[u], servo_q_[u], servo_qd_[u]);
-  }
+  servo_.advance(std::span<const double>(dq.data(), robot::kMaxJoints), robot_.joint_count, t_row_s,
+                 cycle_s);
 }
 
 bool MotionEstimator::update(std::span<const model::FeatureSignals* const> rows,
@@ -385,34 +372,10 @@ bool MotionEstimator::update(std::span<const model::FeatureSignals* const> rows,
   // The servo model's acceleration at c: the entry of the row two before c (header of
   // servo_rows_), which is the centre before the last one when the rows come one by one.
   std::array<double, robot::kMaxJoints> servo_qdd{};
-  const ServoRow* servo = nullptr;
-  for (const ServoRow& r : servo_rows_) {
-    if (started_ && r.t_from_s == t_before_s_ && rows[c - 1]->t_s == t_s_) servo = &r;
-  }
-  out.servo_followed = true;
-  if (servo != nullptr) {
-    const int J = robot_.joint_count;
-    if (servo_have_prev_) {
-      for (int j = 0; j < J; ++j) {
-        const std::size_t u = static_cast<std::size_t>(j);
-        const double model_step = servo->q[u] - servo_q_prev_[u];
-        const double measured_step = centre.joints_rad[u] - joints_prev_[u];
-        if (std::abs(model_step - measured_step) >
-            kServoTolerance * std::abs(model_step) + kServoSlack_rad)
-          out.servo_followed = false;
-      }
-    }
-    servo_have_prev_ = true;
-    for (int j = 0; j < J; ++j) {
-      const std::size_t u = static_cast<std::size_t>(j);
-      servo_q_prev_[u] = servo->q[u];
-      joints_prev_[u] = centre.joints_rad[u];
-    }
-  } else {
-    servo_have_prev_ = false;
-  }
-  servo_distrust_s_ = out.servo_followed ? std::max(0.0, servo_distrust_s_ - dt) : kServoDistrust_s;
-  if (servo != nullptr && servo_distrust_s_ == 0.0) servo_qdd = servo->qdd;
+  const bool consecutive = started_ && rows[c - 1]->t_s == t_s_;
+  out.servo_followed = servo_.accel_at(
+      consecutive ? t_before_s_ : -2.0, std::span<const double>(centre.joints_rad.data(), 6),
+      have_robot_ ? std::min(robot_.joint_count, 6) : 0, dt, servo_qdd);
   out.servo_accel_radps2 = servo_qdd;
   if (elastic_) deflect(motor, centre, wrench, imu_at_c, dt, schedule, servo_qdd, link, out);
 
@@ -438,7 +401,7 @@ bool MotionEstimator::update(std::span<const model::FeatureSignals* const> rows,
   // 3. The IMU below the crossover.
   track_offsets(imu_at_c, f_I_cmp, omega_I_cmp, link.R_imu, dt);
   const Eigen::Vector3d offset_f =
-      bias_I_ + R_sensor_imu_.transpose() * link.R_ft.transpose() * error_B_;
+      offsets_.bias_I() + R_sensor_imu_.transpose() * link.R_ft.transpose() * offsets_.error_B();
   t_before_s_ = started_ ? t_s_ : -1.0;
   started_ = true;
   t_s_ = t_c;
@@ -448,12 +411,11 @@ bool MotionEstimator::update(std::span<const model::FeatureSignals* const> rows,
   out.specific_force_robot_imu = f_I;
   out.angular_rate_robot_imu = omega_I;
   out.specific_force_offset = offset_f;
-  out.specific_force_bias_imu = bias_I_;
-  out.specific_force_error_base = error_B_;
+  out.specific_force_bias_imu = offsets_.bias_I();
+  out.specific_force_error_base = offsets_.error_B();
   out.angular_rate_offset = offset_w_;
   // Without the IMU (the test mutant) there is no share to settle.
-  out.settled = config_.mutant_without_imu || config_.mutant_settled_at_once ||
-                (steady_gain_ > 0.0 && sum_variance_ <= kSettledRatio * steady_gain_);
+  out.settled = config_.mutant_without_imu || config_.mutant_settled_at_once || offsets_.settled();
   out.imu.specific_force_imu = f_I + offset_f;
   out.imu.angular_rate_imu = omega_I + offset_w_;
   out.imu.angular_accel_imu = omega_dot_I;

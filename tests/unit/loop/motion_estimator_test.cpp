@@ -377,7 +377,8 @@ TEST(MotionEstimator, ThePushWaitsForTheEstimatorToSettle) {
 }
 
 // The servo model follows what the robot receives: as_sent_over_rsi is the wire's resolution
-// (the reply formatted and parsed back, proto/rsi), for a Cartesian and an axis correction.
+// (the reply formatted and parsed back by zerog::proto::rsi), for a Cartesian and an axis
+// correction.
 TEST(MotionEstimator, TheServoModelTakesTheCorrectionAsTheWireCarriesIt) {
   samples::RobotCorrection c;
   c.kind = samples::RobotCorrection::Kind::cartesian;

@@ -84,6 +84,7 @@
 #include <optional>
 #include <span>
 
+#include "zerog/loop/servo_model.hpp"
 #include "zerog/model/features.hpp"
 #include "zerog/model/predict.hpp"
 #include "zerog/robot/robot_model.hpp"
@@ -178,6 +179,36 @@ struct MotionEstimate {
   double imu_instant_s = 0.0;  ///< the IMU mean's
 };
 
+/// Step 3's Kalman filter of the specific force's two offsets (MotionEstimator, header):
+/// x = (b_I, e_B), y = b_I + R_IB e_B + v, both random walks.
+class ForceOffsets {
+ public:
+  void reset() noexcept;
+  /// One row: `y` = IMU − robot (I axes), `R_IB`, and the steady gain K of the crossover (0 on
+  /// the first row: no process noise yet).
+  void update(const Eigen::Vector3d& y, const Eigen::Matrix3d& R_IB, double k_steady) noexcept;
+  const Eigen::Vector3d& bias_I() const { return bias_I_; }
+  const Eigen::Vector3d& error_B() const { return error_B_; }
+  /// The offsets' sum's variance (H P Hᵀ, worst axis) within kSettledRatio of the steady gain K
+  /// it tends to (header, "Settled").
+  bool settled() const {
+    return steady_gain_ > 0.0 && sum_variance_ <= kSettledRatio * steady_gain_;
+  }
+
+ private:
+  // Step 3's Kalman filter of the specific force's two offsets, in units of the variance of the
+  // IMU's row mean (the STIM300's VRW 0.06 m/s/√h over 12 ms: about (0.009 m/s²)²,
+  // proto/sim_robot.md). The prior of each part: σ = 10 such units (≈ 0.1 m/s²: a 10 mrad
+  // tilt or a 10 mg bias), broad for their sum (the first rows average), not so broad that the
+  // first small turns of the payload split the two by their noise.
+  static constexpr double kPriorVariance = 100.0;
+  static constexpr double kSettledRatio = 2.0;
+  Eigen::Vector3d bias_I_ = Eigen::Vector3d::Zero(), error_B_ = Eigen::Vector3d::Zero();
+  Eigen::Matrix<double, 6, 6> P_ = Eigen::Matrix<double, 6, 6>::Identity() * kPriorVariance;
+  double sum_variance_ = 2.0 * kPriorVariance;
+  double steady_gain_ = 0.0;
+};
+
 class MotionEstimator {
  public:
   /// Start-up: the settings, the IMU's pose in S (the rig's sensor_imu) and the robot (its
@@ -223,57 +254,18 @@ class MotionEstimator {
   std::array<double, 6> wrench_lp_{};
   std::array<double, robot::kMaxJoints> qdd_lp1_{}, qdd_lp2_{};  ///< the excitation's stages
   std::array<double, robot::kMaxJoints> drive_{};  ///< the modes' drive at t_s_ (step 2)
-  // The servo model (servo_hz): its state per recorded joint (set point, angle, rate; only
-  // differences matter) and its accelerations after the last commands, each keyed by the time
-  // of the row whose reply commanded it. A correction takes effect at the controller's next
-  // tick and is interpolated over that cycle (proto/emulator.md, as a KUKA controller): the
-  // reply to row k moves the joints from row k + 1 to row k + 2, so row c takes the entry of
-  // row c − 2 (measured on the elastic HIL spin: one row earlier, 1.97x torque against 1.43x).
-  std::array<double, robot::kMaxJoints> servo_s_{}, servo_q_{}, servo_qd_{};
-  struct ServoRow {
-    double t_from_s = -1.0;
-    std::array<double, robot::kMaxJoints> q{}, qdd{};
-  };
-  // Whether the robot follows the model: the model's and the measured joints' step from the
-  // last centre row to this one (servo_followed); a row that disagrees by more than
-  // kServoTolerance of the model's step plus kServoSlack_rad (about ten of the encoders' 1e-4°
-  // steps: with 4e-6 the elastic spin tripped it three times in 15 s, A5's step quantised to
-  // 4 steps against a modelled 0.5) turns the model off for kServoDistrust_s: a robot that
-  // holds still while zerog-rt commands (a controller that ignores the corrections, a stop)
-  // would otherwise ring modes nobody rang.
-  static constexpr double kServoTolerance = 0.2;
-  static constexpr double kServoSlack_rad = 2e-5;
-  static constexpr double kServoDistrust_s = 1.0;
-  bool servo_have_prev_ = false;
-  std::array<double, robot::kMaxJoints> servo_q_prev_{}, joints_prev_{};
-  double servo_distrust_s_ = 0.0;
-  static constexpr std::size_t kServoRows = 8;
-  std::array<ServoRow, kServoRows> servo_rows_{};
-  std::size_t servo_next_ = 0;
-  std::array<double, robot::kMaxJoints> tau_{};  ///< the load at t_s_
+  ServoModel servo_;                               ///< servo_hz (note_command, step 2)
+  std::array<double, robot::kMaxJoints> tau_{};    ///< the load at t_s_
   std::array<double, robot::kMaxJoints> delta_{}, delta_dot_{};
   Eigen::Vector3d offset_w_ = Eigen::Vector3d::Zero();
   double residual_ms_ = 0.0;  ///< step 4: the gyro's mean-square disagreement, (rad/s)²
   bool excited_ = false;      ///< note_excitation's last word
   /// Rows' time since it was true (infinite: never, as after reset()).
   double since_excitation_s_ = std::numeric_limits<double>::infinity();
-  // Step 3's Kalman filter of the specific force's two offsets, in units of the variance of the
-  // IMU's row mean (the STIM300's VRW 0.06 m/s/√h over 12 ms: about (0.009 m/s²)²,
-  // proto/sim_robot.md). The prior of each part: σ = 10 such units (≈ 0.1 m/s²: a 10 mrad
-  // tilt or a 10 mg bias), broad for
-  // their sum (the first rows average), not so broad that the first small turns of the payload
-  // split the two by their noise.
-  static constexpr double kPriorVariance = 100.0;
   static constexpr double kRingingWindow_s = 0.05;  ///< step 4's mean square
   static constexpr int kObservedAxes = 3;           ///< step 4a: A1–A3 (A5 is not observed)
   static constexpr double kDamping = 1e-6;          ///< step 4a's least squares (A2 ∥ A3)
-  Eigen::Vector3d bias_I_ = Eigen::Vector3d::Zero(), error_B_ = Eigen::Vector3d::Zero();
-  Eigen::Matrix<double, 6, 6> P_ = Eigen::Matrix<double, 6, 6>::Identity() * kPriorVariance;
-  /// The offsets' sum's variance after the last row (H P Hᵀ, worst axis) and the steady gain K
-  /// it tends to (0 before the second row): settled when the one is within kSettledRatio × K.
-  static constexpr double kSettledRatio = 2.0;
-  double sum_variance_ = 2.0 * kPriorVariance;
-  double steady_gain_ = 0.0;
+  ForceOffsets offsets_;                            ///< step 3's specific-force offsets
 
   // update()'s phases (motion_estimator.cpp): 1, 2 with 4a, 3.
   struct MotorMotion;
@@ -287,8 +279,6 @@ class MotionEstimator {
   void track_offsets(const model::ImuSignals<double>& imu_at_c, const Eigen::Vector3d& f_I_cmp,
                      const Eigen::Vector3d& omega_I_cmp, const Eigen::Matrix3d& R_link_imu,
                      double dt) noexcept;
-  void update_force_offsets(const Eigen::Vector3d& y, const Eigen::Matrix3d& R_IB,
-                            double k_steady) noexcept;
 };
 
 }  // namespace zerog::loop
