@@ -23,17 +23,11 @@ using test::kMass;
 using test::kPeriod;
 using test::payload_model;
 using test::push;
+using test::start_zero_g;
 using test::StaticRobot;
 using test::test_cycle_config;
 using zerog::test::AllocGuard;
 using zerog::test::RsiReply;
-
-void start_zero_g(Cycle& c, StaticRobot& rig) {
-  for (int i = 0; i < 6; ++i) rig.quiet(c);
-  ASSERT_TRUE(c.request(Command::enable_zero_g));
-  rig.quiet(c);
-  ASSERT_EQ(c.state_machine().state(), State::zero_g);
-}
 
 // A refused value is invalid_setting naming its CycleConfig field as a path; the message does
 // not repeat the field.

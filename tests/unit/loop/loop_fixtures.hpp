@@ -131,4 +131,12 @@ inline Eigen::Matrix<double, 6, 1> push(double fx, double fy, double fz) {
   return w;
 }
 
+/// Six quiet cycles, then zero-g enabled and one more: the cycle is in zero-g (asserted).
+inline void start_zero_g(Cycle& c, StaticRobot& rig) {
+  for (int i = 0; i < 6; ++i) rig.quiet(c);
+  ASSERT_TRUE(c.request(Command::enable_zero_g));
+  rig.quiet(c);
+  ASSERT_EQ(c.state_machine().state(), State::zero_g);
+}
+
 }  // namespace zerog::loop::test

@@ -351,10 +351,7 @@ TEST(MotionEstimator, ThePushWaitsForTheEstimatorToSettle) {
     Cycle c;
     ASSERT_EQ(c.configure(config, test::payload_model()).text(), "");
     test::StaticRobot rig;
-    for (int i = 0; i < 6; ++i) rig.quiet(c);
-    ASSERT_TRUE(c.request(Command::enable_zero_g));
-    rig.quiet(c);
-    ASSERT_EQ(c.state_machine().state(), State::zero_g);
+    test::start_zero_g(c, rig);
     int settled_at = -1, moved_at = -1;
     for (int i = 0; i < 200 && moved_at < 0; ++i) {
       rig.cycle(c, test::push(30.0, 0.0, 0.0));
@@ -484,10 +481,7 @@ TEST(MotionEstimator, TheCycleWithItDoesNotAllocate) {
   Cycle c;
   ASSERT_EQ(c.configure(config, test::payload_model()).text(), "");
   test::StaticRobot rig;
-  for (int i = 0; i < 6; ++i) rig.quiet(c);
-  ASSERT_TRUE(c.request(Command::enable_zero_g));
-  rig.quiet(c);
-  ASSERT_EQ(c.state_machine().state(), State::zero_g);
+  test::start_zero_g(c, rig);
   zerog::test::AllocGuard guard("Cycle::step (fused motion)");
   double most_ringing = 0.0, most_servo = 0.0;
   for (int i = 0; i < 200; ++i) {
