@@ -408,8 +408,8 @@ void Cycle::run(const samples::RobotSample& m) noexcept {
     record.reply.ipoc = m.ipoc;
   }
   // The motion estimator's servo model follows what the robot was told ([filter] servo_hz).
-  data_.model.estimator.note_command(as_sent_over_rsi(record.reply), now.signals.joints_rad,
-                                     now.t_s, config_.period_s);
+  data_.model.estimator.note_command(record.reply, now.signals.joints_rad, now.t_s,
+                                     config_.period_s);
   stages::make_record({.cycle = cycle_,
                        .message = m,
                        .timing = timing,

@@ -283,7 +283,10 @@ void MotionEstimator::track_offsets(const model::ImuSignals<double>& imu_at_c,
 samples::RobotCorrection as_sent_over_rsi(const samples::RobotCorrection& correction) noexcept {
   samples::RobotCorrection sent = correction;
   constexpr double kDeg = std::numbers::pi / 180.0;
-  auto digits = [](double v, double unit) { return std::round(v / unit * 1e4) * 1e-4 * unit; };
+  const double scale = std::pow(10.0, samples::kRsiCorrectionDecimals);
+  auto digits = [scale](double v, double unit) {
+    return std::round(v / unit * scale) / scale * unit;
+  };
   for (double& v : sent.translation_m) v = digits(v, 1e-3);
   for (double& v : sent.axes_rad) v = digits(v, kDeg);
   Eigen::Matrix3d R;
@@ -301,21 +304,23 @@ void MotionEstimator::note_command(const samples::RobotCorrection& correction,
                                    std::span<const double> joints_rad, double t_row_s,
                                    double cycle_s) noexcept {
   if (!(config_.servo_hz > 0.0) || !have_robot_ || !(cycle_s > 0.0)) return;
+  // As the robot receives it (RSI's digits), not as the cycle computed it.
+  const samples::RobotCorrection sent = as_sent_over_rsi(correction);
   // The joint increment: AKorr as it is; RKorr (B axes, the sensor frame's origin and
   // orientation) through the Jacobian at the row's joints, as the controller's inverse
   // kinematics takes it to first order (damped least squares, A2 ∥ A3 kept apart).
   Eigen::Matrix<double, robot::kMaxJoints, 1> dq =
       Eigen::Matrix<double, robot::kMaxJoints, 1>::Zero();
-  if (correction.kind == samples::RobotCorrection::Kind::axes) {
+  if (sent.kind == samples::RobotCorrection::Kind::axes) {
     for (int j = 0; j < std::min(robot_.joint_count, 6); ++j)
-      dq[j] = correction.axes_rad[static_cast<std::size_t>(j)];
-  } else if (correction.kind == samples::RobotCorrection::Kind::cartesian) {
+      dq[j] = sent.axes_rad[static_cast<std::size_t>(j)];
+  } else if (sent.kind == samples::RobotCorrection::Kind::cartesian) {
     Eigen::Matrix<double, 6, robot::kMaxJoints> jac;
     robot::sensor_jacobian(robot_, joints_rad, jac);
     const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> R(
-        correction.R_correction.data());
+        sent.R_correction.data());
     Eigen::Matrix<double, 6, 1> x;
-    x.head<3>() = Eigen::Map<const Eigen::Vector3d>(correction.translation_m.data());
+    x.head<3>() = Eigen::Map<const Eigen::Vector3d>(sent.translation_m.data());
     const Eigen::AngleAxisd turn{Eigen::Matrix3d(R)};
     x.tail<3>() = turn.angle() * turn.axis();
     const Eigen::Matrix<double, 6, 6> A =
@@ -369,13 +374,14 @@ bool MotionEstimator::update(std::span<const model::FeatureSignals* const> rows,
                               ? residual_ms_ / (residual_ms_ + threshold * threshold)
                               : 0.0;  // last row's
   // 2. The link's deflection at c (and 4a).
-  // The servo model's acceleration at c: the entry of the row two before c (header of
-  // servo_rows_), which is the centre before the last one when the rows come one by one.
+  // The servo model's acceleration at c: the entry of the row two before c
+  // (ServoModel::accel_at), which is the centre before the last one when the rows come one by
+  // one.
   std::array<double, robot::kMaxJoints> servo_qdd{};
   const bool consecutive = started_ && rows[c - 1]->t_s == t_s_;
-  out.servo_followed = servo_.accel_at(
-      consecutive ? t_before_s_ : -2.0, std::span<const double>(centre.joints_rad.data(), 6),
-      have_robot_ ? std::min(robot_.joint_count, 6) : 0, dt, servo_qdd);
+  out.servo_followed =
+      servo_.accel_at(consecutive ? t_before_s_ : -2.0, centre.joints_rad,
+                      have_robot_ ? std::min(robot_.joint_count, 6) : 0, dt, servo_qdd);
   out.servo_accel_radps2 = servo_qdd;
   if (elastic_) deflect(motor, centre, wrench, imu_at_c, dt, schedule, servo_qdd, link, out);
 

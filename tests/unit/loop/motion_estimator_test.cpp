@@ -424,7 +424,9 @@ TEST(MotionEstimator, TheServoModelFollowsTheCommandFromTheControllersNextTick) 
       for (int i = 0; i < 6; ++i) arm.elasticity[i] = {1e6, 8.0, 0.05};
       ASSERT_TRUE(
           e.configure(config, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero(), arm).ok());
-      const double delta = 1e-3, w = 2.0 * std::numbers::pi * 8.0, r = delta / kDt;
+      // 0.0573°: a step RSI carries exactly (4 decimals of a degree), as the model takes it.
+      const double delta = 0.0573 * std::numbers::pi / 180.0;
+      const double w = 2.0 * std::numbers::pi * 8.0, r = delta / kDt;
       auto ramp = [&](double t) {
         return t <= 0.0 ? 0.0 : r * (t - 2.0 / w + (2.0 / w + t) * std::exp(-w * t));
       };

@@ -170,7 +170,7 @@ struct MotionEstimate {
   /// The servo model's acceleration per recorded joint at c (servo_hz; 0 without), rad/s².
   std::array<double, robot::kMaxJoints> servo_accel_radps2{};
   /// The robot followed the servo model from the last centre row to c (false: the model is off
-  /// for a second, header of MotionEstimator::servo_rows_; true without servo_hz).
+  /// for a second, loop::ServoModel; true without servo_hz).
   bool servo_followed = true;
   double ringing = 0.0;  ///< step 4's schedule s in [0, 1): the IMU's share of the output
   /// Step 3's share has settled (header): the offsets' variance within kSettledRatio of steady.
@@ -222,8 +222,9 @@ class MotionEstimator {
   /// acts within ringing_hold_s of it. Real-time safe.
   void note_excitation(bool excited) noexcept { excited_ = excited; }
   /// The correction sent in reply to the message whose row has time `t_row_s` (none: nothing
-  /// commanded), at that row's joints, the robot's cycle `cycle_s`: with servo_hz, the servo
-  /// model is advanced over the cycle and its acceleration kept for the next row. Real-time safe.
+  /// commanded; rounded here as RSI carries it, as_sent_over_rsi), at that row's joints, the
+  /// robot's cycle `cycle_s`: with servo_hz, the servo model is advanced over the cycle and its
+  /// acceleration kept for the next row. Real-time safe.
   void note_command(const samples::RobotCorrection& correction, std::span<const double> joints_rad,
                     double t_row_s, double cycle_s) noexcept;
   /// Forget the past (the next update starts afresh: static sag, the IMU's share averaged anew).

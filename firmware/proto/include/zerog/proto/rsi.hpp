@@ -26,6 +26,8 @@
 #include <span>
 #include <string_view>
 
+#include "zerog/samples/robot_sample.hpp"
+
 namespace zerog::proto::rsi {
 
 inline constexpr std::size_t kMaxMessageBytes = 4096;  ///< larger messages are rejected whole
@@ -108,7 +110,8 @@ struct FormatResult {
   std::size_t size;  ///< bytes written, no terminating NUL (0 unless ok)
 };
 
-inline constexpr int kReplyDecimals = 4;  ///< digits after the point in RKorr (0.1 µm, 0.0001°)
+/// Digits after the point in RKorr and AKorr (0.1 µm, 0.0001°).
+inline constexpr int kReplyDecimals = samples::kRsiCorrectionDecimals;
 
 /// Writes the reply into `out` (no NUL terminator); never writes past `out`.
 FormatResult format_reply(const Correction& correction, std::uint64_t ipoc, std::span<char> out,

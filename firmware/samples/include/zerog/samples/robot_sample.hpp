@@ -30,6 +30,11 @@ struct RobotSample {
 };
 
 /// The cycle's answer to one message in SI units. Fixed size, trivially copyable.
+/// RSI carries a correction (RKorr in mm and degrees, AKorr in degrees) with this many digits
+/// after the point: 0.1 µm and 1e-4° (proto::rsi::kReplyDecimals is this; the motion
+/// estimator's servo model rounds to it, loop::as_sent_over_rsi).
+inline constexpr int kRsiCorrectionDecimals = 4;
+
 struct RobotCorrection {
   /// What the reply carries: none (an <RKorr> of zeros: answered, nothing to correct), a
   /// Cartesian correction (<RKorr> from translation_m and R_correction) or an axis correction
