@@ -13,6 +13,7 @@ status is 1.
     scripts/figures.py discovery ZEROG          # runs zerog sim + diagnose itself (about a minute)
     scripts/figures.py speed --run BENCH_DIR    # runs the Google Benchmark programs (ten minutes
                                                 # or so: ident_bench's 10^6-sample logs)
+    scripts/figures.py speed --run BENCH_DIR --program loop_bench   # one program: its blocks only
     scripts/figures.py speed BENCH_JSON...      # or takes their --benchmark_format=json output
     scripts/figures.py speed --check --bench-dir BENCH_DIR   # the documented timings, see below
     scripts/figures.py tool-change --gtest IDENT_TEST   # ident_test's ToolChange case
@@ -720,6 +721,22 @@ def speed_loop(b):
         f"{us(b('rtio_bench', rt0, 'p50_us'))} median, the echo {us(echo_p50)}).")
 
 
+def speed_fused(b):
+    fused = [b("loop_bench", f"BM_CycleStepFused/{k}", "real_time_s") for k in (0, 1)]
+    today = [b("loop_bench", f"BM_CycleStepSi/{k}", "real_time_s") for k in (0, 1)]
+    aim = 10e-6
+    verdict = "within it" if max(fused) < aim else "**not within it**"
+    return (
+        f"**The cycle with the motion estimator** (`[filter] motion = \"fused\"` on the elastic "
+        f"KR 210 with the servo model, [`proto/loop.md`](../proto/loop.md)): `loop_bench`'s "
+        f"`BM_CycleStepFused` against `BM_CycleStepSi`, the same cycle with the IMU path, in the "
+        f"same run ({b.context('loop_bench', 'build')} build, {b.context('loop_bench', 'date')[:10]}): "
+        f"{ns(fused[0])} against {ns(today[0])} with the physics model "
+        f"(**{ratio(fused[0] / today[0])}**), {ns(fused[1])} against {ns(today[1])} with the "
+        f"24-32-32 residual ({ratio(fused[1] / today[1])}). Aim (issue 28): under 10 µs; "
+        f"{verdict}.")
+
+
 def speed_peers(b):
     modes = [f"BM_ZerogRtRoundTrip/{m}" for m in range(5)]
     reply = [b("rtio_bench", m, "reply_p50_us") for m in modes]
@@ -747,7 +764,12 @@ def speed_peers(b):
 # The speed blocks and their texts; each block carries the values its own text uses.
 SPEED_BLOCKS = {"speed-ident": speed_ident, "discovery-speed": discovery_speed,
                 "speed-infer": speed_infer, "speed-rsi": speed_rsi, "speed-loop": speed_loop,
-                "speed-peers": speed_peers}
+                "speed-fused": speed_fused, "speed-peers": speed_peers}
+# The benchmark programs each block reads.
+SPEED_NEEDS = {"speed-ident": ["ident_bench"], "discovery-speed": ["ident_bench"],
+               "speed-infer": ["infer_bench"], "speed-rsi": ["rtio_bench"],
+               "speed-loop": ["loop_bench", "rtio_bench"], "speed-fused": ["loop_bench"],
+               "speed-peers": ["rtio_bench", "modbus_bench", "telemetry_bench"]}
 DATA = re.compile(r"<!-- figures\.py speed: [^{]*(\{.*\}) -->")
 
 
@@ -775,14 +797,19 @@ def bench_build(bench_dir):
     return "unknown"
 
 
-def run_benchmarks(bench_dir, save):
+# loop_bench's cycles are short enough to be timed three times: its figures are the medians.
+BENCH_ARGS = {"loop_bench": ["--benchmark_repetitions=3"]}
+
+
+def run_benchmarks(bench_dir, save, programs):
     os.makedirs(save, exist_ok=True)
     docs = []
-    for program in BENCH_PROGRAMS:
+    for program in programs:
         path = os.path.join(save, program + ".json")
         print(f"figures.py: running {program} (its JSON in {path})", file=sys.stderr)
         subprocess.run([os.path.join(bench_dir, program), "--benchmark_format=json",
-                        f"--benchmark_out={path}", "--benchmark_out_format=json"], check=True,
+                        f"--benchmark_out={path}", "--benchmark_out_format=json",
+                        *BENCH_ARGS.get(program, [])], check=True,
                        stdout=subprocess.DEVNULL)
         doc = load(path)
         doc["zerog_build"] = bench_build(bench_dir)
@@ -832,12 +859,19 @@ def cmd_speed(args):
             raise SystemExit("figures.py speed --check needs --bench-dir")
         return check_speed(args)
     if args.run:
-        docs = run_benchmarks(args.run, args.save)
+        docs = run_benchmarks(args.run, args.save, args.program or BENCH_PROGRAMS)
     else:
         docs = [load(p) for p in args.json]
         for doc, path in zip(docs, args.json):
             doc.setdefault("zerog_build", bench_build(os.path.dirname(path)))
-    return finish(args, speed_blocks(Bench.from_json(docs).runs), "")
+    runs = Bench.from_json(docs).runs
+    # Some programs only: write the blocks that need no other program, and say which not.
+    names = [n for n in SPEED_BLOCKS if set(SPEED_NEEDS[n]) <= set(runs)]
+    for n in SPEED_BLOCKS:
+        if n not in names:
+            print(f"figures.py: {n} not written (needs a run of {', '.join(SPEED_NEEDS[n])})",
+                  file=sys.stderr)
+    return finish(args, speed_blocks(runs, names), "")
 
 
 # --- tool change: ident_test's ToolChange case --------------------------------------------------
@@ -1010,6 +1044,9 @@ def main():
     p.add_argument("json", nargs="*", help="--benchmark_format=json output of the programs")
     p.add_argument("--run", metavar="BENCH_DIR", help="run the programs in BENCH_DIR first")
     p.add_argument("--save", default="out/bench", help="with --run: where their JSON goes")
+    p.add_argument("--program", action="append", choices=BENCH_PROGRAMS,
+                   help="with --run: only this program (repeatable); only the blocks it "
+                        "alone writes are written")
     p.add_argument("--bench-dir", help="with --check: the built programs")
     p.set_defaults(func=cmd_speed)
     p = sub.add_parser("tool-change", parents=[common],
