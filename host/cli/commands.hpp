@@ -16,5 +16,6 @@ void add_export_command(CLI::App& app);       // cmd_export.cpp
 void add_watch_command(CLI::App& app);        // cmd_watch.cpp: live telemetry (DDS)
 void add_gate_command(CLI::App& app);         // cmd_gate.cpp: the contact gate from the noise
 void add_export_mcap_command(CLI::App& app);  // cmd_export_mcap.cpp: a recording as MCAP
+void add_servo_command(CLI::App& app);        // cmd_servo.cpp: the servo model from a recording
 
 }  // namespace zerog::cli

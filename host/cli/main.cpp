@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
   zerog::cli::add_export_command(app);
   zerog::cli::add_watch_command(app);
   zerog::cli::add_gate_command(app);
+  zerog::cli::add_servo_command(app);
   zerog::cli::add_export_mcap_command(app);
   try {
     app.parse(argc, argv);

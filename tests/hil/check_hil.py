@@ -312,6 +312,43 @@ def gate_checks(run):
           f"{f['confirms_at_threshold']}, torque {m['confirms_at_threshold']})")
 
 
+def servo_checks(run):
+    """`zerog servo` on this run's cycles.csv (hil.sh ran it): the emulator's servo bandwidth and
+    its tick (the joints move from row k + 1 to k + 2 after the reply at row k) are found."""
+    try:
+        with open(f"{run.dir}/servo.json") as f:
+            servo = json.load(f)
+    except (OSError, ValueError) as e:
+        check(False, f"zerog servo wrote servo.json ({e})")
+        return
+    truth = run.emu["robot"]["servo_bandwidth_hz"]
+    check(servo.get("known") is True,
+          f"zerog servo identified the servo ({servo.get('rows')} rows"
+          f"{'' if servo.get('known') else ': ' + str(servo.get('note'))})")
+    if not servo.get("known"):
+        return
+    hz, sigma, lo_hi = servo["servo_hz"], servo["servo_hz_sigma"], servo["quarters_hz"]
+    figure("servo_hz", hz)
+    figure("servo_hz_quarters", lo_hi)
+    print(f"  zerog servo: {hz:.4g} Hz (emulator {truth:g} Hz; quarters {lo_hi[0]:.4g}-"
+          f"{lo_hi[1]:.4g} Hz), lag {servo['lag_rows']} rows, residual {servo['rms_rad']['fit']:.3g} "
+          f"rad against {servo['rms_rad']['instant']:.3g} rad for an instant servo")
+    check(servo["lag_rows"] == servo["model_lag_rows"],
+          f"zerog servo found the controller's tick ({servo['lag_rows']} rows, the model's "
+          f"{servo['model_lag_rows']})")
+    check(abs(hz - truth) < 0.02 * truth, f"and the emulator's bandwidth within 2 % "
+          f"({hz:.4g} Hz against {truth:g} Hz)")
+    if sigma is not None:
+        check(abs(hz - truth) < max(4 * sigma, 0.005 * truth),
+              f"within 4 sigma of its quoted uncertainty ({sigma:.2g} Hz)")
+
+
+def case_servo(run):
+    """The servo identified on a cell before its servo model: pushes, stops, twists."""
+    common_checks(run)
+    servo_checks(run)
+
+
 def first_moving_cycle(run, t_from):
     """The first cycle from t_from on whose virtual body moves (body_v* of cycles.csv): where
     the gate confirmed the push (in lockstep the body is exactly still before)."""
@@ -1240,7 +1277,9 @@ def main():
         base = a.case.removesuffix("_fused").removesuffix("_elastic")
         {"push": case_push, "drift": case_drift, "spin": case_spin, "tumble": case_tumble,
          "glide": case_glide, "nudge": case_nudge, "quiet": case_quiet,
-         "supervisor": case_supervisor}[base](run)
+         "supervisor": case_supervisor, "servo": case_servo}[base](run)
+        if FUSED["elastic"] and base in ("glide", "spin"):
+            servo_checks(run)
     if run.lockstep:
         lockstep_checks(run, a.case)
     FIGURES["case"] = a.case

@@ -279,6 +279,12 @@ print(" ".join(str(s.getsockname()[1]) for s in held))')
     "$zerog" gate "$w/rec/cycles.csv" --config "$w/zerog-rt.toml" --json >"$w/gate.json" \
       2>"$w/gate.err" || echo "hil.sh: $c: zerog gate failed (see gate.err)" >&2 ;;
   esac
+  # The servo model from this run's joints and corrections (docs/zerog-rt.md, "Identifying the
+  # servo model"): check_hil.py compares it with the emulator's servo.
+  case "$c" in servo_*|glide_elastic*|spin_elastic*)
+    "$zerog" servo "$w/rec/cycles.csv" --config "$w/zerog-rt.toml" --json >"$w/servo.json" \
+      2>"$w/servo.err" || echo "hil.sh: $c: zerog servo found no servo (see servo.json)" >&2 ;;
+  esac
   /usr/bin/python3 "$here/check_hil.py" --case "$c" --dir "$w" --scenario "$scenario" \
     --rt-config "$w/zerog-rt.toml" \
     | tee "$w/check.txt"

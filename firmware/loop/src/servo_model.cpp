@@ -4,9 +4,60 @@
 #include <cmath>
 #include <numbers>
 
+#include <Eigen/Geometry>
+
+#include "zerog/robot/forward_kinematics.hpp"
 #include "zerog/robot/servo.hpp"
 
 namespace zerog::loop {
+
+void commanded_increment(const robot::RobotModel& robot, const samples::RobotCorrection& sent,
+                         std::span<const double> from_rad,
+                         Eigen::Matrix<double, robot::kMaxJoints, 1>& dq,
+                         int newton_steps) noexcept {
+  // The damping keeps A2 ∥ A3 (the KR 210's singular direction at full stretch) finite.
+  constexpr double kDamping = 1e-6;
+  dq.setZero();
+  const int n = std::min(robot.joint_count, robot::kMaxJoints);
+  if (sent.kind == samples::RobotCorrection::Kind::axes) {
+    for (int j = 0; j < std::min(n, 6); ++j) dq[j] = sent.axes_rad[static_cast<std::size_t>(j)];
+    return;
+  }
+  if (sent.kind != samples::RobotCorrection::Kind::cartesian) return;
+  const Eigen::Matrix3d R_correction =
+      Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(sent.R_correction.data());
+  const Eigen::Vector3d t = Eigen::Map<const Eigen::Vector3d>(sent.translation_m.data());
+  std::array<double, robot::kMaxJoints> q{};
+  for (std::size_t j = 0; j < std::min(static_cast<std::size_t>(n), from_rad.size()); ++j)
+    q[j] = from_rad[j];
+  // The pose the correction makes (only needed beyond the first step).
+  Eigen::Vector3d p_target = t;
+  Eigen::Matrix3d R_target = R_correction;
+  if (newton_steps > 1) {
+    const robot::Pose from = robot::sensor_pose(robot, q);
+    p_target += from.p_m;
+    R_target = R_correction * from.R;
+  }
+  Eigen::Matrix<double, 6, robot::kMaxJoints> jac;
+  for (int k = 0; k < newton_steps; ++k) {
+    Eigen::Matrix<double, 6, 1> e;
+    if (k == 0) {
+      // The first step's error is the correction itself (no pose to compute).
+      const Eigen::AngleAxisd turn{R_correction};
+      e << t, turn.angle() * turn.axis();
+    } else {
+      const robot::Pose now = robot::sensor_pose(robot, q);
+      const Eigen::AngleAxisd turn{Eigen::Matrix3d(R_target * now.R.transpose())};
+      e << p_target - now.p_m, turn.angle() * turn.axis();
+    }
+    robot::sensor_jacobian(robot, q, jac);
+    const Eigen::Matrix<double, 6, 6> A =
+        jac * jac.transpose() + kDamping * Eigen::Matrix<double, 6, 6>::Identity();
+    const Eigen::Matrix<double, robot::kMaxJoints, 1> step = jac.transpose() * A.ldlt().solve(e);
+    dq += step;
+    for (int j = 0; j < n; ++j) q[static_cast<std::size_t>(j)] += step[j];
+  }
+}
 
 void ServoModel::configure(double servo_hz) noexcept {
   omega_radps_ = servo_hz > 0.0 ? 2.0 * std::numbers::pi * servo_hz : 0.0;

@@ -12,8 +12,21 @@
 #include <span>
 
 #include "zerog/robot/robot_model.hpp"
+#include "zerog/samples/robot_sample.hpp"
 
 namespace zerog::loop {
+
+/// The joint increment a correction commands from the joints `from_rad`: AKorr as it is; RKorr
+/// (B axes: the sensor frame's origin and orientation) by `newton_steps` damped least-squares
+/// steps (A2 ∥ A3 kept apart) towards the pose the correction makes of `from_rad`'s, as a
+/// controller's inverse kinematics takes it (1: the plain Jacobian step, first order; 2 removes
+/// its second-order error). Kind::none: zeros. The servo model's input
+/// (MotionEstimator::note_command) and `zerog servo`'s (host/ident, servo_fit.hpp): one formula.
+/// Real-time safe.
+void commanded_increment(const robot::RobotModel& robot, const samples::RobotCorrection& sent,
+                         std::span<const double> from_rad,
+                         Eigen::Matrix<double, robot::kMaxJoints, 1>& dq,
+                         int newton_steps = 1) noexcept;
 
 class ServoModel {
  public:
@@ -21,6 +34,9 @@ class ServoModel {
   void configure(double servo_hz) noexcept;
   bool on() const { return omega_radps_ > 0.0; }
   void reset() noexcept;
+  /// The model's angle of `joint` after the last advance, relative to where it started (only
+  /// differences matter): what `zerog servo` compares with the measured joints.
+  double angle(int joint) const { return q_[static_cast<std::size_t>(joint)]; }
 
   /// The increments `dq_rad` (recorded joints, the first `joints`) commanded in reply to the row
   /// of time `t_row_s`: the model advances over the next cycle (`cycle_s`) with the set point
