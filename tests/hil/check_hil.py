@@ -329,7 +329,10 @@ def servo_checks(run):
         return
     hz, sigma, lo_hi = servo["servo_hz"], servo["servo_hz_sigma"], servo["quarters_hz"]
     figure("servo_hz", hz)
+    figure("servo_hz_sigma", sigma)
     figure("servo_hz_quarters", lo_hi)
+    figure("servo_truth_hz", truth)
+    figure("servo_lag_rows", servo["lag_rows"])
     print(f"  zerog servo: {hz:.4g} Hz (emulator {truth:g} Hz; quarters {lo_hi[0]:.4g}-"
           f"{lo_hi[1]:.4g} Hz), lag {servo['lag_rows']} rows, residual {servo['rms_rad']['fit']:.3g} "
           f"rad against {servo['rms_rad']['instant']:.3g} rad for an instant servo")

@@ -14,7 +14,8 @@ functions.
 Blocks: hil (the motion cases: the figures of seed 11, the lowest seed in the runs, and the
 range over all seeds), faults ("Fault injection": one row per fault of issue 6), supervisor
 (the PLC and telemetry run) and feel (per motion path, the contact noise against the F/T floor
-and the gate zerog gate advises: the smallest push that moves the part; issue 28). A block is written only when the runs have every case it needs.
+and the gate zerog gate advises: the smallest push that moves the part; issue 28) and servo
+(`zerog servo` on the elastic fused runs against the emulator's servo). A block is written only when the runs have every case it needs.
 
 --check compares exactly: a lockstep run depends on its seed only (tests/hil/determinism.sh).
 The cases with a peer on the wall clock (a `# plc =` scenario: the Modbus and DDS peers, the PLC
@@ -268,10 +269,40 @@ def feel_markdown(cases):
     return "\n".join(out)
 
 
+SERVO_CASES = (("servo_elastic_fused", "pushes, stops and twists, no servo model set"),
+               ("glide_elastic_fused", "the 0.5 m/s glide"),
+               ("spin_elastic_fused", "the spin"))
+
+
+def servo_markdown(cases):
+    """The servo block: `zerog servo` on the elastic fused runs against the emulator's servo."""
+    if not all(k in cases for k, _ in SERVO_CASES):
+        return None
+    out = ["| recording (elastic arm, lockstep) | seeds | emulator's servo | `zerog servo` finds "
+           "| largest error | quoted σ (quarters) | controller's tick |", "|---|---|---|---|---|---|---|"]
+    for case, what in SERVO_CASES:
+        runs = cases[case]
+        seeds = sorted(runs)
+        truth = {runs[s]["servo_truth_hz"] for s in seeds}
+        if len(truth) != 1 or any("servo_hz" not in runs[s] for s in seeds):
+            raise SystemExit(f"figures.py: {case}: zerog servo's figures are missing or differ")
+        t = truth.pop()
+        found = [runs[s]["servo_hz"] for s in seeds]
+        err = max(abs(f - t) / t for f in found)
+        sig = [runs[s]["servo_hz_sigma"] for s in seeds if runs[s]["servo_hz_sigma"] is not None]
+        lags = sorted({runs[s]["servo_lag_rows"] for s in seeds})
+        out.append(f"| {what} (`{case}`) | {seeds[0]}–{seeds[-1]} | {t:g} Hz | "
+                   f"{blocks.span(found, lambda x: f'{x:.3f}')} Hz | {100 * err:.2f} % | "
+                   f"{blocks.span(sig, lambda x: f'{x:.4f}')} Hz | "
+                   f"{', '.join(f'k + {L - 1} to k + {L}' for L in lags)} |")
+    return "\n".join(out)
+
+
 def markdown(cases):
     """{block: text} of the blocks these runs have every case for."""
     out = {"hil": motion_markdown(cases), "faults": fault_markdown(cases),
-           "supervisor": supervisor_markdown(cases), "feel": feel_markdown(cases)}
+           "supervisor": supervisor_markdown(cases), "feel": feel_markdown(cases),
+           "servo": servo_markdown(cases)}
     return {k: v for k, v in out.items() if v is not None}
 
 
@@ -289,7 +320,7 @@ def main():
     if not texts:
         raise SystemExit(f"figures.py: no block has all its cases in {' '.join(a.dirs)}")
     if a.check:
-        missing = [b for b in ("hil", "faults", "supervisor", "feel") if b not in texts]
+        missing = [b for b in ("hil", "faults", "supervisor", "feel", "servo") if b not in texts]
         if missing:
             print(f"figures.py: the runs lack cases of the block(s) {', '.join(missing)}")
             return 1

@@ -217,6 +217,55 @@ std::string hz_text(double hz) {
   return b;
 }
 
+// RMS of the measured joints' steps over the compared rows (at the model's lag).
+double motion_rms(const Rows& rows) {
+  double m2 = 0.0;
+  for (std::size_t k : rows.compared)
+    for (std::size_t j = 0; j < static_cast<std::size_t>(rows.joints); ++j) {
+      const double d = rows.q[k + ServoFit::kModelLag][j] - rows.q[k + ServoFit::kModelLag - 1][j];
+      m2 += d * d;
+    }
+  return rms_of(m2, rows.compared.size() * static_cast<std::size_t>(rows.joints));
+}
+
+// The quarters of the compared rows, each fitted alone at the lag found; the excited ones' fits
+// give the spread quoted. Returns how many were excited.
+std::size_t fit_quarters(const Rows& rows, const std::vector<double>& grid,
+                         const std::vector<Sums>& sums, const Sums& instant, ServoFit& fit) {
+  const std::size_t n = rows.compared.size();
+  const int best_L = fit.lag_rows;
+  const std::size_t Li = static_cast<std::size_t>(best_L - 1);
+  std::vector<double> excited;
+  for (std::size_t q = 0; q < kQuarters; ++q) {
+    ServoQuarter quarter;
+    quarter.first_row = q * n / kQuarters;
+    quarter.rows = (q + 1) * n / kQuarters - quarter.first_row;
+    std::size_t bi = 0;
+    for (std::size_t i = 0; i < grid.size(); ++i)
+      if (sums[i].s[Li][q] < sums[bi].s[Li][q]) bi = i;
+    const double inst = instant.s[Li][q];
+    quarter.excited = inst > 0.0 && (inst - sums[bi].s[Li][q]) >= kMinGain * inst;
+    if (quarter.excited) {
+      quarter.hz = refine(rows, best_L, quarter.first_row, quarter.rows, grid[bi], fit.hz_max);
+      excited.push_back(quarter.hz);
+    }
+    fit.quarters.push_back(quarter);
+  }
+  if (!excited.empty()) {
+    fit.hz_lo = *std::min_element(excited.begin(), excited.end());
+    fit.hz_hi = *std::max_element(excited.begin(), excited.end());
+  }
+  if (excited.size() >= 2) {
+    double mean = 0.0, var = 0.0;
+    for (double v : excited) mean += v / static_cast<double>(excited.size());
+    for (double v : excited)
+      var += (v - mean) * (v - mean) / (static_cast<double>(excited.size()) - 1.0);
+    fit.hz_sigma = std::sqrt(var / static_cast<double>(excited.size()));
+  }
+
+  return excited.size();
+}
+
 }  // namespace
 
 ServoFit fit_servo(const std::vector<loop::CycleRecord>& records, const ServoFitOptions& options) {
@@ -268,91 +317,59 @@ ServoFit fit_servo(const std::vector<loop::CycleRecord>& records, const ServoFit
     }
   }
   fit.lag_rows = best_L;
-  {
-    double m2 = 0.0;
-    for (std::size_t k : rows.compared)
-      for (std::size_t j = 0; j < static_cast<std::size_t>(rows.joints); ++j) {
-        const double d = rows.q[k + ServoFit::kModelLag][j] - rows.q[k + ServoFit::kModelLag - 1][j];
-        m2 += d * d;
-      }
-    fit.motion_rms_rad = rms_of(m2, terms);
-  }
+  fit.motion_rms_rad = motion_rms(rows);
   fit.best = {fit.hz, rms_of(residual_sums(rows, model_steps(rows, fit.hz)).lag(best_L), terms)};
   fit.instant = {0.0, rms_of(instant.lag(best_L), terms)};
   if (options.configured_hz > 0.0) {
-    fit.configured = {options.configured_hz,
-                      rms_of(residual_sums(rows, model_steps(rows, options.configured_hz))
-                                 .lag(ServoFit::kModelLag),
-                             terms)};
+    fit.configured = {
+        options.configured_hz,
+        rms_of(
+            residual_sums(rows, model_steps(rows, options.configured_hz)).lag(ServoFit::kModelLag),
+            terms)};
   }
 
-  // The quarters, each fitted alone at the lag found.
-  const std::size_t Li = static_cast<std::size_t>(best_L - 1);
-  std::vector<double> excited;
-  for (std::size_t q = 0; q < kQuarters; ++q) {
-    ServoQuarter quarter;
-    quarter.first_row = q * n / kQuarters;
-    quarter.rows = (q + 1) * n / kQuarters - quarter.first_row;
-    std::size_t bi = 0;
-    for (std::size_t i = 0; i < grid.size(); ++i)
-      if (sums[i].s[Li][q] < sums[bi].s[Li][q]) bi = i;
-    const double inst = instant.s[Li][q];
-    quarter.excited = inst > 0.0 && (inst - sums[bi].s[Li][q]) >= kMinGain * inst;
-    if (quarter.excited) {
-      quarter.hz = refine(rows, best_L, quarter.first_row, quarter.rows, grid[bi], fit.hz_max);
-      excited.push_back(quarter.hz);
-    }
-    fit.quarters.push_back(quarter);
-  }
-  if (!excited.empty()) {
-    fit.hz_lo = *std::min_element(excited.begin(), excited.end());
-    fit.hz_hi = *std::max_element(excited.begin(), excited.end());
-  }
-  if (excited.size() >= 2) {
-    double mean = 0.0, var = 0.0;
-    for (double v : excited) mean += v / static_cast<double>(excited.size());
-    for (double v : excited)
-      var += (v - mean) * (v - mean) / (static_cast<double>(excited.size()) - 1.0);
-    fit.hz_sigma = std::sqrt(var / static_cast<double>(excited.size()));
-  }
+  const std::size_t excited = fit_quarters(rows, grid, sums, instant, fit);
 
-  const double gain = (fit.instant.rms_rad * fit.instant.rms_rad -
-                       fit.best.rms_rad * fit.best.rms_rad) /
-                      (fit.instant.rms_rad * fit.instant.rms_rad);
+  const double gain =
+      (fit.instant.rms_rad * fit.instant.rms_rad - fit.best.rms_rad * fit.best.rms_rad) /
+      (fit.instant.rms_rad * fit.instant.rms_rad);
   if (!(gain >= kMinGain)) {
-    fit.note = "cannot tell: an instant servo explains the joints' steps about as well (the "
-               "bandwidth lowers their residual by " +
-               std::to_string(static_cast<int>(std::lround(100 * gain))) +
-               " %): the commanded rate hardly changed; record pushes that start and stop the "
-               "part";
+    fit.note =
+        "cannot tell: an instant servo explains the joints' steps about as well (the "
+        "bandwidth lowers their residual by " +
+        std::to_string(static_cast<int>(std::lround(100 * gain))) +
+        " %): the commanded rate hardly changed; record pushes that start and stop the "
+        "part";
   } else if (fit.hz < 1.05 * kMinHz) {
     fit.note = "cannot tell: the joints hardly followed the corrections (a servo slower than " +
                hz_text(kMinHz) +
                " Hz fits best): was the controller stopped, or the corrections not applied?";
   } else if (fit.best.rms_rad > kMaxUnexplained * fit.motion_rms_rad) {
-    fit.note = "cannot tell: the servo model leaves " +
-               std::to_string(static_cast<int>(std::lround(100 * fit.best.rms_rad /
-                                                           fit.motion_rms_rad))) +
-               " % of the joints' motion unexplained, so the robot does not move as one "
-               "critically damped servo; leave servo_hz off";
+    fit.note =
+        "cannot tell: the servo model leaves " +
+        std::to_string(static_cast<int>(std::lround(100 * fit.best.rms_rad / fit.motion_rms_rad))) +
+        " % of the joints' motion unexplained, so the robot does not move as one "
+        "critically damped servo; leave servo_hz off";
   } else if (fit.hz > 0.95 * fit.hz_max) {
-    fit.note = "cannot tell: the servo is faster than half the cycle rate (" +
-               hz_text(fit.hz_max) + " Hz), which the rows cannot tell from an instant one";
+    fit.note = "cannot tell: the servo is faster than half the cycle rate (" + hz_text(fit.hz_max) +
+               " Hz), which the rows cannot tell from an instant one";
   } else if (best_L != ServoFit::kModelLag) {
     fit.note = "the joints follow a correction answered at row k from row k + " +
                std::to_string(best_L - 1) + " to k + " + std::to_string(best_L) +
                ", and zerog-rt's servo model assumes k + 1 to k + 2: leave servo_hz off (at "
-               "this lag the bandwidth would be " + hz_text(fit.hz) + " Hz)";
-  } else if (excited.size() >= 2 && fit.hz_hi > kMaxQuarterRatio * fit.hz_lo) {
+               "this lag the bandwidth would be " +
+               hz_text(fit.hz) + " Hz)";
+  } else if (excited >= 2 && fit.hz_hi > kMaxQuarterRatio * fit.hz_lo) {
     fit.note = "cannot tell: the quarters of the recording give " + hz_text(fit.hz_lo) + "–" +
                hz_text(fit.hz_hi) +
                " Hz, so the robot does not move as one critically damped servo; leave servo_hz "
                "off";
   } else {
     fit.known = true;
-    if (excited.size() < 2) {
-      fit.note = "only one quarter of the recording starts or stops the part: no spread to "
-                 "quote; record more pushes for an uncertainty";
+    if (excited < 2) {
+      fit.note =
+          "only one quarter of the recording starts or stops the part: no spread to "
+          "quote; record more pushes for an uncertainty";
     }
   }
   return fit;
@@ -376,16 +393,16 @@ std::string format_servo_fit(const ServoFit& f) {
   std::snprintf(b, sizeof b, " rad; L = %d%s\n", f.lag_rows,
                 f.lag_rows == ServoFit::kModelLag ? " (as zerog-rt's servo model assumes)" : "");
   out += b;
-  std::snprintf(b, sizeof b, "bandwidth: %.3g Hz", f.hz);
+  std::snprintf(b, sizeof b, "bandwidth: %.4g Hz", f.hz);
   out += b;
   if (std::isfinite(f.hz_sigma)) {
-    std::snprintf(b, sizeof b, " ± %.2g (quarters %.3g–%.3g Hz)", f.hz_sigma, f.hz_lo, f.hz_hi);
+    std::snprintf(b, sizeof b, " ± %.2g (quarters %.4g–%.4g Hz)", f.hz_sigma, f.hz_lo, f.hz_hi);
     out += b;
   }
   int excited = 0;
   for (const ServoQuarter& q : f.quarters) excited += q.excited ? 1 : 0;
-  std::snprintf(b, sizeof b, "; %d of %zu quarters excited; the rows tell up to %.3g Hz\n",
-                excited, f.quarters.size(), f.hz_max);
+  std::snprintf(b, sizeof b, "; %d of %zu quarters excited; the rows tell up to %.3g Hz\n", excited,
+                f.quarters.size(), f.hz_max);
   out += b;
   std::snprintf(b, sizeof b, "residual RMS: %.3g rad at the fit, %.3g rad with an instant servo",
                 f.best.rms_rad, f.instant.rms_rad);
@@ -426,11 +443,11 @@ nlohmann::json to_json(const ServoFit& f) {
           {"servo_hz_sigma", num(f.hz_sigma)},
           {"quarters_hz", {num(f.hz_lo), num(f.hz_hi)}},
           {"hz_max", f.hz_max},
-          {"rms_rad", {{"fit", f.best.rms_rad},
-                       {"instant", f.instant.rms_rad},
-                       {"configured", f.configured.hz > 0.0 ? num(f.configured.rms_rad)
-                                                            : nlohmann::json()},
-                       {"configured_hz", f.configured.hz}}},
+          {"rms_rad",
+           {{"fit", f.best.rms_rad},
+            {"instant", f.instant.rms_rad},
+            {"configured", f.configured.hz > 0.0 ? num(f.configured.rms_rad) : nlohmann::json()},
+            {"configured_hz", f.configured.hz}}},
           {"quarters", quarters}};
 }
 

@@ -36,8 +36,8 @@ std::vector<std::array<double, 6>> pushes(std::size_t rows, int starts, unsigned
     for (double& v : r) v = rate(rng);
     for (std::size_t k = a; k < b && k < rows; ++k) {
       // A half-sine speed profile: starts and stops smoothly, as a push on the part.
-      const double s = std::sin(std::numbers::pi * static_cast<double>(k - a) /
-                                static_cast<double>(b - a));
+      const double s =
+          std::sin(std::numbers::pi * static_cast<double>(k - a) / static_cast<double>(b - a));
       for (std::size_t j = 0; j < 6; ++j) dq[k][j] = r[j] * s * kCycle;
     }
   }
@@ -71,7 +71,8 @@ std::vector<loop::CycleRecord> record(const std::vector<std::array<double, 6>>& 
       r.reply.axes_rad[j] = dq[m][j];
       any = any || dq[m][j] != 0.0;
     }
-    r.reply.kind = any ? samples::RobotCorrection::Kind::axes : samples::RobotCorrection::Kind::none;
+    r.reply.kind =
+        any ? samples::RobotCorrection::Kind::axes : samples::RobotCorrection::Kind::none;
   }
   return out;
 }

@@ -62,8 +62,8 @@ struct ServoFit {
   double motion_rms_rad = 0.0;   ///< RMS of the measured joints' steps compared
   int lag_rows = 0;              ///< L of the best fit
   static constexpr int kModelLag = 2;
-  double hz = 0.0;  ///< the fit (NaN when nothing can be told)
-  double hz_sigma = 0.0;  ///< from the quarters' spread: their standard deviation / √n
+  double hz = 0.0;                  ///< the fit (NaN when nothing can be told)
+  double hz_sigma = 0.0;            ///< from the quarters' spread: their standard deviation / √n
   double hz_lo = 0.0, hz_hi = 0.0;  ///< the excited quarters' smallest and largest fit
   double hz_max = 0.0;              ///< half the cycle rate: what the rows can tell
   ServoCandidate best, instant, configured;
