@@ -139,12 +139,12 @@ def main():
 
         # tests/hil/figures.py's command line on the same set: --check agrees, writing leaves the
         # files as they are (its runs replaced by the blocks' own text).
-        hil_blocks = {n: bodies[n] for n in ("hil", "faults", "supervisor", "feel") if n in bodies}
+        spec = importlib.util.spec_from_file_location(
+            "hil_figures", os.path.join(HERE, "..", "hil", "figures.py"))
+        hil = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(hil)
+        hil_blocks = {n: bodies[n] for n in hil.BLOCKS if n in bodies}
         if hil_blocks:
-            spec = importlib.util.spec_from_file_location(
-                "hil_figures", os.path.join(HERE, "..", "hil", "figures.py"))
-            hil = importlib.util.module_from_spec(spec)
-            spec.loader.exec_module(hil)
             hil.load = lambda dirs: {}
             hil.markdown = lambda cases: dict(hil_blocks)
             for argv, what in ((["--check", "--readme", copy, "runs"], "--check"),

@@ -15,7 +15,8 @@ Blocks: hil (the motion cases: the figures of seed 11, the lowest seed in the ru
 range over all seeds), faults ("Fault injection": one row per fault of issue 6), supervisor
 (the PLC and telemetry run) and feel (per motion path, the contact noise against the F/T floor
 and the gate zerog gate advises: the smallest push that moves the part; issue 28) and servo
-(`zerog servo` on the elastic fused runs against the emulator's servo). A block is written only when the runs have every case it needs.
+(`zerog servo` on the elastic fused runs against the emulator's servo); feel-readme, the
+README's line of the feel block. A block is written only when the runs have every case it needs.
 
 --check compares exactly: a lockstep run depends on its seed only (tests/hil/determinism.sh).
 The cases with a peer on the wall clock (a `# plc =` scenario: the Modbus and DDS peers, the PLC
@@ -298,11 +299,34 @@ def servo_markdown(cases):
     return "\n".join(out)
 
 
+def feel_readme(cases):
+    """The README's line of the feel block: the smallest push that moves the part, per path."""
+    if not all(k in cases for k in ("drift", "drift_fused")):
+        return None
+    seeds = sorted(cases["drift"])
+
+    def gate(k, key, decimals):
+        return blocks.span([cases[k][s][key] for s in seeds], lambda x: f"{x:.{decimals}f}")
+
+    seed_list = f"{seeds[0]}–{seeds[-1]}" if len(seeds) > 2 else ", ".join(map(str, seeds))
+    return (f"The smallest push that moves the floating part (the gate `zerog gate` sets from the "
+            f"noise at rest; emulated rig, {mode_of(cases['drift'])}, seeds {seed_list}): "
+            f"{gate('drift', 'gate_force_N', 2)} N or {gate('drift', 'gate_torque_Nm', 3)} N·m "
+            f"with the IMU as it comes (the default), {gate('drift_fused', 'gate_force_N', 2)} N "
+            f"or {gate('drift_fused', 'gate_torque_Nm', 3)} N·m with the motion estimator "
+            f"(`[filter] motion = \"fused\"`, the rigid arm). Measure your cell's: ["
+            f"\"Setting the contact gate\"](docs/zerog-rt.md#setting-the-contact-gate).")
+
+
+# Every block this script writes (--check requires them all).
+BLOCKS = ("hil", "faults", "supervisor", "feel", "servo", "feel-readme")
+
+
 def markdown(cases):
     """{block: text} of the blocks these runs have every case for."""
     out = {"hil": motion_markdown(cases), "faults": fault_markdown(cases),
            "supervisor": supervisor_markdown(cases), "feel": feel_markdown(cases),
-           "servo": servo_markdown(cases)}
+           "servo": servo_markdown(cases), "feel-readme": feel_readme(cases)}
     return {k: v for k, v in out.items() if v is not None}
 
 
@@ -320,7 +344,7 @@ def main():
     if not texts:
         raise SystemExit(f"figures.py: no block has all its cases in {' '.join(a.dirs)}")
     if a.check:
-        missing = [b for b in ("hil", "faults", "supervisor", "feel", "servo") if b not in texts]
+        missing = [b for b in BLOCKS if b not in texts]
         if missing:
             print(f"figures.py: the runs lack cases of the block(s) {', '.join(missing)}")
             return 1
