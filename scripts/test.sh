@@ -13,7 +13,7 @@
 #      (labels ident_test, growing_fit_test, learn_test, robot_import_test, cli_test,
 #      discovery_test, diagnose_screening_test, insight_loop_test, events_test, uncertainty_test,
 #      table_diagnosis_test,
-#      results_test, recordings_test),
+#      results_test, recordings_test, servo_cli_test),
 #      the host CLI's end-to-end scripts (label host_cli: install, bag import, zerog watch), the
 #      pure Python tests (label python_only: nothing to instrument) and the other HIL motion
 #      seeds; the exclusions are in CMakePresets.json (test preset `asan`) and all run in stage 1;
