@@ -23,7 +23,9 @@
 //    model of the robot's servo fed with the corrections sent (note_command: the controller's
 //    own motion, not quantised) plus the measured q̈'s disagreement with it through the same
 //    stages, and by the load τ = Jᵀ w
-//    of the measured wrench low-passed at load_bandwidth_hz; the link then turns by J_ω δ and
+//    of the measured wrench low-passed at load_bandwidth_hz (0.5 Hz: the payload's inertia is
+//    part of each mode's effective inertia k/ω², so the wrench's ringing must not load the modes
+//    a second time; proto/loop.md, "The joints' load"); the link then turns by J_ω δ and
 //    moves with the extra J_ω δ̇, J_ω δ̈, J_v δ̈ (the Jacobian's rate terms neglected);
 // 3. the IMU below crossover_hz, compared with the robot at the IMU mean's instant: the
 //    difference y = IMU − robot (specific force, I axes) is the sum of two slowly wandering
@@ -104,7 +106,7 @@ struct MotionEstimatorConfig {
   /// its noise targets (proto/loop.md, "The elastic arm").
   MotionSource source = MotionSource::imu;
   double crossover_hz = 0.1;       ///< below it the IMU, above it the robot
-  double load_bandwidth_hz = 3.0;  ///< the measured wrench as the joints' load
+  double load_bandwidth_hz = 0.5;  ///< the measured wrench as the joints' load (header, 2)
   double excitation_hz = 2.0;      ///< the motor's acceleration that drives the modes
   /// The robot's position servo (robot::servo_accel: critically damped, this bandwidth), fed
   /// each cycle with the joint increment of the correction zerog-rt sent (note_command),
