@@ -474,7 +474,8 @@ int main(int argc, char** argv) {
                  "estimator_without_joints, estimator_one_row_late, estimator_ringing_unguarded, "
                  "estimator_settled_at_once: the motion estimator without the IMU's share, the "
                  "IMU alone, the estimate one row late, the ringing arm's step left out and the "
-                 "wrench's ringing in the joints' load, its first rows trusted; contact_lowpass_off: [limits] contact_lowpass_hz ignored)")
+                 "wrench's ringing in the joints' load, its first rows trusted; "
+                 "contact_lowpass_off: [limits] contact_lowpass_hz ignored)")
       ->check(CLI::IsMember({"gate_never_opens", "watchdog_doubled", "exit_at_start",
                              "estimator_without_imu", "estimator_without_joints",
                              "estimator_one_row_late", "estimator_ringing_unguarded",
