@@ -289,14 +289,22 @@ def mode_bands(run, t, r, floor, what):
 
 
 
+def tool_json(run, tool):
+    """The JSON `zerog TOOL --json` wrote beside the run (hil.sh ran it), or None after a failed
+    check saying it is not there."""
+    try:
+        with open(f"{run.dir}/{tool}.json") as f:
+            return json.load(f)
+    except (OSError, ValueError) as e:
+        check(False, f"zerog {tool} wrote {tool}.json ({e})")
+        return None
+
+
 def gate_checks(run):
     """`zerog gate` on this run's cycles.csv (hil.sh ran it): the thresholds it advises, replayed
     on the same untouched run, confirm no push."""
-    try:
-        with open(f"{run.dir}/gate.json") as f:
-            gate = json.load(f)
-    except (OSError, ValueError) as e:
-        check(False, f"zerog gate wrote gate.json ({e})")
+    gate = tool_json(run, "gate")
+    if gate is None:
         return
     check(gate.get("known") is True, f"zerog gate measured the noise at rest "
           f"({gate.get('cycles')} cycles{'' if gate.get('known') else ': ' + str(gate.get('note'))})")
@@ -315,11 +323,8 @@ def gate_checks(run):
 def servo_checks(run):
     """`zerog servo` on this run's cycles.csv (hil.sh ran it): the emulator's servo bandwidth and
     its tick (the joints move from row k + 1 to k + 2 after the reply at row k) are found."""
-    try:
-        with open(f"{run.dir}/servo.json") as f:
-            servo = json.load(f)
-    except (OSError, ValueError) as e:
-        check(False, f"zerog servo wrote servo.json ({e})")
+    servo = tool_json(run, "servo")
+    if servo is None:
         return
     truth = run.emu["robot"]["servo_bandwidth_hz"]
     check(servo.get("known") is True,
