@@ -309,7 +309,8 @@ void MotionEstimator::note_command(const samples::RobotCorrection& correction,
   Eigen::Matrix<double, robot::kMaxJoints, 1> dq;
   // From the measured joints, first order: from the controller's set point, tracked with
   // exact inverse kinematics (as `zerog servo` reconstructs it), the elastic glide and spin
-  // were the same (seeds 11-15: glide 2.15-3.03x force, spin 1.42-1.64x torque).
+  // were the same (seeds 11-15, the joints' load then at 3 Hz: glide 2.15-3.03x force, spin
+  // 1.42-1.64x torque).
   commanded_increment(robot_, sent, joints_rad, dq);
   servo_.advance(std::span<const double>(dq.data(), robot::kMaxJoints), robot_.joint_count, t_row_s,
                  cycle_s);
