@@ -36,6 +36,12 @@ struct Rows {
   double cycle_s = 0.0;
 };
 
+// The measured step of joint u into row k + L (the row a reply at row k moves it into, for L = 2).
+double measured_step(const Rows& rows, std::size_t k, int L, std::size_t u) {
+  const std::size_t a = k + static_cast<std::size_t>(L);
+  return rows.q[a][u] - rows.q[a - 1][u];
+}
+
 bool breaks_run(const loop::CycleRecord& r) {
   return (r.flags & (loop::kIpocGap | loop::kIpocStale | loop::kRobotLost)) != 0;
 }
@@ -58,6 +64,10 @@ Rows make_rows(const std::vector<loop::CycleRecord>& records, const ServoFitOpti
   if (options.robot) rows.joints = std::min(options.robot->joint_count, 6);
   std::size_t start = 0;
   std::array<double, 6> set_point{};
+  // Without the rig's robot only AKorr can be taken (RKorr is refused below): six joints, no
+  // kinematics.
+  robot::RobotModel axes_only;
+  axes_only.joint_count = 6;
   for (std::size_t i = 0; i < records.size(); ++i) {
     const loop::CycleRecord& r = records[i];
     // A row more than 1.5 cycles after the last (or a lost, stale datagram) starts a new run.
@@ -78,14 +88,9 @@ Rows make_rows(const std::vector<loop::CycleRecord>& records, const ServoFitOpti
     // measured here).
     if (new_run) set_point = r.joints_rad;
     Eigen::Matrix<double, robot::kMaxJoints, 1> dq;
-    if (options.robot) {
-      loop::commanded_increment(*options.robot, r.reply, set_point, dq, kNewtonSteps);
-      for (int j = 0; j < 6; ++j) set_point[static_cast<std::size_t>(j)] += dq[j];
-    } else {
-      dq.setZero();
-      if (r.reply.kind == samples::RobotCorrection::Kind::axes)
-        for (int j = 0; j < 6; ++j) dq[j] = r.reply.axes_rad[static_cast<std::size_t>(j)];
-    }
+    loop::commanded_increment(options.robot ? *options.robot : axes_only, r.reply, set_point, dq,
+                              kNewtonSteps);
+    for (int j = 0; j < 6; ++j) set_point[static_cast<std::size_t>(j)] += dq[j];
     std::array<double, robot::kMaxJoints> q{}, d{};
     for (int j = 0; j < rows.joints; ++j) {
       q[static_cast<std::size_t>(j)] = r.joints_rad[static_cast<std::size_t>(j)];
@@ -158,9 +163,8 @@ Sums residual_sums(const Rows& rows, const std::vector<std::array<double, robot:
       double e2 = 0.0;
       for (int j = 0; j < rows.joints; ++j) {
         const std::size_t u = static_cast<std::size_t>(j);
-        const double measured = rows.q[k + static_cast<std::size_t>(L)][u] -
-                                rows.q[k + static_cast<std::size_t>(L) - 1][u];
-        e2 += (measured - m[k][u]) * (measured - m[k][u]);
+        const double e = measured_step(rows, k, L, u) - m[k][u];
+        e2 += e * e;
       }
       sums.s[static_cast<std::size_t>(L - 1)][quarter_of(i, n)] += e2;
     }
@@ -179,9 +183,8 @@ struct StepResiduals {
       const std::size_t k = rows->compared[first + i];
       for (int j = 0; j < rows->joints; ++j) {
         const std::size_t u = static_cast<std::size_t>(j);
-        const std::size_t a = k + static_cast<std::size_t>(lag);
         out[i * static_cast<std::size_t>(rows->joints) + u] =
-            (rows->q[a][u] - rows->q[a - 1][u]) - m[k][u];
+            measured_step(*rows, k, lag, u) - m[k][u];
       }
     }
     return true;
@@ -222,7 +225,7 @@ double motion_rms(const Rows& rows) {
   double m2 = 0.0;
   for (std::size_t k : rows.compared)
     for (std::size_t j = 0; j < static_cast<std::size_t>(rows.joints); ++j) {
-      const double d = rows.q[k + ServoFit::kModelLag][j] - rows.q[k + ServoFit::kModelLag - 1][j];
+      const double d = measured_step(rows, k, ServoFit::kModelLag, j);
       m2 += d * d;
     }
   return rms_of(m2, rows.compared.size() * static_cast<std::size_t>(rows.joints));
@@ -318,7 +321,7 @@ ServoFit fit_servo(const std::vector<loop::CycleRecord>& records, const ServoFit
   }
   fit.lag_rows = best_L;
   fit.motion_rms_rad = motion_rms(rows);
-  fit.best = {fit.hz, rms_of(residual_sums(rows, model_steps(rows, fit.hz)).lag(best_L), terms)};
+  fit.best = {fit.hz, rms_of(best_sum, terms)};
   fit.instant = {0.0, rms_of(instant.lag(best_L), terms)};
   if (options.configured_hz > 0.0) {
     fit.configured = {
