@@ -235,6 +235,15 @@ def supervisor_markdown(cases):
     return text
 
 
+def seeds_text(seeds):
+    return f"{seeds[0]}–{seeds[-1]}" if len(seeds) > 2 else ", ".join(map(str, seeds))
+
+
+def gate_span(cases, k, key, seeds, decimals):
+    """The range over the seeds of the gate `zerog gate` advised (gate_force_N, …) in case k."""
+    return blocks.span([cases[k][s][key] for s in seeds], lambda x: f"{x:.{decimals}f}")
+
+
 def feel_markdown(cases):
     """The feel block (issue 28): per motion path, the contact wrench's noise against the F/T-only
     floor of the cycle at rest (drift) and while the part turns (spin), and the gate `zerog gate`
@@ -253,11 +262,9 @@ def feel_markdown(cases):
         return blocks.span([cases[k][s][key][i] for s in seeds], lambda x: f"{x:.2f}") + "×"
 
     def gate(k, key, unit, decimals):
-        return blocks.span([cases[k][s][key] for s in seeds],
-                           lambda x: f"{x:.{decimals}f}") + f" {unit}"
+        return gate_span(cases, k, key, seeds, decimals) + f" {unit}"
 
-    seed_list = f"{seeds[0]}–{seeds[-1]}" if len(seeds) > 2 else ", ".join(map(str, seeds))
-    out = [f"| motion path ({mode}, seeds {seed_list}) | contact noise at rest / F/T floor "
+    out = [f"| motion path ({mode}, seeds {seeds_text(seeds)}) | contact noise at rest / F/T floor "
            "(force, torque) | turning (spin) | smallest push that moves the part (`zerog gate`: "
            "force, torque) |", "|---|---|---|---|"]
     for name, suffix in paths:
@@ -306,11 +313,10 @@ def feel_readme(cases):
     seeds = sorted(cases["drift"])
 
     def gate(k, key, decimals):
-        return blocks.span([cases[k][s][key] for s in seeds], lambda x: f"{x:.{decimals}f}")
+        return gate_span(cases, k, key, seeds, decimals)
 
-    seed_list = f"{seeds[0]}–{seeds[-1]}" if len(seeds) > 2 else ", ".join(map(str, seeds))
     return (f"The smallest push that moves the floating part (the gate `zerog gate` sets from the "
-            f"noise at rest; emulated rig, {mode_of(cases['drift'])}, seeds {seed_list}): "
+            f"noise at rest; emulated rig, {mode_of(cases['drift'])}, seeds {seeds_text(seeds)}): "
             f"{gate('drift', 'gate_force_N', 2)} N or {gate('drift', 'gate_torque_Nm', 3)} N·m "
             f"with the IMU as it comes (the default), {gate('drift_fused', 'gate_force_N', 2)} N "
             f"or {gate('drift_fused', 'gate_torque_Nm', 3)} N·m with the motion estimator "
