@@ -281,7 +281,7 @@ print(" ".join(str(s.getsockname()[1]) for s in held))')
   esac
   # The servo model from this run's joints and corrections (docs/zerog-rt.md, "Identifying the
   # servo model"): check_hil.py compares it with the emulator's servo.
-  case "$c" in servo_*|glide_elastic*|spin_elastic*)
+  case "$c" in servo_*|glide_elastic_fused|spin_elastic_fused)
     "$zerog" servo "$w/rec/cycles.csv" --config "$w/zerog-rt.toml" --json >"$w/servo.json" \
       2>"$w/servo.err" || echo "hil.sh: $c: zerog servo found no servo (see servo.json)" >&2 ;;
   esac
