@@ -69,9 +69,15 @@ inline double deflection_accel(const JointElasticity& j, double delta_rad, doubl
 /// One elastic joint's deflection δ and its rate δ̇ carried over `span_s` seconds by
 /// semi-implicit Euler steps of at most `substep_s` (δ̇ += h δ̈, then δ += h δ̇), the motor's
 /// acceleration and the load taken linear between their values at the span's start (`qdd0`,
-/// `load0`) and end (`qdd1`, `load1`). Returns δ̈ at the end. The one integration of
-/// deflection_accel: the fused kinematics of `zerog import` (whole log) and the cycle's motion
-/// estimator (one row at a time) both call it. Real-time safe; a rigid joint stays at 0.
+/// `load0`) and end (`qdd1`, `load1`). Returns δ̈ of the last sub-step, the one that moved δ̇
+/// (as sim::ElasticArm's link acceleration): deflection_accel evaluated again after the last
+/// step would take δ a half step ahead of the inputs, and on a stiff mode that half step is
+/// large: a load turning at a steady rate makes δ̇ steady and δ̈ zero, but that evaluation
+/// gives ω² h δ̇ / 2 (A4 of the KR 210, 55 Hz, 1 ms, δ̇ 1e-4 rad/s: 6e-3 rad/s², measured as
+/// a steady angular acceleration of the estimate on the elastic glide: proto/loop.md, "The
+/// deflection's acceleration"). The one integration of deflection_accel: the fused kinematics
+/// of `zerog import` (whole log) and the cycle's motion estimator (one row at a time) both call
+/// it. Real-time safe; a rigid joint stays at 0.
 inline double advance_deflection(const JointElasticity& j, double& delta_rad,
                                  double& delta_dot_radps, double span_s, double substep_s,
                                  double qdd0_radps2, double qdd1_radps2, double load0_Nm,
@@ -79,15 +85,18 @@ inline double advance_deflection(const JointElasticity& j, double& delta_rad,
   if (j.rigid()) return 0.0;
   const int steps =
       span_s > 0.0 ? std::max(1, static_cast<int>(std::ceil(span_s / substep_s - 1e-9))) : 0;
-  const double h = steps > 0 ? span_s / steps : 0.0;
+  if (steps == 0) return deflection_accel(j, delta_rad, delta_dot_radps, qdd1_radps2, load1_Nm);
+  const double h = span_s / steps;
+  double accel = 0.0;
   for (int m = 1; m <= steps; ++m) {
     const double along = (m - 0.5) / steps;  // inputs linear between the two ends
     const double qdd = qdd0_radps2 + along * (qdd1_radps2 - qdd0_radps2);
     const double load = load0_Nm + along * (load1_Nm - load0_Nm);
-    delta_dot_radps += h * deflection_accel(j, delta_rad, delta_dot_radps, qdd, load);
+    accel = deflection_accel(j, delta_rad, delta_dot_radps, qdd, load);
+    delta_dot_radps += h * accel;
     delta_rad += h * delta_dot_radps;
   }
-  return deflection_accel(j, delta_rad, delta_dot_radps, qdd1_radps2, load1_Nm);
+  return accel;
 }
 
 /// A rigid transform: the pose of a child frame in a parent frame.
