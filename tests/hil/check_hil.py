@@ -190,7 +190,8 @@ def contact_noise(run, t0, t1, what, hold_elastic=False):
     white noise, from its second differences over the same cycles (1.4826 median|d| / √6, as
     zerog compare's; host/ident/include/zerog/ident/ft_floor.hpp). A figure for the IMU's path;
     a check for the motion estimator's (every axis within FUSED_REST_LIMIT at rest,
-    FUSED_MOVING_LIMIT moving)."""
+    FUSED_MOVING_LIMIT moving). On the elastic arm only where hold_elastic says: True, every
+    axis as on the rigid one; "pooled", the force and the torque pooled over their three axes."""
     c = run.cycles
     t = np.array([run.ipoc_to_t(i) for i in c["ipoc"]])
     sel = (c["state"] == "zero_g") & (t >= t0) & (t <= t1)
@@ -216,6 +217,14 @@ def contact_noise(run, t0, t1, what, hold_elastic=False):
     if FUSED["on"] and FUSED["elastic"] and not hold_elastic:
         print(f"  (elastic arm: the motion estimator's noise limits are not held here)")
         mode_bands(run, t[sel], r, floor, what)
+    elif FUSED["on"] and FUSED["elastic"] and hold_elastic == "pooled":
+        mode_bands(run, t[sel], r, floor, what)
+        limit = FUSED_REST_LIMIT if what == "at_rest" else FUSED_MOVING_LIMIT
+        worst = int(np.argmax(rms / floor))
+        check(force_ratio <= limit and torque_ratio <= limit,
+              f"motion estimator: contact noise {what.replace('_', ' ')} within {limit}x the F/T "
+              f"floor, force and torque pooled (worst axis {AXES[worst]} "
+              f"{rms[worst] / floor[worst]:.2f}x, not held)")
     elif FUSED["on"]:
         if FUSED["elastic"]:
             mode_bands(run, t[sel], r, floor, what)
@@ -556,7 +565,10 @@ def case_glide(run):
           f"{np.linalg.norm(v_expected):.3f} m/s, largest deviation {100 * err:.2f} %")
     check(bool(np.all(speed > 0.45)), "the part glides at 0.5 m/s (over 0.45 m/s throughout)")
     check(err < 0.02, f"and keeps J/m within 2 % ({100 * err:.2f} %)")
-    contact_noise(run, t0, t1, "moving")
+    # On the elastic arm pooled since the deflection's acceleration lost its half-step bias
+    # (proto/loop.md, "The deflection's acceleration": 1.20-1.86x torque, worst axis 1.41-2.20x on
+    # seeds 11-15).
+    contact_noise(run, t0, t1, "moving", hold_elastic="pooled")
 
 
 def free_window(run):
@@ -583,7 +595,8 @@ def case_spin(run):
           f"ω direction wandered {wander:.1f}°")
     check(turn > 1.0, f"the part really turned ({turn:.2f} rad)")
     # Held on the elastic arm too since the joints' load left the ringing out (proto/loop.md,
-    # "The joints' load": worst axis 1.36-1.79x on seeds 11-15).
+    # "The joints' load"; worst axis 1.24-1.57x on seeds 11-15 since "The deflection's
+    # acceleration").
     contact_noise(run, t0, t0 + 10.0, "moving", hold_elastic=True)
     limit = 0.005 if run.lockstep else 0.02
     check(dev < limit, f"angular momentum (world) kept within {100 * dev:.3f} % over 10 s "
