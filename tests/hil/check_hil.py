@@ -214,25 +214,24 @@ def contact_noise(run, t0, t1, what, hold_elastic=False):
     print(f"  F/T-only floor per cycle (second differences of the measured wrench): " +
           ", ".join(f"{a} {v:.3f}" for a, v in zip(AXES, floor)))
     print(f"  contact noise against the floor: {force_ratio:.2f}x (force), {torque_ratio:.2f}x (torque)")
-    if FUSED["on"] and FUSED["elastic"] and not hold_elastic:
+    if not FUSED["on"]:
+        return
+    held = hold_elastic if FUSED["elastic"] else True
+    if not held:
         print(f"  (elastic arm: the motion estimator's noise limits are not held here)")
+    if FUSED["elastic"]:
         mode_bands(run, t[sel], r, floor, what)
-    elif FUSED["on"] and FUSED["elastic"] and hold_elastic == "pooled":
-        mode_bands(run, t[sel], r, floor, what)
-        limit = FUSED_REST_LIMIT if what == "at_rest" else FUSED_MOVING_LIMIT
-        worst = int(np.argmax(rms / floor))
+    if not held:
+        return
+    limit = FUSED_REST_LIMIT if what == "at_rest" else FUSED_MOVING_LIMIT
+    worst = int(np.argmax(rms / floor))
+    ratio = f"{AXES[worst]} {rms[worst] / floor[worst]:.2f}x"
+    within = f"motion estimator: contact noise {what.replace('_', ' ')} within {limit}x the F/T floor"
+    if held == "pooled":
         check(force_ratio <= limit and torque_ratio <= limit,
-              f"motion estimator: contact noise {what.replace('_', ' ')} within {limit}x the F/T "
-              f"floor, force and torque pooled (worst axis {AXES[worst]} "
-              f"{rms[worst] / floor[worst]:.2f}x, not held)")
-    elif FUSED["on"]:
-        if FUSED["elastic"]:
-            mode_bands(run, t[sel], r, floor, what)
-        limit = FUSED_REST_LIMIT if what == "at_rest" else FUSED_MOVING_LIMIT
-        worst = int(np.argmax(rms / floor))
-        check(bool(np.all(rms <= limit * floor)),
-              f"motion estimator: contact noise {what.replace('_', ' ')} within {limit}x the F/T "
-              f"floor on every axis (worst {AXES[worst]} {rms[worst] / floor[worst]:.2f}x)")
+              f"{within}, force and torque pooled (worst axis {ratio}, not held)")
+    else:
+        check(bool(np.all(rms <= limit * floor)), f"{within} on every axis (worst {ratio})")
 
 
 # The half-width of the band around each joint's mode (mode_band_rows).
