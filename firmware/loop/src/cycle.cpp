@@ -67,6 +67,8 @@ Status check_config(const CycleConfig& c) {
     return Status::invalid("period_s", "must be a positive number of seconds");
   if (!positive_finite(c.ipoc_unit_s))
     return Status::invalid("ipoc_unit_s", "must be a positive number of seconds");
+  if (!(c.tare_s >= 0.0 && c.tare_s <= 60.0))
+    return Status::invalid("tare_s", "must be 0 (off) to 60 s");
   if (c.angular_accel_order != 2 && c.angular_accel_order != 4)
     return Status::invalid("angular_accel_order",
                            "must be 2 or 4, is " + std::to_string(c.angular_accel_order));
@@ -372,10 +374,13 @@ void Cycle::run(const samples::RobotSample& m) noexcept {
       stages::assemble_row(config_, m, timing, data_.window, data_.rows, counters_);
   raise_all(stages::watch_robot_and_sensors(config_.watchdog, state_before, timing, row.sensors,
                                             data_.rows, data_.watchdogs));
-  const stages::ModelResult model =
+  stages::ModelResult model =
       stages::evaluate_model(config_, inference_, use_network_, data_.rows, data_.model, counters_);
   raise_all(stages::watch_model(config_.watchdog, model, data_.watchdogs));
   const stages::PendingCommand command = take_command();
+  stages::tare_contact(config_, sm_.state(),
+                       command.present && command.command == Command::enable_zero_g, timing, model,
+                       data_.tare);
   const stages::Row& now = data_.rows.newest();
   const stages::MotionResult motion = stages::run_motion(config_,
                                                          {.path = path_,

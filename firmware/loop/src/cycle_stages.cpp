@@ -351,6 +351,53 @@ ModelResult evaluate_model(const CycleConfig& config, infer::Inference& inferenc
           .contact = contact};
 }
 
+void tare_contact(const CycleConfig& config, State state, bool enabling, const Timing& timing,
+                  ModelResult& model, TareData& tare) noexcept {
+  if (config.tare_s <= 0.0) return;
+  if (state != State::zero_g) {
+    tare = TareData{};
+    // The row that enters zero-g steps the body too: no push confirmed on it either.
+    if (enabling) model.flags |= kContactTaring;
+    return;
+  }
+  // A held row's contact is zero (evaluate_model): the body coasts, with or without a tare.
+  const bool measured = model.written && (model.flags & kContactHeld) == 0;
+  if (tare.taken) {
+    if (measured) {
+      for (int k = 0; k < 6; ++k) model.contact[k] -= tare.offset[k];
+    }
+    return;
+  }
+  model.flags |= kContactTaring;
+  if (!measured || (model.flags & kEstimatorSettling) != 0) return;
+  // What the contact gate would count this row (ZeroGMotion::step's judgement, unconfirmed).
+  const control::MotionLimits& limits = config.limits;
+  const Eigen::Vector3d F(model.contact[0], model.contact[1], model.contact[2]);
+  const Eigen::Vector3d M(model.contact[3], model.contact[4], model.contact[5]);
+  const Eigen::Vector3d M_com =
+      control::torque_about(M, F, Eigen::Vector3d::Zero(), config.p_sensor_com_m);
+  const Eigen::Vector3d M_judged = control::torque_gate_input(M, M_com, F, limits.force_deadband_N);
+  const bool over =
+      F.norm() > limits.force_deadband_N || M_judged.norm() > limits.torque_deadband_Nm;
+  // A row the gate would count is no part of the zero; a push the gate would confirm starts
+  // the tare again once it has let go (a hand on the part).
+  if (over && !config.mutant_tare_unguarded) {
+    if (++tare.over_run >= limits.contact_confirm_cycles) tare = TareData{};
+    return;
+  }
+  tare.over_run = 0;
+  for (int k = 0; k < 6; ++k) tare.sum[k] += model.contact[k];
+  ++tare.rows;
+  tare.t_s += timing.dt_s;
+  if (tare.t_s + 0.5 * timing.dt_s < config.tare_s) return;
+  tare.taken = true;
+  for (int k = 0; k < 6; ++k) {
+    tare.offset[k] = tare.sum[k] / tare.rows;
+    model.contact[k] -= tare.offset[k];
+  }
+  model.flags &= ~static_cast<std::uint32_t>(kContactTaring);
+}
+
 FaultRequests watch_model(const WatchdogConfig& config, const ModelResult& model,
                           WatchdogData& runs) noexcept {
   FaultRequests out;
@@ -412,8 +459,8 @@ MotionResult run_motion(const CycleConfig& config, const MotionInputs& in,
       const Eigen::Vector3d F(in.model.contact[0], in.model.contact[1], in.model.contact[2]);
       const Eigen::Vector3d M(in.model.contact[3], in.model.contact[4], in.model.contact[5]);
       control::PoseCorrection c;
-      out.limit_flags =
-          motion.step(F, M, in.timing.dt_s, c, (in.model.flags & kEstimatorSettling) == 0);
+      out.limit_flags = motion.step(F, M, in.timing.dt_s, c,
+                                    (in.model.flags & (kEstimatorSettling | kContactTaring)) == 0);
       if ((out.limit_flags & (control::kForceOverLimit | control::kTorqueOverLimit)) != 0) {
         out.fault = Fault::contact_over_limit;
         break;

@@ -109,7 +109,7 @@ const std::vector<std::string_view> kWatchdogKeys{"ft_fault_cycles", "imu_fault_
 const std::vector<std::string_view> kFilterKeys{
     "angular_accel_order", "motion",         "crossover_hz", "load_bandwidth_hz",
     "excitation_hz",       "ft_delay_s",     "imu_delay_s",  "ringing_radps",
-    "mode_gain",           "ringing_hold_s", "servo_hz"};
+    "mode_gain",           "ringing_hold_s", "servo_hz",     "tare_s"};
 const std::vector<std::string_view> kCollectionKeys{"speed_fraction", "dwell_s",
                                                     "max_axis_step_rad", "approach_speed_radps",
                                                     "approach_accel_radps2"};
@@ -342,6 +342,7 @@ void read_filter(const TomlTable& file, RtConfig& c) {
       filter.optional_number("ringing_hold_s", m.ringing_hold_s, {0.0, false, 3600.0, false});
   m.ft_delay_s = filter.optional_number("ft_delay_s", m.ft_delay_s, {0.0, false, 0.1, false});
   m.imu_delay_s = filter.optional_number("imu_delay_s", m.imu_delay_s, {0.0, false, 0.1, false});
+  c.tare_s = filter.optional_number("tare_s", c.tare_s, {0.0, false, 60.0, false});
 }
 
 // [realtime]: memory locking, the cycle thread's priority and CPU.
@@ -456,6 +457,7 @@ std::pair<std::string_view, std::string_view> file_key(std::string_view setting)
           {"period_s", {"robot", "cycle_ms"}},
           {"temperature_C", {"model", "temperature_C"}},
           {"angular_accel_order", {"filter", "angular_accel_order"}},
+          {"tare_s", {"filter", "tare_s"}},
           {"motion.crossover_hz", {"filter", "crossover_hz"}},
           {"motion.load_bandwidth_hz", {"filter", "load_bandwidth_hz"}},
           {"motion.excitation_hz", {"filter", "excitation_hz"}},
@@ -589,6 +591,7 @@ loop::CycleConfig cycle_config(const RtConfig& c) {
   out.motion = c.motion;
   out.motion.ft_rate_hz = c.ft.rate_hz;  // the rig's IMU rate: setup.cpp
   out.temperature_C = c.temperature_C;
+  out.tare_s = c.tare_s;
   out.watchdog = c.watchdog;
   out.body = c.body;
   out.limits = c.limits;

@@ -103,6 +103,8 @@ void apply_mutant(const std::string& name, loop::CycleConfig& cycle) {
     cycle.motion.mutant_settled_at_once = true;
   } else if (name == "contact_lowpass_off") {  // the gates' output drives the body directly
     cycle.limits.contact_lowpass_hz = 0.0;
+  } else if (name == "tare_unguarded") {  // a hand on the part while the tare is taken kept
+    cycle.mutant_tare_unguarded = true;
   }
 }
 
@@ -475,11 +477,12 @@ int main(int argc, char** argv) {
                  "estimator_settled_at_once: the motion estimator without the IMU's share, the "
                  "IMU alone, the estimate one row late, the ringing arm's step left out and the "
                  "wrench's ringing in the joints' load, its first rows trusted; "
-                 "contact_lowpass_off: [limits] contact_lowpass_hz ignored)")
-      ->check(CLI::IsMember({"gate_never_opens", "watchdog_doubled", "exit_at_start",
-                             "estimator_without_imu", "estimator_without_joints",
-                             "estimator_one_row_late", "estimator_ringing_unguarded",
-                             "estimator_settled_at_once", "contact_lowpass_off"}));
+                 "contact_lowpass_off: [limits] contact_lowpass_hz ignored; tare_unguarded: "
+                 "a push held while [filter] tare_s is taken becomes the contact's zero)")
+      ->check(CLI::IsMember(
+          {"gate_never_opens", "watchdog_doubled", "exit_at_start", "estimator_without_imu",
+           "estimator_without_joints", "estimator_one_row_late", "estimator_ringing_unguarded",
+           "estimator_settled_at_once", "contact_lowpass_off", "tare_unguarded"}));
   app.add_flag("--check-config", opt.check_config,
                "check the configuration, the model and the rig (and --collect's design), then "
                "exit 0 (all good) or 1");

@@ -418,17 +418,26 @@ TEST(Cycle, ProposalsFromAnotherThreadAreEachDecidedOnce) {
 
 TEST(Cycle, StepDoesNotAllocate) {
   Cycle c;
-  ASSERT_EQ(c.configure(test_cycle_config(), payload_model()).text(), "");
+  CycleConfig config = test_cycle_config();
+  config.tare_s = 0.3;  // the tare restarted by a hand, then taken, inside the guard
+  ASSERT_EQ(c.configure(config, payload_model()).text(), "");
   StaticRobot rig;
   start_zero_g(c, rig);
   AllocGuard guard("Cycle::step");
-  for (int i = 0; i < 200; ++i) rig.cycle(c, push(i < 50 ? 30.0 : 0.0, 5.0, 0.0));
+  for (int i = 0; i < 200; ++i) {
+    const bool pushed = i < 6 || (i >= 50 && i < 100);  // a hand while taring; then a push
+    rig.cycle(c, push(pushed ? 30.0 : 0.0, pushed ? 5.0 : 0.0, 0.0));
+  }
+  const std::uint32_t taring = c.last().flags & kContactTaring;
+  const double speed = c.motion().body().state().v_world_mps.norm();
   for (int i = 0; i < 10; ++i) rig.cycle(c, push(0, 0, 0), 0, 24);  // hold, then fault
   c.robot_lost(RobotLoss::timeout);
   guard.stop();
   EXPECT_EQ(guard.allocations(), 0u) << guard.first_call();
   EXPECT_EQ(guard.frees(), 0u) << guard.first_call();
   EXPECT_EQ(c.state_machine().fault(), Fault::ft_stale);
+  EXPECT_EQ(taring, 0u) << "the tare was taken";
+  EXPECT_GT(speed, 0.0) << "and the push moved the body";
 }
 
 // Issue 15 acceptance: the allocator-level guard passes on the real cycle (in abort mode, so the

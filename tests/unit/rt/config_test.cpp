@@ -119,6 +119,9 @@ TEST(RtConfig, DefaultsApplyToOptionalKeys) {
   EXPECT_EQ(c.realtime.cpu, -1);
   EXPECT_DOUBLE_EQ(c.limits.max_contact_force_N, control::MotionLimits{}.max_contact_force_N);
   EXPECT_EQ(c.watchdog.robot_fault_cycles, loop::WatchdogConfig{}.robot_fault_cycles);
+  EXPECT_EQ(c.tare_s, 0.0) << "no tare unless asked for";
+  EXPECT_EQ(cycle_config(parse_config(minimal + "[filter]\ntare_s = 1.5\n", "rt.toml")).tare_s,
+            1.5);
 }
 
 // The check of RIst against the rig's robot kinematics (issue 15): defaults 1 mm and 0.1°,
@@ -159,6 +162,8 @@ TEST(RtConfig, EachErrorNamesFileKeyPositionAndWhy) {
   // Out of range.
   expect_error(with_line(s, "cycle_ms = 12", "cycle_ms = 8"),
                {"robot.cycle_ms", line_of(s, "cycle_ms = 12"), 12, "must be 4 or 12"});
+  expect_error(with_line(s, "# tare_s = 1.5", "tare_s = 61"),
+               {"filter.tare_s", line_of(s, "# tare_s = 1.5"), 10, "must be in [0, 60], is 61"});
   expect_error(with_line(s, "rate_hz = 500.0", "rate_hz = -5.0"),
                {"ft.rate_hz", line_of(s, "rate_hz = 500.0"), 11, "must be in (0, 2000], is -5"});
   expect_error(
@@ -451,6 +456,7 @@ TEST(RtConfig, LoopChecksNameTheFileKeyAtItsPosition) {
 TEST(RtConfig, ConfigKeyIsTheFileKeyOfACycleConfigField) {
   EXPECT_EQ(config_key("period_s"), "robot.cycle_ms");
   EXPECT_EQ(config_key("angular_accel_order"), "filter.angular_accel_order");
+  EXPECT_EQ(config_key("tare_s"), "filter.tare_s");
   EXPECT_EQ(config_key("temperature_C"), "model.temperature_C");
   EXPECT_EQ(config_key("body.mass_kg"), "body.mass_kg");
   EXPECT_EQ(config_key("body.inertia_body_kgm2"), "body.inertia_kgm2");

@@ -84,6 +84,14 @@ struct CycleConfig {
   /// it never does. The sensor's reading wins: it is the temperature of the part that drifts.
   /// A reading the sensor reports stale (too old) is dropped: this value again, kTemperatureStale.
   double temperature_C = 25.0;
+  /// The contact's tare (proto/loop.md, "The tare"): each time zero-g is entered, the mean
+  /// contact wrench over the first tare_s seconds of trusted rows (after the motion estimator
+  /// has settled) is taken as the contact's zero and subtracted from then on; until it is taken
+  /// no push is confirmed (kContactTaring). A push held that long restarts it. 0: off.
+  double tare_s = 0.0;
+  /// TEST ONLY (zerog-rt --test-mutant tare_unguarded): a push held while the tare is taken
+  /// does not start it again, so the hand's force becomes the contact's zero.
+  bool mutant_tare_unguarded = false;
   WatchdogConfig watchdog;
   control::BodyParams body;      ///< the virtual body
   control::MotionLimits limits;  ///< deadbands, force limit, speed/accel/workspace limits
@@ -258,6 +266,16 @@ struct ModelData {
   MotionEstimate estimate;  ///< its last update
 };
 
+/// tare_contact(): the contact's zero in this spell of zero-g (CycleConfig::tare_s).
+struct TareData {
+  bool taken = false;              ///< the zero below is being subtracted
+  int rows = 0;                    ///< rows summed so far (while not taken)
+  double t_s = 0.0;                ///< their time (the rows' dt)
+  int over_run = 0;                ///< rows in a row the contact gate would have counted
+  std::array<double, 6> sum{};     ///< Σ contact over those rows, sensor frame, N / N·m
+  std::array<double, 6> offset{};  ///< the zero taken, sensor frame, N / N·m
+};
+
 /// run_motion() in collection mode: approach the path's start, then follow it.
 struct CollectionData {
   bool on_path = false;
@@ -348,6 +366,18 @@ FaultRequests watch_robot_and_sensors(const WatchdogConfig& config, State state,
 ModelResult evaluate_model(const CycleConfig& config, infer::Inference& inference, bool use_network,
                            RowData& rows, ModelData& model, CycleCounters& counters) noexcept;
 
+/// The contact's tare (CycleConfig::tare_s; proto/loop.md, "The tare"). Outside zero-g
+/// (`state`, the state before this cycle's command) it forgets its zero, and flags the row
+/// kContactTaring if this cycle's command is `enabling` zero-g (the body steps on that row).
+/// In zero-g, until the zero is taken, the row is flagged so and, when its contact is trusted
+/// (written, not held, the estimator settled), summed, unless the contact gate would count it
+/// (`limits`' thresholds, the torque as the gate judges it about `p_sensor_com_m`);
+/// contact_confirm_cycles such rows in a row start the sum again: a hand on the part is not its
+/// zero. After tare_s of rows the mean is the zero; from that row on it is subtracted from every
+/// written contact.
+void tare_contact(const CycleConfig& config, State state, bool enabling, const Timing& timing,
+                  ModelResult& model, TareData& tare) noexcept;
+
 /// The model watchdog: runs of cycles whose evaluation failed.
 FaultRequests watch_model(const WatchdogConfig& config, const ModelResult& model,
                           WatchdogData& runs) noexcept;
@@ -413,6 +443,7 @@ struct CycleData {
   stages::WatchdogData watchdogs;
   stages::ModelData model;
   stages::CollectionData collection;
+  stages::TareData tare;
 };
 
 class Cycle {

@@ -111,6 +111,7 @@ struct RtConfig {
   control::MotionLimits limits;                            ///< [limits]
   loop::WatchdogConfig watchdog;                           ///< [watchdog]
   int angular_accel_order = 4;                             ///< [filter]
+  double tare_s = 0.0;                                     ///< [filter] tare_s (0: off)
   loop::MotionEstimatorConfig
       motion;  ///< [filter] motion, crossover_hz, load_bandwidth_hz, excitation_hz
   RealtimeSection realtime;

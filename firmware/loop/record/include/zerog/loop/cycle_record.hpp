@@ -45,6 +45,9 @@ enum CycleFlags : std::uint32_t {
   /// motion = "fused" only): the contact wrench drives an open gate and is checked against the
   /// limits, but a closed contact gate does not open (ZeroGMotion::step's `may_confirm`).
   kEstimatorSettling = 1u << 16,
+  /// The contact's tare is being taken ([filter] tare_s; stages::tare_contact): the contact is
+  /// not yet zeroed, and a closed contact gate does not open, as with kEstimatorSettling.
+  kContactTaring = 1u << 17,
 };
 
 /// Everything one cycle did: the black box, the recorder and telemetry take it. Fixed size.
