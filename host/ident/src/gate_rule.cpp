@@ -309,8 +309,12 @@ GateAdvice gate_rule(const std::vector<loop::CycleRecord>& cycles, const GateRul
   for (std::size_t i = 0; i < cycles.size(); ++i) {
     const loop::CycleRecord& r = cycles[i];
     // At rest in zero-g: the virtual body has not moved (no push confirmed so far, none about
-    // to be), and the model's row was not a held sensor value.
-    if (r.state != loop::State::zero_g || (r.flags & loop::kContactHeld) != 0) continue;
+    // to be), the model's row was not a held sensor value, and zerog-rt's gate could open on
+    // it: not while the motion estimator settles or the contact's tare is taken (the gate
+    // stays closed there, and those rows carry the offsets the settled, tared ones do not).
+    constexpr std::uint32_t kGateClosed = loop::kEstimatorSettling | loop::kContactTaring;
+    if (r.state != loop::State::zero_g || (r.flags & (loop::kContactHeld | kGateClosed)) != 0)
+      continue;
     if (moves(r) || before_push[i]) continue;
     const Eigen::Vector3d F(r.contact[0], r.contact[1], r.contact[2]);
     const Eigen::Vector3d M(r.contact[3], r.contact[4], r.contact[5]);

@@ -212,6 +212,24 @@ TEST(GateRule, NoiseOnOneAxisStaysOut) {
   EXPECT_GE(pooled_confirms, 3u);
 }
 
+// zerog-rt's first zero-g rows while its motion estimator settles, and while the contact's tare
+// is taken, keep the gate closed and carry an offset (the estimator's first rows, the zero not
+// yet subtracted): they are no part of the noise the gate judges, and replaying the gate on
+// them would confirm pushes zerog-rt never could.
+TEST(GateRule, RowsWhereTheGateIsClosedAreLeftOut) {
+  std::vector<loop::CycleRecord> c = cycles(0.6, 0.06, 1, 20000, 15000);
+  for (std::size_t i = 10; i < 400; ++i) {
+    c[i].flags |= i < 200 ? loop::kEstimatorSettling : loop::kContactTaring;
+    c[i].contact[1] += 3.0;  // 5 sigma: the advised gate would confirm it
+  }
+  const GateAdvice a = gate_rule(c, GateRuleOptions{});
+  ASSERT_TRUE(a.known) << a.note;
+  EXPECT_EQ(a.cycles,
+            15003u - 400u - (static_cast<std::size_t>(GateRuleOptions{}.confirm_cycles) + 2u));
+  EXPECT_NEAR(a.force.sigma, 0.6, 0.6 * 0.02);
+  EXPECT_EQ(a.force.confirms_at_threshold, 0u);
+}
+
 TEST(GateRule, TooFewCyclesAtRestSaySo) {
   const GateAdvice a = gate_rule(cycles(0.6, 0.06, 1, 150, 100000), GateRuleOptions{});
   EXPECT_FALSE(a.known);
