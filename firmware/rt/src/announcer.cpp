@@ -41,6 +41,26 @@ SupervisorEvents StatusAnnouncer::update(const CycleStatus& s) {
       auto_gave_up_ = true;
     }
   }
+  // In zero-g, the rows on which no push is confirmed yet (the motion estimator settling, the
+  // contact's tare being taken: proto/loop.md): said when seen, and when they end. The
+  // statuses are sampled, so a short spell may pass unsaid, and the cycle is the status's.
+  if (s.state != loop::State::zero_g) {
+    untrusted_said_ = false;
+  } else if ((s.flags & (loop::kEstimatorSettling | loop::kContactTaring)) != 0) {
+    if (!untrusted_said_) {
+      const bool settling = (s.flags & loop::kEstimatorSettling) != 0;
+      const bool taring = (s.flags & loop::kContactTaring) != 0;
+      ev.out.push_back(std::string("zerog-rt: zero-g: hands off the part, no push is taken yet (") +
+                       (settling ? "the motion estimator settling" : "") +
+                       (settling && taring ? ", then " : "") +
+                       (taring ? "the contact's tare" : "") + ")");
+      untrusted_said_ = true;
+    }
+  } else if (untrusted_said_) {
+    ev.out.push_back("zerog-rt: zero-g: the part takes pushes from cycle " +
+                     std::to_string(s.cycle));
+    untrusted_said_ = false;
+  }
   if (s.commands_refused != refused_seen_) {
     refused_seen_ = s.commands_refused;
     ev.err.push_back(std::string("zerog-rt: command refused in state ") +

@@ -42,6 +42,38 @@ TEST(StatusAnnouncer, EnableZeroGIsAnnouncedOnceAtTheCycleOfItsTransition) {
   EXPECT_TRUE(ev.err.empty());
 }
 
+// In zero-g while no push is taken (the estimator settling, then the contact's tare): said
+// once when seen, and once when it ends; leaving zero-g starts over.
+TEST(StatusAnnouncer, HandsOffUntilThePartTakesPushes) {
+  StatusAnnouncer a(false, false);
+  CycleStatus s = status(10, loop::State::zero_g);
+  s.flags = loop::kEstimatorSettling | loop::kContactTaring;
+  SupervisorEvents ev = a.update(s);
+  ASSERT_EQ(ev.out.size(), 1u);
+  EXPECT_EQ(ev.out[0],
+            "zerog-rt: zero-g: hands off the part, no push is taken yet (the motion estimator "
+            "settling, then the contact's tare)");
+  s.cycle = 80;
+  s.flags = loop::kContactTaring;
+  EXPECT_TRUE(a.update(s).out.empty()) << "said once";
+  s.cycle = 210;
+  s.flags = 0;
+  ev = a.update(s);
+  ASSERT_EQ(ev.out.size(), 1u);
+  EXPECT_EQ(ev.out[0], "zerog-rt: zero-g: the part takes pushes from cycle 210");
+  EXPECT_TRUE(a.update(s).out.empty());
+  // Idle (the tare forgotten), zero-g again, straight into the tare.
+  EXPECT_TRUE(a.update(status(300, loop::State::idle)).out.empty());
+  s = status(302, loop::State::zero_g);
+  s.flags = loop::kContactTaring;
+  ev = a.update(s);
+  ASSERT_EQ(ev.out.size(), 1u);
+  EXPECT_NE(ev.out[0].find("(the contact's tare)"), std::string::npos) << ev.out[0];
+  // The IMU's path: nothing to wait for, nothing said.
+  StatusAnnouncer b(false, false);
+  EXPECT_TRUE(b.update(status(10, loop::State::zero_g)).out.empty());
+}
+
 TEST(StatusAnnouncer, CollectGivesUpOnAFaultAndCountsMissedTransitions) {
   StatusAnnouncer a(false, true);
   CycleStatus s = status(20, loop::State::fault);

@@ -157,6 +157,8 @@ class StatusAnnouncer {
   std::uint64_t collections_seen_ = 0;
   std::uint64_t refused_seen_ = 0;
   bool collection_finished_ = false;
+  /// In zero-g with the contact not yet trusted (kEstimatorSettling, kContactTaring): said.
+  bool untrusted_said_ = false;
 };
 
 /// One line of `--commands stdin` (proto/rt_config.md): `enable`, `stop`, `reset`, `collect`,
