@@ -167,11 +167,6 @@ def common_checks(run, expect_fault=False, push_after_trust=True):
     return t_en
 
 
-# loop::CycleFlags: the motion estimator settling, the contact's tare being taken ([filter]
-# tare_s): on those rows zerog-rt's contact gate does not open.
-K_ESTIMATOR_SETTLING, K_CONTACT_TARING = 1 << 16, 1 << 17
-
-
 def rest_from(run, t):
     """Where the noise at rest is measured from: t, or the row from which zerog-rt trusts the
     contact if later (trusted_check): before it no push can be confirmed, and the rows still
@@ -184,14 +179,14 @@ def trusted_check(run, t_en, push_after_trust=True):
     """When zerog-rt's contact became trusted (the estimator settled, the tare taken: the gate
     may open from that row on), printed; a push before it would be ignored, so the cases'
     first push must come after it (unless `push_after_trust` is False: case_hand)."""
-    c = run.cycles
-    t = np.array([run.ipoc_to_t(i) for i in c["ipoc"]])
-    closed = (c["flags"].astype(np.int64) & (K_ESTIMATOR_SETTLING | K_CONTACT_TARING)) != 0
-    ok = np.nonzero((c["state"] == "zero_g") & (t >= t_en) & ~closed)[0]
+    t = record_t(run)
+    taring = flagged(run, FLAG_CONTACT_TARING)
+    closed = flagged(run, FLAG_ESTIMATOR_SETTLING) | taring
+    ok = np.nonzero((run.cycles["state"] == "zero_g") & (t >= t_en) & ~closed)[0]
     t_ok = float(t[ok[0]]) if len(ok) else None
     run.t_trusted = t_ok
     figure("contact_trusted_s", t_ok)
-    taring = int(np.count_nonzero(closed & ((c["flags"].astype(np.int64) & K_CONTACT_TARING) != 0)))
+    taring = int(np.count_nonzero(taring))
     print(f"  the contact trusted from t = {t_ok if t_ok is not None else float('nan'):.3f} s "
           f"(zero-g at {t_en:.3f} s; {taring} rows taring)")
     pushes = run.emu.get("pushes", [])
@@ -863,6 +858,9 @@ def case_fault(run, name):
 
 FLAG_FT_HELD, FLAG_IMU_HELD, FLAG_IPOC_GAP, FLAG_IPOC_STALE, FLAG_DELAY_GREW = 1, 2, 16, 32, 64
 FLAG_TEMPERATURE_STALE = 32768  # loop::kTemperatureStale
+# loop::kEstimatorSettling, kContactTaring ([filter] tare_s): zerog-rt's contact gate does not
+# open on those rows.
+FLAG_ESTIMATOR_SETTLING, FLAG_CONTACT_TARING = 65536, 131072
 RKORR = ("rkorr_x_mm", "rkorr_y_mm", "rkorr_z_mm", "rkorr_a_deg", "rkorr_b_deg", "rkorr_c_deg")
 
 
