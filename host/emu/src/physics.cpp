@@ -64,9 +64,7 @@ PayloadPhysics::PayloadPhysics(sim::SimConfig config, std::vector<Push> pushes,
   rng_.seed(simulator_.config().seed * 0x9E3779B97F4A7C15ull + 0x656D75ull);  // "emu"
 }
 
-PhysicsSample PayloadPhysics::evaluate(const sim::JointState& js, const sim::JointState& js_imu,
-                                       double t_s) const {
-  std::array<sim::ExternalWrench, kMaxPushes> active;
+std::size_t PayloadPhysics::active_pushes(double t_s, ActivePushes& active) const {
   std::size_t n = 0;
   const Eigen::Vector3d& com = simulator_.config().payload.com_sensor_m;
   for (std::size_t k = 0; k < pushes_.size(); ++k) {
@@ -76,6 +74,14 @@ PhysicsSample PayloadPhysics::evaluate(const sim::JointState& js, const sim::Joi
                  f * pushes_[k].torque_world_Nm};
     ++n;
   }
+  return n;
+}
+
+PhysicsSample PayloadPhysics::evaluate(const sim::JointState& js, const sim::JointState& js_imu,
+                                       double t_s) const {
+  ActivePushes active;
+  const std::size_t n = active_pushes(t_s, active);
+  const Eigen::Vector3d& com = simulator_.config().payload.com_sensor_m;
   PhysicsSample out;
   out.truth =
       simulator_.measure(js, js_imu, t_s, std::span<const sim::ExternalWrench>(active.data(), n));
@@ -95,13 +101,15 @@ PhysicsSample PayloadPhysics::step(const sim::JointState& js) {
   const sim::SimConfig& c = simulator_.config();
   // The payload moves with the link side (sim/elastic.hpp); the servo's js is the motor side.
   sim::JointState link = js;
+  ActivePushes active;
+  const std::span<const sim::ExternalWrench> now(active.data(), active_pushes(t_s, active));
   if (arm_.enabled()) {
-    if (!settled_) {  // the static sag under the weight it changes
+    if (!settled_) {  // the static sag under the load it changes
       for (int pass = 0; pass < 3; ++pass) {
         sim::JointState sagged = js;
         for (std::size_t i = 0; i < 6; ++i) sagged.q_rad[i] += arm_.deflection_rad()[i];
-        load_ = sim::weight_load(sagged.q_rad, evaluate(sagged, sagged, t_s).truth.R_base_sensor,
-                                 c.p_flange_sensor_m, c.payload.com_sensor_m, c.payload.mass_kg);
+        load_ = sim::payload_load(sagged.q_rad, evaluate(sagged, sagged, t_s).truth.R_base_sensor,
+                                  c, now);
         arm_.settle(t_s, load_);
       }
       settled_ = true;
@@ -114,9 +122,7 @@ PhysicsSample PayloadPhysics::step(const sim::JointState& js) {
   const std::uint64_t back = steps_ >= delay_steps_ ? steps_ - delay_steps_ : 0;
   const sim::JointState& js_imu = history_[back % n];
   PhysicsSample s = evaluate(link, js_imu, t_s);
-  if (arm_.enabled())
-    load_ = sim::weight_load(link.q_rad, s.truth.R_base_sensor, c.p_flange_sensor_m,
-                             c.payload.com_sensor_m, c.payload.mass_kg);
+  if (arm_.enabled()) load_ = sim::payload_load(link.q_rad, s.truth.R_base_sensor, c, now);
   const sim::NoiseConfig& noise = c.noise;
   for (int i = 0; i < 6; ++i)
     s.wrench_sensor_noisy[i] += (i < 3 ? noise.force_N : noise.torque_Nm) * normal_(rng_);

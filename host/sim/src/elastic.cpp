@@ -86,10 +86,18 @@ JointState ElasticArm::step(const JointState& motor, double dt, const JointVecto
 JointVector weight_load(const JointVector& link_q_rad, const Eigen::Matrix3d& R_base_sensor,
                         const Eigen::Vector3d& p_flange_sensor_m,
                         const Eigen::Vector3d& com_sensor_m, double mass_kg) {
-  const robot::Pose f = robot::flange_pose(kr210(), link_q_rad);
-  const Eigen::Vector3d lever = f.R * p_flange_sensor_m + R_base_sensor * com_sensor_m;
   const Eigen::Vector3d force(0.0, 0.0, -model::kStandardGravity * mass_kg);
-  return joint_torques(link_q_rad, force, lever.cross(force));
+  return wrench_load(link_q_rad, R_base_sensor, p_flange_sensor_m, force, com_sensor_m,
+                     Eigen::Vector3d::Zero());
+}
+
+JointVector wrench_load(const JointVector& link_q_rad, const Eigen::Matrix3d& R_base_sensor,
+                        const Eigen::Vector3d& p_flange_sensor_m,
+                        const Eigen::Vector3d& force_base_N, const Eigen::Vector3d& point_sensor_m,
+                        const Eigen::Vector3d& torque_base_Nm) {
+  const robot::Pose f = robot::flange_pose(kr210(), link_q_rad);
+  const Eigen::Vector3d lever = f.R * p_flange_sensor_m + R_base_sensor * point_sensor_m;
+  return joint_torques(link_q_rad, force_base_N, lever.cross(force_base_N) + torque_base_Nm);
 }
 
 }  // namespace zerog::sim

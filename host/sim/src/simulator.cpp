@@ -757,12 +757,6 @@ void set_nominal_pose(formats::Sample& s, const JointVector& q, const SimConfig&
   if (s.q_base_sensor.w() < 0.0) s.q_base_sensor.coeffs() *= -1.0;
 }
 
-// The payload's weight on the joints (elastic.hpp), at the link angles of this measurement.
-JointVector payload_load(const JointVector& link_q_rad, const Measurement& m, const SimConfig& c) {
-  return weight_load(link_q_rad, m.R_base_sensor, c.p_flange_sensor_m, c.payload.com_sensor_m,
-                     c.payload.mass_kg);
-}
-
 // IMU bias instability per axis: b_k = a b_{k−1} + σ sqrt(1 − a²) ε, a = exp(−T/τ), started from
 // its stationary distribution (a random turn-on value of the same σ).
 struct ImuBias {
@@ -823,6 +817,20 @@ std::size_t active_pushes(const std::vector<Contact>& contacts, double t,
 
 }  // namespace
 
+JointVector payload_load(const JointVector& link_q_rad, const Eigen::Matrix3d& R_base_sensor,
+                         const SimConfig& c, std::span<const ExternalWrench> pushes) {
+  JointVector tau = weight_load(link_q_rad, R_base_sensor, c.p_flange_sensor_m,
+                                c.payload.com_sensor_m, c.payload.mass_kg);
+  for (const ExternalWrench& w : pushes) {
+    const JointVector push =
+        wrench_load(link_q_rad, R_base_sensor, c.p_flange_sensor_m,
+                    w.force_base_N + R_base_sensor * w.force_sensor_N, w.point_sensor_m,
+                    w.torque_base_Nm + R_base_sensor * w.torque_sensor_Nm);
+    for (std::size_t i = 0; i < tau.size(); ++i) tau[i] += push[i];
+  }
+  return tau;
+}
+
 SimOutput RigSimulator::run(const std::function<void(double)>& progress) const {
   const SimConfig& c = config_;
   double t_end = trajectory_.duration_s();
@@ -866,10 +874,14 @@ SimOutput RigSimulator::run(const std::function<void(double)>& progress) const {
   JointVector load{};
   if (c.elastic.enabled) {
     const JointState start = trajectory_.at(0.0);
+    std::array<ExternalWrench, 8> pushes;
+    const std::span<const ExternalWrench> at_start(pushes.data(),
+                                                   active_pushes(c.contacts, 0.0, pushes));
     for (int pass = 0; pass < 3; ++pass) {  // the static sag under the load it changes
       JointState link = start;
       for (std::size_t i = 0; i < 6; ++i) link.q_rad[i] += arm.deflection_rad()[i];
-      load = payload_load(link.q_rad, measure(link, 0.0), c);
+      load =
+          payload_load(link.q_rad, measure(link, link, 0.0, at_start).R_base_sensor, c, at_start);
       arm.settle(0.0, load);
     }
   }
@@ -898,9 +910,9 @@ SimOutput RigSimulator::run(const std::function<void(double)>& progress) const {
         js_imu.qd_radps[i] += js.qd_radps[i] - motor.qd_radps[i];
         js_imu.qdd_radps2[i] += js.qdd_radps2[i] - motor.qdd_radps2[i];
       }
-    const Measurement m =
-        measure(js, js_imu, t, std::span<const ExternalWrench>(pushes.data(), active));
-    if (c.elastic.enabled) load = payload_load(js.q_rad, m, c);
+    const std::span<const ExternalWrench> now(pushes.data(), active);
+    const Measurement m = measure(js, js_imu, t, now);
+    if (c.elastic.enabled) load = payload_load(js.q_rad, m.R_base_sensor, c, now);
     Vec6 w = m.wrench_sensor;
     out.stats.max_force_N = std::max(out.stats.max_force_N, w.head<3>().norm());
     out.stats.max_torque_Nm = std::max(out.stats.max_torque_Nm, w.tail<3>().norm());

@@ -239,6 +239,43 @@ TEST(Physics, TheElasticArmSagsAndRingsUnderTheServo) {
   EXPECT_LT(ringing, 1e-1);
 }
 
+// A person's push loads the elastic arm as the payload's weight does (sim::payload_load): held,
+// the link settles at (τ_weight + τ_push)/k, and the sensor with it. Without the push in the load
+// (the emulator before 2026-11-30) the sensor stays at the weight's sag, a tenth of a millimetre
+// from there for this 150 N push.
+TEST(Physics, APushLoadsTheElasticArmAsTheWeightDoes) {
+  sim::SimConfig c = quiet();
+  c.elastic = sim::kr210_elasticity();
+  Push push;
+  push.start_s = 0.1;
+  push.duration_s = 5.0;
+  push.profile = PushProfile::constant;
+  push.force_world_N = Eigen::Vector3d(60.0, 120.0, -60.0);
+  push.torque_world_Nm = Eigen::Vector3d(0.0, 0.0, 15.0);
+  push.point_sensor_m = Eigen::Vector3d(0.2, 0.0, 0.3);
+  PayloadPhysics pushed(c, {push}, 2000.0);
+  PayloadPhysics still(c, {}, 2000.0);
+  const sim::JointState rest = RobotEmulator().actual();
+  PhysicsSample a, b;
+  for (int k = 0; k <= 8000; ++k) {  // 4 s: 3.9 s into the push, the ringing damped (ζ 0.05)
+    a = pushed.step(rest);
+    b = still.step(rest);
+  }
+  // The static deflection under weight and push, at the deflected pose (two fixed-point passes).
+  sim::JointState link = rest;
+  for (int pass = 0; pass < 3; ++pass) {
+    const sim::Measurement m = still.simulator().measure(link, link, 4.0);
+    const sim::ExternalWrench w{push.force_world_N, *push.point_sensor_m, push.torque_world_Nm};
+    const sim::JointVector tau = sim::payload_load(link.q_rad, m.R_base_sensor, c, {&w, 1});
+    for (std::size_t i = 0; i < 6; ++i)
+      link.q_rad[i] = rest.q_rad[i] + tau[i] / c.elastic.joints[i].stiffness_Nm_per_rad;
+  }
+  const Eigen::Vector3d expected = still.simulator().measure(link, link, 4.0).p_base_sensor_m;
+  const double moved = (expected - b.truth.p_base_sensor_m).norm();  // the push's share
+  EXPECT_GT(moved, 5e-5);                                            // m
+  EXPECT_LT((a.truth.p_base_sensor_m - expected).norm(), 0.05 * moved);
+}
+
 TEST(Physics, FtNoiseHasTheConfiguredSigma) {
   sim::SimConfig c = quiet();
   c.noise.force_N = 0.25;

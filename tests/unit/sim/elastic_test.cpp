@@ -4,6 +4,7 @@
 // motor side, the clean log and the physics the link side).
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <fstream>
 #include <numbers>
@@ -38,6 +39,57 @@ TEST(ElasticJointTorques, AreTheVirtualWorkOfTheFlangeWrench) {
       const double work = F.dot(b.p_m - a.p_m) + M.dot(turn.angle() * turn.axis());
       EXPECT_NEAR(tau[i] * 2.0 * h, work, 1e-8 * std::abs(work) + 1e-10)
           << "joint " << i + 1 << ", trial " << trial;
+    }
+  }
+}
+
+// A wrench on the payload loads the joints by the virtual work of its point on the payload: for a
+// small joint step, τ·dq is F·dp + M·dθ of the point (on the flange, turned with it) where the
+// force acts; payload_load adds the weight and each push, given in B or in S.
+TEST(ElasticJointTorques, AWrenchOnThePayloadIsTheVirtualWorkOfItsPoint) {
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const Eigen::Vector3d p_flange_sensor(0.01, -0.02, 0.09);
+  const Eigen::Matrix3d R_flange_sensor =
+      Eigen::AngleAxisd(0.4, Eigen::Vector3d(0.2, -0.5, 1.0).normalized()).toRotationMatrix();
+  for (int trial = 0; trial < 10; ++trial) {
+    JointVector q = kr210_home();
+    for (double& v : q) v += 0.5 * u(rng);
+    const Eigen::Vector3d F(60 * u(rng), 60 * u(rng), 60 * u(rng));
+    const Eigen::Vector3d M(10 * u(rng), 10 * u(rng), 10 * u(rng));
+    const Eigen::Vector3d point(0.3 * u(rng), 0.3 * u(rng), 0.2 + 0.2 * u(rng));
+    const auto point_base = [&](const JointVector& at) {
+      const robot::Pose f = robot::flange_pose(kr210(), at);
+      return Eigen::Vector3d(f.p_m + f.R * (p_flange_sensor + R_flange_sensor * point));
+    };
+    const Eigen::Matrix3d R_base_sensor = robot::flange_pose(kr210(), q).R * R_flange_sensor;
+    const JointVector tau = wrench_load(q, R_base_sensor, p_flange_sensor, F, point, M);
+    for (std::size_t i = 0; i < 6; ++i) {
+      constexpr double h = 1e-5;
+      JointVector lo = q, hi = q;
+      lo[i] -= h;
+      hi[i] += h;
+      const robot::Pose a = robot::flange_pose(kr210(), lo), b = robot::flange_pose(kr210(), hi);
+      const Eigen::AngleAxisd turn(b.R * a.R.transpose());
+      const double work =
+          F.dot(point_base(hi) - point_base(lo)) + M.dot(turn.angle() * turn.axis());
+      EXPECT_NEAR(tau[i] * 2.0 * h, work, 1e-7 * std::abs(work) + 1e-10)
+          << "joint " << i + 1 << ", trial " << trial;
+    }
+    // The same push given in S, and the weight beside it.
+    SimConfig c = default_sim_config(1);
+    c.p_flange_sensor_m = p_flange_sensor;
+    ExternalWrench in_sensor;
+    in_sensor.point_sensor_m = point;
+    in_sensor.force_sensor_N = R_base_sensor.transpose() * F;
+    in_sensor.torque_sensor_Nm = R_base_sensor.transpose() * M;
+    const JointVector weight =
+        weight_load(q, R_base_sensor, p_flange_sensor, c.payload.com_sensor_m, c.payload.mass_kg);
+    const JointVector both = payload_load(q, R_base_sensor, c, {&in_sensor, 1});
+    const JointVector none = payload_load(q, R_base_sensor, c, {});
+    for (std::size_t i = 0; i < 6; ++i) {
+      EXPECT_NEAR(both[i], weight[i] + tau[i], 1e-9 * std::abs(weight[i]) + 1e-9) << i + 1;
+      EXPECT_EQ(none[i], weight[i]) << i + 1;
     }
   }
 }
@@ -193,6 +245,46 @@ TEST(RealRobot, LogsTheMotorSideAndMovesThePayloadWithTheLink) {
   EXPECT_TRUE(b.truth.extra.contains("elastic_robot"));
   EXPECT_TRUE(b.truth.extra["noise"].contains("imu_bias"));
   EXPECT_FALSE(a.truth.extra.contains("elastic_robot"));
+}
+
+// A contact on the payload (zerog sim --contact) loads the elastic arm as the weight does: the
+// link side of the run with a 150 N push held over it differs from the run without by the push's
+// own sag, τ_push/k at each row (quasi-static: the path and its ringing are the same in both).
+TEST(RealRobot, AContactLoadsTheArmAsTheWeightDoes) {
+  DesignOptions o;
+  o.kind = DesignKind::random;
+  o.points = 4;
+  o.seed = 3;
+  SimConfig plain = default_sim_config(5);
+  plain.duration_limit_s = 20.0;
+  make_real_robot(plain, false);
+  SimConfig pushed = plain;
+  Contact k;
+  k.start_s = 0.0;
+  k.duration_s = 30.0;
+  k.base_frame = true;
+  k.wrench << 60.0, 120.0, -60.0, 0.0, 0.0, 15.0;
+  pushed.contacts = {k};
+  const auto points = make_design(o).points_rad;
+  const RigSimulator sim(plain, points);
+  const SimOutput a = sim.run();
+  const SimOutput b = RigSimulator(pushed, points).run();
+  ASSERT_EQ(a.clean_log.samples.size(), b.clean_log.samples.size());
+  double worst = 0.0, largest = 0.0;
+  for (std::size_t r = 200; r < a.clean_log.samples.size(); r += 25) {  // from 2.4 s
+    const JointVector& q = b.clean_log.samples[r].joints_rad;
+    const Measurement m = sim.measure(sim.trajectory().at(a.clean_log.samples[r].t_s), 0.0);
+    const JointVector tau =
+        wrench_load(q, m.R_base_sensor, plain.p_flange_sensor_m, k.wrench.head<3>(),
+                    Eigen::Vector3d::Zero(), k.wrench.tail<3>());
+    for (std::size_t i = 0; i < 6; ++i) {
+      const double sag = tau[i] / plain.elastic.joints[i].stiffness_Nm_per_rad;
+      largest = std::max(largest, std::abs(sag));
+      worst = std::max(worst, std::abs(q[i] - a.clean_log.samples[r].joints_rad[i] - sag));
+    }
+  }
+  EXPECT_GT(largest, 1e-5);  // rad
+  EXPECT_LT(worst, 0.1 * largest);
 }
 
 }  // namespace

@@ -79,7 +79,8 @@ class PayloadPhysics {
 
   /// One physics step at t = step count / rate for the servo's (motor-side) joint state `js`:
   /// with SimConfig::elastic on, moves the link side by one step of the elastic arm
-  /// (sim/elastic.hpp, loaded by the payload's weight) and evaluates the payload on it; keeps the
+  /// (sim/elastic.hpp, loaded by the payload's weight and the pushes active, sim::payload_load)
+  /// and evaluates the payload on it; keeps the
   /// joint history the IMU time offset needs, evaluates, adds seeded F/T white noise
   /// (SimConfig::noise force_N, torque_Nm per sample) and integrates the pushes. Call once per
   /// step, in order. Does not allocate.
@@ -89,6 +90,10 @@ class PayloadPhysics {
   const std::vector<PushIntegral>& push_integrals() const { return integrals_; }
 
  private:
+  using ActivePushes = std::array<sim::ExternalWrench, kMaxPushes>;
+  /// The pushes active at t_s as external wrenches (at their point, or the centre of mass) into
+  /// `active`; returns how many.
+  std::size_t active_pushes(double t_s, ActivePushes& active) const;
   sim::RigSimulator simulator_;
   std::vector<Push> pushes_;
   double rate_hz_;
@@ -97,7 +102,7 @@ class PayloadPhysics {
   std::uint64_t steps_ = 0;
   std::vector<PushIntegral> integrals_;
   sim::ElasticArm arm_;      // the link side when SimConfig::elastic is on
-  sim::JointVector load_{};  // the payload's weight on the joints, of the last step
+  sim::JointVector load_{};  // the payload's weight and pushes on the joints, of the last step
   bool settled_ = false;     // the arm started at its static sag
   std::mt19937_64 rng_;
   std::normal_distribution<double> normal_{0.0, 1.0};

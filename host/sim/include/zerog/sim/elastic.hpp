@@ -55,6 +55,15 @@ JointVector weight_load(const JointVector& link_q_rad, const Eigen::Matrix3d& R_
                         const Eigen::Vector3d& p_flange_sensor_m,
                         const Eigen::Vector3d& com_sensor_m, double mass_kg);
 
+/// A wrench on the payload as a load on the joints: the force `force_base_N` (B) at
+/// `point_sensor_m` (S) and the torque `torque_base_Nm` (B), carried through the payload to the
+/// flange (a hand's push loads the arm as the weight does), through joint_torques at the link
+/// angles.
+JointVector wrench_load(const JointVector& link_q_rad, const Eigen::Matrix3d& R_base_sensor,
+                        const Eigen::Vector3d& p_flange_sensor_m,
+                        const Eigen::Vector3d& force_base_N, const Eigen::Vector3d& point_sensor_m,
+                        const Eigen::Vector3d& torque_base_Nm);
+
 class ElasticArm {
  public:
   explicit ElasticArm(const ElasticityConfig& config);

@@ -292,6 +292,13 @@ struct ExternalWrench {
   Eigen::Vector3d torque_sensor_Nm = Eigen::Vector3d::Zero();
 };
 
+/// The payload's load on the joints of an elastic arm (elastic.hpp) at the link angles
+/// `link_q_rad`, S turned R_base_sensor in B: its weight (weight_load) and the external wrenches on
+/// it now (wrench_load, their parts in B and in S): the arm carries a person's push as it carries
+/// the weight. Its inertia is not a load (weight_load).
+JointVector payload_load(const JointVector& link_q_rad, const Eigen::Matrix3d& R_base_sensor,
+                         const SimConfig& c, std::span<const ExternalWrench> pushes);
+
 /// What the sensors on the flange read for one joint state, noise-free, with every switched truth
 /// effect, and the kinematics they came from.
 struct Measurement {
