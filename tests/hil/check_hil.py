@@ -206,12 +206,15 @@ FUSED_MOVING_LIMIT = 2.0
 # On the elastic robot (CASE_elastic_fused) the estimator is held to stability (no fault, J/m
 # within FUSED_ELASTIC_JM); its noise where contact_noise's hold_elastic says: at rest per axis
 # over the drift's 10 s (with the contact's tare, from the row the contact is trusted) and the
-# ten quiet minutes, the glide pooled (proto/loop.md, "Motion estimator", "The tare").
+# ten quiet minutes, moving per axis over the spin and the glide (proto/loop.md, "Motion
+# estimator", "The tare", "The push loads the arm").
 FUSED_ELASTIC_JM = 0.02
 # The 1 N nudge on the elastic arm: the F/T noise over the open gate alone is 4.1 % of J in the
-# norm (proto/loop.md, "The 1 N push"); with the arm's offsets during the push 5-16 % measured
-# (seeds 11-15, contact_lowpass_hz 2), 20-48 % with the loop through the modes (lowpass off).
-NUDGE_ELASTIC_JM = 0.25
+# norm (proto/loop.md, "The 1 N push"); with the IMU share's slow wander in the contact and the
+# push's own load on the arm 5.5-25.0 % measured (seeds 11-20, contact_lowpass_hz 2; 4.5-21.6 %
+# on seeds 11-15 before the arm carried the push), 20-48 % with the loop through the modes
+# (lowpass off, which the check that the velocity stays catches: 73-97 %).
+NUDGE_ELASTIC_JM = 0.30
 FUSED = {"on": False, "elastic": False}
 
 
@@ -221,8 +224,8 @@ def contact_noise(run, t0, t1, what, hold_elastic=False):
     white noise, from its second differences over the same cycles (1.4826 median|d| / √6, as
     zerog compare's; host/ident/include/zerog/ident/ft_floor.hpp). A figure for the IMU's path;
     a check for the motion estimator's (every axis within FUSED_REST_LIMIT at rest,
-    FUSED_MOVING_LIMIT moving). On the elastic arm only where hold_elastic says: True, every
-    axis as on the rigid one; "pooled", the force and the torque pooled over their three axes."""
+    FUSED_MOVING_LIMIT moving). On the elastic arm only where hold_elastic is True (every axis,
+    as on the rigid one)."""
     c = run.cycles
     t = np.array([run.ipoc_to_t(i) for i in c["ipoc"]])
     sel = (c["state"] == "zero_g") & (t >= t0) & (t <= t1)
@@ -258,11 +261,7 @@ def contact_noise(run, t0, t1, what, hold_elastic=False):
     worst = int(np.argmax(rms / floor))
     ratio = f"{AXES[worst]} {rms[worst] / floor[worst]:.2f}x"
     within = f"motion estimator: contact noise {what.replace('_', ' ')} within {limit}x the F/T floor"
-    if held == "pooled":
-        check(force_ratio <= limit and torque_ratio <= limit,
-              f"{within}, force and torque pooled (worst axis {ratio}, not held)")
-    else:
-        check(bool(np.all(rms <= limit * floor)), f"{within} on every axis (worst {ratio})")
+    check(bool(np.all(rms <= limit * floor)), f"{within} on every axis (worst {ratio})")
 
 
 # The half-width of the band around each joint's mode (mode_band_rows).
@@ -622,10 +621,10 @@ def case_glide(run):
           f"{np.linalg.norm(v_expected):.3f} m/s, largest deviation {100 * err:.2f} %")
     check(bool(np.all(speed > 0.45)), "the part glides at 0.5 m/s (over 0.45 m/s throughout)")
     check(err < 0.02, f"and keeps J/m within 2 % ({100 * err:.2f} %)")
-    # On the elastic arm pooled since the deflection's acceleration lost its half-step bias
-    # (proto/loop.md, "The deflection's acceleration": 1.20-1.86x torque, worst axis 1.41-2.20x on
-    # seeds 11-15).
-    contact_noise(run, t0, t1, "moving", hold_elastic="pooled")
+    # On the elastic arm every axis since the arm carries the push as it carries the weight
+    # (proto/loop.md, "The push loads the arm": worst axis 1.51-1.98x on seeds 11-15; pooled
+    # before, 1.49-2.30x on the arm loaded by the weight alone).
+    contact_noise(run, t0, t1, "moving", hold_elastic=True)
 
 
 def free_window(run):

@@ -831,6 +831,29 @@ JointVector payload_load(const JointVector& link_q_rad, const Eigen::Matrix3d& R
   return tau;
 }
 
+namespace {
+
+// The elastic arm's static sag at the run's start, under the load it changes (three passes);
+// returns that load.
+JointVector settle_at_start(const RigSimulator& sim, ElasticArm& arm) {
+  const SimConfig& c = sim.config();
+  const JointState start = sim.trajectory().at(0.0);
+  std::array<ExternalWrench, 8> pushes;
+  const std::span<const ExternalWrench> at_start(pushes.data(),
+                                                 active_pushes(c.contacts, 0.0, pushes));
+  JointVector load{};
+  for (int pass = 0; pass < 3; ++pass) {
+    JointState link = start;
+    for (std::size_t i = 0; i < 6; ++i) link.q_rad[i] += arm.deflection_rad()[i];
+    load =
+        payload_load(link.q_rad, sim.measure(link, link, 0.0, at_start).R_base_sensor, c, at_start);
+    arm.settle(0.0, load);
+  }
+  return load;
+}
+
+}  // namespace
+
 SimOutput RigSimulator::run(const std::function<void(double)>& progress) const {
   const SimConfig& c = config_;
   double t_end = trajectory_.duration_s();
@@ -872,19 +895,7 @@ SimOutput RigSimulator::run(const std::function<void(double)>& progress) const {
   // and the controller's pose report the motor side.
   ElasticArm arm(c.elastic);
   JointVector load{};
-  if (c.elastic.enabled) {
-    const JointState start = trajectory_.at(0.0);
-    std::array<ExternalWrench, 8> pushes;
-    const std::span<const ExternalWrench> at_start(pushes.data(),
-                                                   active_pushes(c.contacts, 0.0, pushes));
-    for (int pass = 0; pass < 3; ++pass) {  // the static sag under the load it changes
-      JointState link = start;
-      for (std::size_t i = 0; i < 6; ++i) link.q_rad[i] += arm.deflection_rad()[i];
-      load =
-          payload_load(link.q_rad, measure(link, link, 0.0, at_start).R_base_sensor, c, at_start);
-      arm.settle(0.0, load);
-    }
-  }
+  if (c.elastic.enabled) load = settle_at_start(*this, arm);
   // IMU bias instability: a first-order Gauss–Markov process per axis (NoiseConfig).
   ImuBias bias(c.noise, c.period_s, noise);
   for (std::size_t k = 0; k < n; ++k) {
