@@ -728,8 +728,9 @@ def speed_fused(b):
     verdict = "within it" if max(fused) < aim else "**not within it**"
     return (
         f"**The cycle with the motion estimator** (`[filter] motion = \"fused\"` on the elastic "
-        f"KR 210 with the servo model, [`proto/loop.md`](../proto/loop.md)): `loop_bench`'s "
-        f"`BM_CycleStepFused` against `BM_CycleStepSi`, the same cycle with the IMU path, in the "
+        f"KR 210 with the servo model and the contact's tare, [`proto/loop.md`](../proto/loop.md)): "
+        f"`loop_bench`'s `BM_CycleStepFused` against `BM_CycleStepSi`, the same cycle with the IMU "
+        f"path, in the "
         f"same run ({b.context('loop_bench', 'build')} build, {b.context('loop_bench', 'date')[:10]}): "
         f"{ns(fused[0])} against {ns(today[0])} with the physics model "
         f"(**{ratio(fused[0] / today[0])}**), {ns(fused[1])} against {ns(today[1])} with the "

@@ -9,7 +9,8 @@
 // (Cycle::step(RobotSample, RobotCorrection&): the cycle alone, conversions excluded, as in
 // zerog-rt where rtio converts). BM_CycleStepFused/0,1: as BM_CycleStepSi with the motion estimator
 // ([filter] motion = "fused") on the elastic KR 210 (its deflection stepped every cycle, the servo
-// model fed every cycle's correction, proto/loop.md "Motion estimator"): its cost is the ratio to
+// model fed every cycle's correction, proto/loop.md "Motion estimator"; the contact's tare on, as
+// in the elastic HIL cases: the alternating pushes restart it): its cost is the ratio to
 // BM_CycleStepSi of the same run.
 #include <benchmark/benchmark.h>
 
@@ -75,6 +76,7 @@ void cycle_step(benchmark::State& state, bool si, bool fused = false) {
     robot::RobotModel arm = formats::kr210_r2700();
     for (int i = 0; i < 6; ++i) arm.elasticity[i] = {1e6, 8.0, 0.05};
     config.robot = arm;
+    config.tare_s = 1.5;  // [filter] tare_s, as the elastic HIL cases
   }
   loop::Cycle cycle;
   if (!cycle.configure(config, make_model(kind)).ok()) std::abort();
