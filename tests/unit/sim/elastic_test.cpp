@@ -17,6 +17,20 @@
 namespace zerog::sim {
 namespace {
 
+// The work F·dp + M·dθ of a force F at a point fixed on the flange (`point_flange_m`, flange
+// frame) and a torque M, for joint i's central step from q − h to q + h (h = 1e-5 rad).
+double virtual_work(const JointVector& q, std::size_t i, const Eigen::Vector3d& F,
+                    const Eigen::Vector3d& M, const Eigen::Vector3d& point_flange_m) {
+  constexpr double h = 1e-5;
+  JointVector lo = q, hi = q;
+  lo[i] -= h;
+  hi[i] += h;
+  const robot::Pose a = robot::flange_pose(kr210(), lo), b = robot::flange_pose(kr210(), hi);
+  const Eigen::AngleAxisd turn(b.R * a.R.transpose());
+  const Eigen::Vector3d dp = (b.p_m + b.R * point_flange_m) - (a.p_m + a.R * point_flange_m);
+  return F.dot(dp) + M.dot(turn.angle() * turn.axis());
+}
+
 // τ = Jᵀ w is the virtual work of the wrench: for a small joint step dq, τ·dq equals the work
 // F·dp + M·dθ of the flange's displacement.
 TEST(ElasticJointTorques, AreTheVirtualWorkOfTheFlangeWrench) {
@@ -29,15 +43,8 @@ TEST(ElasticJointTorques, AreTheVirtualWorkOfTheFlangeWrench) {
     const Eigen::Vector3d M(80 * u(rng), 80 * u(rng), 80 * u(rng));
     const JointVector tau = joint_torques(q, F, M);
     for (std::size_t i = 0; i < 6; ++i) {
-      // Central: from q − h to q + h along joint i.
-      constexpr double h = 1e-5;
-      JointVector lo = q, hi = q;
-      lo[i] -= h;
-      hi[i] += h;
-      const robot::Pose a = robot::flange_pose(kr210(), lo), b = robot::flange_pose(kr210(), hi);
-      const Eigen::AngleAxisd turn(b.R * a.R.transpose());
-      const double work = F.dot(b.p_m - a.p_m) + M.dot(turn.angle() * turn.axis());
-      EXPECT_NEAR(tau[i] * 2.0 * h, work, 1e-8 * std::abs(work) + 1e-10)
+      const double work = virtual_work(q, i, F, M, Eigen::Vector3d::Zero());
+      EXPECT_NEAR(tau[i] * 2e-5, work, 1e-8 * std::abs(work) + 1e-10)
           << "joint " << i + 1 << ", trial " << trial;
     }
   }
@@ -58,22 +65,11 @@ TEST(ElasticJointTorques, AWrenchOnThePayloadIsTheVirtualWorkOfItsPoint) {
     const Eigen::Vector3d F(60 * u(rng), 60 * u(rng), 60 * u(rng));
     const Eigen::Vector3d M(10 * u(rng), 10 * u(rng), 10 * u(rng));
     const Eigen::Vector3d point(0.3 * u(rng), 0.3 * u(rng), 0.2 + 0.2 * u(rng));
-    const auto point_base = [&](const JointVector& at) {
-      const robot::Pose f = robot::flange_pose(kr210(), at);
-      return Eigen::Vector3d(f.p_m + f.R * (p_flange_sensor + R_flange_sensor * point));
-    };
     const Eigen::Matrix3d R_base_sensor = robot::flange_pose(kr210(), q).R * R_flange_sensor;
     const JointVector tau = wrench_load(q, R_base_sensor, p_flange_sensor, F, point, M);
     for (std::size_t i = 0; i < 6; ++i) {
-      constexpr double h = 1e-5;
-      JointVector lo = q, hi = q;
-      lo[i] -= h;
-      hi[i] += h;
-      const robot::Pose a = robot::flange_pose(kr210(), lo), b = robot::flange_pose(kr210(), hi);
-      const Eigen::AngleAxisd turn(b.R * a.R.transpose());
-      const double work =
-          F.dot(point_base(hi) - point_base(lo)) + M.dot(turn.angle() * turn.axis());
-      EXPECT_NEAR(tau[i] * 2.0 * h, work, 1e-7 * std::abs(work) + 1e-10)
+      const double work = virtual_work(q, i, F, M, p_flange_sensor + R_flange_sensor * point);
+      EXPECT_NEAR(tau[i] * 2e-5, work, 1e-7 * std::abs(work) + 1e-10)
           << "joint " << i + 1 << ", trial " << trial;
     }
     // The same push given in S, and the weight beside it.
@@ -218,16 +214,21 @@ TEST(ElasticArm, SagsByTheLoadOverTheStiffnessAndRingsAtItsMode) {
 // side (the same path, quantised to the encoder's step), the clean log's joints the link side
 // (sagging by tenths of a milliradian under 100 kg), and the true model on the logged pose no
 // longer reaches the sensor floor while on the clean log's it does.
-TEST(RealRobot, LogsTheMotorSideAndMovesThePayloadWithTheLink) {
+// The four random poses both RealRobot runs follow.
+std::vector<JointVector> four_poses() {
   DesignOptions o;
   o.kind = DesignKind::random;
   o.points = 4;
   o.seed = 3;
+  return make_design(o).points_rad;
+}
+
+TEST(RealRobot, LogsTheMotorSideAndMovesThePayloadWithTheLink) {
   SimConfig rigid = default_sim_config(5);
   rigid.duration_limit_s = 30.0;
   SimConfig real = rigid;
   make_real_robot(real, true);
-  const auto points = make_design(o).points_rad;
+  const auto points = four_poses();
   const SimOutput a = RigSimulator(rigid, points).run();
   const SimOutput b = RigSimulator(real, points).run();
   ASSERT_EQ(a.log.samples.size(), b.log.samples.size());
@@ -251,10 +252,6 @@ TEST(RealRobot, LogsTheMotorSideAndMovesThePayloadWithTheLink) {
 // link side of the run with a 150 N push held over it differs from the run without by the push's
 // own sag, τ_push/k at each row (quasi-static: the path and its ringing are the same in both).
 TEST(RealRobot, AContactLoadsTheArmAsTheWeightDoes) {
-  DesignOptions o;
-  o.kind = DesignKind::random;
-  o.points = 4;
-  o.seed = 3;
   SimConfig plain = default_sim_config(5);
   plain.duration_limit_s = 20.0;
   make_real_robot(plain, false);
@@ -265,7 +262,7 @@ TEST(RealRobot, AContactLoadsTheArmAsTheWeightDoes) {
   k.base_frame = true;
   k.wrench << 60.0, 120.0, -60.0, 0.0, 0.0, 15.0;
   pushed.contacts = {k};
-  const auto points = make_design(o).points_rad;
+  const auto points = four_poses();
   const RigSimulator sim(plain, points);
   const SimOutput a = sim.run();
   const SimOutput b = RigSimulator(pushed, points).run();
