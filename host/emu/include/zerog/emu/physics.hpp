@@ -79,11 +79,10 @@ class PayloadPhysics {
 
   /// One physics step at t = step count / rate for the servo's (motor-side) joint state `js`:
   /// with SimConfig::elastic on, moves the link side by one step of the elastic arm
-  /// (sim/elastic.hpp, loaded by the payload's weight and the pushes active, sim::payload_load)
-  /// and evaluates the payload on it; keeps the
-  /// joint history the IMU time offset needs, evaluates, adds seeded F/T white noise
-  /// (SimConfig::noise force_N, torque_Nm per sample) and integrates the pushes. Call once per
-  /// step, in order. Does not allocate.
+  /// (sim/elastic.hpp, loaded by the payload's weight and the active pushes, sim::payload_load)
+  /// and evaluates the payload on it; keeps the joint history the IMU time offset needs,
+  /// evaluates, adds seeded F/T white noise (SimConfig::noise force_N, torque_Nm per sample) and
+  /// integrates the pushes. Call once per step, in order. Does not allocate.
   PhysicsSample step(const sim::JointState& js);
   std::uint64_t steps() const { return steps_; }
   /// One entry per push, in scenario order.
