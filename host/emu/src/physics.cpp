@@ -80,12 +80,16 @@ std::size_t PayloadPhysics::active_pushes(double t_s, ActivePushes& active) cons
 PhysicsSample PayloadPhysics::evaluate(const sim::JointState& js, const sim::JointState& js_imu,
                                        double t_s) const {
   ActivePushes active;
-  const std::size_t n = active_pushes(t_s, active);
+  return evaluate(js, js_imu, t_s, {active.data(), active_pushes(t_s, active)});
+}
+
+PhysicsSample PayloadPhysics::evaluate(const sim::JointState& js, const sim::JointState& js_imu,
+                                       double t_s,
+                                       std::span<const sim::ExternalWrench> active) const {
   const Eigen::Vector3d& com = simulator_.config().payload.com_sensor_m;
   PhysicsSample out;
-  out.truth =
-      simulator_.measure(js, js_imu, t_s, std::span<const sim::ExternalWrench>(active.data(), n));
-  for (std::size_t i = 0; i < n; ++i) {
+  out.truth = simulator_.measure(js, js_imu, t_s, active);
+  for (std::size_t i = 0; i < active.size(); ++i) {
     const Eigen::Vector3d lever_base_m = out.truth.R_base_sensor * (active[i].point_sensor_m - com);
     out.push_force_base_N += active[i].force_base_N;
     out.push_torque_com_base_Nm +=
@@ -108,8 +112,8 @@ PhysicsSample PayloadPhysics::step(const sim::JointState& js) {
       for (int pass = 0; pass < 3; ++pass) {
         sim::JointState sagged = js;
         for (std::size_t i = 0; i < 6; ++i) sagged.q_rad[i] += arm_.deflection_rad()[i];
-        load_ = sim::payload_load(sagged.q_rad, evaluate(sagged, sagged, t_s).truth.R_base_sensor,
-                                  c, now);
+        load_ = sim::payload_load(sagged.q_rad,
+                                  evaluate(sagged, sagged, t_s, now).truth.R_base_sensor, c, now);
         arm_.settle(t_s, load_);
       }
       settled_ = true;
@@ -121,7 +125,7 @@ PhysicsSample PayloadPhysics::step(const sim::JointState& js) {
   // The state delay_steps_ ago (the first state until there is one that old).
   const std::uint64_t back = steps_ >= delay_steps_ ? steps_ - delay_steps_ : 0;
   const sim::JointState& js_imu = history_[back % n];
-  PhysicsSample s = evaluate(link, js_imu, t_s);
+  PhysicsSample s = evaluate(link, js_imu, t_s, now);
   if (arm_.enabled()) load_ = sim::payload_load(link.q_rad, s.truth.R_base_sensor, c, now);
   const sim::NoiseConfig& noise = c.noise;
   for (int i = 0; i < 6; ++i)

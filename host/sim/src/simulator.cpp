@@ -821,13 +821,18 @@ JointVector payload_load(const JointVector& link_q_rad, const Eigen::Matrix3d& R
                          const SimConfig& c, std::span<const ExternalWrench> pushes) {
   JointVector tau = weight_load(link_q_rad, R_base_sensor, c.p_flange_sensor_m,
                                 c.payload.com_sensor_m, c.payload.mass_kg);
+  if (pushes.empty()) return tau;
+  // The pushes as one wrench at the S origin (B axes), then one Jᵀ.
+  Eigen::Vector3d force = Eigen::Vector3d::Zero(), torque = Eigen::Vector3d::Zero();
   for (const ExternalWrench& w : pushes) {
-    const JointVector push =
-        wrench_load(link_q_rad, R_base_sensor, c.p_flange_sensor_m,
-                    w.force_base_N + R_base_sensor * w.force_sensor_N, w.point_sensor_m,
-                    w.torque_base_Nm + R_base_sensor * w.torque_sensor_Nm);
-    for (std::size_t i = 0; i < tau.size(); ++i) tau[i] += push[i];
+    const Eigen::Vector3d f = w.force_base_N + R_base_sensor * w.force_sensor_N;
+    force += f;
+    torque += (R_base_sensor * w.point_sensor_m).cross(f) + w.torque_base_Nm +
+              R_base_sensor * w.torque_sensor_Nm;
   }
+  const JointVector push = wrench_load(link_q_rad, R_base_sensor, c.p_flange_sensor_m, force,
+                                       Eigen::Vector3d::Zero(), torque);
+  for (std::size_t i = 0; i < tau.size(); ++i) tau[i] += push[i];
   return tau;
 }
 

@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <optional>
 #include <random>
+#include <span>
 #include <vector>
 
 #include "zerog/sim/simulator.hpp"
@@ -93,6 +94,9 @@ class PayloadPhysics {
   /// The pushes active at t_s as external wrenches (at their point, or the centre of mass) into
   /// `active`; returns how many.
   std::size_t active_pushes(double t_s, ActivePushes& active) const;
+  /// evaluate() with the pushes active at t_s already listed (step() lists them once).
+  PhysicsSample evaluate(const sim::JointState& js, const sim::JointState& js_imu, double t_s,
+                         std::span<const sim::ExternalWrench> active) const;
   sim::RigSimulator simulator_;
   std::vector<Push> pushes_;
   double rate_hz_;
